@@ -1,0 +1,71 @@
+//! # ferrobot-protocol
+//!
+//! Everything that crosses a wire in Ferrobot, for both ends of the wire:
+//!
+//! * [`messages`]: the host ⇄ firmware message set ([`HostMsg`], [`DeviceMsg`]), SI units, `f32`.
+//! * [`frame`]: framing of those messages: a postcard body, a CRC-32C, COBS and a `0x00`
+//!   delimiter. The frame adds **exactly 6 bytes** to the postcard body (4 CRC, 1 COBS code
+//!   byte, 1 delimiter) for every body up to [`MAX_BODY`] bytes; the sequence number and the
+//!   message kind travel inside the body. No frame on the wire is longer than [`MAX_WIRE`].
+//! * [`dxl`]: a Dynamixel Protocol 2.0 codec (instruction and status packets, byte stuffing,
+//!   CRC-16/UMTS), plus the X-series control-table facts both the firmware and the simulated
+//!   servos need.
+//!
+//! The crate is `no_std` and never allocates; no decoder panics on any input (property tests
+//! and cargo-fuzz targets exercise that).
+#![no_std]
+#![forbid(unsafe_code)]
+#![cfg_attr(
+    not(test),
+    deny(
+        clippy::unwrap_used,
+        clippy::expect_used,
+        clippy::panic,
+        clippy::indexing_slicing
+    )
+)]
+#![warn(missing_docs)]
+
+pub mod dxl;
+pub mod frame;
+pub mod messages;
+
+pub use frame::{encode_frame, Frame, FrameDecoder, FrameError, FrameStats};
+pub use messages::*;
+
+/// Version of the host ⇄ firmware protocol. Bumped on every incompatible change.
+pub const PROTOCOL_VERSION: u16 = 1;
+
+/// Largest postcard body (sequence number plus message) a frame may carry, in bytes.
+///
+/// Chosen so that body + CRC stays below 254 bytes, where COBS adds exactly one byte.
+pub const MAX_BODY: usize = 247;
+
+/// Bytes the framing adds to a postcard body: CRC-32C (4), COBS code byte (1), delimiter (1).
+pub const FRAME_OVERHEAD: usize = 6;
+
+/// Largest frame on the wire, delimiter included, in bytes.
+pub const MAX_WIRE: usize = MAX_BODY + FRAME_OVERHEAD;
+
+/// Most joints (servo-driven degrees of freedom, gripper and pan-tilt included) a robot has.
+pub const MAX_JOINTS: usize = 12;
+
+/// A hash of the message definitions: any edit to `messages.rs` changes it. Exchanged in the
+/// handshake, so a host and a firmware built from different message sets refuse each other
+/// even when someone forgot to bump [`PROTOCOL_VERSION`].
+pub const SCHEMA_HASH: u32 = fnv1a32(include_bytes!("messages.rs"));
+
+/// FNV-1a, 32 bit, usable in `const` context.
+pub const fn fnv1a32(bytes: &[u8]) -> u32 {
+    let mut hash: u32 = 0x811c_9dc5;
+    let mut i = 0;
+    while i < bytes.len() {
+        // Index is in bounds: `i < bytes.len()` is the loop condition.
+        #[allow(clippy::indexing_slicing)]
+        let b = bytes[i];
+        hash ^= b as u32;
+        hash = hash.wrapping_mul(0x0100_0193);
+        i += 1;
+    }
+    hash
+}
