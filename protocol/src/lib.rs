@@ -7,6 +7,9 @@
 //!   delimiter. The frame adds **exactly 6 bytes** to the postcard body (4 CRC, 1 COBS code
 //!   byte, 1 delimiter) for every body up to [`MAX_BODY`] bytes; the sequence number and the
 //!   message kind travel inside the body. No frame on the wire is longer than [`MAX_WIRE`].
+//! * [`kobuki`] and [`create2`]: the wire formats of the two mobile bases (Kobuki serial
+//!   protocol, iRobot Create 2 Open Interface), shared by the firmware's drivers and the
+//!   simulated bases.
 //! * [`dxl`]: a Dynamixel Protocol 2.0 codec (instruction and status packets, byte stuffing,
 //!   CRC-16/UMTS), plus the X-series control-table facts both the firmware and the simulated
 //!   servos need.
@@ -26,8 +29,10 @@
 )]
 #![warn(missing_docs)]
 
+pub mod create2;
 pub mod dxl;
 pub mod frame;
+pub mod kobuki;
 pub mod messages;
 
 pub use frame::{encode_frame, Frame, FrameDecoder, FrameError, FrameStats};

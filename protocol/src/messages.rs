@@ -130,6 +130,11 @@ pub struct JointConfig {
     pub limits: JointLimits,
     /// Firmware joint PID (current mode).
     pub pid: PidGains,
+    /// Position mode: gain (1/s) of the firmware's integrator that shifts the servo's goal
+    /// until the measured position meets the reference (removes the sag a P-only servo loop
+    /// leaves under gravity); it runs only while the joint holds a settled reference, and its
+    /// correction is bounded to ±0.2 rad. 0 disables it.
+    pub position_ki: f32,
     /// Servo-internal gains and profile.
     pub servo: ServoGains,
 }

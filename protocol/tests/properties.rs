@@ -62,6 +62,7 @@ fn joint_config() -> impl Strategy<Value = JointConfig> {
                     offset,
                     limits,
                     pid,
+                    position_ki: offset,
                     servo: ServoGains {
                         pos_p: g[0],
                         pos_i: g[1],

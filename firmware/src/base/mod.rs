@@ -1,0 +1,399 @@
+//! Mobile-base driver: Kobuki serial protocol or Create 2 Open Interface behind one interface.
+//!
+//! It sends the commanded body velocity every feedback period (and at once when it changes),
+//! parses feedback, integrates odometry from encoder ticks (wrap-around handled), reports
+//! bumper, cliff and wheel-drop, and stops the base by itself when a safety sensor fires, a
+//! command's duration runs out, or the base goes silent.
+
+pub mod odometry;
+
+use ferrobot_protocol::{base_flags, create2, kobuki, BaseKind, RejectReason, WheelData};
+use heapless::Vec;
+
+use crate::config::BaseConfig;
+use odometry::OdometryIntegrator;
+
+/// Events the firmware reports.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BaseEvent {
+    /// Safety bits newly set ([`base_flags`]).
+    Safety(u16),
+    /// No feedback within the timeout.
+    Lost,
+    /// Feedback again.
+    Recovered,
+}
+
+enum Proto {
+    None,
+    Kobuki(kobuki::Parser),
+    Create2 {
+        parser: create2::StreamParser,
+        next_start: u64,
+    },
+}
+
+/// Base counters.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct BaseStats {
+    /// Feedback packets.
+    pub packets: u32,
+    /// Dropped packets.
+    pub bad_packets: u32,
+}
+
+/// The base driver.
+pub struct BaseDriver {
+    /// Geometry.
+    pub cfg: BaseConfig,
+    proto: Proto,
+    /// Odometry.
+    pub odom: OdometryIntegrator,
+    /// Wheel data.
+    pub wheels: WheelData,
+    /// Current [`base_flags`].
+    pub flags: u16,
+    cmd: (f32, f32),
+    cmd_until: u64,
+    sent: Option<(f32, f32)>,
+    next_send: u64,
+    last_enc: Option<(i32, i32)>,
+    last_rx: Option<u64>,
+    /// Whether feedback is missing.
+    pub lost: bool,
+    tx: Vec<u8, 128>,
+    events: Vec<BaseEvent, 8>,
+    /// Counters.
+    pub stats: BaseStats,
+}
+
+impl BaseDriver {
+    /// A driver for `cfg`.
+    pub fn new(cfg: BaseConfig) -> Self {
+        let proto = match cfg.kind {
+            BaseKind::Kobuki => Proto::Kobuki(kobuki::Parser::new()),
+            BaseKind::Create2 => Proto::Create2 {
+                parser: create2::StreamParser::new(),
+                next_start: 0,
+            },
+            _ => Proto::None,
+        };
+        Self {
+            cfg,
+            proto,
+            odom: OdometryIntegrator::default(),
+            wheels: WheelData::default(),
+            flags: 0,
+            cmd: (0.0, 0.0),
+            cmd_until: 0,
+            sent: None,
+            next_send: 0,
+            last_enc: None,
+            last_rx: None,
+            lost: false,
+            tx: Vec::new(),
+            events: Vec::new(),
+            stats: BaseStats::default(),
+        }
+    }
+
+    /// Whether there is a base.
+    pub fn present(&self) -> bool {
+        !matches!(self.proto, Proto::None)
+    }
+
+    fn period_us(&self) -> u64 {
+        match self.proto {
+            Proto::Create2 { .. } => create2::STREAM_PERIOD_US,
+            _ => 20_000,
+        }
+    }
+
+    /// Command a body velocity (`v` m/s, `w` rad/s) for `duration_ms`.
+    pub fn set_velocity(
+        &mut self,
+        now: u64,
+        v: f32,
+        w: f32,
+        duration_ms: u16,
+    ) -> Result<(), RejectReason> {
+        if !self.present() {
+            return Err(RejectReason::NoBase);
+        }
+        if !v.is_finite() || !w.is_finite() {
+            return Err(RejectReason::NotFinite);
+        }
+        if self.flags & (base_flags::ANY_CLIFF | base_flags::ANY_WHEEL_DROP) != 0
+            && (v != 0.0 || w != 0.0)
+        {
+            return Err(RejectReason::BaseSafety);
+        }
+        if self.flags & base_flags::ANY_BUMPER != 0 && v > 0.0 {
+            return Err(RejectReason::BaseSafety);
+        }
+        self.cmd = self.limit(v, w);
+        self.cmd_until = now + duration_ms as u64 * 1000;
+        self.next_send = now; // send at once
+        Ok(())
+    }
+
+    /// Scale (v, w) so that neither wheel exceeds the base's top speed.
+    fn limit(&self, v: f32, w: f32) -> (f32, f32) {
+        let half = 0.5 * self.cfg.track;
+        let peak = (v - w * half).abs().max((v + w * half).abs());
+        if peak > self.cfg.max_wheel_speed && peak > 0.0 {
+            let k = self.cfg.max_wheel_speed / peak;
+            (v * k, w * k)
+        } else {
+            (v, w)
+        }
+    }
+
+    /// Stop at once.
+    pub fn stop(&mut self, now: u64) {
+        self.cmd = (0.0, 0.0);
+        self.cmd_until = now;
+        self.next_send = now;
+    }
+
+    /// The velocity currently commanded (v m/s, w rad/s).
+    pub fn commanded(&self) -> (f32, f32) {
+        self.cmd
+    }
+
+    /// Bytes waiting for the base.
+    pub fn pending_tx(&self) -> &[u8] {
+        &self.tx
+    }
+
+    /// The shell sent the first `n` pending bytes.
+    pub fn consume_tx(&mut self, n: usize) {
+        let n = n.min(self.tx.len());
+        self.tx.copy_within(n.., 0);
+        self.tx.truncate(self.tx.len() - n);
+    }
+
+    /// Take the next event.
+    pub fn pop_event(&mut self) -> Option<BaseEvent> {
+        if self.events.is_empty() {
+            None
+        } else {
+            Some(self.events.remove(0))
+        }
+    }
+
+    /// When `poll` must run next.
+    pub fn deadline(&self) -> u64 {
+        let mut d = self.next_send;
+        if self.cmd != (0.0, 0.0) {
+            d = d.min(self.cmd_until);
+        }
+        if let Some(t) = self.last_rx {
+            if !self.lost {
+                d = d.min(t + self.cfg.feedback_timeout_us);
+            }
+        }
+        if let Proto::Create2 { next_start, .. } = self.proto {
+            if self.last_rx.is_none() || self.lost {
+                d = d.min(next_start);
+            }
+        }
+        d
+    }
+
+    /// Timers: command expiry, periodic send, loss of feedback.
+    pub fn poll(&mut self, now: u64) {
+        if !self.present() {
+            self.next_send = u64::MAX;
+            return;
+        }
+        if self.cmd != (0.0, 0.0) && now >= self.cmd_until {
+            self.cmd = (0.0, 0.0);
+            self.next_send = now;
+        }
+        if let Some(t) = self.last_rx {
+            if !self.lost && now >= t + self.cfg.feedback_timeout_us {
+                self.lost = true;
+                let _ = self.events.push(BaseEvent::Lost);
+            }
+        }
+        if let Proto::Create2 { next_start, .. } = &mut self.proto {
+            if (self.last_rx.is_none() || self.lost) && now >= *next_start {
+                *next_start = now + 500_000;
+                let mut start: Vec<u8, 16> = Vec::new();
+                let _ = start.extend_from_slice(&[
+                    create2::OP_START,
+                    create2::OP_SAFE,
+                    create2::OP_STREAM,
+                ]);
+                let _ = start.push(create2::STREAM_IDS.len() as u8);
+                let _ = start.extend_from_slice(&create2::STREAM_IDS);
+                let _ = self.tx.extend_from_slice(&start);
+            }
+        }
+        if now >= self.next_send {
+            self.send_command();
+            self.next_send = now + self.period_us();
+        }
+    }
+
+    fn send_command(&mut self) {
+        let (v, w) = self.cmd;
+        match self.proto {
+            Proto::Kobuki(_) => {
+                let (speed, radius) = kobuki::speed_radius(v, w, self.cfg.track);
+                let mut b = [0u8; 16];
+                if let Some(n) = kobuki::encode_base_control(speed, radius, &mut b) {
+                    let _ = self.tx.extend_from_slice(b.get(..n).unwrap_or(&[]));
+                }
+            }
+            Proto::Create2 { .. } => {
+                let half = 0.5 * self.cfg.track;
+                let mm = |x: f32| (x * 1000.0).clamp(-500.0, 500.0) as i16;
+                let cmd = create2::drive_direct(mm(v + w * half), mm(v - w * half));
+                let _ = self.tx.extend_from_slice(&cmd);
+            }
+            Proto::None => {}
+        }
+        self.sent = Some((v, w));
+    }
+
+    /// Bytes from the base.
+    pub fn on_bytes(&mut self, now: u64, bytes: &[u8]) {
+        for &b in bytes {
+            let fb: Option<(i32, i32, u16, bool)> = match &mut self.proto {
+                Proto::Kobuki(p) => match p.push(b) {
+                    Some(Ok(payload)) => {
+                        let mut out = None;
+                        for (id, data) in kobuki::sub_payloads(payload) {
+                            if id == kobuki::FB_BASIC_SENSOR_DATA {
+                                if let Some(d) = kobuki::BasicSensorData::from_bytes(data) {
+                                    out = Some((
+                                        d.left_encoder as i32,
+                                        d.right_encoder as i32,
+                                        kobuki_flags(&d),
+                                        true,
+                                    ));
+                                }
+                            }
+                        }
+                        out
+                    }
+                    Some(Err(_)) => {
+                        self.stats.bad_packets += 1;
+                        None
+                    }
+                    None => None,
+                },
+                Proto::Create2 { parser, .. } => match parser.push(b) {
+                    Some(Ok(s)) => Some((
+                        s.left_encoder as u16 as i32,
+                        s.right_encoder as u16 as i32,
+                        create2_flags(&s),
+                        true,
+                    )),
+                    Some(Err(_)) => {
+                        self.stats.bad_packets += 1;
+                        None
+                    }
+                    None => None,
+                },
+                Proto::None => None,
+            };
+            if let Some((l, r, flags, _)) = fb {
+                self.on_feedback(now, l, r, flags);
+            }
+        }
+    }
+
+    fn on_feedback(&mut self, now: u64, left: i32, right: i32, flags: u16) {
+        self.stats.packets += 1;
+        let dt = self
+            .last_rx
+            .map(|t| now.saturating_sub(t) as f32 * 1e-6)
+            .unwrap_or(0.0);
+        self.last_rx = Some(now);
+        if self.lost {
+            self.lost = false;
+            let _ = self.events.push(BaseEvent::Recovered);
+        }
+        if let Some((l0, r0)) = self.last_enc {
+            // 16-bit counters: the wrapped difference is the travel.
+            let dl_ticks = (left.wrapping_sub(l0) as u16) as i16 as f32;
+            let dr_ticks = (right.wrapping_sub(r0) as u16) as i16 as f32;
+            let k = self.cfg.rad_per_tick();
+            let (al, ar) = (dl_ticks * k, dr_ticks * k);
+            self.wheels.left += al;
+            self.wheels.right += ar;
+            if dt > 0.0 {
+                self.wheels.left_rate = al / dt;
+                self.wheels.right_rate = ar / dt;
+            }
+            let rw = self.cfg.wheel_radius;
+            self.odom.update(al * rw, ar * rw, self.cfg.track, dt);
+        }
+        self.last_enc = Some((left, right));
+        let rising = flags & !self.flags;
+        self.flags = flags;
+        if rising != 0 {
+            let _ = self.events.push(BaseEvent::Safety(rising));
+            // Stop unless the command only backs away from a bumper.
+            let backing = rising & !base_flags::ANY_BUMPER == 0 && self.cmd.0 < 0.0;
+            if !backing {
+                self.stop(now);
+            }
+        }
+    }
+}
+
+fn kobuki_flags(d: &kobuki::BasicSensorData) -> u16 {
+    use ferrobot_protocol::kobuki::{bumper, cliff, wheel_drop};
+    let mut f = 0;
+    let map = [
+        (d.bumper & bumper::LEFT, base_flags::BUMPER_LEFT),
+        (d.bumper & bumper::CENTER, base_flags::BUMPER_CENTER),
+        (d.bumper & bumper::RIGHT, base_flags::BUMPER_RIGHT),
+        (d.cliff & cliff::LEFT, base_flags::CLIFF_LEFT),
+        (d.cliff & cliff::CENTER, base_flags::CLIFF_CENTER),
+        (d.cliff & cliff::RIGHT, base_flags::CLIFF_RIGHT),
+        (d.wheel_drop & wheel_drop::LEFT, base_flags::WHEEL_DROP_LEFT),
+        (
+            d.wheel_drop & wheel_drop::RIGHT,
+            base_flags::WHEEL_DROP_RIGHT,
+        ),
+    ];
+    for (bit, flag) in map {
+        if bit != 0 {
+            f |= flag;
+        }
+    }
+    f
+}
+
+fn create2_flags(s: &create2::Sensors) -> u16 {
+    use ferrobot_protocol::create2::bumps;
+    let mut f = 0;
+    if s.bumps_drops & bumps::BUMP_LEFT != 0 {
+        f |= base_flags::BUMPER_LEFT;
+    }
+    if s.bumps_drops & bumps::BUMP_RIGHT != 0 {
+        f |= base_flags::BUMPER_RIGHT;
+    }
+    if s.bumps_drops & bumps::DROP_LEFT != 0 {
+        f |= base_flags::WHEEL_DROP_LEFT;
+    }
+    if s.bumps_drops & bumps::DROP_RIGHT != 0 {
+        f |= base_flags::WHEEL_DROP_RIGHT;
+    }
+    let [l, fl, fr, r] = s.cliffs;
+    if l != 0 {
+        f |= base_flags::CLIFF_LEFT;
+    }
+    if fl != 0 || fr != 0 {
+        f |= base_flags::CLIFF_CENTER;
+    }
+    if r != 0 {
+        f |= base_flags::CLIFF_RIGHT;
+    }
+    f
+}

@@ -1,0 +1,340 @@
+//! Firmware configuration: the joint table, the base and the bus, and the built-in profiles
+//! of the bundled robots (the host can replace joint rows at run time).
+
+use ferrobot_protocol::{
+    BaseKind, JointConfig, JointKind, JointLimits, Name, PidGains, ServoGains, ServoModel,
+    MAX_JOINTS,
+};
+use heapless::Vec;
+
+/// Wheel geometry and encoder of a differential-drive base.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BaseConfig {
+    /// Which base.
+    pub kind: BaseKind,
+    /// Wheel radius, m.
+    pub wheel_radius: f32,
+    /// Distance between the wheels' contact points, m.
+    pub track: f32,
+    /// Encoder ticks per wheel revolution.
+    pub ticks_per_rev: f32,
+    /// Largest wheel speed the base accepts, m/s.
+    pub max_wheel_speed: f32,
+    /// Feedback silence after which the base counts as lost, µs.
+    pub feedback_timeout_us: u64,
+}
+
+impl BaseConfig {
+    /// No base.
+    pub const NONE: BaseConfig = BaseConfig {
+        kind: BaseKind::None,
+        wheel_radius: 0.0,
+        track: 0.0,
+        ticks_per_rev: 1.0,
+        max_wheel_speed: 0.0,
+        feedback_timeout_us: 0,
+    };
+
+    /// Yujin Kobuki: wheel separation 0.230 m, wheel radius 0.035 m, 2578.33 ticks per wheel
+    /// revolution (0.002436917 rad per tick), feedback at 50 Hz.
+    pub const KOBUKI: BaseConfig = BaseConfig {
+        kind: BaseKind::Kobuki,
+        wheel_radius: 0.035,
+        track: 0.230,
+        ticks_per_rev: 2578.33,
+        max_wheel_speed: 0.7,
+        feedback_timeout_us: 200_000,
+    };
+
+    /// iRobot Create 2: wheel diameter 72 mm and axle 235 mm as the Open Interface
+    /// specification gives them, 508.8 ticks per wheel revolution, 0.5 m/s top speed, sensor
+    /// stream every 15 ms.
+    pub const CREATE2: BaseConfig = BaseConfig {
+        kind: BaseKind::Create2,
+        wheel_radius: 0.036,
+        track: 0.235,
+        ticks_per_rev: 508.8,
+        max_wheel_speed: 0.5,
+        feedback_timeout_us: 200_000,
+    };
+
+    /// Wheel angle per encoder tick, rad.
+    pub fn rad_per_tick(&self) -> f32 {
+        core::f32::consts::TAU / self.ticks_per_rev
+    }
+}
+
+/// Gripper behaviour, in servo ticks and goal-PWM units (the LoCoBot driver's numbers).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GripperConfig {
+    /// Goal position when open, ticks.
+    pub open_tick: i32,
+    /// Below this present position the gripper is fully closed, ticks.
+    pub closed_tick: i32,
+    /// Goal PWM while closing (negative closes).
+    pub close_pwm: i16,
+    /// Goal PWM of the short kick when the load first exceeds the threshold.
+    pub kick_pwm: i16,
+    /// Goal PWM while holding an object or closed.
+    pub hold_pwm: i16,
+    /// Load (present-load units) above which an object is suspected.
+    pub load_threshold: i16,
+    /// Kick duration, µs.
+    pub kick_us: u64,
+    /// How long the load must persist after the kick to count as an object, µs.
+    pub persist_us: u64,
+    /// Ignore the load this long after closing starts (breakaway transient), µs.
+    pub grace_us: u64,
+    /// Within this many ticks of `open_tick` the gripper counts as open.
+    pub open_tolerance: i32,
+}
+
+impl GripperConfig {
+    /// The LoCoBot gripper: open at 2800 ticks, closed below 1800, PWM −500, kick −700 when
+    /// the load exceeds 500.
+    pub const LOCOBOT: GripperConfig = GripperConfig {
+        open_tick: 2800,
+        closed_tick: 1800,
+        close_pwm: -500,
+        kick_pwm: -700,
+        hold_pwm: -350,
+        load_threshold: 500,
+        kick_us: 50_000,
+        persist_us: 150_000,
+        grace_us: 100_000,
+        open_tolerance: 25,
+    };
+}
+
+/// Servo-bus timing used to size reply timeouts.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct BusConfig {
+    /// Time one byte takes on the bus, ns (10 bits per byte: 2500 ns at 4 Mbps).
+    pub byte_ns: u32,
+    /// Slack added to every reply timeout for the servo's processing and the shell's latency, µs.
+    pub reply_margin_us: u32,
+}
+
+impl BusConfig {
+    /// A bus at `baud` bit/s with a 150 µs reply margin.
+    pub const fn at_baud(baud: u32) -> Self {
+        BusConfig {
+            byte_ns: 10_000_000_000u64.div_ceil(baud as u64) as u32,
+            reply_margin_us: 150,
+        }
+    }
+
+    /// Time `n` bytes take on the bus, µs (rounded up).
+    pub fn bytes_us(&self, n: usize) -> u64 {
+        (n as u64 * self.byte_ns as u64).div_ceil(1000)
+    }
+}
+
+/// Everything the firmware core needs to start.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RobotProfile {
+    /// Robot name.
+    pub robot: Name,
+    /// Joint table.
+    pub joints: Vec<JointConfig, MAX_JOINTS>,
+    /// The base.
+    pub base: BaseConfig,
+    /// The gripper (used when a joint has kind [`JointKind::Gripper`]).
+    pub gripper: GripperConfig,
+    /// Servo bus.
+    pub bus: BusConfig,
+    /// Servo-loop period, µs.
+    pub loop_period_us: u32,
+    /// Host watchdog period, ms, armed at the first accepted Hello; 0 disables.
+    pub watchdog_ms: u16,
+    /// Telemetry period after the first accepted Hello, ms.
+    pub telemetry_ms: u16,
+}
+
+fn name(s: &str) -> Name {
+    let mut n = Name::new();
+    for c in s.chars() {
+        if n.push(c).is_err() {
+            break;
+        }
+    }
+    n
+}
+
+/// Default servo-internal gains of a model (ROBOTIS defaults) with no motion profile: the
+/// firmware streams interpolated setpoints every tick, so the servo must not add its own.
+pub fn default_servo_gains(model: ServoModel) -> ServoGains {
+    match model {
+        ServoModel::Xm430W350 => ServoGains {
+            pos_p: 800,
+            pos_i: 0,
+            pos_d: 0,
+            vel_p: 100,
+            vel_i: 1920,
+            profile_velocity: 0,
+            profile_acceleration: 0,
+        },
+        _ => ServoGains {
+            pos_p: 640,
+            pos_i: 0,
+            pos_d: 4000,
+            vel_p: 100,
+            vel_i: 1000,
+            profile_velocity: 0,
+            profile_acceleration: 0,
+        },
+    }
+}
+
+/// Build one joint row with the defaults of its model.
+#[allow(clippy::too_many_arguments)]
+pub fn joint(
+    joint_name: &str,
+    kind: JointKind,
+    model: ServoModel,
+    servo_id: u8,
+    twin_id: Option<u8>,
+    sign: i8,
+    limits: JointLimits,
+) -> JointConfig {
+    let pid = match model {
+        ServoModel::Xm430W350 => PidGains {
+            kp: 25.0,
+            ki: 20.0,
+            kd: 1.0,
+            i_limit: 1.0,
+        },
+        _ => PidGains {
+            kp: 8.0,
+            ki: 8.0,
+            kd: 0.25,
+            i_limit: 0.3,
+        },
+    };
+    JointConfig {
+        name: name(joint_name),
+        kind,
+        model,
+        servo_id,
+        twin_id,
+        sign,
+        offset: 0.0,
+        limits,
+        pid,
+        position_ki: if kind == JointKind::Gripper { 0.0 } else { 4.0 },
+        servo: default_servo_gains(model),
+    }
+}
+
+const fn lim(min: f32, max: f32, velocity: f32, effort: f32) -> JointLimits {
+    JointLimits {
+        min,
+        max,
+        velocity,
+        effort,
+    }
+}
+
+/// LoCoBot arm, gripper and pan-tilt (PyRobot's `dynamixels.yaml`): joint_1 = 1, joint_2 = 2
+/// with mirrored twin 3, joint_3 = 4, joint_4 = 5, joint_5 = 6 (joints 3-5 sign-inverted),
+/// gripper = 7, pan = 8, tilt = 9. Arm joints ±1.57 rad at 1 rad/s; pan −2.7…2.6 rad, tilt
+/// −1.4…1.75 rad.
+fn locobot_joints() -> Vec<JointConfig, MAX_JOINTS> {
+    use JointKind::*;
+    use ServoModel::*;
+    let arm = lim(-1.57, 1.57, 1.0, 3.5);
+    let wrist = lim(-1.57, 1.57, 1.0, 1.4);
+    let rows = [
+        joint("joint_1", Arm, Xm430W350, 1, None, 1, arm),
+        joint("joint_2", Arm, Xm430W350, 2, Some(3), 1, arm),
+        joint("joint_3", Arm, Xm430W350, 4, None, -1, arm),
+        joint("joint_4", Arm, Xm430W350, 5, None, -1, arm),
+        joint("joint_5", Arm, Xl430W250, 6, None, -1, wrist),
+        joint(
+            "gripper",
+            Gripper,
+            Xl430W250,
+            7,
+            None,
+            1,
+            lim(-1.2, 1.6, 3.0, 1.4),
+        ),
+        joint(
+            "head_pan_joint",
+            Head,
+            Xl430W250,
+            8,
+            None,
+            1,
+            lim(-2.7, 2.6, 1.0, 1.4),
+        ),
+        joint(
+            "head_tilt_joint",
+            Head,
+            Xl430W250,
+            9,
+            None,
+            1,
+            lim(-1.4, 1.75, 1.0, 1.4),
+        ),
+    ];
+    rows.into_iter().collect()
+}
+
+/// The LoCoBot (Kobuki base), servo bus at 4 Mbps, 1 kHz loop.
+pub fn locobot() -> RobotProfile {
+    RobotProfile {
+        robot: name("locobot"),
+        joints: locobot_joints(),
+        base: BaseConfig::KOBUKI,
+        gripper: GripperConfig::LOCOBOT,
+        bus: BusConfig::at_baud(4_000_000),
+        loop_period_us: 1000,
+        watchdog_ms: 500,
+        telemetry_ms: 20,
+    }
+}
+
+/// The LoCoBot-Lite: the LoCoBot's arm on an iRobot Create 2.
+pub fn locobot_lite() -> RobotProfile {
+    RobotProfile {
+        robot: name("locobot_lite"),
+        base: BaseConfig::CREATE2,
+        ..locobot()
+    }
+}
+
+/// A profile by robot name.
+pub fn by_name(robot: &str) -> Option<RobotProfile> {
+    match robot {
+        "locobot" => Some(locobot()),
+        "locobot_lite" => Some(locobot_lite()),
+        _ => None,
+    }
+}
+
+/// Check a joint row: sign ±1, finite values, ordered limits, positive rate limits.
+pub fn joint_is_valid(c: &JointConfig) -> bool {
+    let l = &c.limits;
+    let finite = [
+        l.min,
+        l.max,
+        l.velocity,
+        l.effort,
+        c.offset,
+        c.pid.kp,
+        c.pid.ki,
+        c.pid.kd,
+        c.pid.i_limit,
+        c.position_ki,
+    ]
+    .iter()
+    .all(|v| v.is_finite());
+    finite
+        && (c.sign == 1 || c.sign == -1)
+        && l.min <= l.max
+        && l.velocity > 0.0
+        && l.effort >= 0.0
+        && c.servo_id < 0xFD
+        && c.twin_id.is_none_or(|t| t < 0xFD && t != c.servo_id)
+}

@@ -1,0 +1,1011 @@
+//! # ferrobot-firmware
+//!
+//! The board-independent firmware core of Ferrobot, sans-IO in the manner of smoltcp: a
+//! [`Firmware`] is a pure state machine. A shell (a board's async tasks, a Linux process, or
+//! the lockstep simulator) feeds it bytes from its three links and the time, calls
+//! [`Firmware::poll`] no later than [`Firmware::next_deadline`], and sends what
+//! [`Firmware::pending`] holds. Nothing here blocks, allocates or panics: the crate denies
+//! `unwrap`, `expect`, `panic` and unchecked indexing outside tests.
+//!
+//! What it runs:
+//! * the servo-bus master ([`bus`]): configuration, one sync read and one sync write per tick,
+//!   lost servos and hardware errors reported and never stalling the loop;
+//! * joint control at the servo-loop rate ([`joint`]): cubic Hermite interpolation of queued
+//!   setpoints, the joint PID of current mode, limits enforced whatever the host sends;
+//! * the gripper state machine ([`gripper`]);
+//! * the base drivers and odometry ([`base`]);
+//! * safety: host watchdog, emergency stop, base safety sensors; every fault is reported.
+//!
+//! Time is a `u64` of microseconds from any epoch, never going backwards.
+#![no_std]
+#![forbid(unsafe_code)]
+#![cfg_attr(
+    not(test),
+    deny(
+        clippy::unwrap_used,
+        clippy::expect_used,
+        clippy::panic,
+        clippy::indexing_slicing
+    )
+)]
+#![warn(missing_docs)]
+
+pub mod base;
+pub mod bus;
+pub mod config;
+pub mod gripper;
+pub mod joint;
+
+use ferrobot_protocol::dxl::units;
+use ferrobot_protocol::{
+    encode_frame, fault_flags, DeviceInfo, DeviceMsg, Diagnostics, Fault, FaultKind, FrameDecoder,
+    GripperState, HostMsg, JointKind, JointMode, JointState, LoopStats, Name, RejectReason,
+    Telemetry, MAX_JOINTS, MAX_WIRE, PROTOCOL_VERSION, SCHEMA_HASH,
+};
+use heapless::Vec;
+
+use base::{BaseDriver, BaseEvent};
+use bus::{BusEvent, Goal, ServoBus, ServoStatus};
+pub use config::RobotProfile;
+use gripper::{Gripper, GripperDrive};
+use joint::{JointControl, JointOutput};
+
+/// Firmware version, major/minor/patch.
+pub const FIRMWARE_VERSION: [u8; 3] = [0, 1, 0];
+
+/// The three links of the firmware.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Link {
+    /// The host (USB CDC, UART, PTY, or in-process).
+    Host,
+    /// The Dynamixel servo bus.
+    Servo,
+    /// The mobile base.
+    Base,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Session {
+    None,
+    Accepted,
+    Refused,
+}
+
+/// Size of the host transmit buffer, bytes.
+pub const HOST_TX_LEN: usize = 4096;
+
+/// The firmware core.
+pub struct Firmware {
+    profile: RobotProfile,
+    board: Name,
+    joints: Vec<JointControl, MAX_JOINTS>,
+    bus: ServoBus,
+    base: BaseDriver,
+    gripper: Option<(usize, Gripper)>,
+    decoder: FrameDecoder,
+    host_tx: Vec<u8, HOST_TX_LEN>,
+    tx_seq: u16,
+    session: Session,
+    watchdog_ms: u16,
+    last_host_rx: u64,
+    watchdog_tripped: bool,
+    estop: bool,
+    telemetry_ms: u16,
+    next_telemetry: u64,
+    loop_period_us: u32,
+    next_tick: u64,
+    tick_started: u64,
+    loop_stats: LoopStats,
+    overrun_since_telemetry: bool,
+    host_tx_dropped: u32,
+    clamp_reported: u16,
+    lost_servos: u16,
+}
+
+impl Firmware {
+    /// A firmware for `profile` on board `board`, starting at time `now`.
+    pub fn new(profile: RobotProfile, board: &str, now: u64) -> Self {
+        let mut b = Name::new();
+        for c in board.chars() {
+            if b.push(c).is_err() {
+                break;
+            }
+        }
+        let bus = ServoBus::new(&profile.joints, profile.bus);
+        let base = BaseDriver::new(profile.base);
+        let mut fw = Self {
+            board: b,
+            joints: Vec::new(),
+            bus,
+            base,
+            gripper: None,
+            decoder: FrameDecoder::new(),
+            host_tx: Vec::new(),
+            tx_seq: 0,
+            session: Session::None,
+            watchdog_ms: 0,
+            last_host_rx: now,
+            watchdog_tripped: false,
+            estop: false,
+            telemetry_ms: 0,
+            next_telemetry: u64::MAX,
+            loop_period_us: profile.loop_period_us.max(250),
+            next_tick: now,
+            tick_started: now,
+            loop_stats: LoopStats::default(),
+            overrun_since_telemetry: false,
+            host_tx_dropped: 0,
+            clamp_reported: 0,
+            lost_servos: 0,
+            profile,
+        };
+        fw.rebuild_joints(now);
+        fw
+    }
+
+    fn rebuild_joints(&mut self, now: u64) {
+        self.joints.clear();
+        self.gripper = None;
+        for (j, c) in self.profile.joints.iter().enumerate() {
+            let mut jc = JointControl::new();
+            // Every joint starts in position mode holding where it is found; the gripper
+            // too, until it is told to open or close.
+            jc.set_mode(now, JointMode::Position);
+            let _ = self.joints.push(jc);
+            if c.kind == JointKind::Gripper && self.gripper.is_none() {
+                self.gripper = Some((j, Gripper::new(self.profile.gripper)));
+            }
+        }
+        self.bus.rebuild(&self.profile.joints);
+        self.apply_modes();
+    }
+
+    /// The profile in use (joint table as currently configured).
+    pub fn profile(&self) -> &RobotProfile {
+        &self.profile
+    }
+
+    /// The servo bus (for inspection).
+    pub fn bus(&self) -> &ServoBus {
+        &self.bus
+    }
+
+    /// The base driver (for inspection).
+    pub fn base(&self) -> &BaseDriver {
+        &self.base
+    }
+
+    /// Joint control states (for inspection).
+    pub fn joints(&self) -> &[JointControl] {
+        &self.joints
+    }
+
+    /// Whether the emergency stop is engaged.
+    pub fn estopped(&self) -> bool {
+        self.estop
+    }
+
+    /// Bytes waiting to go out on `link`.
+    pub fn pending(&self, link: Link) -> &[u8] {
+        match link {
+            Link::Host => &self.host_tx,
+            Link::Servo => self.bus.pending_tx(),
+            Link::Base => self.base.pending_tx(),
+        }
+    }
+
+    /// The shell sent the first `n` pending bytes of `link`.
+    pub fn consume(&mut self, link: Link, n: usize) {
+        match link {
+            Link::Host => {
+                let n = n.min(self.host_tx.len());
+                self.host_tx.copy_within(n.., 0);
+                self.host_tx.truncate(self.host_tx.len() - n);
+            }
+            Link::Servo => self.bus.consume_tx(n),
+            Link::Base => self.base.consume_tx(n),
+        }
+    }
+
+    /// The latest time by which [`Firmware::poll`] must run.
+    pub fn next_deadline(&self) -> u64 {
+        let mut d = if self.bus.read_done() {
+            0
+        } else if self.bus.is_idle() {
+            self.next_tick
+        } else {
+            self.bus.deadline().unwrap_or(self.next_tick)
+        };
+        d = d.min(self.base.deadline()).min(self.next_telemetry);
+        if let Some(w) = self.watchdog_deadline() {
+            d = d.min(w);
+        }
+        d
+    }
+
+    fn watchdog_deadline(&self) -> Option<u64> {
+        (self.session == Session::Accepted && self.watchdog_ms > 0 && !self.watchdog_tripped)
+            .then(|| self.last_host_rx + self.watchdog_ms as u64 * 1000)
+    }
+
+    /// Bytes from the host.
+    pub fn on_host_bytes(&mut self, now: u64, bytes: &[u8]) {
+        for &b in bytes {
+            if let Some(Ok(frame)) = self.decoder.push::<HostMsg>(b) {
+                self.last_host_rx = now;
+                self.watchdog_tripped = false;
+                self.handle(now, frame.seq, frame.msg);
+            }
+        }
+    }
+
+    /// Bytes from the servo bus.
+    pub fn on_servo_bytes(&mut self, now: u64, bytes: &[u8]) {
+        self.bus.on_bytes(now, bytes, &self.profile.joints);
+        self.drain_bus_events(now);
+        if self.bus.read_done() {
+            self.finish_tick(now);
+        }
+    }
+
+    /// Bytes from the base.
+    pub fn on_base_bytes(&mut self, now: u64, bytes: &[u8]) {
+        self.base.on_bytes(now, bytes);
+        self.drain_base_events(now);
+    }
+
+    /// Advance timers to `now`: servo-loop ticks, bus timeouts, base, watchdog, telemetry.
+    pub fn poll(&mut self, now: u64) {
+        if let Some(w) = self.watchdog_deadline() {
+            if now >= w {
+                self.trip_watchdog(now);
+            }
+        }
+        self.base.poll(now);
+        self.drain_base_events(now);
+        self.bus.poll(now);
+        self.drain_bus_events(now);
+        if self.bus.read_done() {
+            self.finish_tick(now);
+        }
+        if self.bus.is_idle() && now >= self.next_tick {
+            let period = self.loop_period_us as u64;
+            let late = now - self.next_tick;
+            if late >= period {
+                let skipped = (late / period) as u32;
+                self.loop_stats.overruns = self.loop_stats.overruns.saturating_add(skipped);
+                self.overrun_since_telemetry = true;
+            }
+            self.next_tick += period * (1 + late / period);
+            self.tick_started = now;
+            self.bus.begin_tick(now, &self.profile.joints);
+            self.drain_bus_events(now);
+            if self.bus.read_done() {
+                self.finish_tick(now);
+            }
+        }
+        if now >= self.next_telemetry {
+            self.send_telemetry(now);
+            let p = self.telemetry_ms as u64 * 1000;
+            self.next_telemetry = if p == 0 {
+                u64::MAX
+            } else {
+                self.next_telemetry.max(now - p.min(now)) + p
+            };
+            if self.next_telemetry <= now {
+                self.next_telemetry = now + p;
+            }
+        }
+    }
+
+    fn trip_watchdog(&mut self, now: u64) {
+        self.watchdog_tripped = true;
+        self.base.stop(now);
+        self.base.poll(now);
+        self.hold_all(now);
+        self.fault(now, FaultKind::Watchdog, None, None, 0);
+    }
+
+    fn hold_all(&mut self, now: u64) {
+        for j in self.joints.iter_mut() {
+            j.hold_here(now);
+        }
+        if let Some((_, g)) = self.gripper.as_mut() {
+            g.halt();
+        }
+    }
+
+    fn drain_bus_events(&mut self, now: u64) {
+        while let Some(e) = self.bus.pop_event() {
+            let (i, kind, code) = match e {
+                BusEvent::Lost(i) => (i, FaultKind::ServoLost, 0),
+                BusEvent::Recovered(i) => (i, FaultKind::ServoRecovered, 0),
+                BusEvent::HardwareError(i, bits) => (i, FaultKind::ServoHardware, bits as u16),
+                BusEvent::ConfigFailed(i) => (i, FaultKind::ServoConfig, 0),
+            };
+            let (joint, id) = self
+                .bus
+                .servos
+                .get(i as usize)
+                .map(|s| (Some(s.joint), Some(s.id)))
+                .unwrap_or((None, None));
+            if let Some(j) = joint.and_then(|j| self.joints.get_mut(j as usize)) {
+                j.hold_here(now);
+            }
+            self.fault(now, kind, joint, id, code);
+        }
+        self.lost_servos = self
+            .bus
+            .servos
+            .iter()
+            .enumerate()
+            .filter(|(_, s)| s.status == ServoStatus::Lost)
+            .fold(0u16, |m, (i, _)| m | (1u16 << (i as u32 % 16)));
+    }
+
+    fn drain_base_events(&mut self, now: u64) {
+        use ferrobot_protocol::base_flags as bf;
+        while let Some(e) = self.base.pop_event() {
+            match e {
+                BaseEvent::Safety(bits) => {
+                    let groups = [
+                        (bits & bf::ANY_BUMPER, FaultKind::Bumper),
+                        (bits & bf::ANY_CLIFF, FaultKind::Cliff),
+                        (bits & bf::ANY_WHEEL_DROP, FaultKind::WheelDrop),
+                    ];
+                    for (b, kind) in groups {
+                        if b != 0 {
+                            self.fault(now, kind, None, None, b);
+                        }
+                    }
+                }
+                BaseEvent::Lost => self.fault(now, FaultKind::BaseLost, None, None, 0),
+                BaseEvent::Recovered => self.fault(now, FaultKind::BaseRecovered, None, None, 0),
+            }
+        }
+    }
+
+    fn fault(
+        &mut self,
+        now: u64,
+        kind: FaultKind,
+        joint: Option<u8>,
+        servo_id: Option<u8>,
+        code: u16,
+    ) {
+        if self.session == Session::Accepted {
+            self.send(&DeviceMsg::Fault(Fault {
+                kind,
+                joint,
+                servo_id,
+                code,
+                time_us: now,
+            }));
+        }
+    }
+
+    fn send(&mut self, msg: &DeviceMsg) {
+        let mut buf = [0u8; MAX_WIRE];
+        match encode_frame(self.tx_seq, msg, &mut buf) {
+            Ok(n) => {
+                let bytes = buf.get(..n).unwrap_or(&[]);
+                if self.host_tx.extend_from_slice(bytes).is_ok() {
+                    self.tx_seq = self.tx_seq.wrapping_add(1);
+                } else {
+                    self.host_tx_dropped = self.host_tx_dropped.saturating_add(1);
+                }
+            }
+            Err(_) => self.host_tx_dropped = self.host_tx_dropped.saturating_add(1),
+        }
+    }
+
+    /// Measure, control, write goals.
+    fn finish_tick(&mut self, now: u64) {
+        let dt = self.loop_period_us as f32 * 1e-6;
+        self.measure(now);
+        let mut goals: Vec<Goal, { bus::MAX_SERVOS }> = Vec::new();
+        for _ in 0..self.bus.servos.len() {
+            let _ = goals.push(Goal::None);
+        }
+        for j in 0..self.joints.len() {
+            self.control_joint(now, dt, j, &mut goals);
+        }
+        self.apply_modes();
+        self.bus.finish_tick(&goals);
+        let took = now.saturating_sub(self.tick_started);
+        let s = &mut self.loop_stats;
+        s.ticks = s.ticks.wrapping_add(1);
+        s.worst_tick_us = s.worst_tick_us.max(took.min(u32::MAX as u64) as u32);
+        if took > self.loop_period_us as u64 {
+            s.overruns = s.overruns.saturating_add(1);
+            self.overrun_since_telemetry = true;
+        }
+    }
+
+    fn measure(&mut self, now: u64) {
+        let mut states: [Option<JointState>; MAX_JOINTS] = [None; MAX_JOINTS];
+        for s in self.bus.servos.iter() {
+            if !(s.fresh || (s.position_valid && !s.twin)) {
+                continue;
+            }
+            let Some(cfg) = self.profile.joints.get(s.joint as usize) else {
+                continue;
+            };
+            let Some(slot) = states.get_mut(s.joint as usize) else {
+                continue;
+            };
+            let sign = cfg.sign as f32;
+            let effort = cfg.model.spec().effort_from_register(s.present.current);
+            if s.twin {
+                if let Some(st) = slot.as_mut() {
+                    st.effort += -sign * effort;
+                }
+            } else {
+                let angle = units::tick_to_rad(s.present.position);
+                *slot = Some(JointState {
+                    position: sign * (angle - cfg.offset),
+                    velocity: sign * s.present.velocity as f32 * units::RAD_S_PER_VELOCITY_UNIT,
+                    effort: if s.fresh { sign * effort } else { 0.0 },
+                });
+                if !s.fresh {
+                    // Position read during configuration only.
+                    if let Some(st) = slot.as_mut() {
+                        st.velocity = 0.0;
+                    }
+                }
+            }
+        }
+        for (j, st) in states.iter().enumerate() {
+            let (Some(st), Some(jc)) = (st, self.joints.get_mut(j)) else {
+                continue;
+            };
+            let first = !jc.measured;
+            jc.state = *st;
+            jc.measured = true;
+            if first {
+                jc.hold_here(now);
+            }
+        }
+    }
+
+    fn servo_indices(&self, joint: usize) -> (Option<usize>, Option<usize>) {
+        let mut p = None;
+        let mut t = None;
+        for (i, s) in self.bus.servos.iter().enumerate() {
+            if s.joint as usize == joint {
+                if s.twin {
+                    t = Some(i);
+                } else {
+                    p = Some(i);
+                }
+            }
+        }
+        (p, t)
+    }
+
+    fn control_joint(&mut self, now: u64, dt: f32, j: usize, goals: &mut [Goal]) {
+        let Some(cfg) = self.profile.joints.get(j).cloned() else {
+            return;
+        };
+        let (p, t) = self.servo_indices(j);
+        let healthy = |i: Option<usize>| {
+            i.and_then(|i| self.bus.servos.get(i))
+                .is_some_and(|s| s.status == ServoStatus::Ok && s.hw_error == 0)
+        };
+        if !healthy(p) {
+            return;
+        }
+        let twin_ok = t.is_some() && healthy(t);
+        // The gripper state machine drives its servo directly, in servo units.
+        if let Some((gj, g)) = self.gripper.as_mut() {
+            if *gj == j && g.state != GripperState::Unknown {
+                let present = p
+                    .and_then(|i| self.bus.servos.get(i))
+                    .map(|s| s.present)
+                    .unwrap_or_default();
+                let drive = g.tick(now, &present);
+                if let (Some(i), Some(goal)) = (p, p.and_then(|i| goals.get_mut(i))) {
+                    let _ = i;
+                    *goal = match drive {
+                        GripperDrive::Position(tick) => Goal::Position(tick),
+                        GripperDrive::Pwm(pwm) => Goal::Pwm(pwm),
+                        GripperDrive::Idle => Goal::None,
+                    };
+                }
+                return;
+            }
+        }
+        let Some(jc) = self.joints.get_mut(j) else {
+            return;
+        };
+        let out = jc.tick(now, dt, &cfg);
+        let clamped = jc.clamped;
+        let sign = cfg.sign as f32;
+        let spec = cfg.model.spec();
+        let n = if twin_ok { 2.0 } else { 1.0 };
+        let (gp, gt) = match out {
+            JointOutput::None => (Goal::None, Goal::None),
+            JointOutput::Position(q) => {
+                let a = sign * q + cfg.offset;
+                (
+                    Goal::Position(units::rad_to_tick(a)),
+                    Goal::Position(units::rad_to_tick(-a)),
+                )
+            }
+            JointOutput::Velocity(v) => {
+                let raw = sign * v / units::RAD_S_PER_VELOCITY_UNIT;
+                let raw = if raw >= 0.0 { raw + 0.5 } else { raw - 0.5 } as i32;
+                (Goal::Velocity(raw), Goal::Velocity(-raw))
+            }
+            JointOutput::Effort(tau, qd) => {
+                let ts = sign * tau / n;
+                let ws = sign * qd;
+                if spec.current_control {
+                    (
+                        Goal::Current(spec.register_from_effort(ts)),
+                        Goal::Current(spec.register_from_effort(-ts)),
+                    )
+                } else {
+                    (
+                        Goal::Pwm(spec.pwm_for_effort(ts, ws)),
+                        Goal::Pwm(spec.pwm_for_effort(-ts, -ws)),
+                    )
+                }
+            }
+            JointOutput::Pwm(f) => {
+                let raw = (sign * f * units::PWM_MAX) as i16;
+                (Goal::Pwm(raw), Goal::Pwm(raw.saturating_neg()))
+            }
+        };
+        if let Some(g) = p.and_then(|i| goals.get_mut(i)) {
+            *g = gp;
+        }
+        if twin_ok {
+            if let Some(g) = t.and_then(|i| goals.get_mut(i)) {
+                *g = gt;
+            }
+        }
+        let bit = 1u16 << (j as u32 % 16);
+        if clamped && self.clamp_reported & bit == 0 {
+            self.clamp_reported |= bit;
+            self.fault(now, FaultKind::LimitClamped, Some(j as u8), None, 0);
+        } else if !clamped {
+            self.clamp_reported &= !bit;
+        }
+    }
+
+    /// Push each servo's desired operating mode and torque to the bus.
+    fn apply_modes(&mut self) {
+        for i in 0..self.bus.servos.len() {
+            let Some(s) = self.bus.servos.get(i) else {
+                continue;
+            };
+            let j = s.joint as usize;
+            let model = s.model;
+            let Some(jc) = self.joints.get(j) else {
+                continue;
+            };
+            let mut m = bus::mode_byte(jc.mode, model);
+            let mut torque = jc.mode != JointMode::Off;
+            if let Some((gj, g)) = self.gripper.as_ref() {
+                if *gj == j {
+                    match g.state {
+                        GripperState::Closing | GripperState::Holding | GripperState::Closed => {
+                            m = ferrobot_protocol::dxl::mode::PWM;
+                            torque = true;
+                        }
+                        GripperState::Open | GripperState::Opening => {
+                            m = ferrobot_protocol::dxl::mode::POSITION;
+                            torque = true;
+                        }
+                        _ => {}
+                    }
+                }
+            }
+            self.bus.set_mode(i, m, torque);
+        }
+    }
+
+    fn faults(&self) -> u16 {
+        let mut f = 0;
+        if self.estop {
+            f |= fault_flags::ESTOP;
+        }
+        if self.watchdog_tripped {
+            f |= fault_flags::WATCHDOG;
+        }
+        if self.lost_servos != 0 {
+            f |= fault_flags::SERVO_LOST;
+        }
+        if self.bus.servos.iter().any(|s| s.hw_error != 0) {
+            f |= fault_flags::SERVO_HARDWARE;
+        }
+        if self
+            .bus
+            .servos
+            .iter()
+            .any(|s| s.status == ServoStatus::Configuring)
+        {
+            f |= fault_flags::CONFIGURING;
+        }
+        if self.base.present() && self.base.lost {
+            f |= fault_flags::BASE_LOST;
+        }
+        if self.base.flags != 0 {
+            f |= fault_flags::BASE_SAFETY;
+        }
+        if self.overrun_since_telemetry {
+            f |= fault_flags::OVERRUN;
+        }
+        f
+    }
+
+    /// The telemetry frame as of now.
+    pub fn telemetry(&self, now: u64) -> Telemetry {
+        Telemetry {
+            time_us: now,
+            joints: self.joints.iter().map(|j| j.state).collect(),
+            queued: self
+                .joints
+                .iter()
+                .map(|j| j.queued())
+                .sum::<usize>()
+                .min(255) as u8,
+            gripper: self
+                .gripper
+                .as_ref()
+                .map(|(_, g)| g.state)
+                .unwrap_or(GripperState::Absent),
+            odometry: self.base.odom.pose,
+            wheels: self.base.wheels,
+            base_flags: self.base.flags,
+            faults: self.faults(),
+            loop_stats: self.loop_stats,
+        }
+    }
+
+    fn send_telemetry(&mut self, now: u64) {
+        let t = self.telemetry(now);
+        self.overrun_since_telemetry = false;
+        self.send(&DeviceMsg::Telemetry(t));
+    }
+
+    /// Link and bus counters.
+    pub fn diagnostics(&self) -> Diagnostics {
+        let f = self.decoder.stats();
+        Diagnostics {
+            host_frames: f.ok,
+            host_bad_frames: f.dropped(),
+            host_tx_dropped: self.host_tx_dropped,
+            servo_packets: self.bus.stats.packets,
+            servo_bad_packets: self.bus.stats.bad_packets,
+            servo_timeouts: self.bus.stats.timeouts,
+            servo_alerts: self.bus.stats.alerts,
+            base_packets: self.base.stats.packets,
+            base_bad_packets: self.base.stats.bad_packets,
+        }
+    }
+
+    fn info(&self, accepted: bool) -> DeviceInfo {
+        DeviceInfo {
+            protocol_version: PROTOCOL_VERSION,
+            schema_hash: SCHEMA_HASH,
+            firmware_version: FIRMWARE_VERSION,
+            board: self.board.clone(),
+            robot: self.profile.robot.clone(),
+            joints: self.profile.joints.iter().map(|j| j.kind).collect(),
+            base: self.profile.base.kind,
+            loop_period_us: self.loop_period_us,
+            accepted,
+        }
+    }
+
+    fn handle(&mut self, now: u64, seq: u16, msg: HostMsg) {
+        match msg {
+            HostMsg::Hello {
+                protocol_version,
+                schema_hash,
+            } => {
+                let ok = protocol_version == PROTOCOL_VERSION && schema_hash == SCHEMA_HASH;
+                self.session = if ok {
+                    Session::Accepted
+                } else {
+                    Session::Refused
+                };
+                let info = self.info(ok);
+                self.send(&DeviceMsg::Hello(info));
+                if ok {
+                    self.watchdog_ms = self.profile.watchdog_ms;
+                    self.set_telemetry(now, self.profile.telemetry_ms);
+                }
+                return;
+            }
+            _ if self.session != Session::Accepted => {
+                self.send(&DeviceMsg::Reject {
+                    seq,
+                    reason: RejectReason::VersionMismatch,
+                });
+                return;
+            }
+            HostMsg::GetJoint { index } => {
+                let reply = match self.profile.joints.get(index as usize) {
+                    Some(c) => DeviceMsg::Joint {
+                        index,
+                        config: c.clone(),
+                    },
+                    None => DeviceMsg::Reject {
+                        seq,
+                        reason: RejectReason::UnknownJoint,
+                    },
+                };
+                self.send(&reply);
+                return;
+            }
+            HostMsg::GetDiagnostics => {
+                let d = self.diagnostics();
+                self.send(&DeviceMsg::Diagnostics(d));
+                return;
+            }
+            _ => {}
+        }
+        let reply = match self.command(now, msg) {
+            Ok(()) => DeviceMsg::Ack { seq },
+            Err(reason) => DeviceMsg::Reject { seq, reason },
+        };
+        self.send(&reply);
+    }
+
+    fn set_telemetry(&mut self, now: u64, ms: u16) {
+        self.telemetry_ms = ms;
+        self.next_telemetry = if ms == 0 {
+            u64::MAX
+        } else {
+            now + ms as u64 * 1000
+        };
+    }
+
+    /// Indices selected by a mask, checked against the joint count.
+    fn selected(&self, mask: u16) -> Result<Vec<usize, MAX_JOINTS>, RejectReason> {
+        let n = self.joints.len();
+        if n < 16 && mask != u16::MAX && mask >> n != 0 {
+            return Err(RejectReason::UnknownJoint);
+        }
+        Ok((0..n).filter(|j| mask & (1 << j) != 0).collect())
+    }
+
+    fn command(&mut self, now: u64, msg: HostMsg) -> Result<(), RejectReason> {
+        match msg {
+            HostMsg::ConfigureJoint { index, config } => {
+                if self.joints.iter().any(|j| j.mode != JointMode::Off) {
+                    return Err(RejectReason::Busy);
+                }
+                if !config::joint_is_valid(&config) {
+                    return Err(RejectReason::InvalidConfig);
+                }
+                let i = index as usize;
+                match i.cmp(&self.profile.joints.len()) {
+                    core::cmp::Ordering::Less => {
+                        if let Some(row) = self.profile.joints.get_mut(i) {
+                            *row = config;
+                        }
+                    }
+                    core::cmp::Ordering::Equal => {
+                        self.profile
+                            .joints
+                            .push(config)
+                            .map_err(|_| RejectReason::UnknownJoint)?;
+                    }
+                    core::cmp::Ordering::Greater => return Err(RejectReason::UnknownJoint),
+                }
+                self.rebuild_joints(now);
+                for j in self.joints.iter_mut() {
+                    j.set_mode(now, JointMode::Off);
+                }
+                self.apply_modes();
+                Ok(())
+            }
+            HostMsg::SetPid { joint, gains } => {
+                let row = self
+                    .profile
+                    .joints
+                    .get_mut(joint as usize)
+                    .ok_or(RejectReason::UnknownJoint)?;
+                if ![gains.kp, gains.ki, gains.kd, gains.i_limit]
+                    .iter()
+                    .all(|v| v.is_finite() && *v >= 0.0)
+                {
+                    return Err(RejectReason::InvalidConfig);
+                }
+                row.pid = gains;
+                Ok(())
+            }
+            HostMsg::SetLimits { joint, limits } => {
+                let row = self
+                    .profile
+                    .joints
+                    .get(joint as usize)
+                    .ok_or(RejectReason::UnknownJoint)?;
+                let mut new = row.clone();
+                new.limits = limits;
+                if !config::joint_is_valid(&new) {
+                    return Err(RejectReason::InvalidConfig);
+                }
+                if let Some(r) = self.profile.joints.get_mut(joint as usize) {
+                    *r = new;
+                }
+                Ok(())
+            }
+            HostMsg::SetMode { joints, mode } => {
+                let sel = self.selected(joints)?;
+                if self.estop && mode != JointMode::Off {
+                    return Err(RejectReason::EmergencyStop);
+                }
+                for j in sel {
+                    if let Some(jc) = self.joints.get_mut(j) {
+                        jc.set_mode(now, mode);
+                    }
+                    if let Some((gj, g)) = self.gripper.as_mut() {
+                        if *gj == j {
+                            *g = Gripper::new(self.profile.gripper);
+                        }
+                    }
+                }
+                self.apply_modes();
+                Ok(())
+            }
+            HostMsg::Waypoint {
+                joints,
+                duration_us,
+                points,
+            } => {
+                if self.estop {
+                    return Err(RejectReason::EmergencyStop);
+                }
+                let sel = self.selected(joints)?;
+                if sel.len() != points.len() {
+                    return Err(RejectReason::CountMismatch);
+                }
+                for (&j, p) in sel.iter().zip(points.iter()) {
+                    if !(p.position.is_finite() && p.velocity.is_finite() && p.effort.is_finite()) {
+                        return Err(RejectReason::NotFinite);
+                    }
+                    let cfg = self
+                        .profile
+                        .joints
+                        .get(j)
+                        .ok_or(RejectReason::UnknownJoint)?;
+                    if p.position < cfg.limits.min || p.position > cfg.limits.max {
+                        return Err(RejectReason::OutOfLimits);
+                    }
+                    let jc = self.joints.get(j).ok_or(RejectReason::UnknownJoint)?;
+                    if !matches!(jc.mode, JointMode::Position | JointMode::Current) {
+                        return Err(RejectReason::WrongMode);
+                    }
+                    if jc.queued() >= joint::QUEUE_LEN {
+                        return Err(RejectReason::QueueFull);
+                    }
+                    if self
+                        .gripper
+                        .as_ref()
+                        .is_some_and(|(gj, g)| *gj == j && g.state != GripperState::Unknown)
+                    {
+                        return Err(RejectReason::WrongMode);
+                    }
+                }
+                for (&j, p) in sel.iter().zip(points.iter()) {
+                    if let Some(jc) = self.joints.get_mut(j) {
+                        jc.push(now, duration_us, p);
+                    }
+                }
+                Ok(())
+            }
+            HostMsg::ClearQueue { joints } => {
+                for j in self.selected(joints)? {
+                    if let Some(jc) = self.joints.get_mut(j) {
+                        jc.hold_here(now);
+                    }
+                }
+                Ok(())
+            }
+            HostMsg::JointCommand { joints, values } => {
+                let sel = self.selected(joints)?;
+                if sel.len() != values.len() {
+                    return Err(RejectReason::CountMismatch);
+                }
+                if values.iter().any(|v| !v.is_finite()) {
+                    return Err(RejectReason::NotFinite);
+                }
+                if self.estop && values.iter().any(|v| *v != 0.0) {
+                    return Err(RejectReason::EmergencyStop);
+                }
+                for &j in sel.iter() {
+                    let jc = self.joints.get(j).ok_or(RejectReason::UnknownJoint)?;
+                    if !matches!(
+                        jc.mode,
+                        JointMode::Velocity | JointMode::Current | JointMode::Pwm
+                    ) {
+                        return Err(RejectReason::WrongMode);
+                    }
+                }
+                for (&j, &v) in sel.iter().zip(values.iter()) {
+                    if let Some(jc) = self.joints.get_mut(j) {
+                        jc.set_direct(v);
+                    }
+                }
+                Ok(())
+            }
+            HostMsg::BaseVelocity { v, w, duration_ms } => {
+                if self.estop && (v != 0.0 || w != 0.0) {
+                    return Err(RejectReason::EmergencyStop);
+                }
+                self.base.set_velocity(now, v, w, duration_ms)?;
+                self.base.poll(now);
+                Ok(())
+            }
+            HostMsg::ResetOdometry => {
+                if !self.base.present() {
+                    return Err(RejectReason::NoBase);
+                }
+                self.base.odom.reset();
+                Ok(())
+            }
+            HostMsg::Gripper(cmd) => {
+                if self.estop {
+                    return Err(RejectReason::EmergencyStop);
+                }
+                let (gj, g) = self.gripper.as_mut().ok_or(RejectReason::NoGripper)?;
+                g.command(now, cmd);
+                let j = *gj;
+                if let Some(jc) = self.joints.get_mut(j) {
+                    if jc.mode == JointMode::Off {
+                        jc.set_mode(now, JointMode::Position);
+                    }
+                }
+                self.apply_modes();
+                Ok(())
+            }
+            HostMsg::SetWatchdog { period_ms } => {
+                self.watchdog_ms = period_ms;
+                Ok(())
+            }
+            HostMsg::Heartbeat => Ok(()),
+            HostMsg::EmergencyStop => {
+                self.estop = true;
+                self.base.stop(now);
+                self.base.poll(now);
+                self.hold_all(now);
+                self.fault(now, FaultKind::EmergencyStop, None, None, 0);
+                Ok(())
+            }
+            HostMsg::Resume => {
+                self.estop = false;
+                Ok(())
+            }
+            HostMsg::SetTelemetry { period_ms } => {
+                self.set_telemetry(now, period_ms);
+                Ok(())
+            }
+            HostMsg::SetLoopPeriod { period_us } => {
+                if !(250..=100_000).contains(&period_us) {
+                    return Err(RejectReason::InvalidConfig);
+                }
+                self.loop_period_us = period_us;
+                Ok(())
+            }
+            HostMsg::RebootJoint { joint } => {
+                if joint as usize >= self.joints.len() {
+                    return Err(RejectReason::UnknownJoint);
+                }
+                let (p, t) = self.servo_indices(joint as usize);
+                for i in [p, t].into_iter().flatten() {
+                    self.bus.reboot(i);
+                }
+                if let Some(jc) = self.joints.get_mut(joint as usize) {
+                    jc.hold_here(now);
+                }
+                Ok(())
+            }
+            _ => Err(RejectReason::Unsupported),
+        }
+    }
+}
