@@ -27,6 +27,9 @@ pub const MISSES_TO_LOSE: u8 = 3;
 pub const OP_RETRIES: u8 = 3;
 /// Ping period of a lost servo, µs.
 pub const PROBE_PERIOD_US: u64 = 100_000;
+/// Longest Return Delay Time a servo may still have before configuration sets it to 0
+/// (254 × 2 µs; the factory default is 250 × 2 µs), µs.
+pub const UNCONFIGURED_RETURN_DELAY_US: u64 = 508;
 
 /// Pending-operation bits of a servo, executed lowest first.
 pub mod op {
@@ -350,6 +353,12 @@ impl ServoBus {
         now + self.cfg.bytes_us(sent + reply_bytes) + self.cfg.reply_margin_us as u64
     }
 
+    /// Deadline of a configuration transaction: the servo may still answer after its factory
+    /// return delay.
+    fn op_deadline(&self, now: u64, sent: usize, reply_bytes: usize) -> u64 {
+        self.reply_deadline(now, sent, reply_bytes) + UNCONFIGURED_RETURN_DELAY_US
+    }
+
     /// Start a bus cycle at `now`: one configuration transaction if any is pending, then the
     /// sync read.
     pub fn begin_tick(&mut self, now: u64, joints: &[JointConfig]) {
@@ -374,7 +383,7 @@ impl ServoBus {
             self.phase = Phase::AwaitOp {
                 servo: i,
                 op: op::PING,
-                deadline: self.reply_deadline(now, n, 14),
+                deadline: self.op_deadline(now, n, 14),
             };
             return true;
         }
@@ -486,7 +495,7 @@ impl ServoBus {
         self.phase = Phase::AwaitOp {
             servo: i,
             op: o,
-            deadline: self.reply_deadline(now, n, reply),
+            deadline: self.op_deadline(now, n, reply),
         };
         true
     }

