@@ -362,6 +362,10 @@ impl ServoBus {
     /// Start a bus cycle at `now`: one configuration transaction if any is pending, then the
     /// sync read.
     pub fn begin_tick(&mut self, now: u64, joints: &[JointConfig]) {
+        // A packet still half-received belongs to the last cycle: it is broken.
+        if self.decoder.in_packet() {
+            self.stats.bad_packets += 1;
+        }
         self.decoder.reset();
         for s in self.servos.iter_mut() {
             s.fresh = false;

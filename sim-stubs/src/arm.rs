@@ -140,16 +140,23 @@ mod tests {
     use super::*;
 
     #[test]
-    fn upright_arm_has_small_shoulder_load_and_horizontal_arm_a_large_one() {
+    fn shoulder_load_matches_a_hand_calculation() {
+        // At zero angles the upper arm stands vertical and the forearm points along +x. About
+        // joint_2 (axis +y), gravity's torque is g · Σ m·x over the links it carries:
+        // 0.2125·0.0096 + 0.1875·(0.05+0.1178) + 0.0606·(0.05+0.2002+0.0429)
+        // + 0.1242·(0.05+0.2002+0.063+0.0407) = 0.09521 kg·m.
         let mut t = [0.0; 5];
         gravity_torques(&LOCOBOT_ARM, &[0.0; 5], &mut t);
-        let upright = t[1];
-        gravity_torques(&LOCOBOT_ARM, &[0.0, 1.2, -1.2, 0.0, 0.0], &mut t);
-        let reaching = t[1];
-        assert!(upright.abs() < 0.3, "{upright}");
-        // Leaning forward (+y rotation tips the arm towards +x): gravity pulls further forward.
-        assert!(reaching > 0.5, "{reaching}");
-        // Yaw never carries gravity load.
+        assert!((t[1] - 0.09521 * 9.81).abs() < 1e-3, "{}", t[1]);
+        // Yaw never carries gravity load; folding the forearm up (joint_3 = −π/2) shortens the
+        // lever of joint_2.
         assert!(t[0].abs() < 1e-12);
+        let mut folded = [0.0; 5];
+        gravity_torques(
+            &LOCOBOT_ARM,
+            &[0.0, 0.0, -std::f64::consts::FRAC_PI_2, 0.0, 0.0],
+            &mut folded,
+        );
+        assert!(folded[1] < 0.3 * t[1], "{}", folded[1]);
     }
 }

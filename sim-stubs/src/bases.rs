@@ -30,7 +30,7 @@ enum OiMode {
 
 enum Kind {
     Kobuki {
-        parser: kobuki::Parser,
+        parser: Box<kobuki::Parser>,
         gyro_bias: f64,
     },
     Create2 {
@@ -103,7 +103,7 @@ impl BasePlant {
         Self::with(
             DiffDrive::new(kobuki_params(), SimRng::new(seed, 3)),
             Kind::Kobuki {
-                parser: kobuki::Parser::new(),
+                parser: Box::new(kobuki::Parser::new()),
                 gyro_bias,
             },
             20_000,

@@ -151,7 +151,7 @@ impl ServoChain {
         let mut k = 0u32;
         while self.substep_acc >= step_us {
             self.substep_acc -= step_us;
-            if k % 4 == 0 && !self.arm.is_empty() {
+            if k.is_multiple_of(4) && !self.arm.is_empty() {
                 self.apply_gravity();
             }
             for s in self.servos.iter_mut() {

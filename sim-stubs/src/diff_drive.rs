@@ -134,7 +134,11 @@ impl DiffDrive {
             let want = v + (t - v) * (dt / p.lag).min(1.0);
             let dv = (want - v).clamp(-p.accel_limit * dt, p.accel_limit * dt);
             next[k] = v + dv;
-            accel[k] = dv / dt;
+            // Static friction holds a wheel whose drive has stopped once it is slow.
+            if t == 0.0 && next[k].abs() < p.deadband {
+                next[k] = 0.0;
+            }
+            accel[k] = (next[k] - v) / dt;
         }
         self.speed = (next[0], next[1]);
         // Wheel rotation (what the encoders count) and ground travel (less slip).

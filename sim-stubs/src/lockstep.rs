@@ -119,6 +119,20 @@ impl LockstepSim {
         std::mem::take(&mut self.host_out)
     }
 
+    /// Put extra bytes on the line from the servo bus or the base to the firmware, as line
+    /// noise would (fault injection).
+    pub fn inject_to_firmware(&mut self, link: Link, bytes: &[u8]) {
+        match link {
+            Link::Servo => {
+                self.from_servo.send(self.now, bytes.to_vec());
+            }
+            Link::Base => {
+                self.from_base.send(self.now, bytes.to_vec());
+            }
+            Link::Host => self.host_in.extend_from_slice(bytes),
+        }
+    }
+
     /// Ground-truth pose of the base (world frame), if there is a base.
     pub fn base_truth(&self) -> Option<Pose> {
         self.base.as_ref().map(|b| b.drive.truth)

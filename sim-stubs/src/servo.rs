@@ -357,21 +357,24 @@ impl ServoSim {
         }
         self.torque = kt * self.current;
 
-        // Contacts.
+        // Contacts: stiff, critically damped, pushing out and never pulling in.
+        let k = 60.0;
+        let c = 2.0 * (k * self.phys.inertia).sqrt();
+        let push_up = |pen: f64, omega: f64| (k * pen - c * omega).max(0.0);
+        let push_down = |pen: f64, omega: f64| -(k * pen + c * omega).max(0.0);
         let mut contact = 0.0;
-        let (k, c) = (60.0, 0.6);
         if let Some((lo, hi)) = self.stops {
             if self.theta < lo {
-                contact += -k * (self.theta - lo) - c * self.omega.min(0.0);
+                contact += push_up(lo - self.theta, self.omega);
             } else if self.theta > hi {
-                contact += -k * (self.theta - hi) - c * self.omega.max(0.0);
+                contact += push_down(self.theta - hi, self.omega);
             }
         }
         if let Some((at, below)) = self.obstacle {
             if below && self.theta < at {
-                contact += -k * (self.theta - at) - c * self.omega.min(0.0);
+                contact += push_up(at - self.theta, self.omega);
             } else if !below && self.theta > at {
-                contact += -k * (self.theta - at) - c * self.omega.max(0.0);
+                contact += push_down(self.theta - at, self.omega);
             }
         }
         let drive = self.torque + self.external_torque + contact - self.phys.viscous * self.omega;

@@ -1,0 +1,69 @@
+//! Helpers shared by the lockstep acceptance tests.
+#![allow(dead_code)]
+
+use ferrobot_protocol::dxl::units;
+use ferrobot_protocol::*;
+use ferrobot_sim::SimSession;
+
+/// Arm joints of the LoCoBot profile (joint_1 … joint_5).
+pub const ARM: u16 = 0b1_1111;
+
+/// A session on `robot` with the watchdog off (tests that want it turn it on).
+pub fn session(robot: &str) -> SimSession {
+    let mut s = SimSession::start(robot, 7).expect("simulator starts");
+    s.command(&HostMsg::SetWatchdog { period_ms: 0 })
+        .expect("watchdog off");
+    s.command(&HostMsg::SetTelemetry { period_ms: 10 })
+        .expect("telemetry at 100 Hz");
+    // Let the servos be configured and measured.
+    s.wait_telemetry(1_000_000, |t| t.faults & fault_flags::CONFIGURING == 0)
+        .expect("servos configured");
+    s.run_for(100_000);
+    s
+}
+
+/// Points for the selected joints.
+pub fn points(q: &[f32]) -> heapless::Vec<JointPoint, MAX_JOINTS> {
+    q.iter()
+        .map(|&position| JointPoint {
+            position,
+            velocity: 0.0,
+            effort: 0.0,
+        })
+        .collect()
+}
+
+/// Joint angles (rad) of the arm as the simulated servos really are (ground truth, not
+/// the firmware's reading): servo angle through the joint's sign.
+pub fn true_arm(s: &SimSession) -> Vec<f32> {
+    let chain = &s.sim.chain;
+    let profile = s.sim.fw.profile();
+    profile.joints[..5]
+        .iter()
+        .map(|j| {
+            let servo = chain.servo(j.servo_id).expect("servo exists");
+            (j.sign as f64 * (servo.theta - j.offset as f64)) as f32
+        })
+        .collect()
+}
+
+/// Measured arm angles from the newest telemetry.
+pub fn measured_arm(s: &SimSession) -> Vec<f32> {
+    s.telemetry.as_ref().expect("telemetry").joints[..5]
+        .iter()
+        .map(|j| j.position)
+        .collect()
+}
+
+/// Largest absolute difference.
+pub fn max_err(a: &[f32], b: &[f32]) -> f32 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f32::max)
+}
+
+/// Gripper servo position, ticks.
+pub fn gripper_ticks(s: &SimSession) -> i32 {
+    units::rad_to_tick(s.sim.chain.servo(7).expect("gripper").theta as f32)
+}

@@ -1,0 +1,229 @@
+//! Lockstep acceptance: LoCoBot arm targets through the protocol, in position and current
+//! mode; the gripper state machine with and without an object.
+
+mod common;
+use common::*;
+use ferrobot_protocol::*;
+
+const TARGETS: [[f32; 5]; 3] = [
+    [0.3, 0.5, -0.4, 0.2, 0.1],
+    [-0.8, 0.9, 0.3, -1.0, -1.2],
+    [1.2, -0.6, 1.1, 0.8, 0.6],
+];
+
+#[test]
+fn arm_reaches_targets_in_position_mode_within_0_01_rad() {
+    let mut s = session("locobot");
+    for target in TARGETS {
+        s.command(&HostMsg::Waypoint {
+            joints: ARM,
+            duration_us: 2_000_000,
+            points: points(&target),
+        })
+        .expect("accepted");
+        s.run_for(3_500_000);
+        let truth = true_arm(&s);
+        let measured = measured_arm(&s);
+        assert!(
+            max_err(&truth, &target) < 0.01,
+            "target {target:?}, servos at {truth:?}"
+        );
+        assert!(
+            max_err(&measured, &target) < 0.01,
+            "target {target:?}, measured {measured:?}"
+        );
+    }
+}
+
+#[test]
+fn arm_reaches_targets_in_current_mode_within_0_02_rad() {
+    let mut s = session("locobot");
+    s.command(&HostMsg::SetMode {
+        joints: ARM,
+        mode: JointMode::Current,
+    })
+    .expect("current mode");
+    s.run_for(200_000);
+    for target in TARGETS {
+        s.command(&HostMsg::Waypoint {
+            joints: ARM,
+            duration_us: 2_000_000,
+            points: points(&target),
+        })
+        .expect("accepted");
+        s.run_for(4_000_000);
+        let truth = true_arm(&s);
+        assert!(
+            max_err(&truth, &target) < 0.02,
+            "target {target:?}, servos at {truth:?}"
+        );
+    }
+    // The servos really ran in current mode (XM430: 0) and PWM mode (XL430 wrist: 16).
+    assert_eq!(
+        s.sim
+            .chain
+            .servo(1)
+            .expect("servo")
+            .get(ferrobot_protocol::dxl::addr::OPERATING_MODE, 1),
+        0
+    );
+    assert_eq!(
+        s.sim
+            .chain
+            .servo(6)
+            .expect("servo")
+            .get(ferrobot_protocol::dxl::addr::OPERATING_MODE, 1),
+        16
+    );
+}
+
+#[test]
+fn velocity_limit_is_enforced_whatever_the_host_sends() {
+    let mut s = session("locobot");
+    // Ask joint_1 to jump 1.5 rad in 10 ms: 150 rad/s; its limit is 1 rad/s.
+    s.command(&HostMsg::Waypoint {
+        joints: 1,
+        duration_us: 10_000,
+        points: points(&[1.5]),
+    })
+    .expect("accepted");
+    let mut peak = 0.0f32;
+    for _ in 0..200 {
+        s.run_for(10_000);
+        peak = peak.max(
+            s.telemetry.as_ref().expect("telemetry").joints[0]
+                .velocity
+                .abs(),
+        );
+    }
+    assert!(peak < 1.0 * 1.15, "peak joint speed {peak} rad/s");
+    assert!((true_arm(&s)[0] - 1.5).abs() < 0.01);
+    let faults = s.take_faults();
+    assert!(
+        faults
+            .iter()
+            .any(|f| f.kind == FaultKind::LimitClamped && f.joint == Some(0)),
+        "{faults:?}"
+    );
+}
+
+#[test]
+fn out_of_limit_and_malformed_commands_are_rejected() {
+    let mut s = session("locobot");
+    s.run_for(2_000_000);
+    let before = true_arm(&s);
+    let reject = |s: &mut ferrobot_sim::SimSession, m: HostMsg| match s.command(&m) {
+        Err(ferrobot_sim::SimError::Rejected(r)) => r,
+        other => panic!("{m:?} gave {other:?}"),
+    };
+    assert_eq!(
+        reject(
+            &mut s,
+            HostMsg::Waypoint {
+                joints: 1,
+                duration_us: 1000,
+                points: points(&[2.0])
+            }
+        ),
+        RejectReason::OutOfLimits
+    );
+    assert_eq!(
+        reject(
+            &mut s,
+            HostMsg::Waypoint {
+                joints: 0b11,
+                duration_us: 1000,
+                points: points(&[0.1])
+            }
+        ),
+        RejectReason::CountMismatch
+    );
+    assert_eq!(
+        reject(
+            &mut s,
+            HostMsg::Waypoint {
+                joints: 1,
+                duration_us: 1000,
+                points: points(&[f32::NAN])
+            }
+        ),
+        RejectReason::NotFinite
+    );
+    assert_eq!(
+        reject(
+            &mut s,
+            HostMsg::Waypoint {
+                joints: 1 << 12,
+                duration_us: 1000,
+                points: points(&[0.1])
+            }
+        ),
+        RejectReason::UnknownJoint
+    );
+    assert_eq!(
+        reject(
+            &mut s,
+            HostMsg::JointCommand {
+                joints: 1,
+                values: [0.1].into_iter().collect()
+            }
+        ),
+        RejectReason::WrongMode
+    );
+    // Nothing moved.
+    s.run_for(500_000);
+    assert!(
+        max_err(&true_arm(&s), &before) < 0.005,
+        "{before:?} -> {:?}",
+        true_arm(&s)
+    );
+}
+
+#[test]
+fn gripper_closes_fully_without_an_object_and_holds_one() {
+    let mut s = session("locobot");
+    s.command(&HostMsg::Gripper(GripperCommand::Open))
+        .expect("open");
+    s.wait_telemetry(2_000_000, |t| t.gripper == GripperState::Open)
+        .expect("opens");
+    assert!(
+        (gripper_ticks(&s) - 2800).abs() <= 30,
+        "{}",
+        gripper_ticks(&s)
+    );
+
+    s.command(&HostMsg::Gripper(GripperCommand::Close))
+        .expect("close");
+    let t = s
+        .wait_telemetry(3_000_000, |t| {
+            matches!(t.gripper, GripperState::Closed | GripperState::Holding)
+        })
+        .expect("closes");
+    assert_eq!(t.gripper, GripperState::Closed);
+    assert!(gripper_ticks(&s) < 1800);
+
+    s.command(&HostMsg::Gripper(GripperCommand::Open))
+        .expect("open");
+    s.wait_telemetry(2_000_000, |t| t.gripper == GripperState::Open)
+        .expect("opens");
+    // An object 40 % of the way in: the fingers stop at 2300 ticks.
+    let at = ferrobot_protocol::dxl::units::tick_to_rad(2300) as f64;
+    s.sim.chain.servo_mut(7).expect("gripper").obstacle = Some((at, true));
+    s.command(&HostMsg::Gripper(GripperCommand::Close))
+        .expect("close");
+    let t = s
+        .wait_telemetry(3_000_000, |t| {
+            matches!(t.gripper, GripperState::Closed | GripperState::Holding)
+        })
+        .expect("closes");
+    assert_eq!(t.gripper, GripperState::Holding);
+    let g = gripper_ticks(&s);
+    assert!((2250..2350).contains(&g), "fingers at {g}");
+    // Holding does not overload the servo.
+    s.run_for(5_000_000);
+    assert_eq!(s.sim.chain.servo(7).expect("gripper").hardware_error(), 0);
+    assert_eq!(
+        s.telemetry.as_ref().expect("telemetry").gripper,
+        GripperState::Holding
+    );
+}

@@ -1,0 +1,372 @@
+//! Lockstep fault tests: watchdog, a servo that stops answering, corrupted frames on every
+//! link, overload, emergency stop, protocol mismatch.
+
+mod common;
+use common::*;
+use ferrobot_firmware::Link;
+use ferrobot_protocol::*;
+use ferrobot_sim::{SimError, SimSession};
+
+#[test]
+fn watchdog_stops_the_base_within_one_cycle_and_holds_the_arm() {
+    let mut s = session("locobot");
+    s.command(&HostMsg::SetWatchdog { period_ms: 300 })
+        .expect("watchdog on");
+    // A long arm motion and a long drive, then silence.
+    s.command(&HostMsg::Waypoint {
+        joints: ARM,
+        duration_us: 6_000_000,
+        points: points(&[1.2, 0.8, -0.8, 1.0, 1.0]),
+    })
+    .expect("accepted");
+    s.command(&HostMsg::BaseVelocity {
+        v: 0.2,
+        w: 0.0,
+        duration_ms: 20_000,
+    })
+    .expect("accepted");
+    let last_frame = s.sim.now_us();
+    // Until the watchdog expires the robot moves.
+    s.run_for(290_000);
+    assert_ne!(s.sim.base.as_ref().expect("base").drive.target, (0.0, 0.0));
+    // The firmware trips at 300 ms and sends zero at once; the base has it within one of its
+    // 20 ms cycles.
+    s.run_for(10_000 + 20_000);
+    assert_eq!(
+        s.sim.base.as_ref().expect("base").drive.target,
+        (0.0, 0.0),
+        "base still commanded"
+    );
+    let t = s
+        .wait_telemetry(50_000, |t| t.faults & fault_flags::WATCHDOG != 0)
+        .expect("watchdog flag");
+    assert!(t.time_us >= last_frame + 300_000);
+    let held = true_arm(&s);
+    s.run_for(1_500_000);
+    let later = true_arm(&s);
+    assert!(
+        max_err(&held, &later) < 0.01,
+        "arm moved from {held:?} to {later:?}"
+    );
+    let base_speed = s.sim.base.as_ref().expect("base").drive.speed;
+    assert_eq!(base_speed, (0.0, 0.0));
+    assert!(s
+        .take_faults()
+        .iter()
+        .any(|f| f.kind == FaultKind::Watchdog));
+    // Any valid frame clears it; the robot obeys again.
+    s.command(&HostMsg::Heartbeat).expect("heartbeat");
+    s.command(&HostMsg::BaseVelocity {
+        v: 0.1,
+        w: 0.0,
+        duration_ms: 200,
+    })
+    .expect("accepted");
+    s.run_for(60_000);
+    assert_ne!(s.sim.base.as_ref().expect("base").drive.target, (0.0, 0.0));
+}
+
+#[test]
+fn a_servo_that_stops_answering_is_reported_and_does_not_stall_the_others() {
+    let mut s = session("locobot");
+    // joint_3 (servo 4) goes silent: in a sync read, servos 5-9 wait for its status.
+    s.sim.chain.servo_mut(4).expect("servo").silent = true;
+    let ticks_before = s.telemetry.as_ref().expect("telemetry").loop_stats.ticks;
+    let target = [0.4, 0.3, 0.0, 0.5, -0.5];
+    s.command(&HostMsg::Waypoint {
+        joints: 0b1_1011,
+        duration_us: 1_500_000,
+        points: points(&[0.4, 0.3, 0.5, -0.5]),
+    })
+    .expect("accepted");
+    s.run_for(3_000_000);
+    let faults = s.take_faults();
+    let lost = faults
+        .iter()
+        .find(|f| f.kind == FaultKind::ServoLost)
+        .expect("ServoLost reported");
+    assert_eq!((lost.servo_id, lost.joint), (Some(4), Some(2)));
+    let t = s.telemetry.clone().expect("telemetry");
+    assert!(t.faults & fault_flags::SERVO_LOST != 0);
+    // The loop kept its rate and the other joints arrived.
+    assert!(
+        t.loop_stats.ticks - ticks_before >= 2_990,
+        "{} ticks in 3 s",
+        t.loop_stats.ticks - ticks_before
+    );
+    let truth = true_arm(&s);
+    for j in [0, 1, 3, 4] {
+        assert!((truth[j] - target[j]).abs() < 0.01, "joint {j}: {truth:?}");
+    }
+    // Back on the bus: recovered, reconfigured, controllable.
+    s.sim.chain.servo_mut(4).expect("servo").silent = false;
+    s.run_for(400_000);
+    assert!(s
+        .take_faults()
+        .iter()
+        .any(|f| f.kind == FaultKind::ServoRecovered && f.servo_id == Some(4)));
+    s.command(&HostMsg::Waypoint {
+        joints: 0b100,
+        duration_us: 1_000_000,
+        points: points(&[0.3]),
+    })
+    .expect("accepted");
+    s.run_for(2_000_000);
+    assert!((true_arm(&s)[2] - 0.3).abs() < 0.01, "{:?}", true_arm(&s));
+}
+
+#[test]
+fn corrupted_and_garbage_host_frames_are_counted_and_ignored() {
+    let mut s = session("locobot");
+    let before = match s.command(&HostMsg::GetDiagnostics).err() {
+        None | Some(_) => s.sim.fw.diagnostics(),
+    };
+    // A valid waypoint frame with one byte flipped, then line noise, then the real thing.
+    let mut buf = [0u8; MAX_WIRE];
+    let n = encode_frame(
+        900,
+        &HostMsg::Waypoint {
+            joints: 1,
+            duration_us: 500_000,
+            points: points(&[1.0]),
+        },
+        &mut buf,
+    )
+    .expect("encodes");
+    let mut bad = buf[..n].to_vec();
+    bad[n / 2] ^= 0x10;
+    s.send_raw(&bad);
+    s.send_raw(&[0x13, 0x37, 0x00, 0xFF, 0xFF, 0x00, 0x42]);
+    s.send_raw(&[0x00]);
+    s.run_for(700_000);
+    assert!(
+        (true_arm(&s)[0]).abs() < 0.01,
+        "the corrupted waypoint moved the arm"
+    );
+    let after = s.sim.fw.diagnostics();
+    assert!(
+        after.host_bad_frames >= before.host_bad_frames + 3,
+        "{before:?} -> {after:?}"
+    );
+    s.command(&HostMsg::Waypoint {
+        joints: 1,
+        duration_us: 500_000,
+        points: points(&[0.5]),
+    })
+    .expect("link still works");
+    s.run_for(1_500_000);
+    assert!((true_arm(&s)[0] - 0.5).abs() < 0.01);
+}
+
+#[test]
+fn corrupted_servo_replies_are_counted_and_the_loop_carries_on() {
+    let mut s = session("locobot");
+    let before = s.sim.fw.diagnostics();
+    // Two whole ticks of corrupted status packets: each is counted.
+    s.sim.chain.corrupt_next_replies(18);
+    s.command(&HostMsg::Waypoint {
+        joints: ARM,
+        duration_us: 1_000_000,
+        points: points(&[0.2, 0.2, 0.2, 0.2, 0.2]),
+    })
+    .expect("accepted");
+    s.run_for(100_000);
+    let mid = s.sim.fw.diagnostics();
+    assert_eq!(
+        mid.servo_bad_packets,
+        before.servo_bad_packets + 18,
+        "{before:?} -> {mid:?}"
+    );
+    // Noise on the bus: a header with a bogus length that swallows what follows.
+    s.sim.inject_to_firmware(
+        Link::Servo,
+        &[0xFF, 0xFF, 0xFD, 0x00, 0x01, 0x20, 0x00, 0x55, 0x00, 0x12],
+    );
+    s.run_for(2_400_000);
+    let after = s.sim.fw.diagnostics();
+    assert!(
+        after.servo_bad_packets > mid.servo_bad_packets,
+        "{mid:?} -> {after:?}"
+    );
+    assert!(
+        s.take_faults()
+            .iter()
+            .all(|f| f.kind != FaultKind::ServoLost),
+        "a servo was declared lost"
+    );
+    assert!(max_err(&true_arm(&s), &[0.2; 5]) < 0.01);
+}
+
+#[test]
+fn corrupted_base_packets_are_counted_and_odometry_carries_on() {
+    let mut s = session("locobot");
+    s.command(&HostMsg::ResetOdometry).expect("reset");
+    s.command(&HostMsg::BaseVelocity {
+        v: 0.2,
+        w: 0.0,
+        duration_ms: 1000,
+    })
+    .expect("accepted");
+    s.run_for(300_000);
+    // A Kobuki packet with a wrong checksum that claims a huge encoder jump, plus noise.
+    let mut pkt = [0u8; 32];
+    let mut payload = vec![0x01, 15];
+    payload.extend_from_slice(&[0, 0, 0, 0, 0, 0x00, 0x80, 0x00, 0x80, 0, 0, 0, 0, 0, 0]);
+    let n = kobuki::encode_packet(&payload, &mut pkt).expect("encodes");
+    pkt[n - 1] ^= 0xFF;
+    s.sim.inject_to_firmware(Link::Base, &pkt[..n]);
+    s.sim
+        .inject_to_firmware(Link::Base, &[0xAA, 0x00, 0x55, 0x13]);
+    s.run_for(1_500_000);
+    assert!(s.sim.fw.diagnostics().base_bad_packets >= 1);
+    let truth = s.sim.base_truth().expect("base")[0];
+    let odom = s.telemetry.clone().expect("telemetry").odometry.x as f64;
+    assert!(
+        (odom - truth).abs() < 0.02 * truth,
+        "odometry {odom} vs truth {truth}"
+    );
+}
+
+#[test]
+fn an_overloaded_servo_reports_its_hardware_error_and_a_reboot_recovers_it() {
+    let mut s = session("locobot");
+    // Something blocks joint_1 at 0.1 rad; the arm is told to go to 0.6 rad.
+    s.sim.chain.servo_mut(1).expect("servo").obstacle = Some((0.1, false));
+    s.command(&HostMsg::Waypoint {
+        joints: 1,
+        duration_us: 500_000,
+        points: points(&[0.6]),
+    })
+    .expect("accepted");
+    let fault = s
+        .wait_msg(
+            6_000_000,
+            |m| matches!(m, DeviceMsg::Fault(f) if f.kind == FaultKind::ServoHardware),
+        )
+        .expect("hardware error reported");
+    let DeviceMsg::Fault(f) = fault else {
+        unreachable!()
+    };
+    assert_eq!(f.servo_id, Some(1));
+    assert_eq!(
+        f.code as u8 & dxl::hw_error::OVERLOAD,
+        dxl::hw_error::OVERLOAD
+    );
+    assert!(
+        s.telemetry.as_ref().expect("telemetry").faults & fault_flags::SERVO_HARDWARE != 0 || {
+            s.run_for(50_000);
+            s.telemetry.as_ref().expect("telemetry").faults & fault_flags::SERVO_HARDWARE != 0
+        }
+    );
+    // The other joints still run.
+    s.command(&HostMsg::Waypoint {
+        joints: 0b10,
+        duration_us: 500_000,
+        points: points(&[0.3]),
+    })
+    .expect("accepted");
+    s.run_for(1_500_000);
+    assert!((true_arm(&s)[1] - 0.3).abs() < 0.01);
+    // Remove the obstacle, reboot the joint: it is configured again and obeys.
+    s.sim.chain.servo_mut(1).expect("servo").obstacle = None;
+    s.command(&HostMsg::RebootJoint { joint: 0 })
+        .expect("reboot");
+    s.run_for(500_000);
+    assert_eq!(s.sim.chain.servo(1).expect("servo").hardware_error(), 0);
+    s.command(&HostMsg::Waypoint {
+        joints: 1,
+        duration_us: 500_000,
+        points: points(&[0.6]),
+    })
+    .expect("accepted");
+    s.run_for(1_500_000);
+    assert!((true_arm(&s)[0] - 0.6).abs() < 0.01, "{:?}", true_arm(&s));
+}
+
+#[test]
+fn emergency_stop_halts_everything_and_rejects_motion_until_resumed() {
+    let mut s = session("locobot");
+    s.command(&HostMsg::BaseVelocity {
+        v: 0.2,
+        w: 0.0,
+        duration_ms: 10_000,
+    })
+    .expect("accepted");
+    s.command(&HostMsg::Waypoint {
+        joints: 1,
+        duration_us: 3_000_000,
+        points: points(&[1.0]),
+    })
+    .expect("accepted");
+    s.run_for(500_000);
+    s.command(&HostMsg::EmergencyStop).expect("estop");
+    s.run_for(50_000);
+    assert_eq!(s.sim.base.as_ref().expect("base").drive.target, (0.0, 0.0));
+    let held = true_arm(&s)[0];
+    assert_eq!(
+        s.command(&HostMsg::Waypoint {
+            joints: 1,
+            duration_us: 100_000,
+            points: points(&[0.0])
+        }),
+        Err(SimError::Rejected(RejectReason::EmergencyStop))
+    );
+    assert_eq!(
+        s.command(&HostMsg::BaseVelocity {
+            v: 0.1,
+            w: 0.0,
+            duration_ms: 100
+        }),
+        Err(SimError::Rejected(RejectReason::EmergencyStop))
+    );
+    s.run_for(1_000_000);
+    assert!((true_arm(&s)[0] - held).abs() < 0.01);
+    assert!(s.telemetry.as_ref().expect("telemetry").faults & fault_flags::ESTOP != 0);
+    s.command(&HostMsg::Resume).expect("resume");
+    s.command(&HostMsg::Waypoint {
+        joints: 1,
+        duration_us: 500_000,
+        points: points(&[0.0]),
+    })
+    .expect("accepted");
+    s.run_for(1_500_000);
+    assert!(true_arm(&s)[0].abs() < 0.01);
+}
+
+#[test]
+fn a_protocol_mismatch_is_refused_at_the_handshake() {
+    let mut s = SimSession::new(ferrobot_sim::LockstepSim::new("locobot", 1).expect("sim"));
+    s.send(&HostMsg::Hello {
+        protocol_version: PROTOCOL_VERSION + 1,
+        schema_hash: SCHEMA_HASH,
+    });
+    let DeviceMsg::Hello(info) = s
+        .wait_msg(100_000, |m| matches!(m, DeviceMsg::Hello(_)))
+        .expect("answer")
+    else {
+        unreachable!()
+    };
+    assert!(!info.accepted);
+    assert_eq!(info.protocol_version, PROTOCOL_VERSION);
+    assert_eq!(
+        s.command(&HostMsg::BaseVelocity {
+            v: 0.1,
+            w: 0.0,
+            duration_ms: 100
+        }),
+        Err(SimError::Rejected(RejectReason::VersionMismatch))
+    );
+    // A wrong schema is refused the same way.
+    s.send(&HostMsg::Hello {
+        protocol_version: PROTOCOL_VERSION,
+        schema_hash: SCHEMA_HASH ^ 1,
+    });
+    let DeviceMsg::Hello(info) = s
+        .wait_msg(100_000, |m| matches!(m, DeviceMsg::Hello(_)))
+        .expect("answer")
+    else {
+        unreachable!()
+    };
+    assert!(!info.accepted);
+    assert_eq!(s.sim.base.as_ref().expect("base").drive.target, (0.0, 0.0));
+}
