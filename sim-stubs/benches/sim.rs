@@ -1,1 +1,125 @@
-fn main() {}
+//! Benchmarks of the firmware core and the lockstep simulator.
+//! Run: `cargo bench -p ferrobot-sim --bench sim`.
+//!
+//! * `firmware tick`: one servo-loop tick of the firmware core for the LoCoBot's 9 servos plus
+//!   the Kobuki: poll (sync read out), the 9 status packets in (recorded from the simulated
+//!   chain), control and the sync write out, and one Kobuki feedback packet parsed into
+//!   odometry (the base's feedback comes every 20th tick; charging it to every tick bounds the
+//!   cost from above). Plant physics excluded.
+//! * `lockstep 1 s`: one simulated second of the LoCoBot with the arm and the base moving, 1 kHz
+//!   servo loop, everything (firmware, servo physics at 4 kHz, base physics at 1 kHz, wires).
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use ferrobot_firmware::{config, Firmware, Link};
+use ferrobot_protocol::*;
+use ferrobot_sim::{LockstepSim, SimSession};
+use std::hint::black_box;
+use std::time::Instant;
+
+fn moving_session() -> SimSession {
+    let mut s = SimSession::start("locobot", 5).expect("sim");
+    s.wait_telemetry(2_000_000, |t| t.faults & fault_flags::CONFIGURING == 0)
+        .expect("configured");
+    s
+}
+
+fn start_motion(s: &mut SimSession) {
+    let pts: heapless::Vec<JointPoint, MAX_JOINTS> = [0.6f32, 0.4, -0.4, 0.3, 0.5]
+        .iter()
+        .map(|&p| JointPoint {
+            position: p,
+            velocity: 0.0,
+            effort: 0.0,
+        })
+        .collect();
+    s.command(&HostMsg::Waypoint {
+        joints: 0b1_1111,
+        duration_us: 30_000_000,
+        points: pts,
+    })
+    .expect("waypoint");
+    s.command(&HostMsg::BaseVelocity {
+        v: 0.2,
+        w: 0.1,
+        duration_ms: 30_000,
+    })
+    .expect("base");
+}
+
+/// Record one tick's status replies and a Kobuki feedback packet from the running simulator.
+fn recorded_bytes() -> (Vec<u8>, Vec<u8>) {
+    let mut s = moving_session();
+    start_motion(&mut s);
+    s.run_for(100_000);
+    let sim = &mut s.sim;
+    // A sync read as the firmware sends it.
+    let ids: Vec<u8> = (1..=9).collect();
+    let mut req = [0u8; 64];
+    let n = dxl::sync_read(&mut req, dxl::addr::PRESENT_CURRENT, 10, &ids).expect("fits");
+    let now = sim.now_us();
+    let replies: Vec<u8> = sim
+        .chain
+        .on_bytes(now, &req[..n])
+        .into_iter()
+        .flat_map(|r| r.bytes)
+        .collect();
+    let base = sim.base.as_mut().expect("base");
+    base.advance_to(now + 40_000);
+    let fb = base.take_output();
+    (replies, fb)
+}
+
+fn bench(c: &mut Criterion) {
+    let (statuses, feedback) = recorded_bytes();
+    c.bench_function("firmware tick (LoCoBot: 9 servos + Kobuki)", |b| {
+        let mut fw = Firmware::new(config::locobot(), "bench", 0);
+        let mut now = 0u64;
+        // Configure: answer every transaction from a real chain until the loop runs.
+        let mut sim = LockstepSim::new("locobot", 5).expect("sim");
+        sim.run_until(300_000);
+        fw = std::mem::replace(&mut sim.fw, fw);
+        now = now.max(sim.now_us());
+        b.iter(|| {
+            now += 1000;
+            fw.poll(now);
+            let n = fw.pending(Link::Servo).len();
+            fw.consume(Link::Servo, n);
+            fw.on_servo_bytes(now + 300, black_box(&statuses));
+            fw.on_base_bytes(now + 300, black_box(&feedback));
+            for link in [Link::Servo, Link::Base, Link::Host] {
+                let n = fw.pending(link).len();
+                fw.consume(link, n);
+            }
+        })
+    });
+    let mut group = c.benchmark_group("lockstep");
+    group.sample_size(20);
+    group.bench_function(
+        "1 s simulated (LoCoBot arm + base moving, 1 kHz loop)",
+        |b| {
+            b.iter_custom(|iters| {
+                let mut total = std::time::Duration::ZERO;
+                for _ in 0..iters {
+                    let mut s = moving_session();
+                    start_motion(&mut s);
+                    let t = Instant::now();
+                    s.run_for(1_000_000);
+                    total += t.elapsed();
+                    black_box(&s.telemetry);
+                }
+                total
+            })
+        },
+    );
+    group.finish();
+    // The real-time factor, measured the same way, printed for BENCHMARKS.md.
+    let mut s = moving_session();
+    start_motion(&mut s);
+    let t = Instant::now();
+    s.run_for(10_000_000);
+    let factor = 10.0 / t.elapsed().as_secs_f64();
+    println!("lockstep real-time factor over 10 simulated s: {factor:.0}x");
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

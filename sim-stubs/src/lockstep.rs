@@ -234,7 +234,15 @@ pub struct SimSession {
     pub inbox: Vec<Frame<DeviceMsg>>,
     /// The newest telemetry.
     pub telemetry: Option<Telemetry>,
+    /// Send a heartbeat every [`KEEPALIVE_US`] of simulated time, as a host's I/O thread does,
+    /// so the firmware's watchdog stays fed (on by default).
+    pub keepalive: bool,
+    last_keepalive: u64,
+    heartbeat_seqs: Vec<u16>,
 }
+
+/// Heartbeat period of a [`SimSession`] with keepalive on, µs.
+pub const KEEPALIVE_US: u64 = 100_000;
 
 impl SimSession {
     /// Start `robot` with `seed` and perform the handshake.
@@ -252,6 +260,9 @@ impl SimSession {
             seq: 0,
             inbox: Vec::new(),
             telemetry: None,
+            keepalive: true,
+            last_keepalive: 0,
+            heartbeat_seqs: Vec::new(),
         }
     }
 
@@ -284,6 +295,28 @@ impl SimSession {
         seq
     }
 
+    fn keep_alive(&mut self) {
+        if self.keepalive && self.sim.now_us() >= self.last_keepalive + KEEPALIVE_US {
+            self.last_keepalive = self.sim.now_us();
+            let seq = self.send(&HostMsg::Heartbeat);
+            self.heartbeat_seqs.push(seq);
+        }
+    }
+
+    /// Advance the simulation by up to `dt_us`, feeding the watchdog on the way.
+    fn step(&mut self, dt_us: u64) {
+        let end = self.sim.now_us() + dt_us;
+        while self.sim.now_us() < end {
+            self.keep_alive();
+            let chunk = if self.keepalive {
+                KEEPALIVE_US.min(end - self.sim.now_us())
+            } else {
+                end - self.sim.now_us()
+            };
+            self.sim.run_for(chunk);
+        }
+    }
+
     fn pump(&mut self) {
         let bytes = self.sim.take_host_output();
         let mut frames = Vec::new();
@@ -293,8 +326,13 @@ impl SimSession {
             }
         });
         for f in frames {
-            if let DeviceMsg::Telemetry(t) = &f.msg {
-                self.telemetry = Some(t.clone());
+            match &f.msg {
+                DeviceMsg::Telemetry(t) => self.telemetry = Some(t.clone()),
+                DeviceMsg::Ack { seq } if self.heartbeat_seqs.contains(seq) => {
+                    self.heartbeat_seqs.retain(|s| s != seq);
+                    continue;
+                }
+                _ => {}
             }
             self.inbox.push(f);
         }
@@ -302,7 +340,7 @@ impl SimSession {
 
     /// Run the simulation for `dt_us`, collecting messages.
     pub fn run_for(&mut self, dt_us: u64) {
-        self.sim.run_for(dt_us);
+        self.step(dt_us);
         self.pump();
     }
 
@@ -322,7 +360,7 @@ impl SimSession {
             if self.sim.now_us() >= end {
                 return Err(SimError::Timeout("a message"));
             }
-            self.sim.run_for(1000);
+            self.step(1000);
         }
     }
 
@@ -354,7 +392,7 @@ impl SimSession {
             if self.sim.now_us() >= end {
                 return Err(SimError::Timeout("telemetry"));
             }
-            self.sim.run_for(1000);
+            self.step(1000);
         }
     }
 
@@ -373,8 +411,120 @@ impl SimSession {
     }
 }
 
-/// The simulated demo: move the arm, work the gripper, drive the base; prints what happened.
+/// The simulated demo: handshake, move the arm, work the gripper, drive the base, all
+/// through the protocol and the firmware core; prints what happened and the simulation speed.
 pub fn demo(robot: &str, seed: u64, out: &mut dyn std::io::Write) -> Result<(), SimError> {
-    let _ = (robot, seed, out);
+    use ferrobot_protocol::{GripperCommand, GripperState, JointPoint};
+    let wall = std::time::Instant::now();
+    let mut s = SimSession::new(LockstepSim::new(robot, seed)?);
+    let info = s.handshake()?;
+    let w = |out: &mut dyn std::io::Write, line: String| {
+        let _ = writeln!(out, "{line}");
+    };
+    w(
+        out,
+        format!(
+            "Ferrobot demo: simulated {} (firmware core {}.{}.{} on board {:?}, {} joints, base {:?}, servo loop {} us, seed {seed})",
+            info.robot,
+            info.firmware_version[0],
+            info.firmware_version[1],
+            info.firmware_version[2],
+            info.board.as_str(),
+            info.joints.len(),
+            info.base,
+            info.loop_period_us
+        ),
+    );
+    s.command(&HostMsg::SetTelemetry { period_ms: 10 })?;
+    s.wait_telemetry(2_000_000, |t| {
+        t.faults & ferrobot_protocol::fault_flags::CONFIGURING == 0
+    })?;
+    let target = [0.3f32, 0.5, -0.4, 0.2, 0.1];
+    let t0 = s.sim.now_us();
+    s.command(&HostMsg::Waypoint {
+        joints: 0b1_1111,
+        duration_us: 2_000_000,
+        points: target
+            .iter()
+            .map(|&position| JointPoint {
+                position,
+                velocity: 0.0,
+                effort: 0.0,
+            })
+            .collect(),
+    })?;
+    let t = s.wait_telemetry(5_000_000, |t| {
+        t.joints
+            .iter()
+            .zip(target)
+            .all(|(j, q)| (j.position - q).abs() < 0.01)
+            && t.queued == 0
+    })?;
+    let err = t
+        .joints
+        .iter()
+        .zip(target)
+        .map(|(j, q)| (j.position - q).abs())
+        .fold(0.0, f32::max);
+    w(
+        out,
+        format!(
+            "arm    -> {target:?} rad: reached in {:.2} s, largest joint error {:.4} rad",
+            (t.time_us - t0) as f64 * 1e-6,
+            err
+        ),
+    );
+    for (cmd, want) in [
+        (GripperCommand::Close, GripperState::Closed),
+        (GripperCommand::Open, GripperState::Open),
+    ] {
+        let t0 = s.sim.now_us();
+        s.command(&HostMsg::Gripper(cmd))?;
+        let t = s.wait_telemetry(3_000_000, |t| t.gripper == want)?;
+        w(
+            out,
+            format!(
+                "gripper {cmd:?}: {:?} after {:.2} s",
+                t.gripper,
+                (t.time_us - t0) as f64 * 1e-6
+            ),
+        );
+    }
+    if s.sim.base.is_some() {
+        s.command(&HostMsg::ResetOdometry)?;
+        let start = s.sim.base_truth().unwrap_or([0.0; 3]);
+        s.command(&HostMsg::BaseVelocity {
+            v: 0.2,
+            w: 0.0,
+            duration_ms: 2000,
+        })?;
+        s.run_for(3_000_000);
+        let end = s.sim.base_truth().unwrap_or([0.0; 3]);
+        let truth = ((end[0] - start[0]).powi(2) + (end[1] - start[1]).powi(2)).sqrt();
+        let o = s.telemetry.clone().map(|t| t.odometry).unwrap_or_default();
+        let odom = ((o.x as f64).powi(2) + (o.y as f64).powi(2)).sqrt();
+        w(out, format!("base   0.2 m/s for 2 s: travelled {truth:.4} m (ground truth), odometry says {odom:.4} m"));
+    }
+    let d = s.sim.fw.diagnostics();
+    let t = s.telemetry.clone();
+    let simulated = s.sim.now_us() as f64 * 1e-6;
+    let took = wall.elapsed().as_secs_f64();
+    w(
+        out,
+        format!(
+            "bus    {} status packets, {} bad, {} timeouts; worst servo tick {} us",
+            d.servo_packets,
+            d.servo_bad_packets,
+            d.servo_timeouts,
+            t.map(|t| t.loop_stats.worst_tick_us).unwrap_or(0)
+        ),
+    );
+    w(
+        out,
+        format!(
+            "simulated {simulated:.1} s in {took:.3} s of wall time: {:.0}x real time",
+            simulated / took.max(1e-9)
+        ),
+    );
     Ok(())
 }

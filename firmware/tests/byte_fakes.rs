@@ -1,0 +1,379 @@
+//! The firmware core against byte-level fakes of its buses: a scripted Dynamixel bus that
+//! answers from a table of present values, a scripted Kobuki, and raw host frames.
+
+use std::collections::{BTreeMap, BTreeSet};
+
+use ferrobot_firmware::{config, Firmware, Link};
+use ferrobot_protocol::dxl::{self, addr, inst, units, PacketDecoder};
+use ferrobot_protocol::*;
+
+/// A fake Dynamixel bus: answers ping, read, write and sync read from fixed present values;
+/// logs every instruction it sees.
+struct FakeBus {
+    present: BTreeMap<u8, (i16, i32, i32)>,
+    silent: BTreeSet<u8>,
+    corrupt: bool,
+    decoder: PacketDecoder<512>,
+    log: Vec<(u8, u8, Vec<u8>)>,
+}
+
+impl FakeBus {
+    fn new(ids: impl IntoIterator<Item = u8>) -> Self {
+        Self {
+            present: ids.into_iter().map(|id| (id, (0, 0, 2048))).collect(),
+            silent: BTreeSet::new(),
+            corrupt: false,
+            decoder: PacketDecoder::new(),
+            log: Vec::new(),
+        }
+    }
+
+    fn status(&self, id: u8, params: &[u8]) -> Vec<u8> {
+        let mut b = vec![0u8; 64];
+        let n = dxl::status(&mut b, id, 0, params).expect("fits");
+        b.truncate(n);
+        if self.corrupt {
+            b[n - 3] ^= 0x01;
+        }
+        b
+    }
+
+    fn respond(&mut self, bytes: &[u8]) -> Vec<u8> {
+        let mut packets = Vec::new();
+        for &b in bytes {
+            if let Some(Ok(p)) = self.decoder.push(b) {
+                packets.push((p.id, p.instruction, p.params.to_vec()));
+            }
+        }
+        let mut out = Vec::new();
+        for (id, ins, params) in packets {
+            self.log.push((id, ins, params.clone()));
+            let live = |id: u8| self.present.contains_key(&id) && !self.silent.contains(&id);
+            match ins {
+                inst::PING if live(id) => out.extend(self.status(id, &[0xFC, 0x03, 46])),
+                inst::WRITE if live(id) => out.extend(self.status(id, &[])),
+                inst::REBOOT if live(id) => out.extend(self.status(id, &[])),
+                inst::READ if live(id) => {
+                    let (a, n) = (dxl::le_u16(&params, 0), dxl::le_u16(&params, 2));
+                    let (_, _, pos) = self.present[&id];
+                    let data: Vec<u8> = match a {
+                        addr::PRESENT_POSITION => pos.to_le_bytes().to_vec(),
+                        _ => vec![0; n as usize],
+                    };
+                    out.extend(self.status(id, &data[..n as usize]));
+                }
+                inst::SYNC_READ => {
+                    for &sid in &params[4..] {
+                        if !live(sid) {
+                            break;
+                        }
+                        let (c, v, p) = self.present[&sid];
+                        let mut d = Vec::new();
+                        d.extend_from_slice(&c.to_le_bytes());
+                        d.extend_from_slice(&v.to_le_bytes());
+                        d.extend_from_slice(&p.to_le_bytes());
+                        out.extend(self.status(sid, &d));
+                    }
+                }
+                _ => {}
+            }
+        }
+        out
+    }
+}
+
+/// Run the firmware against the fake bus for `ticks` loop periods from `*now`.
+fn run(fw: &mut Firmware, bus: &mut FakeBus, now: &mut u64, ticks: u64) {
+    let end = *now + ticks * 1000;
+    while *now < end {
+        *now = (*now + 1).max(fw.next_deadline().min(end));
+        fw.poll(*now);
+        // Exchange until the bus has nothing more to say within this instant (+100 µs per reply).
+        for _ in 0..4 {
+            let n = fw.pending(Link::Servo).len();
+            if n == 0 {
+                break;
+            }
+            let tx = fw.pending(Link::Servo).to_vec();
+            fw.consume(Link::Servo, n);
+            let rx = bus.respond(&tx);
+            if !rx.is_empty() {
+                *now += 100;
+                fw.on_servo_bytes(*now, &rx);
+            }
+        }
+        for link in [Link::Host, Link::Base] {
+            let n = fw.pending(link).len();
+            fw.consume(link, n);
+        }
+    }
+}
+
+fn hello() -> Vec<u8> {
+    frame(
+        0,
+        &HostMsg::Hello {
+            protocol_version: PROTOCOL_VERSION,
+            schema_hash: SCHEMA_HASH,
+        },
+    )
+}
+
+fn frame(seq: u16, m: &HostMsg) -> Vec<u8> {
+    let mut b = [0u8; MAX_WIRE];
+    let n = encode_frame(seq, m, &mut b).expect("fits");
+    b[..n].to_vec()
+}
+
+fn locobot() -> (Firmware, FakeBus, u64) {
+    let fw = Firmware::new(config::locobot(), "test", 0);
+    let bus = FakeBus::new(1..=9);
+    (fw, bus, 0)
+}
+
+#[test]
+fn configures_every_servo_then_runs_one_sync_read_and_one_sync_write_per_tick() {
+    let (mut fw, mut bus, mut now) = locobot();
+    run(&mut fw, &mut bus, &mut now, 200);
+    // Configuration wrote return delay 0 and the operating mode, and enabled torque, on all nine.
+    for id in 1..=9u8 {
+        let writes: Vec<&Vec<u8>> = bus
+            .log
+            .iter()
+            .filter(|(i, ins, _)| *i == id && *ins == inst::WRITE)
+            .map(|(_, _, p)| p)
+            .collect();
+        // The last write to each address is what the servo is left with.
+        let at = |a: u16| {
+            writes
+                .iter()
+                .rev()
+                .find(|p| dxl::le_u16(p, 0) == a)
+                .map(|p| p[2..].to_vec())
+        };
+        assert_eq!(at(addr::RETURN_DELAY_TIME), Some(vec![0]), "servo {id}");
+        assert_eq!(
+            at(addr::OPERATING_MODE),
+            Some(vec![dxl::mode::POSITION]),
+            "servo {id}"
+        );
+        assert_eq!(at(addr::TORQUE_ENABLE), Some(vec![1]), "servo {id}");
+    }
+    // In steady state: per tick exactly one sync read of 126..136 from all nine, one sync write.
+    bus.log.clear();
+    run(&mut fw, &mut bus, &mut now, 100);
+    let reads: Vec<_> = bus
+        .log
+        .iter()
+        .filter(|(_, i, _)| *i == inst::SYNC_READ)
+        .collect();
+    let writes: Vec<_> = bus
+        .log
+        .iter()
+        .filter(|(_, i, _)| *i == inst::SYNC_WRITE)
+        .collect();
+    assert!(
+        (99..=101).contains(&reads.len()),
+        "{} sync reads in 100 ticks",
+        reads.len()
+    );
+    assert_eq!(reads.len(), writes.len());
+    assert_eq!(
+        bus.log.len(),
+        reads.len() + writes.len(),
+        "other traffic in steady state"
+    );
+    let p = &reads[0].2;
+    assert_eq!(
+        (dxl::le_u16(p, 0), dxl::le_u16(p, 2)),
+        (addr::PRESENT_CURRENT, 10)
+    );
+    assert_eq!(&p[4..], &[1, 2, 3, 4, 5, 6, 7, 8, 9]);
+    assert_eq!(dxl::le_u16(&writes[0].2, 0), addr::GOAL_POSITION);
+    assert_eq!(fw.telemetry(now).loop_stats.overruns, 0);
+}
+
+/// Goal ticks of the last sync write, by servo ID.
+fn last_goals(bus: &FakeBus) -> BTreeMap<u8, i32> {
+    let (_, _, p) = bus
+        .log
+        .iter()
+        .rev()
+        .find(|(_, i, _)| *i == inst::SYNC_WRITE)
+        .expect("a sync write");
+    p[4..]
+        .chunks(5)
+        .map(|c| (c[0], i32::from_le_bytes([c[1], c[2], c[3], c[4]])))
+        .collect()
+}
+
+#[test]
+fn twin_servo_is_mirrored_and_inverted_joints_are_inverted() {
+    let (mut fw, mut bus, mut now) = locobot();
+    fw.on_host_bytes(now, &hello());
+    fw.on_host_bytes(now, &frame(1, &HostMsg::SetWatchdog { period_ms: 0 }));
+    run(&mut fw, &mut bus, &mut now, 200);
+    let pts = [0.5f32, 0.5]
+        .iter()
+        .map(|&position| JointPoint {
+            position,
+            velocity: 0.0,
+            effort: 0.0,
+        })
+        .collect();
+    fw.on_host_bytes(
+        now,
+        &frame(
+            2,
+            &HostMsg::Waypoint {
+                joints: 0b110,
+                duration_us: 0,
+                points: pts,
+            },
+        ),
+    );
+    // Rate-limited at 1 rad/s: 0.5 rad takes 500 ticks.
+    run(&mut fw, &mut bus, &mut now, 700);
+    let g = last_goals(&bus);
+    let d = (0.5 / units::RAD_PER_TICK).round() as i32;
+    // The fake servos never move, so the firmware's goal-offset integrator adds to the goal;
+    // compare the mirrored structure, which it keeps.
+    assert!((g[&2] - 2048 - d).abs() <= 320, "{g:?}");
+    assert_eq!(g[&2] - 2048, 2048 - g[&3], "twin must be mirrored: {g:?}");
+    assert!(
+        g[&4] < 2048 - d + 320 && g[&4] <= 2048 - d,
+        "joint_3 is sign-inverted: {g:?}"
+    );
+}
+
+#[test]
+fn lost_servo_is_reported_left_out_of_the_sync_read_and_the_loop_continues() {
+    let (mut fw, mut bus, mut now) = locobot();
+    fw.on_host_bytes(now, &hello());
+    run(&mut fw, &mut bus, &mut now, 200);
+    bus.silent.insert(5);
+    run(&mut fw, &mut bus, &mut now, 20);
+    bus.log.clear();
+    run(&mut fw, &mut bus, &mut now, 250);
+    let reads: Vec<_> = bus
+        .log
+        .iter()
+        .filter(|(_, i, _)| *i == inst::SYNC_READ)
+        .collect();
+    assert!(
+        reads.len() >= 249,
+        "{} sync reads in 250 ticks",
+        reads.len()
+    );
+    assert!(
+        reads.iter().all(|(_, _, p)| !p[4..].contains(&5)),
+        "servo 5 still in the sync read"
+    );
+    let t = fw.telemetry(now);
+    assert!(t.faults & fault_flags::SERVO_LOST != 0);
+    assert!(fw.diagnostics().servo_timeouts >= 3);
+    // Pinged every 100 ms while lost.
+    let pings = bus
+        .log
+        .iter()
+        .filter(|(i, ins, _)| *i == 5 && *ins == inst::PING)
+        .count();
+    assert!(
+        (2..=3).contains(&pings),
+        "{pings} pings of the lost servo in 250 ms"
+    );
+}
+
+#[test]
+fn corrupted_replies_are_counted_and_never_stop_the_loop() {
+    let (mut fw, mut bus, mut now) = locobot();
+    run(&mut fw, &mut bus, &mut now, 200);
+    let ticks = fw.telemetry(now).loop_stats.ticks;
+    bus.corrupt = true;
+    run(&mut fw, &mut bus, &mut now, 2);
+    bus.corrupt = false;
+    run(&mut fw, &mut bus, &mut now, 10);
+    assert_eq!(fw.diagnostics().servo_bad_packets, 18);
+    assert!(fw.telemetry(now).loop_stats.ticks >= ticks + 11);
+}
+
+#[test]
+fn host_garbage_is_counted_and_the_link_keeps_working() {
+    let (mut fw, mut bus, mut now) = locobot();
+    fw.on_host_bytes(now, &hello());
+    let mut bad = frame(1, &HostMsg::Heartbeat);
+    bad[1] ^= 0x40;
+    fw.on_host_bytes(now, &bad);
+    fw.on_host_bytes(now, &[1, 2, 3, 0, 0, 0xFF, 0]);
+    fw.on_host_bytes(now, &frame(2, &HostMsg::GetDiagnostics));
+    run(&mut fw, &mut bus, &mut now, 1);
+    let d = fw.diagnostics();
+    assert_eq!(d.host_frames, 2);
+    assert_eq!(d.host_bad_frames, 3);
+}
+
+/// A Kobuki feedback packet with these encoder counts.
+fn kobuki_feedback(left: u16, right: u16, bumper: u8) -> Vec<u8> {
+    let d = kobuki::BasicSensorData {
+        left_encoder: left,
+        right_encoder: right,
+        bumper,
+        ..Default::default()
+    };
+    let mut payload = vec![kobuki::FB_BASIC_SENSOR_DATA, 15];
+    payload.extend_from_slice(&d.to_bytes());
+    let mut b = [0u8; 64];
+    let n = kobuki::encode_packet(&payload, &mut b).expect("fits");
+    b[..n].to_vec()
+}
+
+#[test]
+fn kobuki_odometry_survives_encoder_wrap_around() {
+    let mut fw = Firmware::new(config::locobot(), "test", 0);
+    // Both wheels advance 1000 ticks per packet, starting just below the wrap.
+    let mut enc: u16 = 65_000;
+    for k in 0..=10u64 {
+        fw.on_base_bytes(k * 20_000, &kobuki_feedback(enc, enc, 0));
+        enc = enc.wrapping_add(1000);
+    }
+    let o = fw.telemetry(200_000).odometry;
+    let expected = 10.0 * 1000.0 * 0.002436917 * 0.035;
+    assert!((o.x as f64 - expected).abs() < 1e-4, "{o:?} vs {expected}");
+    assert!(o.y.abs() < 1e-6 && o.theta.abs() < 1e-6);
+}
+
+#[test]
+fn watchdog_sends_zero_to_the_base_at_once_and_reports() {
+    let mut fw = Firmware::new(config::locobot(), "test", 0);
+    fw.on_host_bytes(0, &hello());
+    fw.on_host_bytes(
+        0,
+        &frame(
+            1,
+            &HostMsg::BaseVelocity {
+                v: 0.3,
+                w: 0.0,
+                duration_ms: 10_000,
+            },
+        ),
+    );
+    let n = fw.pending(Link::Base).len();
+    fw.consume(Link::Base, n);
+    fw.poll(499_000);
+    let n = fw.pending(Link::Base).len();
+    fw.consume(Link::Base, n);
+    fw.poll(500_000);
+    // The last base command sent is speed 0, radius 0.
+    let tx = fw.pending(Link::Base).to_vec();
+    let mut p = kobuki::Parser::new();
+    let mut last = None;
+    for b in tx {
+        if let Some(Ok(payload)) = p.push(b) {
+            last = kobuki::sub_payloads(payload)
+                .find(|(id, _)| *id == kobuki::CMD_BASE_CONTROL)
+                .map(|(_, d)| d.to_vec());
+        }
+    }
+    assert_eq!(last, Some(vec![0, 0, 0, 0]));
+    assert!(fw.telemetry(500_000).faults & fault_flags::WATCHDOG != 0);
+}

@@ -1,0 +1,23 @@
+//! Dynamixel packets: the packet decoder alone, then the firmware's bus master fed the bytes
+//! as servo replies while it runs its loop. Nothing may panic.
+#![no_main]
+use ferrobot_firmware::{config, Firmware, Link};
+use ferrobot_protocol::dxl::PacketDecoder;
+use libfuzzer_sys::fuzz_target;
+
+fuzz_target!(|data: &[u8]| {
+    let mut d = PacketDecoder::<256>::new();
+    for &b in data {
+        let _ = d.push(b);
+    }
+    let mut fw = Firmware::new(config::locobot(), "fuzz", 0);
+    for (i, chunk) in data.chunks(23).enumerate() {
+        let now = 250 * i as u64;
+        fw.poll(now);
+        fw.on_servo_bytes(now + 100, chunk);
+        for link in [Link::Host, Link::Servo, Link::Base] {
+            let n = fw.pending(link).len();
+            fw.consume(link, n);
+        }
+    }
+});

@@ -1,0 +1,31 @@
+//! Host frames: the frame decoder alone (both message directions), then the firmware core fed
+//! the same bytes after a valid handshake. Nothing may panic.
+#![no_main]
+use ferrobot_firmware::{config, Firmware, Link};
+use ferrobot_protocol::*;
+use libfuzzer_sys::fuzz_target;
+
+fuzz_target!(|data: &[u8]| {
+    let mut d = FrameDecoder::new();
+    for &b in data {
+        let _ = d.push::<HostMsg>(b);
+    }
+    let mut d = FrameDecoder::new();
+    for &b in data {
+        let _ = d.push::<DeviceMsg>(b);
+    }
+    let mut fw = Firmware::new(config::locobot(), "fuzz", 0);
+    let mut hello = [0u8; MAX_WIRE];
+    if let Ok(n) = encode_frame(0, &HostMsg::Hello { protocol_version: PROTOCOL_VERSION, schema_hash: SCHEMA_HASH }, &mut hello) {
+        fw.on_host_bytes(0, &hello[..n]);
+    }
+    for (i, chunk) in data.chunks(17).enumerate() {
+        let now = 1000 * i as u64;
+        fw.on_host_bytes(now, chunk);
+        fw.poll(now);
+        for link in [Link::Host, Link::Servo, Link::Base] {
+            let n = fw.pending(link).len();
+            fw.consume(link, n);
+        }
+    }
+});
