@@ -11,7 +11,7 @@
 //! until it answers, then reconfigured. A status with the alert bit makes the master read the
 //! Hardware Error Status and report it. Nothing here stops the loop.
 
-use ferrobot_protocol::dxl::{self, addr, inst, mode, status_error, PacketDecoder};
+use ferrobot_protocol::dxl::{self, addr, mode, status_error, PacketDecoder};
 use ferrobot_protocol::{JointConfig, ServoModel};
 use heapless::Vec;
 
@@ -420,9 +420,7 @@ impl ServoBus {
                 11,
             ),
             op::POS_GAINS => {
-                let g = cfg
-                    .map(|c| c.servo)
-                    .unwrap_or(crate::config::default_servo_gains(s.model));
+                let g = cfg.map(|c| c.servo).unwrap_or(s.model.factory_gains());
                 let mut d = [0u8; 6];
                 d[..2].copy_from_slice(&g.pos_d.to_le_bytes());
                 d[2..4].copy_from_slice(&g.pos_i.to_le_bytes());
@@ -433,9 +431,7 @@ impl ServoBus {
                 )
             }
             op::VEL_GAINS => {
-                let g = cfg
-                    .map(|c| c.servo)
-                    .unwrap_or(crate::config::default_servo_gains(s.model));
+                let g = cfg.map(|c| c.servo).unwrap_or(s.model.factory_gains());
                 let mut d = [0u8; 4];
                 d[..2].copy_from_slice(&g.vel_i.to_le_bytes());
                 d[2..].copy_from_slice(&g.vel_p.to_le_bytes());
@@ -445,9 +441,7 @@ impl ServoBus {
                 )
             }
             op::PROFILE => {
-                let g = cfg
-                    .map(|c| c.servo)
-                    .unwrap_or(crate::config::default_servo_gains(s.model));
+                let g = cfg.map(|c| c.servo).unwrap_or(s.model.factory_gains());
                 let mut d = [0u8; 8];
                 d[..4].copy_from_slice(&g.profile_acceleration.to_le_bytes());
                 d[4..].copy_from_slice(&g.profile_velocity.to_le_bytes());
@@ -505,17 +499,14 @@ impl ServoBus {
     }
 
     fn op_done(&mut self, i: usize, o: u16) {
-        let mut became_ok = false;
         if let Some(s) = self.servos.get_mut(i) {
             s.ops &= !o;
             s.retries = 0;
             if s.status == ServoStatus::Configuring && s.ops & op::CONFIGURE == 0 {
                 s.status = ServoStatus::Ok;
                 s.misses = 0;
-                became_ok = true;
             }
         }
-        let _ = became_ok;
     }
 
     fn op_failed(&mut self, now: u64, i: usize) {
@@ -559,7 +550,7 @@ impl ServoBus {
     }
 
     /// Bytes from the bus.
-    pub fn on_bytes(&mut self, now: u64, bytes: &[u8], joints: &[JointConfig]) {
+    pub fn on_bytes(&mut self, now: u64, bytes: &[u8]) {
         for &b in bytes {
             let before = self.decoder.stats();
             let pkt = match self.decoder.push(b) {
@@ -580,20 +571,12 @@ impl ServoBus {
             self.stats.bad_packets += (after.crc - before.crc) + (after.length - before.length);
             if let Some((id, err, (data, len))) = pkt {
                 self.stats.packets += 1;
-                self.on_status(now, id, err, &data, len, joints);
+                self.on_status(now, id, err, &data, len);
             }
         }
     }
 
-    fn on_status(
-        &mut self,
-        now: u64,
-        id: u8,
-        err: u8,
-        data: &[u8; 10],
-        len: usize,
-        joints: &[JointConfig],
-    ) {
+    fn on_status(&mut self, now: u64, id: u8, err: u8, data: &[u8; 10], len: usize) {
         if err & status_error::ALERT != 0 {
             self.stats.alerts += 1;
         }
@@ -667,7 +650,6 @@ impl ServoBus {
             }
             _ => {}
         }
-        let _ = joints;
     }
 
     /// Handle timeouts at `now`.
@@ -760,18 +742,5 @@ impl ServoBus {
             }
         }
         self.phase = Phase::Idle;
-    }
-
-    /// Whether an instruction code is one this master sends (for tests).
-    pub fn is_master_instruction(i: u8) -> bool {
-        matches!(
-            i,
-            inst::PING
-                | inst::READ
-                | inst::WRITE
-                | inst::REBOOT
-                | inst::SYNC_READ
-                | inst::SYNC_WRITE
-        )
     }
 }

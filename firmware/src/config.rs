@@ -2,8 +2,7 @@
 //! of the bundled robots (the host can replace joint rows at run time).
 
 use ferrobot_protocol::{
-    BaseKind, JointConfig, JointKind, JointLimits, Name, PidGains, ServoGains, ServoModel,
-    MAX_JOINTS,
+    BaseKind, JointConfig, JointKind, JointLimits, Name, PidGains, ServoModel, MAX_JOINTS,
 };
 use heapless::Vec;
 
@@ -161,31 +160,6 @@ fn name(s: &str) -> Name {
     n
 }
 
-/// Default servo-internal gains of a model (ROBOTIS defaults) with no motion profile: the
-/// firmware streams interpolated setpoints every tick, so the servo must not add its own.
-pub fn default_servo_gains(model: ServoModel) -> ServoGains {
-    match model {
-        ServoModel::Xm430W350 => ServoGains {
-            pos_p: 800,
-            pos_i: 0,
-            pos_d: 0,
-            vel_p: 100,
-            vel_i: 1920,
-            profile_velocity: 0,
-            profile_acceleration: 0,
-        },
-        _ => ServoGains {
-            pos_p: 640,
-            pos_i: 0,
-            pos_d: 4000,
-            vel_p: 100,
-            vel_i: 1000,
-            profile_velocity: 0,
-            profile_acceleration: 0,
-        },
-    }
-}
-
 /// Build one joint row with the defaults of its model.
 #[allow(clippy::too_many_arguments)]
 pub fn joint(
@@ -222,7 +196,9 @@ pub fn joint(
         limits,
         pid,
         position_ki: if kind == JointKind::Gripper { 0.0 } else { 4.0 },
-        servo: default_servo_gains(model),
+        // ROBOTIS' factory gains, and no motion profile: the firmware streams interpolated
+        // setpoints every tick, so the servo must not add a profile of its own.
+        servo: model.factory_gains(),
     }
 }
 

@@ -241,7 +241,7 @@ impl Firmware {
 
     /// Bytes from the servo bus.
     pub fn on_servo_bytes(&mut self, now: u64, bytes: &[u8]) {
-        self.bus.on_bytes(now, bytes, &self.profile.joints);
+        self.bus.on_bytes(now, bytes);
         self.drain_bus_events(now);
         if self.bus.read_done() {
             self.finish_tick(now);
@@ -504,8 +504,7 @@ impl Firmware {
                     .map(|s| s.present)
                     .unwrap_or_default();
                 let drive = g.tick(now, &present);
-                if let (Some(i), Some(goal)) = (p, p.and_then(|i| goals.get_mut(i))) {
-                    let _ = i;
+                if let Some(goal) = p.and_then(|i| goals.get_mut(i)) {
                     *goal = match drive {
                         GripperDrive::Position(tick) => Goal::Position(tick),
                         GripperDrive::Pwm(pwm) => Goal::Pwm(pwm),

@@ -10,7 +10,7 @@
 
 use crc::{Crc, CRC_16_UMTS};
 
-use crate::messages::ServoModel;
+use crate::messages::{ServoGains, ServoModel};
 
 const CRC16: Crc<u16> = Crc::<u16>::new(&CRC_16_UMTS);
 
@@ -279,6 +279,23 @@ fn clamp_i16(v: f32) -> i16 {
 }
 
 impl ServoModel {
+    /// Factory-default control gains (ROBOTIS e-manual) and motion profile (none).
+    pub fn factory_gains(&self) -> ServoGains {
+        let (pos_p, pos_i, pos_d, vel_p, vel_i) = match self {
+            ServoModel::Xm430W350 => (800, 0, 0, 100, 1920),
+            _ => (640, 0, 4000, 100, 1000),
+        };
+        ServoGains {
+            pos_p,
+            pos_i,
+            pos_d,
+            vel_p,
+            vel_i,
+            profile_velocity: 0,
+            profile_acceleration: 0,
+        }
+    }
+
     /// Published data of the model (ROBOTIS e-manual).
     pub fn spec(&self) -> MotorSpec {
         match self {

@@ -139,7 +139,7 @@ impl ServoSim {
     /// Restore the control table's defaults (ID kept).
     pub fn factory_reset(&mut self) {
         let id = self.id;
-        let gains = ferrobot_firmware::config::default_servo_gains(self.model);
+        let gains = self.model.factory_gains();
         self.table = [0; addr::TABLE_SIZE];
         self.put(addr::MODEL_NUMBER, 2, self.spec.model_number as u32);
         self.put(addr::FIRMWARE_VERSION, 1, 46);
