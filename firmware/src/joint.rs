@@ -7,6 +7,13 @@ use heapless::Deque;
 /// Knots a joint can queue.
 pub const QUEUE_LEN: usize = 16;
 
+/// Velocity and PWM modes brake towards a position limit: the commanded speed is at most
+/// this gain (1/s) times the distance left, so the joint stops at the limit instead of
+/// reacting once it is past it.
+pub const LIMIT_APPROACH_GAIN: f32 = 2.0;
+/// PWM mode: the largest PWM fraction per rad of distance left to a limit.
+pub const LIMIT_APPROACH_PWM: f32 = 1.5;
+
 /// One queued trajectory knot at an absolute firmware time.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Knot {
@@ -274,19 +281,17 @@ impl JointControl {
             }
             JointMode::Velocity => {
                 let v0 = self.direct.unwrap_or(0.0);
-                let mut v = v0.clamp(-lim.velocity, lim.velocity);
-                if (q >= lim.max && v > 0.0) || (q <= lim.min && v < 0.0) {
-                    v = 0.0;
-                }
+                let up = (LIMIT_APPROACH_GAIN * (lim.max - q)).max(0.0);
+                let down = (LIMIT_APPROACH_GAIN * (lim.min - q)).min(0.0);
+                let v = v0.clamp(-lim.velocity, lim.velocity).clamp(down, up);
                 clamped |= v != v0;
                 JointOutput::Velocity(v)
             }
             JointMode::Pwm => {
                 let p0 = self.direct.unwrap_or(0.0);
-                let mut p = p0.clamp(-1.0, 1.0);
-                if (q >= lim.max && p > 0.0) || (q <= lim.min && p < 0.0) {
-                    p = 0.0;
-                }
+                let up = (LIMIT_APPROACH_PWM * (lim.max - q)).max(0.0);
+                let down = (LIMIT_APPROACH_PWM * (lim.min - q)).min(0.0);
+                let p = p0.clamp(-1.0, 1.0).clamp(down, up);
                 clamped |= p != p0;
                 JointOutput::Pwm(p)
             }

@@ -377,3 +377,47 @@ fn watchdog_sends_zero_to_the_base_at_once_and_reports() {
     assert_eq!(last, Some(vec![0, 0, 0, 0]));
     assert!(fw.telemetry(500_000).faults & fault_flags::WATCHDOG != 0);
 }
+
+#[test]
+fn create2_driver_starts_the_stream_drives_direct_and_integrates_odometry() {
+    let mut fw = Firmware::new(config::locobot_lite(), "test", 0);
+    fw.on_host_bytes(0, &hello());
+    fw.poll(0);
+    let tx = fw.pending(Link::Base).to_vec();
+    // Start, Safe, Stream of bumps/drops, four cliffs and both encoders.
+    let mut start = vec![create2::OP_START, create2::OP_SAFE, create2::OP_STREAM, 7];
+    start.extend_from_slice(&create2::STREAM_IDS);
+    assert_eq!(&tx[..start.len()], &start[..], "{tx:?}");
+    let n = fw.pending(Link::Base).len();
+    fw.consume(Link::Base, n);
+    fw.on_host_bytes(
+        1000,
+        &frame(
+            1,
+            &HostMsg::BaseVelocity {
+                v: 0.1,
+                w: 0.0,
+                duration_ms: 1000,
+            },
+        ),
+    );
+    let tx = fw.pending(Link::Base).to_vec();
+    assert_eq!(tx.last_chunk::<5>(), Some(&create2::drive_direct(100, 100)));
+    // Stream packets: both encoders +100 counts per 15 ms, across the signed 16-bit wrap.
+    let mut enc: i16 = 32_700;
+    for k in 0..=20u64 {
+        let s = create2::Sensors {
+            left_encoder: enc,
+            right_encoder: enc,
+            ..Default::default()
+        };
+        let mut b = [0u8; 64];
+        let n = create2::encode_stream(&s, &mut b).expect("fits");
+        fw.on_base_bytes(2000 + k * 15_000, &b[..n]);
+        enc = enc.wrapping_add(100);
+    }
+    let o = fw.telemetry(400_000).odometry;
+    let expected = 20.0 * 100.0 * (std::f64::consts::TAU / 508.8) * 0.036;
+    assert!((o.x as f64 - expected).abs() < 1e-4, "{o:?} vs {expected}");
+    assert_eq!(fw.diagnostics().base_packets, 21);
+}

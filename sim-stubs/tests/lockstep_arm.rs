@@ -227,3 +227,53 @@ fn gripper_closes_fully_without_an_object_and_holds_one() {
         GripperState::Holding
     );
 }
+
+#[test]
+fn velocity_and_pwm_modes_move_the_joint_and_stop_at_its_limits() {
+    let mut s = session("locobot");
+    // Velocity mode: joint_1 at 0.4 rad/s for 1 s.
+    s.command(&HostMsg::SetMode {
+        joints: 1,
+        mode: JointMode::Velocity,
+    })
+    .expect("velocity mode");
+    s.run_for(50_000);
+    s.command(&HostMsg::JointCommand {
+        joints: 1,
+        values: [0.4].into_iter().collect(),
+    })
+    .expect("accepted");
+    // The servo's velocity PI (factory gains) winds up within a few hundred ms; then measure.
+    s.run_for(500_000);
+    let q0 = true_arm(&s)[0];
+    s.run_for(500_000);
+    let speed = (true_arm(&s)[0] - q0) / 0.5;
+    assert!(
+        (speed - 0.4).abs() < 0.4 * 0.05,
+        "steady speed {speed} rad/s, asked 0.4"
+    );
+    // Asked for 5 rad/s: the firmware holds it to the joint's 1 rad/s and stops at +1.57.
+    s.command(&HostMsg::JointCommand {
+        joints: 1,
+        values: [5.0].into_iter().collect(),
+    })
+    .expect("accepted");
+    s.run_for(3_000_000);
+    let q = true_arm(&s)[0];
+    assert!(q <= 1.57 + 0.01 && q > 1.5, "joint_1 at {q}");
+    // PWM mode on the pan servo: it turns, and stops at its limit.
+    s.command(&HostMsg::SetMode {
+        joints: 1 << 6,
+        mode: JointMode::Pwm,
+    })
+    .expect("pwm mode");
+    s.run_for(50_000);
+    s.command(&HostMsg::JointCommand {
+        joints: 1 << 6,
+        values: [-0.3].into_iter().collect(),
+    })
+    .expect("accepted");
+    s.run_for(4_000_000);
+    let pan = s.telemetry.as_ref().expect("telemetry").joints[6].position;
+    assert!((-2.71..=-2.6).contains(&pan), "pan at {pan}, limit -2.7");
+}
