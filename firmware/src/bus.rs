@@ -552,23 +552,23 @@ impl ServoBus {
     /// Bytes from the bus.
     pub fn on_bytes(&mut self, now: u64, bytes: &[u8]) {
         for &b in bytes {
-            let before = self.decoder.stats();
             let pkt = match self.decoder.push(b) {
                 Some(Ok(p)) if p.is_status() => Some((p.id, p.error(), {
                     let mut d = [0u8; 10];
                     let data = p.data();
-                    let n = data.len().min(10);
-                    for (dst, src) in d.iter_mut().zip(data.iter().take(n)) {
+                    for (dst, src) in d.iter_mut().zip(data.iter()) {
                         *dst = *src;
                     }
                     (d, data.len())
                 })),
-                Some(Ok(_)) => None, // an instruction echo (half-duplex) or another master: ignore
-                Some(Err(_)) => None,
+                // An instruction echo (half-duplex) or another master: not for us.
+                Some(Ok(_)) => None,
+                Some(Err(_)) => {
+                    self.stats.bad_packets += 1;
+                    None
+                }
                 None => None,
             };
-            let after = self.decoder.stats();
-            self.stats.bad_packets += (after.crc - before.crc) + (after.length - before.length);
             if let Some((id, err, (data, len))) = pkt {
                 self.stats.packets += 1;
                 self.on_status(now, id, err, &data, len);

@@ -542,6 +542,7 @@ pub struct PacketStats {
 pub struct PacketDecoder<const N: usize> {
     buf: [u8; N],
     len: usize,
+    total: usize,
     stats: PacketStats,
 }
 
@@ -557,6 +558,7 @@ impl<const N: usize> PacketDecoder<N> {
         Self {
             buf: [0; N],
             len: 0,
+            total: 0,
             stats: PacketStats {
                 ok: 0,
                 crc: 0,
@@ -636,27 +638,27 @@ impl<const N: usize> PacketDecoder<N> {
         }
         self.set(self.len, b);
         self.len += 1;
-        if self.len < 7 {
+        if self.len == 7 {
+            let declared = u16::from_le_bytes([
+                self.buf.get(5).copied().unwrap_or(0),
+                self.buf.get(6).copied().unwrap_or(0),
+            ]) as usize;
+            if declared < 3 {
+                self.restart_with(b);
+                self.stats.length += 1;
+                return Some(Err(DxlError::BadLength));
+            }
+            self.total = 7 + declared;
+            if self.total > N {
+                self.len = 0;
+                self.stats.length += 1;
+                return Some(Err(DxlError::TooLong));
+            }
+        }
+        if self.len < 7 || self.len < self.total {
             return None;
         }
-        let declared = u16::from_le_bytes([
-            self.buf.get(5).copied().unwrap_or(0),
-            self.buf.get(6).copied().unwrap_or(0),
-        ]) as usize;
-        if declared < 3 {
-            self.restart_with(b);
-            self.stats.length += 1;
-            return Some(Err(DxlError::BadLength));
-        }
-        let total = 7 + declared;
-        if total > N {
-            self.len = 0;
-            self.stats.length += 1;
-            return Some(Err(DxlError::TooLong));
-        }
-        if self.len < total {
-            return None;
-        }
+        let total = self.total;
         self.len = 0;
         let body_end = total - 2;
         let crc_ok = match (self.buf.get(..body_end), self.buf.get(body_end..total)) {

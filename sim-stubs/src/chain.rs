@@ -69,6 +69,7 @@ pub struct ServoChain {
     substep_acc: u64,
     pending_reg: Vec<(usize, u16, Vec<u8>)>,
     corrupt_replies: u32,
+    present_stale: bool,
     /// Counters.
     pub stats: ChainStats,
 }
@@ -98,6 +99,7 @@ impl ServoChain {
             substep_acc: 0,
             pending_reg: Vec::new(),
             corrupt_replies: 0,
+            present_stale: true,
             stats: ChainStats::default(),
         }
     }
@@ -160,6 +162,13 @@ impl ServoChain {
             k += 1;
         }
         if k > 0 {
+            self.present_stale = true;
+        }
+    }
+
+    /// Refresh the present-value registers, once per instant at which someone reads them.
+    fn refresh_present(&mut self) {
+        if std::mem::take(&mut self.present_stale) {
             for s in self.servos.iter_mut() {
                 s.update_present();
             }
@@ -221,6 +230,12 @@ impl ServoChain {
                 Some(Err(_)) => self.stats.bad_packets += 1,
                 None => {}
             }
+        }
+        if packets
+            .iter()
+            .any(|(_, ins, _)| matches!(*ins, inst::READ | inst::SYNC_READ | inst::BULK_READ))
+        {
+            self.refresh_present();
         }
         for (id, ins, params) in packets {
             self.stats.instructions += 1;
