@@ -10,6 +10,7 @@ use ferrobot_sim::{SimError, SimSession};
 #[test]
 fn watchdog_stops_the_base_within_one_cycle_and_holds_the_arm() {
     let mut s = session("locobot");
+    s.keepalive = false;
     s.command(&HostMsg::SetWatchdog { period_ms: 300 })
         .expect("watchdog on");
     // A long arm motion and a long drive, then silence.
