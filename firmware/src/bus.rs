@@ -16,6 +16,8 @@ use ferrobot_protocol::{JointConfig, ServoModel};
 use heapless::Vec;
 
 use crate::config::BusConfig;
+use crate::txbuf::TxBuf;
+use heapless::Deque;
 
 /// Most servos on one bus.
 pub const MAX_SERVOS: usize = 16;
@@ -192,8 +194,8 @@ pub struct ServoBus {
     phase: Phase,
     read_list: Vec<u8, MAX_SERVOS>,
     received: u32,
-    tx: Vec<u8, 512>,
-    events: Vec<BusEvent, 16>,
+    tx: TxBuf<512>,
+    events: Deque<BusEvent, 16>,
     /// Counters.
     pub stats: BusStats,
 }
@@ -220,8 +222,8 @@ impl ServoBus {
             phase: Phase::Idle,
             read_list: Vec::new(),
             received: 0,
-            tx: Vec::new(),
-            events: Vec::new(),
+            tx: TxBuf::new(),
+            events: Deque::new(),
             stats: BusStats::default(),
         };
         bus.rebuild(joints);
@@ -260,27 +262,21 @@ impl ServoBus {
 
     /// Bytes waiting to go out on the bus.
     pub fn pending_tx(&self) -> &[u8] {
-        &self.tx
+        self.tx.pending()
     }
 
     /// The shell sent the first `n` pending bytes.
     pub fn consume_tx(&mut self, n: usize) {
-        let n = n.min(self.tx.len());
-        self.tx.copy_within(n.., 0);
-        self.tx.truncate(self.tx.len() - n);
+        self.tx.consume(n);
     }
 
     /// Take the next event.
     pub fn pop_event(&mut self) -> Option<BusEvent> {
-        if self.events.is_empty() {
-            None
-        } else {
-            Some(self.events.remove(0))
-        }
+        self.events.pop_front()
     }
 
     fn event(&mut self, e: BusEvent) {
-        let _ = self.events.push(e);
+        let _ = self.events.push_back(e);
     }
 
     /// Whether the bus is between ticks.
@@ -338,8 +334,7 @@ impl ServoBus {
         let mut buf = [0u8; 160];
         match build(&mut buf) {
             Ok(n) => {
-                let bytes = buf.get(..n).unwrap_or(&[]);
-                if self.tx.extend_from_slice(bytes).is_ok() {
+                if self.tx.push(buf.get(..n).unwrap_or(&[])) {
                     n
                 } else {
                     0

@@ -35,6 +35,7 @@ pub mod bus;
 pub mod config;
 pub mod gripper;
 pub mod joint;
+pub mod txbuf;
 
 use ferrobot_protocol::dxl::units;
 use ferrobot_protocol::{
@@ -49,6 +50,7 @@ use bus::{BusEvent, Goal, ServoBus, ServoStatus};
 pub use config::RobotProfile;
 use gripper::{Gripper, GripperDrive};
 use joint::{JointControl, JointOutput};
+use txbuf::TxBuf;
 
 /// Firmware version, major/minor/patch.
 pub const FIRMWARE_VERSION: [u8; 3] = [0, 1, 0];
@@ -83,7 +85,7 @@ pub struct Firmware {
     base: BaseDriver,
     gripper: Option<(usize, Gripper)>,
     decoder: FrameDecoder,
-    host_tx: Vec<u8, HOST_TX_LEN>,
+    host_tx: TxBuf<HOST_TX_LEN>,
     tx_seq: u16,
     session: Session,
     watchdog_ms: u16,
@@ -120,7 +122,7 @@ impl Firmware {
             base,
             gripper: None,
             decoder: FrameDecoder::new(),
-            host_tx: Vec::new(),
+            host_tx: TxBuf::new(),
             tx_seq: 0,
             session: Session::None,
             watchdog_ms: 0,
@@ -188,7 +190,7 @@ impl Firmware {
     /// Bytes waiting to go out on `link`.
     pub fn pending(&self, link: Link) -> &[u8] {
         match link {
-            Link::Host => &self.host_tx,
+            Link::Host => self.host_tx.pending(),
             Link::Servo => self.bus.pending_tx(),
             Link::Base => self.base.pending_tx(),
         }
@@ -197,11 +199,7 @@ impl Firmware {
     /// The shell sent the first `n` pending bytes of `link`.
     pub fn consume(&mut self, link: Link, n: usize) {
         match link {
-            Link::Host => {
-                let n = n.min(self.host_tx.len());
-                self.host_tx.copy_within(n.., 0);
-                self.host_tx.truncate(self.host_tx.len() - n);
-            }
+            Link::Host => self.host_tx.consume(n),
             Link::Servo => self.bus.consume_tx(n),
             Link::Base => self.base.consume_tx(n),
         }
@@ -388,8 +386,7 @@ impl Firmware {
         let mut buf = [0u8; MAX_WIRE];
         match encode_frame(self.tx_seq, msg, &mut buf) {
             Ok(n) => {
-                let bytes = buf.get(..n).unwrap_or(&[]);
-                if self.host_tx.extend_from_slice(bytes).is_ok() {
+                if self.host_tx.push(buf.get(..n).unwrap_or(&[])) {
                     self.tx_seq = self.tx_seq.wrapping_add(1);
                 } else {
                     self.host_tx_dropped = self.host_tx_dropped.saturating_add(1);

@@ -12,44 +12,14 @@
 use criterion::{criterion_group, criterion_main, Criterion};
 use ferrobot_firmware::{config, Firmware, Link};
 use ferrobot_protocol::*;
-use ferrobot_sim::{LockstepSim, SimSession};
+use ferrobot_sim::lockstep::locobot_busy;
+use ferrobot_sim::LockstepSim;
 use std::hint::black_box;
 use std::time::Instant;
 
-fn moving_session() -> SimSession {
-    let mut s = SimSession::start("locobot", 5).expect("sim");
-    s.wait_telemetry(2_000_000, |t| t.faults & fault_flags::CONFIGURING == 0)
-        .expect("configured");
-    s
-}
-
-fn start_motion(s: &mut SimSession) {
-    let pts: heapless::Vec<JointPoint, MAX_JOINTS> = [0.6f32, 0.4, -0.4, 0.3, 0.5]
-        .iter()
-        .map(|&p| JointPoint {
-            position: p,
-            velocity: 0.0,
-            effort: 0.0,
-        })
-        .collect();
-    s.command(&HostMsg::Waypoint {
-        joints: 0b1_1111,
-        duration_us: 30_000_000,
-        points: pts,
-    })
-    .expect("waypoint");
-    s.command(&HostMsg::BaseVelocity {
-        v: 0.2,
-        w: 0.1,
-        duration_ms: 30_000,
-    })
-    .expect("base");
-}
-
 /// Record one tick's status replies and a Kobuki feedback packet from the running simulator.
 fn recorded_bytes() -> (Vec<u8>, Vec<u8>) {
-    let mut s = moving_session();
-    start_motion(&mut s);
+    let mut s = locobot_busy(5).expect("sim");
     s.run_for(100_000);
     let sim = &mut s.sim;
     // A sync read as the firmware sends it.
@@ -72,13 +42,11 @@ fn recorded_bytes() -> (Vec<u8>, Vec<u8>) {
 fn bench(c: &mut Criterion) {
     let (statuses, feedback) = recorded_bytes();
     c.bench_function("firmware tick (LoCoBot: 9 servos + Kobuki)", |b| {
-        let mut fw = Firmware::new(config::locobot(), "bench", 0);
-        let mut now = 0u64;
-        // Configure: answer every transaction from a real chain until the loop runs.
+        // A firmware configured against the real chain, taken out of the simulator.
         let mut sim = LockstepSim::new("locobot", 5).expect("sim");
         sim.run_until(300_000);
-        fw = std::mem::replace(&mut sim.fw, fw);
-        now = now.max(sim.now_us());
+        let mut now = sim.now_us();
+        let mut fw = std::mem::replace(&mut sim.fw, Firmware::new(config::locobot(), "bench", 0));
         b.iter(|| {
             now += 1000;
             fw.poll(now);
@@ -100,8 +68,7 @@ fn bench(c: &mut Criterion) {
             b.iter_custom(|iters| {
                 let mut total = std::time::Duration::ZERO;
                 for _ in 0..iters {
-                    let mut s = moving_session();
-                    start_motion(&mut s);
+                    let mut s = locobot_busy(5).expect("sim");
                     let t = Instant::now();
                     s.run_for(1_000_000);
                     total += t.elapsed();
@@ -113,8 +80,7 @@ fn bench(c: &mut Criterion) {
     );
     group.finish();
     // The real-time factor, measured the same way, printed for BENCHMARKS.md.
-    let mut s = moving_session();
-    start_motion(&mut s);
+    let mut s = locobot_busy(5).expect("sim");
     let t = Instant::now();
     s.run_for(10_000_000);
     let factor = 10.0 / t.elapsed().as_secs_f64();

@@ -244,6 +244,26 @@ impl ServoChain {
         replies
     }
 
+    /// Sync and bulk read: each `(id, address, length)` answers in turn, each servo waiting
+    /// for the status of the one before it, so a silent or missing servo silences the rest.
+    fn chained_reads(&mut self, reads: &[(u8, u16, u16)], replies: &mut Vec<Reply>) {
+        for &(sid, a, n) in reads {
+            let Some(i) = self.index(sid) else { break };
+            if self.servos.get(i).is_some_and(|s| s.silent) {
+                break;
+            }
+            let data = self
+                .servos
+                .get(i)
+                .and_then(|s| s.read(a, n))
+                .map(|d| d.to_vec());
+            match data {
+                Some(d) => replies.extend(self.status(i, 0, &d, 0)),
+                None => replies.extend(self.status(i, status_error::ACCESS, &[], 0)),
+            }
+        }
+    }
+
     fn execute(&mut self, id: u8, ins: u8, p: &[u8], replies: &mut Vec<Reply>) {
         let broadcast = id == dxl::BROADCAST_ID;
         match ins {
@@ -342,21 +362,13 @@ impl ServoChain {
             }
             inst::SYNC_READ => {
                 let (a, n) = (dxl::le_u16(p, 0), dxl::le_u16(p, 2));
-                for &sid in p.get(4..).unwrap_or(&[]) {
-                    let Some(i) = self.index(sid) else { break };
-                    if self.servos.get(i).is_some_and(|s| s.silent) {
-                        break; // the servos after it wait for its status forever
-                    }
-                    let data = self
-                        .servos
-                        .get(i)
-                        .and_then(|s| s.read(a, n))
-                        .map(|d| d.to_vec());
-                    match data {
-                        Some(d) => replies.extend(self.status(i, 0, &d, 0)),
-                        None => replies.extend(self.status(i, status_error::ACCESS, &[], 0)),
-                    }
-                }
+                let reads: Vec<(u8, u16, u16)> = p
+                    .get(4..)
+                    .unwrap_or(&[])
+                    .iter()
+                    .map(|&sid| (sid, a, n))
+                    .collect();
+                self.chained_reads(&reads, replies);
             }
             inst::SYNC_WRITE => {
                 let (a, n) = (dxl::le_u16(p, 0), dxl::le_u16(p, 2) as usize);
@@ -371,22 +383,11 @@ impl ServoChain {
                 }
             }
             inst::BULK_READ => {
-                for e in p.chunks_exact(5) {
-                    let (sid, a, n) = (e[0], dxl::le_u16(e, 1), dxl::le_u16(e, 3));
-                    let Some(i) = self.index(sid) else { break };
-                    if self.servos.get(i).is_some_and(|s| s.silent) {
-                        break;
-                    }
-                    let data = self
-                        .servos
-                        .get(i)
-                        .and_then(|s| s.read(a, n))
-                        .map(|d| d.to_vec());
-                    match data {
-                        Some(d) => replies.extend(self.status(i, 0, &d, 0)),
-                        None => replies.extend(self.status(i, status_error::ACCESS, &[], 0)),
-                    }
-                }
+                let reads: Vec<(u8, u16, u16)> = p
+                    .chunks_exact(5)
+                    .map(|e| (e[0], dxl::le_u16(e, 1), dxl::le_u16(e, 3)))
+                    .collect();
+                self.chained_reads(&reads, replies);
             }
             inst::BULK_WRITE => {
                 let mut rest = p;

@@ -411,6 +411,35 @@ impl SimSession {
     }
 }
 
+/// The scenario the benchmarks and profiles run: the LoCoBot, configured, its arm on a slow
+/// 30 s move and its base driving a 2 m circle, so that every bus and every plant is busy.
+pub fn locobot_busy(seed: u64) -> Result<SimSession, SimError> {
+    use ferrobot_protocol::JointPoint;
+    let mut s = SimSession::start("locobot", seed)?;
+    s.wait_telemetry(2_000_000, |t| {
+        t.faults & ferrobot_protocol::fault_flags::CONFIGURING == 0
+    })?;
+    let points = [0.6f32, 0.4, -0.4, 0.3, 0.5]
+        .iter()
+        .map(|&position| JointPoint {
+            position,
+            velocity: 0.0,
+            effort: 0.0,
+        })
+        .collect();
+    s.command(&HostMsg::Waypoint {
+        joints: 0b1_1111,
+        duration_us: 30_000_000,
+        points,
+    })?;
+    s.command(&HostMsg::BaseVelocity {
+        v: 0.2,
+        w: 0.1,
+        duration_ms: 30_000,
+    })?;
+    Ok(s)
+}
+
 /// The simulated demo: handshake, move the arm, work the gripper, drive the base, all
 /// through the protocol and the firmware core; prints what happened and the simulation speed.
 pub fn demo(robot: &str, seed: u64, out: &mut dyn std::io::Write) -> Result<(), SimError> {

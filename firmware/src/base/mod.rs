@@ -8,9 +8,10 @@
 pub mod odometry;
 
 use ferrobot_protocol::{base_flags, create2, kobuki, BaseKind, RejectReason, WheelData};
-use heapless::Vec;
+use heapless::{Deque, Vec};
 
 use crate::config::BaseConfig;
+use crate::txbuf::TxBuf;
 use odometry::OdometryIntegrator;
 
 /// Events the firmware reports.
@@ -61,8 +62,8 @@ pub struct BaseDriver {
     last_rx: Option<u64>,
     /// Whether feedback is missing.
     pub lost: bool,
-    tx: Vec<u8, 128>,
-    events: Vec<BaseEvent, 8>,
+    tx: TxBuf<128>,
+    events: Deque<BaseEvent, 8>,
     /// Counters.
     pub stats: BaseStats,
 }
@@ -91,8 +92,8 @@ impl BaseDriver {
             last_enc: None,
             last_rx: None,
             lost: false,
-            tx: Vec::new(),
-            events: Vec::new(),
+            tx: TxBuf::new(),
+            events: Deque::new(),
             stats: BaseStats::default(),
         }
     }
@@ -163,23 +164,17 @@ impl BaseDriver {
 
     /// Bytes waiting for the base.
     pub fn pending_tx(&self) -> &[u8] {
-        &self.tx
+        self.tx.pending()
     }
 
     /// The shell sent the first `n` pending bytes.
     pub fn consume_tx(&mut self, n: usize) {
-        let n = n.min(self.tx.len());
-        self.tx.copy_within(n.., 0);
-        self.tx.truncate(self.tx.len() - n);
+        self.tx.consume(n);
     }
 
     /// Take the next event.
     pub fn pop_event(&mut self) -> Option<BaseEvent> {
-        if self.events.is_empty() {
-            None
-        } else {
-            Some(self.events.remove(0))
-        }
+        self.events.pop_front()
     }
 
     /// When `poll` must run next.
@@ -214,7 +209,7 @@ impl BaseDriver {
         if let Some(t) = self.last_rx {
             if !self.lost && now >= t + self.cfg.feedback_timeout_us {
                 self.lost = true;
-                let _ = self.events.push(BaseEvent::Lost);
+                let _ = self.events.push_back(BaseEvent::Lost);
             }
         }
         if let Proto::Create2 { next_start, .. } = &mut self.proto {
@@ -228,7 +223,7 @@ impl BaseDriver {
                 ]);
                 let _ = start.push(create2::STREAM_IDS.len() as u8);
                 let _ = start.extend_from_slice(&create2::STREAM_IDS);
-                let _ = self.tx.extend_from_slice(&start);
+                let _ = self.tx.push(&start);
             }
         }
         if now >= self.next_send {
@@ -244,14 +239,14 @@ impl BaseDriver {
                 let (speed, radius) = kobuki::speed_radius(v, w, self.cfg.track);
                 let mut b = [0u8; 16];
                 if let Some(n) = kobuki::encode_base_control(speed, radius, &mut b) {
-                    let _ = self.tx.extend_from_slice(b.get(..n).unwrap_or(&[]));
+                    let _ = self.tx.push(b.get(..n).unwrap_or(&[]));
                 }
             }
             Proto::Create2 { .. } => {
                 let half = 0.5 * self.cfg.track;
                 let mm = |x: f32| (x * 1000.0).clamp(-500.0, 500.0) as i16;
                 let cmd = create2::drive_direct(mm(v + w * half), mm(v - w * half));
-                let _ = self.tx.extend_from_slice(&cmd);
+                let _ = self.tx.push(&cmd);
             }
             Proto::None => {}
         }
@@ -315,7 +310,7 @@ impl BaseDriver {
         self.last_rx = Some(now);
         if self.lost {
             self.lost = false;
-            let _ = self.events.push(BaseEvent::Recovered);
+            let _ = self.events.push_back(BaseEvent::Recovered);
         }
         if let Some((l0, r0)) = self.last_enc {
             // 16-bit counters: the wrapped difference is the travel.
@@ -336,7 +331,7 @@ impl BaseDriver {
         let rising = flags & !self.flags;
         self.flags = flags;
         if rising != 0 {
-            let _ = self.events.push(BaseEvent::Safety(rising));
+            let _ = self.events.push_back(BaseEvent::Safety(rising));
             // Stop unless the command only backs away from a bumper.
             let backing = rising & !base_flags::ANY_BUMPER == 0 && self.cmd.0 < 0.0;
             if !backing {
