@@ -1,0 +1,625 @@
+//! Robot configuration: a TOML file naming a URDF and describing the arm, gripper, camera,
+//! base and the firmware's joint table. Bundled robots (`locobot`, `locobot_lite`, `sawyer`)
+//! are compiled in; any other robot is a TOML file plus its URDF on disk.
+//!
+//! Loading is strict: unknown keys, wrong types and inconsistencies (an arm joint the URDF
+//! lacks, a home vector of the wrong length, duplicate servo IDs…) are errors that name the
+//! file, the key and the problem.
+
+use std::collections::BTreeSet;
+use std::path::{Path, PathBuf};
+
+use ferrobot_firmware::config::{
+    self as fwcfg, BaseConfig, BusConfig, GripperConfig, RobotProfile,
+};
+use ferrobot_protocol::{BaseKind, JointConfig, JointKind, JointLimits, PidGains, ServoModel};
+use serde::Deserialize;
+
+use crate::error::{Error, Result};
+use crate::kinematics::Chain;
+
+/// Names of the bundled robots.
+pub const BUNDLED: [&str; 3] = ["locobot", "locobot_lite", "sawyer"];
+
+fn bundled_files(name: &str) -> Option<(&'static str, &'static str)> {
+    match name {
+        "locobot" => Some((
+            include_str!("../robots/locobot.toml"),
+            include_str!("../robots/locobot.urdf"),
+        )),
+        "locobot_lite" => Some((
+            include_str!("../robots/locobot_lite.toml"),
+            include_str!("../robots/locobot_lite.urdf"),
+        )),
+        "sawyer" => Some((
+            include_str!("../robots/sawyer.toml"),
+            include_str!("../robots/sawyer.urdf"),
+        )),
+        _ => None,
+    }
+}
+
+/// Which inverse-kinematics solver an arm uses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum IkKind {
+    /// Closed form for the LoCoBot's yaw-pitch-pitch-pitch-roll arm.
+    LocobotPitchRoll,
+    /// Levenberg-Marquardt with random restarts, for any chain.
+    Numerical,
+}
+
+/// `[arm]`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ArmConfig {
+    /// Arm joint names, base to tip (URDF names).
+    pub joints: Vec<String>,
+    /// Frame in which end-effector poses are given (the robot's root link).
+    pub base_frame: String,
+    /// End-effector frame.
+    pub ee_frame: String,
+    /// Home configuration, rad.
+    pub home: Vec<f64>,
+    /// IK solver.
+    pub ik: IkKind,
+    /// IK position tolerance, m.
+    #[serde(default = "default_ik_tol")]
+    pub ik_position_tolerance: f64,
+    /// IK orientation tolerance, rad.
+    #[serde(default = "default_ik_tol")]
+    pub ik_orientation_tolerance: f64,
+    /// A joint has arrived when within this of its target, rad.
+    #[serde(default = "default_joint_tol")]
+    pub joint_tolerance: f64,
+    /// Default timeout of a blocking arm motion, s.
+    #[serde(default = "default_timeout")]
+    pub timeout: f64,
+}
+
+fn default_ik_tol() -> f64 {
+    1e-5
+}
+fn default_joint_tol() -> f64 {
+    0.01
+}
+fn default_timeout() -> f64 {
+    20.0
+}
+
+/// `[gripper]`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GripperSection {
+    /// The joint-table entry of the gripper motor.
+    pub joint: String,
+}
+
+/// `[camera]`: the pan-tilt head and the RGB-D camera's intrinsics.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CameraSection {
+    /// Pan joint.
+    pub pan_joint: String,
+    /// Tilt joint.
+    pub tilt_joint: String,
+    /// Optical frame (x right, y down, z forward).
+    pub frame: String,
+    /// Image width, px.
+    pub width: u32,
+    /// Image height, px.
+    pub height: u32,
+    /// Focal length x, px.
+    pub fx: f64,
+    /// Focal length y, px.
+    pub fy: f64,
+    /// Principal point x, px.
+    pub cx: f64,
+    /// Principal point y, px.
+    pub cy: f64,
+    /// Nearest depth kept in point clouds, m.
+    pub depth_min: f64,
+    /// Farthest depth kept in point clouds, m.
+    pub depth_max: f64,
+}
+
+/// Which base.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum BaseModel {
+    /// Yujin Kobuki.
+    Kobuki,
+    /// iRobot Create 2.
+    Create2,
+}
+
+/// Base position controllers.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum BaseController {
+    /// Rotate, drive, rotate, with velocity ramps.
+    Proportional,
+}
+
+/// `[base]`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BaseSection {
+    /// Which base.
+    pub kind: BaseModel,
+    /// Nominal wheel radius, m.
+    pub wheel_radius: f64,
+    /// Nominal wheel separation, m.
+    pub track: f64,
+    /// Largest forward speed of position controllers, m/s.
+    pub max_linear: f64,
+    /// Largest yaw rate of position controllers, rad/s.
+    pub max_angular: f64,
+    /// Default position controller.
+    pub controller: BaseController,
+    /// Position tolerance of position controllers, m.
+    #[serde(default = "default_translation_tol")]
+    pub translation_tolerance: f64,
+    /// Heading tolerance of position controllers, rad.
+    #[serde(default = "default_rotation_tol")]
+    pub rotation_tolerance: f64,
+}
+
+fn default_translation_tol() -> f64 {
+    0.01
+}
+fn default_rotation_tol() -> f64 {
+    1f64.to_radians()
+}
+
+/// Servo of a joint.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ServoSection {
+    /// Dynamixel ID.
+    pub id: u8,
+    /// `xm430-w350` or `xl430-w250`.
+    pub model: String,
+    /// +1 or −1.
+    #[serde(default = "one")]
+    pub sign: i8,
+    /// Servo angle at joint zero, rad.
+    #[serde(default)]
+    pub offset: f64,
+    /// Mirrored twin servo sharing the load.
+    pub twin: Option<u8>,
+}
+
+fn one() -> i8 {
+    1
+}
+
+/// Per-field overrides of the URDF's joint limits.
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LimitsOverride {
+    /// Lower position limit, rad.
+    pub min: Option<f64>,
+    /// Upper position limit, rad.
+    pub max: Option<f64>,
+    /// Speed limit, rad/s.
+    pub velocity: Option<f64>,
+}
+
+/// Joint PID of current mode.
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PidSection {
+    /// N·m/rad.
+    pub kp: f64,
+    /// N·m/(rad·s).
+    pub ki: f64,
+    /// N·m·s/rad.
+    pub kd: f64,
+    /// Integral bound, N·m.
+    pub i_limit: f64,
+}
+
+/// Joint kind in the table.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum JointRole {
+    /// Arm joint.
+    Arm,
+    /// Pan or tilt.
+    Head,
+    /// Gripper motor.
+    Gripper,
+}
+
+/// One `[[joint]]` of the firmware's joint table.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct JointSection {
+    /// Joint name (a URDF joint, except for the gripper motor).
+    pub name: String,
+    /// Role.
+    pub kind: JointRole,
+    /// Servo.
+    pub servo: ServoSection,
+    /// Limit overrides.
+    pub limits: Option<LimitsOverride>,
+    /// Effort limit, N·m.
+    pub effort_limit: f64,
+    /// Current-mode PID; the model's default when absent.
+    pub pid: Option<PidSection>,
+    /// Position-mode goal-offset integrator gain, 1/s; the default when absent.
+    pub position_ki: Option<f64>,
+}
+
+/// `[sim]`: options of the simulated robot.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SimSection {
+    /// Whether the arm's links load the servos with gravity (default true).
+    #[serde(default = "yes")]
+    pub gravity: bool,
+}
+
+fn yes() -> bool {
+    true
+}
+
+/// The file as written.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ConfigFile {
+    name: String,
+    urdf: String,
+    board_profile: Option<String>,
+    arm: Option<ArmConfig>,
+    gripper: Option<GripperSection>,
+    camera: Option<CameraSection>,
+    base: Option<BaseSection>,
+    #[serde(rename = "joint", default)]
+    joints: Vec<JointSection>,
+    sim: Option<SimSection>,
+}
+
+/// A loaded, validated robot configuration.
+#[derive(Debug, Clone)]
+pub struct RobotConfig {
+    /// Robot name.
+    pub name: String,
+    /// Where it came from (`<bundled>/NAME.toml` for bundled robots).
+    pub file: PathBuf,
+    /// The parsed URDF.
+    pub urdf: urdf_rs::Robot,
+    /// `[arm]`.
+    pub arm: Option<ArmConfig>,
+    /// `[gripper]`.
+    pub gripper: Option<GripperSection>,
+    /// `[camera]`.
+    pub camera: Option<CameraSection>,
+    /// `[base]`.
+    pub base: Option<BaseSection>,
+    /// The firmware joint table, with limits resolved against the URDF.
+    pub joints: Vec<JointConfig>,
+    /// Gravity in simulation.
+    pub sim_gravity: bool,
+    /// The arm chain, base frame to end effector.
+    pub arm_chain: Option<Chain>,
+}
+
+fn cfg_err(file: &Path, key: impl Into<String>, problem: impl Into<String>) -> Error {
+    Error::Config {
+        file: file.to_path_buf(),
+        key: key.into(),
+        problem: problem.into(),
+    }
+}
+
+impl RobotConfig {
+    /// Load a bundled robot by name.
+    pub fn bundled(name: &str) -> Result<Self> {
+        let (toml, urdf) = bundled_files(name).ok_or_else(|| Error::UnknownRobot {
+            name: name.to_string(),
+            known: BUNDLED.join(", "),
+        })?;
+        Self::parse(toml, Path::new(&format!("<bundled>/{name}.toml")), |_| {
+            Ok(urdf.to_string())
+        })
+    }
+
+    /// Load a robot from a TOML file; its `urdf` path is relative to the file.
+    pub fn from_file(path: impl AsRef<Path>) -> Result<Self> {
+        let path = path.as_ref();
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| cfg_err(path, "-", format!("cannot read: {e}")))?;
+        let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        Self::parse(&text, path, |urdf| {
+            let p = dir.join(urdf);
+            std::fs::read_to_string(&p)
+                .map_err(|e| cfg_err(path, "urdf", format!("cannot read {}: {e}", p.display())))
+        })
+    }
+
+    /// Parse TOML text (named `file` in errors); `read_urdf` fetches the URDF it names.
+    pub fn parse(
+        text: &str,
+        file: &Path,
+        read_urdf: impl FnOnce(&str) -> Result<String>,
+    ) -> Result<Self> {
+        let de = toml::Deserializer::parse(text)
+            .map_err(|e| cfg_err(file, "-", e.message().to_string()))?;
+        let raw: ConfigFile = serde_path_to_error::deserialize(de).map_err(|e| {
+            let key = e.path().to_string();
+            cfg_err(
+                file,
+                if key.is_empty() || key == "." {
+                    "-".to_string()
+                } else {
+                    key
+                },
+                e.inner().message().to_string(),
+            )
+        })?;
+        let urdf_text = read_urdf(&raw.urdf)?;
+        let urdf = urdf_rs::read_from_string(&urdf_text)
+            .map_err(|e| cfg_err(file, "urdf", format!("invalid URDF: {e}")))?;
+        Self::validate(raw, urdf, file)
+    }
+
+    fn validate(raw: ConfigFile, urdf: urdf_rs::Robot, file: &Path) -> Result<Self> {
+        let urdf_joint = |name: &str| urdf.joints.iter().find(|j| j.name == name);
+        // The joint table.
+        let mut ids = BTreeSet::new();
+        let mut joints = Vec::new();
+        for (i, j) in raw.joints.iter().enumerate() {
+            let key = |k: &str| format!("joint[{i}].{k}");
+            let model = match j.servo.model.as_str() {
+                "xm430-w350" => ServoModel::Xm430W350,
+                "xl430-w250" => ServoModel::Xl430W250,
+                other => {
+                    return Err(cfg_err(
+                        file,
+                        key("servo.model"),
+                        format!("unknown servo model {other:?}; known: xm430-w350, xl430-w250"),
+                    ))
+                }
+            };
+            if j.servo.sign != 1 && j.servo.sign != -1 {
+                return Err(cfg_err(
+                    file,
+                    key("servo.sign"),
+                    format!("must be 1 or -1, not {}", j.servo.sign),
+                ));
+            }
+            for id in std::iter::once(j.servo.id).chain(j.servo.twin) {
+                if id >= 0xFD {
+                    return Err(cfg_err(
+                        file,
+                        key("servo.id"),
+                        format!("Dynamixel IDs are 0-252, not {id}"),
+                    ));
+                }
+                if !ids.insert(id) {
+                    return Err(cfg_err(
+                        file,
+                        key("servo.id"),
+                        format!("servo ID {id} is used twice"),
+                    ));
+                }
+            }
+            // Limits: the URDF's, overridden per field.
+            let (mut min, mut max, mut velocity) = match urdf_joint(&j.name) {
+                Some(u) => (u.limit.lower, u.limit.upper, u.limit.velocity),
+                None if j.kind == JointRole::Gripper => (-1.2, 1.6, 3.0),
+                None => {
+                    return Err(cfg_err(
+                        file,
+                        key("name"),
+                        format!("the URDF has no joint {:?}", j.name),
+                    ));
+                }
+            };
+            if let Some(o) = &j.limits {
+                min = o.min.unwrap_or(min);
+                max = o.max.unwrap_or(max);
+                velocity = o.velocity.unwrap_or(velocity);
+            }
+            if !(min <= max && velocity > 0.0 && j.effort_limit >= 0.0) {
+                return Err(cfg_err(
+                    file,
+                    key("limits"),
+                    format!("need min <= max, velocity > 0, effort_limit >= 0 (min {min}, max {max}, velocity {velocity})"),
+                ));
+            }
+            let kind = match j.kind {
+                JointRole::Arm => JointKind::Arm,
+                JointRole::Head => JointKind::Head,
+                JointRole::Gripper => JointKind::Gripper,
+            };
+            let mut row = fwcfg::joint(
+                &j.name,
+                kind,
+                model,
+                j.servo.id,
+                j.servo.twin,
+                j.servo.sign,
+                JointLimits {
+                    min: min as f32,
+                    max: max as f32,
+                    velocity: velocity as f32,
+                    effort: j.effort_limit as f32,
+                },
+            );
+            if j.name.len() > 16 {
+                return Err(cfg_err(
+                    file,
+                    key("name"),
+                    "joint names are at most 16 bytes on the wire",
+                ));
+            }
+            row.offset = j.servo.offset as f32;
+            if let Some(p) = j.pid {
+                row.pid = PidGains {
+                    kp: p.kp as f32,
+                    ki: p.ki as f32,
+                    kd: p.kd as f32,
+                    i_limit: p.i_limit as f32,
+                };
+            }
+            if let Some(k) = j.position_ki {
+                row.position_ki = k as f32;
+            }
+            joints.push(row);
+        }
+        if joints.len() > ferrobot_protocol::MAX_JOINTS {
+            return Err(cfg_err(
+                file,
+                "joint",
+                format!("at most {} joints", ferrobot_protocol::MAX_JOINTS),
+            ));
+        }
+        let in_table = |n: &str| joints.iter().any(|j| j.name.as_str() == n);
+        // The arm.
+        let mut arm_chain = None;
+        if let Some(arm) = &raw.arm {
+            if arm.joints.is_empty() {
+                return Err(cfg_err(
+                    file,
+                    "arm.joints",
+                    "an arm needs at least one joint",
+                ));
+            }
+            for (i, n) in arm.joints.iter().enumerate() {
+                if !in_table(n) {
+                    return Err(cfg_err(
+                        file,
+                        format!("arm.joints[{i}]"),
+                        format!("{n:?} has no [[joint]] entry"),
+                    ));
+                }
+            }
+            if arm.home.len() != arm.joints.len() {
+                return Err(cfg_err(
+                    file,
+                    "arm.home",
+                    format!(
+                        "has {} values for {} arm joints",
+                        arm.home.len(),
+                        arm.joints.len()
+                    ),
+                ));
+            }
+            let chain = Chain::from_urdf(&urdf, &arm.base_frame, &arm.ee_frame)
+                .map_err(|e| cfg_err(file, "arm.ee_frame", e.to_string()))?;
+            let names: Vec<&str> = chain.joints.iter().map(|j| j.name.as_str()).collect();
+            if names != arm.joints.iter().map(String::as_str).collect::<Vec<_>>() {
+                return Err(cfg_err(
+                    file,
+                    "arm.joints",
+                    format!(
+                        "the URDF chain {} -> {} moves {names:?}",
+                        arm.base_frame, arm.ee_frame
+                    ),
+                ));
+            }
+            if arm.ik == IkKind::LocobotPitchRoll && names.len() != 5 {
+                return Err(cfg_err(
+                    file,
+                    "arm.ik",
+                    "locobot_pitch_roll needs a 5-joint arm",
+                ));
+            }
+            arm_chain = Some(chain);
+        }
+        if let Some(g) = &raw.gripper {
+            if !joints
+                .iter()
+                .any(|j| j.name.as_str() == g.joint && j.kind == JointKind::Gripper)
+            {
+                return Err(cfg_err(
+                    file,
+                    "gripper.joint",
+                    format!("{:?} is not a [[joint]] of kind \"gripper\"", g.joint),
+                ));
+            }
+        }
+        if let Some(c) = &raw.camera {
+            for (k, n) in [
+                ("camera.pan_joint", &c.pan_joint),
+                ("camera.tilt_joint", &c.tilt_joint),
+            ] {
+                if !in_table(n) {
+                    return Err(cfg_err(file, k, format!("{n:?} has no [[joint]] entry")));
+                }
+            }
+            if !urdf.links.iter().any(|l| l.name == c.frame) {
+                return Err(cfg_err(
+                    file,
+                    "camera.frame",
+                    format!("the URDF has no link {:?}", c.frame),
+                ));
+            }
+        }
+        if let Some(b) = &raw.base {
+            if !(b.wheel_radius > 0.0 && b.track > 0.0 && b.max_linear > 0.0 && b.max_angular > 0.0)
+            {
+                return Err(cfg_err(
+                    file,
+                    "base",
+                    "wheel_radius, track, max_linear and max_angular must be positive",
+                ));
+            }
+        }
+        let _ = raw.board_profile;
+        Ok(RobotConfig {
+            name: raw.name,
+            file: file.to_path_buf(),
+            urdf,
+            arm: raw.arm,
+            gripper: raw.gripper,
+            camera: raw.camera,
+            base: raw.base,
+            joints,
+            sim_gravity: raw.sim.map(|s| s.gravity).unwrap_or(true),
+            arm_chain,
+        })
+    }
+
+    /// Index of a joint in the firmware's table.
+    pub fn joint_index(&self, name: &str) -> Option<usize> {
+        self.joints.iter().position(|j| j.name.as_str() == name)
+    }
+
+    /// The firmware profile this configuration asks for.
+    pub fn firmware_profile(&self) -> RobotProfile {
+        let base = match self.base.as_ref().map(|b| b.kind) {
+            Some(BaseModel::Kobuki) => BaseConfig::KOBUKI,
+            Some(BaseModel::Create2) => BaseConfig::CREATE2,
+            None => BaseConfig::NONE,
+        };
+        let mut robot = ferrobot_protocol::Name::new();
+        for c in self.name.chars() {
+            if robot.push(c).is_err() {
+                break;
+            }
+        }
+        RobotProfile {
+            robot,
+            joints: self.joints.iter().cloned().collect(),
+            base,
+            gripper: GripperConfig::LOCOBOT,
+            bus: BusConfig::at_baud(4_000_000),
+            loop_period_us: 1000,
+            watchdog_ms: 500,
+            telemetry_ms: 10,
+        }
+    }
+
+    /// The base kind as the protocol names it.
+    pub fn base_kind(&self) -> BaseKind {
+        match self.base.as_ref().map(|b| b.kind) {
+            Some(BaseModel::Kobuki) => BaseKind::Kobuki,
+            Some(BaseModel::Create2) => BaseKind::Create2,
+            None => BaseKind::None,
+        }
+    }
+}

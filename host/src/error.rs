@@ -1,0 +1,165 @@
+//! The one error type of the `ferrobot` crate: every failure says what, which value and which
+//! limit.
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+use ferrobot_protocol::{FaultKind, RejectReason};
+
+/// Everything that can go wrong.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum Error {
+    /// No bundled robot of that name.
+    #[error("unknown robot {name:?}; bundled robots are: {known}")]
+    UnknownRobot {
+        /// The name asked for.
+        name: String,
+        /// The bundled names, comma-separated.
+        known: String,
+    },
+    /// A configuration file is missing, unreadable or invalid.
+    #[error("{file}: {key}: {problem}")]
+    Config {
+        /// The file.
+        file: PathBuf,
+        /// The key (dotted path) concerned, or `-` for the whole file.
+        key: String,
+        /// What is wrong.
+        problem: String,
+    },
+    /// The robot has no such component.
+    #[error("the robot {robot:?} has no {component}")]
+    NoComponent {
+        /// Robot name.
+        robot: String,
+        /// `arm`, `gripper`, `base`, `camera`.
+        component: &'static str,
+    },
+    /// A vector has the wrong number of joints.
+    #[error("{what}: expected {expected} values, got {got}")]
+    JointCount {
+        /// What was passed.
+        what: &'static str,
+        /// How many the arm has.
+        expected: usize,
+        /// How many were given.
+        got: usize,
+    },
+    /// A NaN or infinite value.
+    #[error("{what} is not a finite number: {value}")]
+    NotFinite {
+        /// What.
+        what: String,
+        /// The value.
+        value: f64,
+    },
+    /// A joint target beyond the joint's limits.
+    #[error("joint {joint} target {value:.4} is outside its limits [{min:.4}, {max:.4}]")]
+    OutOfLimits {
+        /// Joint name.
+        joint: String,
+        /// Target.
+        value: f64,
+        /// Lower limit.
+        min: f64,
+        /// Upper limit.
+        max: f64,
+    },
+    /// No joint configuration reaches the pose.
+    #[error("unreachable pose: {why}")]
+    Unreachable {
+        /// Why.
+        why: String,
+    },
+    /// An unknown joint or frame name.
+    #[error("unknown {what} {name:?}")]
+    UnknownName {
+        /// `joint` or `frame`.
+        what: &'static str,
+        /// The name.
+        name: String,
+    },
+    /// A motion did not finish in time.
+    #[error("{what} did not finish within {after:?}")]
+    Timeout {
+        /// What.
+        what: String,
+        /// The timeout.
+        after: Duration,
+    },
+    /// A joint stopped moving short of its target.
+    #[error("joint {joint} stalled at {position:.4} rad, {error:.4} rad from its target")]
+    Stalled {
+        /// Joint name.
+        joint: String,
+        /// Where it stopped.
+        position: f64,
+        /// Remaining error.
+        error: f64,
+    },
+    /// The firmware refused a command.
+    #[error("the firmware rejected {what}: {reason:?}")]
+    Rejected {
+        /// What was sent.
+        what: String,
+        /// Its reason.
+        reason: RejectReason,
+    },
+    /// An emergency stop is active.
+    #[error("an emergency stop is active; call resume() first")]
+    EmergencyStop,
+    /// A fault stopped the motion.
+    #[error("motion aborted by a {kind:?} fault{}", detail.as_deref().map(|d| format!(": {d}")).unwrap_or_default())]
+    Fault {
+        /// The fault.
+        kind: FaultKind,
+        /// Details (joint, sensor bits).
+        detail: Option<String>,
+    },
+    /// The motion was cancelled through its handle.
+    #[error("motion cancelled")]
+    Cancelled,
+    /// Host and firmware speak different protocol versions or schemas.
+    #[error("protocol mismatch: host speaks version {host} (schema {host_schema:#010x}), firmware {firmware} (schema {firmware_schema:#010x})")]
+    VersionMismatch {
+        /// Host protocol version.
+        host: u16,
+        /// Host schema hash.
+        host_schema: u32,
+        /// Firmware protocol version.
+        firmware: u16,
+        /// Firmware schema hash.
+        firmware_schema: u32,
+    },
+    /// The firmware's joint table does not match the robot configuration.
+    #[error("the firmware's joint table does not match the configuration: {0}")]
+    JointTableMismatch(String),
+    /// The link to the firmware is down.
+    #[error("link to the firmware lost: {0}")]
+    Link(String),
+    /// An I/O error.
+    #[error("I/O error: {0}")]
+    Io(#[from] std::io::Error),
+}
+
+/// Result with [`Error`].
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// Check that every value is finite.
+#[allow(dead_code)] // used by the motion API
+pub(crate) fn check_finite(what: &str, values: &[f64]) -> Result<()> {
+    for (i, v) in values.iter().enumerate() {
+        if !v.is_finite() {
+            return Err(Error::NotFinite {
+                what: if values.len() > 1 {
+                    format!("{what}[{i}]")
+                } else {
+                    what.to_string()
+                },
+                value: *v,
+            });
+        }
+    }
+    Ok(())
+}

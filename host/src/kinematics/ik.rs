@@ -1,0 +1,230 @@
+//! Inverse kinematics behind one trait, so that a weak solver can be swapped for a better one.
+//!
+//! [`NumericalIk`] works for any chain: damped least squares with Levenberg-Marquardt damping
+//! on the full 6-D pose error (position in m, orientation as the rotation vector of the
+//! remaining rotation, rad), joint limits enforced by clamping, random restarts within the
+//! limits until a time budget runs out. It is written here rather than taken from a crate
+//! because no maintained Rust crate offers restarts under limits with a time budget (the
+//! closest, `k`, has neither), and the inner loop must not allocate to reach 0.1 ms.
+
+use std::time::{Duration, Instant};
+
+use nalgebra::{Isometry3, Matrix6, Vector3, Vector6};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+use super::{Chain, JointType};
+use crate::error::{Error, Result};
+
+/// Most joints the numerical solver handles.
+pub const MAX_DOF: usize = 8;
+
+/// Tolerances and budget of one IK query.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct IkOptions {
+    /// Position tolerance, m.
+    pub position_tolerance: f64,
+    /// Orientation tolerance, rad.
+    pub orientation_tolerance: f64,
+    /// Give up after this long.
+    pub timeout: Duration,
+    /// Seed of the restarts (same seed, same answer).
+    pub seed: u64,
+}
+
+impl Default for IkOptions {
+    fn default() -> Self {
+        Self {
+            position_tolerance: 1e-5,
+            orientation_tolerance: 1e-5,
+            timeout: Duration::from_millis(5),
+            seed: 0x5eed,
+        }
+    }
+}
+
+/// An IK solver.
+pub trait IkSolver: Send + Sync {
+    /// Joint values (rad or m, chain order) that put the chain's tip at `target` (base frame),
+    /// preferring a solution near `seed` when given.
+    fn solve(
+        &self,
+        chain: &Chain,
+        target: &Isometry3<f64>,
+        seed: Option<&[f64]>,
+        opts: &IkOptions,
+    ) -> Result<Vec<f64>>;
+}
+
+/// Pose error (position, rotation vector) of `current` against `target`, base frame.
+pub fn pose_error(target: &Isometry3<f64>, current: &Isometry3<f64>) -> Vector6<f64> {
+    let p = target.translation.vector - current.translation.vector;
+    let r = (target.rotation * current.rotation.inverse()).scaled_axis();
+    Vector6::new(p.x, p.y, p.z, r.x, r.y, r.z)
+}
+
+/// Damped least squares with Levenberg-Marquardt damping and random restarts.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct NumericalIk;
+
+struct Work {
+    axes: [(Vector3<f64>, Vector3<f64>); MAX_DOF],
+    jac: [[f64; MAX_DOF]; 6],
+}
+
+impl NumericalIk {
+    fn jacobian_and_error(
+        chain: &Chain,
+        q: &[f64],
+        target: &Isometry3<f64>,
+        w: &mut Work,
+    ) -> Vector6<f64> {
+        let n = chain.dof();
+        let tip = chain.fk_with_axes(q, &mut w.axes[..n]);
+        let p = tip.translation.vector;
+        for (c, (j, (z, o))) in chain.joints.iter().zip(&w.axes[..n]).enumerate() {
+            let (v, a) = match j.kind {
+                JointType::Revolute => (z.cross(&(p - o)), *z),
+                JointType::Prismatic => (*z, Vector3::zeros()),
+            };
+            for r in 0..3 {
+                w.jac[r][c] = v[r];
+                w.jac[r + 3][c] = a[r];
+            }
+        }
+        pose_error(target, &tip)
+    }
+
+    fn converged(e: &Vector6<f64>, opts: &IkOptions) -> bool {
+        e.fixed_rows::<3>(0).norm() <= opts.position_tolerance
+            && e.fixed_rows::<3>(3).norm() <= opts.orientation_tolerance
+    }
+
+    /// One descent from `q`; returns whether it converged.
+    fn descend(
+        chain: &Chain,
+        target: &Isometry3<f64>,
+        q: &mut [f64],
+        opts: &IkOptions,
+        w: &mut Work,
+        deadline: Instant,
+    ) -> bool {
+        let n = chain.dof();
+        let mut e = Self::jacobian_and_error(chain, q, target, w);
+        let mut cost = e.norm_squared();
+        let mut lambda = 1e-3;
+        let mut trial = [0.0; MAX_DOF];
+        let mut stale = 0;
+        for it in 0..100 {
+            if Self::converged(&e, opts) {
+                return true;
+            }
+            if it % 16 == 15 && Instant::now() > deadline {
+                return false;
+            }
+            // (J Jᵀ + λ I) x = e;  Δq = Jᵀ x.
+            let mut a = Matrix6::<f64>::zeros();
+            for r in 0..6 {
+                for c in r..6 {
+                    let mut s = 0.0;
+                    for k in 0..n {
+                        s += w.jac[r][k] * w.jac[c][k];
+                    }
+                    a[(r, c)] = s;
+                    a[(c, r)] = s;
+                }
+                a[(r, r)] += lambda;
+            }
+            let Some(chol) = a.cholesky() else {
+                lambda *= 10.0;
+                continue;
+            };
+            let x = chol.solve(&e);
+            for (k, (t, j)) in trial[..n].iter_mut().zip(&chain.joints).enumerate() {
+                let mut dq = 0.0;
+                for r in 0..6 {
+                    dq += w.jac[r][k] * x[r];
+                }
+                *t = (q[k] + dq).clamp(j.lower, j.upper);
+            }
+            let saved = w.jac;
+            let e_new = Self::jacobian_and_error(chain, &trial[..n], target, w);
+            let c_new = e_new.norm_squared();
+            if c_new < cost {
+                q[..n].copy_from_slice(&trial[..n]);
+                stale = if c_new > 0.9 * cost { stale + 1 } else { 0 };
+                e = e_new;
+                cost = c_new;
+                lambda = (lambda * 0.3).max(1e-12);
+            } else {
+                w.jac = saved;
+                lambda *= 8.0;
+                stale += 1;
+            }
+            if stale > 12 || lambda > 1e6 {
+                return Self::converged(&e, opts);
+            }
+        }
+        Self::converged(&e, opts)
+    }
+}
+
+impl IkSolver for NumericalIk {
+    fn solve(
+        &self,
+        chain: &Chain,
+        target: &Isometry3<f64>,
+        seed: Option<&[f64]>,
+        opts: &IkOptions,
+    ) -> Result<Vec<f64>> {
+        let n = chain.dof();
+        if n == 0 || n > MAX_DOF {
+            return Err(Error::Unreachable {
+                why: format!(
+                    "the numerical solver handles 1 to {MAX_DOF} joints, the chain has {n}"
+                ),
+            });
+        }
+        let start = Instant::now();
+        let deadline = start + opts.timeout;
+        let mut w = Work {
+            axes: [(Vector3::zeros(), Vector3::zeros()); MAX_DOF],
+            jac: [[0.0; MAX_DOF]; 6],
+        };
+        let mut rng = ChaCha8Rng::seed_from_u64(opts.seed);
+        let mut q = [0.0; MAX_DOF];
+        match seed {
+            Some(s) => {
+                for (k, j) in chain.joints.iter().enumerate() {
+                    q[k] = s.get(k).copied().unwrap_or(0.0).clamp(j.lower, j.upper);
+                }
+            }
+            None => {
+                for (k, j) in chain.joints.iter().enumerate() {
+                    q[k] = 0.0f64.clamp(j.lower, j.upper);
+                }
+            }
+        }
+        let mut attempts = 0u32;
+        loop {
+            attempts += 1;
+            if Self::descend(chain, target, &mut q, opts, &mut w, deadline) {
+                return Ok(q[..n].to_vec());
+            }
+            if Instant::now() >= deadline {
+                let e = pose_error(target, &chain.fk(&q[..n]));
+                return Err(Error::Unreachable {
+                    why: format!(
+                        "no solution within {:?} ({attempts} attempts); best remaining error {:.2e} m, {:.2e} rad",
+                        opts.timeout,
+                        e.fixed_rows::<3>(0).norm(),
+                        e.fixed_rows::<3>(3).norm()
+                    ),
+                });
+            }
+            for (k, j) in chain.joints.iter().enumerate() {
+                q[k] = rng.random_range(j.lower..=j.upper);
+            }
+        }
+    }
+}

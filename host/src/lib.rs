@@ -1,0 +1,24 @@
+//! # ferrobot
+//!
+//! A light, hardware-independent robotics API in the manner of PyRobot, without ROS: arms,
+//! grippers, pan-tilt cameras and mobile bases, driven through the Ferrobot firmware core —
+//! simulated in-process (the default, deterministic, faster than real time), in QEMU, or on a
+//! real controller board, with the same program.
+//!
+//! ```no_run
+//! use ferrobot::Robot;
+//! let mut bot = Robot::new("locobot")?;                 // in-process simulator by default
+//! bot.arm()?.set_joint_positions(&[0.0; 5])?;
+//! bot.base()?.go_to_absolute([1.0, 1.0, 0.0])?;
+//! # Ok::<(), ferrobot::Error>(())
+//! ```
+//!
+//! Units are SI (m, rad, s, N·m); frames are right-handed; quaternions are `[x, y, z, w]`.
+#![warn(missing_docs)]
+
+pub mod config;
+pub mod error;
+pub mod kinematics;
+
+pub use config::RobotConfig;
+pub use error::{Error, Result};
