@@ -200,10 +200,16 @@ pub struct ServoBus {
     pub stats: BusStats,
 }
 
-/// Operating-mode byte that realises a joint mode on a servo model.
-pub fn mode_byte(joint_mode: ferrobot_protocol::JointMode, model: ServoModel) -> u8 {
+/// Operating-mode byte that realises a joint mode on a servo model; `multi_turn` joints (servo
+/// range beyond ±π) use extended position mode.
+pub fn mode_byte(
+    joint_mode: ferrobot_protocol::JointMode,
+    model: ServoModel,
+    multi_turn: bool,
+) -> u8 {
     use ferrobot_protocol::JointMode as M;
     match joint_mode {
+        M::Position | M::Off if multi_turn => mode::EXTENDED_POSITION,
         M::Position | M::Off => mode::POSITION,
         M::Velocity => mode::VELOCITY,
         M::Current if model.spec().current_control => mode::CURRENT,

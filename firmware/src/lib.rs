@@ -581,7 +581,13 @@ impl Firmware {
             let Some(jc) = self.joints.get(j) else {
                 continue;
             };
-            let mut m = bus::mode_byte(jc.mode, model);
+            // A servo whose range exceeds one turn around its centre needs extended position mode.
+            let multi_turn = self.profile.joints.get(j).is_some_and(|c| {
+                let s = c.sign as f32;
+                let (a, b) = (s * c.limits.min + c.offset, s * c.limits.max + c.offset);
+                a.min(b) < -core::f32::consts::PI || a.max(b) > core::f32::consts::PI
+            });
+            let mut m = bus::mode_byte(jc.mode, model, multi_turn);
             let mut torque = jc.mode != JointMode::Off;
             if let Some((gj, g)) = self.gripper.as_ref() {
                 if *gj == j {

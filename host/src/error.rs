@@ -147,7 +147,6 @@ pub enum Error {
 pub type Result<T, E = Error> = std::result::Result<T, E>;
 
 /// Check that every value is finite.
-#[allow(dead_code)] // used by the motion API
 pub(crate) fn check_finite(what: &str, values: &[f64]) -> Result<()> {
     for (i, v) in values.iter().enumerate() {
         if !v.is_finite() {

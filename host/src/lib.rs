@@ -16,9 +16,21 @@
 //! Units are SI (m, rad, s, N·m); frames are right-handed; quaternions are `[x, y, z, w]`.
 #![warn(missing_docs)]
 
+pub mod arm;
+pub mod backend;
+pub mod base;
 pub mod config;
 pub mod error;
+pub mod gripper;
 pub mod kinematics;
+pub mod motion;
+pub mod pan_tilt;
+pub mod robot;
 
+pub use arm::{MoveOptions, Orientation, Pose};
+pub use backend::Backend;
 pub use config::RobotConfig;
 pub use error::{Error, Result};
+pub use ferrobot_protocol::GripperState;
+pub use motion::Motion;
+pub use robot::{Robot, RobotBuilder};

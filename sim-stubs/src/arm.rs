@@ -9,6 +9,8 @@
 pub struct ArmJoint {
     /// Joint origin in the parent link's frame, m.
     pub origin: [f64; 3],
+    /// Fixed rotation of the joint frame, roll-pitch-yaw (URDF convention), rad.
+    pub rpy: [f64; 3],
     /// Joint axis in the joint frame (unit vector).
     pub axis: [f64; 3],
     /// Mass of the child link (and everything rigidly attached), kg.
@@ -22,30 +24,35 @@ pub struct ArmJoint {
 /// fingers and the AR tag). Angles in the joint convention of the description.
 pub const LOCOBOT_ARM: [ArmJoint; 5] = [
     ArmJoint {
+        rpy: [0.0; 3],
         origin: [0.0, 0.0, 0.072],
         axis: [0.0, 0.0, 1.0],
         mass: 0.1199,
         com: [-5.7e-5, 0.0, 0.0228],
     },
     ArmJoint {
+        rpy: [0.0; 3],
         origin: [0.0, 0.0, 0.04125],
         axis: [0.0, 1.0, 0.0],
         mass: 0.2125,
         com: [0.0096, 0.0, 0.1343],
     },
     ArmJoint {
+        rpy: [0.0; 3],
         origin: [0.05, 0.0, 0.2],
         axis: [0.0, 1.0, 0.0],
         mass: 0.1875,
         com: [0.1178, 0.0, 0.0],
     },
     ArmJoint {
+        rpy: [0.0; 3],
         origin: [0.2002, 0.0, 0.0],
         axis: [0.0, 1.0, 0.0],
         mass: 0.0606,
         com: [0.0429, 0.0, 0.0114],
     },
     ArmJoint {
+        rpy: [0.0; 3],
         origin: [0.063, 0.0001, 0.0],
         axis: [-1.0, 0.0, 0.0],
         mass: 0.1242,
@@ -116,6 +123,17 @@ pub fn gravity_torques(chain: &[ArmJoint], q: &[f64], out: &mut [f64]) {
     for i in 0..n.min(8) {
         let j = &chain[i];
         pos = add(pos, apply(&rot, &j.origin));
+        if j.rpy != [0.0; 3] {
+            let [r, p, y] = j.rpy;
+            let fixed = mul(
+                &axis_angle(&[0.0, 0.0, 1.0], y),
+                &mul(
+                    &axis_angle(&[0.0, 1.0, 0.0], p),
+                    &axis_angle(&[1.0, 0.0, 0.0], r),
+                ),
+            );
+            rot = mul(&rot, &fixed);
+        }
         origins[i] = pos;
         axes[i] = apply(&rot, &j.axis);
         rot = mul(&rot, &axis_angle(&j.axis, q[i]));

@@ -22,7 +22,7 @@ pub enum BaseModel {
 #[derive(Debug, Clone)]
 pub struct SimRobot {
     /// Name, as the firmware profiles use it.
-    pub name: &'static str,
+    pub name: String,
     /// Servos.
     pub servos: Vec<ServoMount>,
     /// Arm chain for gravity.
@@ -98,11 +98,7 @@ pub fn by_name(name: &str) -> Option<SimRobot> {
         _ => return None,
     };
     Some(SimRobot {
-        name: if base == BaseModel::Kobuki {
-            "locobot"
-        } else {
-            "locobot_lite"
-        },
+        name: name.to_string(),
         servos: locobot_servos(),
         arm: LOCOBOT_ARM.to_vec(),
         base,

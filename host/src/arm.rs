@@ -1,0 +1,600 @@
+//! The arm: joint control (position, velocity, torque), forward and inverse kinematics, and
+//! end-effector motions. Joint vectors are in the order of the configuration's `arm.joints`;
+//! poses are of the end-effector frame in the arm's base frame (`base_link` on the LoCoBots,
+//! `base` on Sawyer).
+
+use std::time::Duration;
+
+use ferrobot_protocol::{HostMsg, JointMode, JointPoint, JointState};
+use nalgebra::{Isometry3, Matrix3, Matrix6xX, Rotation3, Translation3, UnitQuaternion, Vector3};
+
+use crate::error::{check_finite, Error, Result};
+use crate::kinematics::ik::IkOptions;
+use crate::motion::{Goal, Motion};
+use crate::robot::Robot;
+
+/// A pose: position (m), rotation matrix and quaternion `[x, y, z, w]` of a frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Pose {
+    /// Position, m.
+    pub position: [f64; 3],
+    /// Rotation matrix, rows.
+    pub rotation: [[f64; 3]; 3],
+    /// Unit quaternion `[x, y, z, w]`.
+    pub quaternion: [f64; 4],
+}
+
+impl From<Isometry3<f64>> for Pose {
+    fn from(t: Isometry3<f64>) -> Self {
+        let m = t.rotation.to_rotation_matrix();
+        let m = m.matrix();
+        let q = t.rotation.coords;
+        Pose {
+            position: [t.translation.x, t.translation.y, t.translation.z],
+            rotation: [
+                [m[(0, 0)], m[(0, 1)], m[(0, 2)]],
+                [m[(1, 0)], m[(1, 1)], m[(1, 2)]],
+                [m[(2, 0)], m[(2, 1)], m[(2, 2)]],
+            ],
+            quaternion: [q.x, q.y, q.z, q.w],
+        }
+    }
+}
+
+/// An orientation, in whichever form is at hand.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Orientation {
+    /// Unit quaternion `[x, y, z, w]` (normalised on use).
+    Quaternion([f64; 4]),
+    /// Euler angles `[yaw, pitch, roll]`, rad: `R = Rz(yaw)·Ry(pitch)·Rx(roll)`.
+    YawPitchRoll([f64; 3]),
+    /// Rotation matrix, rows (must be orthonormal).
+    Matrix([[f64; 3]; 3]),
+}
+
+impl Orientation {
+    /// As a unit quaternion; an error for a zero quaternion or a matrix that is not a rotation.
+    pub fn to_quaternion(&self) -> Result<UnitQuaternion<f64>> {
+        match *self {
+            Orientation::Quaternion([x, y, z, w]) => {
+                check_finite("quaternion", &[x, y, z, w])?;
+                let q = nalgebra::Quaternion::new(w, x, y, z);
+                if q.norm() < 1e-9 {
+                    return Err(Error::Unreachable {
+                        why: "a zero quaternion is no orientation".into(),
+                    });
+                }
+                Ok(UnitQuaternion::from_quaternion(q))
+            }
+            Orientation::YawPitchRoll([y, p, r]) => {
+                check_finite("yaw-pitch-roll", &[y, p, r])?;
+                Ok(UnitQuaternion::from_euler_angles(r, p, y))
+            }
+            Orientation::Matrix(m) => {
+                check_finite("rotation matrix", &m.concat())?;
+                let mm = Matrix3::from_row_slice(&m.concat());
+                let orth = (mm.transpose() * mm - Matrix3::identity()).norm();
+                if orth > 1e-6 || mm.determinant() < 0.0 {
+                    return Err(Error::Unreachable {
+                        why: "the matrix is not a rotation (orthonormal, det +1)".into(),
+                    });
+                }
+                Ok(UnitQuaternion::from_rotation_matrix(
+                    &Rotation3::from_matrix_unchecked(mm),
+                ))
+            }
+        }
+    }
+}
+
+/// Options of a joint-space move.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MoveOptions {
+    /// Plan a smooth trajectory under the joints' speed limits (true), or send the target at
+    /// once and let the firmware's rate limiter take the joints there (false).
+    pub plan: bool,
+    /// Arrival tolerance per joint, rad; the configuration's when `None`.
+    pub tolerance: Option<f64>,
+    /// Give up after this long; the configuration's when `None`.
+    pub timeout: Option<Duration>,
+}
+
+impl Default for MoveOptions {
+    fn default() -> Self {
+        Self {
+            plan: true,
+            tolerance: None,
+            timeout: None,
+        }
+    }
+}
+
+/// The arm of a [`Robot`].
+pub struct Arm<'r> {
+    robot: &'r mut Robot,
+}
+
+impl<'r> Arm<'r> {
+    pub(crate) fn new(robot: &'r mut Robot) -> Self {
+        Arm { robot }
+    }
+
+    fn cfg(&self) -> &crate::config::ArmConfig {
+        // Present: `Robot::arm` checks it.
+        self.robot.cfg.arm.as_ref().expect("arm config")
+    }
+
+    /// Number of arm joints.
+    pub fn dof(&self) -> usize {
+        self.robot.arm_joints.len()
+    }
+
+    /// Arm joint names, base to tip.
+    pub fn joint_names(&self) -> Vec<String> {
+        self.cfg().joints.clone()
+    }
+
+    fn check_count(&self, what: &'static str, v: &[f64]) -> Result<()> {
+        if v.len() != self.dof() {
+            return Err(Error::JointCount {
+                what,
+                expected: self.dof(),
+                got: v.len(),
+            });
+        }
+        check_finite(what, v)
+    }
+
+    fn check_limits(&self, q: &[f64]) -> Result<()> {
+        for (&j, &v) in self.robot.arm_joints.iter().zip(q) {
+            let c = &self.robot.cfg.joints[j];
+            let (lo, hi) = (c.limits.min as f64, c.limits.max as f64);
+            if v < lo - 1e-9 || v > hi + 1e-9 {
+                return Err(Error::OutOfLimits {
+                    joint: c.name.to_string(),
+                    value: v,
+                    min: lo,
+                    max: hi,
+                });
+            }
+        }
+        Ok(())
+    }
+
+    fn ensure_mode(&mut self, mode: JointMode) -> Result<()> {
+        if self.robot.arm_mode != mode {
+            let idx = self.robot.arm_joints.clone();
+            self.robot.set_mode(&idx, mode)?;
+            self.robot.arm_mode = mode;
+        }
+        Ok(())
+    }
+
+    fn states(&mut self) -> Result<Vec<JointState>> {
+        let t = self.robot.link.telemetry()?;
+        Ok(self
+            .robot
+            .arm_joints
+            .iter()
+            .map(|&j| t.joints.get(j).copied().unwrap_or_default())
+            .collect())
+    }
+
+    /// Start moving to joint positions `q` (rad); returns the motion under way.
+    pub fn move_joints(&mut self, q: &[f64], opts: MoveOptions) -> Result<Motion<'_>> {
+        self.check_count("joint positions", q)?;
+        self.check_limits(q)?;
+        self.ensure_mode(JointMode::Position)?;
+        let now = self.states()?;
+        // A cubic between rest states peaks at 1.5·Δq/T: choose T so that no joint exceeds 90 %
+        // of its speed limit.
+        let mut t = 0.0f64;
+        for ((&j, &target), s) in self.robot.arm_joints.iter().zip(q).zip(&now) {
+            let v = self.robot.cfg.joints[j].limits.velocity as f64;
+            t = t.max(1.5 * (target - s.position as f64).abs() / (0.9 * v));
+        }
+        let duration = if opts.plan { t.max(0.2) } else { 0.0 };
+        let points = q
+            .iter()
+            .map(|&p| JointPoint {
+                position: p as f32,
+                velocity: 0.0,
+                effort: 0.0,
+            })
+            .collect();
+        let idx = self.robot.arm_joints.clone();
+        let mask = idx.iter().fold(0u16, |m, &j| m | (1 << j));
+        self.robot.link.command(
+            &HostMsg::Waypoint {
+                joints: mask,
+                duration_us: (duration * 1e6) as u32,
+                points,
+            },
+            "arm joint target",
+        )?;
+        let tolerance = opts.tolerance.unwrap_or(self.cfg().joint_tolerance);
+        let timeout = opts
+            .timeout
+            .unwrap_or(Duration::from_secs_f64(self.cfg().timeout));
+        let planned = if opts.plan { duration } else { t / 1.35 };
+        let planned_end = self.robot.link.now() + Duration::from_secs_f64(planned);
+        Ok(Motion::new(
+            self.robot,
+            Goal::Joints {
+                idx,
+                target: q.to_vec(),
+                tolerance,
+                planned_end,
+                stall_since: None,
+            },
+            "arm joint motion",
+            timeout,
+        ))
+    }
+
+    /// Move to joint positions `q` (rad) on a planned trajectory and wait until every joint is
+    /// within the arrival tolerance.
+    pub fn set_joint_positions(&mut self, q: &[f64]) -> Result<()> {
+        self.move_joints(q, MoveOptions::default())?.wait()
+    }
+
+    /// [`Arm::set_joint_positions`] with options.
+    pub fn set_joint_positions_with(&mut self, q: &[f64], opts: MoveOptions) -> Result<()> {
+        self.move_joints(q, opts)?.wait()
+    }
+
+    /// Command joint velocities (rad/s); the arm switches to velocity control and keeps them
+    /// until told otherwise (the firmware brakes at the position limits).
+    pub fn set_joint_velocities(&mut self, qd: &[f64]) -> Result<()> {
+        self.check_count("joint velocities", qd)?;
+        for (&j, &v) in self.robot.arm_joints.iter().zip(qd) {
+            let c = &self.robot.cfg.joints[j];
+            if v.abs() > c.limits.velocity as f64 + 1e-9 {
+                return Err(Error::OutOfLimits {
+                    joint: c.name.to_string(),
+                    value: v,
+                    min: -c.limits.velocity as f64,
+                    max: c.limits.velocity as f64,
+                });
+            }
+        }
+        self.ensure_mode(JointMode::Velocity)?;
+        let mask = self
+            .robot
+            .arm_joints
+            .iter()
+            .fold(0u16, |m, &j| m | (1 << j));
+        let values = qd.iter().map(|&v| v as f32).collect();
+        self.robot.link.command(
+            &HostMsg::JointCommand {
+                joints: mask,
+                values,
+            },
+            "joint velocities",
+        )
+    }
+
+    /// Command joint torques (N·m); the arm switches to current control.
+    pub fn set_joint_torques(&mut self, tau: &[f64]) -> Result<()> {
+        self.check_count("joint torques", tau)?;
+        for (&j, &v) in self.robot.arm_joints.iter().zip(tau) {
+            let c = &self.robot.cfg.joints[j];
+            if v.abs() > c.limits.effort as f64 + 1e-9 {
+                return Err(Error::OutOfLimits {
+                    joint: c.name.to_string(),
+                    value: v,
+                    min: -c.limits.effort as f64,
+                    max: c.limits.effort as f64,
+                });
+            }
+        }
+        self.ensure_mode(JointMode::Current)?;
+        let mask = self
+            .robot
+            .arm_joints
+            .iter()
+            .fold(0u16, |m, &j| m | (1 << j));
+        let values = tau.iter().map(|&v| v as f32).collect();
+        self.robot.link.command(
+            &HostMsg::JointCommand {
+                joints: mask,
+                values,
+            },
+            "joint torques",
+        )
+    }
+
+    /// Measured joint angles, rad.
+    pub fn get_joint_angles(&mut self) -> Result<Vec<f64>> {
+        Ok(self.states()?.iter().map(|s| s.position as f64).collect())
+    }
+
+    /// Measured joint velocities, rad/s.
+    pub fn get_joint_velocities(&mut self) -> Result<Vec<f64>> {
+        Ok(self.states()?.iter().map(|s| s.velocity as f64).collect())
+    }
+
+    /// Measured joint torques, N·m.
+    pub fn get_joint_torques(&mut self) -> Result<Vec<f64>> {
+        Ok(self.states()?.iter().map(|s| s.effort as f64).collect())
+    }
+
+    fn by_name(&mut self, name: &str) -> Result<JointState> {
+        let k = self
+            .cfg()
+            .joints
+            .iter()
+            .position(|n| n == name)
+            .ok_or_else(|| Error::UnknownName {
+                what: "joint",
+                name: name.to_string(),
+            })?;
+        Ok(self.states()?[k])
+    }
+
+    /// Measured angle of one joint by name, rad.
+    pub fn get_joint_angle(&mut self, name: &str) -> Result<f64> {
+        Ok(self.by_name(name)?.position as f64)
+    }
+
+    /// Measured velocity of one joint by name, rad/s.
+    pub fn get_joint_velocity(&mut self, name: &str) -> Result<f64> {
+        Ok(self.by_name(name)?.velocity as f64)
+    }
+
+    /// Measured torque of one joint by name, N·m.
+    pub fn get_joint_torque(&mut self, name: &str) -> Result<f64> {
+        Ok(self.by_name(name)?.effort as f64)
+    }
+
+    /// Move to the configuration's home position.
+    pub fn go_home(&mut self) -> Result<()> {
+        let home = self.cfg().home.clone();
+        self.set_joint_positions(&home)
+    }
+
+    /// Pose of the end effector from the measured joint angles.
+    pub fn get_ee_pose(&mut self) -> Result<Pose> {
+        let q = self.get_joint_angles()?;
+        let ee = self.cfg().ee_frame.clone();
+        self.compute_fk_position(&q, &ee)
+    }
+
+    fn chain_q(&mut self, q: &[f64], frame: &str) -> Result<(crate::kinematics::Chain, Vec<f64>)> {
+        self.check_count("joint positions", q)?;
+        let names = self.cfg().joints.clone();
+        let chain = self.robot.chain_to(frame)?.clone();
+        // The frame's chain moves a prefix of the arm's joints (or other joints: not ours).
+        let mut sub = Vec::new();
+        for j in &chain.joints {
+            let k = names
+                .iter()
+                .position(|n| *n == j.name)
+                .ok_or_else(|| Error::UnknownName {
+                    what: "frame (its chain moves a joint that is not an arm joint)",
+                    name: frame.to_string(),
+                })?;
+            sub.push(q[k]);
+        }
+        Ok((chain, sub))
+    }
+
+    /// Pose of `frame` (any link of the arm's chain) in the base frame at joint angles `q`.
+    pub fn compute_fk_position(&mut self, q: &[f64], frame: &str) -> Result<Pose> {
+        let (chain, sub) = self.chain_q(q, frame)?;
+        Ok(chain.fk(&sub).into())
+    }
+
+    /// Geometric Jacobian at `q`: rows (vx, vy, vz, ωx, ωy, ωz) in the base frame at the
+    /// end effector's origin, one column per arm joint.
+    pub fn get_jacobian(&mut self, q: &[f64]) -> Result<Matrix6xX<f64>> {
+        let ee = self.cfg().ee_frame.clone();
+        let (chain, sub) = self.chain_q(q, &ee)?;
+        Ok(chain.jacobian(&sub))
+    }
+
+    /// Twist `[vx, vy, vz, ωx, ωy, ωz]` of the end effector (base frame) at `q` moving at `qd`.
+    pub fn compute_fk_velocity(&mut self, q: &[f64], qd: &[f64]) -> Result<[f64; 6]> {
+        self.check_count("joint velocities", qd)?;
+        let j = self.get_jacobian(q)?;
+        let v = j * nalgebra::DVector::from_column_slice(qd);
+        Ok([v[0], v[1], v[2], v[3], v[4], v[5]])
+    }
+
+    fn ik_options(&self) -> IkOptions {
+        let c = self.cfg();
+        IkOptions {
+            position_tolerance: c.ik_position_tolerance,
+            orientation_tolerance: c.ik_orientation_tolerance,
+            ..IkOptions::default()
+        }
+    }
+
+    /// Joint angles that put the end effector at `position` (m) with `orientation`, nearest to
+    /// `seed` (default: the current joint angles).
+    pub fn compute_ik(
+        &mut self,
+        position: [f64; 3],
+        orientation: Orientation,
+        seed: Option<&[f64]>,
+    ) -> Result<Vec<f64>> {
+        check_finite("position", &position)?;
+        let rot = orientation.to_quaternion()?;
+        let seed = match seed {
+            Some(s) => {
+                self.check_count("IK seed", s)?;
+                s.to_vec()
+            }
+            None => self.get_joint_angles()?,
+        };
+        let target = Isometry3::from_parts(
+            Translation3::new(position[0], position[1], position[2]),
+            rot,
+        );
+        let opts = self.ik_options();
+        let chain = self
+            .robot
+            .cfg
+            .arm_chain
+            .as_ref()
+            .ok_or_else(|| Error::Unreachable {
+                why: "no arm chain".into(),
+            })?;
+        let ik = self.robot.ik.as_ref().ok_or_else(|| Error::Unreachable {
+            why: "no IK solver".into(),
+        })?;
+        ik.solve(chain, &target, Some(&seed), &opts)
+    }
+
+    /// Move the end effector to a pose (through IK and a planned joint move).
+    pub fn set_ee_pose(&mut self, position: [f64; 3], orientation: Orientation) -> Result<()> {
+        let q = self.compute_ik(position, orientation, None)?;
+        self.set_joint_positions(&q)
+    }
+
+    /// 5-DOF arms: move the end effector to `position` with gripper pitch `pitch` (rad below
+    /// horizontal; π/2 points down) and roll `roll` (rad about the gripper's x axis; the
+    /// current roll when `None`).
+    pub fn set_ee_pose_pitch_roll(
+        &mut self,
+        position: [f64; 3],
+        pitch: f64,
+        roll: Option<f64>,
+    ) -> Result<()> {
+        let q = self.ik_pitch_roll(position, pitch, roll, None)?;
+        self.set_joint_positions(&q)
+    }
+
+    fn ik_pitch_roll(
+        &mut self,
+        position: [f64; 3],
+        pitch: f64,
+        roll: Option<f64>,
+        seed: Option<Vec<f64>>,
+    ) -> Result<Vec<f64>> {
+        check_finite("position", &position)?;
+        check_finite("pitch", &[pitch])?;
+        let solver = self.robot.locobot_ik.ok_or_else(|| Error::Unreachable {
+            why: format!(
+                "{} has no pitch-roll solver (a 5-DOF LoCoBot-type arm has)",
+                self.robot.cfg.name
+            ),
+        })?;
+        let seed = match seed {
+            Some(s) => s,
+            None => self.get_joint_angles()?,
+        };
+        // Roll is joint 5 up to its sign (its axis is −x on the LoCoBot).
+        let chain = self
+            .robot
+            .cfg
+            .arm_chain
+            .clone()
+            .ok_or_else(|| Error::Unreachable {
+                why: "no arm".into(),
+            })?;
+        let sign = if chain.joints[4].axis.x < 0.0 {
+            -1.0
+        } else {
+            1.0
+        };
+        let roll = roll.unwrap_or(sign * seed[4]);
+        check_finite("roll", &[roll])?;
+        solver.solve_pitch_roll(&chain, &Vector3::from(position), pitch, roll, Some(&seed))
+    }
+
+    /// Move the end effector along a straight line by `displacement` (m, base frame), keeping
+    /// its orientation, through IK solutions every `step` metres (checked before moving).
+    pub fn move_ee_xyz(&mut self, displacement: [f64; 3], step: f64) -> Result<()> {
+        check_finite("displacement", &displacement)?;
+        if step.is_nan() || step <= 0.0 {
+            return Err(Error::NotFinite {
+                what: "step (must be positive)".into(),
+                value: step,
+            });
+        }
+        let q0 = self.get_joint_angles()?;
+        let ee = self.cfg().ee_frame.clone();
+        let start = self.compute_fk_position(&q0, &ee)?;
+        let d = Vector3::from(displacement);
+        let n = ((d.norm() / step).ceil() as usize).max(1);
+        // Solve every waypoint first: a line that leaves the workspace moves nothing.
+        let pitch_roll = self.robot.locobot_ik.is_some();
+        let mut path = Vec::with_capacity(n);
+        let mut seed = q0.clone();
+        let chain = self
+            .robot
+            .cfg
+            .arm_chain
+            .clone()
+            .ok_or_else(|| Error::Unreachable {
+                why: "no arm".into(),
+            })?;
+        // Keep the gripper's pitch (R = Rz(yaw)·Ry(pitch)·Rx(roll)); roll stays with joint 5.
+        let (_, pitch, _) = chain.fk(&q0).rotation.euler_angles();
+        for k in 1..=n {
+            let p = Vector3::from(start.position) + d * (k as f64 / n as f64);
+            let q = if pitch_roll {
+                self.ik_pitch_roll([p.x, p.y, p.z], pitch, None, Some(seed.clone()))?
+            } else {
+                let [x, y, z, w] = start.quaternion;
+                self.compute_ik(
+                    [p.x, p.y, p.z],
+                    Orientation::Quaternion([x, y, z, w]),
+                    Some(&seed),
+                )?
+            };
+            path.push(q.clone());
+            seed = q;
+        }
+        // Stream the path as knots, each timed by the joints' speed limits.
+        self.ensure_mode(JointMode::Position)?;
+        let idx = self.robot.arm_joints.clone();
+        let mask = idx.iter().fold(0u16, |m, &j| m | (1 << j));
+        let mut prev = q0;
+        for q in &path {
+            let mut t = 0.0f64;
+            for ((&j, a), b) in idx.iter().zip(q).zip(&prev) {
+                t = t.max((a - b).abs() / (0.5 * self.robot.cfg.joints[j].limits.velocity as f64));
+            }
+            let points = q
+                .iter()
+                .map(|&p| JointPoint {
+                    position: p as f32,
+                    velocity: 0.0,
+                    effort: 0.0,
+                })
+                .collect();
+            // Keep the firmware queue short: wait while it is nearly full.
+            while self.robot.link.telemetry()?.queued as usize >= 8 * idx.len() {
+                self.robot.link.wait(Duration::from_millis(20));
+            }
+            self.robot.link.command(
+                &HostMsg::Waypoint {
+                    joints: mask,
+                    duration_us: (t.max(0.02) * 1e6) as u32,
+                    points,
+                },
+                "Cartesian waypoint",
+            )?;
+            prev = q.clone();
+        }
+        let target = path.last().cloned().unwrap_or(prev);
+        let tolerance = self.cfg().joint_tolerance;
+        let timeout = Duration::from_secs_f64(self.cfg().timeout);
+        let planned_end = self.robot.link.now() + Duration::from_secs(1);
+        Motion::new(
+            self.robot,
+            Goal::Joints {
+                idx,
+                target,
+                tolerance,
+                planned_end,
+                stall_since: None,
+            },
+            "Cartesian motion",
+            timeout,
+        )
+        .wait()
+    }
+}

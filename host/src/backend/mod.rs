@@ -1,0 +1,76 @@
+//! Backends: where the firmware runs. The API talks to all of them through [`Link`]; a program
+//! does not know which one it has, except through the configuration it was given.
+//!
+//! * [`Backend::Sim`] (the default): the firmware core and the simulated plants in-process, in
+//!   lockstep on a virtual clock. Waiting advances simulated time, so a 10 s motion takes
+//!   milliseconds; `realtime` paces it to the wall clock for viewing and teleoperation.
+//! * [`Backend::Serial`]: the firmware behind a serial port (a board over USB, QEMU or a
+//!   firmware process behind a PTY). One I/O thread owns the port.
+
+pub mod serial;
+pub mod sim;
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+use ferrobot_protocol::{DeviceInfo, DeviceMsg, Fault, HostMsg, Telemetry};
+
+use crate::error::Result;
+
+/// Where the robot's firmware runs.
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub enum Backend {
+    /// In-process lockstep simulation.
+    Sim {
+        /// Seed of the plants' noise.
+        seed: u64,
+        /// Pace simulated time to the wall clock.
+        realtime: bool,
+    },
+    /// A serial port (PTY or USB).
+    Serial {
+        /// Port path, e.g. `/dev/ttyACM0` or `/dev/pts/3`.
+        path: PathBuf,
+    },
+}
+
+impl Default for Backend {
+    fn default() -> Self {
+        Backend::Sim {
+            seed: 1,
+            realtime: false,
+        }
+    }
+}
+
+/// What the API needs from a backend.
+pub trait Link: Send {
+    /// The firmware's self-description from the handshake.
+    fn info(&self) -> &DeviceInfo;
+    /// Send a command and wait for its acknowledgement; a rejection is an error naming `what`.
+    fn command(&mut self, msg: &HostMsg, what: &str) -> Result<()>;
+    /// Send a request and wait for the reply `accept` picks.
+    fn request(&mut self, msg: &HostMsg, accept: &dyn Fn(&DeviceMsg) -> bool) -> Result<DeviceMsg>;
+    /// The newest telemetry.
+    fn telemetry(&mut self) -> Result<Telemetry>;
+    /// Let `dt` pass (simulated time in the simulator, wall time otherwise).
+    fn wait(&mut self, dt: Duration);
+    /// The backend's clock.
+    fn now(&self) -> Duration;
+    /// Faults received since the last call.
+    fn take_faults(&mut self) -> Vec<Fault>;
+    /// The simulator, when this backend is one (ground truth, fault injection).
+    fn simulator(&mut self) -> Option<&mut ferrobot_sim::LockstepSim>;
+}
+
+/// Map a firmware rejection to the API's error.
+pub(crate) fn rejection(what: &str, reason: ferrobot_protocol::RejectReason) -> crate::Error {
+    match reason {
+        ferrobot_protocol::RejectReason::EmergencyStop => crate::Error::EmergencyStop,
+        reason => crate::Error::Rejected {
+            what: what.to_string(),
+            reason,
+        },
+    }
+}

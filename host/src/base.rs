@@ -1,0 +1,285 @@
+//! The mobile base: velocity commands, position goals, odometry. Poses are `[x, y, θ]` (m, m,
+//! rad) in the odometry frame (x forward at the last odometry reset, y left, θ counter-
+//! clockwise). A bumper, cliff or wheel-drop event aborts a motion with an error that names the
+//! sensor.
+
+use std::time::Duration;
+
+use ferrobot_protocol::{HostMsg, Telemetry};
+
+use crate::error::{check_finite, Error, Result};
+use crate::motion::{Goal, Motion};
+use crate::robot::Robot;
+
+/// Control period of the host-side base controllers.
+pub const BASE_CONTROL_PERIOD: Duration = Duration::from_millis(50);
+
+fn wrap(a: f64) -> f64 {
+    let mut a = a % std::f64::consts::TAU;
+    if a > std::f64::consts::PI {
+        a -= std::f64::consts::TAU;
+    } else if a <= -std::f64::consts::PI {
+        a += std::f64::consts::TAU;
+    }
+    a
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Phase {
+    TurnToGoal,
+    Drive,
+    TurnToHeading,
+}
+
+/// The proportional position controller, as PyRobot's: turn towards the goal, drive to it
+/// (backwards when it lies behind), turn to the goal heading. Speeds are proportional to the
+/// remaining error, bounded by the limits, ramped at bounded acceleration, and kept above the
+/// base's deadband until within tolerance.
+#[derive(Debug, Clone)]
+pub struct BaseGoal {
+    goal: [f64; 3],
+    phase: Phase,
+    backwards: bool,
+    v: f64,
+    w: f64,
+    next: Duration,
+    max_v: f64,
+    max_w: f64,
+    tol_xy: f64,
+    tol_th: f64,
+}
+
+/// Gains and limits of the proportional controller.
+pub mod gains {
+    /// Forward speed per metre of remaining distance, 1/s.
+    pub const K_V: f64 = 1.0;
+    /// Yaw rate per radian of heading error, 1/s.
+    pub const K_W: f64 = 2.0;
+    /// Forward acceleration bound, m/s².
+    pub const ACCEL_V: f64 = 0.5;
+    /// Yaw acceleration bound, rad/s².
+    pub const ACCEL_W: f64 = 2.0;
+    /// Smallest forward speed while not yet within tolerance, m/s.
+    pub const MIN_V: f64 = 0.02;
+    /// Smallest yaw rate while not yet within tolerance, rad/s.
+    pub const MIN_W: f64 = 0.08;
+}
+
+impl BaseGoal {
+    /// The next command `(v, w)` from odometry at `now`, or `None` when the goal is reached.
+    pub(crate) fn step(&mut self, now: Duration, t: &Telemetry) -> Option<(f64, f64)> {
+        if now < self.next {
+            return Some((self.v, self.w));
+        }
+        self.next = now + BASE_CONTROL_PERIOD;
+        let dt = BASE_CONTROL_PERIOD.as_secs_f64();
+        let o = t.odometry;
+        let (x, y, th) = (o.x as f64, o.y as f64, o.theta as f64);
+        let (dx, dy) = (self.goal[0] - x, self.goal[1] - y);
+        let dist = dx.hypot(dy);
+        let mut v = 0.0;
+        let w;
+        loop {
+            match self.phase {
+                Phase::TurnToGoal => {
+                    if dist < self.tol_xy {
+                        self.phase = Phase::TurnToHeading;
+                        continue;
+                    }
+                    let bearing = dy.atan2(dx);
+                    self.backwards = wrap(bearing - th).abs() > std::f64::consts::FRAC_PI_2;
+                    let e = wrap(
+                        bearing
+                            + if self.backwards {
+                                std::f64::consts::PI
+                            } else {
+                                0.0
+                            }
+                            - th,
+                    );
+                    if e.abs() < self.tol_th {
+                        self.phase = Phase::Drive;
+                        continue;
+                    }
+                    let p = (gains::K_W * e).clamp(-self.max_w, self.max_w);
+                    w = p.signum() * p.abs().max(gains::MIN_W);
+                }
+                Phase::Drive => {
+                    let bearing = dy.atan2(dx);
+                    let e = wrap(
+                        bearing
+                            + if self.backwards {
+                                std::f64::consts::PI
+                            } else {
+                                0.0
+                            }
+                            - th,
+                    );
+                    // Distance along the heading; past the goal it turns negative.
+                    let along = dist * e.cos();
+                    if dist < self.tol_xy || along < 0.0 {
+                        self.phase = Phase::TurnToHeading;
+                        continue;
+                    }
+                    let speed = (gains::K_V * along).clamp(gains::MIN_V, self.max_v);
+                    v = if self.backwards { -speed } else { speed };
+                    w = (gains::K_W * e).clamp(-self.max_w, self.max_w);
+                }
+                Phase::TurnToHeading => {
+                    let e = wrap(self.goal[2] - th);
+                    if e.abs() < self.tol_th {
+                        self.v = 0.0;
+                        self.w = 0.0;
+                        return None;
+                    }
+                    let p = (gains::K_W * e).clamp(-self.max_w, self.max_w);
+                    w = p.signum() * p.abs().max(gains::MIN_W);
+                }
+            }
+            break;
+        }
+        // Ramp: bounded acceleration (braking to zero is never slower than the bound either).
+        self.v += (v - self.v).clamp(-gains::ACCEL_V * dt, gains::ACCEL_V * dt);
+        self.w += (w - self.w).clamp(-gains::ACCEL_W * dt, gains::ACCEL_W * dt);
+        Some((self.v, self.w))
+    }
+}
+
+/// The base of a [`Robot`].
+pub struct Base<'r> {
+    robot: &'r mut Robot,
+}
+
+impl<'r> Base<'r> {
+    pub(crate) fn new(robot: &'r mut Robot) -> Self {
+        Base { robot }
+    }
+
+    fn section(&self) -> &crate::config::BaseSection {
+        // Present: `Robot::base` checks it.
+        self.robot.cfg.base.as_ref().expect("base config")
+    }
+
+    /// Odometry pose `[x, y, θ]`.
+    pub fn get_state(&mut self) -> Result<[f64; 3]> {
+        let o = self.robot.link.telemetry()?.odometry;
+        Ok([o.x as f64, o.y as f64, o.theta as f64])
+    }
+
+    /// Zero the odometry pose.
+    pub fn reset_odometry(&mut self) -> Result<()> {
+        self.robot
+            .link
+            .command(&HostMsg::ResetOdometry, "odometry reset")?;
+        // Let the reset show in telemetry.
+        self.robot.link.wait(Duration::from_millis(30));
+        Ok(())
+    }
+
+    /// Stop now.
+    pub fn stop(&mut self) -> Result<()> {
+        self.robot.link.command(
+            &HostMsg::BaseVelocity {
+                v: 0.0,
+                w: 0.0,
+                duration_ms: 0,
+            },
+            "base stop",
+        )
+    }
+
+    /// Start driving at `v` (m/s) and `w` (rad/s) for `duration` s.
+    pub fn set_vel_async(&mut self, v: f64, w: f64, duration: f64) -> Result<Motion<'_>> {
+        check_finite("base velocity", &[v, w, duration])?;
+        let s = self.section();
+        if v.abs() > s.max_linear + 1e-9 {
+            return Err(Error::OutOfLimits {
+                joint: "base forward speed".into(),
+                value: v,
+                min: -s.max_linear,
+                max: s.max_linear,
+            });
+        }
+        if w.abs() > s.max_angular + 1e-9 {
+            return Err(Error::OutOfLimits {
+                joint: "base yaw rate".into(),
+                value: w,
+                min: -s.max_angular,
+                max: s.max_angular,
+            });
+        }
+        self.robot.link.take_faults();
+        let now = self.robot.link.now();
+        let until = now + Duration::from_secs_f64(duration.max(0.0));
+        Ok(Motion::new(
+            self.robot,
+            Goal::BaseVelocity {
+                v,
+                w,
+                until,
+                next_send: now,
+            },
+            "base velocity",
+            Duration::from_secs_f64(duration.max(0.0) + 1.0),
+        ))
+    }
+
+    /// Drive at `v` (m/s) and `w` (rad/s) for `duration` s, then stop.
+    pub fn set_vel(&mut self, v: f64, w: f64, duration: f64) -> Result<()> {
+        self.set_vel_async(v, w, duration)?.wait()
+    }
+
+    /// Start moving to `[x, y, θ]` in the odometry frame.
+    pub fn go_to_absolute_async(&mut self, goal: [f64; 3]) -> Result<Motion<'_>> {
+        check_finite("base goal", &goal)?;
+        let s = self.section().clone();
+        self.robot.link.take_faults();
+        let now = self.robot.link.now();
+        let here = self.get_state()?;
+        let dist = (goal[0] - here[0]).hypot(goal[1] - here[1]);
+        let turn = std::f64::consts::TAU;
+        let timeout =
+            Duration::from_secs_f64(10.0 + 3.0 * (dist / s.max_linear + turn / s.max_angular));
+        let g = BaseGoal {
+            goal,
+            phase: Phase::TurnToGoal,
+            backwards: false,
+            v: 0.0,
+            w: 0.0,
+            next: now,
+            max_v: s.max_linear,
+            max_w: s.max_angular,
+            tol_xy: s.translation_tolerance,
+            tol_th: s.rotation_tolerance,
+        };
+        Ok(Motion::new(
+            self.robot,
+            Goal::Base(Box::new(g)),
+            "base position goal",
+            timeout,
+        ))
+    }
+
+    /// Move to `[x, y, θ]` in the odometry frame and wait.
+    pub fn go_to_absolute(&mut self, goal: [f64; 3]) -> Result<()> {
+        self.go_to_absolute_async(goal)?.wait()
+    }
+
+    /// Start moving by `[x, y, θ]` relative to the current pose (x forward, y left).
+    pub fn go_to_relative_async(&mut self, delta: [f64; 3]) -> Result<Motion<'_>> {
+        check_finite("base goal", &delta)?;
+        let [x, y, th] = self.get_state()?;
+        let (s, c) = th.sin_cos();
+        let goal = [
+            x + c * delta[0] - s * delta[1],
+            y + s * delta[0] + c * delta[1],
+            wrap(th + delta[2]),
+        ];
+        self.go_to_absolute_async(goal)
+    }
+
+    /// Move by `[x, y, θ]` relative to the current pose and wait.
+    pub fn go_to_relative(&mut self, delta: [f64; 3]) -> Result<()> {
+        self.go_to_relative_async(delta)?.wait()
+    }
+}

@@ -1,0 +1,327 @@
+//! [`Motion`]: a motion under way, to wait on, poll or cancel. Every blocking call of the API
+//! is its non-blocking form followed by [`Motion::wait`].
+
+use std::time::Duration;
+
+use ferrobot_protocol::{FaultKind, GripperState, HostMsg};
+
+use crate::base::BaseGoal;
+use crate::error::{Error, Result};
+use crate::robot::Robot;
+
+/// How long one [`Motion::poll`] lets pass.
+pub const POLL: Duration = Duration::from_millis(10);
+
+pub(crate) enum Goal {
+    /// Joints (firmware indices) to reach targets within a tolerance.
+    Joints {
+        idx: Vec<usize>,
+        target: Vec<f64>,
+        tolerance: f64,
+        planned_end: Duration,
+        stall_since: Option<Duration>,
+    },
+    /// The gripper reaching one of these states.
+    Gripper(&'static [GripperState]),
+    /// A base velocity held until a time.
+    BaseVelocity {
+        v: f64,
+        w: f64,
+        until: Duration,
+        next_send: Duration,
+    },
+    /// A base position goal run by a host-side controller.
+    Base(Box<BaseGoal>),
+}
+
+/// A motion under way.
+#[must_use = "a motion does nothing unless waited on or polled"]
+pub struct Motion<'r> {
+    pub(crate) robot: &'r mut Robot,
+    pub(crate) goal: Goal,
+    pub(crate) what: String,
+    pub(crate) deadline: Duration,
+    pub(crate) timeout: Duration,
+    pub(crate) result: Option<Result<()>>,
+}
+
+impl<'r> Motion<'r> {
+    pub(crate) fn new(
+        robot: &'r mut Robot,
+        goal: Goal,
+        what: impl Into<String>,
+        timeout: Duration,
+    ) -> Self {
+        let deadline = robot.link.now() + timeout;
+        Motion {
+            robot,
+            goal,
+            what: what.into(),
+            deadline,
+            timeout,
+            result: None,
+        }
+    }
+
+    /// Whether it has finished (successfully or not).
+    pub fn is_finished(&self) -> bool {
+        self.result.is_some()
+    }
+
+    /// Let [`POLL`] pass and check; `Some(result)` once finished.
+    pub fn poll(&mut self) -> Option<&Result<()>> {
+        if self.result.is_none() {
+            self.robot.link.wait(POLL);
+            let r = self.check();
+            if let Some(r) = r {
+                if r.is_err() {
+                    self.halt();
+                }
+                self.result = Some(r);
+            }
+        }
+        self.result.as_ref()
+    }
+
+    /// Block until finished.
+    pub fn wait(mut self) -> Result<()> {
+        // Check first: a motion may be finished before any time passes.
+        if self.result.is_none() {
+            if let Some(r) = self.check() {
+                self.result = Some(r);
+            }
+        }
+        loop {
+            if let Some(r) = self.result.take() {
+                return r;
+            }
+            self.poll();
+        }
+    }
+
+    /// Stop the motion where it is: joints hold, the base stops.
+    pub fn cancel(mut self) -> Result<()> {
+        self.halt();
+        Ok(())
+    }
+
+    fn halt(&mut self) {
+        let msg = match &self.goal {
+            Goal::Joints { idx, .. } => HostMsg::ClearQueue {
+                joints: idx.iter().fold(0, |m, &j| m | (1 << j)),
+            },
+            Goal::BaseVelocity { .. } | Goal::Base(_) => HostMsg::BaseVelocity {
+                v: 0.0,
+                w: 0.0,
+                duration_ms: 0,
+            },
+            _ => return,
+        };
+        let _ = self.robot.link.command(&msg, "stop");
+    }
+
+    fn fault_error(&mut self) -> Option<Error> {
+        let joints: Vec<usize> = match &self.goal {
+            Goal::Joints { idx, .. } => idx.clone(),
+            _ => Vec::new(),
+        };
+        let base = matches!(self.goal, Goal::BaseVelocity { .. } | Goal::Base(_));
+        for f in self.robot.link.take_faults() {
+            let hit = match f.kind {
+                FaultKind::Bumper
+                | FaultKind::Cliff
+                | FaultKind::WheelDrop
+                | FaultKind::BaseLost => base,
+                FaultKind::ServoLost | FaultKind::ServoHardware => {
+                    f.joint.is_some_and(|j| joints.contains(&(j as usize)))
+                }
+                FaultKind::Watchdog => true,
+                FaultKind::EmergencyStop => return Some(Error::EmergencyStop),
+                _ => false,
+            };
+            if hit {
+                let detail = match f.kind {
+                    FaultKind::Bumper | FaultKind::Cliff | FaultKind::WheelDrop => {
+                        Some(sensor_names(f.code))
+                    }
+                    _ => f
+                        .joint
+                        .and_then(|j| self.robot.cfg.joints.get(j as usize))
+                        .map(|j| {
+                            format!(
+                                "joint {} (servo {}), code {:#04x}",
+                                j.name.as_str(),
+                                j.servo_id,
+                                f.code
+                            )
+                        }),
+                };
+                return Some(Error::Fault {
+                    kind: f.kind,
+                    detail,
+                });
+            }
+        }
+        None
+    }
+
+    /// One check of the goal; `Some` once finished.
+    pub(crate) fn check(&mut self) -> Option<Result<()>> {
+        if let Some(e) = self.fault_error() {
+            return Some(Err(e));
+        }
+        let now = self.robot.link.now();
+        let t = match self.robot.link.telemetry() {
+            Ok(t) => t,
+            Err(e) => return Some(Err(e)),
+        };
+        let timed_out = now >= self.deadline;
+        match &mut self.goal {
+            Goal::Joints {
+                idx,
+                target,
+                tolerance,
+                planned_end,
+                stall_since,
+            } => {
+                let mut worst = (0usize, 0.0f64);
+                let mut moving = false;
+                for (&j, &q) in idx.iter().zip(target.iter()) {
+                    let s = t.joints.get(j).copied().unwrap_or_default();
+                    let e = (s.position as f64 - q).abs();
+                    if e > worst.1 {
+                        worst = (j, e);
+                    }
+                    moving |= s.velocity.abs() > 0.02;
+                }
+                if worst.1 <= *tolerance && t.queued == 0 {
+                    return Some(Ok(()));
+                }
+                // Stalled: the plan is over, nothing moves, and the error stays.
+                if now > *planned_end + Duration::from_millis(300) && !moving {
+                    let since = *stall_since.get_or_insert(now);
+                    if now - since > Duration::from_millis(700) {
+                        let name = self
+                            .robot
+                            .cfg
+                            .joints
+                            .get(worst.0)
+                            .map(|j| j.name.to_string())
+                            .unwrap_or_default();
+                        let pos = t
+                            .joints
+                            .get(worst.0)
+                            .map(|s| s.position as f64)
+                            .unwrap_or(0.0);
+                        return Some(Err(Error::Stalled {
+                            joint: name,
+                            position: pos,
+                            error: worst.1,
+                        }));
+                    }
+                } else {
+                    *stall_since = None;
+                }
+                timed_out.then(|| {
+                    Err(Error::Timeout {
+                        what: self.what.clone(),
+                        after: self.timeout_len(),
+                    })
+                })
+            }
+            Goal::Gripper(want) => {
+                if want.contains(&t.gripper) {
+                    Some(Ok(()))
+                } else {
+                    timed_out.then(|| {
+                        Err(Error::Timeout {
+                            what: self.what.clone(),
+                            after: self.timeout_len(),
+                        })
+                    })
+                }
+            }
+            Goal::BaseVelocity {
+                v,
+                w,
+                until,
+                next_send,
+            } => {
+                if now >= *until {
+                    let _ = self.robot.link.command(
+                        &HostMsg::BaseVelocity {
+                            v: 0.0,
+                            w: 0.0,
+                            duration_ms: 0,
+                        },
+                        "stop",
+                    );
+                    return Some(Ok(()));
+                }
+                if now >= *next_send {
+                    *next_send = now + Duration::from_millis(100);
+                    let left = (*until - now).as_millis().min(250) as u16;
+                    if let Err(e) = self.robot.link.command(
+                        &HostMsg::BaseVelocity {
+                            v: *v as f32,
+                            w: *w as f32,
+                            duration_ms: left,
+                        },
+                        "base velocity",
+                    ) {
+                        return Some(Err(e));
+                    }
+                }
+                None
+            }
+            Goal::Base(g) => {
+                if timed_out {
+                    return Some(Err(Error::Timeout {
+                        what: self.what.clone(),
+                        after: self.timeout_len(),
+                    }));
+                }
+                match g.step(now, &t) {
+                    None => Some(Ok(())),
+                    Some((v, w)) => self
+                        .robot
+                        .link
+                        .command(
+                            &HostMsg::BaseVelocity {
+                                v: v as f32,
+                                w: w as f32,
+                                duration_ms: 250,
+                            },
+                            "base velocity",
+                        )
+                        .err()
+                        .map(Err),
+                }
+            }
+        }
+    }
+
+    fn timeout_len(&self) -> Duration {
+        self.timeout
+    }
+}
+
+fn sensor_names(bits: u16) -> String {
+    use ferrobot_protocol::base_flags::*;
+    let names = [
+        (BUMPER_LEFT, "left bumper"),
+        (BUMPER_CENTER, "centre bumper"),
+        (BUMPER_RIGHT, "right bumper"),
+        (CLIFF_LEFT, "left cliff sensor"),
+        (CLIFF_CENTER, "centre cliff sensor"),
+        (CLIFF_RIGHT, "right cliff sensor"),
+        (WHEEL_DROP_LEFT, "left wheel drop"),
+        (WHEEL_DROP_RIGHT, "right wheel drop"),
+    ];
+    names
+        .iter()
+        .filter(|(b, _)| bits & b != 0)
+        .map(|(_, n)| *n)
+        .collect::<Vec<_>>()
+        .join(", ")
+}

@@ -1,0 +1,422 @@
+//! [`Robot`]: one robot, its components and its backend.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use ferrobot_protocol::{DeviceMsg, Fault, HostMsg, JointLimits, JointMode, PidGains, Telemetry};
+
+use crate::arm::Arm;
+use crate::backend::serial::SerialLink;
+use crate::backend::sim::SimLink;
+use crate::backend::{Backend, Link};
+use crate::base::Base;
+use crate::config::{IkKind, RobotConfig};
+use crate::error::{Error, Result};
+use crate::gripper::Gripper;
+use crate::kinematics::ik::{IkSolver, NumericalIk};
+use crate::kinematics::locobot_ik::LocobotIk;
+use crate::kinematics::Chain;
+use crate::pan_tilt::PanTilt;
+
+/// Which components to use.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct Use {
+    arm: bool,
+    gripper: bool,
+    camera: bool,
+    base: bool,
+}
+
+enum Source {
+    Bundled(String),
+    File(PathBuf),
+}
+
+/// Builds a [`Robot`]: which robot, which components, which backend, which overrides.
+pub struct RobotBuilder {
+    source: Source,
+    backend: Backend,
+    uses: Use,
+    overrides: Vec<(String, toml::Value)>,
+}
+
+impl RobotBuilder {
+    /// Use the arm (default: when the robot has one).
+    pub fn use_arm(mut self, on: bool) -> Self {
+        self.uses.arm = on;
+        self
+    }
+    /// Use the gripper (default: when the robot has one).
+    pub fn use_gripper(mut self, on: bool) -> Self {
+        self.uses.gripper = on;
+        self
+    }
+    /// Use the camera's pan-tilt head (default: when the robot has one).
+    pub fn use_camera(mut self, on: bool) -> Self {
+        self.uses.camera = on;
+        self
+    }
+    /// Use the base (default: when the robot has one).
+    pub fn use_base(mut self, on: bool) -> Self {
+        self.uses.base = on;
+        self
+    }
+    /// Choose the backend (default: the in-process simulator).
+    pub fn backend(mut self, backend: Backend) -> Self {
+        self.backend = backend;
+        self
+    }
+    /// Override one configuration value by its dotted key, e.g. `("arm.joint_tolerance", 0.005)`.
+    pub fn set(mut self, key: &str, value: impl Into<toml::Value>) -> Self {
+        self.overrides.push((key.to_string(), value.into()));
+        self
+    }
+
+    /// Load, connect, configure.
+    pub fn build(self) -> Result<Robot> {
+        let cfg = match (&self.source, self.overrides.is_empty()) {
+            (Source::Bundled(n), true) => RobotConfig::bundled(n)?,
+            (Source::File(p), true) => RobotConfig::from_file(p)?,
+            (source, false) => {
+                let (text, file, dir, bundled_urdf) = match source {
+                    Source::Bundled(n) => {
+                        let c = RobotConfig::bundled(n)?;
+                        let text = bundled_toml(n).unwrap_or_default().to_string();
+                        (
+                            text,
+                            c.file,
+                            None,
+                            Some(bundled_urdf(n).unwrap_or_default().to_string()),
+                        )
+                    }
+                    Source::File(p) => {
+                        let text = std::fs::read_to_string(p).map_err(|e| Error::Config {
+                            file: p.clone(),
+                            key: "-".into(),
+                            problem: format!("cannot read: {e}"),
+                        })?;
+                        (text, p.clone(), p.parent().map(Path::to_path_buf), None)
+                    }
+                };
+                let text = apply_overrides(&text, &file, &self.overrides)?;
+                RobotConfig::parse(&text, &file, |u| match (&bundled_urdf, &dir) {
+                    (Some(b), _) => Ok(b.clone()),
+                    (None, Some(d)) => std::fs::read_to_string(d.join(u)).map_err(Error::from),
+                    (None, None) => Err(Error::Link("no URDF".into())),
+                })?
+            }
+        };
+        Robot::connect(cfg, self.backend, self.uses)
+    }
+}
+
+fn bundled_toml(name: &str) -> Option<&'static str> {
+    match name {
+        "locobot" => Some(include_str!("../robots/locobot.toml")),
+        "locobot_lite" => Some(include_str!("../robots/locobot_lite.toml")),
+        "sawyer" => Some(include_str!("../robots/sawyer.toml")),
+        _ => None,
+    }
+}
+
+fn bundled_urdf(name: &str) -> Option<&'static str> {
+    match name {
+        "locobot" => Some(include_str!("../robots/locobot.urdf")),
+        "locobot_lite" => Some(include_str!("../robots/locobot_lite.urdf")),
+        "sawyer" => Some(include_str!("../robots/sawyer.urdf")),
+        _ => None,
+    }
+}
+
+fn apply_overrides(text: &str, file: &Path, overrides: &[(String, toml::Value)]) -> Result<String> {
+    let mut doc: toml::Table = text.parse().map_err(|e: toml::de::Error| Error::Config {
+        file: file.to_path_buf(),
+        key: "-".into(),
+        problem: e.message().to_string(),
+    })?;
+    for (key, value) in overrides {
+        let mut parts = key.split('.').peekable();
+        let mut table = &mut doc;
+        while let Some(p) = parts.next() {
+            if parts.peek().is_none() {
+                table.insert(p.to_string(), value.clone());
+            } else {
+                table = table
+                    .entry(p.to_string())
+                    .or_insert_with(|| toml::Value::Table(Default::default()))
+                    .as_table_mut()
+                    .ok_or_else(|| Error::Config {
+                        file: file.to_path_buf(),
+                        key: key.clone(),
+                        problem: format!("{p:?} is not a table"),
+                    })?;
+            }
+        }
+    }
+    Ok(doc.to_string())
+}
+
+/// A robot: its configuration, its components and the link to its firmware.
+pub struct Robot {
+    pub(crate) cfg: RobotConfig,
+    pub(crate) link: Box<dyn Link>,
+    uses: Use,
+    pub(crate) arm_mode: JointMode,
+    pub(crate) ik: Option<Box<dyn IkSolver>>,
+    pub(crate) locobot_ik: Option<LocobotIk>,
+    pub(crate) chains: HashMap<String, Chain>,
+    pub(crate) arm_joints: Vec<usize>,
+}
+
+impl Robot {
+    /// A bundled robot (`locobot`, `locobot_lite`, `sawyer`) on the in-process simulator.
+    pub fn new(name: &str) -> Result<Robot> {
+        Self::builder(name).build()
+    }
+
+    /// A robot from a TOML configuration file, on the in-process simulator.
+    pub fn from_config(path: impl AsRef<Path>) -> Result<Robot> {
+        Self::builder_from_config(path).build()
+    }
+
+    /// A builder for a bundled robot.
+    pub fn builder(name: &str) -> RobotBuilder {
+        RobotBuilder {
+            source: Source::Bundled(name.to_string()),
+            backend: Backend::default(),
+            uses: Use {
+                arm: true,
+                gripper: true,
+                camera: true,
+                base: true,
+            },
+            overrides: Vec::new(),
+        }
+    }
+
+    /// A builder for a robot described by a TOML file.
+    pub fn builder_from_config(path: impl AsRef<Path>) -> RobotBuilder {
+        RobotBuilder {
+            source: Source::File(path.as_ref().to_path_buf()),
+            backend: Backend::default(),
+            uses: Use {
+                arm: true,
+                gripper: true,
+                camera: true,
+                base: true,
+            },
+            overrides: Vec::new(),
+        }
+    }
+
+    fn connect(cfg: RobotConfig, backend: Backend, uses: Use) -> Result<Robot> {
+        let link: Box<dyn Link> = match &backend {
+            Backend::Sim { seed, realtime } => Box::new(SimLink::start(&cfg, *seed, *realtime)?),
+            Backend::Serial { path } => Box::new(SerialLink::open(path, Duration::from_secs(10))?),
+        };
+        let uses = Use {
+            arm: uses.arm && cfg.arm.is_some(),
+            gripper: uses.gripper && cfg.gripper.is_some(),
+            camera: uses.camera && cfg.camera.is_some(),
+            base: uses.base && cfg.base.is_some(),
+        };
+        let (ik, locobot_ik): (Option<Box<dyn IkSolver>>, Option<LocobotIk>) =
+            match (&cfg.arm, &cfg.arm_chain) {
+                (Some(a), Some(chain)) => match a.ik {
+                    IkKind::LocobotPitchRoll => {
+                        let l = LocobotIk::from_chain(chain)?;
+                        (Some(Box::new(l)), Some(l))
+                    }
+                    IkKind::Numerical => (Some(Box::new(NumericalIk)), None),
+                },
+                _ => (None, None),
+            };
+        let arm_joints = cfg
+            .arm
+            .as_ref()
+            .map(|a| a.joints.iter().filter_map(|n| cfg.joint_index(n)).collect())
+            .unwrap_or_default();
+        let mut robot = Robot {
+            cfg,
+            link,
+            uses,
+            arm_mode: JointMode::Position,
+            ik,
+            locobot_ik,
+            chains: HashMap::new(),
+            arm_joints,
+        };
+        robot.check_joint_table()?;
+        Ok(robot)
+    }
+
+    /// Compare the firmware's joint table with the configuration and push limits and gains.
+    fn check_joint_table(&mut self) -> Result<()> {
+        let n = self.cfg.joints.len();
+        if self.link.info().joints.len() != n {
+            return Err(Error::JointTableMismatch(format!(
+                "the firmware has {} joints, the configuration {n}",
+                self.link.info().joints.len()
+            )));
+        }
+        for i in 0..n {
+            let reply = self.link.request(
+                &HostMsg::GetJoint { index: i as u8 },
+                &|m| matches!(m, DeviceMsg::Joint { index, .. } if *index as usize == i),
+            )?;
+            let DeviceMsg::Joint { config: fw, .. } = reply else {
+                continue;
+            };
+            let ours = &self.cfg.joints[i];
+            if fw.name != ours.name
+                || fw.servo_id != ours.servo_id
+                || fw.twin_id != ours.twin_id
+                || fw.sign != ours.sign
+            {
+                return Err(Error::JointTableMismatch(format!(
+                    "joint {i}: firmware has {:?} (servo {}, twin {:?}, sign {}), configuration {:?} (servo {}, twin {:?}, sign {})",
+                    fw.name.as_str(),
+                    fw.servo_id,
+                    fw.twin_id,
+                    fw.sign,
+                    ours.name.as_str(),
+                    ours.servo_id,
+                    ours.twin_id,
+                    ours.sign
+                )));
+            }
+            if fw.limits != ours.limits {
+                let limits: JointLimits = ours.limits;
+                self.link.command(
+                    &HostMsg::SetLimits {
+                        joint: i as u8,
+                        limits,
+                    },
+                    "joint limits",
+                )?;
+            }
+            if fw.pid != ours.pid {
+                let gains: PidGains = ours.pid;
+                self.link.command(
+                    &HostMsg::SetPid {
+                        joint: i as u8,
+                        gains,
+                    },
+                    "joint gains",
+                )?;
+            }
+        }
+        Ok(())
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &RobotConfig {
+        &self.cfg
+    }
+
+    /// The robot's name.
+    pub fn name(&self) -> &str {
+        &self.cfg.name
+    }
+
+    fn missing(&self, component: &'static str) -> Error {
+        Error::NoComponent {
+            robot: self.cfg.name.clone(),
+            component,
+        }
+    }
+
+    /// The arm.
+    pub fn arm(&mut self) -> Result<Arm<'_>> {
+        if !self.uses.arm {
+            return Err(self.missing("arm"));
+        }
+        Ok(Arm::new(self))
+    }
+
+    /// The gripper.
+    pub fn gripper(&mut self) -> Result<Gripper<'_>> {
+        if !self.uses.gripper {
+            return Err(self.missing("gripper"));
+        }
+        Ok(Gripper::new(self))
+    }
+
+    /// The camera's pan-tilt head.
+    pub fn camera(&mut self) -> Result<PanTilt<'_>> {
+        if !self.uses.camera {
+            return Err(self.missing("camera"));
+        }
+        Ok(PanTilt::new(self))
+    }
+
+    /// The mobile base.
+    pub fn base(&mut self) -> Result<Base<'_>> {
+        if !self.uses.base {
+            return Err(self.missing("base"));
+        }
+        Ok(Base::new(self))
+    }
+
+    /// Emergency stop: the firmware stops the base, holds the arm and refuses motion until
+    /// [`Robot::resume`].
+    pub fn emergency_stop(&mut self) -> Result<()> {
+        self.link.command(&HostMsg::EmergencyStop, "emergency stop")
+    }
+
+    /// Leave the emergency stop.
+    pub fn resume(&mut self) -> Result<()> {
+        self.link.command(&HostMsg::Resume, "resume")
+    }
+
+    /// The newest telemetry.
+    pub fn telemetry(&mut self) -> Result<Telemetry> {
+        self.link.telemetry()
+    }
+
+    /// Faults reported since the last call.
+    pub fn take_faults(&mut self) -> Vec<Fault> {
+        self.link.take_faults()
+    }
+
+    /// Let time pass (simulated time on the simulator).
+    pub fn wait(&mut self, seconds: f64) {
+        self.link.wait(Duration::from_secs_f64(seconds.max(0.0)));
+    }
+
+    /// The backend's clock, s.
+    pub fn time(&self) -> f64 {
+        self.link.now().as_secs_f64()
+    }
+
+    /// The simulator behind this robot, when it is simulated (ground truth, fault injection).
+    pub fn simulator(&mut self) -> Option<&mut ferrobot_sim::LockstepSim> {
+        self.link.simulator()
+    }
+
+    /// A chain from the arm's base frame to `frame`, cached.
+    pub(crate) fn chain_to(&mut self, frame: &str) -> Result<&Chain> {
+        let base = self
+            .cfg
+            .arm
+            .as_ref()
+            .map(|a| a.base_frame.clone())
+            .ok_or_else(|| self.missing("arm"))?;
+        if !self.chains.contains_key(frame) {
+            let c = Chain::from_urdf(&self.cfg.urdf, &base, frame)?;
+            self.chains.insert(frame.to_string(), c);
+        }
+        self.chains.get(frame).ok_or_else(|| Error::UnknownName {
+            what: "frame",
+            name: frame.into(),
+        })
+    }
+
+    /// Switch joints to a mode.
+    pub(crate) fn set_mode(&mut self, joints: &[usize], mode: JointMode) -> Result<()> {
+        let mask = joints.iter().fold(0u16, |m, &j| m | (1 << j));
+        self.link
+            .command(&HostMsg::SetMode { joints: mask, mode }, "mode change")
+    }
+}
