@@ -144,6 +144,22 @@ impl JointControl {
         };
     }
 
+    /// The joint's first measurement: from now on it starts from where it really is. Knots
+    /// already queued are kept (the trajectory to them starts here); an idle joint holds here.
+    pub fn first_measurement(&mut self, now: u64, q: f32) {
+        if self.queue.is_empty() && self.direct.is_none() {
+            self.hold_at(now, q);
+        } else {
+            self.cmd = q;
+            self.seg_start = Knot {
+                t: now,
+                q,
+                qd: 0.0,
+                eff: self.seg_start.eff,
+            };
+        }
+    }
+
     /// Hold where the joint is measured to be (or where it was commanded, if never measured).
     pub fn hold_here(&mut self, now: u64) {
         let q = if self.measured {

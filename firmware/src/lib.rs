@@ -460,7 +460,7 @@ impl Firmware {
             jc.state = *st;
             jc.measured = true;
             if first {
-                jc.hold_here(now);
+                jc.first_measurement(now, st.position);
             }
         }
     }

@@ -421,3 +421,40 @@ fn create2_driver_starts_the_stream_drives_direct_and_integrates_odometry() {
     assert!((o.x as f64 - expected).abs() < 1e-4, "{o:?} vs {expected}");
     assert_eq!(fw.diagnostics().base_packets, 21);
 }
+
+#[test]
+fn a_waypoint_sent_before_the_servos_are_configured_is_kept() {
+    let (mut fw, mut bus, mut now) = locobot();
+    fw.on_host_bytes(now, &hello());
+    fw.on_host_bytes(now, &frame(1, &HostMsg::SetWatchdog { period_ms: 0 }));
+    // Before any servo has answered: queue a move of joint_1 to 0.3 rad.
+    let pts = [0.3f32]
+        .iter()
+        .map(|&position| JointPoint {
+            position,
+            velocity: 0.0,
+            effort: 0.0,
+        })
+        .collect();
+    fw.on_host_bytes(
+        now,
+        &frame(
+            2,
+            &HostMsg::Waypoint {
+                joints: 1,
+                duration_us: 500_000,
+                points: pts,
+            },
+        ),
+    );
+    run(&mut fw, &mut bus, &mut now, 800);
+    let g = last_goals(&bus);
+    let want = 2048 + (0.3 / units::RAD_PER_TICK).round() as i32;
+    // The fake servo never moves, so the goal-offset integrator adds to the goal; it is at
+    // least the target.
+    assert!(
+        g[&1] >= want - 1,
+        "joint_1 goal {} ticks, want {want}: the waypoint was dropped",
+        g[&1]
+    );
+}

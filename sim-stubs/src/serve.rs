@@ -126,3 +126,76 @@ pub fn serve(robot: &str, seed: u64) -> Result<Served, ServeError> {
         base,
     })
 }
+
+/// Commands to a running firmware server.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LinkControl {
+    /// Close the host PTY, as pulling the USB cable would; firmware output is lost meanwhile.
+    Unplug,
+    /// Make a new host PTY behind the same link path, as plugging the cable back in would.
+    Plug,
+}
+
+/// A firmware core with its simulated plants, paced to the wall clock, whose host link is a
+/// PTY reached through the symlink `link` (as udev's `/dev/serial/by-id` links are).
+pub struct FirmwareServer {
+    /// The stable path of the host link.
+    pub link: std::path::PathBuf,
+    control: std::sync::mpsc::Sender<LinkControl>,
+}
+
+impl FirmwareServer {
+    /// Unplug or plug the host link.
+    pub fn control(&self, c: LinkControl) {
+        let _ = self.control.send(c);
+    }
+}
+
+fn host_pty(link: &std::path::Path) -> Result<(TTYPort, TTYPort), ServeError> {
+    let (master, slave, name) = pty()?;
+    let _ = std::fs::remove_file(link);
+    std::os::unix::fs::symlink(&name, link).map_err(ServeError::Io)?;
+    Ok((master, slave))
+}
+
+/// Serve `sim`'s host link on a PTY behind `link`, in real time, on a thread of its own.
+pub fn serve_firmware(
+    mut sim: crate::LockstepSim,
+    link: std::path::PathBuf,
+) -> Result<FirmwareServer, ServeError> {
+    let (tx, rx) = std::sync::mpsc::channel();
+    let mut port = Some(host_pty(&link)?);
+    let path = link.clone();
+    thread::spawn(move || {
+        let start = Instant::now();
+        let t0 = sim.now_us();
+        let mut buf = [0u8; 1024];
+        loop {
+            match rx.try_recv() {
+                Ok(LinkControl::Unplug) => {
+                    port = None;
+                    let _ = std::fs::remove_file(&path);
+                }
+                Ok(LinkControl::Plug) if port.is_none() => port = host_pty(&path).ok(),
+                Ok(_) => {}
+                Err(std::sync::mpsc::TryRecvError::Disconnected) => return,
+                Err(std::sync::mpsc::TryRecvError::Empty) => {}
+            }
+            match port.as_mut() {
+                Some((master, _)) => match master.read(&mut buf) {
+                    Ok(n) if n > 0 => sim.write_host(&buf[..n]),
+                    _ => {}
+                },
+                None => thread::sleep(Duration::from_millis(1)),
+            }
+            sim.run_until(t0 + micros(start));
+            let out = sim.take_host_output();
+            if let Some((master, _)) = port.as_mut() {
+                if !out.is_empty() {
+                    let _ = master.write_all(&out);
+                }
+            }
+        }
+    });
+    Ok(FirmwareServer { link, control: tx })
+}

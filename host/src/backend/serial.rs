@@ -242,8 +242,17 @@ impl SerialLink {
             }
             thread::sleep(Duration::from_millis(5));
         }
-        // First telemetry.
-        link.telemetry()?;
+        // Hand the robot over once the firmware has configured its servos.
+        let deadline = Instant::now() + timeout;
+        while link.telemetry()?.faults & ferrobot_protocol::fault_flags::CONFIGURING != 0 {
+            if Instant::now() >= deadline {
+                return Err(Error::Timeout {
+                    what: "servo configuration".into(),
+                    after: timeout,
+                });
+            }
+            thread::sleep(Duration::from_millis(10));
+        }
         Ok(link)
     }
 

@@ -1,1 +1,411 @@
-fn main() {}
+//! `ferrobot`: robots, kinematics from the command line, and the simulated demo.
+//!
+//! ```text
+//! ferrobot robots
+//! ferrobot info locobot
+//! ferrobot fk locobot 0.1 -0.2 0.3 0 0 --json
+//! ferrobot jacobian sawyer 0 -1.18 0 2.18 0 0.57 3.32
+//! ferrobot ik locobot --position 0.35 0 0.15 --pitch 1.5708 --roll 0
+//! ferrobot ik sawyer --position 0.6 0.1 0.4 --quaternion 0 1 0 0 --seed 0 -1 0 2 0 0.5 3
+//! ferrobot demo
+//! ```
+
+use std::process::ExitCode;
+
+use clap::{Args, Parser, Subcommand};
+use ferrobot::kinematics::ik::{IkOptions, IkSolver, NumericalIk};
+use ferrobot::kinematics::locobot_ik::LocobotIk;
+use ferrobot::kinematics::Chain;
+use ferrobot::{config::IkKind, Orientation, Pose, Robot, RobotConfig};
+use nalgebra::{Isometry3, Translation3, Vector3};
+use serde_json::json;
+
+#[derive(Parser)]
+#[command(
+    name = "ferrobot",
+    version,
+    about = "Ferrobot: robots, kinematics and the simulated demo"
+)]
+struct Cli {
+    #[command(subcommand)]
+    cmd: Cmd,
+}
+
+#[derive(Subcommand)]
+enum Cmd {
+    /// List the bundled robots.
+    Robots {
+        /// Print one JSON object.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Describe a robot: joints, limits, components.
+    Info {
+        /// Robot name, or a path to a TOML configuration.
+        robot: String,
+        /// Print one JSON object.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Pose of the end-effector frame (or --frame) in the robot's root link at joint angles Q.
+    Fk {
+        /// Robot name or configuration path.
+        robot: String,
+        /// Joint angles, rad, in arm order.
+        #[arg(allow_negative_numbers = true, required = true)]
+        q: Vec<f64>,
+        /// Frame of the arm's chain (default: the end effector).
+        #[arg(long)]
+        frame: Option<String>,
+        /// Print one JSON object.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Geometric Jacobian (rows vx vy vz wx wy wz, root frame, at the end effector's origin).
+    Jacobian {
+        /// Robot name or configuration path.
+        robot: String,
+        /// Joint angles, rad.
+        #[arg(allow_negative_numbers = true, required = true)]
+        q: Vec<f64>,
+        /// Print one JSON object.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Inverse kinematics of the end effector.
+    Ik(IkArgs),
+    /// Serve a simulated robot's firmware core (with its plants, in real time) on a PTY behind
+    /// the symlink LINK, for the Serial backend and outside tools. Prints one JSON line; reads
+    /// `unplug` and `plug` lines on standard input to drop and restore the link; exits when
+    /// standard input closes.
+    SimFirmware {
+        /// Robot name or configuration path.
+        robot: String,
+        /// Path of the symlink to create.
+        #[arg(long)]
+        link: std::path::PathBuf,
+        /// Seed of the plants' noise.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+    },
+    /// Run the quickstart on the simulated LoCoBot.
+    Demo {
+        /// Robot (default locobot).
+        #[arg(long, default_value = "locobot")]
+        robot: String,
+    },
+}
+
+#[derive(Args)]
+struct IkArgs {
+    /// Robot name or configuration path.
+    robot: String,
+    /// Target position X Y Z, m, in the root link.
+    #[arg(long, num_args = 3, allow_negative_numbers = true, required = true, value_names = ["X", "Y", "Z"])]
+    position: Vec<f64>,
+    /// Orientation as a quaternion X Y Z W.
+    #[arg(long, num_args = 4, allow_negative_numbers = true, value_names = ["X", "Y", "Z", "W"], conflicts_with_all = ["rpy", "pitch"])]
+    quaternion: Option<Vec<f64>>,
+    /// Orientation as roll, pitch, yaw (R = Rz(yaw)·Ry(pitch)·Rx(roll)), rad.
+    #[arg(long, num_args = 3, allow_negative_numbers = true, value_names = ["R", "P", "Y"], conflicts_with = "pitch")]
+    rpy: Option<Vec<f64>>,
+    /// 5-DOF arms: gripper pitch below horizontal, rad.
+    #[arg(long, allow_negative_numbers = true)]
+    pitch: Option<f64>,
+    /// 5-DOF arms: gripper roll, rad (with --pitch; default 0).
+    #[arg(long, allow_negative_numbers = true, requires = "pitch")]
+    roll: Option<f64>,
+    /// Seed joint angles, rad.
+    #[arg(long, num_args = 1.., allow_negative_numbers = true)]
+    seed: Option<Vec<f64>>,
+    /// Print one JSON object.
+    #[arg(long)]
+    json: bool,
+}
+
+fn load(robot: &str) -> ferrobot::Result<RobotConfig> {
+    if robot.ends_with(".toml") || robot.contains('/') {
+        RobotConfig::from_file(robot)
+    } else {
+        RobotConfig::bundled(robot)
+    }
+}
+
+fn arm_chain(cfg: &RobotConfig) -> ferrobot::Result<Chain> {
+    cfg.arm_chain
+        .clone()
+        .ok_or_else(|| ferrobot::Error::NoComponent {
+            robot: cfg.name.clone(),
+            component: "arm",
+        })
+}
+
+fn check_q(chain: &Chain, q: &[f64]) -> ferrobot::Result<()> {
+    if q.len() != chain.dof() {
+        return Err(ferrobot::Error::JointCount {
+            what: "joint angles",
+            expected: chain.dof(),
+            got: q.len(),
+        });
+    }
+    Ok(())
+}
+
+fn pose_json(p: &Pose) -> serde_json::Value {
+    json!({"position": p.position, "rotation": p.rotation, "quaternion": p.quaternion})
+}
+
+fn run(cli: Cli) -> Result<(), (ferrobot::Error, bool)> {
+    match cli.cmd {
+        Cmd::Robots { json } => {
+            if json {
+                println!("{}", json!({"robots": ferrobot::config::BUNDLED}));
+            } else {
+                for r in ferrobot::config::BUNDLED {
+                    println!("{r}");
+                }
+            }
+        }
+        Cmd::Info { robot, json } => {
+            let cfg = load(&robot).map_err(|e| (e, json))?;
+            let joints: Vec<_> = cfg
+                .joints
+                .iter()
+                .map(|j| {
+                    json!({"name": j.name.as_str(), "kind": format!("{:?}", j.kind).to_lowercase(), "servo_id": j.servo_id,
+                           "twin_id": j.twin_id, "min": j.limits.min, "max": j.limits.max,
+                           "velocity": j.limits.velocity, "effort": j.limits.effort})
+                })
+                .collect();
+            let arm = cfg.arm.as_ref().map(|a| json!({"joints": a.joints, "base_frame": a.base_frame, "ee_frame": a.ee_frame, "home": a.home, "ik": format!("{:?}", a.ik)}));
+            let base = cfg.base.as_ref().map(|b| json!({"kind": format!("{:?}", b.kind), "wheel_radius": b.wheel_radius, "track": b.track}));
+            let v = json!({"robot": cfg.name, "file": cfg.file.display().to_string(), "arm": arm, "gripper": cfg.gripper.as_ref().map(|g| &g.joint),
+                           "camera": cfg.camera.as_ref().map(|c| json!({"pan": c.pan_joint, "tilt": c.tilt_joint, "frame": c.frame, "fx": c.fx, "fy": c.fy, "cx": c.cx, "cy": c.cy})),
+                           "base": base, "joints": joints});
+            if json {
+                println!("{v}");
+            } else {
+                println!("{}", serde_json::to_string_pretty(&v).unwrap_or_default());
+            }
+        }
+        Cmd::Fk {
+            robot,
+            q,
+            frame,
+            json,
+        } => {
+            let cfg = load(&robot).map_err(|e| (e, json))?;
+            let arm = arm_chain(&cfg).map_err(|e| (e, json))?;
+            check_q(&arm, &q).map_err(|e| (e, json))?;
+            let chain = match &frame {
+                Some(f) => Chain::from_urdf(&cfg.urdf, &arm.base, f).map_err(|e| (e, json))?,
+                None => arm.clone(),
+            };
+            let sub: Vec<f64> = chain
+                .joints
+                .iter()
+                .filter_map(|j| {
+                    arm.joints
+                        .iter()
+                        .position(|a| a.name == j.name)
+                        .map(|k| q[k])
+                })
+                .collect();
+            if sub.len() != chain.dof() {
+                return Err((
+                    ferrobot::Error::UnknownName {
+                        what: "frame of the arm's chain",
+                        name: frame.unwrap_or_default(),
+                    },
+                    json,
+                ));
+            }
+            let p: Pose = chain.fk(&sub).into();
+            if json {
+                println!("{}", pose_json(&p));
+            } else {
+                println!("frame {} in {}", chain.tip, chain.base);
+                println!(
+                    "position   {:.6} {:.6} {:.6}",
+                    p.position[0], p.position[1], p.position[2]
+                );
+                println!(
+                    "quaternion {:.6} {:.6} {:.6} {:.6}  [x y z w]",
+                    p.quaternion[0], p.quaternion[1], p.quaternion[2], p.quaternion[3]
+                );
+                for r in p.rotation {
+                    println!("rotation   {:.6} {:.6} {:.6}", r[0], r[1], r[2]);
+                }
+            }
+        }
+        Cmd::Jacobian { robot, q, json } => {
+            let cfg = load(&robot).map_err(|e| (e, json))?;
+            let arm = arm_chain(&cfg).map_err(|e| (e, json))?;
+            check_q(&arm, &q).map_err(|e| (e, json))?;
+            let j = arm.jacobian(&q);
+            let rows: Vec<Vec<f64>> = (0..6)
+                .map(|r| (0..arm.dof()).map(|c| j[(r, c)]).collect())
+                .collect();
+            if json {
+                println!("{}", json!({"jacobian": rows}));
+            } else {
+                for (name, r) in ["vx", "vy", "vz", "wx", "wy", "wz"].iter().zip(rows) {
+                    println!(
+                        "{name} {}",
+                        r.iter()
+                            .map(|v| format!("{v:>10.6}"))
+                            .collect::<Vec<_>>()
+                            .join(" ")
+                    );
+                }
+            }
+        }
+        Cmd::Ik(a) => {
+            let json = a.json;
+            let cfg = load(&a.robot).map_err(|e| (e, json))?;
+            let chain = arm_chain(&cfg).map_err(|e| (e, json))?;
+            if let Some(s) = &a.seed {
+                check_q(&chain, s).map_err(|e| (e, json))?;
+            }
+            let p = Vector3::new(a.position[0], a.position[1], a.position[2]);
+            let ac = cfg
+                .arm
+                .as_ref()
+                .map(|x| (x.ik_position_tolerance, x.ik_orientation_tolerance, x.ik))
+                .unwrap_or((1e-5, 1e-5, IkKind::Numerical));
+            let opts = IkOptions {
+                position_tolerance: ac.0,
+                orientation_tolerance: ac.1,
+                ..Default::default()
+            };
+            let result = if let Some(pitch) = a.pitch {
+                LocobotIk::from_chain(&chain).and_then(|s| {
+                    s.solve_pitch_roll(&chain, &p, pitch, a.roll.unwrap_or(0.0), a.seed.as_deref())
+                })
+            } else {
+                let o = match (&a.quaternion, &a.rpy) {
+                    (Some(q), _) => Orientation::Quaternion([q[0], q[1], q[2], q[3]]),
+                    (None, Some(r)) => Orientation::YawPitchRoll([r[2], r[1], r[0]]),
+                    (None, None) => {
+                        return Err((
+                            ferrobot::Error::Unreachable {
+                                why: "give an orientation: --quaternion, --rpy or --pitch".into(),
+                            },
+                            json,
+                        ))
+                    }
+                };
+                o.to_quaternion().and_then(|rot| {
+                    let target = Isometry3::from_parts(Translation3::from(p), rot);
+                    let solver: Box<dyn IkSolver> = match ac.2 {
+                        IkKind::LocobotPitchRoll => Box::new(LocobotIk::from_chain(&chain)?),
+                        IkKind::Numerical => Box::new(NumericalIk),
+                    };
+                    solver.solve(&chain, &target, a.seed.as_deref(), &opts)
+                })
+            };
+            let q = result.map_err(|e| (e, json))?;
+            if json {
+                println!("{}", json!({"success": true, "joints": q}));
+            } else {
+                println!(
+                    "{}",
+                    q.iter()
+                        .map(|v| format!("{v:.6}"))
+                        .collect::<Vec<_>>()
+                        .join(" ")
+                );
+            }
+        }
+        Cmd::Demo { robot } => demo(&robot).map_err(|e| (e, false))?,
+        Cmd::SimFirmware { robot, link, seed } => {
+            let cfg = load(&robot).map_err(|e| (e, true))?;
+            let sim = ferrobot_sim::LockstepSim::with(
+                ferrobot::backend::sim::sim_robot(&cfg),
+                cfg.firmware_profile(),
+                seed,
+            );
+            let server = ferrobot_sim::serve::serve_firmware(sim, link.clone())
+                .map_err(|e| (ferrobot::Error::Link(e.to_string()), true))?;
+            println!(
+                "{}",
+                json!({"robot": cfg.name, "host": link.display().to_string()})
+            );
+            use std::io::BufRead;
+            for line in std::io::stdin().lock().lines() {
+                match line.as_deref().map(str::trim) {
+                    Ok("unplug") => server.control(ferrobot_sim::serve::LinkControl::Unplug),
+                    Ok("plug") => server.control(ferrobot_sim::serve::LinkControl::Plug),
+                    Ok(_) => {}
+                    Err(_) => break,
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The quickstart, narrated.
+fn demo(robot: &str) -> ferrobot::Result<()> {
+    let wall = std::time::Instant::now();
+    let mut bot = Robot::new(robot)?; // the in-process simulator
+    println!("Ferrobot demo: simulated {robot} (firmware core and simulated plants in lockstep)");
+    let mut arm = bot.arm()?;
+    arm.set_joint_positions(&[0.4, 0.3, -0.5, 0.6, -0.3])?;
+    println!("arm     joints {:?}", round(&arm.get_joint_angles()?));
+    arm.set_ee_pose_pitch_roll([0.35, 0.0, 0.15], std::f64::consts::FRAC_PI_2, Some(0.0))?;
+    let p = arm.get_ee_pose()?;
+    println!(
+        "arm     gripper pointing down at {:?} m",
+        round(&p.position)
+    );
+    arm.move_ee_xyz([0.0, 0.0, 0.1], 0.01)?;
+    println!(
+        "arm     straight up 10 cm, now at {:?} m",
+        round(&arm.get_ee_pose()?.position)
+    );
+    let mut gripper = bot.gripper()?;
+    println!("gripper close -> {:?}", gripper.close()?);
+    gripper.open()?;
+    println!("gripper open  -> {:?}", gripper.get_state()?);
+    let mut camera = bot.camera()?;
+    camera.set_pan_tilt(0.5, 0.3)?;
+    println!("camera  pan/tilt {:?} rad", round(&camera.get_state()?));
+    bot.arm()?.go_home()?;
+    bot.base()?.go_to_absolute([1.0, 1.0, 0.0])?;
+    let odom = bot.base()?.get_state()?;
+    let truth = bot
+        .simulator()
+        .and_then(|s| s.base_truth())
+        .unwrap_or([f64::NAN; 3]);
+    println!(
+        "base    go_to_absolute([1, 1, 0]): odometry {:?}, ground truth {:?}",
+        round(&odom),
+        round(&truth)
+    );
+    let t = bot.time();
+    println!(
+        "done: {t:.1} s simulated in {:.2} s",
+        wall.elapsed().as_secs_f64()
+    );
+    Ok(())
+}
+
+fn round(v: &[f64]) -> Vec<f64> {
+    v.iter().map(|x| (x * 1000.0).round() / 1000.0).collect()
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    match run(cli) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err((e, json)) => {
+            if json {
+                println!("{}", json!({"success": false, "error": e.to_string()}));
+            } else {
+                eprintln!("error: {e}");
+            }
+            ExitCode::from(1)
+        }
+    }
+}

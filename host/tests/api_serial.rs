@@ -1,0 +1,189 @@
+//! The API on the Serial backend, against the firmware core running as a separate Linux
+//! process (`ferrobot sim-firmware`, real time, its plants in-process) behind a real PTY.
+
+use std::io::{BufRead, BufReader, Write};
+use std::path::PathBuf;
+use std::process::{Child, ChildStdin, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use ferrobot::{Backend, Error, GripperState, Robot};
+use ferrobot_protocol::*;
+
+/// The firmware process; killed when the test ends, pass or fail.
+struct Firmware {
+    child: Child,
+    stdin: Option<ChildStdin>,
+    link: PathBuf,
+}
+
+impl Drop for Firmware {
+    fn drop(&mut self) {
+        drop(self.stdin.take());
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+        let _ = std::fs::remove_file(&self.link);
+    }
+}
+
+impl Firmware {
+    fn start(robot: &str, tag: &str) -> Firmware {
+        let dir =
+            std::env::temp_dir().join(format!("ferrobot-serial-{}-{tag}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("dir");
+        let link = dir.join("host");
+        let mut child = Command::new(env!("CARGO_BIN_EXE_ferrobot"))
+            .args(["sim-firmware", robot, "--link"])
+            .arg(&link)
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .spawn()
+            .expect("firmware process starts");
+        let mut line = String::new();
+        BufReader::new(child.stdout.take().expect("stdout"))
+            .read_line(&mut line)
+            .expect("first line");
+        let v: serde_json::Value = serde_json::from_str(&line).expect("JSON");
+        assert_eq!(v["host"].as_str(), Some(link.to_str().expect("utf-8")));
+        let stdin = child.stdin.take();
+        Firmware { child, stdin, link }
+    }
+
+    fn say(&mut self, what: &str) {
+        let s = self.stdin.as_mut().expect("stdin");
+        writeln!(s, "{what}").expect("write");
+        s.flush().expect("flush");
+    }
+}
+
+fn connect(fw: &Firmware) -> Robot {
+    Robot::builder("locobot")
+        .backend(Backend::Serial {
+            path: fw.link.clone(),
+        })
+        .build()
+        .expect("connects over serial")
+}
+
+#[test]
+fn the_arm_and_base_scenario_passes_over_serial() {
+    let fw = Firmware::start("locobot", "scenario");
+    let mut bot = connect(&fw);
+    let target = [0.4, 0.3, -0.5, 0.6, -0.3];
+    bot.arm()
+        .expect("arm")
+        .set_joint_positions(&target)
+        .expect("arm moves");
+    let q = bot.arm().expect("arm").get_joint_angles().expect("q");
+    assert!(
+        q.iter().zip(target).all(|(a, b)| (a - b).abs() < 0.01),
+        "{q:?}"
+    );
+    let pose = bot.arm().expect("arm").get_ee_pose().expect("pose");
+    bot.arm().expect("arm").go_home().expect("home");
+    assert!(pose.position[0] > 0.1);
+    assert_eq!(
+        bot.gripper().expect("gripper").close().expect("close"),
+        GripperState::Closed
+    );
+    bot.gripper().expect("gripper").open().expect("open");
+    bot.base().expect("base").reset_odometry().expect("reset");
+    bot.base()
+        .expect("base")
+        .go_to_relative([0.5, 0.0, 0.0])
+        .expect("base moves");
+    let s = bot.base().expect("base").get_state().expect("odometry");
+    assert!(
+        (s[0] - 0.5).abs() < 0.02 && s[1].abs() < 0.02 && s[2].abs() < 2f64.to_radians(),
+        "{s:?}"
+    );
+    // Bad input is refused the same way as on the simulator.
+    assert!(matches!(
+        bot.arm()
+            .expect("arm")
+            .set_joint_positions(&[0.0, 0.0, 2.0, 0.0, 0.0]),
+        Err(Error::OutOfLimits { .. })
+    ));
+}
+
+#[test]
+fn a_lost_link_gives_clear_errors_then_reconnects() {
+    let mut fw = Firmware::start("locobot", "unplug");
+    let mut bot = connect(&fw);
+    bot.arm()
+        .expect("arm")
+        .set_joint_positions(&[0.2, 0.0, 0.0, 0.0, 0.0])
+        .expect("moves");
+    fw.say("unplug");
+    let deadline = Instant::now() + Duration::from_secs(5);
+    let err = loop {
+        match bot.arm().expect("arm").get_joint_angles() {
+            Err(e) => break e,
+            Ok(_) => {
+                assert!(Instant::now() < deadline, "the link never failed");
+                std::thread::sleep(Duration::from_millis(20));
+            }
+        }
+    };
+    assert!(matches!(err, Error::Link(_)), "{err}");
+    assert!(err.to_string().contains("reconnecting"), "{err}");
+    assert!(matches!(
+        bot.arm().expect("arm").set_joint_positions(&[0.0; 5]),
+        Err(Error::Link(_))
+    ));
+    fw.say("plug");
+    let deadline = Instant::now() + Duration::from_secs(10);
+    loop {
+        match bot
+            .arm()
+            .expect("arm")
+            .set_joint_positions(&[0.3, 0.0, 0.0, 0.0, 0.0])
+        {
+            Ok(()) => break,
+            Err(Error::Link(_)) | Err(Error::Timeout { .. }) if Instant::now() < deadline => {
+                std::thread::sleep(Duration::from_millis(50))
+            }
+            Err(e) => panic!("did not reconnect: {e}"),
+        }
+    }
+    let q = bot.arm().expect("arm").get_joint_angles().expect("q");
+    assert!((q[0] - 0.3).abs() < 0.01, "{q:?}");
+}
+
+#[test]
+fn a_protocol_mismatch_is_refused_at_the_handshake() {
+    let fw = Firmware::start("locobot", "mismatch");
+    let mut port = serialport::new(fw.link.to_string_lossy(), 1_000_000)
+        .timeout(Duration::from_millis(20))
+        .open()
+        .expect("port");
+    let mut buf = [0u8; MAX_WIRE];
+    let n = encode_frame(
+        0,
+        &HostMsg::Hello {
+            protocol_version: PROTOCOL_VERSION + 7,
+            schema_hash: SCHEMA_HASH,
+        },
+        &mut buf,
+    )
+    .expect("fits");
+    port.write_all(&buf[..n]).expect("write");
+    let mut dec = FrameDecoder::new();
+    let deadline = Instant::now() + Duration::from_secs(3);
+    let info = 'outer: loop {
+        assert!(Instant::now() < deadline, "no answer");
+        let mut rx = [0u8; 256];
+        if let Ok(k) = std::io::Read::read(&mut port, &mut rx) {
+            for &b in &rx[..k] {
+                if let Some(Ok(Frame {
+                    msg: DeviceMsg::Hello(info),
+                    ..
+                })) = dec.push::<DeviceMsg>(b)
+                {
+                    break 'outer info;
+                }
+            }
+        }
+    };
+    assert!(!info.accepted);
+    assert_eq!(info.protocol_version, PROTOCOL_VERSION);
+}
