@@ -216,15 +216,12 @@ impl<'r> Arm<'r> {
         let timeout = opts
             .timeout
             .unwrap_or(Duration::from_secs_f64(self.cfg().timeout));
-        let planned = if opts.plan { duration } else { t / 1.35 };
-        let planned_end = self.robot.link.now() + Duration::from_secs_f64(planned);
         Ok(Motion::new(
             self.robot,
             Goal::Joints {
                 idx,
                 target: q.to_vec(),
                 tolerance,
-                planned_end,
                 stall_since: None,
             },
             "arm joint motion",
@@ -582,14 +579,12 @@ impl<'r> Arm<'r> {
         let target = path.last().cloned().unwrap_or(prev);
         let tolerance = self.cfg().joint_tolerance;
         let timeout = Duration::from_secs_f64(self.cfg().timeout);
-        let planned_end = self.robot.link.now() + Duration::from_secs(1);
         Motion::new(
             self.robot,
             Goal::Joints {
                 idx,
                 target,
                 tolerance,
-                planned_end,
                 stall_since: None,
             },
             "Cartesian motion",

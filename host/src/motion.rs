@@ -11,6 +11,12 @@ use crate::robot::Robot;
 
 /// How long one [`Motion::poll`] lets pass.
 pub const POLL: Duration = Duration::from_millis(10);
+/// Joint motions are not judged stalled during their first this long (they start at rest).
+pub const STALL_GRACE: Duration = Duration::from_millis(300);
+/// A joint motion whose largest error has not improved for this long has stalled.
+pub const STALL_TIME: Duration = Duration::from_millis(500);
+/// Improvement of the largest joint error that counts as progress, rad.
+pub const STALL_PROGRESS: f64 = 0.001;
 
 pub(crate) enum Goal {
     /// Joints (firmware indices) to reach targets within a tolerance.
@@ -18,8 +24,8 @@ pub(crate) enum Goal {
         idx: Vec<usize>,
         target: Vec<f64>,
         tolerance: f64,
-        planned_end: Duration,
-        stall_since: Option<Duration>,
+        /// Best (smallest) worst-joint error so far, and when it was reached.
+        stall_since: Option<(f64, Duration)>,
     },
     /// The gripper reaching one of these states.
     Gripper(&'static [GripperState]),
@@ -41,6 +47,7 @@ pub struct Motion<'r> {
     pub(crate) goal: Goal,
     pub(crate) what: String,
     pub(crate) deadline: Duration,
+    pub(crate) started: Duration,
     pub(crate) timeout: Duration,
     pub(crate) result: Option<Result<()>>,
 }
@@ -52,8 +59,10 @@ impl<'r> Motion<'r> {
         what: impl Into<String>,
         timeout: Duration,
     ) -> Self {
-        let deadline = robot.link.now() + timeout;
+        let started = robot.link.now();
+        let deadline = started + timeout;
         Motion {
+            started,
             robot,
             goal,
             what: what.into(),
@@ -181,26 +190,28 @@ impl<'r> Motion<'r> {
                 idx,
                 target,
                 tolerance,
-                planned_end,
                 stall_since,
             } => {
                 let mut worst = (0usize, 0.0f64);
-                let mut moving = false;
                 for (&j, &q) in idx.iter().zip(target.iter()) {
                     let s = t.joints.get(j).copied().unwrap_or_default();
                     let e = (s.position as f64 - q).abs();
                     if e > worst.1 {
                         worst = (j, e);
                     }
-                    moving |= s.velocity.abs() > 0.02;
                 }
                 if worst.1 <= *tolerance && t.queued == 0 {
                     return Some(Ok(()));
                 }
-                // Stalled: the plan is over, nothing moves, and the error stays.
-                if now > *planned_end + Duration::from_millis(300) && !moving {
-                    let since = *stall_since.get_or_insert(now);
-                    if now - since > Duration::from_millis(700) {
+                // Stalled: past the start of the motion, the largest joint error has not
+                // improved by STALL_PROGRESS for STALL_TIME (a blocked joint, or a trajectory
+                // that ended short of its target). Progress, not speed readings, so that noise
+                // on a joint pressed against an obstacle does not hide the stall.
+                let (best, at) = *stall_since.get_or_insert((worst.1, now));
+                if worst.1 < best - STALL_PROGRESS {
+                    *stall_since = Some((worst.1, now));
+                } else if now > self.started + STALL_GRACE {
+                    if now - at > STALL_TIME {
                         let name = self
                             .robot
                             .cfg
@@ -219,8 +230,6 @@ impl<'r> Motion<'r> {
                             error: worst.1,
                         }));
                     }
-                } else {
-                    *stall_since = None;
                 }
                 timed_out.then(|| {
                     Err(Error::Timeout {

@@ -77,14 +77,12 @@ impl<'r> PanTilt<'r> {
             },
             "pan/tilt",
         )?;
-        let planned_end = self.robot.link.now() + std::time::Duration::from_secs_f64(t);
         Ok(Motion::new(
             self.robot,
             Goal::Joints {
                 idx: sorted.iter().map(|(j, _)| *j).collect(),
                 target: sorted.iter().map(|(_, v)| *v).collect(),
                 tolerance: 0.01,
-                planned_end,
                 stall_since: None,
             },
             "pan/tilt motion",

@@ -529,3 +529,53 @@ fn builder_overrides_and_config_files() {
         .set_joint_positions(&[0.2, 0.0, 0.0, 0.0, 0.0])
         .expect("moves");
 }
+
+#[test]
+fn a_blocked_joint_is_reported_stalled_and_a_slow_one_times_out() {
+    let mut bot = Robot::new("locobot").expect("robot");
+    // Something blocks joint_1 at 0.2 rad.
+    bot.simulator()
+        .expect("sim")
+        .chain
+        .servo_mut(1)
+        .expect("servo")
+        .obstacle = Some((0.2, false));
+    match bot
+        .arm()
+        .expect("arm")
+        .set_joint_positions(&[0.8, 0.0, 0.0, 0.0, 0.0])
+    {
+        Err(Error::Stalled {
+            joint,
+            position,
+            error,
+        }) => {
+            assert_eq!(joint, "joint_1");
+            assert!(
+                (position - 0.2).abs() < 0.1 && error > 0.4,
+                "{position} {error}"
+            );
+        }
+        other => panic!("{other:?}"),
+    }
+    bot.simulator()
+        .expect("sim")
+        .chain
+        .servo_mut(1)
+        .expect("servo")
+        .obstacle = None;
+    let opts = MoveOptions {
+        timeout: Some(std::time::Duration::from_millis(300)),
+        ..Default::default()
+    };
+    match bot
+        .arm()
+        .expect("arm")
+        .set_joint_positions_with(&[-1.0, 0.0, 0.0, 0.0, 0.0], opts)
+    {
+        Err(Error::Timeout { after, .. }) => {
+            assert_eq!(after, std::time::Duration::from_millis(300))
+        }
+        other => panic!("{other:?}"),
+    }
+}
