@@ -210,26 +210,22 @@ impl<'r> Motion<'r> {
                 let (best, at) = *stall_since.get_or_insert((worst.1, now));
                 if worst.1 < best - STALL_PROGRESS {
                     *stall_since = Some((worst.1, now));
-                } else if now > self.started + STALL_GRACE {
-                    if now - at > STALL_TIME {
-                        let name = self
-                            .robot
-                            .cfg
-                            .joints
-                            .get(worst.0)
-                            .map(|j| j.name.to_string())
-                            .unwrap_or_default();
-                        let pos = t
-                            .joints
-                            .get(worst.0)
-                            .map(|s| s.position as f64)
-                            .unwrap_or(0.0);
-                        return Some(Err(Error::Stalled {
-                            joint: name,
-                            position: pos,
-                            error: worst.1,
-                        }));
-                    }
+                } else if now > self.started + STALL_GRACE && now - at > STALL_TIME {
+                    let cfg = &self.robot.cfg.joints;
+                    let joint = cfg
+                        .get(worst.0)
+                        .map(|j| j.name.to_string())
+                        .unwrap_or_default();
+                    let position = t
+                        .joints
+                        .get(worst.0)
+                        .map(|s| s.position as f64)
+                        .unwrap_or(0.0);
+                    return Some(Err(Error::Stalled {
+                        joint,
+                        position,
+                        error: worst.1,
+                    }));
                 }
                 timed_out.then(|| {
                     Err(Error::Timeout {
