@@ -370,6 +370,16 @@ impl Robot {
         self.link.command(&HostMsg::Resume, "resume")
     }
 
+    /// The firmware's link and bus counters.
+    pub fn diagnostics(&mut self) -> Result<ferrobot_protocol::Diagnostics> {
+        match self.link.request(&HostMsg::GetDiagnostics, &|m| {
+            matches!(m, DeviceMsg::Diagnostics(_))
+        })? {
+            DeviceMsg::Diagnostics(d) => Ok(d),
+            _ => Err(Error::Link("unexpected reply".into())),
+        }
+    }
+
     /// The newest telemetry.
     pub fn telemetry(&mut self) -> Result<Telemetry> {
         self.link.telemetry()

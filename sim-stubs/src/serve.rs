@@ -56,60 +56,99 @@ fn micros(start: Instant) -> u64 {
     start.elapsed().as_micros() as u64
 }
 
+/// The plants being served, shared with whoever controls them (tests, the command reader).
+#[derive(Clone)]
+pub struct Plants {
+    /// The servo chain.
+    pub chain: std::sync::Arc<std::sync::Mutex<ServoChain>>,
+    /// The base.
+    pub base: Option<std::sync::Arc<std::sync::Mutex<BasePlant>>>,
+    /// Bytes to put on the servo bus towards the firmware (line noise).
+    pub servo_noise: std::sync::Arc<std::sync::Mutex<Vec<u8>>>,
+}
+
 /// Start serving `robot` (plants seeded by `seed`) on fresh PTYs; the threads run for the life
 /// of the process.
-pub fn serve(robot: &str, seed: u64) -> Result<Served, ServeError> {
+pub fn serve(robot: &str, seed: u64) -> Result<(Served, Plants), ServeError> {
+    use std::sync::{Arc, Mutex};
     let desc = robots::by_name(robot)
         .ok_or_else(|| ServeError::Sim(SimError::UnknownRobot(robot.into())))?;
     let start = Instant::now();
     let (mut master, slave, servo_path) = pty()?;
-    let mut chain = ServoChain::new(&desc.servos, &desc.arm, seed);
-    thread::spawn(move || {
-        let _keep_open = slave;
-        let mut buf = [0u8; 1024];
-        loop {
-            let now = micros(start);
-            chain.advance_to(now);
-            match master.read(&mut buf) {
-                Ok(n) if n > 0 => {
-                    let t = micros(start);
-                    for r in chain.on_bytes(t, &buf[..n]) {
-                        let due = t + r.delay_us;
-                        while micros(start) < due {
-                            std::hint::spin_loop();
-                        }
-                        let _ = master.write_all(&r.bytes);
+    let chain = Arc::new(Mutex::new(ServoChain::new(&desc.servos, &desc.arm, seed)));
+    let noise = Arc::new(Mutex::new(Vec::new()));
+    {
+        let chain = chain.clone();
+        let noise = noise.clone();
+        thread::spawn(move || {
+            let _keep_open = slave;
+            let mut buf = [0u8; 1024];
+            loop {
+                let now = micros(start);
+                if let Ok(mut c) = chain.lock() {
+                    c.advance_to(now);
+                }
+                if let Ok(mut n) = noise.lock() {
+                    if !n.is_empty() {
+                        let _ = master.write_all(&n);
+                        n.clear();
                     }
                 }
-                Ok(_) => {}
-                Err(e)
-                    if e.kind() == io::ErrorKind::TimedOut
-                        || e.kind() == io::ErrorKind::WouldBlock => {}
-                Err(_) => thread::sleep(Duration::from_millis(1)),
+                match master.read(&mut buf) {
+                    Ok(n) if n > 0 => {
+                        let t = micros(start);
+                        let replies = chain
+                            .lock()
+                            .map(|mut c| c.on_bytes(t, &buf[..n]))
+                            .unwrap_or_default();
+                        for r in replies {
+                            let due = t + r.delay_us;
+                            while micros(start) < due {
+                                std::hint::spin_loop();
+                            }
+                            let _ = master.write_all(&r.bytes);
+                        }
+                    }
+                    Ok(_) => {}
+                    Err(e)
+                        if e.kind() == io::ErrorKind::TimedOut
+                            || e.kind() == io::ErrorKind::WouldBlock => {}
+                    Err(_) => thread::sleep(Duration::from_millis(1)),
+                }
             }
-        }
-    });
-    let base = match desc.base {
-        BaseModel::None => None,
+        });
+    }
+    let (base, base_plant) = match desc.base {
+        BaseModel::None => (None, None),
         kind => {
             let (mut master, slave, path) = pty()?;
-            let mut plant = if kind == BaseModel::Kobuki {
+            let plant = Arc::new(Mutex::new(if kind == BaseModel::Kobuki {
                 BasePlant::kobuki(seed)
             } else {
                 BasePlant::create2(seed)
-            };
+            }));
+            let p = plant.clone();
             thread::spawn(move || {
                 let _keep_open = slave;
                 let mut buf = [0u8; 512];
                 loop {
                     let now = micros(start);
-                    plant.advance_to(now);
-                    let out = plant.take_output();
+                    let out = p
+                        .lock()
+                        .map(|mut b| {
+                            b.advance_to(now);
+                            b.take_output()
+                        })
+                        .unwrap_or_default();
                     if !out.is_empty() {
                         let _ = master.write_all(&out);
                     }
                     match master.read(&mut buf) {
-                        Ok(n) if n > 0 => plant.on_bytes(micros(start), &buf[..n]),
+                        Ok(n) if n > 0 => {
+                            if let Ok(mut b) = p.lock() {
+                                b.on_bytes(micros(start), &buf[..n]);
+                            }
+                        }
                         Ok(_) => {}
                         Err(e)
                             if e.kind() == io::ErrorKind::TimedOut
@@ -118,13 +157,109 @@ pub fn serve(robot: &str, seed: u64) -> Result<Served, ServeError> {
                     }
                 }
             });
-            Some(path)
+            (Some(path), Some(plant))
         }
     };
-    Ok(Served {
-        servo_bus: servo_path,
-        base,
-    })
+    Ok((
+        Served {
+            servo_bus: servo_path,
+            base,
+        },
+        Plants {
+            chain,
+            base: base_plant,
+            servo_noise: noise,
+        },
+    ))
+}
+
+impl Plants {
+    /// Carry out one line of the control protocol; returns the JSON answer.
+    ///
+    /// * `truth`: `{"truth": [x, y, θ], "wheel_speed": [l, r], "target": [l, r]}` of the base;
+    /// * `servo ID`: `{"id", "angle", "torque_enabled", "hardware_error"}`;
+    /// * `object ID TICK` / `object ID none`: an object the servo closes on (below TICK);
+    /// * `block ID RAD` / `block ID none`: the servo's joint is blocked above RAD;
+    /// * `silent ID on|off`: the servo stops (or resumes) answering;
+    /// * `noise N`: about N bytes of noise on the servo bus towards the firmware: random bytes
+    ///   and status packets with a broken CRC (`damaged_packets` in the answer).
+    pub fn command(&self, line: &str) -> serde_json::Value {
+        use serde_json::json;
+        let w: Vec<&str> = line.split_whitespace().collect();
+        let id = |k: usize| w.get(k).and_then(|s| s.parse::<u8>().ok());
+        let with_servo =
+            |id: Option<u8>, f: &dyn Fn(&mut crate::servo::ServoSim) -> serde_json::Value| {
+                let Some(id) = id else {
+                    return json!({"error": "need a servo ID"});
+                };
+                match self.chain.lock() {
+                    Ok(mut c) => match c.servo_mut(id) {
+                        Some(s) => f(s),
+                        None => json!({"error": format!("no servo {id}")}),
+                    },
+                    Err(_) => json!({"error": "chain lock"}),
+                }
+            };
+        match w.first().copied() {
+            Some("truth") => match self.base.as_ref().and_then(|b| b.lock().ok()) {
+                Some(b) => {
+                    json!({"truth": b.drive.truth, "wheel_speed": [b.drive.speed.0, b.drive.speed.1],
+                                  "target": [b.drive.target.0, b.drive.target.1]})
+                }
+                None => json!({"error": "no base"}),
+            },
+            Some("servo") => with_servo(
+                id(1),
+                &|s| json!({"id": s.id, "angle": s.theta, "torque_enabled": s.torque_enabled(), "hardware_error": s.hardware_error()}),
+            ),
+            Some("object") | Some("block") => {
+                let below = w[0] == "object";
+                let at = w.get(2).and_then(|v| v.parse::<f64>().ok());
+                with_servo(id(1), &|s| {
+                    s.obstacle = at.map(|a| {
+                        let rad = if below {
+                            ferrobot_protocol::dxl::units::tick_to_rad(a as i32) as f64
+                        } else {
+                            a
+                        };
+                        (rad, below)
+                    });
+                    json!({"ok": true})
+                })
+            }
+            Some("silent") => {
+                let on = w.get(2) == Some(&"on");
+                with_servo(id(1), &|s| {
+                    s.silent = on;
+                    json!({"ok": true})
+                })
+            }
+            Some("noise") => {
+                let n = w.get(1).and_then(|v| v.parse::<usize>().ok()).unwrap_or(0);
+                let mut rng = crate::rng::SimRng::new(n as u64, 99);
+                let mut damaged = 0;
+                if let Ok(mut q) = self.servo_noise.lock() {
+                    while q.len() < n {
+                        // Random bytes, then a status packet whose CRC the noise broke.
+                        for _ in 0..16 {
+                            q.push((rng.uniform() * 256.0) as u8);
+                        }
+                        let mut b = [0u8; 32];
+                        let id = 1 + (rng.uniform() * 9.0) as u8;
+                        if let Ok(len) =
+                            ferrobot_protocol::dxl::status(&mut b, id, 0, &[0x12, 0x34, 0x56, 0x78])
+                        {
+                            b[len - 1] ^= 0xA5;
+                            q.extend_from_slice(&b[..len]);
+                            damaged += 1;
+                        }
+                    }
+                }
+                json!({"ok": true, "bytes": n, "damaged_packets": damaged})
+            }
+            _ => json!({"error": format!("unknown command {line:?}")}),
+        }
+    }
 }
 
 /// Commands to a running firmware server.

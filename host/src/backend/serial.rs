@@ -138,6 +138,9 @@ fn io_thread(path: PathBuf, shared: Arc<Shared>, rx: Receiver<(u16, HostMsg)>) {
                                         if info.accepted {
                                             s.lost = None;
                                         }
+                                        // Faults sent before this answer belong to an earlier
+                                        // session (left in the port's buffer while nobody read).
+                                        s.faults.clear();
                                         s.info = Some(info.clone());
                                         s.replies.push_back(Frame {
                                             seq: f.seq,

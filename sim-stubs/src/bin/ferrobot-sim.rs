@@ -2,11 +2,12 @@
 //!
 //! * `ferrobot-sim serve --robot locobot [--seed N]`: prints one JSON line
 //!   `{"robot": …, "servo_bus": "/dev/pts/N", "base": "/dev/pts/M" | null}` and serves until
-//!   standard input closes or the process is killed.
+//!   standard input closes or the process is killed. Lines on standard input control the
+//!   plants (ground truth, objects, silent servos, noise; see `Plants::command`), each
+//!   answered by one JSON line.
 //! * `ferrobot-sim demo [--robot locobot]`: moves the simulated robot through the firmware in
 //!   lockstep and prints what happened.
 
-use std::io::{Read, Write};
 use std::process::ExitCode;
 
 use ferrobot_sim::serve::serve;
@@ -39,16 +40,18 @@ fn main() -> ExitCode {
     }
     match cmd.as_str() {
         "serve" => match serve(&robot, seed) {
-            Ok(s) => {
+            Ok((s, plants)) => {
                 let line =
                     serde_json::json!({"robot": robot, "servo_bus": s.servo_bus, "base": s.base});
-                let mut out = std::io::stdout().lock();
-                let _ = writeln!(out, "{line}");
-                let _ = out.flush();
-                drop(out);
-                let mut sink = [0u8; 256];
-                let mut stdin = std::io::stdin().lock();
-                while matches!(stdin.read(&mut sink), Ok(n) if n > 0) {}
+                println!("{line}");
+                // Control lines on standard input (see `Plants::command`); EOF ends the server.
+                use std::io::BufRead;
+                for line in std::io::stdin().lock().lines() {
+                    let Ok(line) = line else { break };
+                    if !line.trim().is_empty() {
+                        println!("{}", plants.command(&line));
+                    }
+                }
                 ExitCode::SUCCESS
             }
             Err(e) => {

@@ -1,0 +1,271 @@
+//! End to end: the firmware in QEMU (servo loop at 25 ms: QEMU's UARTs move about 20 KB/s),
+//! the simulated plants behind PTYs, the host over the firmware's UART0 PTY. Every wait is on
+//! observed state with a timeout; every test kills its processes when it ends.
+
+use std::sync::Mutex;
+use std::time::{Duration, Instant};
+
+use ferrobot::{Backend, Error, GripperState, Robot};
+use ferrobot_hil::Hil;
+use ferrobot_protocol::*;
+
+/// One QEMU at a time: the tests share two cores with real-time plants.
+static SERIAL: Mutex<()> = Mutex::new(());
+
+fn start() -> (std::sync::MutexGuard<'static, ()>, Hil) {
+    let guard = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let hil = Hil::start("locobot").unwrap_or_else(|e| panic!("HIL setup: {e}"));
+    (guard, hil)
+}
+
+fn robot(hil: &Hil) -> Robot {
+    Robot::builder("locobot")
+        .backend(Backend::Serial {
+            path: hil.host.clone(),
+        })
+        .build()
+        .unwrap_or_else(|e| panic!("connect to the firmware in QEMU: {e}"))
+}
+
+/// Poll `f` until it returns `Some`, or panic after `timeout`.
+fn eventually<T>(timeout: Duration, what: &str, mut f: impl FnMut() -> Option<T>) -> T {
+    let deadline = Instant::now() + timeout;
+    loop {
+        if let Some(v) = f() {
+            return v;
+        }
+        assert!(Instant::now() < deadline, "timed out waiting for {what}");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+#[test]
+fn handshake_and_a_clear_error_on_version_mismatch() {
+    let (_g, hil) = start();
+    let mut raw = hil.raw().expect("port");
+    // QEMU drops what the firmware sends before the port is open: say hello until answered.
+    let info = eventually(Duration::from_secs(10), "the firmware's answer", || {
+        raw.send(&HostMsg::Hello {
+            protocol_version: PROTOCOL_VERSION + 1,
+            schema_hash: SCHEMA_HASH,
+        });
+        match raw.wait(Duration::from_millis(300), |m| {
+            matches!(m, DeviceMsg::Hello(_))
+        }) {
+            Some(DeviceMsg::Hello(i)) => Some(i),
+            _ => None,
+        }
+    });
+    assert!(!info.accepted);
+    assert_eq!(info.board.as_str(), "mps2-an386");
+    assert_eq!(info.robot.as_str(), "locobot");
+    assert_eq!(info.joints.len(), 8);
+    assert_eq!(
+        raw.command(&HostMsg::Heartbeat),
+        Some(false),
+        "commands after a refused hello are rejected"
+    );
+    drop(raw);
+    // The host library turns the same refusal into a typed error; with the right version it
+    // connects.
+    let bot = robot(&hil);
+    assert_eq!(bot.name(), "locobot");
+}
+
+#[test]
+fn the_arm_reaches_a_joint_target() {
+    let (_g, mut hil) = start();
+    let mut bot = robot(&hil);
+    let target = [0.3, 0.2, -0.2, 0.3, 0.1];
+    bot.arm()
+        .expect("arm")
+        .set_joint_positions(&target)
+        .expect("moves");
+    let q = bot.arm().expect("arm").get_joint_angles().expect("q");
+    assert!(
+        q.iter().zip(target).all(|(a, b)| (a - b).abs() < 0.01),
+        "{q:?}"
+    );
+    // The simulated servo agrees (joint_1 is servo 1, sign +1).
+    let s = hil.plants("servo 1");
+    let angle = s["angle"].as_f64().expect("angle");
+    assert!((angle - 0.3).abs() < 0.01, "{s}");
+}
+
+#[test]
+fn the_gripper_reports_closed_without_and_holding_with_an_object() {
+    let (_g, mut hil) = start();
+    let mut bot = robot(&hil);
+    bot.gripper().expect("gripper").open().expect("opens");
+    assert_eq!(
+        bot.gripper().expect("gripper").close().expect("closes"),
+        GripperState::Closed
+    );
+    bot.gripper().expect("gripper").open().expect("opens");
+    assert_eq!(
+        bot.gripper().expect("gripper").get_state().expect("state"),
+        GripperState::Open
+    );
+    assert_eq!(hil.plants("object 7 2300")["ok"], true);
+    assert_eq!(
+        bot.gripper().expect("gripper").close().expect("closes"),
+        GripperState::Holding
+    );
+}
+
+#[test]
+fn base_velocity_gives_odometry_that_agrees_with_ground_truth() {
+    let (_g, mut hil) = start();
+    let mut bot = robot(&hil);
+    bot.base().expect("base").reset_odometry().expect("reset");
+    let t0 = hil.plants("truth")["truth"].clone();
+    bot.base()
+        .expect("base")
+        .set_vel(0.2, 0.0, 2.0)
+        .expect("drives");
+    std::thread::sleep(Duration::from_millis(300));
+    let t1 = hil.plants("truth")["truth"].clone();
+    let dx = t1[0].as_f64().expect("x") - t0[0].as_f64().expect("x");
+    let dy = t1[1].as_f64().expect("y") - t0[1].as_f64().expect("y");
+    let truth = dx.hypot(dy);
+    let o = bot.base().expect("base").get_state().expect("odometry");
+    let odom = o[0].hypot(o[1]);
+    assert!((truth - 0.4).abs() < 0.06, "travelled {truth} m");
+    assert!(
+        (odom - truth).abs() < 0.02 * truth + 0.005,
+        "odometry {odom} vs ground truth {truth}"
+    );
+}
+
+#[test]
+fn the_watchdog_stops_the_base_when_the_host_goes_silent() {
+    let (_g, mut hil) = start();
+    let mut raw = hil.raw().expect("port");
+    eventually(Duration::from_secs(10), "the handshake", || {
+        raw.send(&HostMsg::Hello {
+            protocol_version: PROTOCOL_VERSION,
+            schema_hash: SCHEMA_HASH,
+        });
+        raw.wait(
+            Duration::from_millis(300),
+            |m| matches!(m, DeviceMsg::Hello(i) if i.accepted),
+        )
+    });
+    assert_eq!(
+        raw.command(&HostMsg::SetWatchdog { period_ms: 300 }),
+        Some(true)
+    );
+    assert_eq!(
+        raw.command(&HostMsg::BaseVelocity {
+            v: 0.2,
+            w: 0.0,
+            duration_ms: 10_000
+        }),
+        Some(true)
+    );
+    let moving = |hil: &mut Hil| {
+        let t = hil.plants("truth");
+        t["target"][0].as_f64().unwrap_or(0.0).abs() > 0.05
+    };
+    eventually(Duration::from_secs(2), "the base to drive", || {
+        moving(&mut hil).then_some(())
+    });
+    // Silence: the firmware must stop the base on its own.
+    let silent_at = Instant::now();
+    eventually(
+        Duration::from_secs(2),
+        "the watchdog to stop the base",
+        || (!moving(&mut hil)).then_some(()),
+    );
+    let after = silent_at.elapsed();
+    assert!(
+        after >= Duration::from_millis(250),
+        "stopped after {after:?}, before the watchdog period"
+    );
+    let faults = raw.wait(
+        Duration::from_secs(1),
+        |m| matches!(m, DeviceMsg::Fault(f) if f.kind == FaultKind::Watchdog),
+    );
+    assert!(faults.is_some(), "no watchdog fault reported");
+}
+
+#[test]
+fn garbage_on_the_host_link_and_the_servo_bus_is_counted_and_the_link_keeps_working() {
+    let (_g, mut hil) = start();
+    let mut bot = robot(&hil);
+    let before = bot.diagnostics().expect("diagnostics");
+    drop(bot);
+    {
+        let mut raw = hil.raw().expect("port");
+        let mut b = [0u8; MAX_WIRE];
+        let n = encode_frame(7, &HostMsg::Heartbeat, &mut b).expect("fits");
+        let mut bad = b[..n].to_vec();
+        bad[1] ^= 0x08;
+        raw.send_raw(&bad);
+        raw.send_raw(&[0x55, 0x00, 0x13, 0x37, 0x42, 0x00, 0x00, 0xEE, 0x00]);
+        assert_eq!(
+            raw.command(&HostMsg::Heartbeat),
+            Some(true),
+            "link after garbage"
+        );
+    }
+    let noise = hil.plants("noise 300");
+    let damaged = noise["damaged_packets"].as_u64().expect("count");
+    let mut bot = robot(&hil);
+    bot.arm()
+        .expect("arm")
+        .set_joint_positions(&[0.2, 0.0, 0.0, 0.0, 0.0])
+        .expect("still moves");
+    let after = bot.diagnostics().expect("diagnostics");
+    assert!(
+        after.host_bad_frames >= before.host_bad_frames + 3,
+        "{before:?} -> {after:?}"
+    );
+    // Every damaged packet is counted (a packet arriving mid-transaction may also swallow a
+    // real status, which is then counted too).
+    assert!(
+        after.servo_bad_packets >= before.servo_bad_packets + damaged as u32,
+        "{damaged} damaged: {before:?} -> {after:?}"
+    );
+}
+
+#[test]
+fn servo_faults_are_reported_to_the_host() {
+    let (_g, mut hil) = start();
+    let mut bot = robot(&hil);
+    // A servo that stops answering.
+    assert_eq!(hil.plants("silent 4 on")["ok"], true);
+    let lost = eventually(Duration::from_secs(5), "ServoLost", || {
+        bot.take_faults()
+            .into_iter()
+            .find(|f| f.kind == FaultKind::ServoLost)
+    });
+    assert_eq!(lost.servo_id, Some(4));
+    assert_eq!(hil.plants("silent 4 off")["ok"], true);
+    eventually(Duration::from_secs(5), "ServoRecovered", || {
+        bot.take_faults()
+            .into_iter()
+            .find(|f| f.kind == FaultKind::ServoRecovered)
+    });
+    // An overloaded servo: joint_1 blocked at 0.1 rad and told to go to 0.6 rad.
+    assert_eq!(hil.plants("block 1 0.1")["ok"], true);
+    let r = bot
+        .arm()
+        .expect("arm")
+        .set_joint_positions(&[0.6, 0.0, 0.0, 0.0, 0.0]);
+    assert!(
+        matches!(r, Err(Error::Stalled { .. }) | Err(Error::Fault { .. })),
+        "{r:?}"
+    );
+    let hw = eventually(Duration::from_secs(8), "ServoHardware", || {
+        bot.take_faults()
+            .into_iter()
+            .find(|f| f.kind == FaultKind::ServoHardware)
+    });
+    assert_eq!(hw.servo_id, Some(1));
+    assert_eq!(
+        hw.code as u8 & dxl::hw_error::OVERLOAD,
+        dxl::hw_error::OVERLOAD
+    );
+    assert!(hil.qemu_alive());
+}
