@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
-# The project's one test command: formatting, clippy, every test of the workspace (unit,
-# property, lockstep acceptance and fault tests, the Dynamixel conformance test against
-# ROBOTIS' official SDK). Installs what it needs by itself, idempotently.
+# The project's one test command: formatting, clippy, both board builds, every test of the
+# workspace (unit, property, lockstep acceptance and fault tests, the API on the simulator and
+# over serial ports, the Dynamixel conformance test against ROBOTIS' official SDK, and the
+# hardware-in-the-loop tests with the firmware in QEMU). Installs what it needs by itself,
+# idempotently.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 start=$(date +%s)
@@ -13,6 +15,12 @@ rustup component add rustfmt clippy >/dev/null 2>&1 || true
 step "python: ROBOTIS dynamixel-sdk in target/py-venv"
 scripts/python-env.sh
 export FERROBOT_PYTHON="$PWD/target/py-venv/bin/python"
+
+step "cross toolchain for the boards (Debian's rustc-web, lld, QEMU)"
+scripts/setup-cross.sh
+
+step "board builds: mps2-an386 (QEMU) and opencr (OpenCR 1.0)"
+scripts/build-boards.sh
 
 step "cargo fmt --check"
 cargo fmt --all -- --check

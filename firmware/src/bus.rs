@@ -552,8 +552,11 @@ impl ServoBus {
 
     /// Bytes from the bus.
     pub fn on_bytes(&mut self, now: u64, bytes: &[u8]) {
-        for &b in bytes {
-            let pkt = match self.decoder.push(b) {
+        let mut rest = bytes;
+        while !rest.is_empty() {
+            let (used, outcome) = self.decoder.push_slice(rest);
+            rest = rest.get(used..).unwrap_or(&[]);
+            let pkt = match outcome {
                 Some(Ok(p)) if p.is_status() => Some((p.id, p.error(), {
                     let mut d = [0u8; 10];
                     let data = p.data();

@@ -21,33 +21,51 @@ pub fn repo() -> PathBuf {
 
 static FIRMWARE: OnceLock<Result<PathBuf, String>> = OnceLock::new();
 
-/// Build the QEMU firmware (release) once; its ELF path.
+/// Build a board's firmware (release) and return its ELF.
 ///
-/// The board builds with Debian's toolchain (its own `rust-toolchain.toml`); a cargo started
+/// The boards build with Debian's toolchain (their own `rust-toolchain.toml`); a cargo started
 /// from `cargo test` inherits `RUSTUP_TOOLCHAIN`, `CARGO*` and `RUSTC*`, which would override
-/// it, so the child gets a clean environment.
+/// it, so the child gets a clean environment. `target_dir` keeps differently-featured builds
+/// apart.
+pub fn build_board(
+    board: &str,
+    features: &[&str],
+    target_dir: Option<&str>,
+) -> Result<PathBuf, String> {
+    let dir = repo().join("boards").join(board);
+    let mut cmd = Command::new("cargo");
+    cmd.current_dir(&dir)
+        .args(["build", "--release", "--quiet"])
+        .env_clear();
+    if !features.is_empty() {
+        cmd.arg("--features").arg(features.join(","));
+    }
+    for k in ["PATH", "HOME", "TMPDIR", "CARGO_HOME", "RUSTUP_HOME"] {
+        if let Ok(v) = std::env::var(k) {
+            cmd.env(k, v);
+        }
+    }
+    let target = match target_dir {
+        Some(t) => {
+            cmd.env("CARGO_TARGET_DIR", dir.join(t));
+            dir.join(t)
+        }
+        None => dir.join("target"),
+    };
+    let out = cmd.output().map_err(|e| format!("cannot run cargo: {e}"))?;
+    if !out.status.success() {
+        return Err(format!(
+            "build of boards/{board} failed (run scripts/setup-cross.sh first):\n{}",
+            String::from_utf8_lossy(&out.stderr)
+        ));
+    }
+    Ok(target.join(format!("thumbv7em-none-eabihf/release/board-{board}")))
+}
+
+/// Build the QEMU firmware once per process; its ELF path.
 pub fn firmware_elf() -> Result<PathBuf, String> {
     FIRMWARE
-        .get_or_init(|| {
-            let dir = repo().join("boards/mps2-an386");
-            let mut cmd = Command::new("cargo");
-            cmd.current_dir(&dir)
-                .args(["build", "--release", "--quiet"])
-                .env_clear();
-            for k in ["PATH", "HOME", "TMPDIR", "CARGO_HOME", "RUSTUP_HOME"] {
-                if let Ok(v) = std::env::var(k) {
-                    cmd.env(k, v);
-                }
-            }
-            let out = cmd.output().map_err(|e| format!("cannot run cargo: {e}"))?;
-            if !out.status.success() {
-                return Err(format!(
-                    "board build failed (run scripts/setup-cross.sh first):\n{}",
-                    String::from_utf8_lossy(&out.stderr)
-                ));
-            }
-            Ok(dir.join("target/thumbv7em-none-eabihf/release/board-mps2-an386"))
-        })
+        .get_or_init(|| build_board("mps2-an386", &[], None))
         .clone()
 }
 

@@ -123,8 +123,14 @@ fn base_velocity_gives_odometry_that_agrees_with_ground_truth() {
         .expect("base")
         .set_vel(0.2, 0.0, 2.0)
         .expect("drives");
-    std::thread::sleep(Duration::from_millis(300));
-    let t1 = hil.plants("truth")["truth"].clone();
+    // Wait until the wheels have stopped, then compare.
+    let t1 = eventually(Duration::from_secs(3), "the base to stop", || {
+        let t = hil.plants("truth");
+        let still = t["wheel_speed"]
+            .as_array()
+            .is_some_and(|w| w.iter().all(|v| v.as_f64().unwrap_or(1.0).abs() < 1e-6));
+        still.then(|| t["truth"].clone())
+    });
     let dx = t1[0].as_f64().expect("x") - t0[0].as_f64().expect("x");
     let dy = t1[1].as_f64().expect("y") - t0[1].as_f64().expect("y");
     let truth = dx.hypot(dy);

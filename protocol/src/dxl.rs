@@ -552,6 +552,13 @@ impl<const N: usize> Default for PacketDecoder<N> {
     }
 }
 
+/// What one byte did to the decoder.
+enum Step {
+    More,
+    Complete,
+    Bad(DxlError),
+}
+
 impl<const N: usize> PacketDecoder<N> {
     /// An empty decoder.
     pub const fn new() -> Self {
@@ -596,9 +603,8 @@ impl<const N: usize> PacketDecoder<N> {
         }
     }
 
-    /// Push one byte; returns a packet when it completes one, or an error when a packet that
-    /// had a complete header turned out bad.
-    pub fn push(&mut self, b: u8) -> Option<Result<Packet<'_>, DxlError>> {
+    /// The header and length state machine, one byte.
+    fn step(&mut self, b: u8) -> Step {
         match self.len {
             0 | 1 => {
                 if b == 0xFF {
@@ -607,7 +613,7 @@ impl<const N: usize> PacketDecoder<N> {
                 } else {
                     self.len = 0;
                 }
-                return None;
+                return Step::More;
             }
             2 => {
                 match b {
@@ -618,7 +624,7 @@ impl<const N: usize> PacketDecoder<N> {
                     0xFF => {} // FF FF FF: still two FFs in hand
                     _ => self.len = 0,
                 }
-                return None;
+                return Step::More;
             }
             3 => {
                 if b == 0x00 {
@@ -627,14 +633,14 @@ impl<const N: usize> PacketDecoder<N> {
                 } else {
                     self.restart_with(b);
                 }
-                return None;
+                return Step::More;
             }
             _ => {}
         }
         if self.len >= N {
             self.len = 0;
             self.stats.length += 1;
-            return Some(Err(DxlError::TooLong));
+            return Step::Bad(DxlError::TooLong);
         }
         self.set(self.len, b);
         self.len += 1;
@@ -646,18 +652,24 @@ impl<const N: usize> PacketDecoder<N> {
             if declared < 3 {
                 self.restart_with(b);
                 self.stats.length += 1;
-                return Some(Err(DxlError::BadLength));
+                return Step::Bad(DxlError::BadLength);
             }
             self.total = 7 + declared;
             if self.total > N {
                 self.len = 0;
                 self.stats.length += 1;
-                return Some(Err(DxlError::TooLong));
+                return Step::Bad(DxlError::TooLong);
             }
         }
-        if self.len < 7 || self.len < self.total {
-            return None;
+        if self.len >= 7 && self.len == self.total {
+            Step::Complete
+        } else {
+            Step::More
         }
+    }
+
+    /// Check the CRC of the complete packet in the buffer and destuff its body.
+    fn finish(&mut self) -> Result<Packet<'_>, DxlError> {
         let total = self.total;
         self.len = 0;
         let body_end = total - 2;
@@ -673,32 +685,77 @@ impl<const N: usize> PacketDecoder<N> {
         };
         if !crc_ok {
             self.stats.crc += 1;
-            return Some(Err(DxlError::Crc));
+            return Err(DxlError::Crc);
         }
-        // Destuff the body (instruction and parameters) in place.
-        let mut w = 7usize;
-        let mut r = 7usize;
-        let mut tail = [0u8; 3];
-        while r < body_end {
-            let c = self.buf.get(r).copied().unwrap_or(0);
-            r += 1;
-            if tail == [0xFF, 0xFF, 0xFD] && c == 0xFD {
-                tail = [0; 3];
-                continue;
+        // Destuff the body (instruction and parameters) in place; most bodies hold no 0xFD.
+        let mut w = body_end;
+        if self.buf.get(7..body_end).is_some_and(|b| b.contains(&0xFD)) {
+            w = 7;
+            let mut r = 7usize;
+            let mut tail = [0u8; 3];
+            while r < body_end {
+                let c = self.buf.get(r).copied().unwrap_or(0);
+                r += 1;
+                if tail == [0xFF, 0xFF, 0xFD] && c == 0xFD {
+                    tail = [0; 3];
+                    continue;
+                }
+                self.set(w, c);
+                w += 1;
+                tail = [tail[1], tail[2], c];
             }
-            self.set(w, c);
-            w += 1;
-            tail = [tail[1], tail[2], c];
         }
         self.stats.ok += 1;
         let id = self.buf.get(4).copied().unwrap_or(0);
         let instruction = self.buf.get(7).copied().unwrap_or(0);
         let params = self.buf.get(8..w).unwrap_or(&[]);
-        Some(Ok(Packet {
+        Ok(Packet {
             id,
             instruction,
             params,
-        }))
+        })
+    }
+
+    /// Push one byte; returns a packet when it completes one, or an error when a packet that
+    /// had a complete header turned out bad.
+    pub fn push(&mut self, b: u8) -> Option<Result<Packet<'_>, DxlError>> {
+        match self.step(b) {
+            Step::More => None,
+            Step::Bad(e) => Some(Err(e)),
+            Step::Complete => Some(self.finish()),
+        }
+    }
+
+    /// Push bytes until a packet completes or a bad one is dropped; returns how many bytes were
+    /// consumed and that outcome (call again with the rest). Once a packet's length is known
+    /// its body is copied in one go, much cheaper than [`PacketDecoder::push`] byte by byte.
+    pub fn push_slice(&mut self, bytes: &[u8]) -> (usize, Option<Result<Packet<'_>, DxlError>>) {
+        let mut i = 0;
+        while i < bytes.len() {
+            if self.len >= 7 && self.total > self.len {
+                let want = (self.total - self.len).min(bytes.len() - i);
+                if let (Some(dst), Some(src)) = (
+                    self.buf.get_mut(self.len..self.len + want),
+                    bytes.get(i..i + want),
+                ) {
+                    dst.copy_from_slice(src);
+                }
+                self.len += want;
+                i += want;
+                if self.len == self.total {
+                    return (i, Some(self.finish()));
+                }
+                continue;
+            }
+            let b = bytes.get(i).copied().unwrap_or(0);
+            i += 1;
+            match self.step(b) {
+                Step::More => {}
+                Step::Bad(e) => return (i, Some(Err(e))),
+                Step::Complete => return (i, Some(self.finish())),
+            }
+        }
+        (i, None)
     }
 }
 
@@ -832,6 +889,46 @@ mod tests {
         let (id, ins, params) = decode_one(&b[..n]).unwrap_or_default();
         assert_eq!((id, ins), (3, inst::WRITE));
         assert_eq!(&params[2..], &data[..]);
+    }
+
+    #[test]
+    fn push_slice_agrees_with_push() {
+        let mut stream: heapless::Vec<u8, 256> = heapless::Vec::new();
+        let mut b = [0u8; 64];
+        let _ = stream.extend_from_slice(&[0x00, 0xFF, 0x13]);
+        for (id, data) in [
+            (1u8, &[1u8, 2, 3][..]),
+            (2, &[0xFF, 0xFF, 0xFD, 0x07]),
+            (3, &[]),
+        ] {
+            let n = status(&mut b, id, 0, data).unwrap_or(0);
+            let _ = stream.extend_from_slice(&b[..n]);
+        }
+        let mut a = PacketDecoder::<128>::new();
+        let mut by_byte: heapless::Vec<(u8, heapless::Vec<u8, 16>), 8> = heapless::Vec::new();
+        for &x in &stream {
+            if let Some(Ok(p)) = a.push(x) {
+                let _ = by_byte.push((
+                    p.id,
+                    heapless::Vec::from_slice(p.params).unwrap_or_default(),
+                ));
+            }
+        }
+        let mut c = PacketDecoder::<128>::new();
+        let mut by_slice: heapless::Vec<(u8, heapless::Vec<u8, 16>), 8> = heapless::Vec::new();
+        let mut rest = &stream[..];
+        while !rest.is_empty() {
+            let (n, r) = c.push_slice(rest);
+            if let Some(Ok(p)) = r {
+                let _ = by_slice.push((
+                    p.id,
+                    heapless::Vec::from_slice(p.params).unwrap_or_default(),
+                ));
+            }
+            rest = &rest[n..];
+        }
+        assert_eq!(by_byte.len(), 3);
+        assert_eq!(by_byte, by_slice);
     }
 
     #[test]

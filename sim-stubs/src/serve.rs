@@ -334,3 +334,28 @@ pub fn serve_firmware(
     });
     Ok(FirmwareServer { link, control: tx })
 }
+
+/// Serve `sim` behind the symlink `link` (see [`serve_firmware`]), announce it with one JSON
+/// line on standard output, then obey `unplug` and `plug` lines on standard input until it
+/// closes. The body of `ferrobot sim-firmware` and of the HIL measurements.
+pub fn run_firmware_server(
+    sim: crate::LockstepSim,
+    robot: &str,
+    link: std::path::PathBuf,
+) -> Result<(), ServeError> {
+    use std::io::BufRead;
+    let server = serve_firmware(sim, link.clone())?;
+    println!(
+        "{}",
+        serde_json::json!({"robot": robot, "host": link.display().to_string()})
+    );
+    for line in std::io::stdin().lock().lines() {
+        match line.as_deref().map(str::trim) {
+            Ok("unplug") => server.control(LinkControl::Unplug),
+            Ok("plug") => server.control(LinkControl::Plug),
+            Ok(_) => {}
+            Err(_) => break,
+        }
+    }
+    Ok(())
+}

@@ -12,6 +12,8 @@
 #![no_std]
 #![no_main]
 
+#[cfg(feature = "tick-bench")]
+mod tick_bench;
 mod time_driver;
 mod uart;
 
@@ -133,6 +135,10 @@ fn main() -> ! {
     let mut cp = cortex_m::Peripherals::take().unwrap_or_else(|| panic!("peripherals taken twice"));
     for u in [&UART0, &UART1, &UART2, &UART3] {
         u.init(u as *const Uart != &UART3 as *const Uart);
+    }
+    if cfg!(feature = "tick-bench") {
+        #[cfg(feature = "tick-bench")]
+        tick_bench::run();
     }
     time_driver::init();
     // Device interrupts preempt the executor.

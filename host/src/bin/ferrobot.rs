@@ -325,21 +325,8 @@ fn run(cli: Cli) -> Result<(), (ferrobot::Error, bool)> {
                 cfg.firmware_profile(),
                 seed,
             );
-            let server = ferrobot_sim::serve::serve_firmware(sim, link.clone())
+            ferrobot_sim::serve::run_firmware_server(sim, &cfg.name, link)
                 .map_err(|e| (ferrobot::Error::Link(e.to_string()), true))?;
-            println!(
-                "{}",
-                json!({"robot": cfg.name, "host": link.display().to_string()})
-            );
-            use std::io::BufRead;
-            for line in std::io::stdin().lock().lines() {
-                match line.as_deref().map(str::trim) {
-                    Ok("unplug") => server.control(ferrobot_sim::serve::LinkControl::Unplug),
-                    Ok("plug") => server.control(ferrobot_sim::serve::LinkControl::Plug),
-                    Ok(_) => {}
-                    Err(_) => break,
-                }
-            }
         }
     }
     Ok(())
