@@ -8,7 +8,6 @@
 use std::io::{BufRead, BufReader, Read, Write};
 use std::path::{Path, PathBuf};
 use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
-use std::sync::mpsc::{channel, Receiver};
 use std::sync::OnceLock;
 use std::time::{Duration, Instant};
 
@@ -102,19 +101,6 @@ pub struct Hil {
     pub log: PathBuf,
 }
 
-fn lines_of(r: impl Read + Send + 'static) -> Receiver<String> {
-    let (tx, rx) = channel();
-    std::thread::spawn(move || {
-        for line in BufReader::new(r).lines() {
-            let Ok(line) = line else { return };
-            if tx.send(line).is_err() {
-                return;
-            }
-        }
-    });
-    rx
-}
-
 impl Hil {
     /// Start the plants of `robot` and the firmware in QEMU.
     pub fn start(robot: &str) -> Result<Hil, String> {
@@ -146,48 +132,9 @@ impl Hil {
             std::process::id(),
             line.len() ^ servo.len()
         ));
-        let mut qemu = Command::new("qemu-system-arm")
-            .args([
-                "-machine",
-                "mps2-an386",
-                "-cpu",
-                "cortex-m4",
-                "-display",
-                "none",
-                "-monitor",
-                "none",
-            ])
-            .args(["-serial", "pty", "-serial", &servo, "-serial", &base])
-            .arg("-serial")
-            .arg(format!("file:{}", log.display()))
-            .arg("-kernel")
-            .arg(&elf)
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .spawn()
-            .map_err(|e| format!("cannot start qemu-system-arm: {e}"))?;
-        let out = lines_of(qemu.stdout.take().ok_or("no stdout")?);
-        let err = lines_of(qemu.stderr.take().ok_or("no stderr")?);
+        let (qemu, host) = ferrobot::backend::emulated::start_qemu(&elf, &servo, Some(&base), &log)
+            .map_err(|e| e.to_string())?;
         let qemu = Proc(qemu);
-        // "char device redirected to /dev/pts/N (label serial0)"
-        let deadline = Instant::now() + Duration::from_secs(10);
-        let host = loop {
-            let line = out
-                .recv_timeout(Duration::from_millis(20))
-                .or_else(|_| err.recv_timeout(Duration::from_millis(20)));
-            if let Ok(l) = line {
-                if let Some(p) = l
-                    .split("redirected to ")
-                    .nth(1)
-                    .and_then(|r| r.split_whitespace().next())
-                {
-                    break PathBuf::from(p);
-                }
-            }
-            if Instant::now() > deadline {
-                return Err("QEMU did not report its host PTY".into());
-            }
-        };
         Ok(Hil {
             qemu,
             _sim: sim,

@@ -275,3 +275,22 @@ fn servo_faults_are_reported_to_the_host() {
     );
     assert!(hil.qemu_alive());
 }
+
+#[test]
+fn an_emulated_robot_is_one_call() {
+    let _g = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let firmware = ferrobot_hil::firmware_elf().unwrap_or_else(|e| panic!("{e}"));
+    let mut bot = Robot::builder("locobot")
+        .backend(Backend::Emulated { firmware })
+        .build()
+        .expect("emulated robot");
+    bot.arm()
+        .expect("arm")
+        .set_joint_positions(&[-0.2, 0.1, 0.0, 0.0, 0.0])
+        .expect("moves");
+    let q = bot.arm().expect("arm").get_joint_angles().expect("q");
+    assert!(
+        (q[0] + 0.2).abs() < 0.01 && (q[1] - 0.1).abs() < 0.01,
+        "{q:?}"
+    );
+}

@@ -214,6 +214,9 @@ impl Robot {
         let link: Box<dyn Link> = match &backend {
             Backend::Sim { seed, realtime } => Box::new(SimLink::start(&cfg, *seed, *realtime)?),
             Backend::Serial { path } => Box::new(SerialLink::open(path, Duration::from_secs(10))?),
+            Backend::Emulated { firmware } => Box::new(
+                crate::backend::emulated::EmulatedLink::start(&cfg.name, firmware)?,
+            ),
         };
         let uses = Use {
             arm: uses.arm && cfg.arm.is_some(),

@@ -6,7 +6,10 @@
 //!   milliseconds; `realtime` paces it to the wall clock for viewing and teleoperation.
 //! * [`Backend::Serial`]: the firmware behind a serial port (a board over USB, QEMU or a
 //!   firmware process behind a PTY). One I/O thread owns the port.
+//! * [`Backend::Emulated`]: the real board firmware in QEMU with the simulated plants, started
+//!   in one call, over the serial backend.
 
+pub mod emulated;
 pub mod serial;
 pub mod sim;
 
@@ -32,6 +35,13 @@ pub enum Backend {
     Serial {
         /// Port path, e.g. `/dev/ttyACM0` or `/dev/pts/3`.
         path: PathBuf,
+    },
+    /// The real firmware for the `mps2-an386` board in QEMU, with the simulated plants behind
+    /// pseudo-terminals, over the serial backend: one call. `firmware` is the board's release
+    /// ELF (`scripts/build-boards.sh` builds it).
+    Emulated {
+        /// Path of `boards/mps2-an386/target/thumbv7em-none-eabihf/release/board-mps2-an386`.
+        firmware: PathBuf,
     },
 }
 
