@@ -203,7 +203,7 @@ impl<'r> Arm<'r> {
             })
             .collect();
         let idx = self.robot.arm_joints.clone();
-        let mask = idx.iter().fold(0u16, |m, &j| m | (1 << j));
+        let mask = self.mask();
         self.robot.link.command(
             &HostMsg::Waypoint {
                 joints: mask,
@@ -240,65 +240,52 @@ impl<'r> Arm<'r> {
         self.move_joints(q, opts)?.wait()
     }
 
-    /// Command joint velocities (rad/s); the arm switches to velocity control and keeps them
-    /// until told otherwise (the firmware brakes at the position limits).
-    pub fn set_joint_velocities(&mut self, qd: &[f64]) -> Result<()> {
-        self.check_count("joint velocities", qd)?;
-        for (&j, &v) in self.robot.arm_joints.iter().zip(qd) {
+    /// Send one direct value per arm joint in `mode`, each within ±`limit` of its joint.
+    fn direct(
+        &mut self,
+        what: &'static str,
+        values: &[f64],
+        limit: fn(&ferrobot_protocol::JointLimits) -> f32,
+        mode: JointMode,
+    ) -> Result<()> {
+        self.check_count(what, values)?;
+        for (&j, &v) in self.robot.arm_joints.iter().zip(values) {
             let c = &self.robot.cfg.joints[j];
-            if v.abs() > c.limits.velocity as f64 + 1e-9 {
+            let l = limit(&c.limits) as f64;
+            if v.abs() > l + 1e-9 {
                 return Err(Error::OutOfLimits {
                     joint: c.name.to_string(),
                     value: v,
-                    min: -c.limits.velocity as f64,
-                    max: c.limits.velocity as f64,
+                    min: -l,
+                    max: l,
                 });
             }
         }
-        self.ensure_mode(JointMode::Velocity)?;
-        let mask = self
-            .robot
+        self.ensure_mode(mode)?;
+        let joints = self.mask();
+        let values = values.iter().map(|&v| v as f32).collect();
+        self.robot
+            .link
+            .command(&HostMsg::JointCommand { joints, values }, what)
+    }
+
+    /// The firmware joint mask of the arm.
+    fn mask(&self) -> u16 {
+        self.robot
             .arm_joints
             .iter()
-            .fold(0u16, |m, &j| m | (1 << j));
-        let values = qd.iter().map(|&v| v as f32).collect();
-        self.robot.link.command(
-            &HostMsg::JointCommand {
-                joints: mask,
-                values,
-            },
-            "joint velocities",
-        )
+            .fold(0u16, |m, &j| m | (1 << j))
+    }
+
+    /// Command joint velocities (rad/s); the arm switches to velocity control and keeps them
+    /// until told otherwise (the firmware brakes at the position limits).
+    pub fn set_joint_velocities(&mut self, qd: &[f64]) -> Result<()> {
+        self.direct("joint velocities", qd, |l| l.velocity, JointMode::Velocity)
     }
 
     /// Command joint torques (N·m); the arm switches to current control.
     pub fn set_joint_torques(&mut self, tau: &[f64]) -> Result<()> {
-        self.check_count("joint torques", tau)?;
-        for (&j, &v) in self.robot.arm_joints.iter().zip(tau) {
-            let c = &self.robot.cfg.joints[j];
-            if v.abs() > c.limits.effort as f64 + 1e-9 {
-                return Err(Error::OutOfLimits {
-                    joint: c.name.to_string(),
-                    value: v,
-                    min: -c.limits.effort as f64,
-                    max: c.limits.effort as f64,
-                });
-            }
-        }
-        self.ensure_mode(JointMode::Current)?;
-        let mask = self
-            .robot
-            .arm_joints
-            .iter()
-            .fold(0u16, |m, &j| m | (1 << j));
-        let values = tau.iter().map(|&v| v as f32).collect();
-        self.robot.link.command(
-            &HostMsg::JointCommand {
-                joints: mask,
-                values,
-            },
-            "joint torques",
-        )
+        self.direct("joint torques", tau, |l| l.effort, JointMode::Current)
     }
 
     /// Measured joint angles, rad.
@@ -547,7 +534,7 @@ impl<'r> Arm<'r> {
         // Stream the path as knots, each timed by the joints' speed limits.
         self.ensure_mode(JointMode::Position)?;
         let idx = self.robot.arm_joints.clone();
-        let mask = idx.iter().fold(0u16, |m, &j| m | (1 << j));
+        let mask = self.mask();
         let mut prev = q0;
         for q in &path {
             let mut t = 0.0f64;
