@@ -579,3 +579,21 @@ fn a_blocked_joint_is_reported_stalled_and_a_slow_one_times_out() {
         other => panic!("{other:?}"),
     }
 }
+
+#[test]
+fn realtime_pacing_follows_the_wall_clock() {
+    let mut bot = Robot::builder("locobot")
+        .use_base(false)
+        .backend(ferrobot::Backend::Sim {
+            seed: 1,
+            realtime: true,
+        })
+        .build()
+        .expect("robot");
+    let (sim0, wall0) = (bot.time(), std::time::Instant::now());
+    bot.wait(0.3);
+    let sim = bot.time() - sim0;
+    let wall = wall0.elapsed().as_secs_f64();
+    assert!((sim - 0.3).abs() < 0.002, "{sim}");
+    assert!(wall >= 0.29 && wall < 0.6, "0.3 s simulated took {wall} s");
+}

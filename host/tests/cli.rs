@@ -1,0 +1,140 @@
+//! The `ferrobot` command line: JSON shapes, negative numbers, exit codes, and agreement with
+//! the library.
+
+use std::process::Command;
+
+use ferrobot::RobotConfig;
+
+fn run(args: &[&str]) -> (bool, serde_json::Value) {
+    let out = Command::new(env!("CARGO_BIN_EXE_ferrobot"))
+        .args(args)
+        .output()
+        .expect("runs");
+    let v = serde_json::from_slice(&out.stdout).unwrap_or(serde_json::Value::Null);
+    (out.status.success(), v)
+}
+
+#[test]
+fn robots_and_info() {
+    let (ok, v) = run(&["robots", "--json"]);
+    assert!(ok);
+    assert_eq!(
+        v["robots"],
+        serde_json::json!(["locobot", "locobot_lite", "sawyer"])
+    );
+    let (ok, v) = run(&["info", "sawyer", "--json"]);
+    assert!(ok);
+    assert_eq!(v["arm"]["ee_frame"], "right_hand");
+    assert_eq!(v["joints"].as_array().map(Vec::len), Some(7));
+}
+
+#[test]
+fn fk_matches_the_library_with_negative_numbers() {
+    let q = [0.1, -0.2, 0.3, -0.4, 0.5];
+    let args: Vec<String> = q.iter().map(|v| v.to_string()).collect();
+    let mut cmd = vec!["fk", "locobot"];
+    cmd.extend(args.iter().map(String::as_str));
+    cmd.push("--json");
+    let (ok, v) = run(&cmd);
+    assert!(ok, "{v}");
+    let chain = RobotConfig::bundled("locobot")
+        .expect("cfg")
+        .arm_chain
+        .expect("arm");
+    let t = chain.fk(&q);
+    for (k, want) in [t.translation.x, t.translation.y, t.translation.z]
+        .iter()
+        .enumerate()
+    {
+        assert!((v["position"][k].as_f64().expect("number") - want).abs() < 1e-12);
+    }
+    let quat = v["quaternion"].as_array().expect("quaternion");
+    let norm: f64 = quat.iter().map(|x| x.as_f64().unwrap_or(0.0).powi(2)).sum();
+    assert!((norm - 1.0).abs() < 1e-12);
+    assert_eq!(v["rotation"].as_array().map(Vec::len), Some(3));
+}
+
+#[test]
+fn jacobian_has_six_rows() {
+    let (ok, v) = run(&[
+        "jacobian", "sawyer", "0", "-1.18", "0", "2.18", "0", "0.57", "3.32", "--json",
+    ]);
+    assert!(ok);
+    let rows = v["jacobian"].as_array().expect("rows");
+    assert_eq!(rows.len(), 6);
+    assert!(rows.iter().all(|r| r.as_array().map(Vec::len) == Some(7)));
+}
+
+#[test]
+fn ik_succeeds_and_fails_with_json_and_exit_codes() {
+    let (ok, v) = run(&[
+        "ik",
+        "locobot",
+        "--position",
+        "0.35",
+        "0",
+        "0.15",
+        "--pitch",
+        "1.5708",
+        "--roll",
+        "0",
+        "--json",
+    ]);
+    assert!(ok, "{v}");
+    assert_eq!(v["success"], true);
+    let q: Vec<f64> = v["joints"]
+        .as_array()
+        .expect("joints")
+        .iter()
+        .map(|x| x.as_f64().unwrap_or(f64::NAN))
+        .collect();
+    let chain = RobotConfig::bundled("locobot")
+        .expect("cfg")
+        .arm_chain
+        .expect("arm");
+    let p = chain.fk(&q).translation;
+    assert!((p.x - 0.35).abs() < 1e-5 && p.y.abs() < 1e-5 && (p.z - 0.15).abs() < 1e-5);
+    let (ok, v) = run(&[
+        "ik",
+        "sawyer",
+        "--position",
+        "0.6",
+        "-0.1",
+        "0.4",
+        "--quaternion",
+        "0",
+        "1",
+        "0",
+        "0",
+        "--json",
+    ]);
+    assert!(ok && v["success"] == true, "{v}");
+    let (ok, v) = run(&[
+        "ik",
+        "locobot",
+        "--position",
+        "3",
+        "0",
+        "0",
+        "--rpy",
+        "0",
+        "0",
+        "0",
+        "--json",
+    ]);
+    assert!(!ok);
+    assert_eq!(v["success"], false);
+    assert!(
+        v["error"]
+            .as_str()
+            .is_some_and(|e| e.contains("unreachable")),
+        "{v}"
+    );
+    let (ok, v) = run(&["fk", "locobot", "1", "2", "--json"]);
+    assert!(
+        !ok && v["error"]
+            .as_str()
+            .is_some_and(|e| e.contains("expected 5")),
+        "{v}"
+    );
+}
