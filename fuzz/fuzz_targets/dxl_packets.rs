@@ -10,6 +10,25 @@ fuzz_target!(|data: &[u8]| {
     for &b in data {
         let _ = d.push(b);
     }
+    // The bulk path must agree with the byte path on every packet.
+    let mut by_byte = 0u32;
+    let mut d = PacketDecoder::<256>::new();
+    for &b in data {
+        if let Some(Ok(_)) = d.push(b) {
+            by_byte += 1;
+        }
+    }
+    let mut by_slice = 0u32;
+    let mut d = PacketDecoder::<256>::new();
+    let mut rest = data;
+    while !rest.is_empty() {
+        let (n, r) = d.push_slice(rest);
+        if let Some(Ok(_)) = r {
+            by_slice += 1;
+        }
+        rest = &rest[n.max(1).min(rest.len())..];
+    }
+    assert_eq!(by_byte, by_slice);
     let mut fw = Firmware::new(config::locobot(), "fuzz", 0);
     for (i, chunk) in data.chunks(23).enumerate() {
         let now = 250 * i as u64;

@@ -7,6 +7,8 @@ use std::time::Duration;
 
 use ferrobot_protocol::{HostMsg, Telemetry};
 
+use crate::base_control::{Limits, LqrTracker, Reference};
+use crate::config::BaseController;
 use crate::error::{check_finite, Error, Result};
 use crate::motion::{Goal, Motion};
 use crate::robot::Robot;
@@ -45,6 +47,7 @@ pub struct BaseGoal {
     next: Duration,
     max_v: f64,
     max_w: f64,
+    min_w: f64,
     tol_xy: f64,
     tol_th: f64,
 }
@@ -61,8 +64,9 @@ pub mod gains {
     pub const ACCEL_W: f64 = 2.0;
     /// Smallest forward speed while not yet within tolerance, m/s.
     pub const MIN_V: f64 = 0.02;
-    /// Smallest yaw rate while not yet within tolerance, rad/s.
-    pub const MIN_W: f64 = 0.08;
+    /// Smallest wheel speed while turning and not yet within tolerance, m/s: above the
+    /// deadband of the bases' wheel controllers (Kobuki 5 mm/s, Create 2 10 mm/s).
+    pub const MIN_WHEEL: f64 = 0.015;
 }
 
 impl BaseGoal {
@@ -102,7 +106,7 @@ impl BaseGoal {
                         continue;
                     }
                     let p = (gains::K_W * e).clamp(-self.max_w, self.max_w);
-                    w = p.signum() * p.abs().max(gains::MIN_W);
+                    w = p.signum() * p.abs().max(self.min_w);
                 }
                 Phase::Drive => {
                     let bearing = dy.atan2(dx);
@@ -133,7 +137,7 @@ impl BaseGoal {
                         return None;
                     }
                     let p = (gains::K_W * e).clamp(-self.max_w, self.max_w);
-                    w = p.signum() * p.abs().max(gains::MIN_W);
+                    w = p.signum() * p.abs().max(self.min_w);
                 }
             }
             break;
@@ -142,6 +146,68 @@ impl BaseGoal {
         self.v += (v - self.v).clamp(-gains::ACCEL_V * dt, gains::ACCEL_V * dt);
         self.w += (w - self.w).clamp(-gains::ACCEL_W * dt, gains::ACCEL_W * dt);
         Some((self.v, self.w))
+    }
+}
+
+/// How a position goal is reached.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct GoalOptions {
+    /// The controller; the configuration's default when `None`.
+    pub controller: Option<BaseController>,
+    /// LQR: a smooth (Bézier) reference instead of rotate-drive-rotate.
+    pub smooth: bool,
+    /// LQR: correct from odometry (true) or play the reference open loop.
+    pub close_loop: bool,
+}
+
+impl Default for GoalOptions {
+    fn default() -> Self {
+        GoalOptions {
+            controller: None,
+            smooth: false,
+            close_loop: true,
+        }
+    }
+}
+
+/// A reference being tracked: the LQR gains, the clock, and the rate limiter of the commands.
+#[derive(Debug, Clone)]
+pub struct Tracking {
+    tracker: LqrTracker,
+    closed_loop: bool,
+    start: Option<Duration>,
+    next: Duration,
+    last: (f64, f64),
+    limits: Limits,
+}
+
+impl Tracking {
+    /// `None` when finished; `Some(None)` to keep waiting; `Some(Some((v, w)))` to send.
+    pub(crate) fn step(&mut self, now: Duration, t: &Telemetry) -> Option<Option<(f64, f64)>> {
+        let start = *self.start.get_or_insert(now);
+        if now < self.next {
+            return Some(None);
+        }
+        let dt = self.tracker.reference.dt;
+        self.next = now + Duration::from_secs_f64(dt);
+        let k = ((now - start).as_secs_f64() / dt).floor() as usize;
+        if k >= self.tracker.reference.controls.len() {
+            return None;
+        }
+        let o = t.odometry;
+        let [v, w] = self.tracker.control(
+            k,
+            [o.x as f64, o.y as f64, o.theta as f64],
+            self.closed_loop,
+        );
+        // Limits hold on what is commanded: bound, then rate-limit.
+        let l = &self.limits;
+        let v = v.clamp(-l.v, l.v);
+        let w = w.clamp(-l.w, l.w);
+        let v = self.last.0 + (v - self.last.0).clamp(-l.accel_v * dt, l.accel_v * dt);
+        let w = self.last.1 + (w - self.last.1).clamp(-l.accel_w * dt, l.accel_w * dt);
+        self.last = (v, w);
+        Some(Some((v, w)))
     }
 }
 
@@ -229,7 +295,94 @@ impl<'r> Base<'r> {
         self.set_vel_async(v, w, duration)?.wait()
     }
 
-    /// Start moving to `[x, y, θ]` in the odometry frame.
+    /// Start tracking `reference` (states and controls every `reference.dt`) with LQR from
+    /// odometry, or open loop.
+    pub fn track_trajectory_async(
+        &mut self,
+        reference: Reference,
+        close_loop: bool,
+    ) -> Result<Motion<'_>> {
+        for (x, u) in reference.states.iter().zip(&reference.controls) {
+            check_finite("trajectory", x)?;
+            check_finite("trajectory", u)?;
+        }
+        if reference.dt.is_nan()
+            || reference.dt <= 0.0
+            || reference.states.len() != reference.controls.len() + 1
+        {
+            return Err(Error::NotFinite {
+                what: "trajectory (needs dt > 0 and one more state than controls)".into(),
+                value: reference.dt,
+            });
+        }
+        let s = self.section();
+        let limits = Limits {
+            v: Limits::TRACKING.v.min(s.max_linear),
+            w: Limits::TRACKING.w.min(s.max_angular),
+            ..Limits::TRACKING
+        };
+        self.robot.link.take_faults();
+        let duration = reference.dt * reference.controls.len() as f64;
+        let now = self.robot.link.now();
+        let tr = Tracking {
+            tracker: LqrTracker::new(reference, [3.0, 3.0, 4.0], 0.2),
+            closed_loop: close_loop,
+            start: None,
+            next: now,
+            last: (0.0, 0.0),
+            limits,
+        };
+        let timeout = Duration::from_secs_f64(duration + 5.0);
+        Ok(Motion::new(
+            self.robot,
+            Goal::Track(Box::new(tr)),
+            "trajectory tracking",
+            timeout,
+        ))
+    }
+
+    /// Track `reference` and wait (PyRobot's `track_trajectory`).
+    pub fn track_trajectory(&mut self, reference: Reference, close_loop: bool) -> Result<()> {
+        self.track_trajectory_async(reference, close_loop)?.wait()
+    }
+
+    /// Start moving to `[x, y, θ]` in the odometry frame with the chosen controller.
+    pub fn go_to_absolute_with(&mut self, goal: [f64; 3], opts: GoalOptions) -> Result<Motion<'_>> {
+        check_finite("base goal", &goal)?;
+        match opts.controller.unwrap_or(self.section().controller) {
+            BaseController::Proportional => self.go_to_absolute_async(goal),
+            BaseController::Lqr => {
+                let start = self.get_state()?;
+                let lim = Limits::TRACKING;
+                let r = if opts.smooth {
+                    Reference::smooth(start, goal, &lim, 0.1, 0.8)
+                } else {
+                    Reference::sharp(start, goal, &lim, 0.1)
+                };
+                // Hold the goal a little: the tracker settles while the reference rests.
+                self.track_trajectory_async(r.hold(10), opts.close_loop)
+            }
+        }
+    }
+
+    /// Start moving by `[x, y, θ]` relative to the current pose with the chosen controller.
+    pub fn go_to_relative_with(
+        &mut self,
+        delta: [f64; 3],
+        opts: GoalOptions,
+    ) -> Result<Motion<'_>> {
+        check_finite("base goal", &delta)?;
+        let [x, y, th] = self.get_state()?;
+        let (s, c) = th.sin_cos();
+        let goal = [
+            x + c * delta[0] - s * delta[1],
+            y + s * delta[0] + c * delta[1],
+            wrap(th + delta[2]),
+        ];
+        self.go_to_absolute_with(goal, opts)
+    }
+
+    /// Start moving to `[x, y, θ]` in the odometry frame (the proportional controller).
     pub fn go_to_absolute_async(&mut self, goal: [f64; 3]) -> Result<Motion<'_>> {
         check_finite("base goal", &goal)?;
         let s = self.section().clone();
@@ -249,6 +402,7 @@ impl<'r> Base<'r> {
             next: now,
             max_v: s.max_linear,
             max_w: s.max_angular,
+            min_w: gains::MIN_WHEEL / (0.5 * s.track),
             tol_xy: s.translation_tolerance,
             tol_th: s.rotation_tolerance,
         };

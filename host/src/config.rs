@@ -139,6 +139,8 @@ pub enum BaseModel {
 pub enum BaseController {
     /// Rotate, drive, rotate, with velocity ramps.
     Proportional,
+    /// Time-varying LQR tracking a reference (sharp or smooth) under the tracking limits.
+    Lqr,
 }
 
 /// `[base]`.

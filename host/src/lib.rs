@@ -19,6 +19,7 @@
 pub mod arm;
 pub mod backend;
 pub mod base;
+pub mod base_control;
 pub mod config;
 pub mod error;
 pub mod gripper;
@@ -29,6 +30,7 @@ pub mod robot;
 
 pub use arm::{MoveOptions, Orientation, Pose};
 pub use backend::Backend;
+pub use base::GoalOptions;
 pub use config::RobotConfig;
 pub use error::{Error, Result};
 pub use ferrobot_protocol::GripperState;

@@ -38,6 +38,8 @@ pub(crate) enum Goal {
     },
     /// A base position goal run by a host-side controller.
     Base(Box<BaseGoal>),
+    /// A base reference tracked by LQR (closed loop) or played open loop.
+    Track(Box<crate::base::Tracking>),
 }
 
 /// A motion under way.
@@ -119,7 +121,7 @@ impl<'r> Motion<'r> {
             Goal::Joints { idx, .. } => HostMsg::ClearQueue {
                 joints: idx.iter().fold(0, |m, &j| m | (1 << j)),
             },
-            Goal::BaseVelocity { .. } | Goal::Base(_) => HostMsg::BaseVelocity {
+            Goal::BaseVelocity { .. } | Goal::Base(_) | Goal::Track(_) => HostMsg::BaseVelocity {
                 v: 0.0,
                 w: 0.0,
                 duration_ms: 0,
@@ -134,7 +136,10 @@ impl<'r> Motion<'r> {
             Goal::Joints { idx, .. } => idx.clone(),
             _ => Vec::new(),
         };
-        let base = matches!(self.goal, Goal::BaseVelocity { .. } | Goal::Base(_));
+        let base = matches!(
+            self.goal,
+            Goal::BaseVelocity { .. } | Goal::Base(_) | Goal::Track(_)
+        );
         for f in self.robot.link.take_faults() {
             let hit = match f.kind {
                 FaultKind::Bumper
@@ -278,6 +283,43 @@ impl<'r> Motion<'r> {
                     }
                 }
                 None
+            }
+            Goal::Track(tr) => {
+                if timed_out {
+                    return Some(Err(Error::Timeout {
+                        what: self.what.clone(),
+                        after: self.timeout_len(),
+                    }));
+                }
+                match tr.step(now, &t) {
+                    None => {
+                        let _ = self.robot.link.command(
+                            &HostMsg::BaseVelocity {
+                                v: 0.0,
+                                w: 0.0,
+                                duration_ms: 0,
+                            },
+                            "stop",
+                        );
+                        Some(Ok(()))
+                    }
+                    Some(None) => None,
+                    Some(Some((v, w))) => {
+                        self.robot.base_log.push((now.as_secs_f64(), v, w));
+                        self.robot
+                            .link
+                            .command(
+                                &HostMsg::BaseVelocity {
+                                    v: v as f32,
+                                    w: w as f32,
+                                    duration_ms: 200,
+                                },
+                                "base velocity",
+                            )
+                            .err()
+                            .map(Err)
+                    }
+                }
             }
             Goal::Base(g) => {
                 if timed_out {

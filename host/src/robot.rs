@@ -167,6 +167,8 @@ pub struct Robot {
     pub(crate) locobot_ik: Option<LocobotIk>,
     pub(crate) chains: HashMap<String, Chain>,
     pub(crate) arm_joints: Vec<usize>,
+    /// Base commands sent by the trajectory tracker: (time s, v m/s, ω rad/s).
+    pub(crate) base_log: Vec<(f64, f64, f64)>,
 }
 
 impl Robot {
@@ -249,6 +251,7 @@ impl Robot {
             locobot_ik,
             chains: HashMap::new(),
             arm_joints,
+            base_log: Vec::new(),
         };
         robot.check_joint_table()?;
         Ok(robot)
@@ -381,6 +384,11 @@ impl Robot {
             DeviceMsg::Diagnostics(d) => Ok(d),
             _ => Err(Error::Link("unexpected reply".into())),
         }
+    }
+
+    /// The base commands the trajectory tracker has sent: (time s, v m/s, ω rad/s).
+    pub fn base_commands(&self) -> &[(f64, f64, f64)] {
+        &self.base_log
     }
 
     /// The newest telemetry.
