@@ -241,17 +241,19 @@ fn servo_faults_are_reported_to_the_host() {
     let mut bot = robot(&hil);
     // A servo that stops answering.
     assert_eq!(hil.plants("silent 4 on")["ok"], true);
-    let lost = eventually(Duration::from_secs(5), "ServoLost", || {
+    // Servo 4's loss specifically: on a loaded machine the plants process can be starved long
+    // enough for another servo to miss its deadlines too, which the firmware rightly reports.
+    let lost = eventually(Duration::from_secs(5), "ServoLost of servo 4", || {
         bot.take_faults()
             .into_iter()
-            .find(|f| f.kind == FaultKind::ServoLost)
+            .find(|f| f.kind == FaultKind::ServoLost && f.servo_id == Some(4))
     });
     assert_eq!(lost.servo_id, Some(4));
     assert_eq!(hil.plants("silent 4 off")["ok"], true);
-    eventually(Duration::from_secs(5), "ServoRecovered", || {
+    eventually(Duration::from_secs(5), "ServoRecovered of servo 4", || {
         bot.take_faults()
             .into_iter()
-            .find(|f| f.kind == FaultKind::ServoRecovered)
+            .find(|f| f.kind == FaultKind::ServoRecovered && f.servo_id == Some(4))
     });
     // An overloaded servo: joint_1 blocked at 0.1 rad and told to go to 0.6 rad.
     assert_eq!(hil.plants("block 1 0.1")["ok"], true);

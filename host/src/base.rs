@@ -7,7 +7,7 @@ use std::time::Duration;
 
 use ferrobot_protocol::{HostMsg, Telemetry};
 
-use crate::base_control::{Limits, LqrTracker, Reference};
+use crate::base_control::{ilqr, Circle, Dwa, Limits, LqrTracker, NavField, Reference};
 use crate::config::BaseController;
 use crate::error::{check_finite, Error, Result};
 use crate::motion::{Goal, Motion};
@@ -69,9 +69,21 @@ pub mod gains {
     pub const MIN_WHEEL: f64 = 0.015;
 }
 
+/// A host-side position controller run by a [`Motion`] every telemetry sample.
+pub(crate) trait BaseLaw: Send {
+    /// The next command `(v, ω)` (m/s, rad/s) from odometry at `now`, `Ok(None)` when the goal
+    /// is reached, or an error when it cannot be.
+    fn step(&mut self, now: Duration, t: &Telemetry) -> Result<Option<(f64, f64)>>;
+}
+
+impl BaseLaw for BaseGoal {
+    fn step(&mut self, now: Duration, t: &Telemetry) -> Result<Option<(f64, f64)>> {
+        Ok(self.step_inner(now, t))
+    }
+}
+
 impl BaseGoal {
-    /// The next command `(v, w)` from odometry at `now`, or `None` when the goal is reached.
-    pub(crate) fn step(&mut self, now: Duration, t: &Telemetry) -> Option<(f64, f64)> {
+    fn step_inner(&mut self, now: Duration, t: &Telemetry) -> Option<(f64, f64)> {
         if now < self.next {
             return Some((self.v, self.w));
         }
@@ -149,8 +161,79 @@ impl BaseGoal {
     }
 }
 
+/// A [`Dwa`] position goal: the window steers to the goal position among the obstacles, then
+/// the proportional controller turns to the goal heading.
+struct DwaGoal {
+    dwa: Dwa,
+    finish: BaseGoal,
+    reached: bool,
+    next: Duration,
+    last: (f64, f64),
+    /// Closest distance to the goal so far, m, and when it was last bettered by a centimetre.
+    progress: (f64, Duration),
+}
+
+/// How long the dynamic window may go without getting 1 cm closer to the goal before the goal
+/// is declared unreachable (a local minimum, or boxed in).
+const DWA_NO_PROGRESS: Duration = Duration::from_secs(8);
+
+/// Extra clearance (m) the global path keeps from obstacles beyond the footprint radius, so the
+/// window can follow it at speed and still be able to brake.
+const DWA_PATH_MARGIN: f64 = 0.1;
+
+/// Within this distance of the goal (m) the dynamic window hands over to the proportional
+/// controller, which drives the last stretch straight and turns to the goal heading. The
+/// stretch starts inside the footprint the robot will occupy at the goal (both footprint radii
+/// exceed it), which the caller's goal must leave free anyway.
+const DWA_HANDOVER: f64 = 0.1;
+
+impl BaseLaw for DwaGoal {
+    fn step(&mut self, now: Duration, t: &Telemetry) -> Result<Option<(f64, f64)>> {
+        if self.reached {
+            return Ok(self.finish.step_inner(now, t));
+        }
+        if now < self.next {
+            return Ok(Some(self.last));
+        }
+        self.next = now + Duration::from_secs_f64(self.dwa.dt);
+        let o = t.odometry;
+        let x = [o.x as f64, o.y as f64, o.theta as f64];
+        let dist = (self.dwa.goal[0] - x[0]).hypot(self.dwa.goal[1] - x[1]);
+        if dist < self.progress.0 - 0.01 {
+            self.progress = (dist, now);
+        } else if now.saturating_sub(self.progress.1) > DWA_NO_PROGRESS {
+            return Err(Error::Unreachable {
+                why: format!(
+                    "the dynamic window made no progress for {DWA_NO_PROGRESS:?}, {dist:.3} m from the goal"
+                ),
+            });
+        }
+        if dist < DWA_HANDOVER {
+            self.reached = true;
+            self.finish.next = now;
+            self.finish.v = self.last.0;
+            self.finish.w = self.last.1;
+            return Ok(self.finish.step_inner(now, t));
+        }
+        // The window is built around what was commanded (odometry velocity lags it).
+        let (v0, w0) = self.last;
+        match self.dwa.command(x, v0, w0) {
+            Some(u) => {
+                self.last = u;
+                Ok(Some(u))
+            }
+            None => Err(Error::Unreachable {
+                why: format!(
+                    "the dynamic window found no collision-free velocity at [{:.3}, {:.3}, {:.3}]",
+                    x[0], x[1], x[2]
+                ),
+            }),
+        }
+    }
+}
+
 /// How a position goal is reached.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct GoalOptions {
     /// The controller; the configuration's default when `None`.
     pub controller: Option<BaseController>,
@@ -158,6 +241,9 @@ pub struct GoalOptions {
     pub smooth: bool,
     /// LQR: correct from odometry (true) or play the reference open loop.
     pub close_loop: bool,
+    /// Circular obstacles `[x, y, r]` (m) in the odometry frame. With obstacles and no explicit
+    /// controller, the dynamic window approach is used.
+    pub obstacles: Vec<Circle>,
 }
 
 impl Default for GoalOptions {
@@ -166,6 +252,7 @@ impl Default for GoalOptions {
             controller: None,
             smooth: false,
             close_loop: true,
+            obstacles: Vec::new(),
         }
     }
 }
@@ -219,6 +306,34 @@ pub struct Base<'r> {
 impl<'r> Base<'r> {
     pub(crate) fn new(robot: &'r mut Robot) -> Self {
         Base { robot }
+    }
+
+    /// The tracking limits, capped by the configuration's speeds.
+    fn tracking_limits(&self) -> Limits {
+        let s = self.section();
+        Limits {
+            v: Limits::TRACKING.v.min(s.max_linear),
+            w: Limits::TRACKING.w.min(s.max_angular),
+            ..Limits::TRACKING
+        }
+    }
+
+    /// A proportional controller for `goal`, starting now.
+    fn proportional(&self, goal: [f64; 3]) -> BaseGoal {
+        let s = self.section();
+        BaseGoal {
+            goal,
+            phase: Phase::TurnToGoal,
+            backwards: false,
+            v: 0.0,
+            w: 0.0,
+            next: Duration::ZERO,
+            max_v: s.max_linear,
+            max_w: s.max_angular,
+            min_w: gains::MIN_WHEEL / (0.5 * s.track),
+            tol_xy: s.translation_tolerance,
+            tol_th: s.rotation_tolerance,
+        }
     }
 
     fn section(&self) -> &crate::config::BaseSection {
@@ -315,12 +430,7 @@ impl<'r> Base<'r> {
                 value: reference.dt,
             });
         }
-        let s = self.section();
-        let limits = Limits {
-            v: Limits::TRACKING.v.min(s.max_linear),
-            w: Limits::TRACKING.w.min(s.max_angular),
-            ..Limits::TRACKING
-        };
+        let limits = self.tracking_limits();
         self.robot.link.take_faults();
         let duration = reference.dt * reference.controls.len() as f64;
         let now = self.robot.link.now();
@@ -349,18 +459,83 @@ impl<'r> Base<'r> {
     /// Start moving to `[x, y, θ]` in the odometry frame with the chosen controller.
     pub fn go_to_absolute_with(&mut self, goal: [f64; 3], opts: GoalOptions) -> Result<Motion<'_>> {
         check_finite("base goal", &goal)?;
-        match opts.controller.unwrap_or(self.section().controller) {
+        for o in &opts.obstacles {
+            check_finite("obstacle", o)?;
+        }
+        let controller = opts.controller.unwrap_or(if opts.obstacles.is_empty() {
+            self.section().controller
+        } else {
+            BaseController::Dwa
+        });
+        let lim = self.tracking_limits();
+        match controller {
             BaseController::Proportional => self.go_to_absolute_async(goal),
-            BaseController::Lqr => {
+            BaseController::Lqr | BaseController::Ilqr => {
                 let start = self.get_state()?;
-                let lim = Limits::TRACKING;
-                let r = if opts.smooth {
+                let mut r = if opts.smooth {
                     Reference::smooth(start, goal, &lim, 0.1, 0.8)
                 } else {
                     Reference::sharp(start, goal, &lim, 0.1)
                 };
+                if controller == BaseController::Ilqr {
+                    r = ilqr(start, &r, [3.0, 3.0, 4.0], 0.2, &lim).reference;
+                }
                 // Hold the goal a little: the tracker settles while the reference rests.
                 self.track_trajectory_async(r.hold(10), opts.close_loop)
+            }
+            BaseController::Dwa => {
+                let here = self.get_state()?;
+                let radius = self.section().footprint_radius;
+                if let Some(o) = opts
+                    .obstacles
+                    .iter()
+                    .find(|o| (goal[0] - o[0]).hypot(goal[1] - o[1]) < o[2] + radius)
+                {
+                    return Err(Error::Unreachable {
+                        why: format!(
+                            "the base ({radius} m footprint radius) at the goal would overlap the obstacle {o:?}"
+                        ),
+                    });
+                }
+                let nav = NavField::new(
+                    [here[0], here[1]],
+                    [goal[0], goal[1]],
+                    &opts.obstacles,
+                    radius + DWA_PATH_MARGIN,
+                );
+                let dwa = Dwa {
+                    path: nav.path([here[0], here[1]]),
+                    nav,
+                    goal: [goal[0], goal[1]],
+                    obstacles: opts.obstacles,
+                    radius,
+                    limits: lim,
+                    dt: 0.1,
+                    horizon: 2.0,
+                };
+                let dist = (goal[0] - here[0]).hypot(goal[1] - here[1]);
+                // Room for a detour of half the distance again, at half speed.
+                let timeout = Duration::from_secs_f64(15.0 + 3.0 * dist / lim.v);
+                // The last stretch stays within the window's (tracking) limits too.
+                let mut finish = self.proportional(goal);
+                finish.max_v = lim.v;
+                finish.max_w = lim.w;
+                self.robot.link.take_faults();
+                let now = self.robot.link.now();
+                let g = DwaGoal {
+                    dwa,
+                    finish,
+                    reached: false,
+                    next: now,
+                    last: (0.0, 0.0),
+                    progress: (f64::INFINITY, now),
+                };
+                Ok(Motion::new(
+                    self.robot,
+                    Goal::Base(Box::new(g)),
+                    "base position goal (DWA)",
+                    timeout,
+                ))
             }
         }
     }
@@ -393,19 +568,8 @@ impl<'r> Base<'r> {
         let turn = std::f64::consts::TAU;
         let timeout =
             Duration::from_secs_f64(10.0 + 3.0 * (dist / s.max_linear + turn / s.max_angular));
-        let g = BaseGoal {
-            goal,
-            phase: Phase::TurnToGoal,
-            backwards: false,
-            v: 0.0,
-            w: 0.0,
-            next: now,
-            max_v: s.max_linear,
-            max_w: s.max_angular,
-            min_w: gains::MIN_WHEEL / (0.5 * s.track),
-            tol_xy: s.translation_tolerance,
-            tol_th: s.rotation_tolerance,
-        };
+        let mut g = self.proportional(goal);
+        g.next = now;
         Ok(Motion::new(
             self.robot,
             Goal::Base(Box::new(g)),

@@ -141,6 +141,11 @@ pub enum BaseController {
     Proportional,
     /// Time-varying LQR tracking a reference (sharp or smooth) under the tracking limits.
     Lqr,
+    /// Iterative LQR: the reference made dynamically consistent and optimal, then tracked.
+    Ilqr,
+    /// Dynamic window approach: velocity sampling under acceleration limits, scored on
+    /// obstacle clearance, progress to the goal and heading (used when obstacles are given).
+    Dwa,
 }
 
 /// `[base]`.
@@ -153,6 +158,8 @@ pub struct BaseSection {
     pub wheel_radius: f64,
     /// Nominal wheel separation, m.
     pub track: f64,
+    /// Radius of the base's footprint, m (obstacle clearance of the dynamic window).
+    pub footprint_radius: f64,
     /// Largest forward speed of position controllers, m/s.
     pub max_linear: f64,
     /// Largest yaw rate of position controllers, rad/s.
@@ -562,12 +569,16 @@ impl RobotConfig {
             }
         }
         if let Some(b) = &raw.base {
-            if !(b.wheel_radius > 0.0 && b.track > 0.0 && b.max_linear > 0.0 && b.max_angular > 0.0)
+            if !(b.wheel_radius > 0.0
+                && b.track > 0.0
+                && b.footprint_radius > 0.0
+                && b.max_linear > 0.0
+                && b.max_angular > 0.0)
             {
                 return Err(cfg_err(
                     file,
                     "base",
-                    "wheel_radius, track, max_linear and max_angular must be positive",
+                    "wheel_radius, track, footprint_radius, max_linear and max_angular must be positive",
                 ));
             }
         }

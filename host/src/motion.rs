@@ -5,7 +5,7 @@ use std::time::Duration;
 
 use ferrobot_protocol::{FaultKind, GripperState, HostMsg};
 
-use crate::base::BaseGoal;
+use crate::base::BaseLaw;
 use crate::error::{Error, Result};
 use crate::robot::Robot;
 
@@ -37,7 +37,7 @@ pub(crate) enum Goal {
         next_send: Duration,
     },
     /// A base position goal run by a host-side controller.
-    Base(Box<BaseGoal>),
+    Base(Box<dyn BaseLaw>),
     /// A base reference tracked by LQR (closed loop) or played open loop.
     Track(Box<crate::base::Tracking>),
 }
@@ -329,20 +329,25 @@ impl<'r> Motion<'r> {
                     }));
                 }
                 match g.step(now, &t) {
-                    None => Some(Ok(())),
-                    Some((v, w)) => self
-                        .robot
-                        .link
-                        .command(
-                            &HostMsg::BaseVelocity {
-                                v: v as f32,
-                                w: w as f32,
-                                duration_ms: 250,
-                            },
-                            "base velocity",
-                        )
-                        .err()
-                        .map(Err),
+                    Err(e) => Some(Err(e)),
+                    Ok(None) => Some(Ok(())),
+                    Ok(Some((v, w))) => {
+                        if self.robot.base_log.last().map(|l| (l.1, l.2)) != Some((v, w)) {
+                            self.robot.base_log.push((now.as_secs_f64(), v, w));
+                        }
+                        self.robot
+                            .link
+                            .command(
+                                &HostMsg::BaseVelocity {
+                                    v: v as f32,
+                                    w: w as f32,
+                                    duration_ms: 250,
+                                },
+                                "base velocity",
+                            )
+                            .err()
+                            .map(Err)
+                    }
                 }
             }
         }

@@ -2,6 +2,7 @@
 //! and 2° of odometry, circle tracking ends within 5 cm of the reference, the commanded stream
 //! respects the limits, and a bumper hit mid-motion stops the base with an error.
 
+use ferrobot::base::{gains, BASE_CONTROL_PERIOD};
 use ferrobot::base_control::{wrap, Limits, Reference};
 use ferrobot::config::BaseController;
 use ferrobot::{Error, GoalOptions, Robot};
@@ -21,6 +22,7 @@ fn reaches(robot: &str, controller: BaseController, smooth: bool) {
             controller: Some(controller),
             smooth,
             close_loop: true,
+            obstacles: vec![],
         };
         bot.base()
             .expect("base")
@@ -35,17 +37,40 @@ fn reaches(robot: &str, controller: BaseController, smooth: bool) {
             pos < 0.02 && rot < 2f64.to_radians(),
             "{robot} {controller:?} smooth={smooth} {target:?}: odometry {s:?}"
         );
+        // Every command changes by at most one control period's acceleration: the
+        // proportional controller runs at 20 Hz within the configured speeds and its own
+        // accelerations; the others at 10 Hz within the tracking limits.
         let cmds = bot.base_commands();
-        let lim = Limits::TRACKING;
+        assert!(
+            cmds.len() > 10,
+            "{robot} {controller:?}: {} commands",
+            cmds.len()
+        );
+        let (lim, dt) = match controller {
+            BaseController::Proportional => {
+                let cfg = &bot.config().base.as_ref().expect("base config");
+                (
+                    Limits {
+                        v: cfg.max_linear,
+                        w: cfg.max_angular,
+                        accel_v: gains::ACCEL_V,
+                        accel_w: gains::ACCEL_W,
+                    },
+                    BASE_CONTROL_PERIOD.as_secs_f64(),
+                )
+            }
+            _ => (Limits::TRACKING, 0.1),
+        };
         let mut prev = (0.0, 0.0);
-        for &(_, v, w) in cmds {
+        for &(t, v, w) in cmds {
             assert!(
                 v.abs() <= lim.v + 1e-9 && w.abs() <= lim.w + 1e-9,
-                "{v} {w}"
+                "{robot} {controller:?} at {t} s: {v} {w}"
             );
             assert!(
-                (v - prev.0).abs() <= lim.accel_v * 0.1 + 1e-9
-                    && (w - prev.1).abs() <= lim.accel_w * 0.1 + 1e-9
+                (v - prev.0).abs() <= lim.accel_v * dt + 1e-9
+                    && (w - prev.1).abs() <= lim.accel_w * dt + 1e-9,
+                "{robot} {controller:?} at {t} s: {v} {w} after {prev:?}"
             );
             prev = (v, w);
         }
@@ -68,6 +93,103 @@ fn lqr_reaches_the_targets_on_the_create2() {
 fn proportional_reaches_the_targets_on_both_bases() {
     reaches("locobot", BaseController::Proportional, false);
     reaches("locobot_lite", BaseController::Proportional, false);
+}
+
+#[test]
+fn ilqr_reaches_the_targets_on_both_bases() {
+    reaches("locobot", BaseController::Ilqr, false);
+    reaches("locobot_lite", BaseController::Ilqr, true);
+}
+
+#[test]
+fn dwa_reaches_the_targets_on_both_bases() {
+    reaches("locobot", BaseController::Dwa, false);
+    reaches("locobot_lite", BaseController::Dwa, false);
+}
+
+/// A 0.1 m-radius post on the straight line to a goal 2 m ahead: LQR drives into it (see the
+/// bumper test below); the dynamic window, told about it, goes around it without touching it
+/// (the simulated bumper would abort the motion) and still ends within 2 cm and 2°.
+#[test]
+fn dwa_goes_around_an_obstacle_on_both_bases() {
+    for robot in ["locobot", "locobot_lite"] {
+        let mut bot = Robot::builder(robot).use_arm(false).build().expect("robot");
+        bot.simulator()
+            .expect("sim")
+            .base
+            .as_mut()
+            .expect("base")
+            .drive
+            .obstacles
+            .push(ferrobot_sim::diff_drive::Obstacle {
+                x: 1.0,
+                y: 0.0,
+                r: 0.1,
+            });
+        let opts = GoalOptions {
+            obstacles: vec![[1.0, 0.0, 0.1]],
+            ..GoalOptions::default()
+        };
+        bot.base()
+            .expect("base")
+            .go_to_absolute_with([2.0, 0.0, 0.0], opts)
+            .expect("starts")
+            .wait()
+            .unwrap_or_else(|e| panic!("{robot}: {e}"));
+        let s = bot.base().expect("base").get_state().expect("odometry");
+        assert!(
+            (s[0] - 2.0).hypot(s[1]) < 0.02 && wrap(s[2]).abs() < 2f64.to_radians(),
+            "{robot}: odometry {s:?}"
+        );
+    }
+}
+
+/// Boxed in by obstacles on every side, the dynamic window refuses with a typed error.
+#[test]
+fn dwa_boxed_in_is_unreachable() {
+    let mut bot = Robot::builder("locobot")
+        .use_arm(false)
+        .build()
+        .expect("robot");
+    let ring: Vec<[f64; 3]> = (0..12)
+        .map(|k| {
+            let a = k as f64 * std::f64::consts::TAU / 12.0;
+            [0.3 * a.cos(), 0.3 * a.sin(), 0.1]
+        })
+        .collect();
+    let opts = GoalOptions {
+        obstacles: ring,
+        ..GoalOptions::default()
+    };
+    let e = bot
+        .base()
+        .expect("base")
+        .go_to_absolute_with([2.0, 0.0, 0.0], opts)
+        .expect("starts")
+        .wait()
+        .expect_err("boxed in");
+    assert!(matches!(e, Error::Unreachable { .. }), "{e}");
+}
+
+/// A goal on top of an obstacle is refused before anything moves.
+#[test]
+fn dwa_refuses_a_goal_inside_an_obstacle() {
+    let mut bot = Robot::builder("locobot")
+        .use_arm(false)
+        .build()
+        .expect("robot");
+    let opts = GoalOptions {
+        obstacles: vec![[1.0, 0.0, 0.1]],
+        ..GoalOptions::default()
+    };
+    let e = bot
+        .base()
+        .expect("base")
+        .go_to_absolute_with([1.1, 0.1, 0.0], opts)
+        .err()
+        .expect("refused");
+    assert!(matches!(e, Error::Unreachable { .. }), "{e}");
+    assert!(bot.base_commands().is_empty());
 }
 
 #[test]
@@ -108,6 +230,7 @@ fn a_bumper_hit_stops_lqr_tracking_with_an_error() {
         controller: Some(BaseController::Lqr),
         smooth: false,
         close_loop: true,
+        obstacles: vec![],
     };
     let e = bot
         .base()
