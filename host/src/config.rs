@@ -148,6 +148,40 @@ pub enum BaseController {
     Dwa,
 }
 
+impl BaseController {
+    /// Every controller, in the benchmark's order.
+    pub const ALL: [BaseController; 4] = [
+        BaseController::Proportional,
+        BaseController::Lqr,
+        BaseController::Ilqr,
+        BaseController::Dwa,
+    ];
+
+    /// The configuration and command-line name.
+    pub fn name(self) -> &'static str {
+        match self {
+            BaseController::Proportional => "proportional",
+            BaseController::Lqr => "lqr",
+            BaseController::Ilqr => "ilqr",
+            BaseController::Dwa => "dwa",
+        }
+    }
+}
+
+impl std::str::FromStr for BaseController {
+    type Err = crate::Error;
+
+    fn from_str(s: &str) -> crate::Result<Self> {
+        BaseController::ALL
+            .into_iter()
+            .find(|c| c.name() == s)
+            .ok_or_else(|| crate::Error::UnknownName {
+                what: "base controller",
+                name: s.to_string(),
+            })
+    }
+}
+
 /// `[base]`.
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]

@@ -20,12 +20,14 @@ pub mod arm;
 pub mod backend;
 pub mod base;
 pub mod base_control;
+pub mod bench_base;
 pub mod config;
 pub mod error;
 pub mod gripper;
 pub mod kinematics;
 pub mod motion;
 pub mod pan_tilt;
+pub mod plot;
 pub mod robot;
 
 pub use arm::{MoveOptions, Orientation, Pose};

@@ -138,3 +138,90 @@ fn ik_succeeds_and_fails_with_json_and_exit_codes() {
         "{v}"
     );
 }
+
+/// `base-move --json`: the documented shape, the odometry within 2 cm and 2° of the target,
+/// ground truth within 5 cm of the odometry; an unknown controller is a clear error.
+#[test]
+fn base_move_reports_target_odometry_and_ground_truth() {
+    let (ok, v) = run(&[
+        "base-move",
+        "locobot",
+        "--relative",
+        "1",
+        "-0.5",
+        "-1.25",
+        "--controller",
+        "lqr",
+        "--smooth",
+        "--json",
+    ]);
+    assert!(ok, "{v}");
+    assert_eq!(v["success"], true);
+    let f = |k: &str| -> Vec<f64> {
+        v[k].as_array()
+            .expect(k)
+            .iter()
+            .map(|x| x.as_f64().expect("number"))
+            .collect()
+    };
+    let (t, o, g) = (f("target"), f("odometry"), f("ground_truth"));
+    assert_eq!(t, vec![1.0, -0.5, -1.25]);
+    assert!((o[0] - t[0]).hypot(o[1] - t[1]) < 0.02, "{v}");
+    assert!((o[2] - t[2]).abs() < 2f64.to_radians(), "{v}");
+    assert!((g[0] - o[0]).hypot(g[1] - o[1]) < 0.05, "{v}");
+    let (ok, v) = run(&[
+        "base-move",
+        "locobot",
+        "--relative",
+        "1",
+        "0",
+        "0",
+        "--controller",
+        "pid",
+        "--json",
+    ]);
+    assert!(!ok);
+    assert_eq!(v["success"], false);
+    assert!(
+        v["error"]
+            .as_str()
+            .is_some_and(|e| e.contains("base controller")),
+        "{v}"
+    );
+}
+
+/// `bench base --json` with one trial per target: every controller × category × reference
+/// row, finite statistics, every trial succeeded, and a PNG plot written.
+#[test]
+fn bench_base_json_rows() {
+    let dir = std::env::temp_dir().join(format!("ferrobot-bench-{}", std::process::id()));
+    let (ok, v) = run(&[
+        "bench",
+        "base",
+        "--robot",
+        "locobot",
+        "--trials",
+        "1",
+        "--json",
+        "--plot-dir",
+        dir.to_str().expect("utf-8"),
+    ]);
+    assert!(ok, "{v}");
+    assert_eq!(v["robot"], "locobot");
+    let rows = v["rows"].as_array().expect("rows");
+    assert_eq!(rows.len(), 4 * 3 * 2);
+    for r in rows {
+        for k in ["translation_mm", "rotation_deg"] {
+            let ms = r[k].as_array().expect(k);
+            assert_eq!(ms.len(), 2);
+            assert!(
+                ms.iter().all(|x| x.as_f64().is_some_and(f64::is_finite)),
+                "{r}"
+            );
+        }
+        assert_eq!(r["successes"], serde_json::json!([2, 2]), "{r}");
+    }
+    let png = std::fs::read(dir.join("circle_locobot.png")).expect("plot");
+    assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
+    let _ = std::fs::remove_dir_all(&dir);
+}

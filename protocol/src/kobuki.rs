@@ -13,6 +13,14 @@ pub const CMD_BASE_CONTROL: u8 = 0x01;
 pub const FB_BASIC_SENSOR_DATA: u8 = 0x01;
 /// Feedback sub-payload: inertial sensor (7 bytes).
 pub const FB_INERTIA: u8 = 0x04;
+/// The heading of an inertial sub-payload ([`FB_INERTIA`]): the gyro's integrated angle,
+/// rad, counter-clockwise, from its little-endian signed hundredths of a degree; `None` when
+/// the sub-payload is short.
+pub fn inertial_angle(data: &[u8]) -> Option<f32> {
+    let b: [u8; 2] = data.get(..2)?.try_into().ok()?;
+    Some((i16::from_le_bytes(b) as f32 * 0.01).to_radians())
+}
+
 /// Encoder ticks per wheel revolution (0.002436917 rad per tick).
 pub const TICKS_PER_REV: f32 = 2578.33;
 

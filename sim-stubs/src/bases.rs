@@ -58,12 +58,13 @@ pub struct BasePlant {
 }
 
 /// The Kobuki of the LoCoBot: nominal radius 0.035 m and track 0.230 m; the true wheels are
-/// 0.2 % and 0.3 % larger and the track 0.5 % wider; wheel controller lag 40 ms, 1.5 m/s²
+/// 0.8 % and 0.9 % larger (worn tyres and load; this makes the 2 m odometry gap about the
+/// 15 mm PyRobot reports) and the track 0.5 % wider; wheel controller lag 40 ms, 1.5 m/s²
 /// acceleration limit, 5 mm/s deadband, slip noise 0.2 %.
 pub fn kobuki_params() -> DiffDriveParams {
     DiffDriveParams {
-        left_radius: 0.035 * 1.002,
-        right_radius: 0.035 * 1.003,
+        left_radius: 0.035 * 1.008,
+        right_radius: 0.035 * 1.009,
         track: 0.230 * 1.005,
         ticks_per_rev: kobuki::TICKS_PER_REV as f64,
         lag: 0.04,

@@ -74,6 +74,8 @@ pub struct DiffDrive {
     pub obstacles: Vec<Obstacle>,
     /// Current contact.
     pub contact: Contact,
+    /// When `Some`, ground truth after every step is appended (for path plots).
+    pub trace: Option<Vec<Pose>>,
     rng: SimRng,
 }
 
@@ -98,6 +100,7 @@ impl DiffDrive {
             ticks: (0.0, 0.0),
             obstacles: Vec::new(),
             contact: Contact::default(),
+            trace: None,
             rng,
         }
     }
@@ -199,6 +202,9 @@ impl DiffDrive {
             self.truth = [x, y, nth];
         } else {
             self.truth = [nx, ny, nth];
+        }
+        if let Some(t) = &mut self.trace {
+            t.push(self.truth);
         }
     }
 }

@@ -59,6 +59,8 @@ pub struct BaseDriver {
     sent: Option<(f32, f32)>,
     next_send: u64,
     last_enc: Option<(i32, i32)>,
+    /// The previous gyro heading, rad (Kobuki).
+    last_gyro: Option<f32>,
     last_rx: Option<u64>,
     /// Whether feedback is missing.
     pub lost: bool,
@@ -90,6 +92,7 @@ impl BaseDriver {
             sent: None,
             next_send: 0,
             last_enc: None,
+            last_gyro: None,
             last_rx: None,
             lost: false,
             tx: TxBuf::new(),
@@ -256,10 +259,11 @@ impl BaseDriver {
     /// Bytes from the base.
     pub fn on_bytes(&mut self, now: u64, bytes: &[u8]) {
         for &b in bytes {
-            let fb: Option<(i32, i32, u16, bool)> = match &mut self.proto {
+            let fb: Option<(i32, i32, u16, Option<f32>)> = match &mut self.proto {
                 Proto::Kobuki(p) => match p.push(b) {
                     Some(Ok(payload)) => {
                         let mut out = None;
+                        let mut gyro = None;
                         for (id, data) in kobuki::sub_payloads(payload) {
                             if id == kobuki::FB_BASIC_SENSOR_DATA {
                                 if let Some(d) = kobuki::BasicSensorData::from_bytes(data) {
@@ -267,12 +271,13 @@ impl BaseDriver {
                                         d.left_encoder as i32,
                                         d.right_encoder as i32,
                                         kobuki_flags(&d),
-                                        true,
                                     ));
                                 }
+                            } else if id == kobuki::FB_INERTIA {
+                                gyro = kobuki::inertial_angle(data);
                             }
                         }
-                        out
+                        out.map(|(l, r, f)| (l, r, f, gyro))
                     }
                     Some(Err(_)) => {
                         self.stats.bad_packets += 1;
@@ -285,7 +290,7 @@ impl BaseDriver {
                         s.left_encoder as u16 as i32,
                         s.right_encoder as u16 as i32,
                         create2_flags(&s),
-                        true,
+                        None,
                     )),
                     Some(Err(_)) => {
                         self.stats.bad_packets += 1;
@@ -295,13 +300,16 @@ impl BaseDriver {
                 },
                 Proto::None => None,
             };
-            if let Some((l, r, flags, _)) = fb {
-                self.on_feedback(now, l, r, flags);
+            if let Some((l, r, flags, gyro)) = fb {
+                self.on_feedback(now, l, r, flags, gyro);
             }
         }
     }
 
-    fn on_feedback(&mut self, now: u64, left: i32, right: i32, flags: u16) {
+    /// One feedback sample: encoder counts, safety flags, and the gyro heading (rad) when the
+    /// base has one. With a gyro, the heading change comes from it (gyro-aided odometry):
+    /// wheel-radius and track errors and wheel slip then no longer turn the estimate.
+    fn on_feedback(&mut self, now: u64, left: i32, right: i32, flags: u16, gyro: Option<f32>) {
         self.stats.packets += 1;
         let dt = self
             .last_rx
@@ -325,9 +333,16 @@ impl BaseDriver {
                 self.wheels.right_rate = ar / dt;
             }
             let rw = self.cfg.wheel_radius;
-            self.odom.update(al * rw, ar * rw, self.cfg.track, dt);
+            match (gyro, self.last_gyro) {
+                (Some(g), Some(g0)) => {
+                    let dth = odometry::wrap_angle(g - g0);
+                    self.odom.update_with_heading(al * rw, ar * rw, dth, dt)
+                }
+                _ => self.odom.update(al * rw, ar * rw, self.cfg.track, dt),
+            }
         }
         self.last_enc = Some((left, right));
+        self.last_gyro = gyro;
         let rising = flags & !self.flags;
         self.flags = flags;
         if rising != 0 {

@@ -32,8 +32,13 @@ impl OdometryIntegrator {
     /// (m). The chassis moves on the circular arc the two wheel travels define (a straight line
     /// when they are equal), so the result is exact for constant wheel speeds over the step.
     pub fn update(&mut self, dl: f32, dr: f32, track: f32, dt: f32) {
+        self.update_with_heading(dl, dr, (dr - dl) / track, dt);
+    }
+
+    /// Advance by left and right wheel travel (m) with the heading change `dth` (rad) measured
+    /// independently (a gyro), which wheel-radius and track errors and slip do not bias.
+    pub fn update_with_heading(&mut self, dl: f32, dr: f32, dth: f32, dt: f32) {
         let ds = 0.5 * (dl + dr);
-        let dth = (dr - dl) / track;
         let p = &mut self.pose;
         if dth.abs() < 1e-6 {
             let mid = p.theta + 0.5 * dth;
@@ -56,6 +61,29 @@ impl OdometryIntegrator {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// With a gyro, unequal wheels do not turn the estimate: 1 m of travel whose right wheel
+    /// read 1 % more stays straight when the gyro says the heading did not change.
+    #[test]
+    fn the_gyro_heading_overrides_the_wheels() {
+        let mut wheels = OdometryIntegrator::default();
+        let mut gyro = OdometryIntegrator::default();
+        for _ in 0..100 {
+            wheels.update(0.00995, 0.01005, 0.23, 0.01);
+            gyro.update_with_heading(0.00995, 0.01005, 0.0, 0.01);
+        }
+        assert!(
+            (wheels.pose.theta - 0.01 / 0.23).abs() < 1e-4,
+            "{:?}",
+            wheels.pose
+        );
+        assert!(
+            gyro.pose.theta.abs() < 1e-7 && gyro.pose.y.abs() < 1e-7,
+            "{:?}",
+            gyro.pose
+        );
+        assert!((gyro.pose.x - 1.0).abs() < 1e-4, "{:?}", gyro.pose);
+    }
 
     #[test]
     fn quarter_circle_is_exact() {

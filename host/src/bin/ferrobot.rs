@@ -8,15 +8,18 @@
 //! ferrobot ik locobot --position 0.35 0 0.15 --pitch 1.5708 --roll 0
 //! ferrobot ik sawyer --position 0.6 0.1 0.4 --quaternion 0 1 0 0 --seed 0 -1 0 2 0 0.5 3
 //! ferrobot demo
+//! ferrobot base-move locobot --relative 1 1 1.5708 --controller lqr --smooth --json
+//! ferrobot bench base --robot locobot --trials 5 --seed 1
 //! ```
 
 use std::process::ExitCode;
 
 use clap::{Args, Parser, Subcommand};
+use ferrobot::config::BaseController;
 use ferrobot::kinematics::ik::{IkOptions, IkSolver, NumericalIk};
 use ferrobot::kinematics::locobot_ik::LocobotIk;
 use ferrobot::kinematics::Chain;
-use ferrobot::{config::IkKind, Orientation, Pose, Robot, RobotConfig};
+use ferrobot::{config::IkKind, GoalOptions, Orientation, Pose, Robot, RobotConfig};
 use nalgebra::{Isometry3, Translation3, Vector3};
 use serde_json::json;
 
@@ -88,11 +91,62 @@ enum Cmd {
         #[arg(long, default_value_t = 1)]
         seed: u64,
     },
+    /// One base motion on the simulated robot, from rest at the origin.
+    BaseMove {
+        /// Robot name or configuration path.
+        robot: String,
+        /// Relative target X Y THETA (m, m, rad) in the start pose's frame.
+        #[arg(long, num_args = 3, allow_negative_numbers = true, required = true, value_names = ["X", "Y", "THETA"])]
+        relative: Vec<f64>,
+        /// proportional, lqr, ilqr or dwa (default: the configuration's).
+        #[arg(long)]
+        controller: Option<String>,
+        /// LQR/ILQR: a smooth (Bézier) reference.
+        #[arg(long)]
+        smooth: bool,
+        /// LQR/ILQR: play the reference open loop.
+        #[arg(long)]
+        open_loop: bool,
+        /// Seed of the plants' noise.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Print one JSON object.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Benchmarks.
+    Bench {
+        #[command(subcommand)]
+        which: BenchCmd,
+    },
     /// Run the quickstart on the simulated LoCoBot.
     Demo {
         /// Robot (default locobot).
         #[arg(long, default_value = "locobot")]
         robot: String,
+    },
+}
+
+#[derive(Subcommand)]
+enum BenchCmd {
+    /// PyRobot's base accuracy trials (Table 1) for every controller, against ground truth
+    /// and odometry, plus the circle-tracking plot per base.
+    Base {
+        /// Robots (repeatable; default locobot and locobot_lite).
+        #[arg(long)]
+        robot: Vec<String>,
+        /// Trials per target (the paper: 5).
+        #[arg(long, default_value_t = 5)]
+        trials: usize,
+        /// Seed of trial k is SEED + k (the same for every controller).
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Print one JSON object per robot, one per line, instead of Markdown.
+        #[arg(long)]
+        json: bool,
+        /// Where the circle plots go.
+        #[arg(long, default_value = "target/bench-base")]
+        plot_dir: std::path::PathBuf,
     },
 }
 
@@ -318,6 +372,34 @@ fn run(cli: Cli) -> Result<(), (ferrobot::Error, bool)> {
             }
         }
         Cmd::Demo { robot } => demo(&robot).map_err(|e| (e, false))?,
+        Cmd::BaseMove {
+            robot,
+            relative,
+            controller,
+            smooth,
+            open_loop,
+            seed,
+            json,
+        } => base_move(
+            &robot,
+            [relative[0], relative[1], relative[2]],
+            controller.as_deref(),
+            smooth,
+            open_loop,
+            seed,
+            json,
+        )
+        .map_err(|e| (e, json))?,
+        Cmd::Bench {
+            which:
+                BenchCmd::Base {
+                    robot,
+                    trials,
+                    seed,
+                    json,
+                    plot_dir,
+                },
+        } => bench_base(robot, trials, seed, json, &plot_dir).map_err(|e| (e, json))?,
         Cmd::SimFirmware { robot, link, seed } => {
             let cfg = load(&robot).map_err(|e| (e, true))?;
             let sim = ferrobot_sim::LockstepSim::with(
@@ -327,6 +409,167 @@ fn run(cli: Cli) -> Result<(), (ferrobot::Error, bool)> {
             );
             ferrobot_sim::serve::run_firmware_server(sim, &cfg.name, link)
                 .map_err(|e| (ferrobot::Error::Link(e.to_string()), true))?;
+        }
+    }
+    Ok(())
+}
+
+fn base_move(
+    robot: &str,
+    target: [f64; 3],
+    controller: Option<&str>,
+    smooth: bool,
+    open_loop: bool,
+    seed: u64,
+    json: bool,
+) -> ferrobot::Result<()> {
+    let controller = controller.map(str::parse::<BaseController>).transpose()?;
+    let mut bot = ferrobot::bench_base::base_robot(robot, seed)?;
+    let opts = GoalOptions {
+        controller,
+        smooth,
+        close_loop: !open_loop,
+        obstacles: Vec::new(),
+    };
+    let r = bot.base()?.go_to_relative_with(target, opts)?.wait();
+    let odometry = bot.base()?.get_state()?;
+    let truth = bot
+        .simulator()
+        .and_then(|s| s.base_truth())
+        .unwrap_or([f64::NAN; 3]);
+    if json {
+        let mut o = json!({
+            "success": r.is_ok(),
+            "target": target,
+            "odometry": odometry,
+            "ground_truth": truth,
+        });
+        if let Err(e) = &r {
+            o["error"] = json!(e.to_string());
+        }
+        println!("{o}");
+        return Ok(());
+    }
+    println!("target       {:?}", round(&target));
+    println!("odometry     {:?}", round(&odometry));
+    println!("ground truth {:?}", round(&truth));
+    r
+}
+
+fn bench_base(
+    robots: Vec<String>,
+    trials: usize,
+    seed: u64,
+    json: bool,
+    plot_dir: &std::path::Path,
+) -> ferrobot::Result<()> {
+    use ferrobot::bench_base::{self as bb, Category, CircleRun};
+    use ferrobot::plot::{Canvas, COLOURS};
+    let robots = if robots.is_empty() {
+        vec!["locobot".to_string(), "locobot_lite".to_string()]
+    } else {
+        robots
+    };
+    std::fs::create_dir_all(plot_dir)?;
+    for robot in robots {
+        // Every (controller, category, target, trial), run on all cores; each is seeded, so
+        // the order of execution does not change the results.
+        let mut jobs = Vec::new();
+        for c in BaseController::ALL {
+            for cat in Category::ALL {
+                for target in cat.targets() {
+                    for k in 0..trials {
+                        jobs.push((c, cat, target, seed + k as u64));
+                    }
+                }
+            }
+        }
+        let bar = indicatif::ProgressBar::new(jobs.len() as u64 + CircleRun::ALL.len() as u64);
+        bar.set_style(
+            indicatif::ProgressStyle::with_template("{msg:>14} [{bar:40}] {pos}/{len} {elapsed}")
+                .expect("template")
+                .progress_chars("=> "),
+        );
+        bar.set_message(robot.clone());
+        let next = std::sync::atomic::AtomicUsize::new(0);
+        let threads = std::thread::available_parallelism().map_or(2, |n| n.get());
+        let results: Vec<ferrobot::Result<bb::Trial>> = std::thread::scope(|s| {
+            let handles: Vec<_> = (0..threads)
+                .map(|_| {
+                    s.spawn(|| {
+                        let mut out = Vec::new();
+                        loop {
+                            let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                            let Some(&(c, cat, target, sd)) = jobs.get(i) else {
+                                break;
+                            };
+                            out.push((
+                                i,
+                                bb::run_trial(&robot, c, cat, target, GoalOptions::default(), sd),
+                            ));
+                            bar.inc(1);
+                        }
+                        out
+                    })
+                })
+                .collect();
+            let mut all: Vec<_> = handles
+                .into_iter()
+                .flat_map(|h| h.join().expect("trial thread"))
+                .collect();
+            all.sort_by_key(|(i, _)| *i);
+            all.into_iter().map(|(_, r)| r).collect()
+        });
+        let trials_done = results.into_iter().collect::<ferrobot::Result<Vec<_>>>()?;
+        let rows = bb::summarize(&trials_done);
+        // The circle comparison.
+        let mut canvas = Canvas::new(800, [0.0, 0.4], 1.2, 0.1);
+        let reference: Vec<[f64; 2]> = bb::paper_circle()
+            .states
+            .iter()
+            .map(|s| [s[0], s[1]])
+            .collect();
+        canvas.polyline(&reference, COLOURS[0].1, 3);
+        let mut legend = vec![format!("{}: reference circle (r = 0.4 m)", COLOURS[0].0)];
+        let mut ends = Vec::new();
+        for (k, run) in CircleRun::ALL.into_iter().enumerate() {
+            let (path, end) = bb::circle_path(&robot, run, seed)?;
+            canvas.polyline(&path, COLOURS[k + 1].1, 2);
+            legend.push(format!(
+                "{}: {} (ends {:.1} mm from the reference end)",
+                COLOURS[k + 1].0,
+                run.name(),
+                end * 1000.0
+            ));
+            ends.push((run.name(), end));
+            bar.inc(1);
+        }
+        canvas.key(
+            &COLOURS[..=CircleRun::ALL.len()]
+                .iter()
+                .map(|c| c.1)
+                .collect::<Vec<_>>(),
+        );
+        let png = plot_dir.join(format!("circle_{robot}.png"));
+        canvas.save(&png)?;
+        bar.finish_and_clear();
+        if json {
+            let mut o = bb::json(&robot, &rows);
+            o["circle_plot"] = json!(png.display().to_string());
+            o["circle_end_error_m"] = json!(ends
+                .iter()
+                .map(|(n, e)| json!({"run": n, "error": e}))
+                .collect::<Vec<_>>());
+            o["seed"] = json!(seed);
+            o["trials_per_target"] = json!(trials);
+            println!("{o}");
+        } else {
+            println!("{}", bb::markdown(&robot, trials, seed, &rows));
+            println!("Circle tracking, ground truth, in {}:", png.display());
+            for l in legend {
+                println!("- {l}");
+            }
+            println!();
         }
     }
     Ok(())

@@ -1,0 +1,297 @@
+//! The base accuracy benchmark of PyRobot's Table 1 on the simulated bases: each controller
+//! drives to the paper's relative targets; errors are measured against the simulator's ground
+//! truth (the paper's motion capture) and against odometry (the controller's own view).
+//! Translation errors are in mm, rotation errors in degrees.
+
+use crate::base_control::{wrap, Reference};
+use crate::config::BaseController;
+use crate::error::{Error, Result};
+use crate::{Backend, GoalOptions, Robot};
+
+/// A motion category of the paper's trials.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Category {
+    /// ±2 m straight ahead.
+    Linear,
+    /// ±π/2 in place.
+    Rotation,
+    /// ±(1, 1) m, same heading.
+    Combined,
+}
+
+impl Category {
+    /// Every category, in the table's order.
+    pub const ALL: [Category; 3] = [Category::Linear, Category::Rotation, Category::Combined];
+
+    /// Name in tables and JSON.
+    pub fn name(self) -> &'static str {
+        match self {
+            Category::Linear => "linear",
+            Category::Rotation => "rotation",
+            Category::Combined => "combined",
+        }
+    }
+
+    /// The paper's two relative targets `[x, y, θ]` (m, m, rad) of the category.
+    pub fn targets(self) -> [[f64; 3]; 2] {
+        use std::f64::consts::FRAC_PI_2;
+        match self {
+            Category::Linear => [[2.0, 0.0, 0.0], [-2.0, 0.0, 0.0]],
+            Category::Rotation => [[0.0, 0.0, FRAC_PI_2], [0.0, 0.0, -FRAC_PI_2]],
+            Category::Combined => [[1.0, 1.0, 0.0], [-1.0, -1.0, 0.0]],
+        }
+    }
+}
+
+/// One trial: where the base was told to go and where it ended, by odometry and in truth.
+#[derive(Debug, Clone, Copy)]
+pub struct Trial {
+    /// The controller.
+    pub controller: BaseController,
+    /// The category.
+    pub category: Category,
+    /// Relative target `[x, y, θ]` from the start pose.
+    pub target: [f64; 3],
+    /// Whether the motion reported success.
+    pub success: bool,
+    /// Final odometry pose (odometry reset at the start).
+    pub odometry: [f64; 3],
+    /// Final ground-truth pose (the base starts at the origin).
+    pub truth: [f64; 3],
+}
+
+impl Trial {
+    /// Translation (m) and rotation (rad) errors of `pose` against the target.
+    pub fn errors(&self, pose: [f64; 3]) -> (f64, f64) {
+        (
+            (pose[0] - self.target[0]).hypot(pose[1] - self.target[1]),
+            wrap(pose[2] - self.target[2]).abs(),
+        )
+    }
+}
+
+/// A simulated base-only robot with the plants seeded by `seed`.
+pub fn base_robot(robot: &str, seed: u64) -> Result<Robot> {
+    Robot::builder(robot)
+        .use_arm(false)
+        .use_gripper(false)
+        .use_camera(false)
+        .backend(Backend::Sim {
+            seed,
+            realtime: false,
+        })
+        .build()
+}
+
+/// Run one motion from rest at the origin on a fresh simulated `robot`.
+pub fn run_trial(
+    robot: &str,
+    controller: BaseController,
+    category: Category,
+    target: [f64; 3],
+    opts: GoalOptions,
+    seed: u64,
+) -> Result<Trial> {
+    let mut bot = base_robot(robot, seed)?;
+    let opts = GoalOptions {
+        controller: Some(controller),
+        ..opts
+    };
+    let success = bot
+        .base()?
+        .go_to_relative_with(target, opts)?
+        .wait()
+        .is_ok();
+    let odometry = bot.base()?.get_state()?;
+    let truth = bot
+        .simulator()
+        .and_then(|s| s.base_truth())
+        .ok_or_else(|| Error::Link("the benchmark needs the simulated backend".into()))?;
+    Ok(Trial {
+        controller,
+        category,
+        target,
+        success,
+        odometry,
+        truth,
+    })
+}
+
+/// Which pose the errors are measured on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Measured {
+    /// The simulator's ground truth (the paper's motion capture).
+    GroundTruth,
+    /// The base's odometry.
+    Odometry,
+}
+
+/// One row of the table.
+#[derive(Debug, Clone)]
+pub struct Row {
+    /// The controller.
+    pub controller: BaseController,
+    /// The category.
+    pub category: Category,
+    /// The pose measured.
+    pub reference: Measured,
+    /// Mean and sample standard deviation of the translation error, mm.
+    pub translation_mm: [f64; 2],
+    /// Mean and sample standard deviation of the rotation error, degrees.
+    pub rotation_deg: [f64; 2],
+    /// Trials that reported success, of all.
+    pub successes: (usize, usize),
+}
+
+fn mean_std(v: &[f64]) -> [f64; 2] {
+    let n = v.len() as f64;
+    let m = v.iter().sum::<f64>() / n;
+    let var = if v.len() > 1 {
+        v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0)
+    } else {
+        0.0
+    };
+    [m, var.sqrt()]
+}
+
+/// Mean ± std per controller, category and reference.
+pub fn summarize(trials: &[Trial]) -> Vec<Row> {
+    let mut rows = Vec::new();
+    for c in BaseController::ALL {
+        for cat in Category::ALL {
+            let ts: Vec<&Trial> = trials
+                .iter()
+                .filter(|t| t.controller == c && t.category == cat)
+                .collect();
+            if ts.is_empty() {
+                continue;
+            }
+            for r in [Measured::GroundTruth, Measured::Odometry] {
+                let e: Vec<(f64, f64)> = ts
+                    .iter()
+                    .map(|t| {
+                        t.errors(match r {
+                            Measured::GroundTruth => t.truth,
+                            Measured::Odometry => t.odometry,
+                        })
+                    })
+                    .collect();
+                let tr: Vec<f64> = e.iter().map(|e| e.0 * 1000.0).collect();
+                let rot: Vec<f64> = e.iter().map(|e| e.1.to_degrees()).collect();
+                rows.push(Row {
+                    controller: c,
+                    category: cat,
+                    reference: r,
+                    translation_mm: mean_std(&tr),
+                    rotation_deg: mean_std(&rot),
+                    successes: (ts.iter().filter(|t| t.success).count(), ts.len()),
+                });
+            }
+        }
+    }
+    rows
+}
+
+impl Measured {
+    /// Name in tables and JSON.
+    pub fn name(self) -> &'static str {
+        match self {
+            Measured::GroundTruth => "ground_truth",
+            Measured::Odometry => "odometry",
+        }
+    }
+}
+
+/// The table as Markdown.
+pub fn markdown(robot: &str, trials_per_target: usize, seed: u64, rows: &[Row]) -> String {
+    let mut s = format!(
+        "### {robot}: {trials_per_target} trials per target, seed {seed}\n\n\
+         | controller | category | reference | translation (mm) | rotation (°) | succeeded |\n\
+         |---|---|---|---|---|---|\n"
+    );
+    for r in rows {
+        s += &format!(
+            "| {} | {} | {} | {:.1} ± {:.1} | {:.2} ± {:.2} | {}/{} |\n",
+            r.controller.name(),
+            r.category.name(),
+            r.reference.name(),
+            r.translation_mm[0],
+            r.translation_mm[1],
+            r.rotation_deg[0],
+            r.rotation_deg[1],
+            r.successes.0,
+            r.successes.1
+        );
+    }
+    s
+}
+
+/// The table as the JSON object of the command line's `--json`.
+pub fn json(robot: &str, rows: &[Row]) -> serde_json::Value {
+    serde_json::json!({
+        "robot": robot,
+        "rows": rows.iter().map(|r| serde_json::json!({
+            "controller": r.controller.name(),
+            "category": r.category.name(),
+            "reference": r.reference.name(),
+            "translation_mm": r.translation_mm,
+            "rotation_deg": r.rotation_deg,
+            "successes": [r.successes.0, r.successes.1],
+        })).collect::<Vec<_>>(),
+    })
+}
+
+/// How the circle is executed in the tracking comparison.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CircleRun {
+    /// The reference's controls played open loop.
+    OpenLoop,
+    /// LQR closed loop on the reference.
+    Lqr,
+    /// LQR closed loop on the ILQR-optimised reference.
+    Ilqr,
+}
+
+impl CircleRun {
+    /// Every run, in the plot's order.
+    pub const ALL: [CircleRun; 3] = [CircleRun::OpenLoop, CircleRun::Lqr, CircleRun::Ilqr];
+
+    /// Name in legends.
+    pub fn name(self) -> &'static str {
+        match self {
+            CircleRun::OpenLoop => "open loop",
+            CircleRun::Lqr => "LQR",
+            CircleRun::Ilqr => "ILQR + LQR",
+        }
+    }
+}
+
+/// The paper's circle: radius 0.4 m at 0.1 m/s and 0.25 rad/s for one lap, dt 0.1 s.
+pub fn paper_circle() -> Reference {
+    Reference::circle([0.0; 3], 0.1, 0.25, std::f64::consts::TAU / 0.25, 0.1)
+}
+
+/// The executed ground-truth path `[x, y]` (m) of `run` on the circle, and its final
+/// distance from the reference's end (m).
+pub fn circle_path(robot: &str, run: CircleRun, seed: u64) -> Result<(Vec<[f64; 2]>, f64)> {
+    let mut bot = base_robot(robot, seed)?;
+    let mut r = paper_circle();
+    if run == CircleRun::Ilqr {
+        let lim = crate::base_control::Limits::TRACKING;
+        r = crate::base_control::ilqr([0.0; 3], &r, [3.0, 3.0, 4.0], 0.2, &lim).reference;
+    }
+    let end = r.end();
+    if let Some(b) = bot.simulator().and_then(|s| s.base.as_mut()) {
+        b.drive.trace = Some(Vec::new());
+    }
+    bot.base()?
+        .track_trajectory(r, run != CircleRun::OpenLoop)?;
+    let trace = bot
+        .simulator()
+        .and_then(|s| s.base.as_mut())
+        .and_then(|b| b.drive.trace.take())
+        .ok_or_else(|| Error::Link("the circle plot needs the simulated backend".into()))?;
+    let last = trace.last().copied().unwrap_or([0.0; 3]);
+    let path = trace.iter().step_by(20).map(|p| [p[0], p[1]]).collect();
+    Ok((path, (last[0] - end[0]).hypot(last[1] - end[1])))
+}
