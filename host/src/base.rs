@@ -232,6 +232,89 @@ impl BaseLaw for DwaGoal {
     }
 }
 
+/// Longest the [`Finish`] stage may add to a motion's timeout.
+const FINISH_TIME: Duration = Duration::from_secs(15);
+
+/// Residual position error (m) along the heading that the finisher leaves.
+pub const FINISH_TOL_XY: f64 = 0.0005;
+/// Residual heading error (rad) that the finisher leaves (0.05°).
+pub const FINISH_TOL_TH: f64 = 0.05 * std::f64::consts::PI / 180.0;
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum FinishPhase {
+    Along,
+    Heading,
+}
+
+/// The finisher after closed-loop tracking (our deadband compensation): the LQR's feedback
+/// on millimetre errors asks for wheel speeds below the wheels' deadband, which do nothing.
+/// Creeping at just above the deadband (`[base] min_wheel_speed`), checked at every odometry
+/// sample (50 Hz), it first removes the error along the heading to [`FINISH_TOL_XY`], then
+/// turns in place to [`FINISH_TOL_TH`], each time waiting for the base to stand still.
+#[derive(Debug, Clone)]
+struct Finish {
+    goal: [f64; 3],
+    v_min: f64,
+    w_min: f64,
+    phase: FinishPhase,
+}
+
+impl Finish {
+    fn step(&mut self, t: &Telemetry) -> Option<(f64, f64)> {
+        let o = t.odometry;
+        let (x, y, th) = (o.x as f64, o.y as f64, o.theta as f64);
+        let still = (o.v as f64).abs() < 1e-3 && (o.w as f64).abs() < 1e-2;
+        loop {
+            match self.phase {
+                FinishPhase::Along => {
+                    let along = (self.goal[0] - x) * th.cos() + (self.goal[1] - y) * th.sin();
+                    if along.abs() > FINISH_TOL_XY {
+                        return Some((along.signum() * self.v_min, 0.0));
+                    }
+                    if !still {
+                        return Some((0.0, 0.0));
+                    }
+                    self.phase = FinishPhase::Heading;
+                }
+                FinishPhase::Heading => {
+                    let e = wrap(self.goal[2] - th);
+                    if e.abs() > FINISH_TOL_TH {
+                        return Some((0.0, e.signum() * self.w_min));
+                    }
+                    if !still {
+                        return Some((0.0, 0.0));
+                    }
+                    return None;
+                }
+            }
+        }
+    }
+}
+
+/// Closed-loop tracking, then the [`Finish`]er.
+struct TrackThenFinish {
+    track: Tracking,
+    tracking: bool,
+    last: (f64, f64),
+    finish: Finish,
+}
+
+impl BaseLaw for TrackThenFinish {
+    fn step(&mut self, now: Duration, t: &Telemetry) -> Result<Option<(f64, f64)>> {
+        if self.tracking {
+            match self.track.step(now, t) {
+                Some(Some(u)) => {
+                    self.last = u;
+                    return Ok(Some(u));
+                }
+                Some(None) => return Ok(Some(self.last)),
+                None => self.tracking = false,
+            }
+        }
+        Ok(self.finish.step(t))
+    }
+}
+
 /// How a position goal is reached.
 #[derive(Debug, Clone, PartialEq)]
 pub struct GoalOptions {
@@ -417,6 +500,17 @@ impl<'r> Base<'r> {
         reference: Reference,
         close_loop: bool,
     ) -> Result<Motion<'_>> {
+        self.track(reference, close_loop, None)
+    }
+
+    /// Track `reference`; with `finish`, then correct the residual to that pose with
+    /// [`Finish`].
+    fn track(
+        &mut self,
+        reference: Reference,
+        close_loop: bool,
+        finish: Option<[f64; 3]>,
+    ) -> Result<Motion<'_>> {
         for (x, u) in reference.states.iter().zip(&reference.controls) {
             check_finite("trajectory", x)?;
             check_finite("trajectory", u)?;
@@ -443,6 +537,26 @@ impl<'r> Base<'r> {
             limits,
         };
         let timeout = Duration::from_secs_f64(duration + 5.0);
+        if let Some(goal) = finish {
+            let s = self.section();
+            let law = TrackThenFinish {
+                track: tr,
+                tracking: true,
+                last: (0.0, 0.0),
+                finish: Finish {
+                    goal,
+                    v_min: s.min_wheel_speed,
+                    w_min: s.min_wheel_speed / (0.5 * s.track),
+                    phase: FinishPhase::Along,
+                },
+            };
+            return Ok(Motion::new(
+                self.robot,
+                Goal::Base(Box::new(law)),
+                "base position goal",
+                timeout + FINISH_TIME,
+            ));
+        }
         Ok(Motion::new(
             self.robot,
             Goal::Track(Box::new(tr)),
@@ -480,8 +594,10 @@ impl<'r> Base<'r> {
                 if controller == BaseController::Ilqr {
                     r = ilqr(start, &r, [3.0, 3.0, 4.0], 0.2, &lim).reference;
                 }
-                // Hold the goal a little: the tracker settles while the reference rests.
-                self.track_trajectory_async(r.hold(10), opts.close_loop)
+                // Hold the goal a little: the tracker settles while the reference rests; closed
+                // loop, the finisher then removes what the wheels' deadband left.
+                let finish = opts.close_loop.then_some(goal);
+                self.track(r.hold(10), opts.close_loop, finish)
             }
             BaseController::Dwa => {
                 let here = self.get_state()?;

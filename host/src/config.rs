@@ -194,6 +194,9 @@ pub struct BaseSection {
     pub track: f64,
     /// Radius of the base's footprint, m (obstacle clearance of the dynamic window).
     pub footprint_radius: f64,
+    /// Smallest wheel speed that surely moves the wheels (just above their deadband), m/s:
+    /// the creep speed of the finisher after LQR position goals.
+    pub min_wheel_speed: f64,
     /// Largest forward speed of position controllers, m/s.
     pub max_linear: f64,
     /// Largest yaw rate of position controllers, rad/s.
@@ -612,7 +615,7 @@ impl RobotConfig {
                 return Err(cfg_err(
                     file,
                     "base",
-                    "wheel_radius, track, footprint_radius, max_linear and max_angular must be positive",
+                    "wheel_radius, track, footprint_radius, min_wheel_speed, max_linear and max_angular must be positive",
                 ));
             }
         }
