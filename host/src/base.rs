@@ -583,7 +583,7 @@ impl<'r> Base<'r> {
         });
         let lim = self.tracking_limits();
         match controller {
-            BaseController::Proportional => self.go_to_absolute_async(goal),
+            BaseController::Proportional => self.proportional_async(goal),
             BaseController::Lqr | BaseController::Ilqr => {
                 let start = self.get_state()?;
                 let mut r = if opts.smooth {
@@ -673,8 +673,13 @@ impl<'r> Base<'r> {
         self.go_to_absolute_with(goal, opts)
     }
 
-    /// Start moving to `[x, y, θ]` in the odometry frame (the proportional controller).
+    /// Start moving to `[x, y, θ]` in the odometry frame with the configuration's controller.
     pub fn go_to_absolute_async(&mut self, goal: [f64; 3]) -> Result<Motion<'_>> {
+        self.go_to_absolute_with(goal, GoalOptions::default())
+    }
+
+    /// Start the proportional controller towards `[x, y, θ]` in the odometry frame.
+    fn proportional_async(&mut self, goal: [f64; 3]) -> Result<Motion<'_>> {
         check_finite("base goal", &goal)?;
         let s = self.section().clone();
         self.robot.link.take_faults();
@@ -694,7 +699,7 @@ impl<'r> Base<'r> {
         ))
     }
 
-    /// Move to `[x, y, θ]` in the odometry frame and wait.
+    /// Move to `[x, y, θ]` in the odometry frame with the configuration's controller and wait.
     pub fn go_to_absolute(&mut self, goal: [f64; 3]) -> Result<()> {
         self.go_to_absolute_async(goal)?.wait()
     }
