@@ -7,7 +7,7 @@ use std::time::Duration;
 
 use ferrobot_protocol::{HostMsg, Telemetry};
 
-use crate::base_control::{ilqr, Circle, Dwa, Limits, LqrTracker, NavField, Reference};
+use crate::base_control::{ilqr, wrap, Circle, Dwa, Limits, LqrTracker, NavField, Reference};
 use crate::config::BaseController;
 use crate::error::{check_finite, Error, Result};
 use crate::motion::{Goal, Motion};
@@ -15,16 +15,6 @@ use crate::robot::Robot;
 
 /// Control period of the host-side base controllers.
 pub const BASE_CONTROL_PERIOD: Duration = Duration::from_millis(50);
-
-fn wrap(a: f64) -> f64 {
-    let mut a = a % std::f64::consts::TAU;
-    if a > std::f64::consts::PI {
-        a -= std::f64::consts::TAU;
-    } else if a <= -std::f64::consts::PI {
-        a += std::f64::consts::TAU;
-    }
-    a
-}
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Phase {

@@ -258,29 +258,14 @@ impl<'r> Motion<'r> {
                 next_send,
             } => {
                 if now >= *until {
-                    let _ = self.robot.link.command(
-                        &HostMsg::BaseVelocity {
-                            v: 0.0,
-                            w: 0.0,
-                            duration_ms: 0,
-                        },
-                        "stop",
-                    );
+                    self.stop_base();
                     return Some(Ok(()));
                 }
                 if now >= *next_send {
                     *next_send = now + Duration::from_millis(100);
                     let left = (*until - now).as_millis().min(250) as u16;
-                    if let Err(e) = self.robot.link.command(
-                        &HostMsg::BaseVelocity {
-                            v: *v as f32,
-                            w: *w as f32,
-                            duration_ms: left,
-                        },
-                        "base velocity",
-                    ) {
-                        return Some(Err(e));
-                    }
+                    let (v, w) = (*v, *w);
+                    return self.send_base_velocity(v, w, left);
                 }
                 None
             }
@@ -293,31 +278,13 @@ impl<'r> Motion<'r> {
                 }
                 match tr.step(now, &t) {
                     None => {
-                        let _ = self.robot.link.command(
-                            &HostMsg::BaseVelocity {
-                                v: 0.0,
-                                w: 0.0,
-                                duration_ms: 0,
-                            },
-                            "stop",
-                        );
+                        self.stop_base();
                         Some(Ok(()))
                     }
                     Some(None) => None,
                     Some(Some((v, w))) => {
                         self.robot.base_log.push((now.as_secs_f64(), v, w));
-                        self.robot
-                            .link
-                            .command(
-                                &HostMsg::BaseVelocity {
-                                    v: v as f32,
-                                    w: w as f32,
-                                    duration_ms: 200,
-                                },
-                                "base velocity",
-                            )
-                            .err()
-                            .map(Err)
+                        self.send_base_velocity(v, w, 200)
                     }
                 }
             }
@@ -335,22 +302,40 @@ impl<'r> Motion<'r> {
                         if self.robot.base_log.last().map(|l| (l.1, l.2)) != Some((v, w)) {
                             self.robot.base_log.push((now.as_secs_f64(), v, w));
                         }
-                        self.robot
-                            .link
-                            .command(
-                                &HostMsg::BaseVelocity {
-                                    v: v as f32,
-                                    w: w as f32,
-                                    duration_ms: 250,
-                                },
-                                "base velocity",
-                            )
-                            .err()
-                            .map(Err)
+                        self.send_base_velocity(v, w, 250)
                     }
                 }
             }
         }
+    }
+
+    /// Stop the base now (best effort: the motion is over either way).
+    fn stop_base(&mut self) {
+        let _ = self.robot.link.command(
+            &HostMsg::BaseVelocity {
+                v: 0.0,
+                w: 0.0,
+                duration_ms: 0,
+            },
+            "stop",
+        );
+    }
+
+    /// Send a base velocity `(v, ω)` (m/s, rad/s) held for `duration_ms`; `Some(Err)` when the
+    /// link refuses it, which ends the motion.
+    fn send_base_velocity(&mut self, v: f64, w: f64, duration_ms: u16) -> Option<Result<()>> {
+        self.robot
+            .link
+            .command(
+                &HostMsg::BaseVelocity {
+                    v: v as f32,
+                    w: w as f32,
+                    duration_ms,
+                },
+                "base velocity",
+            )
+            .err()
+            .map(Err)
     }
 
     fn timeout_len(&self) -> Duration {

@@ -15,6 +15,18 @@ const TARGETS: [[f64; 3]; 4] = [
     [-1.0, -1.0, 0.0],
 ];
 
+/// A round post of radius `r` at `(x, y)` (m, world frame) in the simulated base's world.
+fn place_post(bot: &mut Robot, x: f64, y: f64, r: f64) {
+    bot.simulator()
+        .expect("sim")
+        .base
+        .as_mut()
+        .expect("base")
+        .drive
+        .obstacles
+        .push(ferrobot_sim::diff_drive::Obstacle { x, y, r });
+}
+
 fn reaches(robot: &str, controller: BaseController, smooth: bool) {
     for target in TARGETS {
         let mut bot = Robot::builder(robot).use_arm(false).build().expect("robot");
@@ -114,18 +126,7 @@ fn dwa_reaches_the_targets_on_both_bases() {
 fn dwa_goes_around_an_obstacle_on_both_bases() {
     for robot in ["locobot", "locobot_lite"] {
         let mut bot = Robot::builder(robot).use_arm(false).build().expect("robot");
-        bot.simulator()
-            .expect("sim")
-            .base
-            .as_mut()
-            .expect("base")
-            .drive
-            .obstacles
-            .push(ferrobot_sim::diff_drive::Obstacle {
-                x: 1.0,
-                y: 0.0,
-                r: 0.1,
-            });
+        place_post(&mut bot, 1.0, 0.0, 0.1);
         let opts = GoalOptions {
             obstacles: vec![[1.0, 0.0, 0.1]],
             ..GoalOptions::default()
@@ -214,18 +215,7 @@ fn circle_tracking_ends_within_5_cm_of_the_reference() {
 #[test]
 fn a_bumper_hit_stops_lqr_tracking_with_an_error() {
     let mut bot = Robot::new("locobot").expect("robot");
-    bot.simulator()
-        .expect("sim")
-        .base
-        .as_mut()
-        .expect("base")
-        .drive
-        .obstacles
-        .push(ferrobot_sim::diff_drive::Obstacle {
-            x: 0.8,
-            y: 0.0,
-            r: 0.1,
-        });
+    place_post(&mut bot, 0.8, 0.0, 0.1);
     let opts = GoalOptions {
         controller: Some(BaseController::Lqr),
         smooth: false,
