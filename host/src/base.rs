@@ -223,61 +223,193 @@ impl BaseLaw for DwaGoal {
 }
 
 /// Longest the [`Finish`] stage may add to a motion's timeout.
-const FINISH_TIME: Duration = Duration::from_secs(15);
+const FINISH_TIME: Duration = Duration::from_secs(30);
 
 /// Residual position error (m) along the heading that the finisher leaves.
 pub const FINISH_TOL_XY: f64 = 0.0005;
+/// Residual position error (m) across the heading above which the finisher backs up and
+/// re-approaches.
+pub const FINISH_TOL_LATERAL: f64 = 0.0005;
 /// Residual heading error (rad) that the finisher leaves (0.05°).
 pub const FINISH_TOL_TH: f64 = 0.05 * std::f64::consts::PI / 180.0;
+/// How far (m) the finisher backs up before re-approaching to remove a lateral error.
+const FINISH_BACKUP: f64 = 0.05;
+/// Lateral re-approaches the finisher tries before it settles for what it has.
+const FINISH_ATTEMPTS: u32 = 3;
+/// The finisher's speed caps (m/s, rad/s) and its proportional gain (1/s).
+const FINISH_V_MAX: f64 = 0.05;
+const FINISH_W_MAX: f64 = 0.3;
+const FINISH_GAIN: f64 = 1.5;
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum FinishPhase {
-    Along,
-    Heading,
+/// One step of the finisher's plan.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum FinishStep {
+    /// Look at the remaining error and plan the next steps.
+    Decide,
+    /// Drive straight along the current heading until the point's projection on it is
+    /// within `tol` (m).
+    Drive { to: [f64; 2], tol: f64 },
+    /// Turn in place to face the goal position (or away from it, whichever is nearer).
+    Face,
+    /// Turn in place to the heading (rad) within [`FINISH_TOL_TH`].
+    Turn { to: f64 },
 }
 
 /// The finisher after closed-loop tracking (our deadband compensation): the LQR's feedback
 /// on millimetre errors asks for wheel speeds below the wheels' deadband, which do nothing.
-/// Creeping at just above the deadband (`[base] min_wheel_speed`), checked at every odometry
-/// sample (50 Hz), it first removes the error along the heading to [`FINISH_TOL_XY`], then
-/// turns in place to [`FINISH_TOL_TH`], each time waiting for the base to stand still.
+/// Checked at every odometry sample (50 Hz), with speeds proportional to the error but kept
+/// above the deadband (`[base] min_wheel_speed`) and ramped within the tracking
+/// accelerations, it removes the error by odometry in straight drives and turns in place:
+/// an error across the heading above [`FINISH_TOL_LATERAL`] by backing up
+/// [`FINISH_BACKUP`], facing the goal and driving to it; the error along the heading to
+/// [`FINISH_TOL_XY`]; then the heading to [`FINISH_TOL_TH`]. It waits for the base to stand
+/// still after each step.
 #[derive(Debug, Clone)]
 struct Finish {
     goal: [f64; 3],
     v_min: f64,
     w_min: f64,
-    phase: FinishPhase,
+    limits: Limits,
+    /// The last command and when it was sent.
+    last: (f64, f64),
+    last_t: Option<Duration>,
+    step: FinishStep,
+    /// Steps after the current one.
+    plan: Vec<FinishStep>,
+    attempts: u32,
 }
 
 impl Finish {
-    fn step(&mut self, t: &Telemetry) -> Option<(f64, f64)> {
+    fn new(goal: [f64; 3], v_min: f64, w_min: f64, limits: Limits) -> Self {
+        Finish {
+            goal,
+            v_min,
+            w_min,
+            limits,
+            last: (0.0, 0.0),
+            last_t: None,
+            step: FinishStep::Decide,
+            plan: Vec::new(),
+            attempts: 0,
+        }
+    }
+
+    /// The next command, `None` when done.
+    fn step(&mut self, now: Duration, t: &Telemetry) -> Option<(f64, f64)> {
+        let want = self.want(t)?;
+        // Ramp within the accelerations, over the time since the last command (at most one
+        // tracking period).
+        let dt = self
+            .last_t
+            .map_or(0.1, |l| now.saturating_sub(l).as_secs_f64().min(0.1));
+        let l = &self.limits;
+        let v = self.last.0 + (want.0 - self.last.0).clamp(-l.accel_v * dt, l.accel_v * dt);
+        let w = self.last.1 + (want.1 - self.last.1).clamp(-l.accel_w * dt, l.accel_w * dt);
+        self.last = (v, w);
+        self.last_t = Some(now);
+        Some((v, w))
+    }
+
+    /// The command the current step wants, before ramping; `None` when done.
+    fn want(&mut self, t: &Telemetry) -> Option<(f64, f64)> {
         let o = t.odometry;
         let (x, y, th) = (o.x as f64, o.y as f64, o.theta as f64);
         let still = (o.v as f64).abs() < 1e-3 && (o.w as f64).abs() < 1e-2;
-        loop {
-            match self.phase {
-                FinishPhase::Along => {
-                    let along = (self.goal[0] - x) * th.cos() + (self.goal[1] - y) * th.sin();
-                    if along.abs() > FINISH_TOL_XY {
-                        return Some((along.signum() * self.v_min, 0.0));
+        let (c, s) = (th.cos(), th.sin());
+        // A bounded number of plan changes per sample; each returns or advances.
+        for _ in 0..8 {
+            match self.step {
+                FinishStep::Decide => {
+                    let (dx, dy) = (self.goal[0] - x, self.goal[1] - y);
+                    let along = dx * c + dy * s;
+                    let lateral = -dx * s + dy * c;
+                    self.plan.clear();
+                    if lateral.abs() > FINISH_TOL_LATERAL && self.attempts < FINISH_ATTEMPTS {
+                        // Back up to a point behind the goal on the current heading line,
+                        // face the goal, drive to it, look again.
+                        self.attempts += 1;
+                        let back = along - FINISH_BACKUP;
+                        self.step = FinishStep::Drive {
+                            to: [x + back * c, y + back * s],
+                            tol: 0.002,
+                        };
+                        self.plan.extend([
+                            FinishStep::Face,
+                            FinishStep::Drive {
+                                to: [self.goal[0], self.goal[1]],
+                                tol: FINISH_TOL_XY,
+                            },
+                            FinishStep::Decide,
+                        ]);
+                    } else if along.abs() > FINISH_TOL_XY {
+                        self.step = FinishStep::Drive {
+                            to: [self.goal[0], self.goal[1]],
+                            tol: FINISH_TOL_XY,
+                        };
+                        self.plan.push(FinishStep::Decide);
+                    } else {
+                        self.step = FinishStep::Turn { to: self.goal[2] };
                     }
-                    if !still {
-                        return Some((0.0, 0.0));
-                    }
-                    self.phase = FinishPhase::Heading;
                 }
-                FinishPhase::Heading => {
-                    let e = wrap(self.goal[2] - th);
-                    if e.abs() > FINISH_TOL_TH {
-                        return Some((0.0, e.signum() * self.w_min));
+                FinishStep::Drive { to, tol } => {
+                    let along = (to[0] - x) * c + (to[1] - y) * s;
+                    if along.abs() > tol {
+                        let v = (FINISH_GAIN * along.abs()).clamp(self.v_min, FINISH_V_MAX);
+                        return Some((along.signum() * v, 0.0));
                     }
                     if !still {
                         return Some((0.0, 0.0));
                     }
-                    return None;
+                    self.advance();
+                }
+                FinishStep::Face => {
+                    let (dx, dy) = (self.goal[0] - x, self.goal[1] - y);
+                    let d = dx.hypot(dy);
+                    let mut to = dy.atan2(dx);
+                    if wrap(to - th).abs() > std::f64::consts::FRAC_PI_2 {
+                        to = wrap(to + std::f64::consts::PI);
+                    }
+                    // Close enough when driving there leaves less than half the lateral
+                    // tolerance.
+                    let tol = (0.5 * FINISH_TOL_LATERAL / d.max(1e-9))
+                        .min(1.0)
+                        .asin()
+                        .max(FINISH_TOL_TH);
+                    let e = wrap(to - th);
+                    if e.abs() > tol {
+                        let w = (FINISH_GAIN * e.abs()).clamp(self.w_min, FINISH_W_MAX);
+                        return Some((0.0, e.signum() * w));
+                    }
+                    if !still {
+                        return Some((0.0, 0.0));
+                    }
+                    self.advance();
+                }
+                FinishStep::Turn { to } => {
+                    let e = wrap(to - th);
+                    if e.abs() > FINISH_TOL_TH {
+                        let w = (FINISH_GAIN * e.abs()).clamp(self.w_min, FINISH_W_MAX);
+                        return Some((0.0, e.signum() * w));
+                    }
+                    if !still {
+                        return Some((0.0, 0.0));
+                    }
+                    if self.plan.is_empty() {
+                        return None;
+                    }
+                    self.advance();
                 }
             }
         }
+        Some((0.0, 0.0))
+    }
+
+    fn advance(&mut self) {
+        self.step = if self.plan.is_empty() {
+            FinishStep::Decide
+        } else {
+            self.plan.remove(0)
+        };
     }
 }
 
@@ -298,10 +430,13 @@ impl BaseLaw for TrackThenFinish {
                     return Ok(Some(u));
                 }
                 Some(None) => return Ok(Some(self.last)),
-                None => self.tracking = false,
+                None => {
+                    self.tracking = false;
+                    self.finish.last = self.last;
+                }
             }
         }
-        Ok(self.finish.step(t))
+        Ok(self.finish.step(now, t))
     }
 }
 
@@ -533,12 +668,12 @@ impl<'r> Base<'r> {
                 track: tr,
                 tracking: true,
                 last: (0.0, 0.0),
-                finish: Finish {
+                finish: Finish::new(
                     goal,
-                    v_min: s.min_wheel_speed,
-                    w_min: s.min_wheel_speed / (0.5 * s.track),
-                    phase: FinishPhase::Along,
-                },
+                    s.min_wheel_speed,
+                    s.min_wheel_speed / (0.5 * s.track),
+                    limits,
+                ),
             };
             return Ok(Motion::new(
                 self.robot,

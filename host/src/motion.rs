@@ -296,8 +296,16 @@ impl<'r> Motion<'r> {
                     }));
                 }
                 match g.step(now, &t) {
-                    Err(e) => Some(Err(e)),
-                    Ok(None) => Some(Ok(())),
+                    // Stop explicitly either way: otherwise the firmware would hold the last
+                    // command (up to 250 ms) after the law has declared the goal reached.
+                    Err(e) => {
+                        self.stop_base();
+                        Some(Err(e))
+                    }
+                    Ok(None) => {
+                        self.stop_base();
+                        Some(Ok(()))
+                    }
                     Ok(Some((v, w))) => {
                         if self.robot.base_log.last().map(|l| (l.1, l.2)) != Some((v, w)) {
                             self.robot.base_log.push((now.as_secs_f64(), v, w));
