@@ -944,6 +944,11 @@ impl Firmware {
                 self.base.poll(now);
                 Ok(())
             }
+            HostMsg::SetBaseGeometry {
+                left_radius,
+                right_radius,
+                track,
+            } => self.base.set_geometry(left_radius, right_radius, track),
             HostMsg::ResetOdometry => {
                 if !self.base.present() {
                     return Err(RejectReason::NoBase);

@@ -458,3 +458,87 @@ fn a_waypoint_sent_before_the_servos_are_configured_is_kept() {
         g[&1]
     );
 }
+
+/// The messages the firmware has queued for the host, consumed.
+fn host_replies(fw: &mut Firmware) -> Vec<DeviceMsg> {
+    let bytes = fw.pending(Link::Host).to_vec();
+    fw.consume(Link::Host, bytes.len());
+    let mut d = FrameDecoder::new();
+    let mut out = Vec::new();
+    d.feed::<DeviceMsg>(&bytes, |f| {
+        if let Ok(f) = f {
+            out.push(f.msg);
+        }
+    });
+    out
+}
+
+#[test]
+fn calibrated_geometry_is_used_by_the_odometry_and_bad_geometry_is_rejected() {
+    let mut fw = Firmware::new(config::locobot_lite(), "test", 0);
+    fw.on_host_bytes(0, &hello());
+    fw.poll(0);
+    host_replies(&mut fw);
+    let set = |seq, left_radius, right_radius, track| {
+        frame(
+            seq,
+            &HostMsg::SetBaseGeometry {
+                left_radius,
+                right_radius,
+                track,
+            },
+        )
+    };
+    let (rl, rr, track) = (0.0363f32, 0.0360f32, 0.2370f32);
+    fw.on_host_bytes(10, &set(1, rl, rr, track));
+    // Rejected, and the good geometry stays: not finite, 39 % off, a track 15 % off.
+    fw.on_host_bytes(20, &set(2, f32::NAN, rr, track));
+    fw.on_host_bytes(30, &set(3, 0.05, rr, track));
+    fw.on_host_bytes(40, &set(4, rl, rr, 0.27));
+    let replies = host_replies(&mut fw);
+    let acks: Vec<_> = replies
+        .iter()
+        .filter_map(|m| match m {
+            DeviceMsg::Ack { seq } => Some((*seq, None)),
+            DeviceMsg::Reject { seq, reason } => Some((*seq, Some(*reason))),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(
+        acks,
+        vec![
+            (1, None),
+            (2, Some(RejectReason::InvalidConfig)),
+            (3, Some(RejectReason::InvalidConfig)),
+            (4, Some(RejectReason::InvalidConfig)),
+        ]
+    );
+    // Both encoders +100 counts per packet: the calibrated odometry sees the larger left
+    // wheel travel further and turn the base to the right.
+    for k in 0..=20u64 {
+        let enc = (k * 100) as i16;
+        let s = create2::Sensors {
+            left_encoder: enc,
+            right_encoder: enc,
+            ..Default::default()
+        };
+        let mut b = [0u8; 64];
+        let n = create2::encode_stream(&s, &mut b).expect("fits");
+        fw.on_base_bytes(1000 + k * 15_000, &b[..n]);
+    }
+    let o = fw.telemetry(400_000).odometry;
+    let phi = 2000.0 * std::f64::consts::TAU / 508.8;
+    let (dl, dr) = (phi * rl as f64, phi * rr as f64);
+    let theta = (dr - dl) / track as f64;
+    let dist = 0.5 * (dl + dr);
+    assert!((o.theta as f64 - theta).abs() < 1e-5, "{o:?} vs θ {theta}");
+    // One arc of radius dist/θ.
+    let (x, y) = (
+        dist * theta.sin() / theta,
+        dist * (1.0 - theta.cos()) / theta,
+    );
+    assert!(
+        (o.x as f64 - x).abs() < 1e-4 && (o.y as f64 - y).abs() < 1e-4,
+        "{o:?} vs ({x}, {y}) m"
+    );
+}

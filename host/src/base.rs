@@ -11,6 +11,7 @@ use crate::base_control::{ilqr, wrap, Circle, Dwa, Limits, LqrTracker, NavField,
 use crate::config::BaseController;
 use crate::error::{check_finite, Error, Result};
 use crate::motion::{Goal, Motion};
+use crate::odometry_calibration::WheelGeometry;
 use crate::robot::Robot;
 
 /// Control period of the host-side base controllers.
@@ -64,6 +65,12 @@ pub(crate) trait BaseLaw: Send {
     /// The next command `(v, ω)` (m/s, rad/s) from odometry at `now`, `Ok(None)` when the goal
     /// is reached, or an error when it cannot be.
     fn step(&mut self, now: Duration, t: &Telemetry) -> Result<Option<(f64, f64)>>;
+
+    /// How long (ms) the firmware holds the command `step` just returned before it stops the
+    /// base by itself.
+    fn hold_ms(&self) -> u16 {
+        250
+    }
 }
 
 impl BaseLaw for BaseGoal {
@@ -230,7 +237,8 @@ pub const FINISH_TOL_XY: f64 = 0.0005;
 /// Residual position error (m) across the heading above which the finisher backs up and
 /// re-approaches.
 pub const FINISH_TOL_LATERAL: f64 = 0.0005;
-/// Residual heading error (rad) that the finisher leaves (0.05°).
+/// Residual heading error (rad) that the finisher aims for (0.05°), unless the odometry's
+/// resolution is coarser (see [`Finish`]).
 pub const FINISH_TOL_TH: f64 = 0.05 * std::f64::consts::PI / 180.0;
 /// How far (m) the finisher backs up before re-approaching to remove a lateral error.
 const FINISH_BACKUP: f64 = 0.05;
@@ -240,6 +248,11 @@ const FINISH_ATTEMPTS: u32 = 3;
 const FINISH_V_MAX: f64 = 0.05;
 const FINISH_W_MAX: f64 = 0.3;
 const FINISH_GAIN: f64 = 1.5;
+/// Errors a creep-speed pulse of up to this long (s) would cover are removed by pulses.
+const FINISH_PULSE_SPAN: f64 = 0.5;
+/// First guess of the wheels' dead time (s): a pulse of length T at creep speed moves about
+/// speed · (T − dead time). Learned from every pulse.
+const FINISH_DEAD_TIME: f64 = 0.05;
 
 /// One step of the finisher's plan.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -251,67 +264,207 @@ enum FinishStep {
     Drive { to: [f64; 2], tol: f64 },
     /// Turn in place to face the goal position (or away from it, whichever is nearer).
     Face,
-    /// Turn in place to the heading (rad) within [`FINISH_TOL_TH`].
+    /// Turn in place to the heading (rad).
     Turn { to: f64 },
+}
+
+/// A creep-speed pulse the firmware times.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Pulse {
+    end: Duration,
+    cmd: (f64, f64),
+    /// The error (m or rad) when it started.
+    e0: f64,
+    speed: f64,
+    /// Its length, s.
+    len: f64,
+    /// Whether the stop after it has been commanded.
+    stopped: bool,
+}
+
+/// A command of the finisher: `(v, ω)`, how long the firmware holds it (ms), and whether it
+/// is ramped within the accelerations.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct FinishCmd {
+    u: (f64, f64),
+    hold_ms: u16,
+    ramp: bool,
+}
+
+impl FinishCmd {
+    const STOP: FinishCmd = FinishCmd {
+        u: (0.0, 0.0),
+        hold_ms: 250,
+        ramp: false,
+    };
 }
 
 /// The finisher after closed-loop tracking (our deadband compensation): the LQR's feedback
 /// on millimetre errors asks for wheel speeds below the wheels' deadband, which do nothing.
-/// Checked at every odometry sample (50 Hz), with speeds proportional to the error but kept
-/// above the deadband (`[base] min_wheel_speed`) and ramped within the tracking
-/// accelerations, it removes the error by odometry in straight drives and turns in place:
-/// an error across the heading above [`FINISH_TOL_LATERAL`] by backing up
-/// [`FINISH_BACKUP`], facing the goal and driving to it; the error along the heading to
-/// [`FINISH_TOL_XY`]; then the heading to [`FINISH_TOL_TH`]. It waits for the base to stand
-/// still after each step.
+/// Checked at every odometry sample (50 Hz), it removes the error by odometry in straight
+/// drives and turns in place: an error across the heading above [`FINISH_TOL_LATERAL`] by
+/// backing up [`FINISH_BACKUP`], facing the goal and driving to it; the error along the
+/// heading to [`FINISH_TOL_XY`]; then the heading to [`FINISH_TOL_TH`] or, when one encoder
+/// tick turns the odometry by more than twice that, to 0.55 tick (the Create 2: 0.06°).
+/// Large errors are driven at speeds proportional to them, ramped within the tracking
+/// accelerations; small ones by pulses at creep speed (`[base] min_wheel_speed`, just above
+/// the deadband and below one tracking period's acceleration) whose length the firmware
+/// times to the millisecond, corrected for the wheels' dead time, which each pulse measures;
+/// the last heading pulses pivot about one wheel so that the odometry can change by a single
+/// encoder tick. It waits for the base to stand still before each pulse and after each step.
 #[derive(Debug, Clone)]
 struct Finish {
     goal: [f64; 3],
     v_min: f64,
     w_min: f64,
+    tol_th: f64,
+    /// Odometry heading change of one encoder tick of one wheel, rad.
+    tick: f64,
     limits: Limits,
-    /// The last command and when it was sent.
+    /// The last command, when it was sent, and its hold.
     last: (f64, f64),
     last_t: Option<Duration>,
+    hold_ms: u16,
     step: FinishStep,
     /// Steps after the current one.
     plan: Vec<FinishStep>,
     attempts: u32,
+    pulse: Option<Pulse>,
+    /// Learned dead time (s) of linear and angular pulses.
+    dead_time: [f64; 2],
 }
 
 impl Finish {
-    fn new(goal: [f64; 3], v_min: f64, w_min: f64, limits: Limits) -> Self {
+    /// A finisher to `goal` with creep speeds `v_min` (m/s) and `w_min` (rad/s), for
+    /// odometry whose heading changes by `tick` (rad) per encoder tick.
+    fn new(goal: [f64; 3], v_min: f64, w_min: f64, tick: f64, limits: Limits) -> Self {
         Finish {
             goal,
             v_min,
             w_min,
+            tol_th: FINISH_TOL_TH.max(0.55 * tick),
+            tick,
             limits,
             last: (0.0, 0.0),
             last_t: None,
+            hold_ms: 250,
             step: FinishStep::Decide,
             plan: Vec::new(),
             attempts: 0,
+            pulse: None,
+            dead_time: [FINISH_DEAD_TIME; 2],
         }
     }
 
     /// The next command, `None` when done.
     fn step(&mut self, now: Duration, t: &Telemetry) -> Option<(f64, f64)> {
-        let want = self.want(t)?;
-        // Ramp within the accelerations, over the time since the last command (at most one
-        // tracking period).
-        let dt = self
-            .last_t
-            .map_or(0.1, |l| now.saturating_sub(l).as_secs_f64().min(0.1));
-        let l = &self.limits;
-        let v = self.last.0 + (want.0 - self.last.0).clamp(-l.accel_v * dt, l.accel_v * dt);
-        let w = self.last.1 + (want.1 - self.last.1).clamp(-l.accel_w * dt, l.accel_w * dt);
+        let c = self.want(now, t)?;
+        let (v, w) = if c.ramp {
+            // Ramp within the accelerations, over the time since the last command (at most
+            // one tracking period).
+            let dt = self
+                .last_t
+                .map_or(0.1, |l| now.saturating_sub(l).as_secs_f64().min(0.1));
+            let l = &self.limits;
+            (
+                self.last.0 + (c.u.0 - self.last.0).clamp(-l.accel_v * dt, l.accel_v * dt),
+                self.last.1 + (c.u.1 - self.last.1).clamp(-l.accel_w * dt, l.accel_w * dt),
+            )
+        } else {
+            c.u
+        };
         self.last = (v, w);
         self.last_t = Some(now);
+        self.hold_ms = c.hold_ms;
         Some((v, w))
     }
 
-    /// The command the current step wants, before ramping; `None` when done.
-    fn want(&mut self, t: &Telemetry) -> Option<(f64, f64)> {
+    /// Creep towards a signed error `e` (m along the heading, or rad) within `tol`; `None`
+    /// once within it and standing still. Angular pulses within 1.5 ticks of the goal pivot
+    /// about one wheel, so that one encoder tick at a time can change (turning in place moves both, a two-tick step
+    /// that can jump over the tolerance); `pivot_forward` picks the wheel: the base's centre
+    /// then moves forward (true) or back by half the track times the turn.
+    fn creep(
+        &mut self,
+        now: Duration,
+        e: f64,
+        tol: f64,
+        angular: Option<bool>,
+        still: bool,
+    ) -> Option<FinishCmd> {
+        let k = angular.is_some() as usize;
+        let (speed, cap) = if angular.is_some() {
+            (self.w_min, FINISH_W_MAX)
+        } else {
+            (self.v_min, FINISH_V_MAX)
+        };
+        let axis = |s: f64| match angular {
+            Some(_) => (0.0, s),
+            None => (s, 0.0),
+        };
+        if let Some(p) = self.pulse {
+            if now < p.end {
+                let left = (p.end - now).as_millis().clamp(1, 1000) as u16;
+                return Some(FinishCmd {
+                    u: p.cmd,
+                    hold_ms: left,
+                    ramp: false,
+                });
+            }
+            // The firmware has stopped the base at the pulse's end; say so on the command
+            // stream too, and wait for it to stand still.
+            if !still || !p.stopped {
+                self.pulse = Some(Pulse { stopped: true, ..p });
+                return Some(FinishCmd::STOP);
+            }
+            // moved = speed · (len − dead time).
+            let moved = (p.e0 - e) * p.e0.signum();
+            let dead = (p.len - moved / p.speed).clamp(0.0, 0.2);
+            self.dead_time[k] = 0.5 * (self.dead_time[k] + dead);
+            self.pulse = None;
+        }
+        if e.abs() <= tol {
+            return (!still).then_some(FinishCmd::STOP);
+        }
+        if e.abs() > speed * FINISH_PULSE_SPAN {
+            let s = (FINISH_GAIN * e.abs()).clamp(speed, cap);
+            return Some(FinishCmd {
+                u: axis(e.signum() * s),
+                hold_ms: 250,
+                ramp: true,
+            });
+        }
+        if !still {
+            return Some(FinishCmd::STOP);
+        }
+        let (speed, cmd) = match angular {
+            // Within 1.5 ticks: one wheel at creep speed, the other still (ω = ±w_min / 2,
+            // v = ±v_min / 2); the centre moves by at most 0.75 tick of wheel travel.
+            Some(forward) if e.abs() <= 1.5 * self.tick => {
+                let w = 0.5 * self.w_min;
+                let v = if forward { 0.5 } else { -0.5 } * self.v_min;
+                (w, (v, e.signum() * w))
+            }
+            _ => (speed, axis(e.signum() * speed)),
+        };
+        let len = (e.abs() / speed + self.dead_time[k]).clamp(0.001, 1.0);
+        self.pulse = Some(Pulse {
+            end: now + Duration::from_secs_f64(len),
+            cmd,
+            e0: e,
+            speed,
+            len,
+            stopped: false,
+        });
+        Some(FinishCmd {
+            u: cmd,
+            hold_ms: (len * 1000.0).round().max(1.0) as u16,
+            ramp: false,
+        })
+    }
+
+    /// The command the current step wants; `None` when done.
+    fn want(&mut self, now: Duration, t: &Telemetry) -> Option<FinishCmd> {
         let o = t.odometry;
         let (x, y, th) = (o.x as f64, o.y as f64, o.theta as f64);
         let still = (o.v as f64).abs() < 1e-3 && (o.w as f64).abs() < 1e-2;
@@ -353,14 +506,10 @@ impl Finish {
                 }
                 FinishStep::Drive { to, tol } => {
                     let along = (to[0] - x) * c + (to[1] - y) * s;
-                    if along.abs() > tol {
-                        let v = (FINISH_GAIN * along.abs()).clamp(self.v_min, FINISH_V_MAX);
-                        return Some((along.signum() * v, 0.0));
+                    match self.creep(now, along, tol, None, still) {
+                        Some(cmd) => return Some(cmd),
+                        None => self.advance(),
                     }
-                    if !still {
-                        return Some((0.0, 0.0));
-                    }
-                    self.advance();
                 }
                 FinishStep::Face => {
                     let (dx, dy) = (self.goal[0] - x, self.goal[1] - y);
@@ -374,37 +523,29 @@ impl Finish {
                     let tol = (0.5 * FINISH_TOL_LATERAL / d.max(1e-9))
                         .min(1.0)
                         .asin()
-                        .max(FINISH_TOL_TH);
-                    let e = wrap(to - th);
-                    if e.abs() > tol {
-                        let w = (FINISH_GAIN * e.abs()).clamp(self.w_min, FINISH_W_MAX);
-                        return Some((0.0, e.signum() * w));
+                        .max(self.tol_th);
+                    let forward = dx * c + dy * s >= 0.0;
+                    match self.creep(now, wrap(to - th), tol, Some(forward), still) {
+                        Some(cmd) => return Some(cmd),
+                        None => self.advance(),
                     }
-                    if !still {
-                        return Some((0.0, 0.0));
-                    }
-                    self.advance();
                 }
                 FinishStep::Turn { to } => {
-                    let e = wrap(to - th);
-                    if e.abs() > FINISH_TOL_TH {
-                        let w = (FINISH_GAIN * e.abs()).clamp(self.w_min, FINISH_W_MAX);
-                        return Some((0.0, e.signum() * w));
+                    let tol = self.tol_th;
+                    let forward = (self.goal[0] - x) * c + (self.goal[1] - y) * s >= 0.0;
+                    match self.creep(now, wrap(to - th), tol, Some(forward), still) {
+                        Some(cmd) => return Some(cmd),
+                        None if self.plan.is_empty() => return None,
+                        None => self.advance(),
                     }
-                    if !still {
-                        return Some((0.0, 0.0));
-                    }
-                    if self.plan.is_empty() {
-                        return None;
-                    }
-                    self.advance();
                 }
             }
         }
-        Some((0.0, 0.0))
+        Some(FinishCmd::STOP)
     }
 
     fn advance(&mut self) {
+        self.pulse = None;
         self.step = if self.plan.is_empty() {
             FinishStep::Decide
         } else {
@@ -437,6 +578,14 @@ impl BaseLaw for TrackThenFinish {
             }
         }
         Ok(self.finish.step(now, t))
+    }
+
+    fn hold_ms(&self) -> u16 {
+        if self.tracking {
+            250
+        } else {
+            self.finish.hold_ms
+        }
     }
 }
 
@@ -555,6 +704,67 @@ impl<'r> Base<'r> {
         Ok([o.x as f64, o.y as f64, o.theta as f64])
     }
 
+    /// The geometry the odometry uses: the configuration's calibrated `[base] odometry`, or
+    /// the last [`Base::set_odometry_geometry`], else the nominal wheel radius and track.
+    pub fn odometry_geometry(&self) -> WheelGeometry {
+        let s = self.section();
+        s.odometry.unwrap_or_else(|| s.nominal_geometry())
+    }
+
+    /// Make the firmware's odometry use a calibrated geometry (from
+    /// [`crate::odometry_calibration::estimate`]); each value must be within 10 % of the
+    /// nominal one. Takes effect from the next wheel sample; the pose is not reset.
+    pub fn set_odometry_geometry(&mut self, g: WheelGeometry) -> Result<()> {
+        if !g.near(&self.section().nominal_geometry(), 0.1) {
+            return Err(Error::Calibration {
+                why: format!(
+                    "{g:?} is not within 10 % of the nominal {:?}",
+                    self.section().nominal_geometry()
+                ),
+            });
+        }
+        self.robot.link.command(
+            &HostMsg::SetBaseGeometry {
+                left_radius: g.left_radius as f32,
+                right_radius: g.right_radius as f32,
+                track: g.track as f32,
+            },
+            "odometry geometry",
+        )?;
+        if let Some(b) = self.robot.cfg.base.as_mut() {
+            b.odometry = Some(g);
+        }
+        Ok(())
+    }
+
+    /// The accumulated wheel angles `[left, right]` (rad) since the firmware started.
+    pub fn wheel_angles(&mut self) -> Result<[f64; 2]> {
+        let w = self.robot.link.telemetry()?.wheels;
+        Ok([w.left as f64, w.right as f64])
+    }
+
+    /// Start logging the wheel angles of every telemetry frame that motions see (for odometry
+    /// calibration), beginning with the current ones; replaces an earlier log.
+    pub fn start_wheel_log(&mut self) -> Result<()> {
+        let t = self.robot.link.telemetry()?;
+        self.robot.wheel_log = Some(vec![(
+            t.time_us,
+            [t.wheels.left as f64, t.wheels.right as f64],
+        )]);
+        Ok(())
+    }
+
+    /// Stop logging and return the wheel angles `[left, right]` (rad) logged since
+    /// [`Base::start_wheel_log`], ending with the current ones.
+    pub fn take_wheel_log(&mut self) -> Result<Vec<[f64; 2]>> {
+        let t = self.robot.link.telemetry()?;
+        let mut log = self.robot.wheel_log.take().unwrap_or_default();
+        if log.last().map(|l| l.0) != Some(t.time_us) {
+            log.push((t.time_us, [t.wheels.left as f64, t.wheels.right as f64]));
+        }
+        Ok(log.into_iter().map(|l| l.1).collect())
+    }
+
     /// Zero the odometry pose.
     pub fn reset_odometry(&mut self) -> Result<()> {
         self.robot
@@ -663,6 +873,9 @@ impl<'r> Base<'r> {
         };
         let timeout = Duration::from_secs_f64(duration + 5.0);
         if let Some(goal) = finish {
+            // One encoder tick of one wheel turns the odometry by this much (rad).
+            let fw = self.robot.cfg.firmware_profile().base;
+            let tick = fw.rad_per_tick() as f64 * fw.wheel_radius as f64 / fw.track as f64;
             let s = self.section();
             let law = TrackThenFinish {
                 track: tr,
@@ -672,6 +885,7 @@ impl<'r> Base<'r> {
                     goal,
                     s.min_wheel_speed,
                     s.min_wheel_speed / (0.5 * s.track),
+                    tick,
                     limits,
                 ),
             };

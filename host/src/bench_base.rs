@@ -6,6 +6,7 @@
 use crate::base_control::{wrap, Reference};
 use crate::config::BaseController;
 use crate::error::{Error, Result};
+use crate::odometry_calibration::{self as cal, CalibrationRun, WheelGeometry};
 use crate::{Backend, GoalOptions, Robot};
 
 /// A motion category of the paper's trials.
@@ -70,9 +71,10 @@ impl Trial {
     }
 }
 
-/// A simulated base-only robot with the plants seeded by `seed`.
-pub fn base_robot(robot: &str, seed: u64) -> Result<Robot> {
-    Robot::builder(robot)
+/// A simulated base-only robot with the plants seeded by `seed`; its odometry uses
+/// `geometry` when given (a calibration), else the nominal one.
+pub fn base_robot(robot: &str, seed: u64, geometry: Option<WheelGeometry>) -> Result<Robot> {
+    let mut bot = Robot::builder(robot)
         .use_arm(false)
         .use_gripper(false)
         .use_camera(false)
@@ -80,10 +82,22 @@ pub fn base_robot(robot: &str, seed: u64) -> Result<Robot> {
             seed,
             realtime: false,
         })
-        .build()
+        .build()?;
+    if let Some(g) = geometry {
+        bot.base()?.set_odometry_geometry(g)?;
+    }
+    Ok(bot)
 }
 
-/// Run one motion from rest at the origin on a fresh simulated `robot`.
+/// The simulator's ground-truth base pose `[x, y, θ]` (the paper's motion capture).
+fn truth(bot: &mut Robot) -> Result<[f64; 3]> {
+    bot.simulator()
+        .and_then(|s| s.base_truth())
+        .ok_or_else(|| Error::Link("the benchmark needs the simulated backend".into()))
+}
+
+/// Run one motion from rest at the origin on a fresh simulated `robot` whose odometry uses
+/// `geometry` (nominal when `None`).
 pub fn run_trial(
     robot: &str,
     controller: BaseController,
@@ -91,8 +105,9 @@ pub fn run_trial(
     target: [f64; 3],
     opts: GoalOptions,
     seed: u64,
+    geometry: Option<WheelGeometry>,
 ) -> Result<Trial> {
-    let mut bot = base_robot(robot, seed)?;
+    let mut bot = base_robot(robot, seed, geometry)?;
     let opts = GoalOptions {
         controller: Some(controller),
         ..opts
@@ -103,10 +118,7 @@ pub fn run_trial(
         .wait()
         .is_ok();
     let odometry = bot.base()?.get_state()?;
-    let truth = bot
-        .simulator()
-        .and_then(|s| s.base_truth())
-        .ok_or_else(|| Error::Link("the benchmark needs the simulated backend".into()))?;
+    let truth = truth(&mut bot)?;
     Ok(Trial {
         controller,
         category,
@@ -273,8 +285,13 @@ pub fn paper_circle() -> Reference {
 
 /// The executed ground-truth path `[x, y]` (m) of `run` on the circle, and its final
 /// distance from the reference's end (m).
-pub fn circle_path(robot: &str, run: CircleRun, seed: u64) -> Result<(Vec<[f64; 2]>, f64)> {
-    let mut bot = base_robot(robot, seed)?;
+pub fn circle_path(
+    robot: &str,
+    run: CircleRun,
+    seed: u64,
+    geometry: Option<WheelGeometry>,
+) -> Result<(Vec<[f64; 2]>, f64)> {
+    let mut bot = base_robot(robot, seed, geometry)?;
     let mut r = paper_circle();
     if run == CircleRun::Ilqr {
         let lim = crate::base_control::Limits::TRACKING;
@@ -294,4 +311,66 @@ pub fn circle_path(robot: &str, run: CircleRun, seed: u64) -> Result<(Vec<[f64; 
     let last = trace.last().copied().unwrap_or([0.0; 3]);
     let path = trace.iter().step_by(20).map(|p| [p[0], p[1]]).collect();
     Ok((path, (last[0] - end[0]).hypot(last[1] - end[1])))
+}
+
+/// The result of calibrating a simulated base's odometry.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OdometryCalibration {
+    /// The nominal geometry of the configuration.
+    pub nominal: WheelGeometry,
+    /// The least-squares estimate.
+    pub estimate: WheelGeometry,
+    /// The runs it was estimated from.
+    pub runs: usize,
+    /// RMS misfit over the runs of odometry with the nominal geometry: position (m),
+    /// heading (rad).
+    pub residual_nominal: (f64, f64),
+    /// The same with the estimate.
+    pub residual: (f64, f64),
+}
+
+/// The calibration protocol's moves, relative `[x, y, θ]`: UMBmark's 1 m square
+/// counter-clockwise and clockwise, one run per leg, then 2 m out and back.
+pub const CALIBRATION_MOVES: [[f64; 3]; 10] = {
+    use std::f64::consts::FRAC_PI_2;
+    [
+        [1.0, 0.0, FRAC_PI_2],
+        [1.0, 0.0, FRAC_PI_2],
+        [1.0, 0.0, FRAC_PI_2],
+        [1.0, 0.0, FRAC_PI_2],
+        [1.0, 0.0, -FRAC_PI_2],
+        [1.0, 0.0, -FRAC_PI_2],
+        [1.0, 0.0, -FRAC_PI_2],
+        [1.0, 0.0, -FRAC_PI_2],
+        [2.0, 0.0, 0.0],
+        [-2.0, 0.0, 0.0],
+    ]
+};
+
+/// Calibrate the odometry of the simulated `robot` (plants seeded by `seed`): drive
+/// [`CALIBRATION_MOVES`] with the configuration's controller on nominal odometry, log the
+/// wheel angles of each, measure its start and end with the simulator's ground truth (a
+/// motion-capture system on a real base), and fit the geometry by least squares
+/// ([`crate::odometry_calibration`]).
+pub fn calibrate_odometry(robot: &str, seed: u64) -> Result<OdometryCalibration> {
+    let mut bot = base_robot(robot, seed, None)?;
+    let nominal = bot.base()?.odometry_geometry();
+    let mut runs = Vec::new();
+    for m in CALIBRATION_MOVES {
+        let start = truth(&mut bot)?;
+        let mut base = bot.base()?;
+        base.start_wheel_log()?;
+        base.go_to_relative(m)?;
+        let wheels = base.take_wheel_log()?;
+        let end = truth(&mut bot)?;
+        runs.push(CalibrationRun { wheels, start, end });
+    }
+    let estimate = cal::estimate(&runs, &nominal)?;
+    Ok(OdometryCalibration {
+        nominal,
+        estimate,
+        runs: runs.len(),
+        residual_nominal: cal::residuals(&runs, &nominal),
+        residual: cal::residuals(&runs, &estimate),
+    })
 }

@@ -17,6 +17,7 @@ use serde::Deserialize;
 
 use crate::error::{Error, Result};
 use crate::kinematics::Chain;
+use crate::odometry_calibration::WheelGeometry;
 
 /// Names of the bundled robots.
 pub const BUNDLED: [&str; 3] = ["locobot", "locobot_lite", "sawyer"];
@@ -209,6 +210,19 @@ pub struct BaseSection {
     /// Heading tolerance of position controllers, rad.
     #[serde(default = "default_rotation_tol")]
     pub rotation_tolerance: f64,
+    /// Calibrated odometry geometry, e.g. `odometry = { left_radius = 0.03617,
+    /// right_radius = 0.03628, track = 0.2372 }` (m), as `ferrobot calibrate-odometry` prints
+    /// it; each value within 10 % of the nominal one. Absent: the nominal `wheel_radius` and
+    /// `track`.
+    #[serde(default)]
+    pub odometry: Option<WheelGeometry>,
+}
+
+impl BaseSection {
+    /// The nominal geometry: both wheels of `wheel_radius`, `track` apart.
+    pub fn nominal_geometry(&self) -> WheelGeometry {
+        WheelGeometry::nominal(self.wheel_radius, self.track)
+    }
 }
 
 fn default_translation_tol() -> f64 {
@@ -609,6 +623,7 @@ impl RobotConfig {
             if !(b.wheel_radius > 0.0
                 && b.track > 0.0
                 && b.footprint_radius > 0.0
+                && b.min_wheel_speed > 0.0
                 && b.max_linear > 0.0
                 && b.max_angular > 0.0)
             {
@@ -617,6 +632,15 @@ impl RobotConfig {
                     "base",
                     "wheel_radius, track, footprint_radius, min_wheel_speed, max_linear and max_angular must be positive",
                 ));
+            }
+            if let Some(g) = &b.odometry {
+                if !g.near(&b.nominal_geometry(), 0.1) {
+                    return Err(cfg_err(
+                        file,
+                        "base.odometry",
+                        "left_radius, right_radius and track must be within 10 % of wheel_radius and track",
+                    ));
+                }
             }
         }
         let _ = raw.board_profile;

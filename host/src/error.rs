@@ -72,6 +72,12 @@ pub enum Error {
         /// Why.
         why: String,
     },
+    /// Odometry calibration could not determine the base's geometry.
+    #[error("odometry calibration failed: {why}")]
+    Calibration {
+        /// Why.
+        why: String,
+    },
     /// An unknown joint or frame name.
     #[error("unknown {what} {name:?}")]
     UnknownName {

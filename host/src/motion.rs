@@ -189,6 +189,11 @@ impl<'r> Motion<'r> {
             Ok(t) => t,
             Err(e) => return Some(Err(e)),
         };
+        if let Some(log) = &mut self.robot.wheel_log {
+            if log.last().map(|l| l.0) != Some(t.time_us) {
+                log.push((t.time_us, [t.wheels.left as f64, t.wheels.right as f64]));
+            }
+        }
         let timed_out = now >= self.deadline;
         match &mut self.goal {
             Goal::Joints {
@@ -310,7 +315,8 @@ impl<'r> Motion<'r> {
                         if self.robot.base_log.last().map(|l| (l.1, l.2)) != Some((v, w)) {
                             self.robot.base_log.push((now.as_secs_f64(), v, w));
                         }
-                        self.send_base_velocity(v, w, 250)
+                        let hold = g.hold_ms();
+                        self.send_base_velocity(v, w, hold)
                     }
                 }
             }

@@ -169,6 +169,9 @@ pub struct Robot {
     pub(crate) arm_joints: Vec<usize>,
     /// Base commands sent by the trajectory tracker: (time s, v m/s, ω rad/s).
     pub(crate) base_log: Vec<(f64, f64, f64)>,
+    /// While recording: the wheel angles `[left, right]` (rad) of each telemetry frame a
+    /// motion has seen, with the frame's firmware time (µs).
+    pub(crate) wheel_log: Option<Vec<(u64, [f64; 2])>>,
 }
 
 impl Robot {
@@ -252,8 +255,25 @@ impl Robot {
             chains: HashMap::new(),
             arm_joints,
             base_log: Vec::new(),
+            wheel_log: None,
         };
         robot.check_joint_table()?;
+        let geometry = robot
+            .cfg
+            .base
+            .as_ref()
+            .filter(|_| robot.uses.base)
+            .and_then(|b| b.odometry);
+        if let Some(g) = geometry {
+            robot.link.command(
+                &HostMsg::SetBaseGeometry {
+                    left_radius: g.left_radius as f32,
+                    right_radius: g.right_radius as f32,
+                    track: g.track as f32,
+                },
+                "odometry geometry",
+            )?;
+        }
         Ok(robot)
     }
 

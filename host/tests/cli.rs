@@ -225,3 +225,27 @@ fn bench_base_json_rows() {
     assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn calibrate_odometry_prints_the_estimate() {
+    let (ok, v) = run(&[
+        "calibrate-odometry",
+        "locobot_lite",
+        "--seed",
+        "3",
+        "--json",
+    ]);
+    assert!(ok, "{v}");
+    assert_eq!(v["robot"], "locobot_lite");
+    assert_eq!(v["runs"], 10);
+    let g = |k: &str, f: &str| v[k][f].as_f64().expect("number");
+    assert_eq!(g("nominal", "track"), 0.235);
+    // The simulated Create 2's track is 1 % wider than nominal.
+    assert!((g("estimate", "track") / 0.235 - 1.01).abs() < 0.002, "{v}");
+    assert!(
+        g("residual", "position_m") < g("residual_nominal", "position_m"),
+        "{v}"
+    );
+    let (ok, v) = run(&["calibrate-odometry", "sawyer", "--json"]);
+    assert!(!ok, "{v}");
+}

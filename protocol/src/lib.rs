@@ -39,7 +39,7 @@ pub use frame::{encode_frame, Frame, FrameDecoder, FrameError, FrameStats};
 pub use messages::*;
 
 /// Version of the host ⇄ firmware protocol. Bumped on every incompatible change.
-pub const PROTOCOL_VERSION: u16 = 1;
+pub const PROTOCOL_VERSION: u16 = 2;
 
 /// Largest postcard body (sequence number plus message) a frame may carry, in bytes.
 ///

@@ -305,6 +305,18 @@ pub enum HostMsg {
     },
     /// Ask for the link and bus counters. Answered by [`DeviceMsg::Diagnostics`].
     GetDiagnostics,
+    /// Calibrated odometry geometry (from an odometry calibration against external
+    /// measurements): the effective left and right wheel radii and wheel separation, m, each
+    /// within 10 % of the base's nominal value. Only the odometry uses it; velocity commands
+    /// are converted with the base's nominal geometry, as its own controller does.
+    SetBaseGeometry {
+        /// Effective left wheel radius, m.
+        left_radius: f32,
+        /// Effective right wheel radius, m.
+        right_radius: f32,
+        /// Effective wheel separation, m.
+        track: f32,
+    },
 }
 
 /// Why the firmware rejected a command.

@@ -137,6 +137,13 @@ fn host_msg() -> impl Strategy<Value = HostMsg> {
         any::<u32>().prop_map(|period_us| HostMsg::SetLoopPeriod { period_us }),
         any::<u8>().prop_map(|joint| HostMsg::RebootJoint { joint }),
         Just(HostMsg::GetDiagnostics),
+        (f(), f(), f()).prop_map(|(left_radius, right_radius, track)| {
+            HostMsg::SetBaseGeometry {
+                left_radius,
+                right_radius,
+                track,
+            }
+        }),
     ]
 }
 

@@ -64,6 +64,9 @@ pub struct BaseDriver {
     last_rx: Option<u64>,
     /// Whether feedback is missing.
     pub lost: bool,
+    /// Odometry geometry: left and right wheel radius and wheel separation, m (the nominal
+    /// ones until [`BaseDriver::set_geometry`]).
+    pub odom_geometry: (f32, f32, f32),
     tx: TxBuf<128>,
     events: Deque<BaseEvent, 8>,
     /// Counters.
@@ -95,10 +98,26 @@ impl BaseDriver {
             last_gyro: None,
             last_rx: None,
             lost: false,
+            odom_geometry: (cfg.wheel_radius, cfg.wheel_radius, cfg.track),
             tx: TxBuf::new(),
             events: Deque::new(),
             stats: BaseStats::default(),
         }
+    }
+
+    /// Use calibrated odometry geometry: left and right wheel radius and wheel separation, m.
+    /// Each must be finite and within 10 % of the nominal value.
+    pub fn set_geometry(&mut self, left: f32, right: f32, track: f32) -> Result<(), RejectReason> {
+        if !self.present() {
+            return Err(RejectReason::NoBase);
+        }
+        let near = |x: f32, nominal: f32| x.is_finite() && (x - nominal).abs() <= 0.1 * nominal;
+        let r = self.cfg.wheel_radius;
+        if !(near(left, r) && near(right, r) && near(track, self.cfg.track)) {
+            return Err(RejectReason::InvalidConfig);
+        }
+        self.odom_geometry = (left, right, track);
+        Ok(())
     }
 
     /// Whether there is a base.
@@ -332,13 +351,13 @@ impl BaseDriver {
                 self.wheels.left_rate = al / dt;
                 self.wheels.right_rate = ar / dt;
             }
-            let rw = self.cfg.wheel_radius;
+            let (rl, rr, track) = self.odom_geometry;
             match (gyro, self.last_gyro) {
                 (Some(g), Some(g0)) => {
                     let dth = odometry::wrap_angle(g - g0);
-                    self.odom.update_with_heading(al * rw, ar * rw, dth, dt)
+                    self.odom.update_with_heading(al * rl, ar * rr, dth, dt)
                 }
-                _ => self.odom.update(al * rw, ar * rw, self.cfg.track, dt),
+                _ => self.odom.update(al * rl, ar * rr, track, dt),
             }
         }
         self.last_enc = Some((left, right));

@@ -114,6 +114,18 @@ enum Cmd {
         #[arg(long)]
         json: bool,
     },
+    /// Calibrate the simulated base's odometry (UMBmark squares both ways and a 2 m line,
+    /// measured by ground truth, fitted by least squares); prints the `[base] odometry` line.
+    CalibrateOdometry {
+        /// Robot name or configuration path.
+        robot: String,
+        /// Seed of the plants' noise.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Print one JSON object.
+        #[arg(long)]
+        json: bool,
+    },
     /// Benchmarks.
     Bench {
         #[command(subcommand)]
@@ -147,6 +159,10 @@ enum BenchCmd {
         /// Where the circle plots go.
         #[arg(long, default_value = "target/bench-base")]
         plot_dir: std::path::PathBuf,
+        /// First calibrate each base's odometry (as `ferrobot calibrate-odometry` with seed
+        /// SEED + 1000) and run every trial with the calibrated geometry.
+        #[arg(long)]
+        calibrate: bool,
     },
 }
 
@@ -398,8 +414,12 @@ fn run(cli: Cli) -> Result<(), (ferrobot::Error, bool)> {
                     seed,
                     json,
                     plot_dir,
+                    calibrate,
                 },
-        } => bench_base(robot, trials, seed, json, &plot_dir).map_err(|e| (e, json))?,
+        } => bench_base(robot, trials, seed, json, &plot_dir, calibrate).map_err(|e| (e, json))?,
+        Cmd::CalibrateOdometry { robot, seed, json } => {
+            calibrate_odometry(&robot, seed, json).map_err(|e| (e, json))?
+        }
         Cmd::SimFirmware { robot, link, seed } => {
             let cfg = load(&robot).map_err(|e| (e, true))?;
             let sim = ferrobot_sim::LockstepSim::with(
@@ -424,7 +444,7 @@ fn base_move(
     json: bool,
 ) -> ferrobot::Result<()> {
     let controller = controller.map(str::parse::<BaseController>).transpose()?;
-    let mut bot = ferrobot::bench_base::base_robot(robot, seed)?;
+    let mut bot = ferrobot::bench_base::base_robot(robot, seed, None)?;
     let opts = GoalOptions {
         controller,
         smooth,
@@ -456,12 +476,69 @@ fn base_move(
     r
 }
 
+/// The calibration as JSON.
+fn calibration_json(c: &ferrobot::bench_base::OdometryCalibration) -> serde_json::Value {
+    let g = |g: &ferrobot::odometry_calibration::WheelGeometry| json!({"left_radius": g.left_radius, "right_radius": g.right_radius, "track": g.track});
+    json!({
+        "nominal": g(&c.nominal),
+        "estimate": g(&c.estimate),
+        "runs": c.runs,
+        "residual_nominal": {"position_m": c.residual_nominal.0, "heading_rad": c.residual_nominal.1},
+        "residual": {"position_m": c.residual.0, "heading_rad": c.residual.1},
+    })
+}
+
+/// The calibration as text, ending with the configuration line.
+fn calibration_text(c: &ferrobot::bench_base::OdometryCalibration) -> String {
+    let (n, e) = (&c.nominal, &c.estimate);
+    let pct = |x: f64, y: f64| 100.0 * (x / y - 1.0);
+    format!(
+        "odometry calibration from {} runs measured by ground truth:\n\
+         - left radius  {:.5} m ({:+.2} % of nominal {:.5})\n\
+         - right radius {:.5} m ({:+.2} % of nominal {:.5})\n\
+         - track        {:.5} m ({:+.2} % of nominal {:.5})\n\
+         - RMS misfit per run: nominal {:.1} mm / {:.2} deg, calibrated {:.1} mm / {:.2} deg\n\
+         [base] line: odometry = {{ left_radius = {:.6}, right_radius = {:.6}, track = {:.6} }}",
+        c.runs,
+        e.left_radius,
+        pct(e.left_radius, n.left_radius),
+        n.left_radius,
+        e.right_radius,
+        pct(e.right_radius, n.right_radius),
+        n.right_radius,
+        e.track,
+        pct(e.track, n.track),
+        n.track,
+        c.residual_nominal.0 * 1000.0,
+        c.residual_nominal.1.to_degrees(),
+        c.residual.0 * 1000.0,
+        c.residual.1.to_degrees(),
+        e.left_radius,
+        e.right_radius,
+        e.track
+    )
+}
+
+fn calibrate_odometry(robot: &str, seed: u64, json: bool) -> ferrobot::Result<()> {
+    let c = ferrobot::bench_base::calibrate_odometry(robot, seed)?;
+    if json {
+        let mut o = calibration_json(&c);
+        o["robot"] = json!(robot);
+        o["seed"] = json!(seed);
+        println!("{o}");
+    } else {
+        println!("{robot}, seed {seed}: {}", calibration_text(&c));
+    }
+    Ok(())
+}
+
 fn bench_base(
     robots: Vec<String>,
     trials: usize,
     seed: u64,
     json: bool,
     plot_dir: &std::path::Path,
+    calibrate: bool,
 ) -> ferrobot::Result<()> {
     use ferrobot::bench_base::{self as bb, Category, CircleRun};
     use ferrobot::plot::{Canvas, COLOURS};
@@ -472,6 +549,12 @@ fn bench_base(
     };
     std::fs::create_dir_all(plot_dir)?;
     for robot in robots {
+        let calibration = if calibrate {
+            Some(bb::calibrate_odometry(&robot, seed + 1000)?)
+        } else {
+            None
+        };
+        let geometry = calibration.as_ref().map(|c| c.estimate);
         // Every (controller, category, target, trial), run on all cores; each is seeded, so
         // the order of execution does not change the results.
         let mut jobs = Vec::new();
@@ -505,7 +588,15 @@ fn bench_base(
                             };
                             out.push((
                                 i,
-                                bb::run_trial(&robot, c, cat, target, GoalOptions::default(), sd),
+                                bb::run_trial(
+                                    &robot,
+                                    c,
+                                    cat,
+                                    target,
+                                    GoalOptions::default(),
+                                    sd,
+                                    geometry,
+                                ),
                             ));
                             bar.inc(1);
                         }
@@ -533,7 +624,7 @@ fn bench_base(
         let mut legend = vec![format!("{}: reference circle (r = 0.4 m)", COLOURS[0].0)];
         let mut ends = Vec::new();
         for (k, run) in CircleRun::ALL.into_iter().enumerate() {
-            let (path, end) = bb::circle_path(&robot, run, seed)?;
+            let (path, end) = bb::circle_path(&robot, run, seed, geometry)?;
             canvas.polyline(&path, COLOURS[k + 1].1, 2);
             legend.push(format!(
                 "{}: {} (ends {:.1} mm from the reference end)",
@@ -550,7 +641,8 @@ fn bench_base(
                 .map(|c| c.1)
                 .collect::<Vec<_>>(),
         );
-        let png = plot_dir.join(format!("circle_{robot}.png"));
+        let suffix = if calibrate { "_calibrated" } else { "" };
+        let png = plot_dir.join(format!("circle_{robot}{suffix}.png"));
         canvas.save(&png)?;
         bar.finish_and_clear();
         if json {
@@ -562,8 +654,14 @@ fn bench_base(
                 .collect::<Vec<_>>());
             o["seed"] = json!(seed);
             o["trials_per_target"] = json!(trials);
+            if let Some(c) = &calibration {
+                o["odometry_calibration"] = calibration_json(c);
+            }
             println!("{o}");
         } else {
+            if let Some(c) = &calibration {
+                println!("{robot}, seed {}: {}\n", seed + 1000, calibration_text(c));
+            }
             println!("{}", bb::markdown(&robot, trials, seed, &rows));
             println!("Circle tracking, ground truth, in {}:", png.display());
             for l in legend {
