@@ -1,5 +1,7 @@
 //! Host frames: the frame decoder alone (both message directions), then the firmware core fed
-//! the same bytes after a valid handshake. Nothing may panic.
+//! the same bytes after a valid handshake, then every message postcard can read from the
+//! bytes, framed validly (so that arbitrary commands and values reach the firmware's
+//! handlers past the CRC). Nothing may panic.
 #![no_main]
 use ferrobot_firmware::{config, Firmware, Link};
 use ferrobot_protocol::*;
@@ -26,6 +28,27 @@ fuzz_target!(|data: &[u8]| {
         for link in [Link::Host, Link::Servo, Link::Base] {
             let n = fw.pending(link).len();
             fw.consume(link, n);
+        }
+    }
+    let mut rest = data;
+    let mut seq = 1u16;
+    while !rest.is_empty() {
+        match postcard::take_from_bytes::<HostMsg>(rest) {
+            Ok((msg, tail)) => {
+                let mut buf = [0u8; MAX_WIRE];
+                if let Ok(n) = encode_frame(seq, &msg, &mut buf) {
+                    let now = 1000 * seq as u64;
+                    fw.on_host_bytes(now, &buf[..n]);
+                    fw.poll(now);
+                    for link in [Link::Host, Link::Servo, Link::Base] {
+                        let n = fw.pending(link).len();
+                        fw.consume(link, n);
+                    }
+                }
+                seq = seq.wrapping_add(1);
+                rest = tail;
+            }
+            Err(_) => rest = &rest[1..],
         }
     }
 });
