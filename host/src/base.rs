@@ -7,10 +7,11 @@ use std::time::Duration;
 
 use ferrobot_protocol::{HostMsg, Telemetry};
 
-use crate::base_control::{ilqr, wrap, Circle, Dwa, Limits, LqrTracker, NavField, Reference};
+use crate::base_control::{ilqr, wrap, Dwa, Limits, LqrTracker, NavField, Reference};
 use crate::config::BaseController;
 use crate::error::{check_finite, Error, Result};
 use crate::motion::{Goal, Motion};
+use crate::obstacles::{Circle, Obstacles, OccupancyGrid};
 use crate::odometry_calibration::WheelGeometry;
 use crate::robot::Robot;
 
@@ -598,9 +599,11 @@ pub struct GoalOptions {
     pub smooth: bool,
     /// LQR: correct from odometry (true) or play the reference open loop.
     pub close_loop: bool,
-    /// Circular obstacles `[x, y, r]` (m) in the odometry frame. With obstacles and no explicit
-    /// controller, the dynamic window approach is used.
+    /// Circular obstacles `[x, y, r]` (m) in the odometry frame. With obstacles or a map and no
+    /// explicit controller, the dynamic window approach is used.
     pub obstacles: Vec<Circle>,
+    /// An occupancy-grid map in the odometry frame for the dynamic window approach.
+    pub map: Option<OccupancyGrid>,
 }
 
 impl Default for GoalOptions {
@@ -610,6 +613,7 @@ impl Default for GoalOptions {
             smooth: false,
             close_loop: true,
             obstacles: Vec::new(),
+            map: None,
         }
     }
 }
@@ -912,10 +916,8 @@ impl<'r> Base<'r> {
     /// Start moving to `[x, y, θ]` in the odometry frame with the chosen controller.
     pub fn go_to_absolute_with(&mut self, goal: [f64; 3], opts: GoalOptions) -> Result<Motion<'_>> {
         check_finite("base goal", &goal)?;
-        for o in &opts.obstacles {
-            check_finite("obstacle", o)?;
-        }
-        let controller = opts.controller.unwrap_or(if opts.obstacles.is_empty() {
+        let obstacles = Obstacles::new(opts.obstacles.clone(), opts.map.as_ref())?;
+        let controller = opts.controller.unwrap_or(if obstacles.is_empty() {
             self.section().controller
         } else {
             BaseController::Dwa
@@ -941,28 +943,25 @@ impl<'r> Base<'r> {
             BaseController::Dwa => {
                 let here = self.get_state()?;
                 let radius = self.section().footprint_radius;
-                if let Some(o) = opts
-                    .obstacles
-                    .iter()
-                    .find(|o| (goal[0] - o[0]).hypot(goal[1] - o[1]) < o[2] + radius)
-                {
+                let clear = obstacles.clearance([goal[0], goal[1]]);
+                if clear < radius {
                     return Err(Error::Unreachable {
                         why: format!(
-                            "the base ({radius} m footprint radius) at the goal would overlap the obstacle {o:?}"
+                            "the base ({radius} m footprint radius) at the goal would overlap an obstacle ({clear:.3} m from the goal)"
                         ),
                     });
                 }
                 let nav = NavField::new(
                     [here[0], here[1]],
                     [goal[0], goal[1]],
-                    &opts.obstacles,
+                    &obstacles,
                     radius + DWA_PATH_MARGIN,
                 );
                 let dwa = Dwa {
                     path: nav.path([here[0], here[1]]),
                     nav,
                     goal: [goal[0], goal[1]],
-                    obstacles: opts.obstacles,
+                    obstacles,
                     radius,
                     limits: lim,
                     dt: 0.1,

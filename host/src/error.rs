@@ -72,6 +72,12 @@ pub enum Error {
         /// Why.
         why: String,
     },
+    /// An occupancy-grid map that cannot be used.
+    #[error("invalid map: {why}")]
+    InvalidMap {
+        /// Why.
+        why: String,
+    },
     /// Odometry calibration could not determine the base's geometry.
     #[error("odometry calibration failed: {why}")]
     Calibration {

@@ -26,6 +26,7 @@ pub mod error;
 pub mod gripper;
 pub mod kinematics;
 pub mod motion;
+pub mod obstacles;
 pub mod odometry_calibration;
 pub mod pan_tilt;
 pub mod plot;

@@ -35,6 +35,7 @@ fn reaches(robot: &str, controller: BaseController, smooth: bool) {
             smooth,
             close_loop: true,
             obstacles: vec![],
+            map: None,
         };
         bot.base()
             .expect("base")
@@ -221,6 +222,7 @@ fn a_bumper_hit_stops_lqr_tracking_with_an_error() {
         smooth: false,
         close_loop: true,
         obstacles: vec![],
+        map: None,
     };
     let e = bot
         .base()
@@ -423,4 +425,76 @@ fn implausible_odometry_geometry_is_refused() {
     let e = base.set_odometry_geometry(bad).expect_err("refused");
     assert!(matches!(e, Error::Calibration { .. }), "{e}");
     assert_eq!(base.odometry_geometry(), before);
+}
+
+/// A wall across the way with a door off to the side, given as an occupancy-grid map (5 cm
+/// cells) and built from posts in the simulated world: the dynamic window, told only the map,
+/// drives through the door to the goal behind the wall without touching it (the simulated
+/// bumper would abort the motion) and ends within 2 cm and 2°. A goal inside the wall and a
+/// malformed map are refused before anything moves.
+#[test]
+fn dwa_drives_through_a_door_in_a_map_on_both_bases() {
+    use ferrobot::base_control::OccupancyGrid;
+    // Posts of 5 cm radius every 7 cm along x = 1 m, for y in [-1.5, 1.5] m, except the door
+    // at y in (0.3, 1.1) m.
+    let posts: Vec<[f64; 3]> = (0..=43)
+        .map(|k| [1.0, -1.5 + 0.07 * k as f64, 0.05])
+        .filter(|p| !(p[1] > 0.25 && p[1] < 1.15))
+        .collect();
+    let mut map = OccupancyGrid::new([-0.5, -2.0], 0.05, 71, 81).expect("map");
+    for p in &posts {
+        map.fill_circle(*p);
+    }
+    for robot in ["locobot", "locobot_lite"] {
+        let mut bot = Robot::builder(robot).use_arm(false).build().expect("robot");
+        for p in &posts {
+            place_post(&mut bot, p[0], p[1], p[2]);
+        }
+        let opts = GoalOptions {
+            map: Some(map.clone()),
+            ..GoalOptions::default()
+        };
+        bot.base()
+            .expect("base")
+            .go_to_absolute_with([2.0, 0.0, 0.0], opts)
+            .expect("starts")
+            .wait()
+            .unwrap_or_else(|e| panic!("{robot}: {e}"));
+        let s = bot.base().expect("base").get_state().expect("odometry");
+        assert!(
+            (s[0] - 2.0).hypot(s[1]) < 0.02 && wrap(s[2]).abs() < 2f64.to_radians(),
+            "{robot}: odometry {s:?}"
+        );
+        let opts = GoalOptions {
+            map: Some(map.clone()),
+            ..GoalOptions::default()
+        };
+        let e = bot
+            .base()
+            .expect("base")
+            .go_to_absolute_with([1.0, -1.0, 0.0], opts)
+            .err()
+            .expect("inside the wall");
+        assert!(matches!(e, Error::Unreachable { .. }), "{robot}: {e}");
+    }
+    let mut bad = map.clone();
+    bad.occupied.truncate(10);
+    let mut bot = Robot::builder("locobot")
+        .use_arm(false)
+        .build()
+        .expect("robot");
+    let e = bot
+        .base()
+        .expect("base")
+        .go_to_absolute_with(
+            [2.0, 0.0, 0.0],
+            GoalOptions {
+                map: Some(bad),
+                ..GoalOptions::default()
+            },
+        )
+        .err()
+        .expect("malformed map");
+    assert!(matches!(e, Error::InvalidMap { .. }), "{e}");
+    assert!(bot.base_commands().is_empty());
 }

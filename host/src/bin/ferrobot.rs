@@ -449,7 +449,7 @@ fn base_move(
         controller,
         smooth,
         close_loop: !open_loop,
-        obstacles: Vec::new(),
+        ..Default::default()
     };
     let r = bot.base()?.go_to_relative_with(target, opts)?.wait();
     let odometry = bot.base()?.get_state()?;
