@@ -1,9 +1,15 @@
-//! A minimal 2-D path plot written as PNG: a metric grid, polylines, and a colour key of
-//! swatches. We rasterise ourselves over the `png` encoder rather than use `plotters`, whose
-//! text rendering needs system fonts that a fresh machine may lack; legends are printed in
-//! text by the caller, matched to [`COLOURS`].
+//! A minimal 2-D path plot written as PNG: a metric grid, polylines, a title and a legend.
+//! We rasterise over the `png` encoder rather than use `plotters`, whose text rendering needs
+//! system fonts that a fresh machine may lack; text comes from `embedded-graphics`' built-in
+//! bitmap fonts.
 
 use std::path::Path;
+
+use embedded_graphics::mono_font::{ascii::FONT_9X15, MonoTextStyle};
+use embedded_graphics::pixelcolor::Rgb888;
+use embedded_graphics::prelude::{DrawTarget, OriginDimensions, Point, RgbColor, Size};
+use embedded_graphics::text::{Baseline, Text};
+use embedded_graphics::{Drawable, Pixel};
 
 use crate::error::{Error, Result};
 
@@ -91,18 +97,41 @@ impl Canvas {
         }
     }
 
-    /// Colour swatches down the top-left corner, one per series.
-    pub fn key(&mut self, colours: &[[u8; 3]]) {
-        for (k, c) in colours.iter().enumerate() {
+    /// Text with its top-left corner at pixel `(x, y)`, on a white box.
+    pub fn text(&mut self, x: usize, y: usize, text: &str, colour: [u8; 3]) {
+        // 9×15 pixel glyphs.
+        let (w, h) = (9 * text.chars().count() + 4, 17);
+        for j in y.saturating_sub(1)..(y + h).min(self.size) {
+            for i in x.saturating_sub(2)..(x + w).min(self.size) {
+                self.px[j * self.size + i] = [255; 3];
+            }
+        }
+        let style = MonoTextStyle::new(&FONT_9X15, Rgb888::new(colour[0], colour[1], colour[2]));
+        // Drawing into the canvas cannot fail (see `DrawTarget for Canvas`).
+        let _ = Text::with_baseline(text, Point::new(x as i32, y as i32), style, Baseline::Top)
+            .draw(self);
+    }
+
+    /// A legend down the top-left corner: a colour swatch and a label per series.
+    pub fn legend(&mut self, entries: &[([u8; 3], String)]) {
+        for (k, (c, label)) in entries.iter().enumerate() {
+            let top = 10 + k * 20;
             for y in 0..12 {
                 for x in 0..24 {
-                    let (i, j) = (10 + x, 10 + k * 18 + y);
+                    let (i, j) = (10 + x, top + 2 + y);
                     if i < self.size && j < self.size {
                         self.px[j * self.size + i] = *c;
                     }
                 }
             }
+            self.text(40, top, label, [0; 3]);
         }
+    }
+
+    /// A line of text along the bottom edge (title, scale).
+    pub fn caption(&mut self, text: &str) {
+        let y = self.size.saturating_sub(22);
+        self.text(10, y, text, [60; 3]);
     }
 
     /// Write as an 8-bit RGB PNG.
@@ -121,6 +150,30 @@ impl Canvas {
         let data: Vec<u8> = self.px.iter().flatten().copied().collect();
         w.write_image_data(&data)
             .map_err(|e| Error::Io(std::io::Error::other(e)))?;
+        Ok(())
+    }
+}
+
+impl OriginDimensions for Canvas {
+    fn size(&self) -> Size {
+        Size::new(self.size as u32, self.size as u32)
+    }
+}
+
+impl DrawTarget for Canvas {
+    type Color = Rgb888;
+    type Error = core::convert::Infallible;
+
+    /// Pixels outside the canvas are dropped.
+    fn draw_iter<I>(&mut self, pixels: I) -> core::result::Result<(), Self::Error>
+    where
+        I: IntoIterator<Item = Pixel<Self::Color>>,
+    {
+        for Pixel(p, c) in pixels {
+            if p.x >= 0 && p.y >= 0 && (p.x as usize) < self.size && (p.y as usize) < self.size {
+                self.px[p.y as usize * self.size + p.x as usize] = [c.r(), c.g(), c.b()];
+            }
+        }
         Ok(())
     }
 }

@@ -221,8 +221,17 @@ fn bench_base_json_rows() {
         }
         assert_eq!(r["successes"], serde_json::json!([2, 2]), "{r}");
     }
-    let png = std::fs::read(dir.join("circle_locobot.png")).expect("plot");
-    assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
+    for name in ["circle_locobot.png", "circle_locobot_end.png"] {
+        let png = std::fs::read(dir.join(name)).expect("plot");
+        assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n", "{name}");
+        // IHDR: 800 × 800 pixels.
+        assert_eq!(&png[16..24], &[0, 0, 3, 32, 0, 0, 3, 32], "{name}");
+    }
+    assert_eq!(
+        v["circle_end_error_m"].as_array().map(Vec::len),
+        Some(3),
+        "{v}"
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }
 

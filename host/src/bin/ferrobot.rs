@@ -613,41 +613,59 @@ fn bench_base(
         });
         let trials_done = results.into_iter().collect::<ferrobot::Result<Vec<_>>>()?;
         let rows = bb::summarize(&trials_done);
-        // The circle comparison.
-        let mut canvas = Canvas::new(800, [0.0, 0.4], 1.2, 0.1);
+        // The circle comparison: the whole lap, and a zoom on its end (±6 cm).
         let reference: Vec<[f64; 2]> = bb::paper_circle()
             .states
             .iter()
             .map(|s| [s[0], s[1]])
             .collect();
-        canvas.polyline(&reference, COLOURS[0].1, 3);
+        let end_ref = reference.last().copied().unwrap_or([0.0; 2]);
+        let mut canvas = Canvas::new(800, [0.0, 0.4], 1.2, 0.1);
+        let mut zoom = Canvas::new(800, end_ref, 0.12, 0.01);
+        let mut entries = vec![(COLOURS[0].1, "reference circle (r = 0.4 m)".to_string())];
         let mut legend = vec![format!("{}: reference circle (r = 0.4 m)", COLOURS[0].0)];
         let mut ends = Vec::new();
+        let runs = CircleRun::ALL.len();
         for (k, run) in CircleRun::ALL.into_iter().enumerate() {
             let (path, end) = bb::circle_path(&robot, run, seed, geometry)?;
-            canvas.polyline(&path, COLOURS[k + 1].1, 2);
-            legend.push(format!(
-                "{}: {} (ends {:.1} mm from the reference end)",
-                COLOURS[k + 1].0,
+            // Earlier series wider, so that identical paths stay visible.
+            let width = 2 + 2 * (runs - 1 - k);
+            canvas.polyline(&path, COLOURS[k + 1].1, width);
+            zoom.polyline(&path, COLOURS[k + 1].1, 2 * width);
+            let label = format!(
+                "{}: ends {:.1} mm from the reference end",
                 run.name(),
                 end * 1000.0
-            ));
+            );
+            legend.push(format!("{}: {label}", COLOURS[k + 1].0));
+            entries.push((COLOURS[k + 1].1, label));
             ends.push((run.name(), end));
             bar.inc(1);
         }
-        canvas.key(
-            &COLOURS[..=CircleRun::ALL.len()]
-                .iter()
-                .map(|c| c.1)
-                .collect::<Vec<_>>(),
-        );
+        // The reference last, thin, on top.
+        canvas.polyline(&reference, COLOURS[0].1, 1);
+        zoom.polyline(&reference, COLOURS[0].1, 2);
+        let what = if calibrate {
+            ", calibrated odometry"
+        } else {
+            ""
+        };
+        canvas.legend(&entries);
+        canvas.caption(&format!(
+            "{robot}{what}: circle tracking, ground truth; grid 0.1 m"
+        ));
+        zoom.legend(&entries);
+        zoom.caption(&format!("{robot}{what}: the end of the lap; grid 1 cm"));
         let suffix = if calibrate { "_calibrated" } else { "" };
         let png = plot_dir.join(format!("circle_{robot}{suffix}.png"));
+        let png_zoom = plot_dir.join(format!("circle_{robot}{suffix}_end.png"));
         canvas.save(&png)?;
+        zoom.save(&png_zoom)?;
         bar.finish_and_clear();
         if json {
             let mut o = bb::json(&robot, &rows);
             o["circle_plot"] = json!(png.display().to_string());
+            o["circle_plot_end"] = json!(png_zoom.display().to_string());
             o["circle_end_error_m"] = json!(ends
                 .iter()
                 .map(|(n, e)| json!({"run": n, "error": e}))
@@ -663,7 +681,11 @@ fn bench_base(
                 println!("{robot}, seed {}: {}\n", seed + 1000, calibration_text(c));
             }
             println!("{}", bb::markdown(&robot, trials, seed, &rows));
-            println!("Circle tracking, ground truth, in {}:", png.display());
+            println!(
+                "Circle tracking, ground truth, in {} (the end zoomed in {}):",
+                png.display(),
+                png_zoom.display()
+            );
             for l in legend {
                 println!("- {l}");
             }
