@@ -52,7 +52,10 @@ fn reaches(robot: &str, controller: BaseController, smooth: bool) {
         );
         // Every command changes by at most one control period's acceleration: the
         // proportional controller runs at 20 Hz within the configured speeds and its own
-        // accelerations; the others at 10 Hz within the tracking limits.
+        // accelerations; the others at 10 Hz within the tracking limits. (The finisher after
+        // LQR/ILQR ramps within these accelerations in time; its creep pulses start and stop
+        // as single steps to and from creep speed, which are within one 10 Hz period's
+        // acceleration, and the firmware times their end.)
         let cmds = bot.base_commands();
         assert!(
             cmds.len() > 10,
