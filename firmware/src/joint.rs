@@ -350,15 +350,7 @@ mod tests {
         let cfg = crate::config::locobot().joints[0].clone();
         let mut j = JointControl::new();
         j.set_mode(0, JointMode::Position);
-        assert!(j.push(
-            0,
-            0,
-            &JointPoint {
-                position: 5.0,
-                velocity: 0.0,
-                effort: 0.0
-            }
-        ));
+        assert!(j.push(0, 0, &JointPoint::at_rest(5.0)));
         let mut last = 0.0;
         for k in 1..=3000u64 {
             if let JointOutput::Position(p) = j.tick(k * 1000, 1e-3, &cfg) {
@@ -373,11 +365,7 @@ mod tests {
     fn queue_is_bounded() {
         let mut j = JointControl::new();
         j.set_mode(0, JointMode::Position);
-        let p = JointPoint {
-            position: 0.1,
-            velocity: 0.0,
-            effort: 0.0,
-        };
+        let p = JointPoint::at_rest(0.1);
         for _ in 0..QUEUE_LEN {
             assert!(j.push(0, 1000, &p));
         }

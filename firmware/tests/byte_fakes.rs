@@ -215,11 +215,7 @@ fn twin_servo_is_mirrored_and_inverted_joints_are_inverted() {
     run(&mut fw, &mut bus, &mut now, 200);
     let pts = [0.5f32, 0.5]
         .iter()
-        .map(|&position| JointPoint {
-            position,
-            velocity: 0.0,
-            effort: 0.0,
-        })
+        .map(|&p| JointPoint::at_rest(p))
         .collect();
     fw.on_host_bytes(
         now,
@@ -428,14 +424,7 @@ fn a_waypoint_sent_before_the_servos_are_configured_is_kept() {
     fw.on_host_bytes(now, &hello());
     fw.on_host_bytes(now, &frame(1, &HostMsg::SetWatchdog { period_ms: 0 }));
     // Before any servo has answered: queue a move of joint_1 to 0.3 rad.
-    let pts = [0.3f32]
-        .iter()
-        .map(|&position| JointPoint {
-            position,
-            velocity: 0.0,
-            effort: 0.0,
-        })
-        .collect();
+    let pts = [0.3f32].iter().map(|&p| JointPoint::at_rest(p)).collect();
     fw.on_host_bytes(
         now,
         &frame(

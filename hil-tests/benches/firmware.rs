@@ -90,16 +90,7 @@ fn main() {
     let bench = build_board("mps2-an386", &["tick-bench"], Some("target/tick-bench"))
         .unwrap_or_else(|e| panic!("{e}"));
     let mut qemu = Command::new("qemu-system-arm")
-        .args([
-            "-machine",
-            "mps2-an386",
-            "-cpu",
-            "cortex-m4",
-            "-display",
-            "none",
-            "-monitor",
-            "none",
-        ])
+        .args(ferrobot::backend::emulated::QEMU_MACHINE_ARGS)
         .args([
             "-icount",
             "shift=0,sleep=off",

@@ -5,7 +5,7 @@
 
 use std::time::Duration;
 
-use ferrobot_protocol::{HostMsg, JointMode, JointPoint, JointState};
+use ferrobot_protocol::{HostMsg, JointMode, JointState};
 use nalgebra::{Isometry3, Matrix3, Matrix6xX, Rotation3, Translation3, UnitQuaternion, Vector3};
 
 use crate::error::{check_finite, Error, Result};
@@ -194,24 +194,10 @@ impl<'r> Arm<'r> {
             t = t.max(1.5 * (target - s.position as f64).abs() / (0.9 * v));
         }
         let duration = if opts.plan { t.max(0.2) } else { 0.0 };
-        let points = q
-            .iter()
-            .map(|&p| JointPoint {
-                position: p as f32,
-                velocity: 0.0,
-                effort: 0.0,
-            })
-            .collect();
         let idx = self.robot.arm_joints.clone();
         let mask = self.mask();
-        self.robot.link.command(
-            &HostMsg::Waypoint {
-                joints: mask,
-                duration_us: (duration * 1e6) as u32,
-                points,
-            },
-            "arm joint target",
-        )?;
+        self.robot
+            .send_rest_waypoint(mask, q.iter().copied(), duration, "arm joint target")?;
         let tolerance = opts.tolerance.unwrap_or(self.cfg().joint_tolerance);
         let timeout = opts
             .timeout
@@ -541,24 +527,14 @@ impl<'r> Arm<'r> {
             for ((&j, a), b) in idx.iter().zip(q).zip(&prev) {
                 t = t.max((a - b).abs() / (0.5 * self.robot.cfg.joints[j].limits.velocity as f64));
             }
-            let points = q
-                .iter()
-                .map(|&p| JointPoint {
-                    position: p as f32,
-                    velocity: 0.0,
-                    effort: 0.0,
-                })
-                .collect();
             // Keep the firmware queue short: wait while it is nearly full.
             while self.robot.link.telemetry()?.queued as usize >= 8 * idx.len() {
                 self.robot.link.wait(Duration::from_millis(20));
             }
-            self.robot.link.command(
-                &HostMsg::Waypoint {
-                    joints: mask,
-                    duration_us: (t.max(0.02) * 1e6) as u32,
-                    points,
-                },
+            self.robot.send_rest_waypoint(
+                mask,
+                q.iter().copied(),
+                t.max(0.02),
                 "Cartesian waypoint",
             )?;
             prev = q.clone();

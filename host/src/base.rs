@@ -3,6 +3,7 @@
 //! clockwise). A bumper, cliff or wheel-drop event aborts a motion with an error that names the
 //! sensor.
 
+use std::collections::VecDeque;
 use std::time::Duration;
 
 use ferrobot_protocol::{HostMsg, Telemetry};
@@ -81,6 +82,17 @@ impl BaseLaw for BaseGoal {
 }
 
 impl BaseGoal {
+    /// Heading error (rad) from `th` to the direction of driving towards the goal offset
+    /// `(dx, dy)`: its bearing, or the opposite when driving backwards.
+    fn drive_heading_error(&self, dx: f64, dy: f64, th: f64) -> f64 {
+        let back = if self.backwards {
+            std::f64::consts::PI
+        } else {
+            0.0
+        };
+        wrap(dy.atan2(dx) + back - th)
+    }
+
     fn step_inner(&mut self, now: Duration, t: &Telemetry) -> Option<(f64, f64)> {
         if now < self.next {
             return Some((self.v, self.w));
@@ -100,17 +112,8 @@ impl BaseGoal {
                         self.phase = Phase::TurnToHeading;
                         continue;
                     }
-                    let bearing = dy.atan2(dx);
-                    self.backwards = wrap(bearing - th).abs() > std::f64::consts::FRAC_PI_2;
-                    let e = wrap(
-                        bearing
-                            + if self.backwards {
-                                std::f64::consts::PI
-                            } else {
-                                0.0
-                            }
-                            - th,
-                    );
+                    self.backwards = wrap(dy.atan2(dx) - th).abs() > std::f64::consts::FRAC_PI_2;
+                    let e = self.drive_heading_error(dx, dy, th);
                     if e.abs() < self.tol_th {
                         self.phase = Phase::Drive;
                         continue;
@@ -119,16 +122,7 @@ impl BaseGoal {
                     w = p.signum() * p.abs().max(self.min_w);
                 }
                 Phase::Drive => {
-                    let bearing = dy.atan2(dx);
-                    let e = wrap(
-                        bearing
-                            + if self.backwards {
-                                std::f64::consts::PI
-                            } else {
-                                0.0
-                            }
-                            - th,
-                    );
+                    let e = self.drive_heading_error(dx, dy, th);
                     // Distance along the heading; past the goal it turns negative.
                     let along = dist * e.cos();
                     if dist < self.tol_xy || along < 0.0 {
@@ -318,7 +312,6 @@ struct Finish {
     goal: [f64; 3],
     v_min: f64,
     w_min: f64,
-    tol_th: f64,
     /// Odometry heading change of one encoder tick of one wheel, rad.
     tick: f64,
     limits: Limits,
@@ -328,7 +321,7 @@ struct Finish {
     hold_ms: u16,
     step: FinishStep,
     /// Steps after the current one.
-    plan: Vec<FinishStep>,
+    plan: VecDeque<FinishStep>,
     attempts: u32,
     pulse: Option<Pulse>,
     /// Learned dead time (s) of linear and angular pulses.
@@ -343,18 +336,23 @@ impl Finish {
             goal,
             v_min,
             w_min,
-            tol_th: FINISH_TOL_TH.max(0.55 * tick),
             tick,
             limits,
             last: (0.0, 0.0),
             last_t: None,
             hold_ms: 250,
             step: FinishStep::Decide,
-            plan: Vec::new(),
+            plan: VecDeque::new(),
             attempts: 0,
             pulse: None,
             dead_time: [FINISH_DEAD_TIME; 2],
         }
+    }
+
+    /// The heading tolerance (rad): [`FINISH_TOL_TH`], or 0.55 tick where one encoder tick
+    /// turns the odometry by more than twice that.
+    fn tol_th(&self) -> f64 {
+        FINISH_TOL_TH.max(0.55 * self.tick)
     }
 
     /// The next command, `None` when done.
@@ -500,7 +498,7 @@ impl Finish {
                             to: [self.goal[0], self.goal[1]],
                             tol: FINISH_TOL_XY,
                         };
-                        self.plan.push(FinishStep::Decide);
+                        self.plan.push_back(FinishStep::Decide);
                     } else {
                         self.step = FinishStep::Turn { to: self.goal[2] };
                     }
@@ -524,7 +522,7 @@ impl Finish {
                     let tol = (0.5 * FINISH_TOL_LATERAL / d.max(1e-9))
                         .min(1.0)
                         .asin()
-                        .max(self.tol_th);
+                        .max(self.tol_th());
                     let forward = dx * c + dy * s >= 0.0;
                     match self.creep(now, wrap(to - th), tol, Some(forward), still) {
                         Some(cmd) => return Some(cmd),
@@ -532,7 +530,7 @@ impl Finish {
                     }
                 }
                 FinishStep::Turn { to } => {
-                    let tol = self.tol_th;
+                    let tol = self.tol_th();
                     let forward = (self.goal[0] - x) * c + (self.goal[1] - y) * s >= 0.0;
                     match self.creep(now, wrap(to - th), tol, Some(forward), still) {
                         Some(cmd) => return Some(cmd),
@@ -547,11 +545,7 @@ impl Finish {
 
     fn advance(&mut self) {
         self.pulse = None;
-        self.step = if self.plan.is_empty() {
-            FinishStep::Decide
-        } else {
-            self.plan.remove(0)
-        };
+        self.step = self.plan.pop_front().unwrap_or(FinishStep::Decide);
     }
 }
 
@@ -751,10 +745,8 @@ impl<'r> Base<'r> {
     /// calibration), beginning with the current ones; replaces an earlier log.
     pub fn start_wheel_log(&mut self) -> Result<()> {
         let t = self.robot.link.telemetry()?;
-        self.robot.wheel_log = Some(vec![(
-            t.time_us,
-            [t.wheels.left as f64, t.wheels.right as f64],
-        )]);
+        self.robot.wheel_log = Some(Vec::new());
+        self.robot.log_wheels(&t);
         Ok(())
     }
 
@@ -762,10 +754,8 @@ impl<'r> Base<'r> {
     /// [`Base::start_wheel_log`], ending with the current ones.
     pub fn take_wheel_log(&mut self) -> Result<Vec<[f64; 2]>> {
         let t = self.robot.link.telemetry()?;
-        let mut log = self.robot.wheel_log.take().unwrap_or_default();
-        if log.last().map(|l| l.0) != Some(t.time_us) {
-            log.push((t.time_us, [t.wheels.left as f64, t.wheels.right as f64]));
-        }
+        self.robot.log_wheels(&t);
+        let log = self.robot.wheel_log.take().unwrap_or_default();
         Ok(log.into_iter().map(|l| l.1).collect())
     }
 

@@ -189,11 +189,7 @@ impl<'r> Motion<'r> {
             Ok(t) => t,
             Err(e) => return Some(Err(e)),
         };
-        if let Some(log) = &mut self.robot.wheel_log {
-            if log.last().map(|l| l.0) != Some(t.time_us) {
-                log.push((t.time_us, [t.wheels.left as f64, t.wheels.right as f64]));
-            }
-        }
+        self.robot.log_wheels(&t);
         let timed_out = now >= self.deadline;
         match &mut self.goal {
             Goal::Joints {

@@ -1,7 +1,5 @@
 //! The camera's pan-tilt head: two position-controlled joints.
 
-use ferrobot_protocol::{HostMsg, JointPoint};
-
 use crate::error::{check_finite, Error, Result};
 use crate::motion::{Goal, Motion};
 use crate::robot::Robot;
@@ -61,22 +59,8 @@ impl<'r> PanTilt<'r> {
         let mut sorted = targets.to_vec();
         sorted.sort_by_key(|(j, _)| *j);
         let mask = sorted.iter().fold(0u16, |m, (j, _)| m | (1 << j));
-        let points = sorted
-            .iter()
-            .map(|(_, v)| JointPoint {
-                position: *v as f32,
-                velocity: 0.0,
-                effort: 0.0,
-            })
-            .collect();
-        self.robot.link.command(
-            &HostMsg::Waypoint {
-                joints: mask,
-                duration_us: (t * 1e6) as u32,
-                points,
-            },
-            "pan/tilt",
-        )?;
+        self.robot
+            .send_rest_waypoint(mask, sorted.iter().map(|(_, v)| *v), t, "pan/tilt")?;
         Ok(Motion::new(
             self.robot,
             Goal::Joints {

@@ -4,7 +4,9 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use ferrobot_protocol::{DeviceMsg, Fault, HostMsg, JointLimits, JointMode, PidGains, Telemetry};
+use ferrobot_protocol::{
+    DeviceMsg, Fault, HostMsg, JointLimits, JointMode, JointPoint, PidGains, Telemetry,
+};
 
 use crate::arm::Arm;
 use crate::backend::serial::SerialLink;
@@ -265,14 +267,7 @@ impl Robot {
             .filter(|_| robot.uses.base)
             .and_then(|b| b.odometry);
         if let Some(g) = geometry {
-            robot.link.command(
-                &HostMsg::SetBaseGeometry {
-                    left_radius: g.left_radius as f32,
-                    right_radius: g.right_radius as f32,
-                    track: g.track as f32,
-                },
-                "odometry geometry",
-            )?;
+            robot.base()?.set_odometry_geometry(g)?;
         }
         Ok(robot)
     }
@@ -403,6 +398,39 @@ impl Robot {
         })? {
             DeviceMsg::Diagnostics(d) => Ok(d),
             _ => Err(Error::Link("unexpected reply".into())),
+        }
+    }
+
+    /// Queue one trajectory knot at rest (zero velocity and effort) for the joints in `mask`,
+    /// at `positions` (rad, lowest joint first), `seconds` after the previous knot.
+    pub(crate) fn send_rest_waypoint(
+        &mut self,
+        mask: u16,
+        positions: impl IntoIterator<Item = f64>,
+        seconds: f64,
+        what: &str,
+    ) -> Result<()> {
+        let points = positions
+            .into_iter()
+            .map(|p| JointPoint::at_rest(p as f32))
+            .collect();
+        self.link.command(
+            &HostMsg::Waypoint {
+                joints: mask,
+                duration_us: (seconds * 1e6) as u32,
+                points,
+            },
+            what,
+        )
+    }
+
+    /// While a wheel log is kept, add the wheel angles of telemetry frame `t` unless it is the
+    /// frame logged last.
+    pub(crate) fn log_wheels(&mut self, t: &Telemetry) {
+        if let Some(log) = &mut self.wheel_log {
+            if log.last().map(|l| l.0) != Some(t.time_us) {
+                log.push((t.time_us, [t.wheels.left as f64, t.wheels.right as f64]));
+            }
         }
     }
 

@@ -192,6 +192,17 @@ pub struct JointPoint {
     pub effort: f32,
 }
 
+impl JointPoint {
+    /// A knot at rest at `position` (rad): zero velocity and effort.
+    pub const fn at_rest(position: f32) -> Self {
+        JointPoint {
+            position,
+            velocity: 0.0,
+            effort: 0.0,
+        }
+    }
+}
+
 /// Messages from the host to the firmware.
 #[derive(Serialize, Deserialize, Debug, Clone, PartialEq)]
 #[non_exhaustive]

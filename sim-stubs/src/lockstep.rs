@@ -421,11 +421,7 @@ pub fn locobot_busy(seed: u64) -> Result<SimSession, SimError> {
     })?;
     let points = [0.6f32, 0.4, -0.4, 0.3, 0.5]
         .iter()
-        .map(|&position| JointPoint {
-            position,
-            velocity: 0.0,
-            effort: 0.0,
-        })
+        .map(|&p| JointPoint::at_rest(p))
         .collect();
     s.command(&HostMsg::Waypoint {
         joints: 0b1_1111,
@@ -473,14 +469,7 @@ pub fn demo(robot: &str, seed: u64, out: &mut dyn std::io::Write) -> Result<(), 
     s.command(&HostMsg::Waypoint {
         joints: 0b1_1111,
         duration_us: 2_000_000,
-        points: target
-            .iter()
-            .map(|&position| JointPoint {
-                position,
-                velocity: 0.0,
-                effort: 0.0,
-            })
-            .collect(),
+        points: target.iter().map(|&p| JointPoint::at_rest(p)).collect(),
     })?;
     let t = s.wait_telemetry(5_000_000, |t| {
         t.joints

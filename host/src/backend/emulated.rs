@@ -27,6 +27,19 @@ fn lines_of(r: impl Read + Send + 'static) -> Receiver<String> {
     rx
 }
 
+/// `qemu-system-arm` arguments for the board the firmware targets: MPS2 AN386 (Cortex-M4),
+/// no display, no monitor.
+pub const QEMU_MACHINE_ARGS: [&str; 8] = [
+    "-machine",
+    "mps2-an386",
+    "-cpu",
+    "cortex-m4",
+    "-display",
+    "none",
+    "-monitor",
+    "none",
+];
+
 /// QEMU running a firmware ELF on `mps2-an386`: UART0 (host) on a new PTY, UART1 and UART2 on
 /// the given servo-bus and base PTYs, UART3 (the defmt log) into `log`. Returns the child and
 /// the host PTY's path.
@@ -37,30 +50,21 @@ pub fn start_qemu(
     log: &Path,
 ) -> Result<(Child, PathBuf)> {
     let mut cmd = Command::new("qemu-system-arm");
-    cmd.args([
-        "-machine",
-        "mps2-an386",
-        "-cpu",
-        "cortex-m4",
-        "-display",
-        "none",
-        "-monitor",
-        "none",
-    ])
-    .args([
-        "-serial",
-        "pty",
-        "-serial",
-        servo_bus,
-        "-serial",
-        base.unwrap_or("null"),
-    ])
-    .arg("-serial")
-    .arg(format!("file:{}", log.display()))
-    .arg("-kernel")
-    .arg(elf)
-    .stdout(Stdio::piped())
-    .stderr(Stdio::piped());
+    cmd.args(QEMU_MACHINE_ARGS)
+        .args([
+            "-serial",
+            "pty",
+            "-serial",
+            servo_bus,
+            "-serial",
+            base.unwrap_or("null"),
+        ])
+        .arg("-serial")
+        .arg(format!("file:{}", log.display()))
+        .arg("-kernel")
+        .arg(elf)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped());
     let mut qemu = cmd
         .spawn()
         .map_err(|e| Error::Link(format!("cannot start qemu-system-arm: {e}")))?;

@@ -269,12 +269,14 @@ impl SerialLink {
         self.shared.state.lock().ok().and_then(|s| s.lost.clone())
     }
 
-    fn wait_reply(
-        &mut self,
-        pred: &dyn Fn(&Frame<DeviceMsg>) -> bool,
+    /// Wait on the I/O thread's state until `ready` has an answer, or time out after
+    /// `timeout` naming `what`.
+    fn wait_for<T>(
+        &self,
         timeout: Duration,
         what: &str,
-    ) -> Result<DeviceMsg> {
+        mut ready: impl FnMut(&mut State) -> Option<Result<T>>,
+    ) -> Result<T> {
         let deadline = Instant::now() + timeout;
         let mut s = self
             .shared
@@ -282,15 +284,8 @@ impl SerialLink {
             .lock()
             .map_err(|_| Error::Link("I/O thread panicked".into()))?;
         loop {
-            if let Some(i) = s.replies.iter().position(pred) {
-                return s
-                    .replies
-                    .remove(i)
-                    .map(|f| f.msg)
-                    .ok_or_else(|| Error::Link("reply vanished".into()));
-            }
-            if let Some(why) = &s.lost {
-                return Err(Error::Link(format!("{why} (reconnecting)")));
+            if let Some(r) = ready(&mut s) {
+                return r;
             }
             let now = Instant::now();
             if now >= deadline {
@@ -306,6 +301,27 @@ impl SerialLink {
                 .map_err(|_| Error::Link("I/O thread panicked".into()))?
                 .0;
         }
+    }
+
+    fn wait_reply(
+        &mut self,
+        pred: &dyn Fn(&Frame<DeviceMsg>) -> bool,
+        timeout: Duration,
+        what: &str,
+    ) -> Result<DeviceMsg> {
+        self.wait_for(timeout, what, |s| {
+            if let Some(i) = s.replies.iter().position(pred) {
+                return Some(
+                    s.replies
+                        .remove(i)
+                        .map(|f| f.msg)
+                        .ok_or_else(|| Error::Link("reply vanished".into())),
+                );
+            }
+            s.lost
+                .as_ref()
+                .map(|why| Err(Error::Link(format!("{why} (reconnecting)"))))
+        })
     }
 }
 
@@ -361,33 +377,12 @@ impl Link for SerialLink {
     }
 
     fn telemetry(&mut self) -> Result<Telemetry> {
-        let deadline = Instant::now() + REPLY_TIMEOUT;
-        let mut s = self
-            .shared
-            .state
-            .lock()
-            .map_err(|_| Error::Link("I/O thread panicked".into()))?;
-        loop {
+        self.wait_for(REPLY_TIMEOUT, "telemetry", |s| {
             if let Some(why) = &s.lost {
-                return Err(Error::Link(format!("{why} (reconnecting)")));
+                return Some(Err(Error::Link(format!("{why} (reconnecting)"))));
             }
-            if let Some(t) = &s.telemetry {
-                return Ok(t.clone());
-            }
-            let now = Instant::now();
-            if now >= deadline {
-                return Err(Error::Timeout {
-                    what: "telemetry".into(),
-                    after: REPLY_TIMEOUT,
-                });
-            }
-            s = self
-                .shared
-                .cv
-                .wait_timeout(s, deadline - now)
-                .map_err(|_| Error::Link("I/O thread panicked".into()))?
-                .0;
-        }
+            s.telemetry.clone().map(Ok)
+        })
     }
 
     fn wait(&mut self, dt: Duration) {
