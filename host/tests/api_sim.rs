@@ -5,6 +5,8 @@
 use ferrobot::{Error, GripperState, MoveOptions, Orientation, Robot};
 use ferrobot_protocol::FaultKind;
 
+mod common;
+
 const JOINT_TOL: f64 = 0.01;
 const EE_POS_TOL: f64 = 0.005;
 const EE_ROT_TOL: f64 = 0.02;
@@ -281,18 +283,7 @@ fn locobot_base_velocity_and_position_goals() {
 #[test]
 fn base_motion_is_aborted_by_the_bumper_with_an_error_that_says_so() {
     let mut bot = Robot::new("locobot").expect("robot");
-    bot.simulator()
-        .expect("sim")
-        .base
-        .as_mut()
-        .expect("base")
-        .drive
-        .obstacles
-        .push(ferrobot_sim::diff_drive::Obstacle {
-            x: 0.8,
-            y: 0.0,
-            r: 0.1,
-        });
+    common::place_post(&mut bot, 0.8, 0.0, 0.1);
     let e = bot
         .base()
         .expect("base")

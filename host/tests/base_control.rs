@@ -8,24 +8,15 @@ use ferrobot::config::BaseController;
 use ferrobot::{Error, GoalOptions, Robot};
 use ferrobot_protocol::FaultKind;
 
+mod common;
+use common::place_post;
+
 const TARGETS: [[f64; 3]; 4] = [
     [1.0, 0.0, 0.0],
     [0.0, 0.0, std::f64::consts::PI],
     [1.0, 1.0, std::f64::consts::FRAC_PI_2],
     [-1.0, -1.0, 0.0],
 ];
-
-/// A round post of radius `r` at `(x, y)` (m, world frame) in the simulated base's world.
-fn place_post(bot: &mut Robot, x: f64, y: f64, r: f64) {
-    bot.simulator()
-        .expect("sim")
-        .base
-        .as_mut()
-        .expect("base")
-        .drive
-        .obstacles
-        .push(ferrobot_sim::diff_drive::Obstacle { x, y, r });
-}
 
 fn reaches(robot: &str, controller: BaseController, smooth: bool) {
     for target in TARGETS {

@@ -15,12 +15,8 @@ const TARGETS: [[f32; 5]; 3] = [
 fn arm_reaches_targets_in_position_mode_within_0_01_rad() {
     let mut s = session("locobot");
     for target in TARGETS {
-        s.command(&HostMsg::Waypoint {
-            joints: ARM,
-            duration_us: 2_000_000,
-            points: points(&target),
-        })
-        .expect("accepted");
+        s.command(&waypoint(ARM, 2_000_000, &target))
+            .expect("accepted");
         s.run_for(3_500_000);
         let truth = true_arm(&s);
         let measured = measured_arm(&s);
@@ -45,12 +41,8 @@ fn arm_reaches_targets_in_current_mode_within_0_02_rad() {
     .expect("current mode");
     s.run_for(200_000);
     for target in TARGETS {
-        s.command(&HostMsg::Waypoint {
-            joints: ARM,
-            duration_us: 2_000_000,
-            points: points(&target),
-        })
-        .expect("accepted");
+        s.command(&waypoint(ARM, 2_000_000, &target))
+            .expect("accepted");
         s.run_for(4_000_000);
         let truth = true_arm(&s);
         assert!(
@@ -81,12 +73,7 @@ fn arm_reaches_targets_in_current_mode_within_0_02_rad() {
 fn velocity_limit_is_enforced_whatever_the_host_sends() {
     let mut s = session("locobot");
     // Ask joint_1 to jump 1.5 rad in 10 ms: 150 rad/s; its limit is 1 rad/s.
-    s.command(&HostMsg::Waypoint {
-        joints: 1,
-        duration_us: 10_000,
-        points: points(&[1.5]),
-    })
-    .expect("accepted");
+    s.command(&waypoint(1, 10_000, &[1.5])).expect("accepted");
     let mut peak = 0.0f32;
     for _ in 0..200 {
         s.run_for(10_000);
@@ -117,47 +104,19 @@ fn out_of_limit_and_malformed_commands_are_rejected() {
         other => panic!("{m:?} gave {other:?}"),
     };
     assert_eq!(
-        reject(
-            &mut s,
-            HostMsg::Waypoint {
-                joints: 1,
-                duration_us: 1000,
-                points: points(&[2.0])
-            }
-        ),
+        reject(&mut s, waypoint(1, 1000, &[2.0])),
         RejectReason::OutOfLimits
     );
     assert_eq!(
-        reject(
-            &mut s,
-            HostMsg::Waypoint {
-                joints: 0b11,
-                duration_us: 1000,
-                points: points(&[0.1])
-            }
-        ),
+        reject(&mut s, waypoint(0b11, 1000, &[0.1])),
         RejectReason::CountMismatch
     );
     assert_eq!(
-        reject(
-            &mut s,
-            HostMsg::Waypoint {
-                joints: 1,
-                duration_us: 1000,
-                points: points(&[f32::NAN])
-            }
-        ),
+        reject(&mut s, waypoint(1, 1000, &[f32::NAN])),
         RejectReason::NotFinite
     );
     assert_eq!(
-        reject(
-            &mut s,
-            HostMsg::Waypoint {
-                joints: 1 << 12,
-                duration_us: 1000,
-                points: points(&[0.1])
-            }
-        ),
+        reject(&mut s, waypoint(1 << 12, 1000, &[0.1])),
         RejectReason::UnknownJoint
     );
     assert_eq!(

@@ -14,12 +14,8 @@ fn watchdog_stops_the_base_within_one_cycle_and_holds_the_arm() {
     s.command(&HostMsg::SetWatchdog { period_ms: 300 })
         .expect("watchdog on");
     // A long arm motion and a long drive, then silence.
-    s.command(&HostMsg::Waypoint {
-        joints: ARM,
-        duration_us: 6_000_000,
-        points: points(&[1.2, 0.8, -0.8, 1.0, 1.0]),
-    })
-    .expect("accepted");
+    s.command(&waypoint(ARM, 6_000_000, &[1.2, 0.8, -0.8, 1.0, 1.0]))
+        .expect("accepted");
     s.command(&HostMsg::BaseVelocity {
         v: 0.2,
         w: 0.0,
@@ -74,12 +70,8 @@ fn a_servo_that_stops_answering_is_reported_and_does_not_stall_the_others() {
     s.sim.chain.servo_mut(4).expect("servo").silent = true;
     let ticks_before = s.telemetry.as_ref().expect("telemetry").loop_stats.ticks;
     let target = [0.4, 0.3, 0.0, 0.5, -0.5];
-    s.command(&HostMsg::Waypoint {
-        joints: 0b1_1011,
-        duration_us: 1_500_000,
-        points: points(&[0.4, 0.3, 0.5, -0.5]),
-    })
-    .expect("accepted");
+    s.command(&waypoint(0b1_1011, 1_500_000, &[0.4, 0.3, 0.5, -0.5]))
+        .expect("accepted");
     s.run_for(3_000_000);
     let faults = s.take_faults();
     let lost = faults
@@ -106,12 +98,8 @@ fn a_servo_that_stops_answering_is_reported_and_does_not_stall_the_others() {
         .take_faults()
         .iter()
         .any(|f| f.kind == FaultKind::ServoRecovered && f.servo_id == Some(4)));
-    s.command(&HostMsg::Waypoint {
-        joints: 0b100,
-        duration_us: 1_000_000,
-        points: points(&[0.3]),
-    })
-    .expect("accepted");
+    s.command(&waypoint(0b100, 1_000_000, &[0.3]))
+        .expect("accepted");
     s.run_for(2_000_000);
     assert!((true_arm(&s)[2] - 0.3).abs() < 0.01, "{:?}", true_arm(&s));
 }
@@ -124,16 +112,7 @@ fn corrupted_and_garbage_host_frames_are_counted_and_ignored() {
     };
     // A valid waypoint frame with one byte flipped, then line noise, then the real thing.
     let mut buf = [0u8; MAX_WIRE];
-    let n = encode_frame(
-        900,
-        &HostMsg::Waypoint {
-            joints: 1,
-            duration_us: 500_000,
-            points: points(&[1.0]),
-        },
-        &mut buf,
-    )
-    .expect("encodes");
+    let n = encode_frame(900, &waypoint(1, 500_000, &[1.0]), &mut buf).expect("encodes");
     let mut bad = buf[..n].to_vec();
     bad[n / 2] ^= 0x10;
     s.send_raw(&bad);
@@ -149,12 +128,8 @@ fn corrupted_and_garbage_host_frames_are_counted_and_ignored() {
         after.host_bad_frames >= before.host_bad_frames + 3,
         "{before:?} -> {after:?}"
     );
-    s.command(&HostMsg::Waypoint {
-        joints: 1,
-        duration_us: 500_000,
-        points: points(&[0.5]),
-    })
-    .expect("link still works");
+    s.command(&waypoint(1, 500_000, &[0.5]))
+        .expect("link still works");
     s.run_for(1_500_000);
     assert!((true_arm(&s)[0] - 0.5).abs() < 0.01);
 }
@@ -165,12 +140,8 @@ fn corrupted_servo_replies_are_counted_and_the_loop_carries_on() {
     let before = s.sim.fw.diagnostics();
     // Two whole ticks of corrupted status packets: each is counted.
     s.sim.chain.corrupt_next_replies(18);
-    s.command(&HostMsg::Waypoint {
-        joints: ARM,
-        duration_us: 1_000_000,
-        points: points(&[0.2, 0.2, 0.2, 0.2, 0.2]),
-    })
-    .expect("accepted");
+    s.command(&waypoint(ARM, 1_000_000, &[0.2, 0.2, 0.2, 0.2, 0.2]))
+        .expect("accepted");
     s.run_for(100_000);
     let mid = s.sim.fw.diagnostics();
     assert_eq!(
@@ -233,12 +204,7 @@ fn an_overloaded_servo_reports_its_hardware_error_and_a_reboot_recovers_it() {
     let mut s = session("locobot");
     // Something blocks joint_1 at 0.1 rad; the arm is told to go to 0.6 rad.
     s.sim.chain.servo_mut(1).expect("servo").obstacle = Some((0.1, false));
-    s.command(&HostMsg::Waypoint {
-        joints: 1,
-        duration_us: 500_000,
-        points: points(&[0.6]),
-    })
-    .expect("accepted");
+    s.command(&waypoint(1, 500_000, &[0.6])).expect("accepted");
     let fault = s
         .wait_msg(
             6_000_000,
@@ -260,12 +226,8 @@ fn an_overloaded_servo_reports_its_hardware_error_and_a_reboot_recovers_it() {
         }
     );
     // The other joints still run.
-    s.command(&HostMsg::Waypoint {
-        joints: 0b10,
-        duration_us: 500_000,
-        points: points(&[0.3]),
-    })
-    .expect("accepted");
+    s.command(&waypoint(0b10, 500_000, &[0.3]))
+        .expect("accepted");
     s.run_for(1_500_000);
     assert!((true_arm(&s)[1] - 0.3).abs() < 0.01);
     // Remove the obstacle, reboot the joint: it is configured again and obeys.
@@ -274,12 +236,7 @@ fn an_overloaded_servo_reports_its_hardware_error_and_a_reboot_recovers_it() {
         .expect("reboot");
     s.run_for(500_000);
     assert_eq!(s.sim.chain.servo(1).expect("servo").hardware_error(), 0);
-    s.command(&HostMsg::Waypoint {
-        joints: 1,
-        duration_us: 500_000,
-        points: points(&[0.6]),
-    })
-    .expect("accepted");
+    s.command(&waypoint(1, 500_000, &[0.6])).expect("accepted");
     s.run_for(1_500_000);
     assert!((true_arm(&s)[0] - 0.6).abs() < 0.01, "{:?}", true_arm(&s));
 }
@@ -293,23 +250,15 @@ fn emergency_stop_halts_everything_and_rejects_motion_until_resumed() {
         duration_ms: 10_000,
     })
     .expect("accepted");
-    s.command(&HostMsg::Waypoint {
-        joints: 1,
-        duration_us: 3_000_000,
-        points: points(&[1.0]),
-    })
-    .expect("accepted");
+    s.command(&waypoint(1, 3_000_000, &[1.0]))
+        .expect("accepted");
     s.run_for(500_000);
     s.command(&HostMsg::EmergencyStop).expect("estop");
     s.run_for(50_000);
     assert_eq!(s.sim.base.as_ref().expect("base").drive.target, (0.0, 0.0));
     let held = true_arm(&s)[0];
     assert_eq!(
-        s.command(&HostMsg::Waypoint {
-            joints: 1,
-            duration_us: 100_000,
-            points: points(&[0.0])
-        }),
+        s.command(&waypoint(1, 100_000, &[0.0])),
         Err(SimError::Rejected(RejectReason::EmergencyStop))
     );
     assert_eq!(
@@ -324,12 +273,7 @@ fn emergency_stop_halts_everything_and_rejects_motion_until_resumed() {
     assert!((true_arm(&s)[0] - held).abs() < 0.01);
     assert!(s.telemetry.as_ref().expect("telemetry").faults & fault_flags::ESTOP != 0);
     s.command(&HostMsg::Resume).expect("resume");
-    s.command(&HostMsg::Waypoint {
-        joints: 1,
-        duration_us: 500_000,
-        points: points(&[0.0]),
-    })
-    .expect("accepted");
+    s.command(&waypoint(1, 500_000, &[0.0])).expect("accepted");
     s.run_for(1_500_000);
     assert!(true_arm(&s)[0].abs() < 0.01);
 }

@@ -24,13 +24,17 @@ pub fn session(robot: &str) -> SimSession {
 
 /// Points for the selected joints.
 pub fn points(q: &[f32]) -> heapless::Vec<JointPoint, MAX_JOINTS> {
-    q.iter()
-        .map(|&position| JointPoint {
-            position,
-            velocity: 0.0,
-            effort: 0.0,
-        })
-        .collect()
+    q.iter().map(|&p| JointPoint::at_rest(p)).collect()
+}
+
+/// A waypoint to rest at `q` (rad, one per set bit of `joints`, lowest first) reached
+/// `duration_us` after the previous knot.
+pub fn waypoint(joints: u16, duration_us: u32, q: &[f32]) -> HostMsg {
+    HostMsg::Waypoint {
+        joints,
+        duration_us,
+        points: points(q),
+    }
 }
 
 /// Joint angles (rad) of the arm as the simulated servos really are (ground truth, not

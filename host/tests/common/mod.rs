@@ -1,0 +1,15 @@
+//! Helpers shared by the host's integration tests.
+
+use ferrobot::Robot;
+
+/// A round post of radius `r` at `(x, y)` (m, world frame) in the simulated base's world.
+pub fn place_post(bot: &mut Robot, x: f64, y: f64, r: f64) {
+    bot.simulator()
+        .expect("sim")
+        .base
+        .as_mut()
+        .expect("base")
+        .drive
+        .obstacles
+        .push(ferrobot_sim::diff_drive::Obstacle { x, y, r });
+}
