@@ -85,8 +85,8 @@ impl OccupancyGrid {
     /// Mark every cell whose centre lies within the circle `[x, y, r]` (m) occupied.
     pub fn fill_circle(&mut self, c: Circle) {
         let r = c[2].max(0.0);
-        let lo = self.cell_floor([c[0] - r, c[1] - r]);
-        let hi = self.cell_ceil([c[0] + r, c[1] + r]);
+        let lo = self.cell_clamped([c[0] - r, c[1] - r], f64::floor);
+        let hi = self.cell_clamped([c[0] + r, c[1] + r], f64::ceil);
         for j in lo.1..=hi.1 {
             for i in lo.0..=hi.0 {
                 let x = self.origin[0] + i as f64 * self.resolution;
@@ -98,19 +98,11 @@ impl OccupancyGrid {
         }
     }
 
-    fn cell_floor(&self, p: [f64; 2]) -> (usize, usize) {
+    /// The cell indices of `p` rounded by `round` (`f64::floor` or `f64::ceil`), clamped to
+    /// the grid.
+    fn cell_clamped(&self, p: [f64; 2], round: fn(f64) -> f64) -> (usize, usize) {
         let f = |x: f64, o: f64, n: usize| {
-            (((x - o) / self.resolution).floor().max(0.0) as usize).min(n - 1)
-        };
-        (
-            f(p[0], self.origin[0], self.width),
-            f(p[1], self.origin[1], self.height),
-        )
-    }
-
-    fn cell_ceil(&self, p: [f64; 2]) -> (usize, usize) {
-        let f = |x: f64, o: f64, n: usize| {
-            (((x - o) / self.resolution).ceil().max(0.0) as usize).min(n - 1)
+            (round((x - o) / self.resolution).max(0.0) as usize).min(n - 1)
         };
         (
             f(p[0], self.origin[0], self.width),

@@ -150,13 +150,14 @@ pub fn estimate(runs: &[CalibrationRun], nominal: &WheelGeometry) -> Result<Whee
             "every run needs at least two finite wheel samples and finite poses".into(),
         ));
     }
+    let measured: Vec<[f64; 3]> = runs.iter().map(|r| r.measured(nominal)).collect();
     // 1. Heading: Δθ = c_R Φ_R − c_L Φ_L.
     let mut rows = Vec::new();
     let mut rhs = Vec::new();
-    for r in runs {
+    for (r, m) in runs.iter().zip(&measured) {
         let (first, last) = (r.wheels[0], r.wheels[r.wheels.len() - 1]);
         rows.push([-(last[0] - first[0]), last[1] - first[1]]);
-        rhs.push(r.measured(nominal)[2]);
+        rhs.push(m[2]);
     }
     let [c_l, c_r] = solve2(&rows, &rhs).ok_or_else(|| {
         bad("the runs' wheel angles do not determine the heading model: turn both ways".into())
@@ -165,8 +166,7 @@ pub fn estimate(runs: &[CalibrationRun], nominal: &WheelGeometry) -> Result<Whee
     //    linear in b alone (one unknown keeps r_R / r_L = c_R / c_L, which the position
     //    barely sees).
     let (mut aa, mut am) = (0.0, 0.0);
-    for r in runs {
-        let m = r.measured(nominal);
+    for (r, m) in runs.iter().zip(&measured) {
         let (mut ax, mut ay) = (0.0, 0.0);
         let mut th = 0.0;
         for w in r.wheels.windows(2) {

@@ -307,8 +307,6 @@ impl BasePlant {
     /// Bytes from the firmware at `t_us`.
     pub fn on_bytes(&mut self, t_us: u64, bytes: &[u8]) {
         self.advance_to(t_us);
-        let track = self.drive.p.track;
-        let _ = track;
         for &b in bytes {
             match &mut self.kind {
                 Kind::Kobuki { parser, .. } => {
