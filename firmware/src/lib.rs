@@ -35,7 +35,10 @@ pub mod bus;
 pub mod config;
 pub mod gripper;
 pub mod joint;
+mod log;
 pub mod txbuf;
+
+use log::{log_info, log_warn};
 
 use ferrobot_protocol::dxl::units;
 use ferrobot_protocol::{
@@ -371,6 +374,13 @@ impl Firmware {
         servo_id: Option<u8>,
         code: u16,
     ) {
+        log_warn!(
+            "fault {=istr}: joint {=u8}, servo {=u8}, code {=u16}",
+            log::fault_name(kind),
+            joint.unwrap_or(u8::MAX),
+            servo_id.unwrap_or(u8::MAX),
+            code
+        );
         if self.session == Session::Accepted {
             self.send(&DeviceMsg::Fault(Fault {
                 kind,
@@ -709,6 +719,12 @@ impl Firmware {
                 schema_hash,
             } => {
                 let ok = protocol_version == PROTOCOL_VERSION && schema_hash == SCHEMA_HASH;
+                log_info!(
+                    "hello: protocol {=u16}, schema {=u32:x}: accepted {=bool}",
+                    protocol_version,
+                    schema_hash,
+                    ok
+                );
                 self.session = if ok {
                     Session::Accepted
                 } else {
@@ -752,7 +768,14 @@ impl Firmware {
         }
         let reply = match self.command(now, msg) {
             Ok(()) => DeviceMsg::Ack { seq },
-            Err(reason) => DeviceMsg::Reject { seq, reason },
+            Err(reason) => {
+                log_warn!(
+                    "rejected command #{=u16}: {=istr}",
+                    seq,
+                    log::reject_name(reason)
+                );
+                DeviceMsg::Reject { seq, reason }
+            }
         };
         self.send(&reply);
     }

@@ -1,17 +1,28 @@
 //! # ferrobot-hil
 //!
-//! Hardware-in-the-loop harness: the real firmware (`boards/mps2-an386`) in QEMU, wired over
-//! pseudo-terminals to `ferrobot-sim serve` (servo chain on UART1, base on UART2), with the
-//! host on UART0. [`Hil::start`] builds the firmware once per test binary, starts both
-//! processes and kills them when dropped, also when a test fails.
+//! Hardware-in-the-loop harness: the real firmware (`boards/mps2-an386`) in QEMU, its serial
+//! ports on pseudo-terminals served by the simulated plants, which grant it simulated time
+//! over a virtual-time link ([`ferrobot_sim::board`]); the host on the firmware's host link.
+//! Because the firmware and the plants agree on time, the suite gives the same results on a
+//! slow or busy machine, only later; tests wait on simulated time ([`Hil::eventually`]).
+//!
+//! [`Hil::start`] builds the firmware once per test binary and starts QEMU and the plants;
+//! dropping the [`Hil`] stops both. When a test fails (panics) while a [`Hil`] is alive, the
+//! [`Hil`] prints its [`Hil::diagnosis`]: the firmware's decoded defmt log, the plants'
+//! counters, the last frames on each link and what QEMU said (`FERROBOT_HIL_REPORT=1` prints
+//! it after passing tests too).
 
-use std::io::{BufRead, BufReader, Read, Write};
+pub mod defmt_log;
+
+use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
-use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
+use std::process::Command;
 use std::sync::OnceLock;
 use std::time::{Duration, Instant};
 
+use ferrobot::backend::emulated::EmulatedBoard;
 use ferrobot_protocol::{encode_frame, DeviceMsg, Frame, FrameDecoder, HostMsg, MAX_WIRE};
+use ferrobot_sim::board::BoardOptions;
 
 /// The repository root.
 pub fn repo() -> PathBuf {
@@ -68,100 +79,147 @@ pub fn firmware_elf() -> Result<PathBuf, String> {
         .clone()
 }
 
-/// The `ferrobot-sim` binary `cargo test --workspace` built next to this test.
-fn sim_binary() -> PathBuf {
-    let exe = std::env::current_exe().unwrap_or_default();
-    let dir = exe
-        .parent()
-        .and_then(Path::parent)
-        .map(Path::to_path_buf)
-        .unwrap_or_default();
-    dir.join("ferrobot-sim")
-}
+/// Seed of the plants in every HIL test.
+pub const SEED: u64 = 11;
 
-/// A child process killed on drop.
-struct Proc(Child);
+/// Wall time after which a wait on simulated time gives up if simulated time has not moved
+/// at all (the emulation has stopped).
+pub const STALL: Duration = Duration::from_secs(15);
 
-impl Drop for Proc {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
-
-/// QEMU running the firmware, the plants, and the host link's path.
+/// The firmware in QEMU with its plants; the host link's path.
 pub struct Hil {
-    qemu: Proc,
-    _sim: Proc,
-    sim_in: ChildStdin,
-    sim_out: BufReader<ChildStdout>,
-    /// The host link (UART0's PTY).
+    /// QEMU and the plants.
+    pub board: EmulatedBoard,
+    /// The host's end of the host link.
     pub host: PathBuf,
-    /// The defmt log (UART3), a file.
-    pub log: PathBuf,
+    elf: PathBuf,
 }
 
 impl Hil {
-    /// Start the plants of `robot` and the firmware in QEMU.
+    /// Start the plants of `robot` and the firmware in QEMU, paced at real time.
     pub fn start(robot: &str) -> Result<Hil, String> {
         let elf = firmware_elf()?;
-        let sim_bin = sim_binary();
-        if !sim_bin.exists() {
-            return Err(format!(
-                "{} not built: run `cargo test --workspace`",
-                sim_bin.display()
-            ));
-        }
-        let mut sim = Command::new(&sim_bin)
-            .args(["serve", "--robot", robot, "--seed", "11"])
-            .stdin(Stdio::piped())
-            .stdout(Stdio::piped())
-            .spawn()
-            .map_err(|e| format!("cannot start {}: {e}", sim_bin.display()))?;
-        let sim_in = sim.stdin.take().ok_or("no stdin")?;
-        let mut sim_out = BufReader::new(sim.stdout.take().ok_or("no stdout")?);
-        let sim = Proc(sim);
-        let mut line = String::new();
-        sim_out.read_line(&mut line).map_err(|e| e.to_string())?;
-        let v: serde_json::Value =
-            serde_json::from_str(&line).map_err(|e| format!("{e}: {line:?}"))?;
-        let servo = v["servo_bus"].as_str().ok_or("no servo bus")?.to_string();
-        let base = v["base"].as_str().ok_or("no base")?.to_string();
         let log = std::env::temp_dir().join(format!(
-            "ferrobot-hil-{}-{}.defmt",
+            "ferrobot-hil-{}-{robot}-{}.defmt",
             std::process::id(),
-            line.len() ^ servo.len()
+            Instant::now().elapsed().as_nanos() ^ (&elf as *const _ as u128)
         ));
-        let (qemu, host) = ferrobot::backend::emulated::start_qemu(&elf, &servo, Some(&base), &log)
-            .map_err(|e| e.to_string())?;
-        let qemu = Proc(qemu);
+        let opts = BoardOptions {
+            seed: SEED,
+            ..BoardOptions::default()
+        };
+        let board = EmulatedBoard::start_with(robot, &elf, opts, log).map_err(|e| e.to_string())?;
         Ok(Hil {
-            qemu,
-            _sim: sim,
-            sim_in,
-            sim_out,
-            host,
-            log,
+            host: board.server.host.clone(),
+            board,
+            elf,
         })
     }
 
-    /// One control line to the plants; their JSON answer.
+    /// One control line to the plants ([`ferrobot_sim::control`]); their JSON answer.
     pub fn plants(&mut self, cmd: &str) -> serde_json::Value {
-        let _ = writeln!(self.sim_in, "{cmd}");
-        let _ = self.sim_in.flush();
-        let mut line = String::new();
-        let _ = self.sim_out.read_line(&mut line);
-        serde_json::from_str(&line).unwrap_or(serde_json::Value::Null)
+        self.board.server.command(cmd)
+    }
+
+    /// Simulated time.
+    pub fn now(&self) -> Duration {
+        Duration::from_micros(self.board.server.now_us())
     }
 
     /// Whether QEMU still runs.
     pub fn qemu_alive(&mut self) -> bool {
-        matches!(self.qemu.0.try_wait(), Ok(None))
+        self.board.qemu_exited().is_none()
     }
 
     /// A raw frame-level client on the host link.
     pub fn raw(&self) -> Result<RawClient, String> {
         RawClient::open(&self.host)
+    }
+
+    /// Poll `f` until it returns `Some`, or panic once `within` of simulated time has passed
+    /// (or simulated time has stood still for [`STALL`] of wall time).
+    pub fn eventually<T>(
+        &mut self,
+        within: Duration,
+        what: &str,
+        mut f: impl FnMut(&mut Self) -> Option<T>,
+    ) -> T {
+        let deadline = self.now() + within;
+        let mut last = (self.now(), Instant::now());
+        loop {
+            if let Some(v) = f(self) {
+                return v;
+            }
+            let now = self.now();
+            assert!(
+                now < deadline,
+                "timed out waiting for {what} ({within:?} of simulated time)"
+            );
+            if now != last.0 {
+                last = (now, Instant::now());
+            }
+            assert!(
+                last.1.elapsed() < STALL,
+                "simulated time stood still at {now:?} for {STALL:?} while waiting for {what}"
+            );
+            self.sleep(Duration::from_millis(20));
+        }
+    }
+
+    /// Let `dt` of simulated time pass.
+    pub fn sleep(&self, dt: Duration) {
+        let until = self.now() + dt;
+        let started = Instant::now();
+        while self.now() < until && started.elapsed() < STALL + dt {
+            std::thread::sleep(Duration::from_millis(2));
+        }
+    }
+
+    /// Everything that tells why a test failed: the firmware's decoded defmt log, the plants'
+    /// clock and counters, the last frames on each link, and what QEMU said.
+    pub fn diagnosis(&mut self) -> String {
+        let mut s = String::from("---- HIL diagnosis ----\n");
+        s.push_str(&self.board.server.report());
+        s.push_str(&format!(
+            "QEMU: {}\n",
+            self.board
+                .qemu_exited()
+                .unwrap_or_else(|| "running".to_string())
+        ));
+        for line in self.board.qemu_stderr() {
+            s.push_str(&format!("  qemu: {line}\n"));
+        }
+        s.push_str(&format!(
+            "firmware log ({}), decoded:\n",
+            self.board.log.display()
+        ));
+        match (
+            defmt_log::Table::from_elf(&self.elf),
+            std::fs::read(&self.board.log),
+        ) {
+            (Ok(table), Ok(bytes)) => {
+                let lines = table.decode(&bytes);
+                if lines.is_empty() {
+                    s.push_str("  (empty)\n");
+                }
+                for l in lines.iter().rev().take(40).rev() {
+                    s.push_str(&format!("  {l}\n"));
+                }
+            }
+            (Err(e), _) => s.push_str(&format!("  cannot read the format table: {e}\n")),
+            (_, Err(e)) => s.push_str(&format!("  cannot read the log: {e}\n")),
+        }
+        s.push_str("---- end of HIL diagnosis ----");
+        s
+    }
+}
+
+impl Drop for Hil {
+    fn drop(&mut self) {
+        if std::thread::panicking() || std::env::var_os("FERROBOT_HIL_REPORT").is_some() {
+            eprintln!("{}", self.diagnosis());
+        }
+        let _ = std::fs::remove_file(&self.board.log);
     }
 }
 
@@ -178,7 +236,7 @@ impl RawClient {
         let port = serialport::new(path.to_string_lossy(), 1_000_000)
             .timeout(Duration::from_millis(5))
             .open()
-            .map_err(|e| e.to_string())?;
+            .map_err(|e| format!("cannot open {}: {e}", path.display()))?;
         Ok(RawClient {
             port,
             decoder: FrameDecoder::new(),
@@ -201,7 +259,7 @@ impl RawClient {
         let _ = self.port.write_all(bytes);
     }
 
-    /// Wait for a message `pred` accepts.
+    /// Wait up to `timeout` (wall time) for a message `pred` accepts.
     pub fn wait(
         &mut self,
         timeout: Duration,

@@ -1,6 +1,7 @@
-//! End to end: the firmware in QEMU (servo loop at 25 ms: QEMU's UARTs move about 20 KB/s),
-//! the simulated plants behind PTYs, the host over the firmware's UART0 PTY. Every wait is on
-//! observed state with a timeout; every test kills its processes when it ends.
+//! End to end: the firmware in QEMU (servo loop at 25 ms of simulated time), the simulated
+//! plants behind PTYs on one clock with it, the host over the firmware's UART0. Every wait is
+//! on observed state within a span of simulated time; every test kills its processes when it
+//! ends, and prints the harness's diagnosis when it fails.
 
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
@@ -9,7 +10,7 @@ use ferrobot::{Backend, Error, GripperState, Robot};
 use ferrobot_hil::Hil;
 use ferrobot_protocol::*;
 
-/// One QEMU at a time: the tests share two cores with real-time plants.
+/// One QEMU at a time: each paces its clock to the wall clock, and two would share the cores.
 static SERIAL: Mutex<()> = Mutex::new(());
 
 fn start() -> (std::sync::MutexGuard<'static, ()>, Hil) {
@@ -27,24 +28,11 @@ fn robot(hil: &Hil) -> Robot {
         .unwrap_or_else(|e| panic!("connect to the firmware in QEMU: {e}"))
 }
 
-/// Poll `f` until it returns `Some`, or panic after `timeout`.
-fn eventually<T>(timeout: Duration, what: &str, mut f: impl FnMut() -> Option<T>) -> T {
-    let deadline = Instant::now() + timeout;
-    loop {
-        if let Some(v) = f() {
-            return v;
-        }
-        assert!(Instant::now() < deadline, "timed out waiting for {what}");
-        std::thread::sleep(Duration::from_millis(20));
-    }
-}
-
 #[test]
 fn handshake_and_a_clear_error_on_version_mismatch() {
-    let (_g, hil) = start();
+    let (_g, mut hil) = start();
     let mut raw = hil.raw().expect("port");
-    // QEMU drops what the firmware sends before the port is open: say hello until answered.
-    let info = eventually(Duration::from_secs(10), "the firmware's answer", || {
+    let info = hil.eventually(Duration::from_secs(2), "the firmware's answer", |_| {
         raw.send(&HostMsg::Hello {
             protocol_version: PROTOCOL_VERSION + 1,
             schema_hash: SCHEMA_HASH,
@@ -124,7 +112,7 @@ fn base_velocity_gives_odometry_that_agrees_with_ground_truth() {
         .set_vel(0.2, 0.0, 2.0)
         .expect("drives");
     // Wait until the wheels have stopped, then compare.
-    let t1 = eventually(Duration::from_secs(3), "the base to stop", || {
+    let t1 = hil.eventually(Duration::from_secs(3), "the base to stop", |hil| {
         let t = hil.plants("truth");
         let still = t["wheel_speed"]
             .as_array()
@@ -147,7 +135,7 @@ fn base_velocity_gives_odometry_that_agrees_with_ground_truth() {
 fn the_watchdog_stops_the_base_when_the_host_goes_silent() {
     let (_g, mut hil) = start();
     let mut raw = hil.raw().expect("port");
-    eventually(Duration::from_secs(10), "the handshake", || {
+    hil.eventually(Duration::from_secs(2), "the handshake", |_| {
         raw.send(&HostMsg::Hello {
             protocol_version: PROTOCOL_VERSION,
             schema_hash: SCHEMA_HASH,
@@ -173,17 +161,17 @@ fn the_watchdog_stops_the_base_when_the_host_goes_silent() {
         let t = hil.plants("truth");
         t["target"][0].as_f64().unwrap_or(0.0).abs() > 0.05
     };
-    eventually(Duration::from_secs(2), "the base to drive", || {
-        moving(&mut hil).then_some(())
+    hil.eventually(Duration::from_secs(2), "the base to drive", |hil| {
+        moving(hil).then_some(())
     });
     // Silence: the firmware must stop the base on its own.
-    let silent_at = Instant::now();
-    eventually(
+    let silent_at = hil.now();
+    hil.eventually(
         Duration::from_secs(2),
         "the watchdog to stop the base",
-        || (!moving(&mut hil)).then_some(()),
+        |hil| (!moving(hil)).then_some(()),
     );
-    let after = silent_at.elapsed();
+    let after = hil.now() - silent_at;
     assert!(
         after >= Duration::from_millis(250),
         "stopped after {after:?}, before the watchdog period"
@@ -241,16 +229,14 @@ fn servo_faults_are_reported_to_the_host() {
     let mut bot = robot(&hil);
     // A servo that stops answering.
     assert_eq!(hil.plants("silent 4 on")["ok"], true);
-    // Servo 4's loss specifically: on a loaded machine the plants process can be starved long
-    // enough for another servo to miss its deadlines too, which the firmware rightly reports.
-    let lost = eventually(Duration::from_secs(5), "ServoLost of servo 4", || {
+    let lost = hil.eventually(Duration::from_secs(1), "ServoLost of servo 4", |_| {
         bot.take_faults()
             .into_iter()
             .find(|f| f.kind == FaultKind::ServoLost && f.servo_id == Some(4))
     });
     assert_eq!(lost.servo_id, Some(4));
     assert_eq!(hil.plants("silent 4 off")["ok"], true);
-    eventually(Duration::from_secs(5), "ServoRecovered of servo 4", || {
+    hil.eventually(Duration::from_secs(1), "ServoRecovered of servo 4", |_| {
         bot.take_faults()
             .into_iter()
             .find(|f| f.kind == FaultKind::ServoRecovered && f.servo_id == Some(4))
@@ -265,7 +251,7 @@ fn servo_faults_are_reported_to_the_host() {
         matches!(r, Err(Error::Stalled { .. }) | Err(Error::Fault { .. })),
         "{r:?}"
     );
-    let hw = eventually(Duration::from_secs(8), "ServoHardware", || {
+    let hw = hil.eventually(Duration::from_secs(5), "ServoHardware", |_| {
         bot.take_faults()
             .into_iter()
             .find(|f| f.kind == FaultKind::ServoHardware)
@@ -325,4 +311,218 @@ fn an_lqr_position_goal_is_millimetre_accurate_through_the_firmware() {
     let truth = [c * dx + s * dy, -s * dx + c * dy];
     let gap = (truth[0] - o[0]).hypot(truth[1] - o[1]);
     assert!(gap < 0.01 * 0.32, "truth {truth:?} vs odometry {o:?}");
+}
+
+/// What the plants are at a moment: every servo's angle and state, the bus and line counters,
+/// the base's ground truth, and the conductor's byte counts.
+fn snapshot(board: &ferrobot_sim::board::BoardServer) -> String {
+    board.with_hardware(|hw, now| {
+        let mut s = format!(
+            "t={now} lines={:?} bus={:?}",
+            hw.line_bytes(),
+            (
+                hw.chain.stats.instructions,
+                hw.chain.stats.statuses,
+                hw.chain.stats.bad_packets
+            )
+        );
+        for id in 1..=9 {
+            if let Some(sv) = hw.chain.servo(id) {
+                s += &format!(
+                    " s{id}=({:e},{},{})",
+                    sv.theta,
+                    sv.torque_enabled(),
+                    sv.hardware_error()
+                );
+            }
+        }
+        s + &format!(" base={:?}", hw.base_truth())
+    })
+}
+
+/// The firmware boots, configures its nine servos and runs its loop with no host: the same
+/// bytes at the same simulated times whether the clock is paced at real time with a CPU-bound
+/// thread beside it, or runs as fast as the machine allows.
+#[test]
+fn a_busy_machine_gives_the_same_result_only_later() {
+    let _g = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let elf = ferrobot_hil::firmware_elf().unwrap_or_else(|e| panic!("{e}"));
+    let run = |rtf: f64, busy: bool| {
+        let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let hog = busy.then(|| {
+            let stop = stop.clone();
+            std::thread::spawn(move || {
+                let mut x = 0u64;
+                while !stop.load(std::sync::atomic::Ordering::Relaxed) {
+                    x = x.wrapping_mul(6364136223846793005).wrapping_add(1);
+                }
+                x
+            })
+        });
+        let opts = ferrobot_sim::board::BoardOptions {
+            seed: ferrobot_hil::SEED,
+            real_time_factor: rtf,
+            plants: true,
+        };
+        let log = std::env::temp_dir().join(format!(
+            "ferrobot-hil-det-{}-{rtf}.defmt",
+            std::process::id()
+        ));
+        let board =
+            ferrobot::backend::emulated::EmulatedBoard::start_with("locobot", &elf, opts, log)
+                .unwrap_or_else(|e| panic!("board: {e}"));
+        let wall = Instant::now();
+        let mut snaps = Vec::new();
+        for t in [400_000u64, 1_500_000] {
+            assert!(
+                board.server.run_to(t, Duration::from_secs(60)),
+                "{}",
+                board.server.report()
+            );
+            snaps.push(snapshot(&board.server));
+        }
+        stop.store(true, std::sync::atomic::Ordering::Relaxed);
+        if let Some(h) = hog {
+            let _ = h.join();
+        }
+        (snaps, wall.elapsed())
+    };
+    let (paced, paced_wall) = run(1.0, true);
+    let (fast, fast_wall) = run(f64::INFINITY, false);
+    assert_eq!(
+        paced, fast,
+        "paced run took {paced_wall:?}, unpaced {fast_wall:?}"
+    );
+    // The servos were configured and read: the snapshot is of a working loop.
+    assert!(
+        paced[1].contains("s1=(") && paced[1].contains(",true,0)"),
+        "{}",
+        paced[1]
+    );
+    assert!(
+        paced_wall >= Duration::from_millis(1400),
+        "paced at real time: {paced_wall:?}"
+    );
+}
+
+/// A board whose plants are not served: connecting fails within 15 s, and the error says the
+/// firmware's loop is not running and names the plants.
+#[test]
+fn a_board_without_its_plants_fails_within_15_s_naming_them() {
+    let _g = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let elf = ferrobot_hil::firmware_elf().unwrap_or_else(|e| panic!("{e}"));
+    let server = ferrobot_sim::board::BoardServer::start(
+        "locobot",
+        ferrobot_sim::board::BoardOptions {
+            plants: false,
+            ..Default::default()
+        },
+    )
+    .expect("ports");
+    let log = std::env::temp_dir().join(format!(
+        "ferrobot-hil-noplants-{}.defmt",
+        std::process::id()
+    ));
+    let (mut qemu, _err) =
+        ferrobot::backend::emulated::start_qemu(&elf, &server.board, &log).expect("qemu");
+    let t0 = Instant::now();
+    let r = Robot::builder("locobot")
+        .backend(Backend::Serial {
+            path: server.host.clone(),
+        })
+        .build();
+    let took = t0.elapsed();
+    let _ = qemu.kill();
+    let _ = qemu.wait();
+    let _ = std::fs::remove_file(&log);
+    let e = r.err().expect("no robot without plants").to_string();
+    assert!(took < Duration::from_secs(15), "took {took:?}: {e}");
+    assert!(e.contains("no telemetry") && e.contains("plants"), "{e}");
+}
+
+/// Wrong ports: a path that does not exist, a port nothing answers on, and QEMU pointed at a
+/// servo bus that does not exist; each fails within 15 s naming the port.
+#[test]
+fn wrong_ports_fail_within_15_s_naming_the_port() {
+    let _g = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let t0 = Instant::now();
+    let e = Robot::builder("locobot")
+        .backend(Backend::Serial {
+            path: "/dev/pts/987654".into(),
+        })
+        .build()
+        .err()
+        .expect("no such port")
+        .to_string();
+    assert!(e.contains("/dev/pts/987654"), "{e}");
+    // A terminal with nothing behind it.
+    let (_master, slave) = serialport::TTYPort::pair().expect("pty");
+    let path = serialport::SerialPort::name(&slave).expect("name");
+    drop(slave);
+    let e = Robot::builder("locobot")
+        .backend(Backend::Serial {
+            path: path.clone().into(),
+        })
+        .build()
+        .err()
+        .expect("nothing answers")
+        .to_string();
+    assert!(e.contains(&path) && e.contains("handshake"), "{e}");
+    // QEMU with a servo bus that is not there.
+    let elf = ferrobot_hil::firmware_elf().unwrap_or_else(|e| panic!("{e}"));
+    let server =
+        ferrobot_sim::board::BoardServer::start("locobot", Default::default()).expect("ports");
+    let mut ports = server.board.clone();
+    ports.servo_bus = "/dev/pts/987655".into();
+    let log = std::env::temp_dir().join(format!("ferrobot-hil-wrong-{}.defmt", std::process::id()));
+    let (mut qemu, mut err) =
+        ferrobot::backend::emulated::start_qemu(&elf, &ports, &log).expect("qemu starts");
+    let status = loop {
+        if let Some(s) = qemu.try_wait().expect("wait") {
+            break Some(s);
+        }
+        if t0.elapsed() > Duration::from_secs(15) {
+            let _ = qemu.kill();
+            break None;
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    };
+    assert!(
+        status.is_some_and(|s| !s.success()),
+        "QEMU should refuse a missing port"
+    );
+    err.finish();
+    assert!(
+        err.lines().join(" ").contains("/dev/pts/987655"),
+        "{:?}",
+        err.lines()
+    );
+    assert!(t0.elapsed() < Duration::from_secs(30), "{:?}", t0.elapsed());
+}
+
+/// What a failing test prints: the firmware's decoded log, the plants' counters and the last
+/// frames on each link.
+#[test]
+fn the_diagnosis_holds_the_firmware_log_the_counters_and_the_last_frames() {
+    let (_g, mut hil) = start();
+    let mut bot = robot(&hil);
+    bot.arm()
+        .expect("arm")
+        .set_joint_positions(&[0.1, 0.0, 0.0, 0.0, 0.0])
+        .expect("moves");
+    let d = hil.diagnosis();
+    for want in [
+        "ferrobot firmware on mps2-an386",
+        "virtual clock: first step",
+        "hello: protocol 2, schema 0x",
+        "status packets",
+        "servo 1: angle",
+        "last on host, to the board:",
+        "Heartbeat",
+        "Telemetry(Telemetry { time_us:",
+        "last on servo bus, from the board:",
+        "FF FF FD 00",
+    ] {
+        assert!(d.contains(want), "no {want:?} in\n{d}");
+    }
 }

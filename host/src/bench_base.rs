@@ -298,14 +298,14 @@ pub fn circle_path(
         r = crate::base_control::ilqr([0.0; 3], &r, [3.0, 3.0, 4.0], 0.2, &lim).reference;
     }
     let end = r.end();
-    if let Some(b) = bot.simulator().and_then(|s| s.base.as_mut()) {
+    if let Some(b) = bot.simulator().and_then(|s| s.hw.base.as_mut()) {
         b.drive.trace = Some(Vec::new());
     }
     bot.base()?
         .track_trajectory(r, run != CircleRun::OpenLoop)?;
     let trace = bot
         .simulator()
-        .and_then(|s| s.base.as_mut())
+        .and_then(|s| s.hw.base.as_mut())
         .and_then(|b| b.drive.trace.take())
         .ok_or_else(|| Error::Link("the circle plot needs the simulated backend".into()))?;
     let last = trace.last().copied().unwrap_or([0.0; 3]);

@@ -198,6 +198,7 @@ fn locobot_gripper_and_pan_tilt() {
     let at = ferrobot_protocol::dxl::units::tick_to_rad(2300) as f64;
     bot.simulator()
         .expect("sim")
+        .hw
         .chain
         .servo_mut(7)
         .expect("gripper")
@@ -527,6 +528,7 @@ fn a_blocked_joint_is_reported_stalled_and_a_slow_one_times_out() {
     // Something blocks joint_1 at 0.2 rad.
     bot.simulator()
         .expect("sim")
+        .hw
         .chain
         .servo_mut(1)
         .expect("servo")
@@ -551,6 +553,7 @@ fn a_blocked_joint_is_reported_stalled_and_a_slow_one_times_out() {
     }
     bot.simulator()
         .expect("sim")
+        .hw
         .chain
         .servo_mut(1)
         .expect("servo")

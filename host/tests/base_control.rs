@@ -239,6 +239,7 @@ fn a_bumper_hit_stops_lqr_tracking_with_an_error() {
     let speed = bot
         .simulator()
         .expect("sim")
+        .hw
         .base
         .as_ref()
         .expect("base")

@@ -10,6 +10,7 @@
 //! * [`kobuki`] and [`create2`]: the wire formats of the two mobile bases (Kobuki serial
 //!   protocol, iRobot Create 2 Open Interface), shared by the firmware's drivers and the
 //!   simulated bases.
+//! * [`clock`]: the virtual-time link between an emulated board and its simulated plants.
 //! * [`dxl`]: a Dynamixel Protocol 2.0 codec (instruction and status packets, byte stuffing,
 //!   CRC-16/UMTS), plus the X-series control-table facts both the firmware and the simulated
 //!   servos need.
@@ -29,6 +30,7 @@
 )]
 #![warn(missing_docs)]
 
+pub mod clock;
 pub mod create2;
 pub mod dxl;
 pub mod frame;

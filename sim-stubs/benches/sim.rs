@@ -28,12 +28,13 @@ fn recorded_bytes() -> (Vec<u8>, Vec<u8>) {
     let n = dxl::sync_read(&mut req, dxl::addr::PRESENT_CURRENT, 10, &ids).expect("fits");
     let now = sim.now_us();
     let replies: Vec<u8> = sim
+        .hw
         .chain
         .on_bytes(now, &req[..n])
         .into_iter()
         .flat_map(|r| r.bytes)
         .collect();
-    let base = sim.base.as_mut().expect("base");
+    let base = sim.hw.base.as_mut().expect("base");
     base.advance_to(now + 40_000);
     let fb = base.take_output();
     (replies, fb)

@@ -67,6 +67,8 @@ pub struct ServoChain {
     decoder: PacketDecoder<1100>,
     time_us: u64,
     substep_acc: u64,
+    /// Physics substeps taken since the start.
+    substeps: u64,
     pending_reg: Vec<(usize, u16, Vec<u8>)>,
     corrupt_replies: u32,
     present_stale: bool,
@@ -97,6 +99,7 @@ impl ServoChain {
             decoder: PacketDecoder::new(),
             time_us: 0,
             substep_acc: 0,
+            substeps: 0,
             pending_reg: Vec::new(),
             corrupt_replies: 0,
             present_stale: true,
@@ -150,18 +153,21 @@ impl ServoChain {
         let step_us = (SUBSTEP * 1e6) as u64;
         self.substep_acc += t_us - self.time_us;
         self.time_us = t_us;
-        let mut k = 0u32;
+        let mut stepped = false;
         while self.substep_acc >= step_us {
             self.substep_acc -= step_us;
-            if k.is_multiple_of(4) && !self.arm.is_empty() {
+            // Gravity every fourth substep of the chain's life, so the physics does not depend
+            // on how often it is advanced.
+            if self.substeps.is_multiple_of(4) && !self.arm.is_empty() {
                 self.apply_gravity();
             }
             for s in self.servos.iter_mut() {
                 s.step();
             }
-            k += 1;
+            self.substeps += 1;
+            stepped = true;
         }
-        if k > 0 {
+        if stepped {
             self.present_stale = true;
         }
     }

@@ -17,8 +17,12 @@
 
 pub mod arm;
 pub mod bases;
+pub mod board;
 pub mod chain;
+pub mod conductor;
+pub mod control;
 pub mod diff_drive;
+pub mod hardware;
 pub mod lockstep;
 pub mod pipe;
 pub mod rng;

@@ -1,5 +1,5 @@
-//! The lockstep simulator: the firmware core, the servo chain and the base on one virtual
-//! clock, joined by timed serial lines (the servo bus at its bit rate, the base at 115200 bit/s).
+//! The lockstep simulator: the firmware core and the simulated [`Hardware`] (servo chain and
+//! base, joined by timed serial lines) on one virtual clock.
 //! Time advances from event to event (the firmware's deadlines, bytes arriving, base
 //! feedback), so simulated seconds cost milliseconds. Everything is deterministic for a seed.
 //!
@@ -13,11 +13,9 @@ use ferrobot_protocol::{
     PROTOCOL_VERSION, SCHEMA_HASH,
 };
 
-use crate::bases::BasePlant;
-use crate::chain::ServoChain;
 use crate::diff_drive::Pose;
-use crate::pipe::Pipe;
-use crate::robots::{self, BaseModel};
+use crate::hardware::Hardware;
+use crate::robots;
 
 /// Errors of the simulator.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -49,22 +47,13 @@ impl std::fmt::Display for SimError {
 
 impl std::error::Error for SimError {}
 
-/// Base serial line rate, bit/s.
-pub const BASE_BAUD: u32 = 115_200;
-
-/// Firmware, plants and wires on one virtual clock.
+/// Firmware and hardware on one virtual clock.
 pub struct LockstepSim {
     now: u64,
     /// The firmware core.
     pub fw: Firmware,
-    /// The servo chain.
-    pub chain: ServoChain,
-    /// The base, if any.
-    pub base: Option<BasePlant>,
-    to_servo: Pipe,
-    from_servo: Pipe,
-    to_base: Pipe,
-    from_base: Pipe,
+    /// The plants and the lines between them and the firmware.
+    pub hw: Hardware,
     host_in: Vec<u8>,
     host_out: Vec<u8>,
     /// Events processed (for benchmarks).
@@ -83,21 +72,10 @@ impl LockstepSim {
 
     /// A simulator for an explicit description and firmware profile.
     pub fn with(desc: robots::SimRobot, profile: config::RobotProfile, seed: u64) -> Self {
-        let chain = ServoChain::new(&desc.servos, &desc.arm, seed);
-        let base = match desc.base {
-            BaseModel::Kobuki => Some(BasePlant::kobuki(seed)),
-            BaseModel::Create2 => Some(BasePlant::create2(seed)),
-            BaseModel::None => None,
-        };
         Self {
             now: 0,
             fw: Firmware::new(profile, "sim", 0),
-            chain,
-            base,
-            to_servo: Pipe::new(desc.bus_baud),
-            from_servo: Pipe::new(desc.bus_baud),
-            to_base: Pipe::new(BASE_BAUD),
-            from_base: Pipe::new(BASE_BAUD),
+            hw: Hardware::new(&desc, seed),
             host_in: Vec::new(),
             host_out: Vec::new(),
             events: 0,
@@ -123,33 +101,23 @@ impl LockstepSim {
     /// noise would (fault injection).
     pub fn inject_to_firmware(&mut self, link: Link, bytes: &[u8]) {
         match link {
-            Link::Servo => {
-                self.from_servo.send(self.now, bytes.to_vec());
-            }
-            Link::Base => {
-                self.from_base.send(self.now, bytes.to_vec());
-            }
             Link::Host => self.host_in.extend_from_slice(bytes),
+            _ => self.hw.inject_to_firmware(link, self.now, bytes),
         }
     }
 
     /// Ground-truth pose of the base (world frame), if there is a base.
     pub fn base_truth(&self) -> Option<Pose> {
-        self.base.as_ref().map(|b| b.drive.truth)
+        self.hw.base_truth()
     }
 
     fn flush(&mut self) {
-        let n = self.fw.pending(Link::Servo).len();
-        if n > 0 {
-            let bytes = self.fw.pending(Link::Servo).to_vec();
-            self.fw.consume(Link::Servo, n);
-            self.to_servo.send(self.now, bytes);
-        }
-        let n = self.fw.pending(Link::Base).len();
-        if n > 0 {
-            let bytes = self.fw.pending(Link::Base).to_vec();
-            self.fw.consume(Link::Base, n);
-            self.to_base.send(self.now, bytes);
+        for link in [Link::Servo, Link::Base] {
+            let n = self.fw.pending(link).len();
+            if n > 0 {
+                self.hw.from_firmware(link, self.now, self.fw.pending(link));
+                self.fw.consume(link, n);
+            }
         }
         let n = self.fw.pending(Link::Host).len();
         if n > 0 {
@@ -170,26 +138,12 @@ impl LockstepSim {
             }
             self.flush();
             // Deliveries due now.
-            if let Some(b) = self.to_servo.take_arrived(self.now) {
-                for r in self.chain.on_bytes(self.now, &b) {
-                    self.from_servo.send(self.now + r.delay_us, r.bytes);
-                }
-            }
-            if let Some(b) = self.from_servo.take_arrived(self.now) {
+            self.hw.step(self.now);
+            if let Some(b) = self.hw.to_firmware(Link::Servo, self.now) {
                 self.fw.on_servo_bytes(self.now, &b);
             }
-            if let Some(base) = self.base.as_mut() {
-                if let Some(b) = self.to_base.take_arrived(self.now) {
-                    base.on_bytes(self.now, &b);
-                }
-                base.advance_to(self.now);
-                let out = base.take_output();
-                if !out.is_empty() {
-                    self.from_base.send(self.now, out);
-                }
-                if let Some(b) = self.from_base.take_arrived(self.now) {
-                    self.fw.on_base_bytes(self.now, &b);
-                }
+            if let Some(b) = self.hw.to_firmware(Link::Base, self.now) {
+                self.fw.on_base_bytes(self.now, &b);
             }
             if self.fw.next_deadline() <= self.now {
                 self.fw.poll(self.now);
@@ -198,23 +152,14 @@ impl LockstepSim {
             if self.now >= t_end {
                 break;
             }
-            let mut next = self.fw.next_deadline().max(self.now + 1);
-            for t in [
-                self.to_servo.next_arrival(),
-                self.from_servo.next_arrival(),
-                self.to_base.next_arrival(),
-                self.from_base.next_arrival(),
-                self.base.as_ref().map(|b| b.next_event()),
-            ]
-            .into_iter()
-            .flatten()
-            {
-                next = next.min(t.max(self.now + 1));
-            }
-            self.now = next.min(t_end);
+            let next = self
+                .hw
+                .next_event()
+                .map_or(self.fw.next_deadline(), |t| t.min(self.fw.next_deadline()));
+            self.now = next.max(self.now + 1).min(t_end);
             self.events += 1;
         }
-        self.chain.advance_to(self.now);
+        self.hw.chain.advance_to(self.now);
     }
 
     /// Run for `dt_us` of simulated time.
@@ -508,7 +453,7 @@ pub fn demo(robot: &str, seed: u64, out: &mut dyn std::io::Write) -> Result<(), 
             ),
         );
     }
-    if s.sim.base.is_some() {
+    if s.sim.hw.base.is_some() {
         s.command(&HostMsg::ResetOdometry)?;
         let start = s.sim.base_truth().unwrap_or([0.0; 3]);
         s.command(&HostMsg::BaseVelocity {

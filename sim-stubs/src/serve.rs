@@ -174,91 +174,17 @@ pub fn serve(robot: &str, seed: u64) -> Result<(Served, Plants), ServeError> {
 }
 
 impl Plants {
-    /// Carry out one line of the control protocol; returns the JSON answer.
-    ///
-    /// * `truth`: `{"truth": [x, y, θ], "wheel_speed": [l, r], "target": [l, r]}` of the base;
-    /// * `servo ID`: `{"id", "angle", "torque_enabled", "hardware_error"}`;
-    /// * `object ID TICK` / `object ID none`: an object the servo closes on (below TICK);
-    /// * `block ID RAD` / `block ID none`: the servo's joint is blocked above RAD;
-    /// * `silent ID on|off`: the servo stops (or resumes) answering;
-    /// * `noise N`: about N bytes of noise on the servo bus towards the firmware: random bytes
-    ///   and status packets with a broken CRC (`damaged_packets` in the answer).
+    /// Carry out one line of the control protocol ([`crate::control`]); returns the JSON
+    /// answer.
     pub fn command(&self, line: &str) -> serde_json::Value {
-        use serde_json::json;
-        let w: Vec<&str> = line.split_whitespace().collect();
-        let id = |k: usize| w.get(k).and_then(|s| s.parse::<u8>().ok());
-        let with_servo =
-            |id: Option<u8>, f: &dyn Fn(&mut crate::servo::ServoSim) -> serde_json::Value| {
-                let Some(id) = id else {
-                    return json!({"error": "need a servo ID"});
-                };
-                match self.chain.lock() {
-                    Ok(mut c) => match c.servo_mut(id) {
-                        Some(s) => f(s),
-                        None => json!({"error": format!("no servo {id}")}),
-                    },
-                    Err(_) => json!({"error": "chain lock"}),
-                }
-            };
-        match w.first().copied() {
-            Some("truth") => match self.base.as_ref().and_then(|b| b.lock().ok()) {
-                Some(b) => {
-                    json!({"truth": b.drive.truth, "wheel_speed": [b.drive.speed.0, b.drive.speed.1],
-                                  "target": [b.drive.target.0, b.drive.target.1]})
-                }
-                None => json!({"error": "no base"}),
-            },
-            Some("servo") => with_servo(
-                id(1),
-                &|s| json!({"id": s.id, "angle": s.theta, "torque_enabled": s.torque_enabled(), "hardware_error": s.hardware_error()}),
-            ),
-            Some("object") | Some("block") => {
-                let below = w[0] == "object";
-                let at = w.get(2).and_then(|v| v.parse::<f64>().ok());
-                with_servo(id(1), &|s| {
-                    s.obstacle = at.map(|a| {
-                        let rad = if below {
-                            ferrobot_protocol::dxl::units::tick_to_rad(a as i32) as f64
-                        } else {
-                            a
-                        };
-                        (rad, below)
-                    });
-                    json!({"ok": true})
-                })
-            }
-            Some("silent") => {
-                let on = w.get(2) == Some(&"on");
-                with_servo(id(1), &|s| {
-                    s.silent = on;
-                    json!({"ok": true})
-                })
-            }
-            Some("noise") => {
-                let n = w.get(1).and_then(|v| v.parse::<usize>().ok()).unwrap_or(0);
-                let mut rng = crate::rng::SimRng::new(n as u64, 99);
-                let mut damaged = 0;
-                if let Ok(mut q) = self.servo_noise.lock() {
-                    while q.len() < n {
-                        // Random bytes, then a status packet whose CRC the noise broke.
-                        for _ in 0..16 {
-                            q.push((rng.uniform() * 256.0) as u8);
-                        }
-                        let mut b = [0u8; 32];
-                        let id = 1 + (rng.uniform() * 9.0) as u8;
-                        if let Ok(len) =
-                            ferrobot_protocol::dxl::status(&mut b, id, 0, &[0x12, 0x34, 0x56, 0x78])
-                        {
-                            b[len - 1] ^= 0xA5;
-                            q.extend_from_slice(&b[..len]);
-                            damaged += 1;
-                        }
-                    }
-                }
-                json!({"ok": true, "bytes": n, "damaged_packets": damaged})
-            }
-            _ => json!({"error": format!("unknown command {line:?}")}),
-        }
+        let (Ok(mut chain), Ok(mut noise)) = (self.chain.lock(), self.servo_noise.lock()) else {
+            return serde_json::json!({"error": "plants lock"});
+        };
+        let mut base = self.base.as_ref().and_then(|b| b.lock().ok());
+        let now = chain.time_us();
+        crate::control::command(&mut chain, base.as_deref_mut(), now, line, &mut |bytes| {
+            noise.extend_from_slice(&bytes)
+        })
     }
 }
 

@@ -53,6 +53,7 @@ fn arm_reaches_targets_in_current_mode_within_0_02_rad() {
     // The servos really ran in current mode (XM430: 0) and PWM mode (XL430 wrist: 16).
     assert_eq!(
         s.sim
+            .hw
             .chain
             .servo(1)
             .expect("servo")
@@ -61,6 +62,7 @@ fn arm_reaches_targets_in_current_mode_within_0_02_rad() {
     );
     assert_eq!(
         s.sim
+            .hw
             .chain
             .servo(6)
             .expect("servo")
@@ -167,7 +169,7 @@ fn gripper_closes_fully_without_an_object_and_holds_one() {
         .expect("opens");
     // An object 40 % of the way in: the fingers stop at 2300 ticks.
     let at = ferrobot_protocol::dxl::units::tick_to_rad(2300) as f64;
-    s.sim.chain.servo_mut(7).expect("gripper").obstacle = Some((at, true));
+    s.sim.hw.chain.servo_mut(7).expect("gripper").obstacle = Some((at, true));
     s.command(&HostMsg::Gripper(GripperCommand::Close))
         .expect("close");
     let t = s
@@ -180,7 +182,10 @@ fn gripper_closes_fully_without_an_object_and_holds_one() {
     assert!((2250..2350).contains(&g), "fingers at {g}");
     // Holding does not overload the servo.
     s.run_for(5_000_000);
-    assert_eq!(s.sim.chain.servo(7).expect("gripper").hardware_error(), 0);
+    assert_eq!(
+        s.sim.hw.chain.servo(7).expect("gripper").hardware_error(),
+        0
+    );
     assert_eq!(
         s.telemetry.as_ref().expect("telemetry").gripper,
         GripperState::Holding

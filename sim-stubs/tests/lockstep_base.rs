@@ -92,17 +92,13 @@ fn encoder_wrap_around_does_not_disturb_odometry() {
 #[test]
 fn bumper_stops_the_base_and_is_reported() {
     let mut s = session("locobot");
-    s.sim
-        .base
-        .as_mut()
-        .expect("base")
-        .drive
-        .obstacles
-        .push(ferrobot_sim::diff_drive::Obstacle {
+    s.sim.hw.base.as_mut().expect("base").drive.obstacles.push(
+        ferrobot_sim::diff_drive::Obstacle {
             x: 0.6,
             y: 0.0,
             r: 0.1,
-        });
+        },
+    );
     s.command(&HostMsg::BaseVelocity {
         v: 0.2,
         w: 0.0,
@@ -115,7 +111,10 @@ fn bumper_stops_the_base_and_is_reported() {
     assert!(t.base_flags & base_flags::BUMPER_CENTER != 0);
     // Within one base cycle (20 ms) plus the line the command is zero at the base.
     s.run_for(60_000);
-    assert_eq!(s.sim.base.as_ref().expect("base").drive.target, (0.0, 0.0));
+    assert_eq!(
+        s.sim.hw.base.as_ref().expect("base").drive.target,
+        (0.0, 0.0)
+    );
     let faults = s.take_faults();
     assert!(
         faults.iter().any(|f| f.kind == FaultKind::Bumper),
@@ -148,11 +147,11 @@ fn cliff_on_the_create2_stops_it_and_refuses_motion() {
     })
     .expect("accepted");
     s.run_for(500_000);
-    s.sim.base.as_mut().expect("base").injected.cliff = 2;
+    s.sim.hw.base.as_mut().expect("base").injected.cliff = 2;
     s.wait_telemetry(200_000, |t| t.base_flags & base_flags::ANY_CLIFF != 0)
         .expect("cliff seen");
     s.run_for(300_000);
-    let speed = s.sim.base.as_ref().expect("base").drive.speed;
+    let speed = s.sim.hw.base.as_ref().expect("base").drive.speed;
     assert!(speed.0.abs() < 1e-3 && speed.1.abs() < 1e-3, "{speed:?}");
     assert_eq!(
         s.command(&HostMsg::BaseVelocity {

@@ -25,12 +25,15 @@ fn watchdog_stops_the_base_within_one_cycle_and_holds_the_arm() {
     let last_frame = s.sim.now_us();
     // Until the watchdog expires the robot moves.
     s.run_for(290_000);
-    assert_ne!(s.sim.base.as_ref().expect("base").drive.target, (0.0, 0.0));
+    assert_ne!(
+        s.sim.hw.base.as_ref().expect("base").drive.target,
+        (0.0, 0.0)
+    );
     // The firmware trips at 300 ms and sends zero at once; the base has it within one of its
     // 20 ms cycles.
     s.run_for(10_000 + 20_000);
     assert_eq!(
-        s.sim.base.as_ref().expect("base").drive.target,
+        s.sim.hw.base.as_ref().expect("base").drive.target,
         (0.0, 0.0),
         "base still commanded"
     );
@@ -45,7 +48,7 @@ fn watchdog_stops_the_base_within_one_cycle_and_holds_the_arm() {
         max_err(&held, &later) < 0.01,
         "arm moved from {held:?} to {later:?}"
     );
-    let base_speed = s.sim.base.as_ref().expect("base").drive.speed;
+    let base_speed = s.sim.hw.base.as_ref().expect("base").drive.speed;
     assert_eq!(base_speed, (0.0, 0.0));
     assert!(s
         .take_faults()
@@ -60,14 +63,17 @@ fn watchdog_stops_the_base_within_one_cycle_and_holds_the_arm() {
     })
     .expect("accepted");
     s.run_for(60_000);
-    assert_ne!(s.sim.base.as_ref().expect("base").drive.target, (0.0, 0.0));
+    assert_ne!(
+        s.sim.hw.base.as_ref().expect("base").drive.target,
+        (0.0, 0.0)
+    );
 }
 
 #[test]
 fn a_servo_that_stops_answering_is_reported_and_does_not_stall_the_others() {
     let mut s = session("locobot");
     // joint_3 (servo 4) goes silent: in a sync read, servos 5-9 wait for its status.
-    s.sim.chain.servo_mut(4).expect("servo").silent = true;
+    s.sim.hw.chain.servo_mut(4).expect("servo").silent = true;
     let ticks_before = s.telemetry.as_ref().expect("telemetry").loop_stats.ticks;
     let target = [0.4, 0.3, 0.0, 0.5, -0.5];
     s.command(&waypoint(0b1_1011, 1_500_000, &[0.4, 0.3, 0.5, -0.5]))
@@ -92,7 +98,7 @@ fn a_servo_that_stops_answering_is_reported_and_does_not_stall_the_others() {
         assert!((truth[j] - target[j]).abs() < 0.01, "joint {j}: {truth:?}");
     }
     // Back on the bus: recovered, reconfigured, controllable.
-    s.sim.chain.servo_mut(4).expect("servo").silent = false;
+    s.sim.hw.chain.servo_mut(4).expect("servo").silent = false;
     s.run_for(400_000);
     assert!(s
         .take_faults()
@@ -139,7 +145,7 @@ fn corrupted_servo_replies_are_counted_and_the_loop_carries_on() {
     let mut s = session("locobot");
     let before = s.sim.fw.diagnostics();
     // Two whole ticks of corrupted status packets: each is counted.
-    s.sim.chain.corrupt_next_replies(18);
+    s.sim.hw.chain.corrupt_next_replies(18);
     s.command(&waypoint(ARM, 1_000_000, &[0.2, 0.2, 0.2, 0.2, 0.2]))
         .expect("accepted");
     s.run_for(100_000);
@@ -203,7 +209,7 @@ fn corrupted_base_packets_are_counted_and_odometry_carries_on() {
 fn an_overloaded_servo_reports_its_hardware_error_and_a_reboot_recovers_it() {
     let mut s = session("locobot");
     // Something blocks joint_1 at 0.1 rad; the arm is told to go to 0.6 rad.
-    s.sim.chain.servo_mut(1).expect("servo").obstacle = Some((0.1, false));
+    s.sim.hw.chain.servo_mut(1).expect("servo").obstacle = Some((0.1, false));
     s.command(&waypoint(1, 500_000, &[0.6])).expect("accepted");
     let fault = s
         .wait_msg(
@@ -231,11 +237,11 @@ fn an_overloaded_servo_reports_its_hardware_error_and_a_reboot_recovers_it() {
     s.run_for(1_500_000);
     assert!((true_arm(&s)[1] - 0.3).abs() < 0.01);
     // Remove the obstacle, reboot the joint: it is configured again and obeys.
-    s.sim.chain.servo_mut(1).expect("servo").obstacle = None;
+    s.sim.hw.chain.servo_mut(1).expect("servo").obstacle = None;
     s.command(&HostMsg::RebootJoint { joint: 0 })
         .expect("reboot");
     s.run_for(500_000);
-    assert_eq!(s.sim.chain.servo(1).expect("servo").hardware_error(), 0);
+    assert_eq!(s.sim.hw.chain.servo(1).expect("servo").hardware_error(), 0);
     s.command(&waypoint(1, 500_000, &[0.6])).expect("accepted");
     s.run_for(1_500_000);
     assert!((true_arm(&s)[0] - 0.6).abs() < 0.01, "{:?}", true_arm(&s));
@@ -255,7 +261,10 @@ fn emergency_stop_halts_everything_and_rejects_motion_until_resumed() {
     s.run_for(500_000);
     s.command(&HostMsg::EmergencyStop).expect("estop");
     s.run_for(50_000);
-    assert_eq!(s.sim.base.as_ref().expect("base").drive.target, (0.0, 0.0));
+    assert_eq!(
+        s.sim.hw.base.as_ref().expect("base").drive.target,
+        (0.0, 0.0)
+    );
     let held = true_arm(&s)[0];
     assert_eq!(
         s.command(&waypoint(1, 100_000, &[0.0])),
@@ -313,5 +322,8 @@ fn a_protocol_mismatch_is_refused_at_the_handshake() {
         unreachable!()
     };
     assert!(!info.accepted);
-    assert_eq!(s.sim.base.as_ref().expect("base").drive.target, (0.0, 0.0));
+    assert_eq!(
+        s.sim.hw.base.as_ref().expect("base").drive.target,
+        (0.0, 0.0)
+    );
 }

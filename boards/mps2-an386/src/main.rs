@@ -1,20 +1,24 @@
 //! Ferrobot firmware for QEMU's MPS2 AN386 (Cortex-M4F).
 //!
-//! * UART0: host link; UART1: Dynamixel servo bus; UART2: mobile base; UART3: defmt log.
-//! * Time: CMSDK timer 0 free-running at 25 MHz (wraps counted), timer 1 as the embassy alarm.
-//! * Tasks run in an embassy `InterruptExecutor`; thread mode sleeps in `wfi` (QEMU does not
-//!   sleep on `wfe`, so the stock thread executor would spin the host CPU).
+//! * UART0: host link; UART1: Dynamixel servo bus; UART2: mobile base; UART3: defmt log;
+//!   UART4: the virtual-time link to the plants' conductor.
+//! * Time: simulated time, granted by the conductor beside the simulated plants ([`clock`]):
+//!   the firmware and the plants agree on time, and a slow or busy host machine gives the same
+//!   results, only later. Thread mode reports to the conductor when the board is idle, then
+//!   sleeps in `wfi`.
+//! * Tasks run in an embassy `InterruptExecutor` (QEMU does not sleep on `wfe`, so the stock
+//!   thread executor would spin the host CPU).
 //! * The firmware core is the unmodified `ferrobot-firmware`, fed bytes and time by one task.
 //!
-//! QEMU's UARTs move about 20 KB/s whatever the baud rate, so the servo loop runs at
-//! `FERROBOT_LOOP_US` (build-time environment variable, default 25 000 µs) with bus timeouts
-//! sized for 50 µs per byte; telemetry goes out every 50 ms.
+//! QEMU's UARTs move about 20 KB/s of wall time, so the servo loop runs at `FERROBOT_LOOP_US`
+//! (build-time environment variable, default 25 000 µs) to keep the emulation near real time;
+//! everything else (bus timing, telemetry) is the robot's own profile.
 #![no_std]
 #![no_main]
 
+mod clock;
 #[cfg(feature = "tick-bench")]
 mod tick_bench;
-mod time_driver;
 mod uart;
 
 use core::future::poll_fn;
@@ -25,7 +29,7 @@ use cortex_m_rt::entry;
 use embassy_executor::InterruptExecutor;
 use embassy_futures::select::select;
 use embassy_time::{Instant, Timer};
-use ferrobot_firmware::config::{self, BusConfig};
+use ferrobot_firmware::config;
 use ferrobot_firmware::{Firmware, Link};
 
 use uart::{Uart, ACTIVITY};
@@ -46,10 +50,10 @@ pub enum Interrupt {
     UART2RX = 4,
     /// UART2 transmit.
     UART2TX = 5,
-    /// CMSDK timer 0.
-    TIMER0 = 8,
-    /// CMSDK timer 1.
-    TIMER1 = 9,
+    /// UART4 receive.
+    UART4RX = 20,
+    /// UART4 transmit.
+    UART4TX = 21,
     /// An interrupt line no device drives: the executor's.
     EXECUTOR = 30,
 }
@@ -74,8 +78,8 @@ extern "C" {
     fn UART1TX();
     fn UART2RX();
     fn UART2TX();
-    fn TIMER0();
-    fn TIMER1();
+    fn UART4RX();
+    fn UART4TX();
 }
 
 /// The device interrupt vectors (cortex-m-rt places them after the exceptions).
@@ -90,8 +94,8 @@ pub static __INTERRUPTS: [Vector; 32] = {
     v[3] = Vector { handler: UART1TX };
     v[4] = Vector { handler: UART2RX };
     v[5] = Vector { handler: UART2TX };
-    v[8] = Vector { handler: TIMER0 };
-    v[9] = Vector { handler: TIMER1 };
+    v[20] = Vector { handler: UART4RX };
+    v[21] = Vector { handler: UART4TX };
     v[30] = Vector { handler: EXECUTOR };
     v
 };
@@ -104,6 +108,8 @@ pub static UART1: Uart = Uart::new(0x4000_5000);
 pub static UART2: Uart = Uart::new(0x4000_6000);
 /// defmt log (polled).
 pub static UART3: Uart = Uart::new(0x4000_7000);
+/// The virtual-time link to the conductor.
+pub static UART4: Uart = Uart::new(0x4000_9000);
 
 static EXECUTOR_IRQ: InterruptExecutor = InterruptExecutor::new();
 
@@ -133,14 +139,13 @@ unsafe extern "C" fn EXECUTOR() {
 #[entry]
 fn main() -> ! {
     let mut cp = cortex_m::Peripherals::take().unwrap_or_else(|| panic!("peripherals taken twice"));
-    for u in [&UART0, &UART1, &UART2, &UART3] {
+    for u in [&UART0, &UART1, &UART2, &UART3, &UART4] {
         u.init(u as *const Uart != &UART3 as *const Uart);
     }
     if cfg!(feature = "tick-bench") {
         #[cfg(feature = "tick-bench")]
         tick_bench::run();
     }
-    time_driver::init();
     // Device interrupts preempt the executor.
     // SAFETY: priorities are set before the interrupts are unmasked; nothing relies on them yet.
     unsafe {
@@ -151,8 +156,8 @@ fn main() -> ! {
             Interrupt::UART1TX,
             Interrupt::UART2RX,
             Interrupt::UART2TX,
-            Interrupt::TIMER0,
-            Interrupt::TIMER1,
+            Interrupt::UART4RX,
+            Interrupt::UART4TX,
         ] {
             cp.NVIC.set_priority(irq, 0x20);
             NVIC::unmask(irq);
@@ -160,25 +165,51 @@ fn main() -> ! {
         cp.NVIC.set_priority(Interrupt::EXECUTOR, 0xE0);
     }
     defmt::info!(
-        "ferrobot firmware on mps2-an386, servo loop {=u32} us",
+        "ferrobot firmware on mps2-an386, servo loop {=u32} us; waiting for the conductor on UART4",
         LOOP_US
     );
     let spawner = EXECUTOR_IRQ.start(Interrupt::EXECUTOR);
     spawner.spawn(firmware_task().unwrap_or_else(|_| panic!("task arena")));
+    let mut report = [0u8; ferrobot_protocol::MAX_WIRE];
     loop {
-        cortex_m::asm::wfi();
+        // With interrupts masked, decide whether the board is idle; `wfi` still wakes on a
+        // pending interrupt, which then runs when they are unmasked.
+        cortex_m::interrupt::disable();
+        let idle = if NVIC::is_pending(Interrupt::EXECUTOR) {
+            None
+        } else {
+            clock::idle_report(&UART1, &UART2, &mut report)
+        };
+        if idle.is_none() {
+            cortex_m::asm::wfi();
+        }
+        // SAFETY: re-enables the interrupts masked above; no critical section spans this point.
+        unsafe { cortex_m::interrupt::enable() };
+        if let Some(n) = idle {
+            UART4.write_blocking(report.get(..n).unwrap_or_default());
+        }
     }
 }
 
-/// Drain a UART's receive ring into the firmware.
-fn feed(u: &Uart, now: u64, fw: &mut Firmware, link: Link) {
+/// How many bytes of `link` the firmware may have consumed by now: all on the host link, the
+/// released ones on the plant lines.
+fn limit(link: Link, released: [u32; 2]) -> Option<u32> {
+    match link {
+        Link::Host => None,
+        Link::Servo => released.first().copied(),
+        Link::Base => released.get(1).copied(),
+    }
+}
+
+/// Drain a UART's receive ring into the firmware, up to `total` bytes since start.
+fn feed(u: &Uart, now: u64, fw: &mut Firmware, link: Link, total: Option<u32>) {
     let mut buf = [0u8; 64];
     loop {
-        let n = u.read(&mut buf);
+        let n = u.read_until(&mut buf, total);
         if n == 0 {
             return;
         }
-        let bytes = &buf[..n];
+        let bytes = buf.get(..n).unwrap_or_default();
         match link {
             Link::Host => fw.on_host_bytes(now, bytes),
             Link::Servo => fw.on_servo_bytes(now, bytes),
@@ -195,12 +226,6 @@ async fn firmware_task() {
         config::locobot()
     };
     profile.loop_period_us = LOOP_US;
-    // QEMU's UART: about 50 µs a byte; replies are late by whatever the host's PTY adds.
-    profile.bus = BusConfig {
-        byte_ns: 50_000,
-        reply_margin_us: 4_000,
-    };
-    profile.telemetry_ms = 50;
     let mut fw = Firmware::new(profile, "mps2-an386", Instant::now().as_micros());
     let links = [
         (&UART0, Link::Host),
@@ -208,9 +233,10 @@ async fn firmware_task() {
         (&UART2, Link::Base),
     ];
     loop {
-        let now = Instant::now().as_micros();
+        // The time and the bytes released for it, read together.
+        let (now, released) = clock::now_and_released();
         for (u, l) in links {
-            feed(u, now, &mut fw, l);
+            feed(u, now, &mut fw, l, limit(l, released));
         }
         if fw.next_deadline() <= now {
             fw.poll(now);
@@ -223,7 +249,8 @@ async fn firmware_task() {
         let more_tx = links.iter().any(|(_, l)| !fw.pending(*l).is_empty());
         let activity = poll_fn(|cx| {
             ACTIVITY.register(cx.waker());
-            if links.iter().any(|(u, _)| u.has_rx())
+            let released = clock::released();
+            if links.iter().any(|(u, l)| u.has_rx_until(limit(*l, released)))
                 || (more_tx && links.iter().any(|(u, _)| u.tx_space() > 0))
             {
                 Poll::Ready(())

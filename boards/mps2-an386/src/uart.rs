@@ -28,6 +28,10 @@ struct Rings {
     rx: Deque<u8, 1024>,
     tx: Deque<u8, 2048>,
     rx_dropped: u32,
+    /// Bytes taken out of the receive ring since start, wrapping.
+    consumed: u32,
+    /// Bytes handed to the data register since start, wrapping.
+    sent: u32,
 }
 
 /// One CMSDK UART.
@@ -45,6 +49,8 @@ impl Uart {
                 rx: Deque::new(),
                 tx: Deque::new(),
                 rx_dropped: 0,
+                consumed: 0,
+                sent: 0,
             })),
         }
     }
@@ -100,7 +106,10 @@ impl Uart {
     fn pump(&self, r: &mut Rings) {
         while self.read_reg(STATE) & STATE_TX_FULL == 0 {
             match r.tx.pop_front() {
-                Some(b) => self.write_reg(DATA, b as u32),
+                Some(b) => {
+                    self.write_reg(DATA, b as u32);
+                    r.sent = r.sent.wrapping_add(1);
+                }
                 None => break,
             }
         }
@@ -114,10 +123,19 @@ impl Uart {
 
     /// Take received bytes; returns how many.
     pub fn read(&self, out: &mut [u8]) -> usize {
+        self.read_until(out, None)
+    }
+
+    /// Take received bytes, but stop once `total` bytes have been taken since start (wrapping);
+    /// returns how many.
+    pub fn read_until(&self, out: &mut [u8], total: Option<u32>) -> usize {
         critical_section::with(|cs| {
             let mut r = self.rings.borrow_ref_mut(cs);
+            let limit = total.map_or(out.len(), |t| {
+                (t.wrapping_sub(r.consumed) as usize).min(out.len())
+            });
             let mut n = 0;
-            while n < out.len() {
+            while n < limit {
                 match r.rx.pop_front() {
                     Some(b) => {
                         out[n] = b;
@@ -126,13 +144,26 @@ impl Uart {
                     None => break,
                 }
             }
+            r.consumed = r.consumed.wrapping_add(n as u32);
             n
         })
     }
 
-    /// Whether received bytes wait.
-    pub fn has_rx(&self) -> bool {
-        critical_section::with(|cs| !self.rings.borrow_ref(cs).rx.is_empty())
+    /// Bytes taken with [`Uart::read`] and bytes handed to the hardware since start
+    /// (wrapping), and whether the transmit ring is empty.
+    pub fn counts(&self) -> (u32, u32, bool) {
+        critical_section::with(|cs| {
+            let r = self.rings.borrow_ref(cs);
+            (r.consumed, r.sent, r.tx.is_empty())
+        })
+    }
+
+    /// Whether received bytes wait that [`Uart::read_until`] with `total` would take.
+    pub fn has_rx_until(&self, total: Option<u32>) -> bool {
+        critical_section::with(|cs| {
+            let r = self.rings.borrow_ref(cs);
+            !r.rx.is_empty() && total.is_none_or(|t| t != r.consumed)
+        })
     }
 
     /// Free space in the transmit ring.
@@ -188,4 +219,16 @@ handlers! {
     UART0RX, UART0TX => UART0;
     UART1RX, UART1TX => UART1;
     UART2RX, UART2TX => UART2;
+}
+
+/// The clock link: received bytes go to the virtual clock at once.
+#[no_mangle]
+unsafe extern "C" fn UART4RX() {
+    crate::UART4.on_rx_interrupt();
+    crate::clock::on_clock_link(&crate::UART4);
+}
+
+#[no_mangle]
+unsafe extern "C" fn UART4TX() {
+    crate::UART4.on_tx_interrupt();
 }

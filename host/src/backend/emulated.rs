@@ -1,31 +1,23 @@
-//! The emulated backend: the real firmware for the `mps2-an386` board in QEMU, the simulated
-//! plants behind pseudo-terminals (in this process, in real time), and the serial backend on
-//! the firmware's host UART. One call: `Backend::Emulated { firmware }`.
+//! The emulated backend: the real firmware for the `mps2-an386` board in QEMU, its simulated
+//! plants in this process on one clock with it ([`ferrobot_sim::board`]), and the serial
+//! backend on the firmware's host link. One call: `Backend::Emulated { firmware }`.
+//!
+//! Simulated time is granted to the firmware by the plants' conductor, so the firmware and the
+//! plants agree on it however busy the machine is; the host talks to the firmware in real time
+//! over a pseudo-terminal, as it would over USB.
 
 use std::io::{BufRead, BufReader, Read};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
-use std::sync::mpsc::{channel, Receiver};
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use ferrobot_protocol::{DeviceInfo, DeviceMsg, Fault, HostMsg, Telemetry};
+use ferrobot_sim::board::{BoardOptions, BoardPorts, BoardServer};
 
 use super::serial::SerialLink;
 use super::Link;
 use crate::error::{Error, Result};
-
-fn lines_of(r: impl Read + Send + 'static) -> Receiver<String> {
-    let (tx, rx) = channel();
-    std::thread::spawn(move || {
-        for line in BufReader::new(r).lines() {
-            let Ok(line) = line else { return };
-            if tx.send(line).is_err() {
-                return;
-            }
-        }
-    });
-    rx
-}
 
 /// `qemu-system-arm` arguments for the board the firmware targets: MPS2 AN386 (Cortex-M4),
 /// no display, no monitor.
@@ -40,76 +32,148 @@ pub const QEMU_MACHINE_ARGS: [&str; 8] = [
     "none",
 ];
 
-/// QEMU running a firmware ELF on `mps2-an386`: UART0 (host) on a new PTY, UART1 and UART2 on
-/// the given servo-bus and base PTYs, UART3 (the defmt log) into `log`. Returns the child and
-/// the host PTY's path.
-pub fn start_qemu(
-    elf: &Path,
-    servo_bus: &str,
-    base: Option<&str>,
-    log: &Path,
-) -> Result<(Child, PathBuf)> {
-    let mut cmd = Command::new("qemu-system-arm");
-    cmd.args(QEMU_MACHINE_ARGS)
-        .args([
-            "-serial",
-            "pty",
-            "-serial",
-            servo_bus,
-            "-serial",
-            base.unwrap_or("null"),
-        ])
-        .arg("-serial")
-        .arg(format!("file:{}", log.display()))
-        .arg("-kernel")
-        .arg(elf)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped());
-    let mut qemu = cmd
-        .spawn()
-        .map_err(|e| Error::Link(format!("cannot start qemu-system-arm: {e}")))?;
-    let out = qemu.stdout.take().map(lines_of);
-    let err = qemu.stderr.take().map(lines_of);
-    // QEMU prints "char device redirected to /dev/pts/N (label serial0)".
-    let deadline = Instant::now() + Duration::from_secs(10);
-    loop {
-        for rx in [&out, &err].into_iter().flatten() {
-            if let Ok(l) = rx.recv_timeout(Duration::from_millis(20)) {
-                if let Some(p) = l
-                    .split("redirected to ")
-                    .nth(1)
-                    .and_then(|r| r.split_whitespace().next())
-                {
-                    return Ok((qemu, PathBuf::from(p)));
+/// How long the firmware may take to boot and report on its clock link (wall time).
+pub const BOOT_TIMEOUT: Duration = Duration::from_secs(10);
+
+/// QEMU's standard error, collected by a thread that ends when QEMU does.
+pub struct Stderr {
+    lines: Arc<Mutex<Vec<String>>>,
+    reader: Option<std::thread::JoinHandle<()>>,
+}
+
+impl Stderr {
+    fn collect(r: Option<impl Read + Send + 'static>) -> Stderr {
+        let lines: Arc<Mutex<Vec<String>>> = Arc::default();
+        let out = lines.clone();
+        let reader = r.map(|r| {
+            std::thread::spawn(move || {
+                for line in BufReader::new(r).lines() {
+                    let Ok(line) = line else { return };
+                    if let Ok(mut l) = out.lock() {
+                        l.push(line);
+                    }
                 }
-            }
+            })
+        });
+        Stderr { lines, reader }
+    }
+
+    /// Wait for the rest, once the process has exited.
+    pub fn finish(&mut self) {
+        if let Some(r) = self.reader.take() {
+            let _ = r.join();
         }
-        if Instant::now() > deadline || matches!(qemu.try_wait(), Ok(Some(_))) {
-            let _ = qemu.kill();
-            let _ = qemu.wait();
-            return Err(Error::Link("QEMU did not report its host PTY".into()));
-        }
+    }
+
+    /// The lines so far.
+    pub fn lines(&self) -> Vec<String> {
+        self.lines.lock().map(|l| l.clone()).unwrap_or_default()
     }
 }
 
-/// QEMU and the plants of one emulated robot; killed when dropped.
+/// QEMU running a firmware ELF on `mps2-an386` with its UARTs on `ports` (UART0 host link,
+/// UART1 servo bus, UART2 base, UART4 virtual-time link) and UART3 (the defmt log) written to
+/// `log`. Returns the child and a handle on what QEMU prints on standard error.
+pub fn start_qemu(elf: &Path, ports: &BoardPorts, log: &Path) -> Result<(Child, Stderr)> {
+    if !elf.is_file() {
+        return Err(Error::Link(format!(
+            "no firmware at {}: build it with scripts/build-boards.sh",
+            elf.display()
+        )));
+    }
+    let mut cmd = Command::new("qemu-system-arm");
+    cmd.args(QEMU_MACHINE_ARGS)
+        .args(["-serial", &ports.host, "-serial", &ports.servo_bus])
+        .args(["-serial", ports.base.as_deref().unwrap_or("null")])
+        .arg("-serial")
+        .arg(format!("file:{}", log.display()))
+        .args(["-serial", &ports.clock])
+        .arg("-kernel")
+        .arg(elf)
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped());
+    let mut qemu = cmd.spawn().map_err(|e| {
+        Error::Link(format!(
+            "cannot start qemu-system-arm: {e} (scripts/setup-cross.sh installs it)"
+        ))
+    })?;
+    let err = Stderr::collect(qemu.stderr.take());
+    Ok((qemu, err))
+}
+
+/// QEMU and the plants of one emulated robot; QEMU is killed when dropped.
 pub struct EmulatedBoard {
     qemu: Child,
-    /// The plants (ground truth, fault injection).
-    pub plants: ferrobot_sim::serve::Plants,
-    /// The firmware's host link.
-    pub host: PathBuf,
+    qemu_stderr: Stderr,
+    /// The plants and their clock (ground truth, fault injection, diagnostics).
+    pub server: BoardServer,
+    /// The firmware's defmt log (UART3), a file.
+    pub log: PathBuf,
 }
 
 impl EmulatedBoard {
-    /// Serve the plants of `robot` and boot `firmware` in QEMU.
+    /// Serve the plants of `robot`, boot `firmware` in QEMU and wait for its first report on
+    /// the clock link; the defmt log goes to `log`.
+    pub fn start_with(
+        robot: &str,
+        firmware: &Path,
+        opts: BoardOptions,
+        log: PathBuf,
+    ) -> Result<EmulatedBoard> {
+        let server =
+            BoardServer::start(robot, opts).map_err(|e| Error::Link(format!("plants: {e}")))?;
+        let (qemu, qemu_stderr) = start_qemu(firmware, &server.board, &log)?;
+        let mut board = EmulatedBoard {
+            qemu,
+            qemu_stderr,
+            server,
+            log,
+        };
+        let deadline = Instant::now() + BOOT_TIMEOUT;
+        while !board.server.board_reported() {
+            if let Some(why) = board.qemu_exited() {
+                return Err(Error::Link(why));
+            }
+            if Instant::now() >= deadline {
+                return Err(Error::Link(format!(
+                    "{} did not report on its virtual-time link within {BOOT_TIMEOUT:?}; \
+                     QEMU said: {:?}",
+                    firmware.display(),
+                    board.qemu_stderr()
+                )));
+            }
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        Ok(board)
+    }
+
+    /// [`EmulatedBoard::start_with`] with seed 1, real-time pace and a log in the temporary
+    /// directory.
     pub fn start(robot: &str, firmware: &Path) -> Result<EmulatedBoard> {
-        let (served, plants) = ferrobot_sim::serve::serve(robot, 1)
-            .map_err(|e| Error::Link(format!("plants: {e}")))?;
         let log =
             std::env::temp_dir().join(format!("ferrobot-emulated-{}.defmt", std::process::id()));
-        let (qemu, host) = start_qemu(firmware, &served.servo_bus, served.base.as_deref(), &log)?;
-        Ok(EmulatedBoard { qemu, plants, host })
+        Self::start_with(robot, firmware, BoardOptions::default(), log)
+    }
+
+    /// `Some(why)` once QEMU has exited.
+    pub fn qemu_exited(&mut self) -> Option<String> {
+        match self.qemu.try_wait() {
+            Ok(Some(status)) => {
+                self.qemu_stderr.finish();
+                Some(format!(
+                    "QEMU exited ({status}): {}",
+                    self.qemu_stderr().join(" / ")
+                ))
+            }
+            Ok(None) => None,
+            Err(e) => Some(format!("QEMU cannot be waited for: {e}")),
+        }
+    }
+
+    /// What QEMU printed on standard error so far.
+    pub fn qemu_stderr(&self) -> Vec<String> {
+        self.qemu_stderr.lines()
     }
 }
 
@@ -131,7 +195,7 @@ impl EmulatedLink {
     /// Start the board and connect.
     pub fn start(robot: &str, firmware: &Path) -> Result<Self> {
         let board = EmulatedBoard::start(robot, firmware)?;
-        let serial = SerialLink::open(&board.host, Duration::from_secs(20))?;
+        let serial = SerialLink::open(&board.server.host, Duration::from_secs(10))?;
         Ok(EmulatedLink { serial, board })
     }
 }

@@ -2,6 +2,12 @@
 //! writes queued frames, decodes incoming ones (telemetry into the latest state, replies and
 //! faults into queues), sends heartbeats when the API is quiet, and when the port fails it
 //! reports the link lost and reopens it, handshaking again, until it comes back.
+//!
+//! The link's clock is the firmware's: [`Link::now`] is the time of the newest telemetry and
+//! [`Link::wait`] waits for the firmware's clock to move on. A real board's clock runs with
+//! the wall clock; an emulated board's runs as fast as the machine emulating it can manage,
+//! and the API's timings (motion deadlines, control periods) follow it either way. A firmware
+//! that sends no telemetry for [`TELEMETRY_SILENCE`] is reported lost.
 
 use std::collections::{HashSet, VecDeque};
 use std::io::{Read, Write};
@@ -23,10 +29,15 @@ use crate::error::{Error, Result};
 pub const REPLY_TIMEOUT: Duration = Duration::from_secs(1);
 /// Heartbeat period when the API sends nothing.
 pub const HEARTBEAT: Duration = Duration::from_millis(100);
+/// Wall time without telemetry after which an accepted firmware counts as lost (the firmware
+/// sends it every few tens of milliseconds of its own time).
+pub const TELEMETRY_SILENCE: Duration = Duration::from_secs(2);
 
 #[derive(Default)]
 struct State {
     telemetry: Option<Telemetry>,
+    /// When the newest telemetry arrived (wall time).
+    telemetry_at: Option<Instant>,
     replies: VecDeque<Frame<DeviceMsg>>,
     faults: Vec<Fault>,
     lost: Option<String>,
@@ -45,7 +56,7 @@ pub struct SerialLink {
     shared: Arc<Shared>,
     tx: Sender<(u16, HostMsg)>,
     info: DeviceInfo,
-    start: Instant,
+    path: PathBuf,
     thread: Option<thread::JoinHandle<()>>,
 }
 
@@ -131,7 +142,10 @@ fn io_thread(path: PathBuf, shared: Arc<Shared>, rx: Receiver<(u16, HostMsg)>) {
                         if let Ok(mut s) = shared.state.lock() {
                             for f in frames {
                                 match f.msg {
-                                    DeviceMsg::Telemetry(t) => s.telemetry = Some(t),
+                                    DeviceMsg::Telemetry(t) => {
+                                        s.telemetry = Some(t);
+                                        s.telemetry_at = Some(Instant::now());
+                                    }
                                     DeviceMsg::Fault(x) => s.faults.push(x),
                                     DeviceMsg::Ack { seq } if heartbeats.remove(&seq) => {}
                                     DeviceMsg::Hello(info) => {
@@ -166,11 +180,26 @@ fn io_thread(path: PathBuf, shared: Arc<Shared>, rx: Receiver<(u16, HostMsg)>) {
                 Err(e) => failed = Some(e.to_string()),
             }
         }
+        if failed.is_none() {
+            let silent = shared.state.lock().is_ok_and(|s| {
+                s.info.as_ref().is_some_and(|i| i.accepted)
+                    && s.telemetry_at
+                        .is_some_and(|t| t.elapsed() > TELEMETRY_SILENCE)
+            });
+            if silent {
+                failed = Some(format!(
+                    "no telemetry from the firmware for {TELEMETRY_SILENCE:?}: its control loop \
+                     has stopped (for an emulated board: its plants and clock are no longer served)"
+                ));
+            }
+        }
         if let Some(why) = failed {
             port = None;
             heartbeats.clear();
             if let Ok(mut s) = shared.state.lock() {
                 s.lost = Some(why);
+                s.telemetry_at = None;
+                s.info = None;
             }
             shared.cv.notify_all();
         }
@@ -202,14 +231,14 @@ impl SerialLink {
         let (tx, rx) = channel();
         let thread = {
             let shared = shared.clone();
+            let path = path.clone();
             thread::spawn(move || io_thread(path, shared, rx))
         };
-        let start = Instant::now();
         let mut link = SerialLink {
             shared,
             tx,
             info: placeholder_info(),
-            start,
+            path,
             thread: Some(thread),
         };
         // Wait for the firmware's answer to the thread's Hello; say Hello again now and then
@@ -231,10 +260,11 @@ impl SerialLink {
                 break;
             }
             if Instant::now() >= deadline {
-                return Err(Error::Timeout {
-                    what: "the firmware's handshake".into(),
-                    after: timeout,
-                });
+                return Err(Error::Link(format!(
+                    "nothing answered the handshake on {} within {timeout:?}: is the firmware \
+                     running behind that port?",
+                    link.path.display()
+                )));
             }
             if Instant::now() >= next_hello {
                 next_hello += Duration::from_millis(300);
@@ -245,16 +275,37 @@ impl SerialLink {
             }
             thread::sleep(Duration::from_millis(5));
         }
-        // Hand the robot over once the firmware has configured its servos.
-        let deadline = Instant::now() + timeout;
-        while link.telemetry()?.faults & ferrobot_protocol::fault_flags::CONFIGURING != 0 {
-            if Instant::now() >= deadline {
+        // Hand the robot over once the firmware has configured its servos: within `timeout`
+        // of the firmware's own time, which runs as long as telemetry comes.
+        let first = link
+            .wait_for(timeout, "telemetry", |s| {
+                if let Some(why) = &s.lost {
+                    return Some(Err(Error::Link(format!("{why} (reconnecting)"))));
+                }
+                s.telemetry.clone().map(Ok)
+            })
+            .map_err(|e| match e {
+                Error::Timeout { after, .. } => Error::Link(format!(
+                    "the firmware on {} answered the handshake but sent no telemetry within \
+                     {after:?}: its control loop is not running (for an emulated board: are \
+                     its plants and clock served?)",
+                    link.path.display()
+                )),
+                e => e,
+            })?;
+        let deadline = Duration::from_micros(first.time_us) + timeout;
+        loop {
+            let t = link.telemetry()?;
+            if t.faults & ferrobot_protocol::fault_flags::CONFIGURING == 0 {
+                break;
+            }
+            if Duration::from_micros(t.time_us) >= deadline {
                 return Err(Error::Timeout {
                     what: "servo configuration".into(),
                     after: timeout,
                 });
             }
-            thread::sleep(Duration::from_millis(10));
+            link.wait(Duration::from_millis(10));
         }
         Ok(link)
     }
@@ -277,7 +328,8 @@ impl SerialLink {
         what: &str,
         mut ready: impl FnMut(&mut State) -> Option<Result<T>>,
     ) -> Result<T> {
-        let deadline = Instant::now() + timeout;
+        // A timeout too long to represent waits for as long as it takes.
+        let deadline = Instant::now().checked_add(timeout);
         let mut s = self
             .shared
             .state
@@ -287,8 +339,11 @@ impl SerialLink {
             if let Some(r) = ready(&mut s) {
                 return r;
             }
-            let now = Instant::now();
-            if now >= deadline {
+            let left = match deadline {
+                Some(d) => d.saturating_duration_since(Instant::now()),
+                None => Duration::from_secs(3600),
+            };
+            if left.is_zero() {
                 return Err(Error::Timeout {
                     what: what.to_string(),
                     after: timeout,
@@ -297,7 +352,7 @@ impl SerialLink {
             s = self
                 .shared
                 .cv
-                .wait_timeout(s, deadline - now)
+                .wait_timeout(s, left)
                 .map_err(|_| Error::Link("I/O thread panicked".into()))?
                 .0;
         }
@@ -386,11 +441,31 @@ impl Link for SerialLink {
     }
 
     fn wait(&mut self, dt: Duration) {
-        thread::sleep(dt);
+        // Until the firmware's clock has moved `dt` on, or the link is lost (the I/O thread
+        // declares it lost after TELEMETRY_SILENCE without telemetry). The cap only guards
+        // against a firmware whose clock crawls at under 1 % of the wall clock.
+        let target = self.now() + dt;
+        let cap = dt.saturating_mul(100).saturating_add(TELEMETRY_SILENCE);
+        let _ = self.wait_for(cap, "the firmware's clock", |s| {
+            let reached = s
+                .telemetry
+                .as_ref()
+                .is_some_and(|t| Duration::from_micros(t.time_us) >= target);
+            (reached || s.lost.is_some()).then_some(Ok(()))
+        });
     }
 
     fn now(&self) -> Duration {
-        self.start.elapsed()
+        self.shared
+            .state
+            .lock()
+            .ok()
+            .and_then(|s| {
+                s.telemetry
+                    .as_ref()
+                    .map(|t| Duration::from_micros(t.time_us))
+            })
+            .unwrap_or_default()
     }
 
     fn take_faults(&mut self) -> Vec<Fault> {

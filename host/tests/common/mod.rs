@@ -6,6 +6,7 @@ use ferrobot::Robot;
 pub fn place_post(bot: &mut Robot, x: f64, y: f64, r: f64) {
     bot.simulator()
         .expect("sim")
+        .hw
         .base
         .as_mut()
         .expect("base")

@@ -5,6 +5,11 @@
 //!   standard input closes or the process is killed. Lines on standard input control the
 //!   plants (ground truth, objects, silent servos, noise; see `Plants::command`), each
 //!   answered by one JSON line.
+//! * `ferrobot-sim board --robot locobot [--seed N]`: the plants of an emulated board, on one
+//!   clock with its firmware in QEMU ([`ferrobot_sim::board`]). Prints one JSON line
+//!   `{"robot", "board": {"host", "servo_bus", "base", "clock"}, "host", "qemu"}`: the ports for
+//!   QEMU's UARTs, the host's end of the host link, and the QEMU command line to start the
+//!   firmware with (append the ELF); then answers control lines like `serve`.
 //! * `ferrobot-sim demo [--robot locobot]`: moves the simulated robot through the firmware in
 //!   lockstep and prints what happened.
 
@@ -13,7 +18,7 @@ use std::process::ExitCode;
 use ferrobot_sim::serve::serve;
 
 fn usage() -> ExitCode {
-    eprintln!("usage: ferrobot-sim serve --robot NAME [--seed N]\n       ferrobot-sim demo [--robot NAME] [--seed N]");
+    eprintln!("usage: ferrobot-sim serve --robot NAME [--seed N]\n       ferrobot-sim board --robot NAME [--seed N]\n       ferrobot-sim demo [--robot NAME] [--seed N]");
     ExitCode::from(2)
 }
 
@@ -59,6 +64,44 @@ fn main() -> ExitCode {
                 ExitCode::from(1)
             }
         },
+        "board" => {
+            let opts = ferrobot_sim::board::BoardOptions {
+                seed,
+                ..Default::default()
+            };
+            match ferrobot_sim::board::BoardServer::start(&robot, opts) {
+                Ok(server) => {
+                    let b = &server.board;
+                    let qemu = format!(
+                        "qemu-system-arm -machine mps2-an386 -cpu cortex-m4 -display none -monitor none -serial {} -serial {} -serial {} -serial file:ferrobot.defmt -serial {} -kernel",
+                        b.host,
+                        b.servo_bus,
+                        b.base.as_deref().unwrap_or("null"),
+                        b.clock
+                    );
+                    let line = serde_json::json!({"robot": robot, "board": {"host": b.host,
+                        "servo_bus": b.servo_bus, "base": b.base, "clock": b.clock},
+                        "host": server.host, "qemu": qemu});
+                    println!("{line}");
+                    use std::io::BufRead;
+                    for line in std::io::stdin().lock().lines() {
+                        let Ok(line) = line else { break };
+                        match line.trim() {
+                            "" => {}
+                            "report" => {
+                                println!("{}", serde_json::json!({"report": server.report()}))
+                            }
+                            l => println!("{}", server.command(l)),
+                        }
+                    }
+                    ExitCode::SUCCESS
+                }
+                Err(e) => {
+                    eprintln!("error: {e}");
+                    ExitCode::from(1)
+                }
+            }
+        }
         "demo" => match ferrobot_sim_demo(&robot, seed) {
             Ok(()) => ExitCode::SUCCESS,
             Err(e) => {

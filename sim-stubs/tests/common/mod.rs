@@ -40,7 +40,7 @@ pub fn waypoint(joints: u16, duration_us: u32, q: &[f32]) -> HostMsg {
 /// Joint angles (rad) of the arm as the simulated servos really are (ground truth, not
 /// the firmware's reading): servo angle through the joint's sign.
 pub fn true_arm(s: &SimSession) -> Vec<f32> {
-    let chain = &s.sim.chain;
+    let chain = &s.sim.hw.chain;
     let profile = s.sim.fw.profile();
     profile.joints[..5]
         .iter()
@@ -69,5 +69,5 @@ pub fn max_err(a: &[f32], b: &[f32]) -> f32 {
 
 /// Gripper servo position, ticks.
 pub fn gripper_ticks(s: &SimSession) -> i32 {
-    units::rad_to_tick(s.sim.chain.servo(7).expect("gripper").theta as f32)
+    units::rad_to_tick(s.sim.hw.chain.servo(7).expect("gripper").theta as f32)
 }

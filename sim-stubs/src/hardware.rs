@@ -1,0 +1,140 @@
+//! The simulated hardware around a firmware: the servo chain and the base, joined to the
+//! microcontroller by timed serial lines (the servo bus at its bit rate, the base at
+//! [`BASE_BAUD`]). Sans-IO and event-driven: the caller hands over what the firmware sent,
+//! runs the plants from event to event, and takes what reaches the firmware.
+//!
+//! Two callers drive it: [`crate::LockstepSim`] with the firmware core in-process, and the
+//! [`crate::conductor`] with the real firmware in QEMU behind pseudo-terminals. Both see the
+//! same plants on the same wires.
+
+use ferrobot_firmware::Link;
+
+use crate::bases::BasePlant;
+use crate::chain::ServoChain;
+use crate::diff_drive::Pose;
+use crate::pipe::Pipe;
+use crate::robots::{BaseModel, SimRobot};
+
+/// Base serial line rate, bit/s.
+pub const BASE_BAUD: u32 = 115_200;
+
+/// Servo chain, base and the four one-way lines between them and the firmware.
+pub struct Hardware {
+    /// The servo chain.
+    pub chain: ServoChain,
+    /// The base, if any.
+    pub base: Option<BasePlant>,
+    to_servo: Pipe,
+    from_servo: Pipe,
+    to_base: Pipe,
+    from_base: Pipe,
+}
+
+impl Hardware {
+    /// The plants of `desc`, seeded by `seed`.
+    pub fn new(desc: &SimRobot, seed: u64) -> Self {
+        let base = match desc.base {
+            BaseModel::Kobuki => Some(BasePlant::kobuki(seed)),
+            BaseModel::Create2 => Some(BasePlant::create2(seed)),
+            BaseModel::None => None,
+        };
+        Self {
+            chain: ServoChain::new(&desc.servos, &desc.arm, seed),
+            base,
+            to_servo: Pipe::new(desc.bus_baud),
+            from_servo: Pipe::new(desc.bus_baud),
+            to_base: Pipe::new(BASE_BAUD),
+            from_base: Pipe::new(BASE_BAUD),
+        }
+    }
+
+    /// Bytes the firmware sent on `link` at `t_us` (µs); they reach the plant when the line
+    /// has clocked them out. Host bytes are not the hardware's and are ignored.
+    pub fn from_firmware(&mut self, link: Link, t_us: u64, bytes: &[u8]) {
+        if bytes.is_empty() {
+            return;
+        }
+        match link {
+            Link::Servo => {
+                self.to_servo.send(t_us, bytes.to_vec());
+            }
+            Link::Base => {
+                self.to_base.send(t_us, bytes.to_vec());
+            }
+            Link::Host => {}
+        }
+    }
+
+    /// Put extra bytes on the line from the servo bus or the base to the firmware at `t_us`,
+    /// as line noise would (fault injection).
+    pub fn inject_to_firmware(&mut self, link: Link, t_us: u64, bytes: &[u8]) {
+        match link {
+            Link::Servo => {
+                self.from_servo.send(t_us, bytes.to_vec());
+            }
+            Link::Base => {
+                self.from_base.send(t_us, bytes.to_vec());
+            }
+            Link::Host => {}
+        }
+    }
+
+    /// Run the plants' events at exactly `now` (µs): bytes that reach the servos and the base,
+    /// the base's physics and feedback. Call at every event time in order (see
+    /// [`Hardware::next_event`]).
+    pub fn step(&mut self, now: u64) {
+        if let Some(b) = self.to_servo.take_arrived(now) {
+            for r in self.chain.on_bytes(now, &b) {
+                self.from_servo.send(now + r.delay_us, r.bytes);
+            }
+        }
+        if let Some(base) = self.base.as_mut() {
+            if let Some(b) = self.to_base.take_arrived(now) {
+                base.on_bytes(now, &b);
+            }
+            base.advance_to(now);
+            let out = base.take_output();
+            if !out.is_empty() {
+                self.from_base.send(now, out);
+            }
+        }
+    }
+
+    /// Bytes that have reached the firmware on `link` by `now` (µs).
+    pub fn to_firmware(&mut self, link: Link, now: u64) -> Option<Vec<u8>> {
+        match link {
+            Link::Servo => self.from_servo.take_arrived(now),
+            Link::Base => self.from_base.take_arrived(now),
+            Link::Host => None,
+        }
+    }
+
+    /// The next time anything happens on a line or in the base (µs), if anything will.
+    pub fn next_event(&self) -> Option<u64> {
+        [
+            self.to_servo.next_arrival(),
+            self.from_servo.next_arrival(),
+            self.to_base.next_arrival(),
+            self.from_base.next_arrival(),
+            self.base.as_ref().map(|b| b.next_event()),
+        ]
+        .into_iter()
+        .flatten()
+        .min()
+    }
+
+    /// Bytes carried so far on each line: to and from the servo bus, to and from the base.
+    pub fn line_bytes(&self) -> [u64; 4] {
+        [
+            self.to_servo.bytes,
+            self.from_servo.bytes,
+            self.to_base.bytes,
+            self.from_base.bytes,
+        ]
+    }
+
+    /// Ground-truth pose of the base (world frame), if there is a base.
+    pub fn base_truth(&self) -> Option<Pose> {
+        self.base.as_ref().map(|b| b.drive.truth)
+    }
+}
