@@ -128,6 +128,9 @@ pub struct Servo {
     retries: u8,
     misses: u8,
     next_probe: u64,
+    /// Bumped whenever the desired mode or torque changes: a mode-change transaction that
+    /// was under way when the request changed does not count as done.
+    gen: u8,
 }
 
 /// A goal for one servo, in servo units.
@@ -178,6 +181,7 @@ enum Phase {
         servo: usize,
         op: u16,
         deadline: u64,
+        gen: u8,
     },
     AwaitSync {
         deadline: u64,
@@ -196,6 +200,8 @@ pub struct ServoBus {
     received: u32,
     tx: TxBuf<512>,
     events: Deque<BusEvent, 16>,
+    /// Whether the transactions under way belong to a tick (the sync read follows them).
+    ops_then_read: bool,
     /// Counters.
     pub stats: BusStats,
 }
@@ -230,6 +236,7 @@ impl ServoBus {
             received: 0,
             tx: TxBuf::new(),
             events: Deque::new(),
+            ops_then_read: true,
             stats: BusStats::default(),
         };
         bus.rebuild(joints);
@@ -259,6 +266,7 @@ impl ServoBus {
                         retries: 0,
                         misses: 0,
                         next_probe: 0,
+                        gen: 0,
                     });
                 }
             }
@@ -310,6 +318,7 @@ impl ServoBus {
                 s.mode = mode_byte;
                 s.torque = torque;
                 s.ops |= op::MODE_CHANGE;
+                s.gen = s.gen.wrapping_add(1);
             }
         }
     }
@@ -371,6 +380,7 @@ impl ServoBus {
         for s in self.servos.iter_mut() {
             s.fresh = false;
         }
+        self.ops_then_read = true;
         if !self.start_op(now, joints) {
             self.start_sync_read(now);
         }
@@ -389,16 +399,45 @@ impl ServoBus {
                 servo: i,
                 op: op::PING,
                 deadline: self.op_deadline(now, n, 14),
+                gen: self.servos.get(i).map_or(0, |s| s.gen),
             };
             return true;
         }
-        let pending = self
-            .servos
-            .iter()
-            .position(|s| s.status != ServoStatus::Lost && s.ops != 0);
-        let Some(i) = pending else {
-            return false;
-        };
+        loop {
+            let pending = self
+                .servos
+                .iter()
+                .position(|s| s.status != ServoStatus::Lost && s.ops != 0);
+            let Some(i) = pending else {
+                return false;
+            };
+            if self.issue_op(now, i, joints) {
+                return true;
+            }
+        }
+    }
+
+    /// After a mode-change transaction, the next one of any servo changing mode, in the same
+    /// tick: a servo is never left limp, or running a goal of its old mode, for longer than
+    /// the transactions take. Returns whether one was started.
+    fn chain_mode_ops(&mut self, now: u64) -> bool {
+        loop {
+            let changing = self.servos.iter().position(|s| {
+                s.status == ServoStatus::Ok && s.ops != 0 && s.ops & !op::MODE_CHANGE == 0
+            });
+            let Some(i) = changing else {
+                return false;
+            };
+            // Mode-change transactions do not use the joint table.
+            if self.issue_op(now, i, &[]) {
+                return true;
+            }
+        }
+    }
+
+    /// Send servo `i`'s lowest pending operation; false when it needed no transaction (it is
+    /// then done).
+    fn issue_op(&mut self, now: u64, i: usize, joints: &[JointConfig]) -> bool {
         let Some(s) = self.servos.get(i).cloned() else {
             return false;
         };
@@ -472,8 +511,8 @@ impl ServoBus {
             op::TORQUE_ON => {
                 if !s.torque {
                     // Nothing to send: the servo stays limp.
-                    self.op_done(i, o);
-                    return self.start_op(now, joints);
+                    self.op_done(i, o, s.gen);
+                    return false;
                 }
                 (
                     self.send(|b| dxl::write(b, id, addr::TORQUE_ENABLE, &[1])),
@@ -495,12 +534,19 @@ impl ServoBus {
             servo: i,
             op: o,
             deadline: self.op_deadline(now, n, reply),
+            gen: s.gen,
         };
         true
     }
 
-    fn op_done(&mut self, i: usize, o: u16) {
+    /// Operation `o` of servo `i`, sent when its request was at generation `gen`, is done.
+    fn op_done(&mut self, i: usize, o: u16, gen: u8) {
         if let Some(s) = self.servos.get_mut(i) {
+            // A mode change asked for while this one was on the wire: it is redone in full.
+            if o & op::MODE_CHANGE != 0 && gen != s.gen {
+                s.retries = 0;
+                return;
+            }
             s.ops &= !o;
             s.retries = 0;
             if s.status == ServoStatus::Configuring && s.ops & op::CONFIGURE == 0 {
@@ -585,7 +631,9 @@ impl ServoBus {
             self.stats.alerts += 1;
         }
         match self.phase {
-            Phase::AwaitOp { servo, op: o, .. } => {
+            Phase::AwaitOp {
+                servo, op: o, gen, ..
+            } => {
                 let Some(s) = self.servos.get(servo) else {
                     return;
                 };
@@ -619,10 +667,12 @@ impl ServoBus {
                         let bits = self.servos.get(servo).map(|s| s.hw_error).unwrap_or(0);
                         self.event(BusEvent::HardwareError(servo as u8, bits));
                     }
-                    self.op_done(servo, o);
+                    self.op_done(servo, o, gen);
                 }
                 self.decoder.reset();
-                self.start_sync_read(now);
+                if !self.chain_mode_ops(now) {
+                    self.after_ops(now);
+                }
             }
             Phase::AwaitSync { .. } => {
                 let slot = self
@@ -663,6 +713,7 @@ impl ServoBus {
                 servo,
                 op: o,
                 deadline,
+                ..
             } if now >= deadline => {
                 self.stats.timeouts += 1;
                 let lost = self
@@ -677,7 +728,7 @@ impl ServoBus {
                     self.op_failed(now, servo);
                 }
                 self.decoder.reset();
-                self.start_sync_read(now);
+                self.after_ops(now);
             }
             Phase::AwaitSync { deadline } if now >= deadline => {
                 let missing = self.read_list.len() as u32 - self.received.count_ones();
@@ -708,7 +759,7 @@ impl ServoBus {
     }
 
     /// Finish the tick: write the goals (one per servo, `Goal::None` to skip).
-    pub fn finish_tick(&mut self, goals: &[Goal]) {
+    pub fn finish_tick(&mut self, now: u64, goals: &[Goal]) {
         let groups: [(u16, u16); 4] = [
             (addr::GOAL_POSITION, 4),
             (addr::GOAL_VELOCITY, 4),
@@ -721,7 +772,24 @@ impl ServoBus {
                 if !self.accepts_goals(i) {
                     continue;
                 }
-                let id = self.servos.get(i).map(|s| s.id).unwrap_or(0);
+                let Some(s) = self.servos.get(i) else {
+                    continue;
+                };
+                // A goal only ever goes to a servo in the mode it is meant for.
+                let fits = match goal {
+                    Goal::Position(_) => matches!(
+                        s.mode,
+                        mode::POSITION | mode::EXTENDED_POSITION | mode::CURRENT_BASED_POSITION
+                    ),
+                    Goal::Velocity(_) => s.mode == mode::VELOCITY,
+                    Goal::Current(_) => s.mode == mode::CURRENT,
+                    Goal::Pwm(_) => s.mode == mode::PWM,
+                    Goal::None => false,
+                };
+                if !fits {
+                    continue;
+                }
+                let id = s.id;
                 let bytes = match (g, goal) {
                     (0, Goal::Position(p)) => p.to_le_bytes(),
                     (1, Goal::Velocity(v)) => v.to_le_bytes(),
@@ -746,5 +814,25 @@ impl ServoBus {
             }
         }
         self.phase = Phase::Idle;
+        self.kick(now);
+    }
+
+    /// Between ticks: start the transactions of any servo changing mode now, rather than at
+    /// the next tick, so that no servo runs a goal of its old mode for a tick longer.
+    pub fn kick(&mut self, now: u64) {
+        if self.phase == Phase::Idle {
+            self.ops_then_read = false;
+            self.chain_mode_ops(now);
+        }
+    }
+
+    /// The transactions of this bus cycle are done: read the servos (within a tick), or rest
+    /// (between ticks).
+    fn after_ops(&mut self, now: u64) {
+        if self.ops_then_read {
+            self.start_sync_read(now);
+        } else {
+            self.phase = Phase::Idle;
+        }
     }
 }

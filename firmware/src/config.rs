@@ -289,28 +289,7 @@ pub fn by_name(robot: &str) -> Option<RobotProfile> {
     }
 }
 
-/// Check a joint row: sign ±1, finite values, ordered limits, positive rate limits.
+/// Check a joint row against the protocol's ranges ([`ferrobot_protocol::ranges`]).
 pub fn joint_is_valid(c: &JointConfig) -> bool {
-    let l = &c.limits;
-    let finite = [
-        l.min,
-        l.max,
-        l.velocity,
-        l.effort,
-        c.offset,
-        c.pid.kp,
-        c.pid.ki,
-        c.pid.kd,
-        c.pid.i_limit,
-        c.position_ki,
-    ]
-    .iter()
-    .all(|v| v.is_finite());
-    finite
-        && (c.sign == 1 || c.sign == -1)
-        && l.min <= l.max
-        && l.velocity > 0.0
-        && l.effort >= 0.0
-        && c.servo_id < 0xFD
-        && c.twin_id.is_none_or(|t| t < 0xFD && t != c.servo_id)
+    ferrobot_protocol::ranges::joint_config_ok(c)
 }

@@ -7,12 +7,111 @@ use heapless::Deque;
 /// Knots a joint can queue.
 pub const QUEUE_LEN: usize = 16;
 
-/// Velocity and PWM modes brake towards a position limit: the commanded speed is at most
+/// Velocity mode approaches a position limit on an envelope: the commanded speed is at most
 /// this gain (1/s) times the distance left, so the joint stops at the limit instead of
-/// reacting once it is past it.
+/// reacting once it is past it; past a limit the envelope brings it back.
 pub const LIMIT_APPROACH_GAIN: f32 = 2.0;
-/// PWM mode: the largest PWM fraction per rad of distance left to a limit.
-pub const LIMIT_APPROACH_PWM: f32 = 1.5;
+/// Position mode: a joint measured faster than its velocity limit times this factor (or, in
+/// a loop slower than [`SERVO_TIME_CONSTANT`], the loop period over it), plus
+/// [`BRAKE_SPEED_ABS`], or moving further out beyond a limit, is braked from where it is
+/// (caught falling, pushed, torqued while moving).
+pub const BRAKE_SPEED_FACTOR: f32 = 1.05;
+/// How fast a servo's own position loop closes on a step of its goal, s: in a control loop
+/// slower than this, the servo moves faster than the command between two setpoints.
+pub const SERVO_TIME_CONSTANT: f32 = 0.01;
+/// Ticks in a row a joint must be measured too fast, the same way, before it is braked.
+pub const FAST_TICKS: u8 = 2;
+/// See [`BRAKE_SPEED_FACTOR`], rad/s (above the noise of a servo's velocity reading).
+pub const BRAKE_SPEED_ABS: f32 = 0.15;
+/// The speed above the noise of a servo's velocity reading at which a joint beyond a limit
+/// counts as moving further out, rad/s.
+pub const LEAVING_SPEED: f32 = 0.15;
+/// Position mode, braking: the goal is behind the joint by its speed times this, s ...
+pub const BRAKE_TIME: f32 = 0.1;
+/// ... but at least this far, rad (a joint drifting under a load needs a goal well behind it
+/// to stop) ...
+pub const BRAKE_MIN: f32 = 0.02;
+/// ... and at most this far, rad (near full torque).
+pub const BRAKE_OFFSET: f32 = 0.3;
+/// Position mode: once a braked joint outside its limits has slowed down, its goal stays at
+/// most this far from it, rad: enough to hold a load, little enough not to race back.
+pub const BRAKE_HOLD: f32 = 0.1;
+/// Velocity mode, holding (no command): speed (rad/s) per rad of error towards the hold point.
+pub const VELOCITY_HOLD_GAIN: f32 = 2.0;
+/// Current and PWM modes: the speed envelope near a limit, 1/s. The envelope ahead of a limit
+/// is this gain times the distance left (capped at the velocity limit), so a joint slows down
+/// before it reaches a limit, from its state, rather than after crossing it.
+pub const GUARD_APPROACH_GAIN: f32 = 10.0;
+/// Current and PWM modes: speed beyond the envelope (rad/s) at which the guard brakes with the
+/// joint's full strength, at a 1 kHz loop (slower loops brake proportionally more gently, so
+/// that a braking effort held for a whole period does not overshoot).
+pub const GUARD_SPEED_SPAN: f32 = 0.25;
+/// Velocity, current and PWM modes: a joint moving faster than its mode's speed envelope
+/// allows by more than half its velocity limit plus this (rad/s), capped at
+/// [`STOP_SPEED_MARGIN`] (velocity mode: [`STOP_SPEED_MARGIN_VELOCITY`]), or more than
+/// [`STOP_OUTSIDE`] outside a position limit and not coming back, is stopped: switched to
+/// position mode, holding where it comes to rest.
+pub const STOP_SPEED_BASE: f32 = 0.05;
+/// See [`STOP_SPEED_BASE`], rad/s.
+pub const STOP_SPEED_MARGIN: f32 = 0.2;
+/// See [`STOP_SPEED_BASE`]: the servo's own velocity loop lags the envelope it is given.
+pub const STOP_SPEED_MARGIN_VELOCITY: f32 = 0.3;
+/// See [`STOP_SPEED_MARGIN`], rad.
+pub const STOP_OUTSIDE: f32 = 0.01;
+
+/// The speed envelope `(lowest, highest)` (rad/s) at position `q`: within the velocity limit,
+/// and `gain` × the distance to each position limit (pointing back inside beyond one).
+pub fn envelope(q: f32, lim: &ferrobot_protocol::JointLimits, gain: f32) -> (f32, f32) {
+    // Both ends within ±the velocity limit, so they stay ordered even far outside the limits.
+    let v = lim.velocity;
+    let up = (gain * (lim.max - q)).min(v).max(-v);
+    let down = (gain * (lim.min - q)).max(-v).min(v);
+    (down, up)
+}
+
+/// Where a position goal may lie: within the limits, or, for a joint outside them, between
+/// them and its `anchor` (rad): the outermost point it has been allowed, which only ever moves
+/// back towards the limits (see [`JointControl::anchor`]); while it is `braking`, up to
+/// [`BRAKE_OFFSET`] beyond.
+pub fn position_goal_range(
+    lim: &ferrobot_protocol::JointLimits,
+    anchor: Option<f32>,
+    braking: bool,
+) -> (f32, f32) {
+    // A joint coming back too fast (gravity helping it) is braked with a goal behind it, which
+    // may lie up to BRAKE_OFFSET beyond its anchor.
+    let slack = if braking { BRAKE_OFFSET } else { 0.0 };
+    match anchor {
+        Some(a) if a.is_finite() => (lim.min.min(a - slack), lim.max.max(a + slack)),
+        _ => (lim.min, lim.max),
+    }
+}
+
+/// The guard of the torque modes: the effort `tau` (N·m, already within the joint's effort
+/// limit) limited so that a joint at `q` (rad) moving at `qd` (rad/s) is braked back into its
+/// speed envelope (under an emergency stop, `stopped`, only its speed limit: it is not moved
+/// back inside), at up to `strength` (N·m, what the joint's servos can give) at
+/// [`GUARD_SPEED_SPAN`] beyond it. Position and speed limits take precedence over the effort
+/// limit: braking, and holding at a position limit, may use the servos' full torque.
+pub fn guard_effort(
+    tau: f32,
+    (q, qd): (f32, f32),
+    lim: &ferrobot_protocol::JointLimits,
+    strength: f32,
+    dt: f32,
+    stopped: bool,
+) -> f32 {
+    // Emergency stop: no motion, not even back inside the limits.
+    let (down, up) = if stopped {
+        (-lim.velocity, lim.velocity)
+    } else {
+        envelope(q, lim, GUARD_APPROACH_GAIN)
+    };
+    let b = strength / GUARD_SPEED_SPAN * (1e-3 / dt).min(1.0);
+    tau.min(b * (up - qd))
+        .max(b * (down - qd))
+        .clamp(-strength, strength)
+}
 
 /// One queued trajectory knot at an absolute firmware time.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -75,10 +174,11 @@ pub enum JointOutput {
     Position(f32),
     /// Goal velocity, rad/s.
     Velocity(f32),
-    /// Goal effort, N·m, with the measured joint speed for voltage-mode servos.
+    /// Goal effort, N·m, with the measured joint speed for voltage-mode servos: as goal
+    /// current where the servo has current control, else as PWM.
     Effort(f32, f32),
-    /// Goal PWM fraction in [−1, 1].
-    Pwm(f32),
+    /// Goal effort, N·m, at the measured joint speed, always realised as PWM (PWM mode).
+    PwmEffort(f32, f32),
 }
 
 /// Control state of one joint.
@@ -94,6 +194,20 @@ pub struct JointControl {
     direct: Option<f32>,
     integral: f32,
     sag: f32,
+    /// Position mode: braking a joint that moves faster than its limit.
+    braking: bool,
+    /// Position mode: consecutive ticks the joint has been measured too fast the same way
+    /// (signed): one reading alone may be a motor rattling inside the backlash.
+    fast_ticks: i8,
+
+    /// Emergency stop: hold exactly where the joint stopped, even outside its limits (no
+    /// motion at all, not even back inside), until released.
+    pub stopped: bool,
+    /// For a joint found outside its limits: the outermost point its goals may name (where it
+    /// was found), moving only back towards the limits as the joint comes back, so that a
+    /// load pushing it further out never drags its goals along.
+    anchor: Option<f32>,
+
     /// Last measured state.
     pub state: JointState,
     /// Whether `state` has ever been measured.
@@ -119,10 +233,44 @@ impl JointControl {
             direct: None,
             integral: 0.0,
             sag: 0.0,
+            braking: false,
+            fast_ticks: 0,
+            stopped: false,
+            anchor: None,
             state: JointState::default(),
             measured: false,
             clamped: false,
         }
+    }
+
+    /// Track where a joint outside its limits may have its goals: found outside, the anchor is
+    /// where it is; as it comes back, the anchor follows it in (not while it is braked: a goal
+    /// behind a joint coming back too fast is what slows it); inside, there is none.
+    fn update_anchor(&mut self, lim: &ferrobot_protocol::JointLimits) {
+        let q = self.state.position;
+        if !self.measured || !q.is_finite() || (lim.min..=lim.max).contains(&q) {
+            self.anchor = None;
+            return;
+        }
+        let inward = |a: f32| if q > lim.max { a.min(q) } else { a.max(q) };
+        self.anchor = Some(match self.anchor {
+            // Braked: it stays where it was, so goals may stay behind the joint.
+            Some(a) if self.braking => a,
+            // Same side: only ever back in.
+            Some(a) if (a > lim.max) == (q > lim.max) => inward(a),
+            _ => q,
+        });
+    }
+
+    /// Forget the anchor: the joint's situation changed (new limits, new mode), and it is
+    /// found again where it is at the next tick.
+    pub fn reset_anchor(&mut self) {
+        self.anchor = None;
+    }
+
+    /// The position command of the last tick (rad), and whether the joint is being braked.
+    pub fn command(&self) -> (f32, bool) {
+        (self.cmd, self.braking)
     }
 
     /// Knots still queued.
@@ -160,8 +308,20 @@ impl JointControl {
         }
     }
 
-    /// Hold where the joint is measured to be (or where it was commanded, if never measured).
+    /// Stop the motion where the joint is measured to be (or was commanded, if never
+    /// measured, or where it is being braked towards: a joint running on under a load is not
+    /// let go).
     pub fn hold_here(&mut self, now: u64) {
+        if self.braking {
+            let q = self.cmd;
+            self.hold_at(now, q);
+        } else {
+            self.hold_measured(now);
+        }
+    }
+
+    /// Hold where the joint is measured to be (or was commanded, if never measured).
+    fn hold_measured(&mut self, now: u64) {
         let q = if self.measured {
             self.state.position
         } else {
@@ -170,11 +330,38 @@ impl JointControl {
         self.hold_at(now, q);
     }
 
+    /// The anchor of a joint outside its limits (see [`JointControl::anchor`] on the field).
+    pub fn anchor(&self) -> Option<f32> {
+        self.anchor
+    }
+
+    /// Whether a joint in velocity, current or PWM mode has left its limits and must be
+    /// stopped (see [`STOP_SPEED_BASE`]).
+    pub fn must_stop(&self, lim: &ferrobot_protocol::JointLimits) -> bool {
+        let (gain, cap) = match self.mode {
+            JointMode::Velocity => (LIMIT_APPROACH_GAIN, STOP_SPEED_MARGIN_VELOCITY),
+            JointMode::Current | JointMode::Pwm => (GUARD_APPROACH_GAIN, STOP_SPEED_MARGIN),
+            _ => return false,
+        };
+        let margin = (0.5 * lim.velocity + STOP_SPEED_BASE).min(cap);
+        if !self.measured {
+            return false;
+        }
+        let (q, qd) = (self.state.position, self.state.velocity);
+        let (down, up) = envelope(q, lim, gain);
+        let too_fast = qd > up + margin || qd < down - margin;
+        let out_high = q > lim.max + STOP_OUTSIDE && qd >= 0.0;
+        let out_low = q < lim.min - STOP_OUTSIDE && qd <= 0.0;
+        too_fast || out_high || out_low
+    }
+
     /// Switch mode; the joint holds where it is.
     pub fn set_mode(&mut self, now: u64, mode: JointMode) {
         self.mode = mode;
         self.sag = 0.0;
-        self.hold_here(now);
+        self.braking = false;
+        self.anchor = None;
+        self.hold_measured(now);
     }
 
     /// Queue a knot `duration_us` after the last one (or after `now` when idle).
@@ -233,83 +420,136 @@ impl JointControl {
         }
     }
 
+    /// The joint PID on the interpolated reference (clamped into the limits), with its
+    /// feed-forward and anti-windup integral, N·m.
+    fn pid(&mut self, now: u64, dt: f32, cfg: &JointConfig) -> f32 {
+        let lim = &cfg.limits;
+        let (q, qd) = (self.state.position, self.state.velocity);
+        let r = self.reference(now);
+        let e = r.q.clamp(lim.min, lim.max) - q;
+        let p = cfg.pid.kp * e + cfg.pid.kd * (r.qd - qd) + r.eff;
+        let i_next = (self.integral + cfg.pid.ki * e * dt).clamp(-cfg.pid.i_limit, cfg.pid.i_limit);
+        // Anti-windup: integrate only while the output is not saturated, or when integrating
+        // drives it back out of saturation.
+        let unsat = (p + i_next).abs() <= lim.effort;
+        if unsat || (i_next.abs() < self.integral.abs()) {
+            self.integral = i_next;
+        }
+        p + self.integral
+    }
+
     /// Run one control tick of length `dt` (s) for joint `cfg`; returns what to command.
     pub fn tick(&mut self, now: u64, dt: f32, cfg: &JointConfig) -> JointOutput {
         let lim = &cfg.limits;
         let q = self.state.position;
         let qd = self.state.velocity;
+        self.update_anchor(lim);
         let mut clamped = false;
         let out = match self.mode {
             JointMode::Off => JointOutput::None,
             JointMode::Position => {
                 let r = self.reference(now);
-                let target = r.q.clamp(lim.min, lim.max);
+                let target = if self.stopped {
+                    self.cmd
+                } else {
+                    r.q.clamp(lim.min, lim.max)
+                };
                 clamped |= target != r.q;
-                let step = lim.velocity * dt;
-                let delta = target - self.cmd;
-                if delta.abs() > step {
-                    clamped |= !self.queue.is_empty() || delta.abs() > step * 1.5;
+                // Between two setpoints of a slow loop the servo catches up with a step of the
+                // command faster than the command moves: that is not running away.
+                let factor = BRAKE_SPEED_FACTOR.max(dt / SERVO_TIME_CONSTANT);
+                let fast = lim.velocity * factor + BRAKE_SPEED_ABS;
+                let leaving =
+                    (q > lim.max && qd > LEAVING_SPEED) || (q < lim.min && qd < -LEAVING_SPEED);
+                self.fast_ticks = match (qd.abs() > fast, qd > 0.0) {
+                    (true, true) => self.fast_ticks.max(0).saturating_add(1),
+                    (true, false) => self.fast_ticks.min(0).saturating_sub(1),
+                    (false, _) => 0,
+                };
+                let runaway = self.fast_ticks.unsigned_abs() >= FAST_TICKS;
+                if self.measured && (runaway || leaving) {
+                    // Brake: the goal stays behind the joint (at least its speed times
+                    // BRAKE_TIME, and as far as the joint has since run on), so the servo
+                    // pushes back harder the further it goes; once it has slowed down, the
+                    // command is brought near where it is, so it never races back to a
+                    // command it left far behind.
+                    // The goal never moves the way the joint runs.
+                    let behind =
+                        q - qd.signum() * (qd.abs() * BRAKE_TIME).clamp(BRAKE_MIN, BRAKE_OFFSET);
+                    self.cmd = if qd > 0.0 {
+                        self.cmd.min(behind)
+                    } else {
+                        self.cmd.max(behind)
+                    };
+                    self.braking = true;
+                    // The sag correction is for holding still; it must not eat the braking.
+                    self.sag = 0.0;
+                    clamped = true;
+                } else {
+                    if core::mem::take(&mut self.braking) {
+                        // Where the joint came to rest; outside its limits keeping up to
+                        // BRAKE_HOLD of the goal offset that stopped it (the load that pushed
+                        // it out may need it to hold there).
+                        let outside = q < lim.min || q > lim.max;
+                        self.cmd = if outside {
+                            self.cmd.clamp(q - BRAKE_HOLD, q + BRAKE_HOLD)
+                        } else {
+                            q
+                        };
+                    }
+                    let step = lim.velocity * dt;
+                    let delta = target - self.cmd;
+                    if delta.abs() > step {
+                        clamped |= !self.queue.is_empty() || delta.abs() > step * 1.5;
+                    }
+                    self.cmd += delta.clamp(-step, step);
                 }
-                self.cmd += delta.clamp(-step, step);
-                let settled = self.queue.is_empty() && (target - self.cmd).abs() < 1e-6;
-                if settled && self.measured && cfg.position_ki > 0.0 {
+                // Settled: the command has reached a target that stays put (no knot left, or
+                // the reference held at a limit).
+                let settled =
+                    (self.queue.is_empty() || target != r.q) && (target - self.cmd).abs() < 1e-6;
+                // Outside its limits a loaded joint must not sag further out: the correction
+                // runs there too, on the way back.
+                let outside = q < lim.min || q > lim.max;
+                if (settled || (outside && !self.stopped)) && self.measured && cfg.position_ki > 0.0
+                {
                     self.sag = (self.sag + cfg.position_ki * (self.cmd - q) * dt).clamp(-0.2, 0.2);
                 }
-                JointOutput::Position(self.cmd + self.sag)
+                // The goal stays within the limits, or between them and a joint outside them:
+                // never further out than the joint is.
+                let (lo, hi) = position_goal_range(lim, self.anchor, self.braking);
+                JointOutput::Position((self.cmd + self.sag).clamp(lo, hi))
             }
-            JointMode::Current => {
-                if !self.measured {
-                    JointOutput::None
+            JointMode::Current | JointMode::Pwm if !self.measured => JointOutput::None,
+            JointMode::Current | JointMode::Pwm => {
+                let spec = cfg.model.spec();
+                let asked = match (self.mode, self.direct) {
+                    (JointMode::Pwm, Some(p)) => spec.effort_for_pwm_fraction(p, qd),
+                    (_, Some(t)) => t,
+                    // No direct command: the joint PID tracks the reference (or holds).
+                    (_, None) => self.pid(now, dt, cfg),
+                };
+                let tau = asked.clamp(-lim.effort, lim.effort);
+                let servos = if cfg.twin_id.is_some() { 2.0 } else { 1.0 };
+                let strength = servos * spec.stall_torque;
+                let t = guard_effort(tau, (q, qd), lim, strength, dt, self.stopped);
+                clamped |= t != asked;
+                if self.mode == JointMode::Pwm {
+                    JointOutput::PwmEffort(t, qd)
                 } else {
-                    let tau = match self.direct {
-                        Some(t) => t,
-                        None => {
-                            let r = self.reference(now);
-                            let rq = r.q.clamp(lim.min, lim.max);
-                            let e = rq - q;
-                            let p = cfg.pid.kp * e + cfg.pid.kd * (r.qd - qd) + r.eff;
-                            let i_next = (self.integral + cfg.pid.ki * e * dt)
-                                .clamp(-cfg.pid.i_limit, cfg.pid.i_limit);
-                            // Anti-windup: integrate only while the output is not saturated, or
-                            // when integrating drives it back out of saturation.
-                            let unsat = (p + i_next).abs() <= lim.effort;
-                            if unsat || (i_next.abs() < self.integral.abs()) {
-                                self.integral = i_next;
-                            }
-                            p + self.integral
-                        }
-                    };
-                    let mut tau = tau;
-                    // Position limits: push back out, never further in.
-                    if q > lim.max {
-                        tau = tau.min(cfg.pid.kp * (lim.max - q) - cfg.pid.kd * qd);
-                    } else if q < lim.min {
-                        tau = tau.max(cfg.pid.kp * (lim.min - q) - cfg.pid.kd * qd);
-                    }
-                    // Velocity limit: no effort that accelerates past it.
-                    if qd > lim.velocity && tau > 0.0 || qd < -lim.velocity && tau < 0.0 {
-                        tau = -cfg.pid.kd * (qd - qd.clamp(-lim.velocity, lim.velocity));
-                    }
-                    let t = tau.clamp(-lim.effort, lim.effort);
-                    clamped |= t != tau;
                     JointOutput::Effort(t, qd)
                 }
             }
             JointMode::Velocity => {
-                let v0 = self.direct.unwrap_or(0.0);
-                let up = (LIMIT_APPROACH_GAIN * (lim.max - q)).max(0.0);
-                let down = (LIMIT_APPROACH_GAIN * (lim.min - q)).min(0.0);
-                let v = v0.clamp(-lim.velocity, lim.velocity).clamp(down, up);
-                clamped |= v != v0;
+                let v0 = self.direct.unwrap_or(VELOCITY_HOLD_GAIN * (self.cmd - q));
+                let (down, up) = if self.stopped {
+                    (-lim.velocity, lim.velocity)
+                } else {
+                    envelope(q, lim, LIMIT_APPROACH_GAIN)
+                };
+                let v = v0.clamp(down, up);
+                clamped |= self.direct.is_some_and(|d| d != v);
                 JointOutput::Velocity(v)
-            }
-            JointMode::Pwm => {
-                let p0 = self.direct.unwrap_or(0.0);
-                let up = (LIMIT_APPROACH_PWM * (lim.max - q)).max(0.0);
-                let down = (LIMIT_APPROACH_PWM * (lim.min - q)).min(0.0);
-                let p = p0.clamp(-1.0, 1.0).clamp(down, up);
-                clamped |= p != p0;
-                JointOutput::Pwm(p)
             }
             // A mode added to the protocol later: leave the servo alone until this core knows it.
             _ => JointOutput::None,

@@ -41,6 +41,7 @@ pub mod txbuf;
 use log::{log_info, log_warn};
 
 use ferrobot_protocol::dxl::units;
+use ferrobot_protocol::ranges;
 use ferrobot_protocol::{
     encode_frame, fault_flags, DeviceInfo, DeviceMsg, Diagnostics, Fault, FaultKind, FrameDecoder,
     GripperState, HostMsg, JointKind, JointMode, JointState, LoopStats, Name, RejectReason,
@@ -57,6 +58,31 @@ use txbuf::TxBuf;
 
 /// Firmware version, major/minor/patch.
 pub const FIRMWARE_VERSION: [u8; 3] = [0, 1, 0];
+
+/// Whether a joint output may reach the servos: finite, within the joint's speed limit, an
+/// effort the servos can give (`strength`, N·m), and its position limits (or between them and
+/// the `anchor` of a joint outside them, and up to the braking offset beyond it while it is
+/// `braking`).
+fn goal_is_safe(
+    out: &JointOutput,
+    lim: &ferrobot_protocol::JointLimits,
+    (anchor, braking): (Option<f32>, bool),
+    strength: f32,
+) -> bool {
+    match *out {
+        JointOutput::None => true,
+        JointOutput::Position(g) => {
+            let (lo, hi) = joint::position_goal_range(lim, anchor, braking);
+            g.is_finite() && (lo..=hi).contains(&g)
+        }
+        JointOutput::Velocity(v) => v.is_finite() && v.abs() <= lim.velocity,
+        // Within what the servos can give (the guard may exceed the effort limit to keep the
+        // joint within its position and speed limits).
+        JointOutput::Effort(tau, qd) | JointOutput::PwmEffort(tau, qd) => {
+            tau.is_finite() && qd.is_finite() && tau.abs() <= strength
+        }
+    }
+}
 
 /// The three links of the firmware.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -82,6 +108,9 @@ pub const HOST_TX_LEN: usize = 4096;
 /// The firmware core.
 pub struct Firmware {
     profile: RobotProfile,
+    /// Per joint, the limits its row was configured with (at start or by `ConfigureJoint`):
+    /// `SetLimits` may narrow a joint's limits within them, never widen them.
+    envelope: Vec<ferrobot_protocol::JointLimits, MAX_JOINTS>,
     board: Name,
     joints: Vec<JointControl, MAX_JOINTS>,
     bus: ServoBus,
@@ -104,6 +133,7 @@ pub struct Firmware {
     overrun_since_telemetry: bool,
     host_tx_dropped: u32,
     clamp_reported: u16,
+    unsafe_reported: u16,
     lost_servos: u16,
 }
 
@@ -118,7 +148,9 @@ impl Firmware {
         }
         let bus = ServoBus::new(&profile.joints, profile.bus);
         let base = BaseDriver::new(profile.base);
+        let envelope = profile.joints.iter().map(|c| c.limits).collect();
         let mut fw = Self {
+            envelope,
             board: b,
             joints: Vec::new(),
             bus,
@@ -141,6 +173,7 @@ impl Firmware {
             overrun_since_telemetry: false,
             host_tx_dropped: 0,
             clamp_reported: 0,
+            unsafe_reported: 0,
             lost_servos: 0,
             profile,
         };
@@ -224,8 +257,10 @@ impl Firmware {
         d
     }
 
+    /// The watchdog, once armed by an accepted Hello, runs in every session state: a refused
+    /// or silent host is a reason to stop, never a way around it.
     fn watchdog_deadline(&self) -> Option<u64> {
-        (self.session == Session::Accepted && self.watchdog_ms > 0 && !self.watchdog_tripped)
+        (self.watchdog_ms > 0 && !self.watchdog_tripped)
             .then(|| self.last_host_rx + self.watchdog_ms as u64 * 1000)
     }
 
@@ -238,6 +273,8 @@ impl Firmware {
                 self.handle(now, frame.seq, frame.msg);
             }
         }
+        // A mode change starts at once when the bus is free.
+        self.bus.kick(now);
     }
 
     /// Bytes from the servo bus.
@@ -297,6 +334,19 @@ impl Firmware {
                 self.next_telemetry = now + p;
             }
         }
+    }
+
+    /// Engage the emergency stop: the base stops at once, every joint holds where it is, and
+    /// motion is refused until `Resume`.
+    fn emergency_stop(&mut self, now: u64) {
+        self.estop = true;
+        self.base.stop(now);
+        self.base.poll(now);
+        self.hold_all(now);
+        for j in self.joints.iter_mut() {
+            j.stopped = true;
+        }
+        self.fault(now, FaultKind::EmergencyStop, None, None, 0);
     }
 
     fn trip_watchdog(&mut self, now: u64) {
@@ -418,7 +468,7 @@ impl Firmware {
             self.control_joint(now, dt, j, &mut goals);
         }
         self.apply_modes();
-        self.bus.finish_tick(&goals);
+        self.bus.finish_tick(now, &goals);
         let took = now.saturating_sub(self.tick_started);
         let s = &mut self.loop_stats;
         s.ticks = s.ticks.wrapping_add(1);
@@ -524,8 +574,57 @@ impl Firmware {
         let Some(jc) = self.joints.get_mut(j) else {
             return;
         };
-        let out = jc.tick(now, dt, &cfg);
+        // A joint that left its limits in velocity, current or PWM mode is stopped: position
+        // mode (the servo's own stiff loop) holds it where it comes to rest.
+        if jc.must_stop(&cfg.limits) {
+            jc.set_mode(now, JointMode::Position);
+            self.fault(now, FaultKind::LimitStop, Some(j as u8), None, 0);
+            return;
+        }
+        let Some(jc) = self.joints.get_mut(j) else {
+            return;
+        };
+        let mut out = jc.tick(now, dt, &cfg);
+        let anchor = (jc.anchor(), jc.command().1);
+        let strength =
+            cfg.model.spec().stall_torque * if cfg.twin_id.is_some() { 2.0 } else { 1.0 };
+        // The last gate before the bus: a goal that is not finite or outside the joint's
+        // limits never reaches a servo; the joint holds where it is and the fault is reported.
+        if !goal_is_safe(&out, &cfg.limits, anchor, strength) {
+            jc.hold_here(now);
+            out = jc.tick(now, dt, &cfg);
+            if !goal_is_safe(&out, &cfg.limits, anchor, strength) {
+                out = JointOutput::None;
+            }
+            let bit = 1u16 << (j as u32 % 16);
+            if self.unsafe_reported & bit == 0 {
+                self.unsafe_reported |= bit;
+                self.fault(now, FaultKind::UnsafeGoal, Some(j as u8), None, 0);
+            }
+            return self.write_goals(p, t, twin_ok, out, &cfg, goals);
+        }
+        self.unsafe_reported &= !(1u16 << (j as u32 % 16));
         let clamped = jc.clamped;
+        self.write_goals(p, t, twin_ok, out, &cfg, goals);
+        let bit = 1u16 << (j as u32 % 16);
+        if clamped && self.clamp_reported & bit == 0 {
+            self.clamp_reported |= bit;
+            self.fault(now, FaultKind::LimitClamped, Some(j as u8), None, 0);
+        } else if !clamped {
+            self.clamp_reported &= !bit;
+        }
+    }
+
+    /// Turn a joint's output into the goals of its servo and twin.
+    fn write_goals(
+        &self,
+        p: Option<usize>,
+        t: Option<usize>,
+        twin_ok: bool,
+        out: JointOutput,
+        cfg: &ferrobot_protocol::JointConfig,
+        goals: &mut [Goal],
+    ) {
         let sign = cfg.sign as f32;
         let spec = cfg.model.spec();
         let n = if twin_ok { 2.0 } else { 1.0 };
@@ -543,10 +642,11 @@ impl Firmware {
                 let raw = if raw >= 0.0 { raw + 0.5 } else { raw - 0.5 } as i32;
                 (Goal::Velocity(raw), Goal::Velocity(-raw))
             }
-            JointOutput::Effort(tau, qd) => {
+            JointOutput::Effort(tau, qd) | JointOutput::PwmEffort(tau, qd) => {
+                // Twins share the effort.
                 let ts = sign * tau / n;
                 let ws = sign * qd;
-                if spec.current_control {
+                if spec.current_control && matches!(out, JointOutput::Effort(..)) {
                     (
                         Goal::Current(spec.register_from_effort(ts)),
                         Goal::Current(spec.register_from_effort(-ts)),
@@ -558,10 +658,6 @@ impl Firmware {
                     )
                 }
             }
-            JointOutput::Pwm(f) => {
-                let raw = (sign * f * units::PWM_MAX) as i16;
-                (Goal::Pwm(raw), Goal::Pwm(raw.saturating_neg()))
-            }
         };
         if let Some(g) = p.and_then(|i| goals.get_mut(i)) {
             *g = gp;
@@ -570,13 +666,6 @@ impl Firmware {
             if let Some(g) = t.and_then(|i| goals.get_mut(i)) {
                 *g = gt;
             }
-        }
-        let bit = 1u16 << (j as u32 % 16);
-        if clamped && self.clamp_reported & bit == 0 {
-            self.clamp_reported |= bit;
-            self.fault(now, FaultKind::LimitClamped, Some(j as u8), None, 0);
-        } else if !clamped {
-            self.clamp_reported &= !bit;
         }
     }
 
@@ -714,6 +803,12 @@ impl Firmware {
 
     fn handle(&mut self, now: u64, seq: u16, msg: HostMsg) {
         match msg {
+            // The emergency stop overrides everything, in every session state (ISO 13850).
+            HostMsg::EmergencyStop => {
+                self.emergency_stop(now);
+                self.send(&DeviceMsg::Ack { seq });
+                return;
+            }
             HostMsg::Hello {
                 protocol_version,
                 schema_hash,
@@ -735,6 +830,11 @@ impl Firmware {
                 if ok {
                     self.watchdog_ms = self.profile.watchdog_ms;
                     self.set_telemetry(now, self.profile.telemetry_ms);
+                } else {
+                    // A refused session is a safe state: the base stops, the joints hold.
+                    self.base.stop(now);
+                    self.base.poll(now);
+                    self.hold_all(now);
                 }
                 return;
             }
@@ -808,13 +908,33 @@ impl Firmware {
                     return Err(RejectReason::InvalidConfig);
                 }
                 let i = index as usize;
+                // A servo belongs to one joint only.
+                let ids = |c: &ferrobot_protocol::JointConfig| [Some(c.servo_id), c.twin_id];
+                let taken = self
+                    .profile
+                    .joints
+                    .iter()
+                    .enumerate()
+                    .filter(|(k, _)| *k != i)
+                    .flat_map(|(_, c)| ids(c))
+                    .flatten()
+                    .any(|id| ids(&config).contains(&Some(id)));
+                if taken {
+                    return Err(RejectReason::InvalidConfig);
+                }
                 match i.cmp(&self.profile.joints.len()) {
                     core::cmp::Ordering::Less => {
+                        if let Some(env) = self.envelope.get_mut(i) {
+                            *env = config.limits;
+                        }
                         if let Some(row) = self.profile.joints.get_mut(i) {
                             *row = config;
                         }
                     }
                     core::cmp::Ordering::Equal => {
+                        self.envelope
+                            .push(config.limits)
+                            .map_err(|_| RejectReason::UnknownJoint)?;
                         self.profile
                             .joints
                             .push(config)
@@ -835,10 +955,7 @@ impl Firmware {
                     .joints
                     .get_mut(joint as usize)
                     .ok_or(RejectReason::UnknownJoint)?;
-                if ![gains.kp, gains.ki, gains.kd, gains.i_limit]
-                    .iter()
-                    .all(|v| v.is_finite() && *v >= 0.0)
-                {
+                if !ranges::gains_ok(&gains) {
                     return Err(RejectReason::InvalidConfig);
                 }
                 row.pid = gains;
@@ -855,8 +972,28 @@ impl Firmware {
                 if !config::joint_is_valid(&new) {
                     return Err(RejectReason::InvalidConfig);
                 }
+                // Limits narrow within the joint's configured envelope, never widen it.
+                let env = self
+                    .envelope
+                    .get(joint as usize)
+                    .ok_or(RejectReason::UnknownJoint)?;
+                if limits.min < env.min
+                    || limits.max > env.max
+                    || limits.velocity > env.velocity
+                    || limits.effort > env.effort
+                {
+                    return Err(RejectReason::OutOfLimits);
+                }
                 if let Some(r) = self.profile.joints.get_mut(joint as usize) {
                     *r = new;
+                }
+                // A joint the new limits leave outside stops where it is, then comes back.
+                if let Some(jc) = self.joints.get_mut(joint as usize) {
+                    let q = jc.state.position;
+                    jc.reset_anchor();
+                    if jc.measured && !(limits.min..=limits.max).contains(&q) {
+                        jc.hold_here(now);
+                    }
                 }
                 Ok(())
             }
@@ -891,16 +1028,13 @@ impl Firmware {
                     return Err(RejectReason::CountMismatch);
                 }
                 for (&j, p) in sel.iter().zip(points.iter()) {
-                    if !(p.position.is_finite() && p.velocity.is_finite() && p.effort.is_finite()) {
-                        return Err(RejectReason::NotFinite);
-                    }
                     let cfg = self
                         .profile
                         .joints
                         .get(j)
                         .ok_or(RejectReason::UnknownJoint)?;
-                    if p.position < cfg.limits.min || p.position > cfg.limits.max {
-                        return Err(RejectReason::OutOfLimits);
+                    if let Some(e) = ranges::point_error(p, &cfg.limits) {
+                        return Err(e);
                     }
                     let jc = self.joints.get(j).ok_or(RejectReason::UnknownJoint)?;
                     if !matches!(jc.mode, JointMode::Position | JointMode::Current) {
@@ -943,13 +1077,16 @@ impl Firmware {
                 if self.estop && values.iter().any(|v| *v != 0.0) {
                     return Err(RejectReason::EmergencyStop);
                 }
-                for &j in sel.iter() {
+                for (&j, v) in sel.iter().zip(values.iter()) {
                     let jc = self.joints.get(j).ok_or(RejectReason::UnknownJoint)?;
-                    if !matches!(
-                        jc.mode,
-                        JointMode::Velocity | JointMode::Current | JointMode::Pwm
-                    ) {
-                        return Err(RejectReason::WrongMode);
+                    let bound = match jc.mode {
+                        JointMode::Velocity => ranges::JOINT_SPEED_MAX,
+                        JointMode::Current => ranges::JOINT_EFFORT_MAX,
+                        JointMode::Pwm => 1.0,
+                        _ => return Err(RejectReason::WrongMode),
+                    };
+                    if v.abs() > bound {
+                        return Err(RejectReason::OutOfLimits);
                     }
                 }
                 for (&j, &v) in sel.iter().zip(values.iter()) {
@@ -960,6 +1097,12 @@ impl Firmware {
                 Ok(())
             }
             HostMsg::BaseVelocity { v, w, duration_ms } => {
+                if !(v.is_finite() && w.is_finite()) {
+                    return Err(RejectReason::NotFinite);
+                }
+                if v.abs() > ranges::BASE_SPEED_MAX || w.abs() > ranges::BASE_TURN_MAX {
+                    return Err(RejectReason::OutOfLimits);
+                }
                 if self.estop && (v != 0.0 || w != 0.0) {
                     return Err(RejectReason::EmergencyStop);
                 }
@@ -995,20 +1138,22 @@ impl Firmware {
                 Ok(())
             }
             HostMsg::SetWatchdog { period_ms } => {
+                if !(1..=ranges::WATCHDOG_MAX_MS).contains(&period_ms) {
+                    return Err(RejectReason::InvalidConfig);
+                }
                 self.watchdog_ms = period_ms;
                 Ok(())
             }
             HostMsg::Heartbeat => Ok(()),
             HostMsg::EmergencyStop => {
-                self.estop = true;
-                self.base.stop(now);
-                self.base.poll(now);
-                self.hold_all(now);
-                self.fault(now, FaultKind::EmergencyStop, None, None, 0);
+                self.emergency_stop(now);
                 Ok(())
             }
             HostMsg::Resume => {
                 self.estop = false;
+                for j in self.joints.iter_mut() {
+                    j.stopped = false;
+                }
                 Ok(())
             }
             HostMsg::SetTelemetry { period_ms } => {
@@ -1023,10 +1168,20 @@ impl Firmware {
                 Ok(())
             }
             HostMsg::RebootJoint { joint } => {
-                if joint as usize >= self.joints.len() {
-                    return Err(RejectReason::UnknownJoint);
-                }
+                let jc = self
+                    .joints
+                    .get(joint as usize)
+                    .ok_or(RejectReason::UnknownJoint)?;
                 let (p, t) = self.servo_indices(joint as usize);
+                // A rebooting servo is limp: only a joint that is off, or already limp from a
+                // hardware error, may be rebooted.
+                let faulty = [p, t]
+                    .into_iter()
+                    .flatten()
+                    .any(|i| self.bus.servos.get(i).is_some_and(|s| s.hw_error != 0));
+                if jc.mode != JointMode::Off && !faulty {
+                    return Err(RejectReason::Busy);
+                }
                 for i in [p, t].into_iter().flatten() {
                     self.bus.reboot(i);
                 }

@@ -41,6 +41,8 @@ pub(crate) fn fault_name(kind: ferrobot_protocol::FaultKind) -> defmt::Str {
         K::BaseLost => defmt::intern!("BaseLost"),
         K::BaseRecovered => defmt::intern!("BaseRecovered"),
         K::LimitClamped => defmt::intern!("LimitClamped"),
+        K::UnsafeGoal => defmt::intern!("UnsafeGoal"),
+        K::LimitStop => defmt::intern!("LimitStop"),
         _ => defmt::intern!("(another fault)"),
     }
 }

@@ -211,7 +211,7 @@ fn last_goals(bus: &FakeBus) -> BTreeMap<u8, i32> {
 fn twin_servo_is_mirrored_and_inverted_joints_are_inverted() {
     let (mut fw, mut bus, mut now) = locobot();
     fw.on_host_bytes(now, &hello());
-    fw.on_host_bytes(now, &frame(1, &HostMsg::SetWatchdog { period_ms: 0 }));
+    fw.on_host_bytes(now, &frame(1, &HostMsg::SetWatchdog { period_ms: 2000 }));
     run(&mut fw, &mut bus, &mut now, 200);
     let pts = [0.5f32, 0.5]
         .iter()
@@ -422,7 +422,7 @@ fn create2_driver_starts_the_stream_drives_direct_and_integrates_odometry() {
 fn a_waypoint_sent_before_the_servos_are_configured_is_kept() {
     let (mut fw, mut bus, mut now) = locobot();
     fw.on_host_bytes(now, &hello());
-    fw.on_host_bytes(now, &frame(1, &HostMsg::SetWatchdog { period_ms: 0 }));
+    fw.on_host_bytes(now, &frame(1, &HostMsg::SetWatchdog { period_ms: 2000 }));
     // Before any servo has answered: queue a move of joint_1 to 0.3 rad.
     let pts = [0.3f32].iter().map(|&p| JointPoint::at_rest(p)).collect();
     fw.on_host_bytes(

@@ -265,8 +265,22 @@ impl MotorSpec {
     /// Goal-PWM value that produces `effort` (N·m) at joint speed `speed` (rad/s):
     /// `V = R·τ/Kt + Ke·ω`, saturated at the supply.
     pub fn pwm_for_effort(&self, effort: f32, speed: f32) -> i16 {
+        clamp_i16(self.pwm_fraction_for_effort(effort, speed) * units::PWM_MAX)
+    }
+    /// PWM fraction in [−1, 1] that produces `effort` (N·m) at joint speed `speed` (rad/s).
+    pub fn pwm_fraction_for_effort(&self, effort: f32, speed: f32) -> f32 {
         let v = self.resistance() * effort / self.kt() + self.kt() * speed;
-        clamp_i16((v / self.supply_voltage).clamp(-1.0, 1.0) * units::PWM_MAX)
+        let f = (v / self.supply_voltage).clamp(-1.0, 1.0);
+        if f.is_nan() {
+            0.0
+        } else {
+            f
+        }
+    }
+    /// Effort (N·m) that a PWM fraction `pwm` in [−1, 1] produces at joint speed `speed`
+    /// (rad/s): the inverse of [`MotorSpec::pwm_fraction_for_effort`] below saturation.
+    pub fn effort_for_pwm_fraction(&self, pwm: f32, speed: f32) -> f32 {
+        (pwm * self.supply_voltage - self.kt() * speed) * self.kt() / self.resistance()
     }
 }
 

@@ -7,6 +7,8 @@
 //!   delimiter. The frame adds **exactly 6 bytes** to the postcard body (4 CRC, 1 COBS code
 //!   byte, 1 delimiter) for every body up to [`MAX_BODY`] bytes; the sequence number and the
 //!   message kind travel inside the body. No frame on the wire is longer than [`MAX_WIRE`].
+//! * [`ranges`]: the physical range of every number on the wire, the checks both ends apply,
+//!   and the safety policy of the protocol (emergency stop, watchdog, refused handshakes).
 //! * [`kobuki`] and [`create2`]: the wire formats of the two mobile bases (Kobuki serial
 //!   protocol, iRobot Create 2 Open Interface), shared by the firmware's drivers and the
 //!   simulated bases.
@@ -36,6 +38,7 @@ pub mod dxl;
 pub mod frame;
 pub mod kobuki;
 pub mod messages;
+pub mod ranges;
 
 pub use frame::{encode_frame, Frame, FrameDecoder, FrameError, FrameStats};
 pub use messages::*;

@@ -227,14 +227,17 @@ pub enum HostMsg {
         /// The new row.
         config: JointConfig,
     },
-    /// Set the firmware PID gains of one joint.
+    /// Set the firmware PID gains of one joint, within [`crate::ranges::gains_ok`].
     SetPid {
         /// Joint index.
         joint: u8,
         /// Gains.
         gains: PidGains,
     },
-    /// Set the limits of one joint.
+    /// Set the limits of one joint, within [`crate::ranges::limits_ok`] and within the limits
+    /// its row was configured with (at start or by [`HostMsg::ConfigureJoint`]): limits only
+    /// narrow at run time ([`RejectReason::OutOfLimits`] otherwise). A joint found outside its
+    /// new limits stops, then is brought back at its velocity limit.
     SetLimits {
         /// Joint index.
         joint: u8,
@@ -252,6 +255,7 @@ pub enum HostMsg {
     /// Queue one trajectory knot for the selected joints (position and current mode). The
     /// knot is reached `duration_us` after the previous queued knot, or after now when the
     /// queue is empty; the firmware interpolates with cubic Hermite splines between knots.
+    /// Knots are checked by [`crate::ranges::point_error`].
     Waypoint {
         /// Selected joints; `points` holds one entry per set bit, lowest bit first.
         joints: JointMask,
@@ -265,16 +269,21 @@ pub enum HostMsg {
         /// Selected joints.
         joints: JointMask,
     },
-    /// Direct command of the selected joints: velocity (rad/s) in velocity mode, effort
-    /// (N·m, PID bypassed until the next waypoint) in current mode, PWM fraction in PWM mode.
+    /// Direct command of the selected joints: velocity (rad/s, at most
+    /// [`crate::ranges::JOINT_SPEED_MAX`]) in velocity mode, effort (N·m, at most
+    /// [`crate::ranges::JOINT_EFFORT_MAX`]; PID bypassed until the next waypoint) in current
+    /// mode, PWM fraction in [−1, 1] in PWM mode. The firmware still keeps every joint within
+    /// its limits, braking ahead of a position limit and at the velocity limit.
     JointCommand {
         /// Selected joints; `values` holds one entry per set bit, lowest bit first.
         joints: JointMask,
         /// Values.
         values: Vec<f32, MAX_JOINTS>,
     },
-    /// Base velocity in the base frame: forward `v` (m/s) and yaw rate `w` (rad/s), held for
-    /// `duration_ms` and then brought to zero.
+    /// Base velocity in the base frame: forward `v` (m/s, at most
+    /// [`crate::ranges::BASE_SPEED_MAX`]) and yaw rate `w` (rad/s, at most
+    /// [`crate::ranges::BASE_TURN_MAX`]), held for `duration_ms` and then brought to zero; the
+    /// firmware scales it to the base's top wheel speed.
     BaseVelocity {
         /// Forward speed, m/s.
         v: f32,
@@ -287,8 +296,10 @@ pub enum HostMsg {
     ResetOdometry,
     /// Gripper command.
     Gripper(GripperCommand),
-    /// Host watchdog period, ms; 0 disables. When no valid frame arrives within it the base
-    /// stops and the arm holds.
+    /// Host watchdog period, ms, within `1..=`[`crate::ranges::WATCHDOG_MAX_MS`]: the watchdog
+    /// cannot be switched off or set longer. When no valid frame arrives within it the base
+    /// stops and the arm holds. It runs from the first accepted Hello on, in every session
+    /// state.
     SetWatchdog {
         /// Period, ms.
         period_ms: u16,
@@ -296,6 +307,8 @@ pub enum HostMsg {
     /// Keeps the watchdog fed when the host has nothing else to say.
     Heartbeat,
     /// Emergency stop: base stopped, arm held, motion commands rejected until [`HostMsg::Resume`].
+    /// Accepted in every session state (before a Hello, after a refused one) and always
+    /// acknowledged.
     EmergencyStop,
     /// Leave the emergency stop.
     Resume,
@@ -309,7 +322,9 @@ pub enum HostMsg {
         /// Period, µs.
         period_us: u32,
     },
-    /// Reboot a joint's servo(s) to clear a hardware error, then reconfigure them.
+    /// Reboot a joint's servo(s) to clear a hardware error, then reconfigure them. A rebooting
+    /// servo is limp, so only a joint that is off or whose servo reports a hardware error may
+    /// be rebooted (else [`RejectReason::Busy`]).
     RebootJoint {
         /// Joint index.
         joint: u8,
@@ -534,6 +549,13 @@ pub enum FaultKind {
     BaseRecovered,
     /// A command was clamped to a joint limit.
     LimitClamped,
+    /// The last gate before the servos found a goal that was not finite or outside the
+    /// joint's limits; the joint holds where it is instead.
+    UnsafeGoal,
+    /// A joint in velocity, current or PWM mode left its speed or position limits (a weak
+    /// servo loop, a load, a slow control loop): it was switched to position mode and holds
+    /// where it comes to rest.
+    LimitStop,
 }
 
 /// A fault report.

@@ -8,11 +8,10 @@ use ferrobot_sim::SimSession;
 /// Arm joints of the LoCoBot profile (joint_1 … joint_5).
 pub const ARM: u16 = 0b1_1111;
 
-/// A session on `robot` with the watchdog off (tests that want it turn it on).
+/// A session on `robot`; the session's keepalive feeds the watchdog, as a host's I/O thread
+/// would.
 pub fn session(robot: &str) -> SimSession {
     let mut s = SimSession::start(robot, 7).expect("simulator starts");
-    s.command(&HostMsg::SetWatchdog { period_ms: 0 })
-        .expect("watchdog off");
     s.command(&HostMsg::SetTelemetry { period_ms: 10 })
         .expect("telemetry at 100 Hz");
     // Let the servos be configured and measured.

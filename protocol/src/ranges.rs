@@ -1,0 +1,152 @@
+//! The physical range of every number that crosses the wire, and the checks both ends apply.
+//!
+//! The firmware refuses a message whose numbers are not finite or lie outside these ranges
+//! with a typed [`crate::RejectReason`] (`NotFinite`, `OutOfLimits` or `InvalidConfig`), before
+//! anything reaches a controller; the host checks the same ranges where a value enters its
+//! API. Ranges are wide enough for any robot Ferrobot drives and narrow enough that no
+//! arithmetic on them overflows an `f32`.
+//!
+//! Safety policy on the wire:
+//! * The emergency stop is accepted in every session state and overrides everything.
+//! * The host watchdog is armed by the first accepted `Hello` and can then be changed only
+//!   within `1..=`[`WATCHDOG_MAX_MS`] ms: it cannot be switched off.
+//! * A refused handshake stops the base and holds every joint where it is.
+
+use crate::{JointConfig, JointLimits, JointPoint, PidGains};
+
+/// Longest host watchdog period, ms. Periods of 0 (off) or longer are refused.
+pub const WATCHDOG_MAX_MS: u16 = 2000;
+/// Largest joint position anything may name (limits, knots, offsets), rad: two turns.
+pub const JOINT_POSITION_MAX: f32 = 4.0 * core::f32::consts::PI;
+/// Fastest joint speed anything may name (knots, commands, limits), rad/s.
+pub const JOINT_SPEED_MAX: f32 = 20.0;
+/// Slowest velocity limit a joint may be given, rad/s: a joint found outside newly narrowed
+/// limits is brought back at its velocity limit, so that limit may not be near zero.
+pub const JOINT_SPEED_LIMIT_MIN: f32 = 0.05;
+/// Narrowest range a joint's position limits may span, rad: a servo holds a loaded joint
+/// some way off its goal, so a range much narrower than that deflection cannot be held.
+pub const JOINT_RANGE_MIN: f32 = 0.1;
+/// Largest joint effort anything may name (feed-forward, commands, limits), N·m.
+pub const JOINT_EFFORT_MAX: f32 = 100.0;
+/// Largest gain of the joint PID (each of kp, ki, kd, i_limit, and the position-mode sag
+/// integrator's gain).
+pub const GAIN_MAX: f32 = 1.0e4;
+/// Fastest base speed a command may name, m/s (the firmware further limits it to the base).
+pub const BASE_SPEED_MAX: f32 = 2.0;
+/// Fastest base turn a command may name, rad/s.
+pub const BASE_TURN_MAX: f32 = 20.0;
+
+fn within(x: f32, lo: f32, hi: f32) -> bool {
+    x.is_finite() && (lo..=hi).contains(&x)
+}
+
+/// Limits within range: positions within ±[`JOINT_POSITION_MAX`] at least
+/// [`JOINT_RANGE_MIN`] apart, a velocity limit in
+/// [[`JOINT_SPEED_LIMIT_MIN`], [`JOINT_SPEED_MAX`]], an effort limit in
+/// [0, [`JOINT_EFFORT_MAX`]].
+pub fn limits_ok(l: &JointLimits) -> bool {
+    within(l.min, -JOINT_POSITION_MAX, JOINT_POSITION_MAX)
+        && within(l.max, -JOINT_POSITION_MAX, JOINT_POSITION_MAX)
+        && l.max - l.min >= JOINT_RANGE_MIN
+        && within(l.velocity, JOINT_SPEED_LIMIT_MIN, JOINT_SPEED_MAX)
+        && within(l.effort, 0.0, JOINT_EFFORT_MAX)
+}
+
+/// PID gains within [0, [`GAIN_MAX`]].
+pub fn gains_ok(g: &PidGains) -> bool {
+    [g.kp, g.ki, g.kd, g.i_limit]
+        .iter()
+        .all(|&v| within(v, 0.0, GAIN_MAX))
+}
+
+/// A joint row within range: sign ±1, limits and gains as above, offset within
+/// ±[`JOINT_POSITION_MAX`], position integrator gain within [0, [`GAIN_MAX`]], servo IDs below
+/// the broadcast ID and a twin different from its primary.
+pub fn joint_config_ok(c: &JointConfig) -> bool {
+    (c.sign == 1 || c.sign == -1)
+        && limits_ok(&c.limits)
+        && gains_ok(&c.pid)
+        && within(c.offset, -JOINT_POSITION_MAX, JOINT_POSITION_MAX)
+        && within(c.position_ki, 0.0, GAIN_MAX)
+        && c.servo_id < 0xFD
+        && c.twin_id.is_none_or(|t| t < 0xFD && t != c.servo_id)
+}
+
+/// Why a knot is refused, if it is: not finite, or a speed or effort out of range, or a
+/// position outside the joint's limits.
+pub fn point_error(p: &JointPoint, limits: &JointLimits) -> Option<crate::RejectReason> {
+    if !(p.position.is_finite() && p.velocity.is_finite() && p.effort.is_finite()) {
+        return Some(crate::RejectReason::NotFinite);
+    }
+    let ok = (limits.min..=limits.max).contains(&p.position)
+        && p.velocity.abs() <= JOINT_SPEED_MAX
+        && p.effort.abs() <= JOINT_EFFORT_MAX;
+    (!ok).then_some(crate::RejectReason::OutOfLimits)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn hostile_limits_are_refused() {
+        let ok = JointLimits {
+            min: -1.57,
+            max: 1.57,
+            velocity: 1.0,
+            effort: 4.0,
+        };
+        assert!(limits_ok(&ok));
+        for bad in [
+            JointLimits {
+                velocity: 1e-45,
+                ..ok
+            },
+            JointLimits {
+                velocity: f32::MAX,
+                ..ok
+            },
+            JointLimits {
+                min: f32::NEG_INFINITY,
+                ..ok
+            },
+            JointLimits {
+                max: f32::NAN,
+                ..ok
+            },
+            JointLimits { min: 2.0, ..ok },
+            JointLimits { effort: -1.0, ..ok },
+            JointLimits { max: 1e9, ..ok },
+        ] {
+            assert!(!limits_ok(&bad), "{bad:?}");
+        }
+    }
+
+    #[test]
+    fn hostile_knots_are_refused() {
+        let l = JointLimits {
+            min: -1.0,
+            max: 1.0,
+            velocity: 1.0,
+            effort: 4.0,
+        };
+        let at = |position, velocity, effort| JointPoint {
+            position,
+            velocity,
+            effort,
+        };
+        assert_eq!(point_error(&at(0.5, 0.1, 0.0), &l), None);
+        assert_eq!(
+            point_error(&at(0.5, f32::MAX, 0.0), &l),
+            Some(crate::RejectReason::OutOfLimits)
+        );
+        assert_eq!(
+            point_error(&at(0.5, 0.0, f32::NAN), &l),
+            Some(crate::RejectReason::NotFinite)
+        );
+        assert_eq!(
+            point_error(&at(1.5, 0.0, 0.0), &l),
+            Some(crate::RejectReason::OutOfLimits)
+        );
+    }
+}
