@@ -526,3 +526,221 @@ fn the_diagnosis_holds_the_firmware_log_the_counters_and_the_last_frames() {
         assert!(d.contains(want), "no {want:?} in\n{d}");
     }
 }
+
+/// The held clock, stepped by hand: each step lets `dt_us` of simulated time pass and holds
+/// the board there, so that a test measures in simulated time, to the step, how long the
+/// firmware takes.
+struct Stepper {
+    heartbeat_at: u64,
+}
+
+impl Stepper {
+    fn step(&mut self, hil: &mut Hil, raw: &mut ferrobot_hil::RawClient, dt_us: u64) {
+        let t = hil.board.server.now_us() + dt_us;
+        assert!(
+            hil.board.server.run_to(t, Duration::from_secs(20)),
+            "the clock did not reach {t} µs"
+        );
+        // The host stays alive on the firmware's clock, as the library's link does.
+        if t >= self.heartbeat_at {
+            raw.send(&HostMsg::Heartbeat);
+            self.heartbeat_at = t + 100_000;
+        }
+    }
+
+    /// Send `msg` and step 1 ms at a time until the firmware answers it (at most 50 ms of
+    /// simulated time); the answer.
+    fn ask(
+        &mut self,
+        hil: &mut Hil,
+        raw: &mut ferrobot_hil::RawClient,
+        msg: &HostMsg,
+    ) -> DeviceMsg {
+        let seq = raw.send(msg);
+        for _ in 0..50 {
+            let answer = raw.wait(Duration::from_millis(10), |m| match m {
+                DeviceMsg::Ack { seq: s } | DeviceMsg::Reject { seq: s, .. } => *s == seq,
+                DeviceMsg::Hello(_) => matches!(msg, HostMsg::Hello { .. }),
+                _ => false,
+            });
+            if let Some(a) = answer {
+                return a;
+            }
+            self.step(hil, raw, 1000);
+        }
+        panic!("no answer to {msg:?} within 50 ms of simulated time");
+    }
+
+    /// Step 1 ms at a time until the base's wheel command is `moving` (at most `within_us`);
+    /// the simulated time that took, µs.
+    fn until_base(
+        &mut self,
+        hil: &mut Hil,
+        raw: &mut ferrobot_hil::RawClient,
+        moving: bool,
+        within_us: u64,
+    ) -> u64 {
+        let start = hil.board.server.now_us();
+        loop {
+            let target = hil
+                .board
+                .server
+                .with_hardware(|hw, _| hw.base.as_ref().expect("base").drive.target);
+            if (target != (0.0, 0.0)) == moving {
+                return hil.board.server.now_us() - start;
+            }
+            let waited = hil.board.server.now_us() - start;
+            assert!(
+                waited < within_us,
+                "the base's wheel command is still {target:?} after {waited} µs"
+            );
+            self.step(hil, raw, 1000);
+        }
+    }
+}
+
+fn drive() -> HostMsg {
+    HostMsg::BaseVelocity {
+        v: 0.2,
+        w: 0.0,
+        duration_ms: 10_000,
+    }
+}
+
+/// The emergency stop on the real firmware in QEMU, in every session state: before any
+/// Hello, after a refused Hello (which itself stops the base), while driving, when already
+/// stopped and after a watchdog trip. It is always acknowledged, and while driving the base's
+/// wheel command is zero within one base cycle (Kobuki: 20 ms) of simulated time.
+#[test]
+fn the_emergency_stop_works_in_every_session_state() {
+    let (_g, mut hil) = start();
+    let mut raw = hil.raw().expect("port");
+    let cycle = hil
+        .board
+        .server
+        .with_hardware(|hw, _| hw.base.as_ref().expect("base").period_us());
+    let mut st = Stepper { heartbeat_at: 0 };
+    let t = hil.board.server.now_us();
+    assert!(hil.board.server.run_to(t, Duration::from_secs(20)));
+    // Before any Hello: acknowledged (the firmware may still be booting: ask until it answers).
+    let estop = |m: &DeviceMsg| matches!(m, DeviceMsg::Ack { .. });
+    let mut acked = false;
+    for _ in 0..20 {
+        let seq = raw.send(&HostMsg::EmergencyStop);
+        st.step(&mut hil, &mut raw, 1000);
+        if raw
+            .wait(Duration::from_millis(20), |m| {
+                estop(m) && matches!(m, DeviceMsg::Ack { seq: s } if *s == seq)
+            })
+            .is_some()
+        {
+            acked = true;
+            break;
+        }
+    }
+    assert!(acked, "the stop before any Hello was not acknowledged");
+    let hello = HostMsg::Hello {
+        protocol_version: PROTOCOL_VERSION,
+        schema_hash: SCHEMA_HASH,
+    };
+    let bad_hello = HostMsg::Hello {
+        protocol_version: PROTOCOL_VERSION,
+        schema_hash: SCHEMA_HASH ^ 0x5a5a,
+    };
+    assert!(matches!(st.ask(&mut hil, &mut raw, &hello), DeviceMsg::Hello(i) if i.accepted));
+    let refused = |a: &DeviceMsg| {
+        matches!(
+            a,
+            DeviceMsg::Reject {
+                reason: RejectReason::EmergencyStop,
+                ..
+            }
+        )
+    };
+    assert!(
+        refused(&st.ask(&mut hil, &mut raw, &drive())),
+        "motion accepted after a stop sent before the Hello"
+    );
+    assert!(matches!(
+        st.ask(&mut hil, &mut raw, &HostMsg::Resume),
+        DeviceMsg::Ack { .. }
+    ));
+
+    // A refused Hello while driving stops the base within one cycle; the stop is still
+    // accepted in the refused session.
+    assert!(matches!(
+        st.ask(&mut hil, &mut raw, &drive()),
+        DeviceMsg::Ack { .. }
+    ));
+    st.until_base(&mut hil, &mut raw, true, 200_000);
+    st.step(&mut hil, &mut raw, 100_000);
+    assert!(matches!(st.ask(&mut hil, &mut raw, &bad_hello), DeviceMsg::Hello(i) if !i.accepted));
+    let took = st.until_base(&mut hil, &mut raw, false, cycle + 1000);
+    eprintln!("refused Hello: base command zero after {took} µs (cycle {cycle} µs)");
+    assert!(matches!(
+        st.ask(&mut hil, &mut raw, &HostMsg::EmergencyStop),
+        DeviceMsg::Ack { .. }
+    ));
+    assert!(matches!(st.ask(&mut hil, &mut raw, &hello), DeviceMsg::Hello(i) if i.accepted));
+    assert!(
+        refused(&st.ask(&mut hil, &mut raw, &drive())),
+        "motion accepted after a stop sent in a refused session"
+    );
+    assert!(matches!(
+        st.ask(&mut hil, &mut raw, &HostMsg::Resume),
+        DeviceMsg::Ack { .. }
+    ));
+
+    // While driving: the wheel command is zero within one base cycle.
+    assert!(matches!(
+        st.ask(&mut hil, &mut raw, &drive()),
+        DeviceMsg::Ack { .. }
+    ));
+    st.until_base(&mut hil, &mut raw, true, 200_000);
+    st.step(&mut hil, &mut raw, 100_000);
+    let seq = raw.send(&HostMsg::EmergencyStop);
+    let took = st.until_base(&mut hil, &mut raw, false, cycle + 1000);
+    eprintln!("while driving: base command zero after {took} µs (cycle {cycle} µs)");
+    assert!(
+        raw.wait(
+            Duration::from_millis(200),
+            |m| matches!(m, DeviceMsg::Ack { seq: s } if *s == seq)
+        )
+        .is_some(),
+        "the stop while driving was not acknowledged"
+    );
+    // Already stopped: acknowledged again, motion still refused.
+    assert!(matches!(
+        st.ask(&mut hil, &mut raw, &HostMsg::EmergencyStop),
+        DeviceMsg::Ack { .. }
+    ));
+    assert!(refused(&st.ask(&mut hil, &mut raw, &drive())));
+    assert!(matches!(
+        st.ask(&mut hil, &mut raw, &HostMsg::Resume),
+        DeviceMsg::Ack { .. }
+    ));
+
+    // After a watchdog trip (the host silent for 300 ms): acknowledged and engaged.
+    assert!(matches!(
+        st.ask(&mut hil, &mut raw, &HostMsg::SetWatchdog { period_ms: 300 }),
+        DeviceMsg::Ack { .. }
+    ));
+    assert!(matches!(
+        st.ask(&mut hil, &mut raw, &drive()),
+        DeviceMsg::Ack { .. }
+    ));
+    st.until_base(&mut hil, &mut raw, true, 200_000);
+    st.heartbeat_at = u64::MAX;
+    let took = st.until_base(&mut hil, &mut raw, false, 400_000);
+    assert!(
+        took >= 200_000,
+        "the base stopped after {took} µs, before the watchdog"
+    );
+    st.heartbeat_at = 0;
+    assert!(matches!(
+        st.ask(&mut hil, &mut raw, &HostMsg::EmergencyStop),
+        DeviceMsg::Ack { .. }
+    ));
+    assert!(refused(&st.ask(&mut hil, &mut raw, &drive())));
+    hil.board.server.release();
+}

@@ -3,6 +3,9 @@
 //! `19 | N | (packet id, data)… | checksum` with the low byte of the sum of all bytes zero.
 //! Used by the firmware's Create 2 driver and by the simulated Create 2.
 
+/// Line rate of the Create 2 serial port, bit/s (8N1: 10 bits per byte).
+pub const BAUD: u32 = 115_200;
+
 /// Start the Open Interface.
 pub const OP_START: u8 = 128;
 /// Safe mode.

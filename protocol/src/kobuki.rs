@@ -3,6 +3,9 @@
 //! Multi-byte fields are little-endian. Used by the firmware's Kobuki driver and by the
 //! simulated Kobuki.
 
+/// Line rate of the Kobuki serial port, bit/s (8N1: 10 bits per byte).
+pub const BAUD: u32 = 115_200;
+
 /// First header byte.
 pub const HEADER0: u8 = 0xAA;
 /// Second header byte.

@@ -147,6 +147,11 @@ impl BasePlant {
         }
     }
 
+    /// The base's feedback cycle (Kobuki 20 ms, Create 2 15 ms), µs.
+    pub fn period_us(&self) -> u64 {
+        self.period_us
+    }
+
     /// When the next feedback packet is due, µs.
     pub fn next_event(&self) -> u64 {
         self.next_feedback

@@ -16,7 +16,7 @@ use crate::pipe::Pipe;
 use crate::robots::{BaseModel, SimRobot};
 
 /// Base serial line rate, bit/s.
-pub const BASE_BAUD: u32 = 115_200;
+pub const BASE_BAUD: u32 = ferrobot_protocol::kobuki::BAUD;
 
 /// Servo chain, base and the four one-way lines between them and the firmware.
 pub struct Hardware {

@@ -23,6 +23,7 @@ pub mod conductor;
 pub mod control;
 pub mod diff_drive;
 pub mod hardware;
+pub mod hostile;
 pub mod lockstep;
 pub mod pipe;
 pub mod rng;

@@ -68,6 +68,10 @@ pub struct BaseDriver {
     /// ones until [`BaseDriver::set_geometry`]).
     pub odom_geometry: (f32, f32, f32),
     tx: TxBuf<128>,
+    /// When the last wheel command will have left the line, µs. A newer command waits for
+    /// it (the newest one wins), so that a burst of commands cannot queue up on the line
+    /// ahead of a stop: a stop reaches the base within two packet times.
+    line_free_at: u64,
     events: Deque<BaseEvent, 8>,
     /// Counters.
     pub stats: BaseStats,
@@ -100,6 +104,7 @@ impl BaseDriver {
             lost: false,
             odom_geometry: (cfg.wheel_radius, cfg.wheel_radius, cfg.track),
             tx: TxBuf::new(),
+            line_free_at: 0,
             events: Deque::new(),
             stats: BaseStats::default(),
         }
@@ -156,7 +161,7 @@ impl BaseDriver {
         }
         self.cmd = self.limit(v, w);
         self.cmd_until = now + duration_ms as u64 * 1000;
-        self.next_send = now; // send at once
+        self.next_send = now.max(self.line_free_at); // as soon as the line is free
         Ok(())
     }
 
@@ -176,7 +181,7 @@ impl BaseDriver {
     pub fn stop(&mut self, now: u64) {
         self.cmd = (0.0, 0.0);
         self.cmd_until = now;
-        self.next_send = now;
+        self.next_send = now.max(self.line_free_at);
     }
 
     /// The velocity currently commanded (v m/s, w rad/s).
@@ -249,30 +254,52 @@ impl BaseDriver {
             }
         }
         if now >= self.next_send {
-            self.send_command();
-            self.next_send = now + self.period_us();
+            // A command that found no room is retried at the next poll.
+            self.next_send = match self.send_command() {
+                Some(n) => {
+                    // 10 bits per byte on the line.
+                    let baud = match self.proto {
+                        Proto::Create2 { .. } => create2::BAUD,
+                        _ => kobuki::BAUD,
+                    };
+                    let line_us = n as u64 * 10_000_000 / baud as u64 + 1;
+                    self.line_free_at = now.max(self.line_free_at) + line_us;
+                    now + self.period_us()
+                }
+                None => now,
+            };
         }
     }
 
-    fn send_command(&mut self) {
+    /// Queue the current command for the base; its length in bytes, or `None` when it does
+    /// not fit (it is retried at the next poll).
+    fn send_command(&mut self) -> Option<usize> {
         let (v, w) = self.cmd;
-        match self.proto {
+        let mut b = [0u8; 16];
+        let n = match self.proto {
             Proto::Kobuki(_) => {
                 let (speed, radius) = kobuki::speed_radius(v, w, self.cfg.track);
-                let mut b = [0u8; 16];
-                if let Some(n) = kobuki::encode_base_control(speed, radius, &mut b) {
-                    let _ = self.tx.push(b.get(..n).unwrap_or(&[]));
-                }
+                kobuki::encode_base_control(speed, radius, &mut b).unwrap_or(0)
             }
             Proto::Create2 { .. } => {
                 let half = 0.5 * self.cfg.track;
                 let mm = |x: f32| (x * 1000.0).clamp(-500.0, 500.0) as i16;
                 let cmd = create2::drive_direct(mm(v + w * half), mm(v - w * half));
-                let _ = self.tx.push(&cmd);
+                for (d, c) in b.iter_mut().zip(cmd) {
+                    *d = c;
+                }
+                cmd.len()
             }
-            Proto::None => {}
+            Proto::None => 0,
+        };
+        if n == 0 {
+            return Some(0);
+        }
+        if !self.tx.push(b.get(..n).unwrap_or(&[])) {
+            return None;
         }
         self.sent = Some((v, w));
+        Some(n)
     }
 
     /// Bytes from the base.
