@@ -564,8 +564,26 @@ pub fn hostile_stream<R: Rng + ?Sized>(
         if let (true, Some(servo)) = (controlled, s.sim.hw.chain.servo(cfg.servo_id)) {
             assert!(
                 servo.omega.abs() < 0.05,
-                "{robot}: joint {j} still moving at {} rad/s after the emergency stop",
-                servo.omega
+                "{robot}: joint {j} still moving at {} rad/s after the emergency stop: {:?} mode, \
+                 servo at {:.4} rad (mode {}, torque {}, error {}, goal position {}, goal current \
+                 {}, goal PWM {}), limits {:?}, servo status {:?}",
+                servo.omega,
+                s.sim.fw.joints()[j].mode,
+                servo.theta,
+                servo.get(dxl::addr::OPERATING_MODE, 1),
+                servo.torque_enabled(),
+                servo.hardware_error(),
+                servo.get(dxl::addr::GOAL_POSITION, 4) as i32,
+                servo.get(dxl::addr::GOAL_CURRENT, 2) as i16,
+                servo.get(dxl::addr::GOAL_PWM, 2) as i16,
+                cfg.limits,
+                s.sim
+                    .fw
+                    .bus()
+                    .servos
+                    .iter()
+                    .find(|b| b.id == cfg.servo_id)
+                    .map(|b| (b.status, b.mode, b.torque, b.ops))
             );
         }
     }
