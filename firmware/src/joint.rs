@@ -254,8 +254,10 @@ impl JointControl {
         }
         let inward = |a: f32| if q > lim.max { a.min(q) } else { a.max(q) };
         self.anchor = Some(match self.anchor {
-            // Braked: it stays where it was, so goals may stay behind the joint.
-            Some(a) if self.braking => a,
+            // Braked: it stays where it was, so goals may stay behind the joint. Under an
+            // emergency stop too: the joint is held where it stopped, not let back in by a
+            // load.
+            Some(a) if self.braking || self.stopped => a,
             // Same side: only ever back in.
             Some(a) if (a > lim.max) == (q > lim.max) => inward(a),
             _ => q,
@@ -474,6 +476,9 @@ impl JointControl {
                     // command is brought near where it is, so it never races back to a
                     // command it left far behind.
                     // The goal never moves the way the joint runs.
+                    // The load correction becomes part of the goal, so the goal the servo
+                    // holds against its load does not jump when braking starts.
+                    self.cmd += core::mem::take(&mut self.sag);
                     let behind =
                         q - qd.signum() * (qd.abs() * BRAKE_TIME).clamp(BRAKE_MIN, BRAKE_OFFSET);
                     self.cmd = if qd > 0.0 {
@@ -482,16 +487,17 @@ impl JointControl {
                         self.cmd.max(behind)
                     };
                     self.braking = true;
-                    // The sag correction is for holding still; it must not eat the braking.
-                    self.sag = 0.0;
                     clamped = true;
                 } else {
                     if core::mem::take(&mut self.braking) {
                         // Where the joint came to rest; outside its limits keeping up to
                         // BRAKE_HOLD of the goal offset that stopped it (the load that pushed
                         // it out may need it to hold there).
+                        // Under an emergency stop too: the arm must stay where it stopped,
+                        // and a goal where it is would let its load carry it on, brake after
+                        // brake.
                         let outside = q < lim.min || q > lim.max;
-                        self.cmd = if outside {
+                        self.cmd = if outside || self.stopped {
                             self.cmd.clamp(q - BRAKE_HOLD, q + BRAKE_HOLD)
                         } else {
                             q

@@ -343,9 +343,16 @@ impl Firmware {
         self.base.stop(now);
         self.base.poll(now);
         self.hold_all(now);
-        for j in self.joints.iter_mut() {
+        let gripper = self.gripper.as_ref().map(|(j, _)| *j);
+        for (k, j) in self.joints.iter_mut().enumerate() {
+            // A joint in a torque mode is held by its servo's own stiff position loop: a
+            // torque that only limits its speed would let a load (gravity) carry it on.
+            if matches!(j.mode, JointMode::Current | JointMode::Pwm) && gripper != Some(k) {
+                j.set_mode(now, JointMode::Position);
+            }
             j.stopped = true;
         }
+        self.apply_modes();
         self.fault(now, FaultKind::EmergencyStop, None, None, 0);
     }
 

@@ -308,7 +308,9 @@ pub enum HostMsg {
     Heartbeat,
     /// Emergency stop: base stopped, arm held, motion commands rejected until [`HostMsg::Resume`].
     /// Accepted in every session state (before a Hello, after a refused one) and always
-    /// acknowledged.
+    /// acknowledged. Joints in current or PWM mode are switched to position mode to be held
+    /// (a torque would let a load carry them on); after `Resume` they stay there until the
+    /// host sets their mode again.
     EmergencyStop,
     /// Leave the emergency stop.
     Resume,

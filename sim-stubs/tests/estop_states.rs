@@ -284,3 +284,30 @@ fn the_stop_works_behind_a_full_queue_and_a_burst_of_frames() {
         refused_until_resume(&mut s, &state);
     });
 }
+
+#[test]
+fn the_stop_holds_joints_in_torque_modes_where_they_are() {
+    for_both(|robot| {
+        let mut s = session(robot);
+        // Shoulder and elbow in PWM and current mode with no drive: gravity takes them.
+        for (mask, mode) in [(0b10, JointMode::Pwm), (0b100, JointMode::Current)] {
+            s.command(&HostMsg::SetMode { joints: mask, mode })
+                .expect("mode");
+        }
+        s.command(&HostMsg::JointCommand {
+            joints: 0b110,
+            values: [0.0, 0.0].into_iter().collect(),
+        })
+        .expect("zero drive");
+        s.run_for(150_000);
+        let state = format!("{robot}, joints in torque modes");
+        stop_and_check(&mut s, &state);
+        for j in [1, 2] {
+            assert_eq!(
+                s.sim.fw.joints()[j].mode,
+                JointMode::Position,
+                "{state}: joint {j} not held in position mode"
+            );
+        }
+    });
+}
