@@ -59,3 +59,78 @@ fn hostile_messages_never_drive_the_locobot_outside_its_limits() {
 fn hostile_messages_never_drive_the_locobot_lite_outside_its_limits() {
     assert_clean("locobot_lite", 2);
 }
+
+/// A survey for long searches, not run in CI: `FERROBOT_SURVEY_FROM` (first seed, default
+/// 300), `FERROBOT_SURVEY_COUNT` (streams, default 80) and `FERROBOT_HOSTILE_MESSAGES`
+/// (messages per stream); even seeds run the LoCoBot-Lite, odd ones the LoCoBot. Prints, per
+/// stream with a finding, its violation samples and episodes (messages after which a
+/// violation was seen) or a failed stop, and a summary line.
+#[test]
+#[ignore]
+fn survey() {
+    let env = |k: &str, d: u64| {
+        std::env::var(k)
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(d)
+    };
+    let (from, count) = (
+        env("FERROBOT_SURVEY_FROM", 300),
+        env("FERROBOT_SURVEY_COUNT", 80),
+    );
+    let n = messages();
+    let seeds: Vec<u64> = (from..from + count).collect();
+    let results = std::sync::Mutex::new(Vec::new());
+    std::thread::scope(|sc| {
+        for chunk in seeds.chunks(seeds.len().div_ceil(2).max(1)) {
+            let results = &results;
+            sc.spawn(move || {
+                for &seed in chunk {
+                    let robot = if seed % 2 == 0 {
+                        "locobot_lite"
+                    } else {
+                        "locobot"
+                    };
+                    let r = std::panic::catch_unwind(|| {
+                        hostile_stream(&mut ChaCha8Rng::seed_from_u64(seed), robot, seed, n)
+                    });
+                    let found = r.map(|(c, _)| {
+                        let mut episodes: Vec<&str> = c
+                            .violations
+                            .iter()
+                            .filter_map(|v| v.split(' ').nth(2))
+                            .collect();
+                        episodes.dedup();
+                        (c.violations.len(), episodes.len())
+                    });
+                    results
+                        .lock()
+                        .unwrap_or_else(|e| e.into_inner())
+                        .push((seed, found.ok()));
+                }
+            });
+        }
+    });
+    let mut r = results.into_inner().unwrap_or_else(|e| e.into_inner());
+    r.sort();
+    let (mut streams, mut samples, mut episodes, mut failed) = (0, 0, 0, 0);
+    for (seed, found) in &r {
+        match found {
+            Some((0, _)) => {}
+            Some((v, e)) => {
+                streams += 1;
+                samples += v;
+                episodes += e;
+                eprintln!("seed {seed}: {v} violation samples in {e} episodes");
+            }
+            None => {
+                failed += 1;
+                eprintln!("seed {seed}: the stop or the recovery at the end failed");
+            }
+        }
+    }
+    eprintln!(
+        "survey: {} streams of {n} messages, {streams} with violations ({samples} samples, {episodes} episodes), {failed} failed stops or recoveries",
+        r.len()
+    );
+}
