@@ -571,6 +571,22 @@ impl Stepper {
         panic!("no answer to {msg:?} within 50 ms of simulated time");
     }
 
+    /// Send `msg` and assert the firmware acknowledges it.
+    fn acked(&mut self, hil: &mut Hil, raw: &mut ferrobot_hil::RawClient, msg: &HostMsg) {
+        let answer = self.ask(hil, raw, msg);
+        assert!(
+            matches!(answer, DeviceMsg::Ack { .. }),
+            "{msg:?} answered {answer:?}"
+        );
+    }
+
+    /// Drive the base, and let it drive for 100 ms once its wheels have their command.
+    fn start_driving(&mut self, hil: &mut Hil, raw: &mut ferrobot_hil::RawClient) {
+        self.acked(hil, raw, &drive());
+        self.until_base(hil, raw, true, 200_000);
+        self.step(hil, raw, 100_000);
+    }
+
     /// Step 1 ms at a time until the base's wheel command is `moving` (at most `within_us`);
     /// the simulated time that took, µs.
     fn until_base(
@@ -582,10 +598,7 @@ impl Stepper {
     ) -> u64 {
         let start = hil.board.server.now_us();
         loop {
-            let target = hil
-                .board
-                .server
-                .with_hardware(|hw, _| hw.base.as_ref().expect("base").drive.target);
+            let target = hil.board.server.with_hardware(|hw, _| hw.wheel_command());
             if (target != (0.0, 0.0)) == moving {
                 return hil.board.server.now_us() - start;
             }
@@ -661,43 +674,24 @@ fn the_emergency_stop_works_in_every_session_state() {
         refused(&st.ask(&mut hil, &mut raw, &drive())),
         "motion accepted after a stop sent before the Hello"
     );
-    assert!(matches!(
-        st.ask(&mut hil, &mut raw, &HostMsg::Resume),
-        DeviceMsg::Ack { .. }
-    ));
+    st.acked(&mut hil, &mut raw, &HostMsg::Resume);
 
     // A refused Hello while driving stops the base within one cycle; the stop is still
     // accepted in the refused session.
-    assert!(matches!(
-        st.ask(&mut hil, &mut raw, &drive()),
-        DeviceMsg::Ack { .. }
-    ));
-    st.until_base(&mut hil, &mut raw, true, 200_000);
-    st.step(&mut hil, &mut raw, 100_000);
+    st.start_driving(&mut hil, &mut raw);
     assert!(matches!(st.ask(&mut hil, &mut raw, &bad_hello), DeviceMsg::Hello(i) if !i.accepted));
     let took = st.until_base(&mut hil, &mut raw, false, cycle + 1000);
     eprintln!("refused Hello: base command zero after {took} µs (cycle {cycle} µs)");
-    assert!(matches!(
-        st.ask(&mut hil, &mut raw, &HostMsg::EmergencyStop),
-        DeviceMsg::Ack { .. }
-    ));
+    st.acked(&mut hil, &mut raw, &HostMsg::EmergencyStop);
     assert!(matches!(st.ask(&mut hil, &mut raw, &hello), DeviceMsg::Hello(i) if i.accepted));
     assert!(
         refused(&st.ask(&mut hil, &mut raw, &drive())),
         "motion accepted after a stop sent in a refused session"
     );
-    assert!(matches!(
-        st.ask(&mut hil, &mut raw, &HostMsg::Resume),
-        DeviceMsg::Ack { .. }
-    ));
+    st.acked(&mut hil, &mut raw, &HostMsg::Resume);
 
     // While driving: the wheel command is zero within one base cycle.
-    assert!(matches!(
-        st.ask(&mut hil, &mut raw, &drive()),
-        DeviceMsg::Ack { .. }
-    ));
-    st.until_base(&mut hil, &mut raw, true, 200_000);
-    st.step(&mut hil, &mut raw, 100_000);
+    st.start_driving(&mut hil, &mut raw);
     let seq = raw.send(&HostMsg::EmergencyStop);
     let took = st.until_base(&mut hil, &mut raw, false, cycle + 1000);
     eprintln!("while driving: base command zero after {took} µs (cycle {cycle} µs)");
@@ -710,25 +704,13 @@ fn the_emergency_stop_works_in_every_session_state() {
         "the stop while driving was not acknowledged"
     );
     // Already stopped: acknowledged again, motion still refused.
-    assert!(matches!(
-        st.ask(&mut hil, &mut raw, &HostMsg::EmergencyStop),
-        DeviceMsg::Ack { .. }
-    ));
+    st.acked(&mut hil, &mut raw, &HostMsg::EmergencyStop);
     assert!(refused(&st.ask(&mut hil, &mut raw, &drive())));
-    assert!(matches!(
-        st.ask(&mut hil, &mut raw, &HostMsg::Resume),
-        DeviceMsg::Ack { .. }
-    ));
+    st.acked(&mut hil, &mut raw, &HostMsg::Resume);
 
     // After a watchdog trip (the host silent for 300 ms): acknowledged and engaged.
-    assert!(matches!(
-        st.ask(&mut hil, &mut raw, &HostMsg::SetWatchdog { period_ms: 300 }),
-        DeviceMsg::Ack { .. }
-    ));
-    assert!(matches!(
-        st.ask(&mut hil, &mut raw, &drive()),
-        DeviceMsg::Ack { .. }
-    ));
+    st.acked(&mut hil, &mut raw, &HostMsg::SetWatchdog { period_ms: 300 });
+    st.acked(&mut hil, &mut raw, &drive());
     st.until_base(&mut hil, &mut raw, true, 200_000);
     st.heartbeat_at = u64::MAX;
     let took = st.until_base(&mut hil, &mut raw, false, 400_000);
@@ -737,10 +719,7 @@ fn the_emergency_stop_works_in_every_session_state() {
         "the base stopped after {took} µs, before the watchdog"
     );
     st.heartbeat_at = 0;
-    assert!(matches!(
-        st.ask(&mut hil, &mut raw, &HostMsg::EmergencyStop),
-        DeviceMsg::Ack { .. }
-    ));
+    st.acked(&mut hil, &mut raw, &HostMsg::EmergencyStop);
     assert!(refused(&st.ask(&mut hil, &mut raw, &drive())));
     hil.board.server.release();
 }

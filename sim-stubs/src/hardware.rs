@@ -31,6 +31,15 @@ pub struct Hardware {
 }
 
 impl Hardware {
+    /// The wheel speeds (left, right, m/s) the base is commanded to, as its controller holds
+    /// them; zeros without a base.
+    pub fn wheel_command(&self) -> (f64, f64) {
+        self.base
+            .as_ref()
+            .map(|b| b.drive.target)
+            .unwrap_or((0.0, 0.0))
+    }
+
     /// The plants of `desc`, seeded by `seed`.
     pub fn new(desc: &SimRobot, seed: u64) -> Self {
         let base = match desc.base {

@@ -300,6 +300,22 @@ struct Watch {
     mode: JointMode,
 }
 
+impl Watch {
+    /// A joint the checker has not seen move yet, with joint-table row `row`.
+    fn new(row: Option<JointConfig>) -> Self {
+        Watch {
+            row,
+            outside: 0.0,
+            speed: 0.0,
+            last: None,
+            qd: 0.0,
+            grace_until: 0,
+            was_controlled: false,
+            mode: JointMode::Off,
+        }
+    }
+}
+
 /// Checks the invariants on the plants' true state; returns violations found.
 pub struct Checker {
     watch: Vec<Watch>,
@@ -326,16 +342,7 @@ impl Checker {
             .profile()
             .joints
             .iter()
-            .map(|c| Watch {
-                row: Some(c.clone()),
-                outside: 0.0,
-                speed: 0.0,
-                last: None,
-                qd: 0.0,
-                grace_until: 0,
-                was_controlled: false,
-                mode: JointMode::Off,
-            })
+            .map(|c| Watch::new(Some(c.clone())))
             .collect();
         Checker {
             watch,
@@ -351,19 +358,7 @@ impl Checker {
         self.samples += 1;
         let fw = &sim.fw;
         let joints = &fw.profile().joints;
-        self.watch.resize(
-            joints.len(),
-            Watch {
-                row: None,
-                outside: 0.0,
-                speed: 0.0,
-                last: None,
-                qd: 0.0,
-                grace_until: 0,
-                was_controlled: false,
-                mode: JointMode::Off,
-            },
-        );
+        self.watch.resize(joints.len(), Watch::new(None));
         for (j, cfg) in joints.iter().enumerate() {
             let Some(servo) = sim.hw.chain.servo(cfg.servo_id) else {
                 continue;
@@ -448,25 +443,28 @@ impl Checker {
                 self.worst.1 = dv;
                 self.worst_at.1 = here();
             }
-            if d > w.outside + POS_TOL {
-                self.violations.push(format!(
-                    "{what}: t={} us joint {j} ({:?}; servo torque {}, error {}, mode {}) at {q:.4} rad, {d:.4} rad outside {:?}",
-                    sim.now_us(),
+            let servo_state = || {
+                format!(
+                    "{:?}; servo torque {}, error {}, mode {}",
                     fw.joints()[j].mode,
                     servo.torque_enabled(),
                     servo.hardware_error(),
-                    servo.get(dxl::addr::OPERATING_MODE, 1),
+                    servo.get(dxl::addr::OPERATING_MODE, 1)
+                )
+            };
+            if d > w.outside + POS_TOL {
+                self.violations.push(format!(
+                    "{what}: t={} us joint {j} ({}) at {q:.4} rad, {d:.4} rad outside {:?}",
+                    sim.now_us(),
+                    servo_state(),
                     cfg.limits
                 ));
             }
             if qd.abs() > vmax.max(w.speed + SPEED_ABS) {
                 self.violations.push(format!(
-                    "{what}: t={} us joint {j} ({:?}; servo torque {}, error {}, mode {}) at {q:.4} rad, {qd:.3} rad/s, limits {:?}",
+                    "{what}: t={} us joint {j} ({}) at {q:.4} rad, {qd:.3} rad/s, limits {:?}",
                     sim.now_us(),
-                    fw.joints()[j].mode,
-                    servo.torque_enabled(),
-                    servo.hardware_error(),
-                    servo.get(dxl::addr::OPERATING_MODE, 1),
+                    servo_state(),
                     cfg.limits
                 ));
             }
@@ -552,10 +550,14 @@ pub fn hostile_stream<R: Rng + ?Sized>(
     if s.sim.hw.base.is_some() {
         // One base cycle (Kobuki 20 ms, Create 2 15 ms) for the command to reach the wheels.
         let deadline = stop_at + 20_000;
-        while s.sim.now_us() < deadline && base_target(&s) != (0.0, 0.0) {
+        while s.sim.now_us() < deadline && s.sim.hw.wheel_command() != (0.0, 0.0) {
             run(&mut s, &mut c, 1000, "emergency stop");
         }
-        assert_eq!(base_target(&s), (0.0, 0.0), "{robot}: base still commanded");
+        assert_eq!(
+            s.sim.hw.wheel_command(),
+            (0.0, 0.0),
+            "{robot}: base still commanded"
+        );
     }
     run(&mut s, &mut c, 800_000, "after the emergency stop");
     for (j, cfg) in s.sim.fw.profile().joints.iter().enumerate() {
@@ -637,13 +639,4 @@ pub fn hostile_stream<R: Rng + ?Sized>(
     );
     let t = s.sim.now_us();
     (c, t)
-}
-
-fn base_target(s: &SimSession) -> (f64, f64) {
-    s.sim
-        .hw
-        .base
-        .as_ref()
-        .map(|b| b.drive.target)
-        .unwrap_or((0.0, 0.0))
 }

@@ -15,15 +15,6 @@ use ferrobot_sim::{LockstepSim, SimError, SimSession};
 /// `v² / 2a` at the servos' acceleration, plus backlash.
 const HOLD_TOL: f32 = 0.03;
 
-fn base_target(s: &SimSession) -> (f64, f64) {
-    s.sim
-        .hw
-        .base
-        .as_ref()
-        .map(|b| b.drive.target)
-        .unwrap_or((0.0, 0.0))
-}
-
 fn base_cycle_us(s: &SimSession) -> u64 {
     s.sim.hw.base.as_ref().expect("a base").period_us()
 }
@@ -39,7 +30,11 @@ fn drive_and_move(s: &mut SimSession) {
     s.command(&waypoint(1, 3_000_000, &[1.0]))
         .expect("waypoint accepted");
     s.run_for(400_000);
-    assert_ne!(base_target(s), (0.0, 0.0), "the base should drive");
+    assert_ne!(
+        s.sim.hw.wheel_command(),
+        (0.0, 0.0),
+        "the base should drive"
+    );
 }
 
 /// Send the emergency stop and check what every state must give: an Ack, the stop engaged,
@@ -60,11 +55,11 @@ fn stop_and_check(s: &mut SimSession, state: &str) -> Vec<f32> {
     let engaged = s.sim.now_us();
     // From there the base has one of its cycles to take the zero command.
     let deadline = engaged + base_cycle_us(s);
-    while s.sim.now_us() < deadline && base_target(s) != (0.0, 0.0) {
+    while s.sim.now_us() < deadline && s.sim.hw.wheel_command() != (0.0, 0.0) {
         s.run_for(100);
     }
     assert_eq!(
-        base_target(s),
+        s.sim.hw.wheel_command(),
         (0.0, 0.0),
         "{state}: the base still has a wheel command {} µs after the stop engaged",
         s.sim.now_us() - engaged
@@ -184,11 +179,13 @@ fn the_stop_works_after_a_refused_hello_while_driving() {
             unreachable!()
         };
         assert!(!info.accepted);
-        while s.sim.now_us() < sent + 1_000 + base_cycle_us(&s) && base_target(&s) != (0.0, 0.0) {
+        while s.sim.now_us() < sent + 1_000 + base_cycle_us(&s)
+            && s.sim.hw.wheel_command() != (0.0, 0.0)
+        {
             s.run_for(500);
         }
         assert_eq!(
-            base_target(&s),
+            s.sim.hw.wheel_command(),
             (0.0, 0.0),
             "{robot}: base drives on after a refused Hello"
         );
@@ -230,7 +227,7 @@ fn the_stop_works_after_a_watchdog_trip() {
         s.keepalive = false;
         s.run_for(300_000);
         assert_eq!(
-            base_target(&s),
+            s.sim.hw.wheel_command(),
             (0.0, 0.0),
             "{robot}: watchdog did not trip"
         );
