@@ -124,6 +124,16 @@ fn mode<R: Rng + ?Sized>(rng: &mut R) -> JointMode {
     ][rng.random_range(0..6)]
 }
 
+/// How many values a message for the joints of mask `m` (of `n` joints) carries: usually one
+/// per selected joint, sometimes any count up to [`MAX_JOINTS`].
+fn value_count<R: Rng + ?Sized>(rng: &mut R, m: u16, n: usize) -> usize {
+    if rng.random_bool(0.9) {
+        (m as u32 & ((1 << n) - 1)).count_ones() as usize
+    } else {
+        rng.random_range(0..=MAX_JOINTS)
+    }
+}
+
 /// One message of the stream for firmware `fw`'s current joint table.
 pub fn message<R: Rng + ?Sized>(rng: &mut R, fw: &ferrobot_firmware::Firmware) -> HostMsg {
     let joints = &fw.profile().joints;
@@ -203,11 +213,7 @@ pub fn message<R: Rng + ?Sized>(rng: &mut R, fw: &ferrobot_firmware::Firmware) -
         },
         18..=35 => {
             let m = mask(rng, n);
-            let count = if rng.random_bool(0.9) {
-                (m as u32 & ((1 << n) - 1)).count_ones() as usize
-            } else {
-                rng.random_range(0..=MAX_JOINTS)
-            };
+            let count = value_count(rng, m, n);
             let points = (0..count)
                 .map(|_| JointPoint {
                     position: value(rng, -1.6, 1.6),
@@ -230,11 +236,7 @@ pub fn message<R: Rng + ?Sized>(rng: &mut R, fw: &ferrobot_firmware::Firmware) -
         },
         39..=60 => {
             let m = mask(rng, n);
-            let count = if rng.random_bool(0.9) {
-                (m as u32 & ((1 << n) - 1)).count_ones() as usize
-            } else {
-                rng.random_range(0..=MAX_JOINTS)
-            };
+            let count = value_count(rng, m, n);
             HostMsg::JointCommand {
                 joints: m,
                 values: (0..count).map(|_| value(rng, -3.0, 3.0)).collect(),
