@@ -12,6 +12,7 @@ use crate::error::{check_finite, Error, Result};
 use crate::kinematics::ik::IkOptions;
 use crate::motion::{Goal, Motion};
 use crate::robot::Robot;
+use crate::validate;
 
 /// A pose: position (m), rotation matrix and quaternion `[x, y, z, w]` of a frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -44,7 +45,8 @@ impl From<Isometry3<f64>> for Pose {
 /// An orientation, in whichever form is at hand.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Orientation {
-    /// Unit quaternion `[x, y, z, w]` (normalised on use).
+    /// Unit quaternion `[x, y, z, w]`: its norm must be 1 within
+    /// [`validate::QUATERNION_NORM_TOLERANCE`] (a far-from-unit one is refused).
     Quaternion([f64; 4]),
     /// Euler angles `[yaw, pitch, roll]`, rad: `R = Rz(yaw)·Ry(pitch)·Rx(roll)`.
     YawPitchRoll([f64; 3]),
@@ -53,21 +55,13 @@ pub enum Orientation {
 }
 
 impl Orientation {
-    /// As a unit quaternion; an error for a zero quaternion or a matrix that is not a rotation.
+    /// As a unit quaternion; an error for a quaternion far from unit norm, absurd angles, or a
+    /// matrix that is not a rotation.
     pub fn to_quaternion(&self) -> Result<UnitQuaternion<f64>> {
         match *self {
-            Orientation::Quaternion([x, y, z, w]) => {
-                check_finite("quaternion", &[x, y, z, w])?;
-                let q = nalgebra::Quaternion::new(w, x, y, z);
-                if q.norm() < 1e-9 {
-                    return Err(Error::Unreachable {
-                        why: "a zero quaternion is no orientation".into(),
-                    });
-                }
-                Ok(UnitQuaternion::from_quaternion(q))
-            }
+            Orientation::Quaternion(q) => validate::unit_quaternion(q),
             Orientation::YawPitchRoll([y, p, r]) => {
-                check_finite("yaw-pitch-roll", &[y, p, r])?;
+                validate::angles("yaw-pitch-roll", &[y, p, r])?;
                 Ok(UnitQuaternion::from_euler_angles(r, p, y))
             }
             Orientation::Matrix(m) => {
@@ -93,9 +87,10 @@ pub struct MoveOptions {
     /// Plan a smooth trajectory under the joints' speed limits (true), or send the target at
     /// once and let the firmware's rate limiter take the joints there (false).
     pub plan: bool,
-    /// Arrival tolerance per joint, rad; the configuration's when `None`.
+    /// Arrival tolerance per joint, rad, in `[1e-4, 0.5]`; the configuration's when `None`.
     pub tolerance: Option<f64>,
-    /// Give up after this long; the configuration's when `None`.
+    /// Give up after this long (at most [`validate::MAX_DURATION_S`]); the configuration's
+    /// when `None`.
     pub timeout: Option<Duration>,
 }
 
@@ -145,6 +140,12 @@ impl<'r> Arm<'r> {
         check_finite(what, v)
     }
 
+    /// Joint angles: the arm's count, each finite and within ±[`validate::MAX_ANGLE`].
+    fn check_angles(&self, what: &'static str, q: &[f64]) -> Result<()> {
+        self.check_count(what, q)?;
+        validate::angles(what, q)
+    }
+
     fn check_limits(&self, q: &[f64]) -> Result<()> {
         for (&j, &v) in self.robot.arm_joints.iter().zip(q) {
             let c = &self.robot.cfg.joints[j];
@@ -182,8 +183,15 @@ impl<'r> Arm<'r> {
 
     /// Start moving to joint positions `q` (rad); returns the motion under way.
     pub fn move_joints(&mut self, q: &[f64], opts: MoveOptions) -> Result<Motion<'_>> {
-        self.check_count("joint positions", q)?;
+        self.check_angles("joint positions", q)?;
         self.check_limits(q)?;
+        if let Some(t) = opts.tolerance {
+            validate::in_range("joint tolerance", t, 1e-4, 0.5)?;
+        }
+        let timeout = match opts.timeout {
+            Some(t) => validate::timeout("arm motion timeout", t)?,
+            None => Duration::from_secs_f64(self.cfg().timeout),
+        };
         self.ensure_mode(JointMode::Position)?;
         let now = self.states()?;
         // A cubic between rest states peaks at 1.5·Δq/T: choose T so that no joint exceeds 90 %
@@ -199,9 +207,6 @@ impl<'r> Arm<'r> {
         self.robot
             .send_rest_waypoint(mask, q.iter().copied(), duration, "arm joint target")?;
         let tolerance = opts.tolerance.unwrap_or(self.cfg().joint_tolerance);
-        let timeout = opts
-            .timeout
-            .unwrap_or(Duration::from_secs_f64(self.cfg().timeout));
         Ok(Motion::new(
             self.robot,
             Goal::Joints {
@@ -253,6 +258,43 @@ impl<'r> Arm<'r> {
         self.robot
             .link
             .command(&HostMsg::JointCommand { joints, values }, what)
+    }
+
+    /// Send one rest knot of the Cartesian path, waiting while the firmware's queue is full.
+    /// The queue's fill is known from telemetry, which lags the knots just sent, so a full
+    /// queue shows as a `QueueFull` rejection: then let a knot play out and send again, for at
+    /// most `timeout` without progress.
+    fn send_when_queued(
+        &mut self,
+        mask: u16,
+        q: &[f64],
+        seconds: f64,
+        timeout: Duration,
+    ) -> Result<()> {
+        let since = self.robot.link.now();
+        loop {
+            // Keep the firmware queue short: wait while telemetry shows it nearly full.
+            while self.robot.link.telemetry()?.queued as usize >= 8 * self.dof() {
+                self.robot.link.wait(Duration::from_millis(20));
+                if self.robot.link.now().saturating_sub(since) > timeout {
+                    break;
+                }
+            }
+            match self.robot.send_rest_waypoint(
+                mask,
+                q.iter().copied(),
+                seconds,
+                "Cartesian waypoint",
+            ) {
+                Err(Error::Rejected {
+                    reason: ferrobot_protocol::RejectReason::QueueFull,
+                    ..
+                }) if self.robot.link.now().saturating_sub(since) <= timeout => {
+                    self.robot.link.wait(Duration::from_millis(20));
+                }
+                r => return r,
+            }
+        }
     }
 
     /// The firmware joint mask of the arm.
@@ -331,7 +373,7 @@ impl<'r> Arm<'r> {
     }
 
     fn chain_q(&mut self, q: &[f64], frame: &str) -> Result<(crate::kinematics::Chain, Vec<f64>)> {
-        self.check_count("joint positions", q)?;
+        self.check_angles("joint positions", q)?;
         let names = self.cfg().joints.clone();
         let chain = self.robot.chain_to(frame)?.clone();
         // The frame's chain moves a prefix of the arm's joints (or other joints: not ours).
@@ -366,6 +408,12 @@ impl<'r> Arm<'r> {
     /// Twist `[vx, vy, vz, ωx, ωy, ωz]` of the end effector (base frame) at `q` moving at `qd`.
     pub fn compute_fk_velocity(&mut self, q: &[f64], qd: &[f64]) -> Result<[f64; 6]> {
         self.check_count("joint velocities", qd)?;
+        validate::all_in_range(
+            "joint velocities",
+            qd,
+            -(ferrobot_protocol::ranges::JOINT_SPEED_MAX as f64),
+            ferrobot_protocol::ranges::JOINT_SPEED_MAX as f64,
+        )?;
         let j = self.get_jacobian(q)?;
         let v = j * nalgebra::DVector::from_column_slice(qd);
         Ok([v[0], v[1], v[2], v[3], v[4], v[5]])
@@ -388,11 +436,11 @@ impl<'r> Arm<'r> {
         orientation: Orientation,
         seed: Option<&[f64]>,
     ) -> Result<Vec<f64>> {
-        check_finite("position", &position)?;
+        validate::arm_point("position", position)?;
         let rot = orientation.to_quaternion()?;
         let seed = match seed {
             Some(s) => {
-                self.check_count("IK seed", s)?;
+                self.check_angles("IK seed", s)?;
                 s.to_vec()
             }
             None => self.get_joint_angles()?,
@@ -442,8 +490,8 @@ impl<'r> Arm<'r> {
         roll: Option<f64>,
         seed: Option<Vec<f64>>,
     ) -> Result<Vec<f64>> {
-        check_finite("position", &position)?;
-        check_finite("pitch", &[pitch])?;
+        validate::arm_point("position", position)?;
+        validate::angles("pitch", &[pitch])?;
         let solver = self.robot.locobot_ik.ok_or_else(|| Error::Unreachable {
             why: format!(
                 "{} has no pitch-roll solver (a 5-DOF LoCoBot-type arm has)",
@@ -469,25 +517,33 @@ impl<'r> Arm<'r> {
             1.0
         };
         let roll = roll.unwrap_or(sign * seed[4]);
-        check_finite("roll", &[roll])?;
+        validate::angles("roll", &[roll])?;
         solver.solve_pitch_roll(&chain, &Vector3::from(position), pitch, roll, Some(&seed))
     }
 
     /// Move the end effector along a straight line by `displacement` (m, base frame), keeping
     /// its orientation, through IK solutions every `step` metres (checked before moving).
+    /// `step` is at least [`validate::MIN_CARTESIAN_STEP`], and the line has at most
+    /// [`validate::MAX_CARTESIAN_WAYPOINTS`] steps. Waypoints are streamed as the firmware's
+    /// queue makes room, so lines of any number of steps run.
     pub fn move_ee_xyz(&mut self, displacement: [f64; 3], step: f64) -> Result<()> {
-        check_finite("displacement", &displacement)?;
-        if step.is_nan() || step <= 0.0 {
-            return Err(Error::NotFinite {
-                what: "step (must be positive)".into(),
-                value: step,
-            });
-        }
+        let d = validate::arm_point("displacement", displacement)?;
+        validate::in_range(
+            "Cartesian step",
+            step,
+            validate::MIN_CARTESIAN_STEP,
+            validate::MAX_ARM_REACH,
+        )?;
+        let steps = (d.norm() / step).ceil();
+        let n = validate::count(
+            "Cartesian waypoints (distance / step)",
+            steps as usize,
+            validate::MAX_CARTESIAN_WAYPOINTS,
+        )?
+        .max(1);
         let q0 = self.get_joint_angles()?;
         let ee = self.cfg().ee_frame.clone();
         let start = self.compute_fk_position(&q0, &ee)?;
-        let d = Vector3::from(displacement);
-        let n = ((d.norm() / step).ceil() as usize).max(1);
         // Solve every waypoint first: a line that leaves the workspace moves nothing.
         let pitch_roll = self.robot.locobot_ik.is_some();
         let mut path = Vec::with_capacity(n);
@@ -521,27 +577,18 @@ impl<'r> Arm<'r> {
         self.ensure_mode(JointMode::Position)?;
         let idx = self.robot.arm_joints.clone();
         let mask = self.mask();
+        let timeout = Duration::from_secs_f64(self.cfg().timeout);
         let mut prev = q0;
         for q in &path {
             let mut t = 0.0f64;
             for ((&j, a), b) in idx.iter().zip(q).zip(&prev) {
                 t = t.max((a - b).abs() / (0.5 * self.robot.cfg.joints[j].limits.velocity as f64));
             }
-            // Keep the firmware queue short: wait while it is nearly full.
-            while self.robot.link.telemetry()?.queued as usize >= 8 * idx.len() {
-                self.robot.link.wait(Duration::from_millis(20));
-            }
-            self.robot.send_rest_waypoint(
-                mask,
-                q.iter().copied(),
-                t.max(0.02),
-                "Cartesian waypoint",
-            )?;
+            self.send_when_queued(mask, q, t.max(0.02), timeout)?;
             prev = q.clone();
         }
         let target = path.last().cloned().unwrap_or(prev);
         let tolerance = self.cfg().joint_tolerance;
-        let timeout = Duration::from_secs_f64(self.cfg().timeout);
         Motion::new(
             self.robot,
             Goal::Joints {

@@ -11,6 +11,20 @@ use ferrobot_protocol::{HostMsg, Telemetry};
 use crate::base_control::{ilqr, wrap, Dwa, Limits, LqrTracker, NavField, Reference};
 use crate::config::BaseController;
 use crate::error::{check_finite, Error, Result};
+use crate::validate;
+
+/// A relative base goal: finite, at most [`validate::MAX_BASE_GOAL_DISTANCE`] away, a turn
+/// within ±[`validate::MAX_ANGLE`].
+fn check_relative(delta: [f64; 3]) -> Result<()> {
+    check_finite("base goal", &delta)?;
+    validate::in_range(
+        "base goal distance",
+        delta[0].hypot(delta[1]),
+        0.0,
+        validate::MAX_BASE_GOAL_DISTANCE,
+    )?;
+    validate::angles("base goal heading", &delta[2..])
+}
 use crate::motion::{Goal, Motion};
 use crate::obstacles::{Circle, Obstacles, OccupancyGrid};
 use crate::odometry_calibration::WheelGeometry;
@@ -631,6 +645,7 @@ impl Tracking {
             return Some(None);
         }
         let dt = self.tracker.reference.dt;
+        // `dt` is validated in `validate::REFERENCE_DT`.
         self.next = now + Duration::from_secs_f64(dt);
         let k = ((now - start).as_secs_f64() / dt).floor() as usize;
         if k >= self.tracker.reference.controls.len() {
@@ -781,9 +796,11 @@ impl<'r> Base<'r> {
         )
     }
 
-    /// Start driving at `v` (m/s) and `w` (rad/s) for `duration` s.
+    /// Start driving at `v` (m/s) and `w` (rad/s) for `duration` s (at most
+    /// [`validate::MAX_DURATION_S`]).
     pub fn set_vel_async(&mut self, v: f64, w: f64, duration: f64) -> Result<Motion<'_>> {
-        check_finite("base velocity", &[v, w, duration])?;
+        check_finite("base velocity", &[v, w])?;
+        let duration = validate::seconds("base velocity duration", duration)?;
         let s = self.section();
         if v.abs() > s.max_linear + 1e-9 {
             return Err(Error::OutOfLimits {
@@ -803,7 +820,7 @@ impl<'r> Base<'r> {
         }
         self.robot.link.take_faults();
         let now = self.robot.link.now();
-        let until = now + Duration::from_secs_f64(duration.max(0.0));
+        let until = now.saturating_add(duration);
         Ok(Motion::new(
             self.robot,
             Goal::BaseVelocity {
@@ -813,7 +830,7 @@ impl<'r> Base<'r> {
                 next_send: now,
             },
             "base velocity",
-            Duration::from_secs_f64(duration.max(0.0) + 1.0),
+            duration + Duration::from_secs(1),
         ))
     }
 
@@ -840,22 +857,31 @@ impl<'r> Base<'r> {
         close_loop: bool,
         finish: Option<[f64; 3]>,
     ) -> Result<Motion<'_>> {
-        for (x, u) in reference.states.iter().zip(&reference.controls) {
-            check_finite("trajectory", x)?;
-            check_finite("trajectory", u)?;
-        }
-        if reference.dt.is_nan()
-            || reference.dt <= 0.0
-            || reference.states.len() != reference.controls.len() + 1
-        {
-            return Err(Error::NotFinite {
-                what: "trajectory (needs dt > 0 and one more state than controls)".into(),
-                value: reference.dt,
+        let (dt_min, dt_max) = validate::REFERENCE_DT;
+        validate::in_range("trajectory dt", reference.dt, dt_min, dt_max)?;
+        validate::count(
+            "trajectory states",
+            reference.states.len(),
+            validate::MAX_REFERENCE_SAMPLES,
+        )?;
+        if reference.states.len() != reference.controls.len() + 1 {
+            return Err(Error::JointCount {
+                what: "trajectory states (one more than controls)",
+                expected: reference.controls.len() + 1,
+                got: reference.states.len(),
             });
         }
+        // Every state, the last one too, and every control.
+        for x in &reference.states {
+            validate::base_pose("trajectory state", *x)?;
+        }
+        for u in &reference.controls {
+            check_finite("trajectory control", u)?;
+        }
         let limits = self.tracking_limits();
-        self.robot.link.take_faults();
         let duration = reference.dt * reference.controls.len() as f64;
+        validate::seconds("trajectory duration", duration)?;
+        self.robot.link.take_faults();
         let now = self.robot.link.now();
         let tr = Tracking {
             tracker: LqrTracker::new(reference, [3.0, 3.0, 4.0], 0.2),
@@ -903,9 +929,13 @@ impl<'r> Base<'r> {
         self.track_trajectory_async(reference, close_loop)?.wait()
     }
 
-    /// Start moving to `[x, y, θ]` in the odometry frame with the chosen controller.
+    /// Start moving to `[x, y, θ]` in the odometry frame with the chosen controller. The goal
+    /// must be at most [`validate::MAX_BASE_GOAL_DISTANCE`] from the current pose; every
+    /// controller has a budget (its timeout, in the backend's time) and fails with
+    /// [`Error::Timeout`] when it runs out.
     pub fn go_to_absolute_with(&mut self, goal: [f64; 3], opts: GoalOptions) -> Result<Motion<'_>> {
         check_finite("base goal", &goal)?;
+        validate::base_goal(goal, self.get_state()?)?;
         let obstacles = Obstacles::new(opts.obstacles.clone(), opts.map.as_ref())?;
         let controller = opts.controller.unwrap_or(if obstacles.is_empty() {
             self.section().controller
@@ -946,7 +976,7 @@ impl<'r> Base<'r> {
                     [goal[0], goal[1]],
                     &obstacles,
                     radius + DWA_PATH_MARGIN,
-                );
+                )?;
                 let dwa = Dwa {
                     path: nav.path([here[0], here[1]]),
                     nav,
@@ -990,7 +1020,7 @@ impl<'r> Base<'r> {
         delta: [f64; 3],
         opts: GoalOptions,
     ) -> Result<Motion<'_>> {
-        check_finite("base goal", &delta)?;
+        check_relative(delta)?;
         let [x, y, th] = self.get_state()?;
         let (s, c) = th.sin_cos();
         let goal = [
@@ -1008,7 +1038,7 @@ impl<'r> Base<'r> {
 
     /// Start the proportional controller towards `[x, y, θ]` in the odometry frame.
     fn proportional_async(&mut self, goal: [f64; 3]) -> Result<Motion<'_>> {
-        check_finite("base goal", &goal)?;
+        validate::base_goal(goal, self.get_state()?)?;
         let s = self.section().clone();
         self.robot.link.take_faults();
         let now = self.robot.link.now();
@@ -1034,7 +1064,7 @@ impl<'r> Base<'r> {
 
     /// Start moving by `[x, y, θ]` relative to the current pose (x forward, y left).
     pub fn go_to_relative_async(&mut self, delta: [f64; 3]) -> Result<Motion<'_>> {
-        check_finite("base goal", &delta)?;
+        check_relative(delta)?;
         let [x, y, th] = self.get_state()?;
         let (s, c) = th.sin_cos();
         let goal = [

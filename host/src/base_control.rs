@@ -456,8 +456,18 @@ impl NavField {
     /// Grid cell size, m.
     pub const CELL: f64 = 0.05;
 
-    /// The field for `goal` from `start` among `obstacles` for a robot of `radius` (m).
-    pub fn new(start: [f64; 2], goal: [f64; 2], obstacles: &Obstacles, radius: f64) -> NavField {
+    /// The field for `goal` from `start` among `obstacles` for a robot of `radius` (m); an
+    /// error when the points are not finite or the grid would have more than
+    /// [`crate::validate::MAX_GRID_CELLS`] cells.
+    pub fn new(
+        start: [f64; 2],
+        goal: [f64; 2],
+        obstacles: &Obstacles,
+        radius: f64,
+    ) -> crate::Result<NavField> {
+        crate::validate::finite("navigation start", &start)?;
+        crate::validate::finite("navigation goal", &goal)?;
+        crate::validate::finite("robot radius", &[radius])?;
         let (mut lo, mut hi) = (
             [start[0].min(goal[0]), start[1].min(goal[1])],
             [start[0].max(goal[0]), start[1].max(goal[1])],
@@ -467,8 +477,17 @@ impl NavField {
             hi = [hi[0].max(b[0]), hi[1].max(b[1])];
         }
         let origin = [lo[0] - 2.0, lo[1] - 2.0];
-        let nx = ((hi[0] + 2.0 - origin[0]) / Self::CELL).ceil() as usize + 1;
-        let ny = ((hi[1] + 2.0 - origin[1]) / Self::CELL).ceil() as usize + 1;
+        let span = |k: usize| ((hi[k] + 2.0 - origin[k]) / Self::CELL).ceil() + 1.0;
+        let cells = span(0) * span(1);
+        if cells.is_nan() || cells > crate::validate::MAX_GRID_CELLS as f64 {
+            return Err(crate::Error::OutOfRange {
+                what: "navigation grid cells (start, goal, obstacles and map)".into(),
+                value: cells,
+                min: 1.0,
+                max: crate::validate::MAX_GRID_CELLS as f64,
+            });
+        }
+        let (nx, ny) = (span(0) as usize, span(1) as usize);
         let blocked = |i: usize, j: usize| {
             let (x, y) = (
                 origin[0] + i as f64 * Self::CELL,
@@ -514,12 +533,12 @@ impl NavField {
                 }
             }
         }
-        NavField {
+        Ok(NavField {
             origin,
             nx,
             ny,
             dist,
-        }
+        })
     }
 
     /// The grid path from `start` to the goal by steepest descent (cell centres, m), ending at
@@ -735,8 +754,17 @@ mod tests {
     /// metric error (at most 8.3 % longer, plus a cell); around an obstacle it is longer than
     /// the straight line and its path keeps the inflated clearance.
     #[test]
+    fn a_navigation_field_too_large_is_refused_before_allocating() {
+        let far = NavField::new([0.0, 0.0], [1000.0, 1000.0], &Obstacles::default(), 0.2);
+        assert!(matches!(far, Err(crate::Error::OutOfRange { .. })));
+        let nan = NavField::new([0.0, f64::NAN], [1.0, 1.0], &Obstacles::default(), 0.2);
+        assert!(matches!(nan, Err(crate::Error::NotFinite { .. })));
+    }
+
+    #[test]
     fn the_navigation_field_measures_around_obstacles() {
-        let free = NavField::new([0.0, 0.0], [2.0, 1.0], &Obstacles::default(), 0.2);
+        let free =
+            NavField::new([0.0, 0.0], [2.0, 1.0], &Obstacles::default(), 0.2).expect("field");
         let d = free.at([0.0, 0.0]);
         let e = 2f64.hypot(1.0);
         assert!(
@@ -744,7 +772,7 @@ mod tests {
             "{d} vs {e}"
         );
         let obs = Obstacles::new(vec![[1.0, 0.0, 0.1]], None).expect("obstacles");
-        let f = NavField::new([0.0, 0.0], [2.0, 0.0], &obs, 0.3);
+        let f = NavField::new([0.0, 0.0], [2.0, 0.0], &obs, 0.3).expect("field");
         // Around a 0.4 m inflated disc: two tangents of √(1 − 0.4²) and an arc of
         // 0.4 (π − 2 acos 0.4): 2.162 m; the grid metric reads up to 8.3 % more.
         let exact =

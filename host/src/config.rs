@@ -12,12 +12,15 @@ use std::path::{Path, PathBuf};
 use ferrobot_firmware::config::{
     self as fwcfg, BaseConfig, BusConfig, GripperConfig, RobotProfile,
 };
-use ferrobot_protocol::{BaseKind, JointConfig, JointKind, JointLimits, PidGains, ServoModel};
+use ferrobot_protocol::{
+    ranges, BaseKind, JointConfig, JointKind, JointLimits, PidGains, ServoModel,
+};
 use serde::Deserialize;
 
 use crate::error::{Error, Result};
 use crate::kinematics::Chain;
 use crate::odometry_calibration::WheelGeometry;
+use crate::validate;
 
 /// Names of the bundled robots.
 pub const BUNDLED: [&str; 3] = ["locobot", "locobot_lite", "sawyer"];
@@ -374,6 +377,18 @@ fn cfg_err(file: &Path, key: impl Into<String>, problem: impl Into<String>) -> E
     }
 }
 
+/// `value` finite and within `[lo, hi]`, or an error naming the file and the key.
+fn num(file: &Path, key: impl Into<String>, value: f64, lo: f64, hi: f64) -> Result<()> {
+    if value.is_finite() && (lo..=hi).contains(&value) {
+        return Ok(());
+    }
+    Err(cfg_err(
+        file,
+        key,
+        format!("{value} is not a finite number in [{lo}, {hi}]"),
+    ))
+}
+
 impl RobotConfig {
     /// Load a bundled robot by name.
     pub fn bundled(name: &str) -> Result<Self> {
@@ -483,12 +498,60 @@ impl RobotConfig {
                 max = o.max.unwrap_or(max);
                 velocity = o.velocity.unwrap_or(velocity);
             }
-            if !(min <= max && velocity > 0.0 && j.effort_limit >= 0.0) {
+            // Every number within the range the wire accepts (`ferrobot_protocol::ranges`).
+            let from = |field: &str, overridden: bool| {
+                if overridden {
+                    key(&format!("limits.{field}"))
+                } else {
+                    format!(
+                        "{} (the URDF's limit of joint {:?})",
+                        key(&format!("limits.{field}")),
+                        j.name
+                    )
+                }
+            };
+            let o = j.limits.clone().unwrap_or_default();
+            let pmax = ranges::JOINT_POSITION_MAX as f64;
+            num(file, from("min", o.min.is_some()), min, -pmax, pmax)?;
+            num(file, from("max", o.max.is_some()), max, -pmax, pmax)?;
+            if max - min < ranges::JOINT_RANGE_MIN as f64 {
                 return Err(cfg_err(
                     file,
                     key("limits"),
-                    format!("need min <= max, velocity > 0, effort_limit >= 0 (min {min}, max {max}, velocity {velocity})"),
+                    format!(
+                        "max - min must be at least {} rad (min {min}, max {max})",
+                        ranges::JOINT_RANGE_MIN
+                    ),
                 ));
+            }
+            num(
+                file,
+                from("velocity", o.velocity.is_some()),
+                velocity,
+                ranges::JOINT_SPEED_LIMIT_MIN as f64,
+                ranges::JOINT_SPEED_MAX as f64,
+            )?;
+            num(
+                file,
+                key("effort_limit"),
+                j.effort_limit,
+                0.0,
+                ranges::JOINT_EFFORT_MAX as f64,
+            )?;
+            num(file, key("servo.offset"), j.servo.offset, -pmax, pmax)?;
+            let gmax = ranges::GAIN_MAX as f64;
+            if let Some(p) = j.pid {
+                for (k, v) in [
+                    ("kp", p.kp),
+                    ("ki", p.ki),
+                    ("kd", p.kd),
+                    ("i_limit", p.i_limit),
+                ] {
+                    num(file, key(&format!("pid.{k}")), v, 0.0, gmax)?;
+                }
+            }
+            if let Some(k) = j.position_ki {
+                num(file, key("position_ki"), k, 0.0, gmax)?;
             }
             let kind = match j.kind {
                 JointRole::Arm => JointKind::Arm,
@@ -527,6 +590,13 @@ impl RobotConfig {
             }
             if let Some(k) = j.position_ki {
                 row.position_ki = k as f32;
+            }
+            if !ranges::joint_config_ok(&row) {
+                return Err(cfg_err(
+                    file,
+                    format!("joint[{i}]"),
+                    "outside the ranges the firmware accepts (ferrobot_protocol::ranges)",
+                ));
             }
             joints.push(row);
         }
@@ -568,6 +638,43 @@ impl RobotConfig {
                     ),
                 ));
             }
+            for (i, (n, &q)) in arm.joints.iter().zip(&arm.home).enumerate() {
+                let l = joints
+                    .iter()
+                    .find(|j| j.name.as_str() == n.as_str())
+                    .map(|j| j.limits);
+                if let Some(l) = l {
+                    num(
+                        file,
+                        format!("arm.home[{i}]"),
+                        q,
+                        l.min as f64,
+                        l.max as f64,
+                    )?;
+                }
+            }
+            num(
+                file,
+                "arm.ik_position_tolerance",
+                arm.ik_position_tolerance,
+                1e-9,
+                0.1,
+            )?;
+            num(
+                file,
+                "arm.ik_orientation_tolerance",
+                arm.ik_orientation_tolerance,
+                1e-9,
+                0.5,
+            )?;
+            num(file, "arm.joint_tolerance", arm.joint_tolerance, 1e-4, 0.5)?;
+            num(
+                file,
+                "arm.timeout",
+                arm.timeout,
+                0.1,
+                validate::MAX_DURATION_S,
+            )?;
             let chain = Chain::from_urdf(&urdf, &arm.base_frame, &arm.ee_frame)
                 .map_err(|e| cfg_err(file, "arm.ee_frame", e.to_string()))?;
             let names: Vec<&str> = chain.joints.iter().map(|j| j.name.as_str()).collect();
@@ -611,6 +718,21 @@ impl RobotConfig {
                     return Err(cfg_err(file, k, format!("{n:?} has no [[joint]] entry")));
                 }
             }
+            for (k, v) in [("camera.width", c.width), ("camera.height", c.height)] {
+                num(file, k, v as f64, 1.0, 8192.0)?;
+            }
+            num(file, "camera.fx", c.fx, 1e-3, 1e5)?;
+            num(file, "camera.fy", c.fy, 1e-3, 1e5)?;
+            num(file, "camera.cx", c.cx, 0.0, c.width as f64)?;
+            num(file, "camera.cy", c.cy, 0.0, c.height as f64)?;
+            num(file, "camera.depth_min", c.depth_min, 0.0, 100.0)?;
+            num(
+                file,
+                "camera.depth_max",
+                c.depth_max,
+                c.depth_min + 1e-3,
+                100.0,
+            )?;
             if !urdf.links.iter().any(|l| l.name == c.frame) {
                 return Err(cfg_err(
                     file,
@@ -620,18 +742,37 @@ impl RobotConfig {
             }
         }
         if let Some(b) = &raw.base {
-            if !(b.wheel_radius > 0.0
-                && b.track > 0.0
-                && b.footprint_radius > 0.0
-                && b.min_wheel_speed > 0.0
-                && b.max_linear > 0.0
-                && b.max_angular > 0.0)
-            {
-                return Err(cfg_err(
-                    file,
-                    "base",
-                    "wheel_radius, track, footprint_radius, min_wheel_speed, max_linear and max_angular must be positive",
-                ));
+            for (k, v, lo, hi) in [
+                ("base.wheel_radius", b.wheel_radius, 1e-3, 1.0),
+                ("base.track", b.track, 1e-2, 5.0),
+                ("base.footprint_radius", b.footprint_radius, 1e-2, 5.0),
+                ("base.min_wheel_speed", b.min_wheel_speed, 1e-4, 1.0),
+                (
+                    "base.max_linear",
+                    b.max_linear,
+                    1e-3,
+                    ranges::BASE_SPEED_MAX as f64,
+                ),
+                (
+                    "base.max_angular",
+                    b.max_angular,
+                    1e-3,
+                    ranges::BASE_TURN_MAX as f64,
+                ),
+                (
+                    "base.translation_tolerance",
+                    b.translation_tolerance,
+                    1e-4,
+                    1.0,
+                ),
+                (
+                    "base.rotation_tolerance",
+                    b.rotation_tolerance,
+                    1e-4,
+                    std::f64::consts::PI,
+                ),
+            ] {
+                num(file, k, v, lo, hi)?;
             }
             if let Some(g) = &b.odometry {
                 if !g.near(&b.nominal_geometry(), 0.1) {

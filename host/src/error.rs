@@ -54,6 +54,19 @@ pub enum Error {
         /// The value.
         value: f64,
     },
+    /// A finite number outside what the API accepts (an absurd duration, distance, size or
+    /// count); the range is in [`crate::validate`].
+    #[error("{what} = {value} is outside the accepted range [{min}, {max}]")]
+    OutOfRange {
+        /// What.
+        what: String,
+        /// The value.
+        value: f64,
+        /// Smallest accepted.
+        min: f64,
+        /// Largest accepted.
+        max: f64,
+    },
     /// A joint target beyond the joint's limits.
     #[error("joint {joint} target {value:.4} is outside its limits [{min:.4}, {max:.4}]")]
     OutOfLimits {
@@ -144,6 +157,18 @@ pub enum Error {
         /// Firmware schema hash.
         firmware_schema: u32,
     },
+    /// The firmware runs another robot's profile than the configuration describes.
+    #[error("the firmware runs the {firmware:?} profile (base {firmware_base}), the configuration describes {config:?} (base {config_base})")]
+    WrongRobot {
+        /// The configuration's robot name.
+        config: String,
+        /// The configuration's base kind.
+        config_base: String,
+        /// The robot the firmware named in its Hello.
+        firmware: String,
+        /// The firmware's base kind.
+        firmware_base: String,
+    },
     /// The firmware's joint table does not match the robot configuration.
     #[error("the firmware's joint table does not match the configuration: {0}")]
     JointTableMismatch(String),
@@ -158,19 +183,26 @@ pub enum Error {
 /// Result with [`Error`].
 pub type Result<T, E = Error> = std::result::Result<T, E>;
 
+impl Error {
+    /// Whether the caller's input is at fault (a bad value, name, count or file), as opposed
+    /// to the robot, the link or the world: the command line exits with code 2 for these.
+    pub fn is_input(&self) -> bool {
+        matches!(
+            self,
+            Error::UnknownRobot { .. }
+                | Error::Config { .. }
+                | Error::NoComponent { .. }
+                | Error::JointCount { .. }
+                | Error::NotFinite { .. }
+                | Error::OutOfRange { .. }
+                | Error::OutOfLimits { .. }
+                | Error::InvalidMap { .. }
+                | Error::UnknownName { .. }
+        )
+    }
+}
+
 /// Check that every value is finite.
 pub(crate) fn check_finite(what: &str, values: &[f64]) -> Result<()> {
-    for (i, v) in values.iter().enumerate() {
-        if !v.is_finite() {
-            return Err(Error::NotFinite {
-                what: if values.len() > 1 {
-                    format!("{what}[{i}]")
-                } else {
-                    what.to_string()
-                },
-                value: *v,
-            });
-        }
-    }
-    Ok(())
+    crate::validate::finite(what, values)
 }

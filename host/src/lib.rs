@@ -31,6 +31,7 @@ pub mod odometry_calibration;
 pub mod pan_tilt;
 pub mod plot;
 pub mod robot;
+pub mod validate;
 
 pub use arm::{MoveOptions, Orientation, Pose};
 pub use backend::Backend;

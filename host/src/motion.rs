@@ -62,7 +62,8 @@ impl<'r> Motion<'r> {
         timeout: Duration,
     ) -> Self {
         let started = robot.link.now();
-        let deadline = started + timeout;
+        // Timeouts are validated at the API (`validate::timeout`); saturate all the same.
+        let deadline = started.saturating_add(timeout);
         Motion {
             started,
             robot,

@@ -2,6 +2,7 @@
 //! frame (m), behind one query, the clearance from a point to the nearest obstacle.
 
 use crate::error::{Error, Result};
+use crate::validate;
 
 /// A round obstacle `[x, y, r]` (m) in the odometry frame.
 pub type Circle = [f64; 3];
@@ -26,37 +27,56 @@ impl OccupancyGrid {
     /// A free grid of `width` × `height` cells of `resolution` m, cell (0, 0) centred at
     /// `origin` (m).
     pub fn new(origin: [f64; 2], resolution: f64, width: usize, height: usize) -> Result<Self> {
+        // Check the shape before allocating its cells.
+        Self::check_shape(origin, resolution, width, height)?;
         let g = OccupancyGrid {
             origin,
             resolution,
             width,
             height,
-            occupied: vec![false; width.saturating_mul(height)],
+            occupied: vec![false; width * height],
         };
         g.check()?;
         Ok(g)
     }
 
-    /// Whether the grid is usable: finite origin, resolution in (0, 10] m, at least one
-    /// cell, at most 16 million, and one occupancy value per cell.
+    fn check_shape(origin: [f64; 2], resolution: f64, width: usize, height: usize) -> Result<()> {
+        let bad = |why: String| Error::InvalidMap { why };
+        let lim = validate::MAX_BASE_COORDINATE;
+        if !(origin.iter().all(|x| x.is_finite() && x.abs() <= lim)) {
+            return Err(bad(format!(
+                "origin {origin:?} is not finite within ±{lim} m"
+            )));
+        }
+        if !(1e-3..=10.0).contains(&resolution) {
+            return Err(bad(format!(
+                "resolution {resolution} m is not in [0.001, 10]"
+            )));
+        }
+        let n = width.checked_mul(height);
+        if !matches!(n, Some(1..=validate::MAX_GRID_CELLS)) {
+            return Err(bad(format!(
+                "{width} × {height} cells (must be 1 to {})",
+                validate::MAX_GRID_CELLS
+            )));
+        }
+        let far = [
+            origin[0] + width as f64 * resolution,
+            origin[1] + height as f64 * resolution,
+        ];
+        if far.iter().any(|x| x.abs() > lim) {
+            return Err(bad(format!("the grid reaches {far:?}, beyond ±{lim} m")));
+        }
+        Ok(())
+    }
+
+    /// Whether the grid is usable: origin and extent within ±[`validate::MAX_BASE_COORDINATE`]
+    /// m, resolution in [0.001, 10] m, 1 to [`validate::MAX_GRID_CELLS`] cells, and one
+    /// occupancy value per cell.
     pub fn check(&self) -> Result<()> {
         let bad = |why: String| Error::InvalidMap { why };
-        if !(self.origin.iter().all(|x| x.is_finite())) {
-            return Err(bad(format!("origin {:?} is not finite", self.origin)));
-        }
-        if !(self.resolution > 0.0 && self.resolution <= 10.0) {
-            return Err(bad(format!(
-                "resolution {} m is not in (0, 10]",
-                self.resolution
-            )));
-        }
+        Self::check_shape(self.origin, self.resolution, self.width, self.height)?;
         let n = self.width.checked_mul(self.height);
-        if !matches!(n, Some(1..=16_000_000)) {
-            return Err(bad(format!(
-                "{} × {} cells (must be 1 to 16 million)",
-                self.width, self.height
-            )));
-        }
         if n != Some(self.occupied.len()) {
             return Err(bad(format!(
                 "{} occupancy values for {} × {} cells",
@@ -231,8 +251,11 @@ pub struct Obstacles {
 }
 
 impl Obstacles {
-    /// Obstacles from `circles` and a `map` (checked with [`OccupancyGrid::check`]).
+    /// Obstacles from `circles` (at most [`validate::MAX_OBSTACLES`], centres within
+    /// ±[`validate::MAX_BASE_COORDINATE`] m, radii in [0, 100] m) and a `map` (checked with
+    /// [`OccupancyGrid::check`]).
     pub fn new(circles: Vec<Circle>, map: Option<&OccupancyGrid>) -> Result<Self> {
+        validate::count("obstacles", circles.len(), validate::MAX_OBSTACLES)?;
         for c in &circles {
             if !(c.iter().all(|x| x.is_finite()) && c[2] >= 0.0) {
                 return Err(Error::NotFinite {
@@ -240,6 +263,9 @@ impl Obstacles {
                     value: c[2],
                 });
             }
+            let lim = validate::MAX_BASE_COORDINATE;
+            validate::all_in_range("obstacle centre", &c[..2], -lim, lim)?;
+            validate::in_range("obstacle radius", c[2], 0.0, 100.0)?;
         }
         let mut bounds: Option<([f64; 2], [f64; 2])> = None;
         let mut grow = |lo: [f64; 2], hi: [f64; 2]| {

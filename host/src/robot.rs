@@ -272,8 +272,20 @@ impl Robot {
         Ok(robot)
     }
 
-    /// Compare the firmware's joint table with the configuration and push limits and gains.
+    /// Compare the firmware's robot, base and joint table with the configuration and push
+    /// limits and gains.
     fn check_joint_table(&mut self) -> Result<()> {
+        let info = self.link.info();
+        if info.robot.as_str() != self.cfg.firmware_profile().robot.as_str()
+            || info.base != self.cfg.base_kind()
+        {
+            return Err(Error::WrongRobot {
+                config: self.cfg.name.clone(),
+                config_base: format!("{:?}", self.cfg.base_kind()),
+                firmware: info.robot.as_str().to_string(),
+                firmware_base: format!("{:?}", info.base),
+            });
+        }
         let n = self.cfg.joints.len();
         if self.link.info().joints.len() != n {
             return Err(Error::JointTableMismatch(format!(
@@ -449,9 +461,12 @@ impl Robot {
         self.link.take_faults()
     }
 
-    /// Let time pass (simulated time on the simulator).
-    pub fn wait(&mut self, seconds: f64) {
-        self.link.wait(Duration::from_secs_f64(seconds.max(0.0)));
+    /// Let `seconds` pass (simulated time on the simulator): finite, in
+    /// `[0, validate::MAX_DURATION_S]`.
+    pub fn wait(&mut self, seconds: f64) -> Result<()> {
+        let dt = crate::validate::seconds("wait time", seconds)?;
+        self.link.wait(dt);
+        Ok(())
     }
 
     /// The backend's clock, s.

@@ -235,7 +235,7 @@ fn a_bumper_hit_stops_lqr_tracking_with_an_error() {
         ),
         "{e}"
     );
-    bot.wait(0.3);
+    bot.wait(0.3).expect("wait");
     let speed = bot
         .simulator()
         .expect("sim")

@@ -1,0 +1,212 @@
+//! Validation of the numbers that enter the API, one place per kind of value: durations,
+//! angles, Cartesian positions, orientations, base goals and sizes. Every check returns a
+//! typed [`Error`] naming the value and the accepted range; none panics, whatever the input
+//! (NaN, ±inf, subnormals, ±f64::MAX, `Duration::MAX`).
+//!
+//! The bounds are physical: wide enough for anything the robots Ferrobot drives can do, narrow
+//! enough that no arithmetic on an accepted value overflows, and no allocation or search sized
+//! by an accepted value exceeds a few hundred megabytes or a few seconds.
+
+use std::time::Duration;
+
+use nalgebra::{Quaternion, UnitQuaternion, Vector3};
+
+use crate::error::{Error, Result};
+
+/// Longest duration or timeout the API accepts, s (one hour).
+pub const MAX_DURATION_S: f64 = 3600.0;
+/// Largest angle the API accepts (joint angles, pitch, roll, yaw), rad: two turns either way,
+/// the protocol's [`ferrobot_protocol::ranges::JOINT_POSITION_MAX`].
+pub const MAX_ANGLE: f64 = ferrobot_protocol::ranges::JOINT_POSITION_MAX as f64;
+/// Largest Cartesian coordinate of an arm target or displacement, m.
+pub const MAX_ARM_REACH: f64 = 10.0;
+/// A quaternion whose norm differs from 1 by more than this is refused, not normalised.
+pub const QUATERNION_NORM_TOLERANCE: f64 = 1e-3;
+/// Farthest base position goal from the current pose, m: longer journeys are split.
+pub const MAX_BASE_GOAL_DISTANCE: f64 = 50.0;
+/// Largest coordinate of a base pose or obstacle in the odometry frame, m (the firmware
+/// integrates odometry in `f32`, good to 0.1 mm there).
+pub const MAX_BASE_COORDINATE: f64 = 1000.0;
+/// Smallest step of a Cartesian (straight-line) arm motion, m.
+pub const MIN_CARTESIAN_STEP: f64 = 1e-4;
+/// Most waypoints of one Cartesian arm motion.
+pub const MAX_CARTESIAN_WAYPOINTS: usize = 10_000;
+/// Most cells of an occupancy grid or a navigation field (4096 × 4096).
+pub const MAX_GRID_CELLS: usize = 1 << 24;
+/// Most samples of a base reference trajectory.
+pub const MAX_REFERENCE_SAMPLES: usize = 200_000;
+/// Sample period of a base reference trajectory, s: from 1 ms to 1 s.
+pub const REFERENCE_DT: (f64, f64) = (1e-3, 1.0);
+/// Most circular obstacles of one base goal.
+pub const MAX_OBSTACLES: usize = 10_000;
+
+/// Every value finite; the error names `what[i]` of the first that is not.
+pub fn finite(what: &str, values: &[f64]) -> Result<()> {
+    for (i, v) in values.iter().enumerate() {
+        if !v.is_finite() {
+            return Err(Error::NotFinite {
+                what: if values.len() > 1 {
+                    format!("{what}[{i}]")
+                } else {
+                    what.to_string()
+                },
+                value: *v,
+            });
+        }
+    }
+    Ok(())
+}
+
+/// `value` finite and within `[min, max]`.
+pub fn in_range(what: &str, value: f64, min: f64, max: f64) -> Result<f64> {
+    finite(what, &[value])?;
+    if !(min..=max).contains(&value) {
+        return Err(Error::OutOfRange {
+            what: what.to_string(),
+            value,
+            min,
+            max,
+        });
+    }
+    Ok(value)
+}
+
+/// Every value finite and within `[min, max]`.
+pub fn all_in_range(what: &str, values: &[f64], min: f64, max: f64) -> Result<()> {
+    finite(what, values)?;
+    for (i, &v) in values.iter().enumerate() {
+        if values.len() > 1 {
+            in_range(&format!("{what}[{i}]"), v, min, max)?;
+        } else {
+            in_range(what, v, min, max)?;
+        }
+    }
+    Ok(())
+}
+
+/// A duration given in seconds: finite, in `[0, MAX_DURATION_S]`.
+pub fn seconds(what: &str, s: f64) -> Result<Duration> {
+    in_range(what, s, 0.0, MAX_DURATION_S)?;
+    Duration::try_from_secs_f64(s).map_err(|_| Error::OutOfRange {
+        what: what.to_string(),
+        value: s,
+        min: 0.0,
+        max: MAX_DURATION_S,
+    })
+}
+
+/// A timeout: at most [`MAX_DURATION_S`].
+pub fn timeout(what: &str, d: Duration) -> Result<Duration> {
+    if d.as_secs_f64() > MAX_DURATION_S {
+        return Err(Error::OutOfRange {
+            what: what.to_string(),
+            value: d.as_secs_f64(),
+            min: 0.0,
+            max: MAX_DURATION_S,
+        });
+    }
+    Ok(d)
+}
+
+/// Angles (rad): finite, within ±[`MAX_ANGLE`].
+pub fn angles(what: &str, values: &[f64]) -> Result<()> {
+    all_in_range(what, values, -MAX_ANGLE, MAX_ANGLE)
+}
+
+/// An arm target or displacement (m): finite, each coordinate within ±[`MAX_ARM_REACH`].
+pub fn arm_point(what: &str, p: [f64; 3]) -> Result<Vector3<f64>> {
+    all_in_range(what, &p, -MAX_ARM_REACH, MAX_ARM_REACH)?;
+    Ok(Vector3::from(p))
+}
+
+/// A quaternion `[x, y, z, w]` of norm 1 within [`QUATERNION_NORM_TOLERANCE`]; normalised
+/// exactly. A far-from-unit quaternion is a mistake (Euler angles or a scaled axis passed by
+/// error), so it is refused rather than silently normalised.
+pub fn unit_quaternion(q: [f64; 4]) -> Result<UnitQuaternion<f64>> {
+    finite("quaternion", &q)?;
+    let [x, y, z, w] = q;
+    let quat = Quaternion::new(w, x, y, z);
+    let norm = quat.norm();
+    if (norm - 1.0).abs() > QUATERNION_NORM_TOLERANCE {
+        return Err(Error::OutOfRange {
+            what: "quaternion norm".into(),
+            value: norm,
+            min: 1.0 - QUATERNION_NORM_TOLERANCE,
+            max: 1.0 + QUATERNION_NORM_TOLERANCE,
+        });
+    }
+    Ok(UnitQuaternion::from_quaternion(quat))
+}
+
+/// A base pose or goal `[x, y, θ]` in the odometry frame: finite, x and y within
+/// ±[`MAX_BASE_COORDINATE`], θ within ±[`MAX_ANGLE`].
+pub fn base_pose(what: &str, p: [f64; 3]) -> Result<()> {
+    all_in_range(what, &p[..2], -MAX_BASE_COORDINATE, MAX_BASE_COORDINATE)?;
+    angles(&format!("{what} heading"), &p[2..])
+}
+
+/// A base goal `goal` reachable in one motion from `here`: a valid pose at most
+/// [`MAX_BASE_GOAL_DISTANCE`] away.
+pub fn base_goal(goal: [f64; 3], here: [f64; 3]) -> Result<()> {
+    base_pose("base goal", goal)?;
+    let d = (goal[0] - here[0]).hypot(goal[1] - here[1]);
+    in_range("base goal distance", d, 0.0, MAX_BASE_GOAL_DISTANCE)?;
+    Ok(())
+}
+
+/// A count: at most `max`.
+pub fn count(what: &str, n: usize, max: usize) -> Result<usize> {
+    if n > max {
+        return Err(Error::OutOfRange {
+            what: what.to_string(),
+            value: n as f64,
+            min: 0.0,
+            max: max as f64,
+        });
+    }
+    Ok(n)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn hostile_durations_are_refused() {
+        for s in [
+            f64::NAN,
+            f64::INFINITY,
+            -1.0,
+            1e20,
+            f64::MAX,
+            MAX_DURATION_S * 1.0001,
+        ] {
+            assert!(seconds("t", s).is_err(), "{s}");
+        }
+        assert_eq!(seconds("t", 1.5).unwrap(), Duration::from_millis(1500));
+        assert_eq!(seconds("t", 5e-324).unwrap(), Duration::ZERO);
+        assert!(timeout("t", Duration::MAX).is_err());
+    }
+
+    #[test]
+    fn quaternions_far_from_unit_norm_are_refused() {
+        assert!(unit_quaternion([0.0, 0.0, 0.0, 1.0]).is_ok());
+        assert!(unit_quaternion([0.0, 0.0, 0.0, 1.0009]).is_ok());
+        for q in [
+            [0.0, 0.0, 0.0, 1.002],
+            [0.0, 0.0, 0.0, 1e30],
+            [0.0; 4],
+            [f64::NAN, 0.0, 0.0, 1.0],
+        ] {
+            assert!(unit_quaternion(q).is_err(), "{q:?}");
+        }
+    }
+
+    #[test]
+    fn base_goals_are_bounded() {
+        assert!(base_goal([1.0, 1.0, 0.0], [0.0; 3]).is_ok());
+        assert!(base_goal([1000.0, 1000.0, 0.0], [0.0; 3]).is_err());
+        assert!(base_goal([1e300, 0.0, 0.0], [0.0; 3]).is_err());
+        assert!(base_goal([0.0, 0.0, 1e9], [0.0; 3]).is_err());
+    }
+}
