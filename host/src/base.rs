@@ -857,30 +857,9 @@ impl<'r> Base<'r> {
         close_loop: bool,
         finish: Option<[f64; 3]>,
     ) -> Result<Motion<'_>> {
-        let (dt_min, dt_max) = validate::REFERENCE_DT;
-        validate::in_range("trajectory dt", reference.dt, dt_min, dt_max)?;
-        validate::count(
-            "trajectory states",
-            reference.states.len(),
-            validate::MAX_REFERENCE_SAMPLES,
-        )?;
-        if reference.states.len() != reference.controls.len() + 1 {
-            return Err(Error::JointCount {
-                what: "trajectory states (one more than controls)",
-                expected: reference.controls.len() + 1,
-                got: reference.states.len(),
-            });
-        }
-        // Every state, the last one too, and every control.
-        for x in &reference.states {
-            validate::base_pose("trajectory state", *x)?;
-        }
-        for u in &reference.controls {
-            check_finite("trajectory control", u)?;
-        }
+        reference.check()?;
         let limits = self.tracking_limits();
         let duration = reference.dt * reference.controls.len() as f64;
-        validate::seconds("trajectory duration", duration)?;
         self.robot.link.take_faults();
         let now = self.robot.link.now();
         let tr = Tracking {
@@ -948,17 +927,17 @@ impl<'r> Base<'r> {
             BaseController::Lqr | BaseController::Ilqr => {
                 let start = self.get_state()?;
                 let mut r = if opts.smooth {
-                    Reference::smooth(start, goal, &lim, 0.1, 0.8)
+                    Reference::smooth(start, goal, &lim, 0.1, 0.8)?
                 } else {
-                    Reference::sharp(start, goal, &lim, 0.1)
+                    Reference::sharp(start, goal, &lim, 0.1)?
                 };
                 if controller == BaseController::Ilqr {
-                    r = ilqr(start, &r, [3.0, 3.0, 4.0], 0.2, &lim).reference;
+                    r = ilqr(start, &r, [3.0, 3.0, 4.0], 0.2, &lim)?.reference;
                 }
                 // Hold the goal a little: the tracker settles while the reference rests; closed
                 // loop, the finisher then removes what the wheels' deadband left.
                 let finish = opts.close_loop.then_some(goal);
-                self.track(r.hold(10), opts.close_loop, finish)
+                self.track(r.hold(10)?, opts.close_loop, finish)
             }
             BaseController::Dwa => {
                 let here = self.get_state()?;

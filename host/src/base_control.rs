@@ -6,6 +6,9 @@
 
 use nalgebra::{Matrix2, Matrix2x3, Matrix3, Matrix3x2, Vector2, Vector3};
 
+use crate::error::Result;
+use crate::validate;
+
 /// Wrap an angle to (−π, π].
 pub fn wrap(a: f64) -> f64 {
     let mut a = a % std::f64::consts::TAU;
@@ -38,6 +41,17 @@ impl Limits {
         accel_v: 0.5,
         accel_w: 1.5,
     };
+
+    /// Every limit finite and positive: speeds up to the protocol's base maxima, accelerations
+    /// from 0.001 to 100 per second.
+    pub fn check(&self) -> Result<()> {
+        use ferrobot_protocol::ranges::{BASE_SPEED_MAX, BASE_TURN_MAX};
+        validate::in_range("limit v", self.v, 1e-3, BASE_SPEED_MAX as f64)?;
+        validate::in_range("limit w", self.w, 1e-3, BASE_TURN_MAX as f64)?;
+        validate::in_range("limit accel_v", self.accel_v, 1e-3, 100.0)?;
+        validate::in_range("limit accel_w", self.accel_w, 1e-3, 100.0)?;
+        Ok(())
+    }
 }
 
 /// A sampled trajectory: states and the controls that lead from each to the next.
@@ -60,16 +74,24 @@ fn step(x: [f64; 3], u: [f64; 2], dt: f64) -> [f64; 3] {
 }
 
 /// A speed profile covering `dist` (≥ 0) under a speed and acceleration bound: trapezoid or
-/// triangle, sampled every `dt`; the last sample lands exactly on `dist`.
-fn profile(dist: f64, vmax: f64, amax: f64, dt: f64) -> Vec<f64> {
+/// triangle, sampled every `dt`; the last sample lands exactly on `dist`. An error when it
+/// would have more than [`validate::MAX_REFERENCE_SAMPLES`] samples.
+fn profile(dist: f64, vmax: f64, amax: f64, dt: f64) -> Result<Vec<f64>> {
     if dist <= 1e-12 {
-        return Vec::new();
+        return Ok(Vec::new());
     }
     let vpeak = vmax.min((dist * amax).sqrt());
     let t_acc = vpeak / amax;
     let t_cruise = (dist - vpeak * t_acc) / vpeak;
     let total = 2.0 * t_acc + t_cruise.max(0.0);
-    let n = (total / dt).ceil().max(1.0) as usize;
+    let samples = (total / dt).ceil().max(1.0);
+    validate::in_range(
+        "reference samples",
+        samples,
+        1.0,
+        validate::MAX_REFERENCE_SAMPLES as f64,
+    )?;
+    let n = samples as usize;
     // Distance covered by time t on the continuous profile, in closed form.
     let t_c = t_cruise.max(0.0);
     let covered = |t: f64| {
@@ -84,18 +106,71 @@ fn profile(dist: f64, vmax: f64, amax: f64, dt: f64) -> Vec<f64> {
     };
     // Each sample's speed is the exact mean over its period: the samples add up to `dist`, none
     // exceeds the peak, and neighbours differ by at most `amax·dt`.
-    (0..n)
+    Ok((0..n)
         .map(|k| (covered((k + 1) as f64 * dt) - covered(k as f64 * dt)) / dt)
-        .collect()
+        .collect())
+}
+
+/// The inputs shared by the reference builders: poses, limits and sample period.
+fn check_inputs(start: [f64; 3], goal: [f64; 3], lim: &Limits, dt: f64) -> Result<()> {
+    validate::base_pose("reference start", start)?;
+    validate::base_pose("reference goal", goal)?;
+    lim.check()?;
+    let (lo, hi) = validate::REFERENCE_DT;
+    validate::in_range("reference dt", dt, lo, hi)?;
+    Ok(())
 }
 
 impl Reference {
-    fn push_rotation(&mut self, to: f64, lim: &Limits) {
+    fn push_rotation(&mut self, to: f64, lim: &Limits) -> Result<()> {
         let from = self.states.last().map(|s| s[2]).unwrap_or(0.0);
         let d = wrap(to - from);
-        for w in profile(d.abs(), lim.w, lim.accel_w, self.dt) {
+        for w in profile(d.abs(), lim.w, lim.accel_w, self.dt)? {
             self.push([0.0, w * d.signum()]);
         }
+        Ok(())
+    }
+
+    /// Whether the reference can be tracked: `dt` in [`validate::REFERENCE_DT`], one more
+    /// state than controls, at most [`validate::MAX_REFERENCE_SAMPLES`] states, every state
+    /// (the last too) a valid base pose, every control within the protocol's base speed and
+    /// turn maxima, and a duration of at most
+    /// [`validate::MAX_DURATION_S`].
+    pub fn check(&self) -> Result<()> {
+        let (lo, hi) = validate::REFERENCE_DT;
+        validate::in_range("trajectory dt", self.dt, lo, hi)?;
+        validate::count(
+            "trajectory states",
+            self.states.len(),
+            validate::MAX_REFERENCE_SAMPLES,
+        )?;
+        if self.states.len() != self.controls.len() + 1 {
+            return Err(crate::Error::JointCount {
+                what: "trajectory states (one more than controls)",
+                expected: self.controls.len() + 1,
+                got: self.states.len(),
+            });
+        }
+        for x in &self.states {
+            validate::base_pose("trajectory state", *x)?;
+        }
+        use ferrobot_protocol::ranges::{BASE_SPEED_MAX, BASE_TURN_MAX};
+        for u in &self.controls {
+            validate::in_range(
+                "trajectory control v",
+                u[0],
+                -BASE_SPEED_MAX as f64,
+                BASE_SPEED_MAX as f64,
+            )?;
+            validate::in_range(
+                "trajectory control w",
+                u[1],
+                -BASE_TURN_MAX as f64,
+                BASE_TURN_MAX as f64,
+            )?;
+        }
+        validate::seconds("trajectory duration", self.dt * self.controls.len() as f64)?;
+        Ok(())
     }
 
     fn push(&mut self, u: [f64; 2]) {
@@ -106,7 +181,8 @@ impl Reference {
 
     /// PyRobot's "sharp" reference: turn towards the goal, drive straight (backwards when it
     /// lies behind), turn to the goal heading.
-    pub fn sharp(start: [f64; 3], goal: [f64; 3], lim: &Limits, dt: f64) -> Reference {
+    pub fn sharp(start: [f64; 3], goal: [f64; 3], lim: &Limits, dt: f64) -> Result<Reference> {
+        check_inputs(start, goal, lim, dt)?;
         let mut r = Reference {
             dt,
             states: vec![start],
@@ -122,21 +198,29 @@ impl Reference {
             } else {
                 bearing
             };
-            r.push_rotation(heading, lim);
+            r.push_rotation(heading, lim)?;
             let sign = if backwards { -1.0 } else { 1.0 };
-            for v in profile(dist, lim.v, lim.accel_v, dt) {
+            for v in profile(dist, lim.v, lim.accel_v, dt)? {
                 r.push([sign * v, 0.0]);
             }
         }
-        r.push_rotation(goal[2], lim);
-        r
+        r.push_rotation(goal[2], lim)?;
+        Ok(r)
     }
 
     /// PyRobot's "smooth" reference: a cubic Bézier from start to goal with control points
     /// `arm` metres along the start and goal headings, driven at a speed profile under the
     /// limits (slowing where the curvature would ask for too much yaw rate); a final turn
     /// absorbs what heading error remains.
-    pub fn smooth(start: [f64; 3], goal: [f64; 3], lim: &Limits, dt: f64, arm: f64) -> Reference {
+    pub fn smooth(
+        start: [f64; 3],
+        goal: [f64; 3],
+        lim: &Limits,
+        dt: f64,
+        arm: f64,
+    ) -> Result<Reference> {
+        check_inputs(start, goal, lim, dt)?;
+        validate::in_range("Bézier arm", arm, 0.0, 10.0)?;
         let p0 = Vector2::new(start[0], start[1]);
         let p3 = Vector2::new(goal[0], goal[1]);
         if (p3 - p0).norm() < 1e-6 {
@@ -185,7 +269,7 @@ impl Reference {
         };
         let mut travelled = 0.0;
         let mut theta = start[2];
-        for ds in profile(total, v, lim.accel_v, dt).iter().map(|s| s * dt) {
+        for ds in profile(total, v, lim.accel_v, dt)?.iter().map(|s| s * dt) {
             travelled += ds;
             let p = at(s_at(travelled));
             let prev = *r.states.last().unwrap_or(&start);
@@ -196,29 +280,48 @@ impl Reference {
             r.states.push([p.x, p.y, theta]);
             r.controls.push([dist / dt, w]);
         }
-        r.push_rotation(goal[2], lim);
-        r
+        r.push_rotation(goal[2], lim)?;
+        Ok(r)
     }
 
     /// A circle of radius `v/ω` driven at `v`, `ω` for `duration` s, from `start`.
-    pub fn circle(start: [f64; 3], v: f64, w: f64, duration: f64, dt: f64) -> Reference {
+    pub fn circle(start: [f64; 3], v: f64, w: f64, duration: f64, dt: f64) -> Result<Reference> {
+        validate::base_pose("reference start", start)?;
+        use ferrobot_protocol::ranges::{BASE_SPEED_MAX, BASE_TURN_MAX};
+        let (vmax, wmax) = (BASE_SPEED_MAX as f64, BASE_TURN_MAX as f64);
+        validate::in_range("circle speed v", v, -vmax, vmax)?;
+        validate::in_range("circle turn rate w", w, -wmax, wmax)?;
+        validate::seconds("circle duration", duration)?;
+        let (lo, hi) = validate::REFERENCE_DT;
+        validate::in_range("reference dt", dt, lo, hi)?;
+        let n = validate::count(
+            "reference samples",
+            (duration / dt).round() as usize,
+            validate::MAX_REFERENCE_SAMPLES,
+        )?;
         let mut r = Reference {
             dt,
             states: vec![start],
             controls: Vec::new(),
         };
-        for _ in 0..(duration / dt).round() as usize {
+        for _ in 0..n {
             r.push([v, w]);
         }
-        r
+        Ok(r)
     }
 
     /// Hold the last state for `n` more samples (zero controls): time for a tracker to settle.
-    pub fn hold(mut self, n: usize) -> Reference {
+    /// An error when the reference would have more than [`validate::MAX_REFERENCE_SAMPLES`].
+    pub fn hold(mut self, n: usize) -> Result<Reference> {
+        validate::count(
+            "reference samples",
+            self.states.len().saturating_add(n),
+            validate::MAX_REFERENCE_SAMPLES,
+        )?;
         for _ in 0..n {
             self.push([0.0, 0.0]);
         }
-        self
+        Ok(self)
     }
 
     /// The final state.
@@ -243,7 +346,11 @@ impl LqrTracker {
         let dt = reference.dt;
         let qm = Matrix3::from_diagonal(&Vector3::from(q));
         let rm = Matrix2::identity() * r;
-        let n = reference.controls.len();
+        // A malformed reference (see `Reference::check`) gets gains only where it has states.
+        let n = reference
+            .controls
+            .len()
+            .min(reference.states.len().saturating_sub(1));
         let mut p = qm;
         let mut gains = vec![Matrix2x3::zeros(); n];
         for k in (0..n).rev() {
@@ -278,9 +385,11 @@ impl LqrTracker {
         if !closed_loop {
             return *u;
         }
-        let r = self.reference.states[k];
+        let (Some(r), Some(g)) = (self.reference.states.get(k), self.gains.get(k)) else {
+            return *u;
+        };
         let e = Vector3::new(x[0] - r[0], x[1] - r[1], wrap(x[2] - r[2]));
-        let du = -self.gains[k] * e;
+        let du = -g * e;
         [u[0] + du[0], u[1] + du[1]]
     }
 }
@@ -323,14 +432,20 @@ fn cost_of(xs: &[[f64; 3]], us: &[[f64; 2]], r: &Reference, q: &Matrix3<f64>, rw
 /// Iterative LQR on the unicycle: find the dynamically consistent trajectory from `start` that
 /// best follows `reference` (state weights `q`, control weight `r`, terminal state weighted
 /// by [`TERMINAL_WEIGHT`]) within `lim`, iterating backward and forward passes with a line search until the
-/// relative cost change is below 1e-9 or 100 iterations.
+/// relative cost change is below 1e-9 or 100 iterations. An error for a reference that fails
+/// [`Reference::check`], a start that is no base pose, or bad weights or limits.
 pub fn ilqr(
     start: [f64; 3],
     reference: &Reference,
     q: [f64; 3],
     r: f64,
     lim: &Limits,
-) -> IlqrSolution {
+) -> Result<IlqrSolution> {
+    reference.check()?;
+    validate::base_pose("ILQR start", start)?;
+    validate::all_in_range("ILQR state weights", &q, 0.0, 1e6)?;
+    validate::in_range("ILQR control weight", r, 1e-9, 1e6)?;
+    lim.check()?;
     let dt = reference.dt;
     let n = reference.controls.len();
     let qm = Matrix3::from_diagonal(&Vector3::from(q));
@@ -425,7 +540,7 @@ pub fn ilqr(
             break;
         }
     }
-    IlqrSolution {
+    Ok(IlqrSolution {
         reference: Reference {
             dt,
             states: xs,
@@ -434,7 +549,7 @@ pub fn ilqr(
         iterations,
         cost,
         converged,
-    }
+    })
 }
 
 pub use crate::obstacles::{Circle, Obstacles, OccupancyGrid};
@@ -651,9 +766,23 @@ pub struct Dwa {
 }
 
 impl Dwa {
+    /// The most prediction steps (`horizon / dt`) the window simulates per candidate.
+    pub const MAX_STEPS: usize = 1000;
+
     /// The best `(v, ω)` from the current pose and velocity, or `None` when no admissible
-    /// velocity avoids a collision within the horizon.
+    /// velocity avoids a collision within the horizon. `None` too for a window that cannot be
+    /// evaluated: non-finite inputs, limits failing [`Limits::check`], `dt` outside
+    /// [`validate::REFERENCE_DT`], or more than [`Dwa::MAX_STEPS`] prediction steps.
     pub fn command(&self, x: [f64; 3], v0: f64, w0: f64) -> Option<(f64, f64)> {
+        let (lo, hi) = validate::REFERENCE_DT;
+        let steps = self.horizon / self.dt;
+        if validate::finite("DWA state", &[x[0], x[1], x[2], v0, w0]).is_err()
+            || self.limits.check().is_err()
+            || !(lo..=hi).contains(&self.dt)
+            || !(0.0..=Self::MAX_STEPS as f64).contains(&steps)
+        {
+            return None;
+        }
         let l = &self.limits;
         let (vlo, vhi) = (
             (v0 - l.accel_v * self.dt).max(-l.v * 0.2),
@@ -820,14 +949,14 @@ mod tests {
             [1.0, 1.0, 0.0],
             [-1.0, -1.0, 0.0],
         ] {
-            let r = Reference::sharp([0.0; 3], goal, &lim, 0.1);
+            let r = Reference::sharp([0.0; 3], goal, &lim, 0.1).expect("reference");
             let e = r.end();
             assert!(
                 (e[0] - goal[0]).hypot(e[1] - goal[1]) < 1e-6 && wrap(e[2] - goal[2]).abs() < 1e-6,
                 "{goal:?}: {e:?}"
             );
             within_limits(&r, &lim);
-            let s = Reference::smooth([0.0; 3], goal, &lim, 0.1, 0.8);
+            let s = Reference::smooth([0.0; 3], goal, &lim, 0.1, 0.8).expect("reference");
             let e = s.end();
             assert!(
                 (e[0] - goal[0]).hypot(e[1] - goal[1]) < 2e-3 && wrap(e[2] - goal[2]).abs() < 1e-6,
@@ -839,8 +968,8 @@ mod tests {
     #[test]
     fn ilqr_makes_the_smooth_reference_consistent_and_converges() {
         let lim = Limits::TRACKING;
-        let r = Reference::smooth([0.0; 3], [1.0, 1.0, 0.0], &lim, 0.1, 0.8);
-        let sol = ilqr([0.0; 3], &r, [3.0, 3.0, 4.0], 0.2, &lim);
+        let r = Reference::smooth([0.0; 3], [1.0, 1.0, 0.0], &lim, 0.1, 0.8).expect("reference");
+        let sol = ilqr([0.0; 3], &r, [3.0, 3.0, 4.0], 0.2, &lim).expect("ilqr");
         assert!(
             sol.converged,
             "{} iterations, cost {}",
@@ -860,14 +989,49 @@ mod tests {
             "{e:?}"
         );
         // From a perturbed start the optimum still reaches the goal.
-        let sol = ilqr([0.03, -0.02, 0.05], &r, [3.0, 3.0, 4.0], 0.2, &lim);
+        let sol = ilqr([0.03, -0.02, 0.05], &r, [3.0, 3.0, 4.0], 0.2, &lim).expect("ilqr");
         let e = sol.reference.end();
         assert!((e[0] - 1.0).hypot(e[1] - 1.0) < 1e-2, "{e:?}");
     }
 
     #[test]
+    fn hostile_references_are_refused_before_allocating() {
+        let lim = Limits::TRACKING;
+        for dt in [0.0, -0.1, f64::NAN, f64::INFINITY, 1e-300, 1e9] {
+            assert!(
+                Reference::sharp([0.0; 3], [1.0, 0.0, 0.0], &lim, dt).is_err(),
+                "{dt}"
+            );
+        }
+        let slow = Limits { v: 1e-3, ..lim };
+        assert!(Reference::sharp([0.0; 3], [900.0, 0.0, 0.0], &slow, 1e-3).is_err());
+        assert!(Reference::sharp([0.0; 3], [1e300, 0.0, 0.0], &lim, 0.1).is_err());
+        let bad = Limits { w: f64::NAN, ..lim };
+        assert!(Reference::smooth([0.0; 3], [1.0, 1.0, 0.0], &bad, 0.1, 0.8).is_err());
+        assert!(Reference::circle([0.0; 3], 0.1, 0.2, 1e20, 0.1).is_err());
+        let r = Reference::sharp([0.0; 3], [1.0, 0.0, 0.0], &lim, 0.1).expect("reference");
+        assert!(r.clone().hold(usize::MAX).is_err());
+        let mut nan_end = r.clone();
+        if let Some(x) = nan_end.states.last_mut() {
+            x[0] = f64::NAN;
+        }
+        assert!(nan_end.check().is_err());
+        assert!(ilqr([0.0; 3], &nan_end, [3.0, 3.0, 4.0], 0.2, &lim).is_err());
+        // A malformed reference handed to the tracker directly does not panic.
+        let short = Reference {
+            dt: 0.1,
+            states: vec![[0.0; 3]],
+            controls: vec![[0.1, 0.0]; 5],
+        };
+        let t = LqrTracker::new(short, [3.0, 3.0, 4.0], 0.2);
+        assert_eq!(t.control(3, [0.0; 3], true), [0.1, 0.0]);
+    }
+
+    #[test]
     fn lqr_pulls_a_perturbed_unicycle_onto_the_reference() {
-        let r = Reference::sharp([0.0; 3], [1.0, 1.0, 0.0], &Limits::TRACKING, 0.1).hold(30);
+        let r = Reference::sharp([0.0; 3], [1.0, 1.0, 0.0], &Limits::TRACKING, 0.1)
+            .and_then(|r| r.hold(30))
+            .expect("reference");
         let t = LqrTracker::new(r.clone(), [3.0, 3.0, 4.0], 0.2);
         let mut x = [0.05, -0.04, 0.1];
         for k in 0..r.controls.len() {

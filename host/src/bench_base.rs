@@ -281,6 +281,7 @@ impl CircleRun {
 /// The paper's circle: radius 0.4 m at 0.1 m/s and 0.25 rad/s for one lap, dt 0.1 s.
 pub fn paper_circle() -> Reference {
     Reference::circle([0.0; 3], 0.1, 0.25, std::f64::consts::TAU / 0.25, 0.1)
+        .expect("the paper's circle is a valid reference")
 }
 
 /// The executed ground-truth path `[x, y]` (m) of `run` on the circle, and its final
@@ -295,7 +296,7 @@ pub fn circle_path(
     let mut r = paper_circle();
     if run == CircleRun::Ilqr {
         let lim = crate::base_control::Limits::TRACKING;
-        r = crate::base_control::ilqr([0.0; 3], &r, [3.0, 3.0, 4.0], 0.2, &lim).reference;
+        r = crate::base_control::ilqr([0.0; 3], &r, [3.0, 3.0, 4.0], 0.2, &lim)?.reference;
     }
     let end = r.end();
     if let Some(b) = bot.simulator().and_then(|s| s.hw.base.as_mut()) {

@@ -377,6 +377,37 @@ fn cfg_err(file: &Path, key: impl Into<String>, problem: impl Into<String>) -> E
     }
 }
 
+/// Largest configuration file read, bytes.
+pub const MAX_CONFIG_BYTES: u64 = 1 << 20;
+/// Largest URDF file read, bytes.
+pub const MAX_URDF_BYTES: u64 = 16 << 20;
+
+/// The text of a regular file of at most `max` bytes: a directory, a device (`/dev/zero`), a
+/// FIFO, a larger file or one that is not UTF-8 is an error, read no further than `max` bytes.
+pub fn read_text(path: &Path, max: u64) -> std::io::Result<String> {
+    use std::io::Read;
+    let meta = std::fs::metadata(path)?;
+    if !meta.is_file() {
+        return Err(std::io::Error::other("not a regular file"));
+    }
+    if meta.len() > max {
+        return Err(std::io::Error::other(format!(
+            "{} bytes, larger than the {max} bytes accepted",
+            meta.len()
+        )));
+    }
+    let mut bytes = Vec::new();
+    std::fs::File::open(path)?
+        .take(max + 1)
+        .read_to_end(&mut bytes)?;
+    if bytes.len() as u64 > max {
+        return Err(std::io::Error::other(format!(
+            "larger than the {max} bytes accepted"
+        )));
+    }
+    String::from_utf8(bytes).map_err(|_| std::io::Error::other("not UTF-8 text"))
+}
+
 /// `value` finite and within `[lo, hi]`, or an error naming the file and the key.
 fn num(file: &Path, key: impl Into<String>, value: f64, lo: f64, hi: f64) -> Result<()> {
     if value.is_finite() && (lo..=hi).contains(&value) {
@@ -404,12 +435,12 @@ impl RobotConfig {
     /// Load a robot from a TOML file; its `urdf` path is relative to the file.
     pub fn from_file(path: impl AsRef<Path>) -> Result<Self> {
         let path = path.as_ref();
-        let text = std::fs::read_to_string(path)
+        let text = read_text(path, MAX_CONFIG_BYTES)
             .map_err(|e| cfg_err(path, "-", format!("cannot read: {e}")))?;
         let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
         Self::parse(&text, path, |urdf| {
             let p = dir.join(urdf);
-            std::fs::read_to_string(&p)
+            read_text(&p, MAX_URDF_BYTES)
                 .map_err(|e| cfg_err(path, "urdf", format!("cannot read {}: {e}", p.display())))
         })
     }

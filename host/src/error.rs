@@ -56,7 +56,7 @@ pub enum Error {
     },
     /// A finite number outside what the API accepts (an absurd duration, distance, size or
     /// count); the range is in [`crate::validate`].
-    #[error("{what} = {value} is outside the accepted range [{min}, {max}]")]
+    #[error("{what} = {} is outside the accepted range [{}, {}]", num(*value), num(*min), num(*max))]
     OutOfRange {
         /// What.
         what: String,
@@ -175,6 +175,12 @@ pub enum Error {
     /// The link to the firmware is down.
     #[error("link to the firmware lost: {0}")]
     Link(String),
+    /// A path the program would create already exists: nothing is removed or replaced.
+    #[error("{} already exists; refusing to replace it", path.display())]
+    PathExists {
+        /// The path.
+        path: PathBuf,
+    },
     /// An I/O error.
     #[error("I/O error: {0}")]
     Io(#[from] std::io::Error),
@@ -198,7 +204,27 @@ impl Error {
                 | Error::OutOfLimits { .. }
                 | Error::InvalidMap { .. }
                 | Error::UnknownName { .. }
+                | Error::PathExists { .. }
         )
+    }
+}
+
+/// A number for a message: plain when moderate, in scientific notation when huge or tiny,
+/// six significant digits at most.
+pub(crate) fn num(v: f64) -> String {
+    let a = v.abs();
+    if v.is_finite() && a != 0.0 && !(1e-3..1e6).contains(&a) {
+        format!("{v:.3e}")
+    } else if v.is_finite() {
+        let s = format!("{v:.6}");
+        let s = s.trim_end_matches('0').trim_end_matches('.');
+        if s == "-0" {
+            "0".into()
+        } else {
+            s.into()
+        }
+    } else {
+        format!("{v}")
     }
 }
 

@@ -121,9 +121,16 @@ pub fn residuals(runs: &[CalibrationRun], g: &WheelGeometry) -> (f64, f64) {
     ((sp / n).sqrt(), (st / n).sqrt())
 }
 
+/// Largest accumulated wheel angle a calibration run may hold, rad.
+pub const MAX_WHEEL_ANGLE: f64 = 1e6;
+
 /// Least-squares solution of `a x = b` for two unknowns; `None` when the runs do not
 /// determine them (condition number above 1e6).
 fn solve2(rows: &[[f64; 2]], rhs: &[f64]) -> Option<[f64; 2]> {
+    // nalgebra's SVD panics on NaN: refuse anything not finite first.
+    if rows.iter().flatten().chain(rhs).any(|x| !x.is_finite()) {
+        return None;
+    }
     let a = DMatrix::from_fn(rows.len(), 2, |i, j| rows[i][j]);
     let b = DVector::from_column_slice(rhs);
     let svd = a.svd(true, true);
@@ -141,14 +148,29 @@ fn solve2(rows: &[[f64; 2]], rhs: &[f64]) -> Option<[f64; 2]> {
 /// or when the estimate is more than 10 % from nominal (the measurements are then wrong).
 pub fn estimate(runs: &[CalibrationRun], nominal: &WheelGeometry) -> Result<WheelGeometry> {
     let bad = |why: String| Error::Calibration { why };
+    // Bounded inputs keep every sum below overflow: wheel angles within ±1e6 rad, poses
+    // within the odometry frame's bounds.
     if runs.iter().any(|r| {
         r.wheels.len() < 2
-            || r.wheels.iter().flatten().any(|x| !x.is_finite())
-            || r.start.iter().chain(&r.end).any(|x| !x.is_finite())
+            || r.wheels
+                .iter()
+                .flatten()
+                .any(|x| !(x.is_finite() && x.abs() <= MAX_WHEEL_ANGLE))
+            || crate::validate::base_pose("run start", r.start).is_err()
+            || crate::validate::base_pose("run end", r.end).is_err()
     }) {
-        return Err(bad(
-            "every run needs at least two finite wheel samples and finite poses".into(),
-        ));
+        return Err(bad(format!(
+            "every run needs at least two finite wheel samples within ±{MAX_WHEEL_ANGLE} rad and poses within the odometry frame's bounds"
+        )));
+    }
+    let positive = |x: f64| x.is_finite() && x > 0.0 && x <= 10.0;
+    if ![nominal.left_radius, nominal.right_radius, nominal.track]
+        .into_iter()
+        .all(positive)
+    {
+        return Err(bad(format!(
+            "the nominal geometry {nominal:?} is not positive and finite"
+        )));
     }
     let measured: Vec<[f64; 3]> = runs.iter().map(|r| r.measured(nominal)).collect();
     // 1. Heading: Δθ = c_R Φ_R − c_L Φ_L.

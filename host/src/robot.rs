@@ -93,18 +93,22 @@ impl RobotBuilder {
                         )
                     }
                     Source::File(p) => {
-                        let text = std::fs::read_to_string(p).map_err(|e| Error::Config {
-                            file: p.clone(),
-                            key: "-".into(),
-                            problem: format!("cannot read: {e}"),
-                        })?;
+                        let text = crate::config::read_text(p, crate::config::MAX_CONFIG_BYTES)
+                            .map_err(|e| Error::Config {
+                                file: p.clone(),
+                                key: "-".into(),
+                                problem: format!("cannot read: {e}"),
+                            })?;
                         (text, p.clone(), p.parent().map(Path::to_path_buf), None)
                     }
                 };
                 let text = apply_overrides(&text, &file, &self.overrides)?;
                 RobotConfig::parse(&text, &file, |u| match (&bundled_urdf, &dir) {
                     (Some(b), _) => Ok(b.clone()),
-                    (None, Some(d)) => std::fs::read_to_string(d.join(u)).map_err(Error::from),
+                    (None, Some(d)) => {
+                        crate::config::read_text(&d.join(u), crate::config::MAX_URDF_BYTES)
+                            .map_err(Error::from)
+                    }
                     (None, None) => Err(Error::Link("no URDF".into())),
                 })?
             }

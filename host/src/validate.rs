@@ -17,7 +17,7 @@ use crate::error::{Error, Result};
 pub const MAX_DURATION_S: f64 = 3600.0;
 /// Largest angle the API accepts (joint angles, pitch, roll, yaw), rad: two turns either way,
 /// the protocol's [`ferrobot_protocol::ranges::JOINT_POSITION_MAX`].
-pub const MAX_ANGLE: f64 = ferrobot_protocol::ranges::JOINT_POSITION_MAX as f64;
+pub const MAX_ANGLE: f64 = 4.0 * std::f64::consts::PI;
 /// Largest Cartesian coordinate of an arm target or displacement, m.
 pub const MAX_ARM_REACH: f64 = 10.0;
 /// A quaternion whose norm differs from 1 by more than this is refused, not normalised.

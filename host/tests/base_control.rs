@@ -192,7 +192,7 @@ fn dwa_refuses_a_goal_inside_an_obstacle() {
 fn circle_tracking_ends_within_5_cm_of_the_reference() {
     for robot in ["locobot", "locobot_lite"] {
         let mut bot = Robot::builder(robot).use_arm(false).build().expect("robot");
-        let r = Reference::circle([0.0; 3], 0.1, 0.25, 25.0, 0.1);
+        let r = Reference::circle([0.0; 3], 0.1, 0.25, 25.0, 0.1).expect("reference");
         let end = r.end();
         bot.base()
             .expect("base")

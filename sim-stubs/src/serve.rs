@@ -29,6 +29,8 @@ pub enum ServeError {
     Sim(SimError),
     /// A PTY could not be made.
     Io(io::Error),
+    /// Something already exists at the link path: it is never removed or replaced.
+    LinkExists(std::path::PathBuf),
 }
 
 impl std::fmt::Display for ServeError {
@@ -36,6 +38,11 @@ impl std::fmt::Display for ServeError {
         match self {
             ServeError::Sim(e) => write!(f, "{e}"),
             ServeError::Io(e) => write!(f, "cannot create a pseudo-terminal: {e}"),
+            ServeError::LinkExists(p) => write!(
+                f,
+                "{} already exists; refusing to replace it (remove it or choose another --link)",
+                p.display()
+            ),
         }
     }
 }
@@ -202,21 +209,48 @@ pub enum LinkControl {
 pub struct FirmwareServer {
     /// The stable path of the host link.
     pub link: std::path::PathBuf,
-    control: std::sync::mpsc::Sender<LinkControl>,
+    control: Option<std::sync::mpsc::Sender<LinkControl>>,
+    thread: Option<thread::JoinHandle<()>>,
 }
 
 impl FirmwareServer {
     /// Unplug or plug the host link.
     pub fn control(&self, c: LinkControl) {
-        let _ = self.control.send(c);
+        if let Some(tx) = &self.control {
+            let _ = tx.send(c);
+        }
     }
 }
 
-fn host_pty(link: &std::path::Path) -> Result<(TTYPort, TTYPort), ServeError> {
+impl Drop for FirmwareServer {
+    /// Stop serving and remove the link this server made.
+    fn drop(&mut self) {
+        self.control = None;
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+/// A new PTY behind the symlink `link`, which must not exist: nothing at that path is ever
+/// removed or replaced, except the symlink this server made itself.
+fn host_pty(link: &std::path::Path) -> Result<(TTYPort, TTYPort, String), ServeError> {
+    if link.symlink_metadata().is_ok() {
+        return Err(ServeError::LinkExists(link.to_path_buf()));
+    }
     let (master, slave, name) = pty()?;
-    let _ = std::fs::remove_file(link);
-    std::os::unix::fs::symlink(&name, link).map_err(ServeError::Io)?;
-    Ok((master, slave))
+    std::os::unix::fs::symlink(&name, link).map_err(|e| match e.kind() {
+        io::ErrorKind::AlreadyExists => ServeError::LinkExists(link.to_path_buf()),
+        _ => ServeError::Io(e),
+    })?;
+    Ok((master, slave, name))
+}
+
+/// Remove `link` if it is still the symlink to `target` this server made.
+fn remove_own_link(link: &std::path::Path, target: &str) {
+    if std::fs::read_link(link).is_ok_and(|t| t.as_os_str() == target) {
+        let _ = std::fs::remove_file(link);
+    }
 }
 
 /// Serve `sim`'s host link on a PTY behind `link`, in real time, on a thread of its own.
@@ -227,23 +261,29 @@ pub fn serve_firmware(
     let (tx, rx) = std::sync::mpsc::channel();
     let mut port = Some(host_pty(&link)?);
     let path = link.clone();
-    thread::spawn(move || {
+    let thread = thread::spawn(move || {
         let start = Instant::now();
         let t0 = sim.now_us();
         let mut buf = [0u8; 1024];
         loop {
             match rx.try_recv() {
                 Ok(LinkControl::Unplug) => {
-                    port = None;
-                    let _ = std::fs::remove_file(&path);
+                    if let Some((_, _, name)) = port.take() {
+                        remove_own_link(&path, &name);
+                    }
                 }
                 Ok(LinkControl::Plug) if port.is_none() => port = host_pty(&path).ok(),
                 Ok(_) => {}
-                Err(std::sync::mpsc::TryRecvError::Disconnected) => return,
+                Err(std::sync::mpsc::TryRecvError::Disconnected) => {
+                    if let Some((_, _, name)) = port.take() {
+                        remove_own_link(&path, &name);
+                    }
+                    return;
+                }
                 Err(std::sync::mpsc::TryRecvError::Empty) => {}
             }
             match port.as_mut() {
-                Some((master, _)) => match master.read(&mut buf) {
+                Some((master, _, _)) => match master.read(&mut buf) {
                     Ok(n) if n > 0 => sim.write_host(&buf[..n]),
                     _ => {}
                 },
@@ -251,14 +291,18 @@ pub fn serve_firmware(
             }
             sim.run_until(t0 + micros(start));
             let out = sim.take_host_output();
-            if let Some((master, _)) = port.as_mut() {
+            if let Some((master, _, _)) = port.as_mut() {
                 if !out.is_empty() {
                     let _ = master.write_all(&out);
                 }
             }
         }
     });
-    Ok(FirmwareServer { link, control: tx })
+    Ok(FirmwareServer {
+        link,
+        control: Some(tx),
+        thread: Some(thread),
+    })
 }
 
 /// Serve `sim` behind the symlink `link` (see [`serve_firmware`]), announce it with one JSON

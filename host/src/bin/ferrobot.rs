@@ -19,9 +19,13 @@ use ferrobot::config::BaseController;
 use ferrobot::kinematics::ik::{IkOptions, IkSolver, NumericalIk};
 use ferrobot::kinematics::locobot_ik::LocobotIk;
 use ferrobot::kinematics::Chain;
+use ferrobot::validate;
 use ferrobot::{config::IkKind, GoalOptions, Orientation, Pose, Robot, RobotConfig};
-use nalgebra::{Isometry3, Translation3, Vector3};
+use nalgebra::{Isometry3, Translation3};
 use serde_json::json;
+
+/// Most trials per target of `bench base`.
+const MAX_TRIALS: usize = 100;
 
 #[derive(Parser)]
 #[command(
@@ -210,6 +214,7 @@ fn arm_chain(cfg: &RobotConfig) -> ferrobot::Result<Chain> {
         })
 }
 
+/// Joint angles for `chain`: its count, each finite and within ±`validate::MAX_ANGLE`.
 fn check_q(chain: &Chain, q: &[f64]) -> ferrobot::Result<()> {
     if q.len() != chain.dof() {
         return Err(ferrobot::Error::JointCount {
@@ -218,7 +223,7 @@ fn check_q(chain: &Chain, q: &[f64]) -> ferrobot::Result<()> {
             got: q.len(),
         });
     }
-    Ok(())
+    validate::angles("joint angles", q)
 }
 
 fn pose_json(p: &Pose) -> serde_json::Value {
@@ -337,7 +342,13 @@ fn run(cli: Cli) -> Result<(), (ferrobot::Error, bool)> {
             if let Some(s) = &a.seed {
                 check_q(&chain, s).map_err(|e| (e, json))?;
             }
-            let p = Vector3::new(a.position[0], a.position[1], a.position[2]);
+            let p = validate::arm_point("position", [a.position[0], a.position[1], a.position[2]])
+                .map_err(|e| (e, json))?;
+            validate::angles(
+                "pitch and roll",
+                &[a.pitch, a.roll].into_iter().flatten().collect::<Vec<_>>(),
+            )
+            .map_err(|e| (e, json))?;
             let ac = cfg
                 .arm
                 .as_ref()
@@ -416,7 +427,21 @@ fn run(cli: Cli) -> Result<(), (ferrobot::Error, bool)> {
                     plot_dir,
                     calibrate,
                 },
-        } => bench_base(robot, trials, seed, json, &plot_dir, calibrate).map_err(|e| (e, json))?,
+        } => {
+            validate::count("trials", trials, MAX_TRIALS).map_err(|e| (e, json))?;
+            if trials == 0 {
+                return Err((
+                    ferrobot::Error::OutOfRange {
+                        what: "trials".into(),
+                        value: 0.0,
+                        min: 1.0,
+                        max: MAX_TRIALS as f64,
+                    },
+                    json,
+                ));
+            }
+            bench_base(robot, trials, seed, json, &plot_dir, calibrate).map_err(|e| (e, json))?
+        }
         Cmd::CalibrateOdometry { robot, seed, json } => {
             calibrate_odometry(&robot, seed, json).map_err(|e| (e, json))?
         }
@@ -427,8 +452,15 @@ fn run(cli: Cli) -> Result<(), (ferrobot::Error, bool)> {
                 cfg.firmware_profile(),
                 seed,
             );
-            ferrobot_sim::serve::run_firmware_server(sim, &cfg.name, link)
-                .map_err(|e| (ferrobot::Error::Link(e.to_string()), true))?;
+            ferrobot_sim::serve::run_firmware_server(sim, &cfg.name, link).map_err(|e| {
+                let e = match e {
+                    ferrobot_sim::serve::ServeError::LinkExists(path) => {
+                        ferrobot::Error::PathExists { path }
+                    }
+                    e => ferrobot::Error::Link(e.to_string()),
+                };
+                (e, true)
+            })?;
         }
     }
     Ok(())
@@ -745,17 +777,41 @@ fn round(v: &[f64]) -> Vec<f64> {
     v.iter().map(|x| (x * 1000.0).round() / 1000.0).collect()
 }
 
+/// Exit codes: 0 success, 1 the robot or the world failed (unreachable, timeout, fault), 2
+/// the input was wrong (arguments, values, names, files). With `--json`, an error is one
+/// object `{"success": false, "error": "...", "input_error": bool}` on standard output.
 fn main() -> ExitCode {
-    let cli = Cli::parse();
+    let json_wanted = std::env::args_os().any(|a| a == "--json");
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => {
+            if json_wanted && e.use_stderr() {
+                let text = e.to_string();
+                let first = text.lines().next().unwrap_or_default();
+                let msg = first.strip_prefix("error: ").unwrap_or(first).to_string();
+                println!(
+                    "{}",
+                    json!({"success": false, "error": msg, "input_error": true})
+                );
+                return ExitCode::from(2);
+            }
+            // Help and version print and succeed; usage errors exit with code 2.
+            e.exit();
+        }
+    };
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err((e, json)) => {
+            let input = e.is_input();
             if json {
-                println!("{}", json!({"success": false, "error": e.to_string()}));
+                println!(
+                    "{}",
+                    json!({"success": false, "error": e.to_string(), "input_error": input})
+                );
             } else {
                 eprintln!("error: {e}");
             }
-            ExitCode::from(1)
+            ExitCode::from(if input { 2 } else { 1 })
         }
     }
 }

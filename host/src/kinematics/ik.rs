@@ -56,6 +56,54 @@ pub trait IkSolver: Send + Sync {
     ) -> Result<Vec<f64>>;
 }
 
+/// Validate an IK request: a target within ±[`crate::validate::MAX_ARM_REACH`] m with a finite
+/// unit rotation, a seed (when given) of one finite angle per joint within
+/// ±[`crate::validate::MAX_ANGLE`], tolerances in `[1e-12, 1]` and a timeout of at most 10 s.
+/// Every solver calls it first.
+pub fn check_request(
+    chain: &Chain,
+    target: &Isometry3<f64>,
+    seed: Option<&[f64]>,
+    opts: &IkOptions,
+) -> Result<()> {
+    let t = target.translation.vector;
+    crate::validate::arm_point("IK target position", [t.x, t.y, t.z])?;
+    let q = target.rotation.coords;
+    crate::validate::unit_quaternion([q.x, q.y, q.z, q.w])?;
+    check_seed(chain, seed)?;
+    crate::validate::in_range("IK position tolerance", opts.position_tolerance, 1e-12, 1.0)?;
+    crate::validate::in_range(
+        "IK orientation tolerance",
+        opts.orientation_tolerance,
+        1e-12,
+        1.0,
+    )?;
+    if opts.timeout > Duration::from_secs(10) {
+        return Err(Error::OutOfRange {
+            what: "IK timeout".into(),
+            value: opts.timeout.as_secs_f64(),
+            min: 0.0,
+            max: 10.0,
+        });
+    }
+    Ok(())
+}
+
+/// A seed, when given: one finite angle per joint within ±[`crate::validate::MAX_ANGLE`].
+pub fn check_seed(chain: &Chain, seed: Option<&[f64]>) -> Result<()> {
+    if let Some(s) = seed {
+        if s.len() != chain.dof() {
+            return Err(Error::JointCount {
+                what: "IK seed",
+                expected: chain.dof(),
+                got: s.len(),
+            });
+        }
+        crate::validate::angles("IK seed", s)?;
+    }
+    Ok(())
+}
+
 /// Pose error (position, rotation vector) of `current` against `target`, base frame.
 pub fn pose_error(target: &Isometry3<f64>, current: &Isometry3<f64>) -> Vector6<f64> {
     let p = target.translation.vector - current.translation.vector;
@@ -177,6 +225,7 @@ impl IkSolver for NumericalIk {
         seed: Option<&[f64]>,
         opts: &IkOptions,
     ) -> Result<Vec<f64>> {
+        check_request(chain, target, seed, opts)?;
         let n = chain.dof();
         if n == 0 || n > MAX_DOF {
             return Err(Error::Unreachable {

@@ -130,6 +130,9 @@ impl LocobotIk {
         roll: f64,
         seed: Option<&[f64]>,
     ) -> Result<Vec<f64>> {
+        crate::validate::arm_point("IK target position", [position.x, position.y, position.z])?;
+        crate::validate::angles("pitch and roll", &[pitch, roll])?;
+        super::ik::check_seed(chain, seed)?;
         let sols = self.solutions(chain, position, pitch, roll);
         let zero = [0.0; 5];
         let s = seed.unwrap_or(&zero);
@@ -167,6 +170,7 @@ impl IkSolver for LocobotIk {
         seed: Option<&[f64]>,
         opts: &IkOptions,
     ) -> Result<Vec<f64>> {
+        super::ik::check_request(chain, target, seed, opts)?;
         let pos = target.translation.vector;
         let p = self.base_to_j1.inverse_transform_point(&pos.into());
         let r_j1: Rotation3<f64> =

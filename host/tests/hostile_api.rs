@@ -1,0 +1,402 @@
+//! The library under hostile values: every public entry point that takes numbers, durations,
+//! poses, grids or references, fed seeded random mixes of ordinary values and NaN, ±inf,
+//! ±0, subnormals, ±1e38, ±f64::MAX, ±1e300, huge counts and `Duration::MAX`.
+//!
+//! Each call must return quickly, never panic (a panic fails the property), and return `Err`
+//! whenever an input is absurd (not finite, or beyond 1e6 in magnitude, or a wrong count).
+//! Motions that an ordinary value starts are cancelled at once, so the robot stays usable and
+//! the test stays short. The case count is bounded for CI: `HOSTILE_CASES` raises it.
+
+use std::time::Duration;
+
+use ferrobot::base_control::{ilqr, Limits, NavField, Obstacles, OccupancyGrid, Reference};
+use ferrobot::kinematics::ik::{IkOptions, IkSolver, NumericalIk};
+use ferrobot::kinematics::locobot_ik::LocobotIk;
+use ferrobot::odometry_calibration::{estimate, CalibrationRun, WheelGeometry};
+use ferrobot::{GoalOptions, MoveOptions, Orientation, Robot};
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use proptest::prelude::*;
+use proptest::test_runner::{Config, TestCaseError, TestRunner};
+
+/// Cases per entry-point group (CI); the environment variable `HOSTILE_CASES` overrides it.
+fn cases() -> u32 {
+    std::env::var("HOSTILE_CASES")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(200)
+}
+
+fn runner(salt: u64) -> TestRunner {
+    let cfg = Config {
+        cases: cases(),
+        failure_persistence: None,
+        ..Config::default()
+    };
+    TestRunner::new_with_rng(
+        cfg,
+        proptest::test_runner::TestRng::from_seed(proptest::test_runner::RngAlgorithm::ChaCha, &{
+            let mut s = [7u8; 32];
+            s[..8].copy_from_slice(&salt.to_le_bytes());
+            s
+        }),
+    )
+}
+
+/// Ordinary values mixed with every kind of hostile one.
+fn value() -> impl Strategy<Value = f64> {
+    prop_oneof![
+        4 => -1.5..1.5f64,
+        2 => prop::sample::select(vec![
+            0.0,
+            -0.0,
+            f64::NAN,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::MAX,
+            -f64::MAX,
+            f64::MIN_POSITIVE,
+            5e-324,
+            -5e-324,
+            1e38,
+            -1e38,
+            1e300,
+            -1e300,
+            1e-300,
+            1e9,
+            -1e9,
+        ]),
+        1 => any::<f64>(),
+    ]
+}
+
+fn vector(len: std::ops::Range<usize>) -> impl Strategy<Value = Vec<f64>> {
+    prop::collection::vec(value(), len)
+}
+
+fn triple() -> impl Strategy<Value = [f64; 3]> {
+    [value(), value(), value()]
+}
+
+fn duration() -> impl Strategy<Value = Duration> {
+    prop_oneof![
+        Just(Duration::MAX),
+        Just(Duration::ZERO),
+        (0u64..u64::MAX).prop_map(Duration::from_nanos),
+        (0u64..u64::MAX).prop_map(Duration::from_secs),
+        (0u64..30_000).prop_map(Duration::from_millis),
+    ]
+}
+
+fn count() -> impl Strategy<Value = usize> {
+    prop_oneof![
+        Just(0usize),
+        Just(usize::MAX),
+        Just(usize::MAX / 2 + 1),
+        Just(1usize << 32),
+        0usize..200,
+    ]
+}
+
+/// Not finite, or beyond 1e6 in magnitude: no entry point may accept it.
+fn absurd(values: &[f64]) -> bool {
+    values.iter().any(|v| !v.is_finite() || v.abs() > 1e6)
+}
+
+/// `Err` is required when `hostile`; a panic anywhere fails the case.
+fn judge<T: std::fmt::Debug>(
+    what: &str,
+    hostile: bool,
+    r: &ferrobot::Result<T>,
+) -> Result<(), TestCaseError> {
+    if hostile && r.is_ok() {
+        return Err(TestCaseError::fail(format!(
+            "{what}: accepted hostile input: {r:?}"
+        )));
+    }
+    Ok(())
+}
+
+/// Tally of one test's cases, printed for BENCHMARKS.md.
+fn report(what: &str, calls: usize) {
+    println!("hostile_api {what}: {calls} calls, 0 panics, every absurd input refused");
+}
+
+#[test]
+fn the_arm_refuses_hostile_values() {
+    let cell = std::cell::RefCell::new(Robot::new("locobot").expect("robot"));
+    let calls = std::cell::Cell::new(0usize);
+    let strategy = (
+        vector(3..8),
+        vector(4..6),
+        triple(),
+        [value(), value(), value(), value()],
+        (value(), value()),
+        (prop::option::of(value()), prop::option::of(duration())),
+    );
+    runner(1)
+        .run(&strategy, |(q, qd, p, quat, (a, b), (tol, timeout))| {
+            let mut bot = cell.borrow_mut();
+            let dof = 5;
+            let bad_q = q.len() != dof || absurd(&q);
+            let mut arm = bot.arm().expect("arm");
+            let opts = MoveOptions {
+                plan: true,
+                tolerance: tol,
+                timeout,
+            };
+            let hostile_opts = tol.is_some_and(|t| absurd(&[t]))
+                || timeout.is_some_and(|t| t > Duration::from_secs(3600));
+            let r = arm.move_joints(&q, opts).map(|m| {
+                let _ = m.cancel();
+            });
+            judge("move_joints", bad_q || hostile_opts, &r)?;
+            let r = arm.compute_fk_position(&q, "gripper_link");
+            judge("compute_fk_position", bad_q, &r)?;
+            let r = arm.get_jacobian(&q);
+            judge("get_jacobian", bad_q, &r)?;
+            let r = arm.compute_fk_velocity(&q, &qd);
+            judge(
+                "compute_fk_velocity",
+                bad_q || qd.len() != dof || absurd(&qd),
+                &r,
+            )?;
+            let r = arm.set_joint_velocities(&qd[..qd.len().min(dof)]);
+            judge(
+                "set_joint_velocities",
+                qd.len() < dof || absurd(&qd[..dof.min(qd.len())]),
+                &r,
+            )?;
+            let _ = arm.set_joint_positions_with(
+                &[0.0; 5],
+                MoveOptions {
+                    plan: false,
+                    ..Default::default()
+                },
+            );
+            let r = arm.compute_ik(p, Orientation::Quaternion(quat), Some(&q));
+            judge("compute_ik", bad_q || absurd(&p) || absurd(&quat), &r)?;
+            let r = arm.compute_ik(p, Orientation::YawPitchRoll([a, b, a]), None);
+            judge("compute_ik (ypr)", absurd(&p) || absurd(&[a, b]), &r)?;
+            let m = [[a, b, 0.0], [b, a, 0.0], [0.0, 0.0, 1.0]];
+            let r = arm.compute_ik(p, Orientation::Matrix(m), None);
+            judge("compute_ik (matrix)", absurd(&p) || absurd(&[a, b]), &r)?;
+            let r = arm.set_ee_pose_pitch_roll(p, a, Some(b));
+            judge("set_ee_pose_pitch_roll", absurd(&p) || absurd(&[a, b]), &r)?;
+            let d = [p[0] * 0.05, p[1] * 0.05, p[2] * 0.05];
+            let r = arm.move_ee_xyz(d, a.abs() * 0.01);
+            judge("move_ee_xyz", absurd(&d) || absurd(&[a]) || a == 0.0, &r)?;
+            calls.set(calls.get() + 11);
+            let mut cam = bot.camera().expect("camera");
+            let r = cam.set_pan_tilt_async(a, b).map(|m| {
+                let _ = m.cancel();
+            });
+            judge("set_pan_tilt", absurd(&[a, b]), &r)?;
+            let r = bot.wait(a);
+            judge("Robot::wait", absurd(&[a]) || a < 0.0, &r)?;
+            calls.set(calls.get() + 2);
+            Ok(())
+        })
+        .expect("the arm refuses hostile values");
+    report("arm", calls.get());
+    let mut bot = cell.into_inner();
+    // Still obeys after all that.
+    bot.resume().expect("resume");
+    bot.arm()
+        .expect("arm")
+        .set_joint_positions(&[0.2, 0.0, 0.0, 0.0, 0.0])
+        .expect("moves");
+}
+
+#[test]
+fn the_base_refuses_hostile_values() {
+    let cell = std::cell::RefCell::new(
+        Robot::builder("locobot")
+            .use_arm(false)
+            .build()
+            .expect("robot"),
+    );
+    let calls = std::cell::Cell::new(0usize);
+    let strategy = (
+        triple(),
+        triple(),
+        (value(), value(), value()),
+        prop::collection::vec(triple(), 0..3),
+        (value(), value(), count(), count()),
+        (value(), count()),
+    );
+    runner(2)
+        .run(
+            &strategy,
+            |(goal, delta, (v, w, t), circles, (ox, res, gw, gh), (dt, n))| {
+                let mut bot = cell.borrow_mut();
+                let mut base = bot.base().expect("base");
+                let r = base.go_to_absolute_async(goal).map(|m| {
+                    let _ = m.cancel();
+                });
+                judge("go_to_absolute", absurd(&goal), &r)?;
+                let r = base.go_to_relative_async(delta).map(|m| {
+                    let _ = m.cancel();
+                });
+                judge("go_to_relative", absurd(&delta), &r)?;
+                let r = base.set_vel_async(v * 0.1, w * 0.1, t).map(|m| {
+                    let _ = m.cancel();
+                });
+                judge("set_vel", absurd(&[v, w, t]) || t < 0.0, &r)?;
+                // A map with hostile shape, and circles, for the dynamic window.
+                let grid = OccupancyGrid {
+                    origin: [ox, ox],
+                    resolution: res,
+                    width: gw,
+                    height: gh,
+                    occupied: vec![false; gw.min(64) * gh.min(64)],
+                };
+                let r = grid.check();
+                judge(
+                    "OccupancyGrid::check",
+                    absurd(&[ox, res]) || gw.saturating_mul(gh) > 1 << 24,
+                    &r,
+                )?;
+                let r = OccupancyGrid::new([ox, ox], res, gw, gh);
+                judge(
+                    "OccupancyGrid::new",
+                    absurd(&[ox, res]) || gw.saturating_mul(gh) > 1 << 24,
+                    &r,
+                )?;
+                let hostile_circles = circles.iter().any(|c| absurd(c));
+                let opts = GoalOptions {
+                    obstacles: circles.clone(),
+                    map: Some(grid),
+                    ..Default::default()
+                };
+                let g = [goal[0] * 0.5, goal[1] * 0.5, goal[2]];
+                let r = base.go_to_absolute_with(g, opts).map(|m| {
+                    let _ = m.cancel();
+                });
+                judge(
+                    "go_to_absolute_with (DWA)",
+                    absurd(&g) || hostile_circles,
+                    &r,
+                )?;
+                let r = Obstacles::new(circles.clone(), None)
+                    .and_then(|o| NavField::new([0.0, 0.0], [goal[0], goal[1]], &o, 0.2));
+                judge(
+                    "NavField::new",
+                    absurd(&goal[..2]) || hostile_circles,
+                    &r.map(|_| ()),
+                )?;
+                // Trajectories with hostile timing and states.
+                let lim = Limits::TRACKING;
+                let r = Reference::sharp([0.0; 3], goal, &lim, dt);
+                judge(
+                    "Reference::sharp",
+                    absurd(&goal) || absurd(&[dt]),
+                    &r.map(|_| ()),
+                )?;
+                let r = Reference::smooth([0.0; 3], goal, &lim, dt, v);
+                judge(
+                    "Reference::smooth",
+                    absurd(&goal) || absurd(&[dt, v]),
+                    &r.map(|_| ()),
+                )?;
+                let r = Reference::circle([0.0; 3], v, w, t, dt);
+                judge("Reference::circle", absurd(&[v, w, t, dt]), &r.map(|_| ()))?;
+                let reference = Reference {
+                    dt,
+                    states: vec![goal; n.min(50) + 1],
+                    controls: vec![[v, w]; n.min(50)],
+                };
+                let hostile_ref =
+                    absurd(&goal) || absurd(&[dt]) || (n.min(50) > 0 && absurd(&[v, w]));
+                let r = reference.check();
+                judge("Reference::check", hostile_ref, &r)?;
+                let r = ilqr([0.0; 3], &reference, [3.0, 3.0, 4.0], 0.2, &lim);
+                judge("ilqr", hostile_ref, &r.map(|_| ()))?;
+                let r = base.track_trajectory_async(reference, true).map(|m| {
+                    let _ = m.cancel();
+                });
+                judge("track_trajectory", hostile_ref, &r)?;
+                let g = WheelGeometry {
+                    left_radius: v,
+                    right_radius: w,
+                    track: t,
+                };
+                let r = base.set_odometry_geometry(g);
+                judge("set_odometry_geometry", absurd(&[v, w, t]), &r)?;
+                let run = CalibrationRun {
+                    wheels: vec![[v, w], [w, t], [t, v]],
+                    start: delta,
+                    end: goal,
+                };
+                let r = estimate(&[run.clone(), run], &WheelGeometry::nominal(0.035, 0.23));
+                judge(
+                    "odometry_calibration::estimate",
+                    absurd(&[v, w, t]) || absurd(&goal) || absurd(&delta),
+                    &r.map(|_| ()),
+                )?;
+                calls.set(calls.get() + 16);
+                Ok(())
+            },
+        )
+        .expect("the base refuses hostile values");
+    report("base", calls.get());
+    let mut bot = cell.into_inner();
+    bot.base()
+        .expect("base")
+        .go_to_relative([0.2, 0.0, 0.0])
+        .expect("drives");
+}
+
+#[test]
+fn the_ik_solvers_refuse_hostile_targets() {
+    let cfg = ferrobot::RobotConfig::bundled("sawyer").expect("sawyer");
+    let sawyer = cfg.arm_chain.clone().expect("chain");
+    let locobot = ferrobot::RobotConfig::bundled("locobot")
+        .expect("locobot")
+        .arm_chain
+        .expect("chain");
+    let lik = LocobotIk::from_chain(&locobot).expect("solver");
+    let calls = std::cell::Cell::new(0usize);
+    let strategy = (triple(), triple(), vector(4..9));
+    let opts = IkOptions {
+        timeout: Duration::from_millis(2),
+        ..IkOptions::default()
+    };
+    runner(3)
+        .run(&strategy, |(p, rpy, seed)| {
+            // The solvers take nalgebra poses: build them from whatever came in.
+            let target = Isometry3::from_parts(
+                Translation3::new(p[0], p[1], p[2]),
+                UnitQuaternion::from_euler_angles(rpy[0], rpy[1], rpy[2]),
+            );
+            // Huge finite angles still make a unit rotation: only a non-finite one is hostile.
+            let rot_bad = target.rotation.coords.iter().any(|x| !x.is_finite());
+            let s7 = (seed.len() == 7).then_some(&seed[..]);
+            let r = NumericalIk.solve(&sawyer, &target, s7, &opts);
+            judge(
+                "NumericalIk",
+                absurd(&p) || rot_bad || s7.is_some_and(absurd),
+                &r,
+            )?;
+            let s5 = (seed.len() == 5).then_some(&seed[..]);
+            let r = lik.solve_pitch_roll(&locobot, &Vector3::from(p), rpy[0], rpy[1], s5);
+            judge(
+                "LocobotIk::solve_pitch_roll",
+                absurd(&p) || absurd(&rpy[..2]) || s5.is_some_and(absurd),
+                &r,
+            )?;
+            let r = lik.solve(&locobot, &target, s5, &opts);
+            judge(
+                "LocobotIk::solve",
+                absurd(&p) || rot_bad || s5.is_some_and(absurd),
+                &r,
+            )?;
+            // FK on any vector never panics (it is a formula; the API validates).
+            let _ = sawyer.fk(&seed);
+            let _ = sawyer.jacobian(&seed);
+            let _ = sawyer.fk_velocity(&seed, &seed);
+            calls.set(calls.get() + 6);
+            Ok(())
+        })
+        .expect("the IK solvers refuse hostile targets");
+    report("ik", calls.get());
+}
