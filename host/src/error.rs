@@ -175,6 +175,9 @@ pub enum Error {
     /// The link to the firmware is down.
     #[error("link to the firmware lost: {0}")]
     Link(String),
+    /// Arguments that do not make a request (a missing or conflicting choice).
+    #[error("{0}")]
+    Usage(String),
     /// A path the program would create already exists: nothing is removed or replaced.
     #[error("{} already exists; refusing to replace it", path.display())]
     PathExists {
@@ -205,6 +208,7 @@ impl Error {
                 | Error::InvalidMap { .. }
                 | Error::UnknownName { .. }
                 | Error::PathExists { .. }
+                | Error::Usage(_)
         )
     }
 }

@@ -369,9 +369,9 @@ fn run(cli: Cli) -> Result<(), (ferrobot::Error, bool)> {
                     (None, Some(r)) => Orientation::YawPitchRoll([r[2], r[1], r[0]]),
                     (None, None) => {
                         return Err((
-                            ferrobot::Error::Unreachable {
-                                why: "give an orientation: --quaternion, --rpy or --pitch".into(),
-                            },
+                            ferrobot::Error::Usage(
+                                "give an orientation: --quaternion, --rpy or --pitch".into(),
+                            ),
                             json,
                         ))
                     }

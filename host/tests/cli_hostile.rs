@@ -1,0 +1,700 @@
+//! The `ferrobot` command line under hostile invocations: every subcommand with non-finite,
+//! huge, negative and empty values, wrong counts, unknown names, and bad, binary, huge,
+//! device and directory configuration paths.
+//!
+//! Each invocation runs as its own process in a scratch directory holding files it did not
+//! create. It must end within [`LIMIT`], by itself, with exit code 2 (the input was wrong) or
+//! the code the case names, never by a signal (abort) or a panic; with `--json` its standard
+//! output must be exactly one JSON error object; and every file that was in the directory
+//! before must be there after, byte for byte and untouched.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant, SystemTime};
+
+/// The longest any hostile invocation may take (they are all refused before any work).
+const LIMIT: Duration = Duration::from_secs(60);
+
+/// What a case must end with.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Expect {
+    /// Exit code 2: the input was wrong.
+    Input,
+    /// A non-zero exit code of the program's own (not a signal).
+    Failure,
+}
+
+struct Case {
+    args: Vec<String>,
+    expect: Expect,
+}
+
+fn case(args: &[&str], expect: Expect) -> Case {
+    Case {
+        args: args.iter().map(|s| s.to_string()).collect(),
+        expect,
+    }
+}
+
+/// Non-finite, huge, negative-huge, tiny and empty numbers.
+const HOSTILE: [&str; 8] = ["nan", "inf", "-inf", "1e300", "-1e308", "1e9", "NaN", ""];
+
+/// Copies of the bundled LoCoBot configuration with one hostile edit each, and the key the
+/// error must name: every number in a configuration is checked at load.
+fn hostile_configs() -> Vec<(&'static str, String, &'static str)> {
+    let base = include_str!("../robots/locobot.toml");
+    let edit = |from: &str, to: &str| {
+        assert!(base.contains(from), "{from}");
+        base.replacen(from, to, 1)
+    };
+    let j1 = r#"servo = { id = 1, model = "xm430-w350" }"#;
+    vec![
+        (
+            "timeout_neg",
+            edit("timeout = 20.0", "timeout = -1.0"),
+            "arm.timeout",
+        ),
+        (
+            "timeout_nan",
+            edit("timeout = 20.0", "timeout = nan"),
+            "arm.timeout",
+        ),
+        (
+            "timeout_huge",
+            edit("timeout = 20.0", "timeout = 1e30"),
+            "arm.timeout",
+        ),
+        (
+            "offset_nan",
+            edit(
+                j1,
+                r#"servo = { id = 1, model = "xm430-w350", offset = nan }"#,
+            ),
+            "joint[0].servo.offset",
+        ),
+        (
+            "limits_inf",
+            edit(j1, &format!("{j1}\nlimits = {{ min = -inf, max = inf }}")),
+            "joint[0].limits.min",
+        ),
+        (
+            "velocity_tiny",
+            edit(j1, &format!("{j1}\nlimits = {{ velocity = 1e-45 }}")),
+            "joint[0].limits.velocity",
+        ),
+        (
+            "max_linear_huge",
+            edit("max_linear = 0.5", "max_linear = 1e30"),
+            "base.max_linear",
+        ),
+        ("fx_nan", edit("fx = 619.8997", "fx = nan"), "camera.fx"),
+        (
+            "width_zero",
+            edit("width = 640", "width = 0"),
+            "camera.width",
+        ),
+        (
+            "home_nan",
+            edit(
+                "home = [0.0, 0.0, 0.0, 0.0, 0.0]",
+                "home = [0.0, nan, 0.0, 0.0, 0.0]",
+            ),
+            "arm.home[1]",
+        ),
+        (
+            "ik_tolerance_negative",
+            edit(
+                "ik_position_tolerance = 1e-5",
+                "ik_position_tolerance = -1e-5",
+            ),
+            "arm.ik_position_tolerance",
+        ),
+        (
+            "effort_nan",
+            edit("effort_limit = 3.5", "effort_limit = nan"),
+            "joint[0].effort_limit",
+        ),
+        (
+            "wheel_radius_zero",
+            edit("wheel_radius = 0.035", "wheel_radius = 0.0"),
+            "base.wheel_radius",
+        ),
+        (
+            "depth_inverted",
+            edit("depth_max = 1.5", "depth_max = 0.1"),
+            "camera.depth_max",
+        ),
+        (
+            "rotation_tolerance_huge",
+            edit("rotation_tolerance = 0.0175", "rotation_tolerance = 1e9"),
+            "base.rotation_tolerance",
+        ),
+    ]
+}
+
+/// The scratch directory: the LoCoBot URDF, the hostile configurations, a file that is not
+/// TOML, a binary file, a 2 MiB file, an empty one, a user's file and a subdirectory.
+fn scratch() -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("ferrobot-cli-hostile-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(dir.join("subdir")).expect("scratch dir");
+    std::fs::write(
+        dir.join("locobot.urdf"),
+        include_str!("../robots/locobot.urdf"),
+    )
+    .expect("urdf");
+    for (name, text, _) in hostile_configs() {
+        std::fs::write(dir.join(format!("{name}.toml")), text).expect("config");
+    }
+    std::fs::write(dir.join("notes.txt"), "a user's file\n").expect("notes");
+    let binary: Vec<u8> = (0..4096u32)
+        .map(|i| (i.wrapping_mul(2_654_435_761) >> 13) as u8)
+        .collect();
+    std::fs::write(dir.join("binary.toml"), binary).expect("binary");
+    std::fs::write(dir.join("huge.toml"), vec![b'#'; 2 << 20]).expect("huge");
+    std::fs::write(dir.join("empty.toml"), "").expect("empty");
+    dir
+}
+
+/// Every file below `dir`: size, modification time and content.
+fn snapshot(dir: &Path) -> BTreeMap<PathBuf, (u64, SystemTime, Vec<u8>)> {
+    let mut out = BTreeMap::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).expect("read dir").flatten() {
+            let p = e.path();
+            let m = std::fs::symlink_metadata(&p).expect("metadata");
+            if m.is_dir() {
+                stack.push(p);
+            } else {
+                let content = if m.is_file() {
+                    std::fs::read(&p).expect("read")
+                } else {
+                    Vec::new()
+                };
+                out.insert(p, (m.len(), m.modified().expect("mtime"), content));
+            }
+        }
+    }
+    out
+}
+
+fn cases() -> Vec<Case> {
+    use Expect::*;
+    let mut c = Vec::new();
+    // robots, info
+    c.push(case(&["robots", "--bogus"], Input));
+    c.push(case(&["robots", "extra"], Input));
+    for robot in [
+        "wall-e",
+        "",
+        "./",
+        "./subdir",
+        "./binary.toml",
+        "./huge.toml",
+        "./empty.toml",
+        "./nonexistent.toml",
+        "/dev/zero",
+        "./notes.txt",
+    ] {
+        c.push(case(&["info", robot, "--json"], Input));
+    }
+    for (name, _, _) in hostile_configs() {
+        let path = format!("./{name}.toml");
+        c.push(case(&["info", &path, "--json"], Input));
+        c.push(case(
+            &["fk", &path, "0", "0", "0", "0", "0", "--json"],
+            Input,
+        ));
+    }
+    // fk, jacobian: each hostile value in each position class, wrong counts, unknown names.
+    for v in HOSTILE {
+        c.push(case(
+            &["fk", "locobot", v, "0", "0", "0", "0", "--json"],
+            Input,
+        ));
+        c.push(case(&["fk", "locobot", "0", "0", "0", "0", v], Input));
+        c.push(case(
+            &[
+                "jacobian", "sawyer", "0", "0", "0", v, "0", "0", "0", "--json",
+            ],
+            Input,
+        ));
+        c.push(case(&["jacobian", "locobot", v, "0", "0", "0", "0"], Input));
+    }
+    c.push(case(
+        &["fk", "locobot", "0", "0", "0", "0", "--json"],
+        Input,
+    ));
+    c.push(case(&["fk", "locobot", "--json"], Input));
+    c.push(case(
+        &[
+            "fk", "locobot", "0", "0", "0", "0", "0", "--frame", "nowhere", "--json",
+        ],
+        Input,
+    ));
+    c.push(case(&["fk", "wall-e", "0", "--json"], Input));
+    c.push(case(&["jacobian", "sawyer", "0", "0", "--json"], Input));
+    // ik
+    for v in HOSTILE {
+        c.push(case(
+            &[
+                "ik",
+                "locobot",
+                "--position",
+                v,
+                "0",
+                "0.2",
+                "--pitch",
+                "1",
+                "--json",
+            ],
+            Input,
+        ));
+        c.push(case(
+            &[
+                "ik",
+                "locobot",
+                "--position",
+                "0.3",
+                "0",
+                "0.2",
+                "--pitch",
+                v,
+                "--json",
+            ],
+            Input,
+        ));
+        c.push(case(
+            &[
+                "ik",
+                "locobot",
+                "--position",
+                "0.3",
+                "0",
+                "0.2",
+                "--pitch",
+                "1",
+                "--roll",
+                v,
+            ],
+            Input,
+        ));
+        c.push(case(
+            &[
+                "ik",
+                "sawyer",
+                "--position",
+                "0.6",
+                "0.1",
+                "0.4",
+                "--quaternion",
+                "0",
+                v,
+                "0",
+                "0",
+                "--json",
+            ],
+            Input,
+        ));
+        c.push(case(
+            &[
+                "ik",
+                "sawyer",
+                "--position",
+                "0.6",
+                "0.1",
+                "0.4",
+                "--rpy",
+                v,
+                "0",
+                "0",
+                "--json",
+            ],
+            Input,
+        ));
+    }
+    c.push(case(
+        &[
+            "ik",
+            "sawyer",
+            "--position",
+            "0.6",
+            "0.1",
+            "0.4",
+            "--quaternion",
+            "0",
+            "1e30",
+            "0",
+            "0",
+            "--json",
+        ],
+        Input,
+    ));
+    c.push(case(
+        &[
+            "ik",
+            "sawyer",
+            "--position",
+            "0.6",
+            "0.1",
+            "0.4",
+            "--quaternion",
+            "0",
+            "0",
+            "0",
+            "0",
+            "--json",
+        ],
+        Input,
+    ));
+    c.push(case(
+        &["ik", "sawyer", "--position", "0.6", "0.1", "0.4", "--json"],
+        Input,
+    ));
+    c.push(case(
+        &[
+            "ik",
+            "sawyer",
+            "--position",
+            "0.6",
+            "0.1",
+            "--quaternion",
+            "0",
+            "0",
+            "0",
+            "1",
+        ],
+        Input,
+    ));
+    c.push(case(
+        &[
+            "ik",
+            "locobot",
+            "--position",
+            "0.3",
+            "0",
+            "0.2",
+            "--pitch",
+            "1",
+            "--seed",
+            "0",
+            "1",
+            "--json",
+        ],
+        Input,
+    ));
+    c.push(case(
+        &[
+            "ik",
+            "locobot",
+            "--position",
+            "0.3",
+            "0",
+            "0.2",
+            "--pitch",
+            "1",
+            "--seed",
+            "nan",
+            "0",
+            "0",
+            "0",
+            "0",
+            "--json",
+        ],
+        Input,
+    ));
+    // base-move: absurd goals for every controller, unknown controller, wrong counts.
+    for v in HOSTILE {
+        c.push(case(
+            &["base-move", "locobot", "--relative", v, "0", "0", "--json"],
+            Input,
+        ));
+        c.push(case(
+            &["base-move", "locobot_lite", "--relative", "0", "0", v],
+            Input,
+        ));
+    }
+    for ctl in ["proportional", "lqr", "ilqr", "dwa"] {
+        c.push(case(
+            &[
+                "base-move",
+                "locobot",
+                "--relative",
+                "1e9",
+                "0",
+                "0",
+                "--controller",
+                ctl,
+                "--json",
+            ],
+            Input,
+        ));
+        c.push(case(
+            &[
+                "base-move",
+                "locobot",
+                "--relative",
+                "1000",
+                "1000",
+                "0",
+                "--controller",
+                ctl,
+                "--json",
+            ],
+            Input,
+        ));
+    }
+    c.push(case(
+        &[
+            "base-move",
+            "locobot",
+            "--relative",
+            "1",
+            "0",
+            "0",
+            "--controller",
+            "warp",
+            "--json",
+        ],
+        Input,
+    ));
+    c.push(case(
+        &["base-move", "locobot", "--relative", "1", "1", "--json"],
+        Input,
+    ));
+    c.push(case(
+        &["base-move", "sawyer", "--relative", "1", "0", "0", "--json"],
+        Input,
+    ));
+    c.push(case(
+        &[
+            "base-move",
+            "locobot",
+            "--relative",
+            "1",
+            "0",
+            "0",
+            "--seed",
+            "-1",
+            "--json",
+        ],
+        Input,
+    ));
+    // calibrate-odometry, bench base, demo
+    c.push(case(&["calibrate-odometry", "wall-e", "--json"], Input));
+    c.push(case(&["calibrate-odometry", "sawyer", "--json"], Input));
+    c.push(case(
+        &[
+            "bench",
+            "base",
+            "--trials",
+            "18446744073709551615",
+            "--json",
+        ],
+        Input,
+    ));
+    c.push(case(&["bench", "base", "--trials", "0", "--json"], Input));
+    c.push(case(&["bench", "base", "--trials", "-1", "--json"], Input));
+    c.push(case(
+        &[
+            "bench", "base", "--trials", "1", "--robot", "wall-e", "--json",
+        ],
+        Input,
+    ));
+    c.push(case(
+        &[
+            "bench", "base", "--trials", "1", "--robot", "sawyer", "--json",
+        ],
+        Input,
+    ));
+    c.push(case(&["bench", "warp"], Input));
+    c.push(case(&["demo", "--robot", "wall-e"], Input));
+    c.push(case(&["demo", "--robot", ""], Input));
+    // sim-firmware: never replace what exists at the link path.
+    c.push(case(
+        &["sim-firmware", "locobot", "--link", "notes.txt"],
+        Input,
+    ));
+    c.push(case(
+        &["sim-firmware", "locobot", "--link", "subdir"],
+        Input,
+    ));
+    c.push(case(
+        &["sim-firmware", "locobot", "--link", "locobot.urdf"],
+        Input,
+    ));
+    c.push(case(
+        &["sim-firmware", "locobot", "--link", "no/such/dir/link"],
+        Failure,
+    ));
+    c.push(case(
+        &["sim-firmware", "wall-e", "--link", "new-link"],
+        Input,
+    ));
+    c.push(case(&["teleport", "locobot"], Input));
+    c
+}
+
+struct Outcome {
+    code: Option<i32>,
+    stdout: String,
+    stderr: String,
+    took: Duration,
+}
+
+fn run(dir: &Path, args: &[String]) -> Outcome {
+    let start = Instant::now();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_ferrobot"))
+        .args(args)
+        .current_dir(dir)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("ferrobot starts");
+    // Read both pipes on threads so that a chatty child never blocks on a full pipe.
+    let mut out = child.stdout.take().expect("stdout");
+    let mut err = child.stderr.take().expect("stderr");
+    let t_out = std::thread::spawn(move || {
+        let mut s = String::new();
+        let _ = std::io::Read::read_to_string(&mut out, &mut s);
+        s
+    });
+    let t_err = std::thread::spawn(move || {
+        let mut s = String::new();
+        let _ = std::io::Read::read_to_string(&mut err, &mut s);
+        s
+    });
+    // The limit is a budget, not a wait for state: the child ends by itself or is a hang.
+    let status = loop {
+        if let Some(s) = child.try_wait().expect("wait") {
+            break Some(s);
+        }
+        if start.elapsed() > LIMIT {
+            let _ = child.kill();
+            let _ = child.wait();
+            break None;
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    };
+    Outcome {
+        code: status.and_then(|s| s.code()),
+        stdout: t_out.join().unwrap_or_default(),
+        stderr: t_err.join().unwrap_or_default(),
+        took: start.elapsed(),
+    }
+}
+
+/// Any `null` (a NaN or infinity serialised) anywhere in a JSON value.
+fn has_null(v: &serde_json::Value) -> bool {
+    match v {
+        serde_json::Value::Null => true,
+        serde_json::Value::Array(a) => a.iter().any(has_null),
+        serde_json::Value::Object(o) => o.values().any(has_null),
+        _ => false,
+    }
+}
+
+fn judge(c: &Case, o: &Outcome) -> Result<(), String> {
+    let code = o.code.ok_or_else(|| {
+        if o.took > LIMIT {
+            format!("hung (killed after {:?})", o.took)
+        } else {
+            "ended by a signal (abort)".to_string()
+        }
+    })?;
+    if o.stderr.contains("panicked") || code == 101 {
+        return Err(format!("panicked: {}", o.stderr));
+    }
+    match c.expect {
+        Expect::Input if code != 2 => {
+            return Err(format!(
+                "exit code {code}, expected 2; stdout {:?} stderr {:?}",
+                o.stdout, o.stderr
+            ))
+        }
+        Expect::Failure if code == 0 => {
+            return Err(format!("succeeded on nonsense: {:?}", o.stdout))
+        }
+        _ => {}
+    }
+    let message = if c.args.iter().any(|a| a == "--json") {
+        let lines: Vec<&str> = o.stdout.lines().collect();
+        if lines.len() != 1 {
+            return Err(format!(
+                "--json printed {} lines: {:?}",
+                lines.len(),
+                o.stdout
+            ));
+        }
+        let v: serde_json::Value = serde_json::from_str(lines[0])
+            .map_err(|e| format!("not JSON ({e}): {:?}", lines[0]))?;
+        if has_null(&v) || v["success"] != serde_json::json!(false) {
+            return Err(format!("not a clean error object: {v}"));
+        }
+        v["error"].as_str().unwrap_or_default().to_string()
+    } else {
+        // `sim-firmware` speaks JSON lines always; the others write errors to stderr.
+        format!("{}{}", o.stderr, o.stdout)
+    };
+    if message.trim().is_empty() {
+        return Err("no error message".into());
+    }
+    Ok(())
+}
+
+#[test]
+fn hostile_invocations_end_quickly_with_clear_errors_and_touch_no_file() {
+    let dir = scratch();
+    let before = snapshot(&dir);
+    let cases = cases();
+    let mut failures = Vec::new();
+    let mut slowest = Duration::ZERO;
+    for c in &cases {
+        let o = run(&dir, &c.args);
+        slowest = slowest.max(o.took);
+        if let Err(why) = judge(c, &o) {
+            failures.push(format!("ferrobot {}: {why}", c.args.join(" ")));
+        }
+        // Nothing that was there before may change, whatever the case.
+        let now = snapshot(&dir);
+        for (p, was) in &before {
+            if now.get(p) != Some(was) {
+                failures.push(format!(
+                    "ferrobot {}: touched {} which it did not create",
+                    c.args.join(" "),
+                    p.display()
+                ));
+            }
+        }
+    }
+    // The hostile configurations name their file and the key at fault.
+    for (name, _, key) in hostile_configs() {
+        let o = run(
+            &dir,
+            &["info".into(), format!("./{name}.toml"), "--json".into()],
+        );
+        if !(o.stdout.contains(&format!("{name}.toml")) && o.stdout.contains(key)) {
+            failures.push(format!(
+                "{name}.toml: the error does not name the file and {key}: {}",
+                o.stdout
+            ));
+        }
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+    println!(
+        "cli_hostile: {} invocations, {} failures, slowest {:.2} s",
+        cases.len(),
+        failures.len(),
+        slowest.as_secs_f64()
+    );
+    assert!(
+        failures.is_empty(),
+        "{} of {} failed:\n{}",
+        failures.len(),
+        cases.len(),
+        failures.join("\n")
+    );
+}
