@@ -556,8 +556,14 @@ impl<'r> Arm<'r> {
             .ok_or_else(|| Error::Unreachable {
                 why: "no arm".into(),
             })?;
-        // Keep the gripper's pitch (R = Rz(yaw)·Ry(pitch)·Rx(roll)); roll stays with joint 5.
-        let (_, pitch, _) = chain.fk(&q0).rotation.euler_angles();
+        // Keep the gripper's pitch; roll stays with joint 5. On the pitch-roll arm the pitch is
+        // the sum of the three pitch joints (the solver's q4 = pitch − q2 − q3), exact past
+        // π/2 too, where Euler angles would fold it back and flip the gripper.
+        let pitch = if pitch_roll {
+            q0[1] + q0[2] + q0[3]
+        } else {
+            chain.fk(&q0).rotation.euler_angles().1
+        };
         for k in 1..=n {
             let p = Vector3::from(start.position) + d * (k as f64 / n as f64);
             let q = if pitch_roll {

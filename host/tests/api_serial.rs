@@ -105,6 +105,30 @@ fn the_arm_and_base_scenario_passes_over_serial() {
     ));
 }
 
+/// A LoCoBot configuration refuses firmware that runs the LoCoBot-Lite profile: the Hello's
+/// robot and base must match the configuration.
+#[test]
+fn a_configuration_refuses_firmware_of_another_robot() {
+    let fw = Firmware::start("locobot_lite", "wrong-robot");
+    let e = Robot::builder("locobot")
+        .backend(Backend::Serial {
+            path: fw.link.clone(),
+        })
+        .build()
+        .err()
+        .expect("refused");
+    match &e {
+        Error::WrongRobot {
+            config, firmware, ..
+        } => assert_eq!(
+            (config.as_str(), firmware.as_str()),
+            ("locobot", "locobot_lite")
+        ),
+        other => panic!("{other}"),
+    }
+    assert!(e.to_string().contains("Create2"), "{e}");
+}
+
 #[test]
 fn a_lost_link_gives_clear_errors_then_reconnects() {
     let mut fw = Firmware::start("locobot", "unplug");

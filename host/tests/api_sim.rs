@@ -591,3 +591,45 @@ fn realtime_pacing_follows_the_wall_clock() {
     assert!((sim - 0.3).abs() < 0.002, "{sim}");
     assert!((0.29..0.6).contains(&wall), "0.3 s simulated took {wall} s");
 }
+
+/// A Cartesian line of 100 waypoints: far more than the firmware's queue holds (16 knots per
+/// joint), streamed as the queue makes room; it ends on the line's end and keeps the gripper's
+/// orientation, and a track whose last state is NaN is refused without moving.
+#[test]
+fn a_long_cartesian_line_streams_through_the_firmware_queue() {
+    let mut bot = Robot::new("locobot").expect("robot");
+    let mut arm = bot.arm().expect("arm");
+    arm.set_ee_pose_pitch_roll([0.3, 0.0, 0.2], std::f64::consts::FRAC_PI_2, Some(0.0))
+        .expect("start pose");
+    let before = arm.get_ee_pose().expect("pose");
+    arm.move_ee_xyz([0.0, 0.0, -0.05], 0.0005)
+        .expect("100 waypoints");
+    let after = arm.get_ee_pose().expect("pose");
+    let want = [
+        before.position[0],
+        before.position[1],
+        before.position[2] - 0.05,
+    ];
+    assert!(
+        pos_err(&after.position, &want) < EE_POS_TOL,
+        "{after:?} vs {want:?}"
+    );
+    assert!(
+        rot_err(&after.rotation, &before.rotation) < EE_ROT_TOL,
+        "{:?} vs {:?}: {}",
+        after.rotation,
+        before.rotation,
+        rot_err(&after.rotation, &before.rotation)
+    );
+    let mut r =
+        ferrobot::base_control::Reference::circle([0.0; 3], 0.1, 0.2, 2.0, 0.1).expect("reference");
+    if let Some(x) = r.states.last_mut() {
+        x[2] = f64::NAN;
+    }
+    let e = bot
+        .base()
+        .expect("base")
+        .track_trajectory(r, true)
+        .expect_err("NaN state");
+    assert!(matches!(e, Error::NotFinite { .. }), "{e}");
+}
