@@ -33,27 +33,51 @@ pub struct Canvas {
 impl Canvas {
     /// A white `size`×`size` canvas over the square centred on `centre` with side `span` (m),
     /// with grid lines every `grid` m.
-    pub fn new(size: usize, centre: [f64; 2], span: f64, grid: f64) -> Canvas {
+    ///
+    /// An error for a size outside 1-[`Canvas::MAX_SIZE`] px, a centre beyond ±1e6 m, a span
+    /// that is not finite and positive, or grid lines denser than one per pixel.
+    pub fn new(size: usize, centre: [f64; 2], span: f64, grid: f64) -> Result<Canvas> {
+        crate::validate::count("canvas size (px)", size, Self::MAX_SIZE)?;
+        if size == 0 {
+            return Err(crate::Error::OutOfRange {
+                what: "canvas size (px)".into(),
+                value: 0.0,
+                min: 1.0,
+                max: Self::MAX_SIZE as f64,
+            });
+        }
+        crate::validate::all_in_range("canvas centre", &centre, -1e6, 1e6)?;
+        crate::validate::in_range("canvas span", span, 1e-9, 1e6)?;
+        crate::validate::in_range("canvas grid", grid, span / size as f64, 1e6)?;
         let mut c = Canvas {
             size,
             px: vec![[255; 3]; size * size],
             min: [centre[0] - span / 2.0, centre[1] - span / 2.0],
             span,
         };
-        let mut g = (c.min[0] / grid).ceil() * grid;
-        while g <= c.min[0] + span {
-            let shade = if g.abs() < 1e-9 { 150 } else { 225 };
-            c.line([g, c.min[1]], [g, c.min[1] + span], [shade; 3], 1);
-            g += grid;
+        // Grid lines by index: at most `size + 1` each way, however the floats round.
+        let lines = (span / grid).floor() as usize + 1;
+        for axis in 0..2 {
+            let first = (c.min[axis] / grid).ceil();
+            for k in 0..lines {
+                let g = (first + k as f64) * grid;
+                if g > c.min[axis] + span {
+                    break;
+                }
+                let shade = if g.abs() < 1e-9 { 150 } else { 225 };
+                let (a, b) = if axis == 0 {
+                    ([g, c.min[1]], [g, c.min[1] + span])
+                } else {
+                    ([c.min[0], g], [c.min[0] + span, g])
+                };
+                c.line(a, b, [shade; 3], 1);
+            }
         }
-        let mut g = (c.min[1] / grid).ceil() * grid;
-        while g <= c.min[1] + span {
-            let shade = if g.abs() < 1e-9 { 150 } else { 225 };
-            c.line([c.min[0], g], [c.min[0] + span, g], [shade; 3], 1);
-            g += grid;
-        }
-        c
+        Ok(c)
     }
+
+    /// Largest canvas side, px.
+    pub const MAX_SIZE: usize = 8192;
 
     fn to_px(&self, p: [f64; 2]) -> (f64, f64) {
         let s = self.size as f64 / self.span;
@@ -64,7 +88,8 @@ impl Canvas {
     }
 
     fn dot(&mut self, x: f64, y: f64, colour: [u8; 3], width: usize) {
-        let r = width as i64 / 2;
+        // Pens wider than 64 px are drawn 64 px wide.
+        let r = width.min(64) as i64 / 2;
         for dy in -r..=r {
             for dx in -r..=r {
                 let (i, j) = (x as i64 + dx, y as i64 + dy);
@@ -76,8 +101,44 @@ impl Canvas {
     }
 
     /// A straight segment between world points (m).
+    /// Non-finite points are skipped; the part of a long segment outside the canvas is not
+    /// drawn (the segment is clipped first, so its cost is bounded by the canvas size).
     pub fn line(&mut self, a: [f64; 2], b: [f64; 2], colour: [u8; 3], width: usize) {
         let (pa, pb) = (self.to_px(a), self.to_px(b));
+        if ![pa.0, pa.1, pb.0, pb.1].iter().all(|v| v.is_finite()) {
+            return;
+        }
+        // Liang-Barsky: the parameter range [t0, t1] inside the canvas (with a margin).
+        let w = width.min(64) as f64;
+        let (lo, hi) = (-w - 1.0, self.size as f64 + w + 1.0);
+        let (d0, d1) = (pb.0 - pa.0, pb.1 - pa.1);
+        let (mut t0, mut t1) = (0.0f64, 1.0f64);
+        for (p, q) in [
+            (-d0, pa.0 - lo),
+            (d0, hi - pa.0),
+            (-d1, pa.1 - lo),
+            (d1, hi - pa.1),
+        ] {
+            if p == 0.0 {
+                if q < 0.0 {
+                    return;
+                }
+            } else {
+                let r = q / p;
+                if p < 0.0 {
+                    t0 = t0.max(r);
+                } else {
+                    t1 = t1.min(r);
+                }
+            }
+        }
+        if t0 > t1 {
+            return;
+        }
+        let (pa, pb) = (
+            (pa.0 + d0 * t0, pa.1 + d1 * t0),
+            (pa.0 + d0 * t1, pa.1 + d1 * t1),
+        );
         let n = ((pb.0 - pa.0).abs().max((pb.1 - pa.1).abs()).ceil() as usize).max(1);
         for k in 0..=n {
             let t = k as f64 / n as f64;
@@ -97,19 +158,24 @@ impl Canvas {
         }
     }
 
-    /// Text with its top-left corner at pixel `(x, y)`, on a white box.
+    /// Text with its top-left corner at pixel `(x, y)`, on a white box; nothing when that corner
+    /// is off the canvas.
     pub fn text(&mut self, x: usize, y: usize, text: &str, colour: [u8; 3]) {
         // 9×15 pixel glyphs.
         let (w, h) = (9 * text.chars().count() + 4, 17);
-        for j in y.saturating_sub(1)..(y + h).min(self.size) {
-            for i in x.saturating_sub(2)..(x + w).min(self.size) {
+        for j in y.saturating_sub(1)..y.saturating_add(h).min(self.size) {
+            for i in x.saturating_sub(2)..x.saturating_add(w).min(self.size) {
                 self.px[j * self.size + i] = [255; 3];
             }
         }
         let style = MonoTextStyle::new(&FONT_9X15, Rgb888::new(colour[0], colour[1], colour[2]));
         // Drawing into the canvas cannot fail (see `DrawTarget for Canvas`).
-        let _ = Text::with_baseline(text, Point::new(x as i32, y as i32), style, Baseline::Top)
-            .draw(self);
+        // Text starting off the canvas would not show (and its glyph arithmetic could overflow).
+        if x >= self.size || y >= self.size {
+            return;
+        }
+        let at = Point::new(x as i32, y as i32);
+        let _ = Text::with_baseline(text, at, style, Baseline::Top).draw(self);
     }
 
     /// A legend down the top-left corner: a colour swatch and a label per series.

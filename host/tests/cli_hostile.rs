@@ -6,7 +6,8 @@
 //! create. It must end within [`LIMIT`], by itself, with exit code 2 (the input was wrong) or
 //! the code the case names, never by a signal (abort) or a panic; with `--json` its standard
 //! output must be exactly one JSON error object; and every file that was in the directory
-//! before must be there after, byte for byte and untouched.
+//! before must be there after, byte for byte and untouched. `FERROBOT_CLI_BIN=PATH` runs the
+//! same table against another `ferrobot` binary.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -546,7 +547,11 @@ struct Outcome {
 
 fn run(dir: &Path, args: &[String]) -> Outcome {
     let start = Instant::now();
-    let mut child = Command::new(env!("CARGO_BIN_EXE_ferrobot"))
+    // `FERROBOT_CLI_BIN` runs the table against another build (e.g. an older one).
+    let bin = std::env::var_os("FERROBOT_CLI_BIN")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from(env!("CARGO_BIN_EXE_ferrobot")));
+    let mut child = Command::new(bin)
         .args(args)
         .current_dir(dir)
         .stdin(Stdio::null())

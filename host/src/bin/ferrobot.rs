@@ -652,8 +652,8 @@ fn bench_base(
             .map(|s| [s[0], s[1]])
             .collect();
         let end_ref = reference.last().copied().unwrap_or([0.0; 2]);
-        let mut canvas = Canvas::new(800, [0.0, 0.4], 1.2, 0.1);
-        let mut zoom = Canvas::new(800, end_ref, 0.12, 0.01);
+        let mut canvas = Canvas::new(800, [0.0, 0.4], 1.2, 0.1)?;
+        let mut zoom = Canvas::new(800, end_ref, 0.12, 0.01)?;
         let mut entries = vec![(COLOURS[0].1, "reference circle (r = 0.4 m)".to_string())];
         let mut legend = vec![format!("{}: reference circle (r = 0.4 m)", COLOURS[0].0)];
         let mut ends = Vec::new();
