@@ -35,7 +35,7 @@ impl Canvas {
     /// with grid lines every `grid` m.
     ///
     /// An error for a size outside 1-[`Canvas::MAX_SIZE`] px, a centre beyond ±1e6 m, a span
-    /// that is not finite and positive, or grid lines denser than one per pixel.
+    /// outside [1e-9, 1e6] m, or grid lines denser than one per pixel or sparser than 1e6 m.
     pub fn new(size: usize, centre: [f64; 2], span: f64, grid: f64) -> Result<Canvas> {
         crate::validate::count("canvas size (px)", size, Self::MAX_SIZE)?;
         if size == 0 {
