@@ -1,6 +1,7 @@
 //! Per-joint control state: the setpoint queue with cubic Hermite interpolation, the
 //! reference rate limiter, the joint PID with anti-windup, and limit enforcement.
 
+use ferrobot_protocol::dxl::units;
 use ferrobot_protocol::{JointConfig, JointMode, JointPoint, JointState};
 use heapless::Deque;
 
@@ -111,6 +112,70 @@ pub fn guard_effort(
     tau.min(b * (up - qd))
         .max(b * (down - qd))
         .clamp(-strength, strength)
+}
+
+/// The servo's position loop, as the servo runs it (the e-manual's gain scaling, no profile):
+/// PWM = P/128 · error (ticks) − D/16 · speed (ticks/ms). Returns (P term per rad, D term per
+/// rad/s), PWM units.
+fn position_loop_gains(cfg: &JointConfig) -> (f32, f32) {
+    let tpr = units::TICKS_PER_REV / core::f32::consts::TAU;
+    (
+        cfg.servo.pos_p as f32 / 128.0 * tpr,
+        cfg.servo.pos_d as f32 / 16.0 * tpr * 1e-3,
+    )
+}
+
+/// How far (rad) a position command may lead the joint: twice the servo's tracking lag at the
+/// joint's velocity limit (the goal error at which its position loop, unloaded, drives it at
+/// that speed), plus [`LEAD_MIN`].
+pub fn position_lead(cfg: &JointConfig) -> f32 {
+    let v = cfg.limits.velocity;
+    let f = cfg.model.spec().pwm_fraction_for_effort(0.0, v);
+    let (kp, kd) = position_loop_gains(cfg);
+    if kp <= 0.0 {
+        return 0.0;
+    }
+    let e = (f * units::PWM_MAX + kd * v) / kp;
+    if e.is_finite() {
+        (LEAD_FACTOR * e.abs() + LEAD_MIN).min(1.0)
+    } else {
+        0.0
+    }
+}
+/// See [`position_lead`].
+pub const LEAD_FACTOR: f32 = 2.0;
+/// See [`position_lead`], rad.
+pub const LEAD_MIN: f32 = 0.004;
+
+/// How far (rad) from a joint moving at `qd` (rad/s) a position goal drives its servo at full
+/// PWM: goals further away ask for nothing more.
+pub fn position_reach(cfg: &JointConfig, qd: f32) -> f32 {
+    let (kp, kd) = position_loop_gains(cfg);
+    if kp <= 0.0 || !qd.is_finite() {
+        return 0.0;
+    }
+    ((units::PWM_MAX + kd * qd.abs()) / kp).min(1.0)
+}
+
+/// Where a position goal may lie for a joint at `q` moving at `qd`: within
+/// [`position_goal_range`], or, while it is braked, behind the moving joint (the other way from its motion) within
+/// [`position_reach`] of it: such a goal slows it.
+pub fn position_goal_window(
+    lim: &ferrobot_protocol::JointLimits,
+    anchor: Option<f32>,
+    braking: bool,
+    (q, qd): (f32, f32),
+    reach: f32,
+) -> (f32, f32) {
+    let (mut lo, mut hi) = position_goal_range(lim, anchor, braking);
+    if braking && q.is_finite() && qd.is_finite() && reach > 0.0 {
+        if qd < 0.0 {
+            hi = hi.max(q + reach);
+        } else if qd > 0.0 {
+            lo = lo.min(q - reach);
+        }
+    }
+    (lo, hi)
 }
 
 /// One queued trajectory knot at an absolute firmware time.
@@ -469,6 +534,7 @@ impl JointControl {
                     (false, _) => 0,
                 };
                 let runaway = self.fast_ticks.unsigned_abs() >= FAST_TICKS;
+                let mut held = false;
                 if self.measured && (runaway || leaving) {
                     // Brake: the goal stays behind the joint (at least its speed times
                     // BRAKE_TIME, and as far as the joint has since run on), so the servo
@@ -508,12 +574,43 @@ impl JointControl {
                     if delta.abs() > step {
                         clamped |= !self.queue.is_empty() || delta.abs() > step * 1.5;
                     }
-                    self.cmd += delta.clamp(-step, step);
+                    // A joint measured faster than its velocity limit towards its command
+                    // (a motor racing across the gear backlash towards a goal a brake left
+                    // behind) has that command brought within its lead at once.
+                    let lead = position_lead(cfg);
+                    if self.measured
+                        && q.is_finite()
+                        && qd.abs() > lim.velocity + LEAVING_SPEED
+                        && lead > 0.0
+                    {
+                        if qd > 0.0 && self.cmd > q + lead {
+                            self.cmd = q + lead;
+                        } else if qd < 0.0 && self.cmd < q - lead {
+                            self.cmd = q - lead;
+                        }
+                    }
+                    let delta = target - self.cmd;
+                    let next = self.cmd + delta.clamp(-step, step);
+                    // The command never leads the joint by more than the servo's tracking lag
+                    // at the velocity limit: a joint held back (gear backlash, stiction, a
+                    // load) is not left with a goal far ahead that it then races to. It is
+                    // only held back, never pulled back (the load correction holds the rest).
+                    let free = next;
+                    self.cmd = if !self.measured || !q.is_finite() || lead <= 0.0 {
+                        next
+                    } else if next > self.cmd {
+                        next.min((q + lead).max(self.cmd))
+                    } else {
+                        next.max((q - lead).min(self.cmd))
+                    };
+                    held = self.cmd != free;
                 }
                 // Settled: the command has reached a target that stays put (no knot left, or
                 // the reference held at a limit).
-                let settled =
-                    (self.queue.is_empty() || target != r.q) && (target - self.cmd).abs() < 1e-6;
+                // Or held back by the joint: a load (or an obstacle) it must push against.
+                let settled = ((self.queue.is_empty() || target != r.q)
+                    && (target - self.cmd).abs() < 1e-6)
+                    || held;
                 // Outside its limits a loaded joint must not sag further out: the correction
                 // runs there too, on the way back.
                 let outside = q < lim.min || q > lim.max;
@@ -523,7 +620,13 @@ impl JointControl {
                 }
                 // The goal stays within the limits, or between them and a joint outside them:
                 // never further out than the joint is.
-                let (lo, hi) = position_goal_range(lim, self.anchor, self.braking);
+                let (lo, hi) = position_goal_window(
+                    lim,
+                    self.anchor,
+                    self.braking,
+                    (q, qd),
+                    position_reach(cfg, qd),
+                );
                 JointOutput::Position((self.cmd + self.sag).clamp(lo, hi))
             }
             JointMode::Current | JointMode::Pwm if !self.measured => JointOutput::None,

@@ -68,11 +68,12 @@ fn goal_is_safe(
     lim: &ferrobot_protocol::JointLimits,
     (anchor, braking): (Option<f32>, bool),
     strength: f32,
+    (state, reach): ((f32, f32), f32),
 ) -> bool {
     match *out {
         JointOutput::None => true,
         JointOutput::Position(g) => {
-            let (lo, hi) = joint::position_goal_range(lim, anchor, braking);
+            let (lo, hi) = joint::position_goal_window(lim, anchor, braking, state, reach);
             g.is_finite() && (lo..=hi).contains(&g)
         }
         JointOutput::Velocity(v) => v.is_finite() && v.abs() <= lim.velocity,
@@ -593,14 +594,20 @@ impl Firmware {
         };
         let mut out = jc.tick(now, dt, &cfg);
         let anchor = (jc.anchor(), jc.command().1);
+        let state = if jc.measured {
+            (jc.state.position, jc.state.velocity)
+        } else {
+            (f32::NAN, f32::NAN)
+        };
+        let window = (state, joint::position_reach(&cfg, state.1));
         let strength =
             cfg.model.spec().stall_torque * if cfg.twin_id.is_some() { 2.0 } else { 1.0 };
         // The last gate before the bus: a goal that is not finite or outside the joint's
         // limits never reaches a servo; the joint holds where it is and the fault is reported.
-        if !goal_is_safe(&out, &cfg.limits, anchor, strength) {
+        if !goal_is_safe(&out, &cfg.limits, anchor, strength, window) {
             jc.hold_here(now);
             out = jc.tick(now, dt, &cfg);
-            if !goal_is_safe(&out, &cfg.limits, anchor, strength) {
+            if !goal_is_safe(&out, &cfg.limits, anchor, strength, window) {
                 out = JointOutput::None;
             }
             let bit = 1u16 << (j as u32 % 16);
