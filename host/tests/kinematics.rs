@@ -219,3 +219,108 @@ fn config_errors_name_the_file_the_key_and_the_problem() {
         "{e}"
     );
 }
+
+/// The largest absolute elementwise difference.
+fn max_diff(a: &[f64], b: &[f64]) -> f64 {
+    assert_eq!(a.len(), b.len());
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f64::max)
+}
+
+/// An independent check: PyRobot's own test expectations (tests/test_arm_utils.py, numbers
+/// computed by PyRobot's authors, summarised in `../shared/design/FACTS.md`), with PyRobot's
+/// tolerances, on both LoCoBot arms.
+#[test]
+fn kinematics_match_pyrobots_own_test_expectations() {
+    let q = [0.1, 0.2, 0.3, 0.4, 0.5];
+    let rotation = [
+        [0.6185, -0.4613, 0.6361],
+        [0.0621, 0.8357, 0.5457],
+        [-0.7833, -0.2980, 0.5455],
+    ];
+    let jacobian_at_zero = [
+        [-0.0001, 0.2, 0.0, 0.0, 0.0],
+        [0.3132, 0.0, 0.0, 0.0, 0.0],
+        [0.0, -0.3132, -0.2632, -0.063, 0.0],
+        [0.0, 0.0, 0.0, 0.0, -1.0],
+        [0.0, 1.0, 1.0, 1.0, 0.0],
+        [1.0, 0.0, 0.0, 0.0, 0.0],
+    ];
+    for (robot, position) in [
+        ("locobot_lite", [0.3821, 0.0304, 0.2200]),
+        ("locobot", [0.3994, 0.0304, 0.2500]),
+    ] {
+        let chain = arm_chain(robot);
+        let t = chain.fk(&q);
+        // FK position: LoCoBot-Lite (0.3821, 0.0304, 0.2200); the cmu LoCoBot as the original
+        // 2019 URDF in x and y (0.3994, 0.0304), its plates putting z at 0.2500.
+        let p = t.translation.vector;
+        assert!(
+            max_diff(p.as_slice(), &position) < 0.001,
+            "{robot}: FK position {p:?}"
+        );
+        // FK rotation, every variant.
+        let r = t.rotation.to_rotation_matrix();
+        let ours: Vec<f64> = (0..3)
+            .flat_map(|i| (0..3).map(move |j| (i, j)))
+            .map(|(i, j)| r[(i, j)])
+            .collect();
+        assert!(
+            max_diff(&ours, &rotation.concat()) < 0.001,
+            "{robot}: FK rotation {r}"
+        );
+        // Jacobian at q = 0, Frobenius error < 0.001.
+        let jac = chain.jacobian(&[0.0; 5]);
+        let frob: f64 = (0..6)
+            .flat_map(|i| (0..5).map(move |j| (i, j)))
+            .map(|(i, j)| (jac[(i, j)] - jacobian_at_zero[i][j]).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        assert!(frob < 0.001, "{robot}: Jacobian at 0, error {frob}:\n{jac}");
+        // FK velocity at q = 0, q' = [0.1 .. 0.5].
+        let v = chain.fk_velocity(&[0.0; 5], &q);
+        assert!(
+            max_diff(v.as_slice(), &[0.04, 0.0313, -0.1668, -0.5, 0.9, 0.1]) < 0.001,
+            "{robot}: FK velocity {v:?}"
+        );
+    }
+    // IK of PyRobot's pose on the LoCoBot-Lite arm: FK of the solution within 0.01 m and the
+    // rotation within a Frobenius distance of 0.1.
+    let chain = arm_chain("locobot_lite");
+    let target = Isometry3::from_parts(
+        nalgebra::Translation3::new(0.3821, 0.0304, 0.22),
+        nalgebra::UnitQuaternion::from_matrix(&nalgebra::Matrix3::from_row_slice(
+            &rotation.concat(),
+        )),
+    );
+    for solver in [
+        Box::new(LocobotIk::from_chain(&chain).expect("solver")) as Box<dyn IkSolver>,
+        Box::new(NumericalIk),
+    ] {
+        let sol = solver
+            .solve(
+                &chain,
+                &target,
+                None,
+                // PyRobot's pose is rounded to 4 decimals, so it lies a little off the arm's
+                // reachable orientations: solve to PyRobot's own acceptance.
+                &IkOptions {
+                    position_tolerance: 1e-3,
+                    orientation_tolerance: 1e-2,
+                    ..IkOptions::default()
+                },
+            )
+            .expect("PyRobot's pose is reachable");
+        let got = chain.fk(&sol);
+        let dp = (got.translation.vector - target.translation.vector).norm();
+        let dr = (got.rotation.to_rotation_matrix().matrix()
+            - target.rotation.to_rotation_matrix().matrix())
+        .norm();
+        assert!(
+            dp < 0.01 && dr < 0.1,
+            "IK: position error {dp}, rotation {dr}"
+        );
+    }
+}
