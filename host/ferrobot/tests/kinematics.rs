@@ -10,7 +10,10 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 fn reference(file: &str) -> urdf_rs::Robot {
-    let path = format!("{}/../../shared/robots/{file}", env!("CARGO_MANIFEST_DIR"));
+    let path = format!(
+        "{}/../../../shared/robots/{file}",
+        env!("CARGO_MANIFEST_DIR")
+    );
     urdf_rs::read_file(&path).unwrap_or_else(|e| panic!("reference URDF {path}: {e}"))
 }
 

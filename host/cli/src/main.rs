@@ -476,7 +476,7 @@ fn base_move(
     json: bool,
 ) -> ferrobot::Result<()> {
     let controller = controller.map(str::parse::<BaseController>).transpose()?;
-    let mut bot = ferrobot::bench_base::base_robot(robot, seed, None)?;
+    let mut bot = ferrobot_cli::bench_base::base_robot(robot, seed, None)?;
     let opts = GoalOptions {
         controller,
         smooth,
@@ -509,7 +509,7 @@ fn base_move(
 }
 
 /// The calibration as JSON.
-fn calibration_json(c: &ferrobot::bench_base::OdometryCalibration) -> serde_json::Value {
+fn calibration_json(c: &ferrobot_cli::bench_base::OdometryCalibration) -> serde_json::Value {
     let g = |g: &ferrobot::odometry_calibration::WheelGeometry| json!({"left_radius": g.left_radius, "right_radius": g.right_radius, "track": g.track});
     json!({
         "nominal": g(&c.nominal),
@@ -521,7 +521,7 @@ fn calibration_json(c: &ferrobot::bench_base::OdometryCalibration) -> serde_json
 }
 
 /// The calibration as text, ending with the configuration line.
-fn calibration_text(c: &ferrobot::bench_base::OdometryCalibration) -> String {
+fn calibration_text(c: &ferrobot_cli::bench_base::OdometryCalibration) -> String {
     let (n, e) = (&c.nominal, &c.estimate);
     let pct = |x: f64, y: f64| 100.0 * (x / y - 1.0);
     format!(
@@ -552,7 +552,7 @@ fn calibration_text(c: &ferrobot::bench_base::OdometryCalibration) -> String {
 }
 
 fn calibrate_odometry(robot: &str, seed: u64, json: bool) -> ferrobot::Result<()> {
-    let c = ferrobot::bench_base::calibrate_odometry(robot, seed)?;
+    let c = ferrobot_cli::bench_base::calibrate_odometry(robot, seed)?;
     if json {
         let mut o = calibration_json(&c);
         o["robot"] = json!(robot);
@@ -572,8 +572,8 @@ fn bench_base(
     plot_dir: &std::path::Path,
     calibrate: bool,
 ) -> ferrobot::Result<()> {
-    use ferrobot::bench_base::{self as bb, Category, CircleRun};
-    use ferrobot::plot::{Canvas, COLOURS};
+    use ferrobot_cli::bench_base::{self as bb, Category, CircleRun};
+    use ferrobot_cli::plot::{Canvas, COLOURS};
     let robots = if robots.is_empty() {
         vec!["locobot".to_string(), "locobot_lite".to_string()]
     } else {

@@ -3,11 +3,11 @@
 //! truth (the paper's motion capture) and against odometry (the controller's own view).
 //! Translation errors are in mm, rotation errors in degrees.
 
-use crate::base_control::{wrap, Reference};
-use crate::config::BaseController;
-use crate::error::{Error, Result};
-use crate::odometry_calibration::{self as cal, CalibrationRun, WheelGeometry};
-use crate::{Backend, GoalOptions, Robot};
+use ferrobot::base_control::{wrap, Reference};
+use ferrobot::config::BaseController;
+use ferrobot::error::{Error, Result};
+use ferrobot::odometry_calibration::{self as cal, CalibrationRun, WheelGeometry};
+use ferrobot::{Backend, GoalOptions, Robot};
 
 /// A motion category of the paper's trials.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -295,8 +295,8 @@ pub fn circle_path(
     let mut bot = base_robot(robot, seed, geometry)?;
     let mut r = paper_circle();
     if run == CircleRun::Ilqr {
-        let lim = crate::base_control::Limits::TRACKING;
-        r = crate::base_control::ilqr([0.0; 3], &r, [3.0, 3.0, 4.0], 0.2, &lim)?.reference;
+        let lim = ferrobot::base_control::Limits::TRACKING;
+        r = ferrobot::base_control::ilqr([0.0; 3], &r, [3.0, 3.0, 4.0], 0.2, &lim)?.reference;
     }
     let end = r.end();
     if let Some(b) = bot.simulator().and_then(|s| s.hw.base.as_mut()) {
@@ -352,7 +352,7 @@ pub const CALIBRATION_MOVES: [[f64; 3]; 10] = {
 /// [`CALIBRATION_MOVES`] with the configuration's controller on nominal odometry, log the
 /// wheel angles of each, measure its start and end with the simulator's ground truth (a
 /// motion-capture system on a real base), and fit the geometry by least squares
-/// ([`crate::odometry_calibration`]).
+/// ([`ferrobot::odometry_calibration`]).
 pub fn calibrate_odometry(robot: &str, seed: u64) -> Result<OdometryCalibration> {
     let mut bot = base_robot(robot, seed, None)?;
     let nominal = bot.base()?.odometry_geometry();

@@ -11,7 +11,7 @@ use embedded_graphics::prelude::{DrawTarget, OriginDimensions, Point, RgbColor, 
 use embedded_graphics::text::{Baseline, Text};
 use embedded_graphics::{Drawable, Pixel};
 
-use crate::error::{Error, Result};
+use ferrobot::error::{Error, Result};
 
 /// Series colours (RGB) in order: the first is the reference.
 pub const COLOURS: [(&str, [u8; 3]); 5] = [
@@ -37,18 +37,18 @@ impl Canvas {
     /// An error for a size outside 1-[`Canvas::MAX_SIZE`] px, a centre beyond ±1e6 m, a span
     /// outside [1e-9, 1e6] m, or grid lines denser than one per pixel or sparser than 1e6 m.
     pub fn new(size: usize, centre: [f64; 2], span: f64, grid: f64) -> Result<Canvas> {
-        crate::validate::count("canvas size (px)", size, Self::MAX_SIZE)?;
+        ferrobot::validate::count("canvas size (px)", size, Self::MAX_SIZE)?;
         if size == 0 {
-            return Err(crate::Error::OutOfRange {
+            return Err(ferrobot::Error::OutOfRange {
                 what: "canvas size (px)".into(),
                 value: 0.0,
                 min: 1.0,
                 max: Self::MAX_SIZE as f64,
             });
         }
-        crate::validate::all_in_range("canvas centre", &centre, -1e6, 1e6)?;
-        crate::validate::in_range("canvas span", span, 1e-9, 1e6)?;
-        crate::validate::in_range("canvas grid", grid, span / size as f64, 1e6)?;
+        ferrobot::validate::all_in_range("canvas centre", &centre, -1e6, 1e6)?;
+        ferrobot::validate::in_range("canvas span", span, 1e-9, 1e6)?;
+        ferrobot::validate::in_range("canvas grid", grid, span / size as f64, 1e6)?;
         let mut c = Canvas {
             size,
             px: vec![[255; 3]; size * size],

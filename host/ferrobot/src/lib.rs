@@ -20,7 +20,6 @@ pub mod arm;
 pub mod backend;
 pub mod base;
 pub mod base_control;
-pub mod bench_base;
 pub mod config;
 pub mod error;
 pub mod gripper;
@@ -29,7 +28,6 @@ pub mod motion;
 pub mod obstacles;
 pub mod odometry_calibration;
 pub mod pan_tilt;
-pub mod plot;
 pub mod robot;
 pub mod validate;
 

@@ -1,0 +1,59 @@
+//! The command line's library half under hostile values: the PNG canvas (size, centre, span,
+//! grid, segments, pens, text) and configuration overrides. See the library's
+//! `hostile_api.rs` for the rules.
+
+use ferrobot::Robot;
+
+#[path = "../../ferrobot/tests/support/hostile.rs"]
+mod hostile;
+use hostile::*;
+
+#[test]
+fn plots_and_config_overrides_refuse_hostile_values() {
+    let calls = std::cell::Cell::new(0usize);
+    let strategy = (
+        count(),
+        [value(), value()],
+        (value(), value()),
+        [value(), value(), value(), value()],
+        (count(), count(), count()),
+        value(),
+    );
+    runner(4)
+        .run(
+            &strategy,
+            |(size, centre, (span, grid), seg, (width, x, y), v)| {
+                let size = size.min(1 << 20);
+                let r = ferrobot_cli::plot::Canvas::new(size, centre, span, grid);
+                judge(
+                    "Canvas::new",
+                    absurd(&centre) || absurd(&[span, grid]) || size > 8192,
+                    &r.as_ref()
+                        .map(|_| ())
+                        .map_err(|e| ferrobot::Error::Usage(e.to_string())),
+                )?;
+                if let Ok(mut c) = r {
+                    if size <= 256 {
+                        c.line([seg[0], seg[1]], [seg[2], seg[3]], [0; 3], width);
+                        c.polyline(&[[seg[0], seg[1]], [seg[2], seg[3]], [v, v]], [0; 3], width);
+                        c.text(x, y, "hostile", [0; 3]);
+                    }
+                }
+                // A configuration override of any number is checked like the file.
+                let r = Robot::builder("locobot")
+                    .use_base(false)
+                    .set("arm.timeout", v)
+                    .build()
+                    .map(|_| ());
+                judge(
+                    "RobotBuilder::set(arm.timeout)",
+                    absurd(&[v]) || v <= 0.0,
+                    &r,
+                )?;
+                calls.set(calls.get() + 5);
+                Ok(())
+            },
+        )
+        .expect("plots and overrides refuse hostile values");
+    report("plot and overrides", calls.get());
+}
