@@ -197,6 +197,11 @@ struct IkArgs {
     json: bool,
 }
 
+/// The error of any layer as the API's, with whether to print it as JSON.
+fn with<E: Into<ferrobot::Error>>(json: bool) -> impl Fn(E) -> (ferrobot::Error, bool) {
+    move |e| (e.into(), json)
+}
+
 fn load(robot: &str) -> ferrobot::Result<RobotConfig> {
     if robot.ends_with(".toml") || robot.contains('/') {
         RobotConfig::from_file(robot)
@@ -223,7 +228,7 @@ fn check_q(chain: &Chain, q: &[f64]) -> ferrobot::Result<()> {
             got: q.len(),
         });
     }
-    validate::angles("joint angles", q)
+    Ok(validate::angles("joint angles", q)?)
 }
 
 fn pose_json(p: &Pose) -> serde_json::Value {
@@ -242,7 +247,7 @@ fn run(cli: Cli) -> Result<(), (ferrobot::Error, bool)> {
             }
         }
         Cmd::Info { robot, json } => {
-            let cfg = load(&robot).map_err(|e| (e, json))?;
+            let cfg = load(&robot).map_err(with(json))?;
             let joints: Vec<_> = cfg
                 .joints
                 .iter()
@@ -269,11 +274,11 @@ fn run(cli: Cli) -> Result<(), (ferrobot::Error, bool)> {
             frame,
             json,
         } => {
-            let cfg = load(&robot).map_err(|e| (e, json))?;
-            let arm = arm_chain(&cfg).map_err(|e| (e, json))?;
-            check_q(&arm, &q).map_err(|e| (e, json))?;
+            let cfg = load(&robot).map_err(with(json))?;
+            let arm = arm_chain(&cfg).map_err(with(json))?;
+            check_q(&arm, &q).map_err(with(json))?;
             let chain = match &frame {
-                Some(f) => Chain::from_urdf(&cfg.urdf, &arm.base, f).map_err(|e| (e, json))?,
+                Some(f) => Chain::from_urdf(&cfg.urdf, &arm.base, f).map_err(with(json))?,
                 None => arm.clone(),
             };
             let sub: Vec<f64> = chain
@@ -314,9 +319,9 @@ fn run(cli: Cli) -> Result<(), (ferrobot::Error, bool)> {
             }
         }
         Cmd::Jacobian { robot, q, json } => {
-            let cfg = load(&robot).map_err(|e| (e, json))?;
-            let arm = arm_chain(&cfg).map_err(|e| (e, json))?;
-            check_q(&arm, &q).map_err(|e| (e, json))?;
+            let cfg = load(&robot).map_err(with(json))?;
+            let arm = arm_chain(&cfg).map_err(with(json))?;
+            check_q(&arm, &q).map_err(with(json))?;
             let j = arm.jacobian(&q);
             let rows: Vec<Vec<f64>> = (0..6)
                 .map(|r| (0..arm.dof()).map(|c| j[(r, c)]).collect())
@@ -337,18 +342,18 @@ fn run(cli: Cli) -> Result<(), (ferrobot::Error, bool)> {
         }
         Cmd::Ik(a) => {
             let json = a.json;
-            let cfg = load(&a.robot).map_err(|e| (e, json))?;
-            let chain = arm_chain(&cfg).map_err(|e| (e, json))?;
+            let cfg = load(&a.robot).map_err(with(json))?;
+            let chain = arm_chain(&cfg).map_err(with(json))?;
             if let Some(s) = &a.seed {
-                check_q(&chain, s).map_err(|e| (e, json))?;
+                check_q(&chain, s).map_err(with(json))?;
             }
             let p = validate::arm_point("position", [a.position[0], a.position[1], a.position[2]])
-                .map_err(|e| (e, json))?;
+                .map_err(with(json))?;
             validate::angles(
                 "pitch and roll",
                 &[a.pitch, a.roll].into_iter().flatten().collect::<Vec<_>>(),
             )
-            .map_err(|e| (e, json))?;
+            .map_err(with(json))?;
             let ac = cfg
                 .arm
                 .as_ref()
@@ -360,9 +365,17 @@ fn run(cli: Cli) -> Result<(), (ferrobot::Error, bool)> {
                 ..Default::default()
             };
             let result = if let Some(pitch) = a.pitch {
-                LocobotIk::from_chain(&chain).and_then(|s| {
-                    s.solve_pitch_roll(&chain, &p, pitch, a.roll.unwrap_or(0.0), a.seed.as_deref())
-                })
+                LocobotIk::from_chain(&chain)
+                    .and_then(|s| {
+                        s.solve_pitch_roll(
+                            &chain,
+                            &p,
+                            pitch,
+                            a.roll.unwrap_or(0.0),
+                            a.seed.as_deref(),
+                        )
+                    })
+                    .map_err(ferrobot::Error::from)
             } else {
                 let o = match (&a.quaternion, &a.rpy) {
                     (Some(q), _) => Orientation::Quaternion([q[0], q[1], q[2], q[3]]),
@@ -382,10 +395,10 @@ fn run(cli: Cli) -> Result<(), (ferrobot::Error, bool)> {
                         IkKind::LocobotPitchRoll => Box::new(LocobotIk::from_chain(&chain)?),
                         IkKind::Numerical => Box::new(NumericalIk),
                     };
-                    solver.solve(&chain, &target, a.seed.as_deref(), &opts)
+                    Ok(solver.solve(&chain, &target, a.seed.as_deref(), &opts)?)
                 })
             };
-            let q = result.map_err(|e| (e, json))?;
+            let q = result.map_err(with(json))?;
             if json {
                 println!("{}", json!({"success": true, "joints": q}));
             } else {
@@ -416,7 +429,7 @@ fn run(cli: Cli) -> Result<(), (ferrobot::Error, bool)> {
             seed,
             json,
         )
-        .map_err(|e| (e, json))?,
+        .map_err(with(json))?,
         Cmd::Bench {
             which:
                 BenchCmd::Base {
@@ -428,7 +441,7 @@ fn run(cli: Cli) -> Result<(), (ferrobot::Error, bool)> {
                     calibrate,
                 },
         } => {
-            validate::count("trials", trials, MAX_TRIALS).map_err(|e| (e, json))?;
+            validate::count("trials", trials, MAX_TRIALS).map_err(with(json))?;
             if trials == 0 {
                 return Err((
                     ferrobot::Error::OutOfRange {
@@ -440,10 +453,10 @@ fn run(cli: Cli) -> Result<(), (ferrobot::Error, bool)> {
                     json,
                 ));
             }
-            bench_base(robot, trials, seed, json, &plot_dir, calibrate).map_err(|e| (e, json))?
+            bench_base(robot, trials, seed, json, &plot_dir, calibrate).map_err(with(json))?
         }
         Cmd::CalibrateOdometry { robot, seed, json } => {
-            calibrate_odometry(&robot, seed, json).map_err(|e| (e, json))?
+            calibrate_odometry(&robot, seed, json).map_err(with(json))?
         }
         Cmd::SimFirmware { robot, link, seed } => {
             let cfg = load(&robot).map_err(|e| (e, true))?;

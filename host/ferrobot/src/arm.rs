@@ -59,7 +59,7 @@ impl Orientation {
     /// matrix that is not a rotation.
     pub fn to_quaternion(&self) -> Result<UnitQuaternion<f64>> {
         match *self {
-            Orientation::Quaternion(q) => validate::unit_quaternion(q),
+            Orientation::Quaternion(q) => Ok(validate::unit_quaternion(q)?),
             Orientation::YawPitchRoll([y, p, r]) => {
                 validate::angles("yaw-pitch-roll", &[y, p, r])?;
                 Ok(UnitQuaternion::from_euler_angles(r, p, y))
@@ -143,7 +143,7 @@ impl<'r> Arm<'r> {
     /// Joint angles: the arm's count, each finite and within ±[`validate::MAX_ANGLE`].
     fn check_angles(&self, what: &'static str, q: &[f64]) -> Result<()> {
         self.check_count(what, q)?;
-        validate::angles(what, q)
+        Ok(validate::angles(what, q)?)
     }
 
     fn check_limits(&self, q: &[f64]) -> Result<()> {
@@ -461,7 +461,7 @@ impl<'r> Arm<'r> {
         let ik = self.robot.ik.as_ref().ok_or_else(|| Error::Unreachable {
             why: "no IK solver".into(),
         })?;
-        ik.solve(chain, &target, Some(&seed), &opts)
+        Ok(ik.solve(chain, &target, Some(&seed), &opts)?)
     }
 
     /// Move the end effector to a pose (through IK and a planned joint move).
@@ -518,7 +518,7 @@ impl<'r> Arm<'r> {
         };
         let roll = roll.unwrap_or(sign * seed[4]);
         validate::angles("roll", &[roll])?;
-        solver.solve_pitch_roll(&chain, &Vector3::from(position), pitch, roll, Some(&seed))
+        Ok(solver.solve_pitch_roll(&chain, &Vector3::from(position), pitch, roll, Some(&seed))?)
     }
 
     /// Move the end effector along a straight line by `displacement` (m, base frame), keeping

@@ -23,7 +23,7 @@ fn check_relative(delta: [f64; 3]) -> Result<()> {
         0.0,
         validate::MAX_BASE_GOAL_DISTANCE,
     )?;
-    validate::angles("base goal heading", &delta[2..])
+    Ok(validate::angles("base goal heading", &delta[2..])?)
 }
 use crate::motion::{Goal, Motion};
 use crate::obstacles::{Circle, Obstacles, OccupancyGrid};

@@ -213,26 +213,129 @@ impl Error {
     }
 }
 
-/// A number for a message: plain when moderate, in scientific notation when huge or tiny,
-/// six significant digits at most.
-pub(crate) fn num(v: f64) -> String {
-    let a = v.abs();
-    if v.is_finite() && a != 0.0 && !(1e-3..1e6).contains(&a) {
-        format!("{v:.3e}")
-    } else if v.is_finite() {
-        let s = format!("{v:.6}");
-        let s = s.trim_end_matches('0').trim_end_matches('.');
-        if s == "-0" {
-            "0".into()
-        } else {
-            s.into()
+pub(crate) use ferrobot_geometry::validate::num;
+
+// The errors of the crates below the API map onto the API's own variants, so a program
+// matches one enum whichever layer refused.
+
+impl From<ferrobot_geometry::ValueError> for Error {
+    fn from(e: ferrobot_geometry::ValueError) -> Self {
+        use ferrobot_geometry::ValueError as V;
+        match e {
+            V::NotFinite { what, value } => Error::NotFinite { what, value },
+            V::OutOfRange {
+                what,
+                value,
+                min,
+                max,
+            } => Error::OutOfRange {
+                what,
+                value,
+                min,
+                max,
+            },
+            other => Error::OutOfRange {
+                what: other.to_string(),
+                value: f64::NAN,
+                min: f64::NAN,
+                max: f64::NAN,
+            },
         }
-    } else {
-        format!("{v}")
+    }
+}
+
+impl From<ferrobot_kinematics::Error> for Error {
+    fn from(e: ferrobot_kinematics::Error) -> Self {
+        use ferrobot_kinematics::Error as K;
+        match e {
+            K::NotFinite { what, value } => Error::NotFinite { what, value },
+            K::OutOfRange {
+                what,
+                value,
+                min,
+                max,
+            } => Error::OutOfRange {
+                what,
+                value,
+                min,
+                max,
+            },
+            K::JointCount {
+                what,
+                expected,
+                got,
+            } => Error::JointCount {
+                what,
+                expected,
+                got,
+            },
+            K::Unreachable { why } => Error::Unreachable { why },
+            K::UnknownName { what, name } => Error::UnknownName { what, name },
+            other => Error::Unreachable {
+                why: other.to_string(),
+            },
+        }
+    }
+}
+
+impl From<ferrobot_control::Error> for Error {
+    fn from(e: ferrobot_control::Error) -> Self {
+        use ferrobot_control::Error as C;
+        match e {
+            C::NotFinite { what, value } => Error::NotFinite { what, value },
+            C::OutOfRange {
+                what,
+                value,
+                min,
+                max,
+            } => Error::OutOfRange {
+                what,
+                value,
+                min,
+                max,
+            },
+            C::JointCount {
+                what,
+                expected,
+                got,
+            } => Error::JointCount {
+                what,
+                expected,
+                got,
+            },
+            C::Calibration { why } => Error::Calibration { why },
+            other => Error::Calibration {
+                why: other.to_string(),
+            },
+        }
+    }
+}
+
+impl From<ferrobot_nav::Error> for Error {
+    fn from(e: ferrobot_nav::Error) -> Self {
+        use ferrobot_nav::Error as N;
+        match e {
+            N::NotFinite { what, value } => Error::NotFinite { what, value },
+            N::OutOfRange {
+                what,
+                value,
+                min,
+                max,
+            } => Error::OutOfRange {
+                what,
+                value,
+                min,
+                max,
+            },
+            N::InvalidMap { why } => Error::InvalidMap { why },
+            other => Error::InvalidMap {
+                why: other.to_string(),
+            },
+        }
     }
 }
 
 /// Check that every value is finite.
 pub(crate) fn check_finite(what: &str, values: &[f64]) -> Result<()> {
-    crate::validate::finite(what, values)
+    Ok(crate::validate::finite(what, values)?)
 }

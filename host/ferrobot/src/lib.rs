@@ -19,17 +19,24 @@
 pub mod arm;
 pub mod backend;
 pub mod base;
-pub mod base_control;
 pub mod config;
 pub mod error;
 pub mod gripper;
-pub mod kinematics;
 pub mod motion;
-pub mod obstacles;
-pub mod odometry_calibration;
 pub mod pan_tilt;
 pub mod robot;
-pub mod validate;
+
+pub use ferrobot_control::odometry_calibration;
+pub use ferrobot_geometry::validate;
+pub use ferrobot_kinematics as kinematics;
+pub use ferrobot_nav as obstacles;
+
+/// Base control and navigation, as one module of the API: references, LQR and ILQR
+/// (`ferrobot-control`), and the navigation field and dynamic window (`ferrobot-nav`).
+pub mod base_control {
+    pub use ferrobot_control::trajectory::*;
+    pub use ferrobot_nav::{Circle, Dwa, NavField, Obstacles, OccupancyGrid};
+}
 
 pub use arm::{MoveOptions, Orientation, Pose};
 pub use backend::Backend;
@@ -39,3 +46,20 @@ pub use error::{Error, Result};
 pub use ferrobot_protocol::GripperState;
 pub use motion::Motion;
 pub use robot::{Robot, RobotBuilder};
+
+#[cfg(test)]
+mod tests {
+    /// The geometry layer's bounds are the wire protocol's, one fact in two crates that must
+    /// not drift apart (the geometry crate is below the protocol's users and does not depend on
+    /// it).
+    #[test]
+    fn the_geometry_layer_bounds_are_the_protocols() {
+        use ferrobot_protocol::ranges;
+        assert_eq!(
+            crate::validate::BASE_SPEED_MAX,
+            ranges::BASE_SPEED_MAX as f64
+        );
+        assert_eq!(crate::validate::BASE_TURN_MAX, ranges::BASE_TURN_MAX as f64);
+        assert!(crate::validate::MAX_ANGLE <= ranges::JOINT_POSITION_MAX as f64);
+    }
+}

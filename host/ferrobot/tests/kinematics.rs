@@ -147,7 +147,10 @@ fn locobot_refuses_orientations_it_cannot_reach() {
     let err = ik
         .solve(&chain, &bad, None, &IkOptions::default())
         .expect_err("unreachable");
-    assert!(matches!(err, ferrobot::Error::Unreachable { .. }), "{err}");
+    assert!(
+        matches!(err, ferrobot::kinematics::Error::Unreachable { .. }),
+        "{err}"
+    );
     // Out of reach.
     let far = Isometry3::translation(2.0, 0.0, 0.3) * nalgebra::UnitQuaternion::identity();
     assert!(ik.solve(&chain, &far, None, &IkOptions::default()).is_err());

@@ -93,10 +93,10 @@ pub fn absurd(values: &[f64]) -> bool {
 }
 
 /// `Err` is required when `hostile`; a panic anywhere fails the case.
-pub fn judge<T: std::fmt::Debug>(
+pub fn judge<T: std::fmt::Debug, E: std::fmt::Debug>(
     what: &str,
     hostile: bool,
-    r: &ferrobot::Result<T>,
+    r: &Result<T, E>,
 ) -> Result<(), TestCaseError> {
     if hostile && r.is_ok() {
         return Err(TestCaseError::fail(format!(

@@ -130,8 +130,11 @@ impl LocobotIk {
         roll: f64,
         seed: Option<&[f64]>,
     ) -> Result<Vec<f64>> {
-        crate::validate::arm_point("IK target position", [position.x, position.y, position.z])?;
-        crate::validate::angles("pitch and roll", &[pitch, roll])?;
+        ferrobot_geometry::validate::arm_point(
+            "IK target position",
+            [position.x, position.y, position.z],
+        )?;
+        ferrobot_geometry::validate::angles("pitch and roll", &[pitch, roll])?;
         super::ik::check_seed(chain, seed)?;
         let sols = self.solutions(chain, position, pitch, roll);
         let zero = [0.0; 5];

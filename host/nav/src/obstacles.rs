@@ -2,7 +2,7 @@
 //! frame (m), behind one query, the clearance from a point to the nearest obstacle.
 
 use crate::error::{Error, Result};
-use crate::validate;
+use ferrobot_geometry::validate;
 
 /// A round obstacle `[x, y, r]` (m) in the odometry frame.
 pub type Circle = [f64; 3];

@@ -56,9 +56,9 @@ pub trait IkSolver: Send + Sync {
     ) -> Result<Vec<f64>>;
 }
 
-/// Validate an IK request: a target within ±[`crate::validate::MAX_ARM_REACH`] m with a finite
+/// Validate an IK request: a target within ±[`ferrobot_geometry::validate::MAX_ARM_REACH`] m with a finite
 /// unit rotation, a seed (when given) of one finite angle per joint within
-/// ±[`crate::validate::MAX_ANGLE`], tolerances in `[1e-12, 1]` and a timeout of at most 10 s.
+/// ±[`ferrobot_geometry::validate::MAX_ANGLE`], tolerances in `[1e-12, 1]` and a timeout of at most 10 s.
 /// Every solver calls it first.
 pub fn check_request(
     chain: &Chain,
@@ -67,12 +67,17 @@ pub fn check_request(
     opts: &IkOptions,
 ) -> Result<()> {
     let t = target.translation.vector;
-    crate::validate::arm_point("IK target position", [t.x, t.y, t.z])?;
+    ferrobot_geometry::validate::arm_point("IK target position", [t.x, t.y, t.z])?;
     let q = target.rotation.coords;
-    crate::validate::unit_quaternion([q.x, q.y, q.z, q.w])?;
+    ferrobot_geometry::validate::unit_quaternion([q.x, q.y, q.z, q.w])?;
     check_seed(chain, seed)?;
-    crate::validate::in_range("IK position tolerance", opts.position_tolerance, 1e-12, 1.0)?;
-    crate::validate::in_range(
+    ferrobot_geometry::validate::in_range(
+        "IK position tolerance",
+        opts.position_tolerance,
+        1e-12,
+        1.0,
+    )?;
+    ferrobot_geometry::validate::in_range(
         "IK orientation tolerance",
         opts.orientation_tolerance,
         1e-12,
@@ -89,7 +94,7 @@ pub fn check_request(
     Ok(())
 }
 
-/// A seed, when given: one finite angle per joint within ±[`crate::validate::MAX_ANGLE`].
+/// A seed, when given: one finite angle per joint within ±[`ferrobot_geometry::validate::MAX_ANGLE`].
 pub fn check_seed(chain: &Chain, seed: Option<&[f64]>) -> Result<()> {
     if let Some(s) = seed {
         if s.len() != chain.dof() {
@@ -99,7 +104,7 @@ pub fn check_seed(chain: &Chain, seed: Option<&[f64]>) -> Result<()> {
                 got: s.len(),
             });
         }
-        crate::validate::angles("IK seed", s)?;
+        ferrobot_geometry::validate::angles("IK seed", s)?;
     }
     Ok(())
 }

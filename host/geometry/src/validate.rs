@@ -1,7 +1,7 @@
-//! Validation of the numbers that enter the API, one place per kind of value: durations,
+//! Validation of the numbers that enter Ferrobot, one place per kind of value: durations,
 //! angles, Cartesian positions, orientations, base goals and sizes. Every check returns a
-//! typed [`Error`] naming the value and the accepted range; none panics, whatever the input
-//! (NaN, ±inf, subnormals, ±f64::MAX, `Duration::MAX`).
+//! typed [`ValueError`] naming the value and the accepted range; none panics, whatever the
+//! input (NaN, ±inf, subnormals, ±f64::MAX, `Duration::MAX`).
 //!
 //! The bounds are physical: wide enough for anything the robots Ferrobot drives can do, narrow
 //! enough that no arithmetic on an accepted value overflows, and no allocation or search sized
@@ -11,12 +11,58 @@ use std::time::Duration;
 
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 
-use crate::error::{Error, Result};
+/// A number that is not valid where it was given.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum ValueError {
+    /// A NaN or infinite value.
+    #[error("{what} is not a finite number: {value}")]
+    NotFinite {
+        /// What.
+        what: String,
+        /// The value.
+        value: f64,
+    },
+    /// A finite number outside the accepted range.
+    #[error("{what} = {} is outside the accepted range [{}, {}]", num(*value), num(*min), num(*max))]
+    OutOfRange {
+        /// What.
+        what: String,
+        /// The value.
+        value: f64,
+        /// Smallest accepted.
+        min: f64,
+        /// Largest accepted.
+        max: f64,
+    },
+}
+
+/// Result with [`ValueError`].
+pub type Result<T, E = ValueError> = std::result::Result<T, E>;
+
+/// A number for a message: plain when moderate, in scientific notation when huge or tiny,
+/// six significant digits at most.
+pub fn num(v: f64) -> String {
+    let a = v.abs();
+    if v.is_finite() && a != 0.0 && !(1e-3..1e6).contains(&a) {
+        format!("{v:.3e}")
+    } else if v.is_finite() {
+        let s = format!("{v:.6}");
+        let s = s.trim_end_matches('0').trim_end_matches('.');
+        if s == "-0" {
+            "0".into()
+        } else {
+            s.into()
+        }
+    } else {
+        format!("{v}")
+    }
+}
 
 /// Longest duration or timeout the API accepts, s (one hour).
 pub const MAX_DURATION_S: f64 = 3600.0;
 /// Largest angle the API accepts (joint angles, pitch, roll, yaw), rad: two turns either way,
-/// the protocol's [`ferrobot_protocol::ranges::JOINT_POSITION_MAX`].
+/// the wire protocol's largest joint position (`ferrobot_protocol::ranges::JOINT_POSITION_MAX`).
 pub const MAX_ANGLE: f64 = 4.0 * std::f64::consts::PI;
 /// Largest Cartesian coordinate of an arm target or displacement, m.
 pub const MAX_ARM_REACH: f64 = 10.0;
@@ -37,6 +83,12 @@ pub const MAX_GRID_CELLS: usize = 1 << 24;
 pub const MAX_REFERENCE_SAMPLES: usize = 200_000;
 /// Sample period of a base reference trajectory, s: from 1 ms to 1 s.
 pub const REFERENCE_DT: (f64, f64) = (1e-3, 1.0);
+/// Fastest base speed anything may name, m/s: the wire protocol's `BASE_SPEED_MAX` (tested
+/// equal in `ferrobot`).
+pub const BASE_SPEED_MAX: f64 = 2.0;
+/// Fastest base turn anything may name, rad/s: the wire protocol's `BASE_TURN_MAX` (tested
+/// equal in `ferrobot`).
+pub const BASE_TURN_MAX: f64 = 20.0;
 /// Most circular obstacles of one base goal.
 pub const MAX_OBSTACLES: usize = 10_000;
 
@@ -44,7 +96,7 @@ pub const MAX_OBSTACLES: usize = 10_000;
 pub fn finite(what: &str, values: &[f64]) -> Result<()> {
     for (i, v) in values.iter().enumerate() {
         if !v.is_finite() {
-            return Err(Error::NotFinite {
+            return Err(ValueError::NotFinite {
                 what: if values.len() > 1 {
                     format!("{what}[{i}]")
                 } else {
@@ -61,7 +113,7 @@ pub fn finite(what: &str, values: &[f64]) -> Result<()> {
 pub fn in_range(what: &str, value: f64, min: f64, max: f64) -> Result<f64> {
     finite(what, &[value])?;
     if !(min..=max).contains(&value) {
-        return Err(Error::OutOfRange {
+        return Err(ValueError::OutOfRange {
             what: what.to_string(),
             value,
             min,
@@ -87,7 +139,7 @@ pub fn all_in_range(what: &str, values: &[f64], min: f64, max: f64) -> Result<()
 /// A duration given in seconds: finite, in `[0, MAX_DURATION_S]`.
 pub fn seconds(what: &str, s: f64) -> Result<Duration> {
     in_range(what, s, 0.0, MAX_DURATION_S)?;
-    Duration::try_from_secs_f64(s).map_err(|_| Error::OutOfRange {
+    Duration::try_from_secs_f64(s).map_err(|_| ValueError::OutOfRange {
         what: what.to_string(),
         value: s,
         min: 0.0,
@@ -98,7 +150,7 @@ pub fn seconds(what: &str, s: f64) -> Result<Duration> {
 /// A timeout: at most [`MAX_DURATION_S`].
 pub fn timeout(what: &str, d: Duration) -> Result<Duration> {
     if d.as_secs_f64() > MAX_DURATION_S {
-        return Err(Error::OutOfRange {
+        return Err(ValueError::OutOfRange {
             what: what.to_string(),
             value: d.as_secs_f64(),
             min: 0.0,
@@ -128,7 +180,7 @@ pub fn unit_quaternion(q: [f64; 4]) -> Result<UnitQuaternion<f64>> {
     let quat = Quaternion::new(w, x, y, z);
     let norm = quat.norm();
     if (norm - 1.0).abs() > QUATERNION_NORM_TOLERANCE {
-        return Err(Error::OutOfRange {
+        return Err(ValueError::OutOfRange {
             what: "quaternion norm".into(),
             value: norm,
             min: 1.0 - QUATERNION_NORM_TOLERANCE,
@@ -157,7 +209,7 @@ pub fn base_goal(goal: [f64; 3], here: [f64; 3]) -> Result<()> {
 /// A count: at most `max`.
 pub fn count(what: &str, n: usize, max: usize) -> Result<usize> {
     if n > max {
-        return Err(Error::OutOfRange {
+        return Err(ValueError::OutOfRange {
             what: what.to_string(),
             value: n as f64,
             min: 0.0,

@@ -5,12 +5,15 @@
 //! frame; Jacobian rows are (vx, vy, vz, ωx, ωy, ωz) in the base frame, taken at the tip's
 //! origin; quaternions are `[x, y, z, w]` wherever they appear as arrays.
 
+#![warn(missing_docs)]
+
+pub mod error;
 pub mod ik;
 pub mod locobot_ik;
 
-use nalgebra::{Isometry3, Matrix6xX, Translation3, UnitQuaternion, Vector3, Vector6};
+pub use error::{Error, Result};
 
-use crate::error::{Error, Result};
+use nalgebra::{Isometry3, Matrix6xX, Translation3, UnitQuaternion, Vector3, Vector6};
 
 /// How a chain joint moves.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -216,8 +219,8 @@ mod tests {
 
     #[test]
     fn jacobian_matches_finite_differences() {
-        let urdf =
-            urdf_rs::read_from_string(include_str!("../../robots/sawyer.urdf")).expect("urdf");
+        let urdf = urdf_rs::read_from_string(include_str!("../../ferrobot/robots/sawyer.urdf"))
+            .expect("urdf");
         let chain = Chain::from_urdf(&urdf, "base", "right_hand").expect("chain");
         let q = [0.3, -0.7, 0.4, 1.2, -0.5, 0.8, 2.0];
         let j = chain.jacobian(&q);

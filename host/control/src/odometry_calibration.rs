@@ -23,8 +23,8 @@
 use nalgebra::{DMatrix, DVector};
 use serde::Deserialize;
 
-use crate::base_control::wrap;
 use crate::error::{Error, Result};
+use ferrobot_geometry::wrap;
 
 /// Effective geometry of a differential-drive base, m.
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
@@ -156,8 +156,8 @@ pub fn estimate(runs: &[CalibrationRun], nominal: &WheelGeometry) -> Result<Whee
                 .iter()
                 .flatten()
                 .any(|x| !(x.is_finite() && x.abs() <= MAX_WHEEL_ANGLE))
-            || crate::validate::base_pose("run start", r.start).is_err()
-            || crate::validate::base_pose("run end", r.end).is_err()
+            || ferrobot_geometry::validate::base_pose("run start", r.start).is_err()
+            || ferrobot_geometry::validate::base_pose("run end", r.end).is_err()
     }) {
         return Err(bad(format!(
             "every run needs at least two finite wheel samples within ±{MAX_WHEEL_ANGLE} rad and poses within the odometry frame's bounds"
