@@ -2,6 +2,7 @@
 //! (joints 0.01 rad; end effector 5 mm and 0.02 rad; base 2 cm and 2°).
 #![allow(clippy::needless_range_loop)]
 
+use ferrobot::base_control::wrap;
 use ferrobot::{Error, GripperState, MoveOptions, Orientation, Robot};
 use ferrobot_protocol::FaultKind;
 
@@ -28,10 +29,6 @@ fn rot_err(a: &[[f64; 3]; 3], b: &[[f64; 3]; 3]) -> f64 {
 
 fn pos_err(a: &[f64; 3], b: &[f64; 3]) -> f64 {
     ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
-}
-
-fn wrap(a: f64) -> f64 {
-    (a + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI
 }
 
 #[test]

@@ -8,6 +8,7 @@
 //! right-handed. The end-effector orientation is `Rz(yaw)·Ry(pitch)·Rx(roll)` in the frame of
 //! joint 1, with yaw set by where the target is.
 
+use ferrobot_geometry::wrap;
 use nalgebra::{Isometry3, Rotation3, Vector3};
 
 use super::ik::{pose_error, IkOptions, IkSolver};
@@ -153,16 +154,6 @@ impl LocobotIk {
 
 fn dist(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum()
-}
-
-fn wrap(a: f64) -> f64 {
-    let mut a = a % std::f64::consts::TAU;
-    if a > std::f64::consts::PI {
-        a -= std::f64::consts::TAU;
-    } else if a < -std::f64::consts::PI {
-        a += std::f64::consts::TAU;
-    }
-    a
 }
 
 impl IkSolver for LocobotIk {
