@@ -248,18 +248,7 @@ impl From<ferrobot_kinematics::Error> for Error {
     fn from(e: ferrobot_kinematics::Error) -> Self {
         use ferrobot_kinematics::Error as K;
         match e {
-            K::NotFinite { what, value } => Error::NotFinite { what, value },
-            K::OutOfRange {
-                what,
-                value,
-                min,
-                max,
-            } => Error::OutOfRange {
-                what,
-                value,
-                min,
-                max,
-            },
+            K::Value(v) => v.into(),
             K::JointCount {
                 what,
                 expected,
@@ -282,18 +271,7 @@ impl From<ferrobot_control::Error> for Error {
     fn from(e: ferrobot_control::Error) -> Self {
         use ferrobot_control::Error as C;
         match e {
-            C::NotFinite { what, value } => Error::NotFinite { what, value },
-            C::OutOfRange {
-                what,
-                value,
-                min,
-                max,
-            } => Error::OutOfRange {
-                what,
-                value,
-                min,
-                max,
-            },
+            C::Value(v) => v.into(),
             C::JointCount {
                 what,
                 expected,
@@ -315,18 +293,7 @@ impl From<ferrobot_nav::Error> for Error {
     fn from(e: ferrobot_nav::Error) -> Self {
         use ferrobot_nav::Error as N;
         match e {
-            N::NotFinite { what, value } => Error::NotFinite { what, value },
-            N::OutOfRange {
-                what,
-                value,
-                min,
-                max,
-            } => Error::OutOfRange {
-                what,
-                value,
-                min,
-                max,
-            },
+            N::Value(v) => v.into(),
             N::InvalidMap { why } => Error::InvalidMap { why },
             other => Error::InvalidMap {
                 why: other.to_string(),

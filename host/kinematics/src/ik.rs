@@ -14,7 +14,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use super::{Chain, JointType};
-use crate::error::{Error, Result};
+use crate::error::{Error, Result, ValueError};
 
 /// Most joints the numerical solver handles.
 pub const MAX_DOF: usize = 8;
@@ -84,12 +84,13 @@ pub fn check_request(
         1.0,
     )?;
     if opts.timeout > Duration::from_secs(10) {
-        return Err(Error::OutOfRange {
+        return Err(ValueError::OutOfRange {
             what: "IK timeout".into(),
             value: opts.timeout.as_secs_f64(),
             min: 0.0,
             max: 10.0,
-        });
+        }
+        .into());
     }
     Ok(())
 }

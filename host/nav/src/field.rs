@@ -47,12 +47,13 @@ impl NavField {
         let span = |k: usize| ((hi[k] + 2.0 - origin[k]) / Self::CELL).ceil() + 1.0;
         let cells = span(0) * span(1);
         if cells.is_nan() || cells > ferrobot_geometry::validate::MAX_GRID_CELLS as f64 {
-            return Err(crate::error::Error::OutOfRange {
+            return Err(ferrobot_geometry::ValueError::OutOfRange {
                 what: "navigation grid cells (start, goal, obstacles and map)".into(),
                 value: cells,
                 min: 1.0,
                 max: ferrobot_geometry::validate::MAX_GRID_CELLS as f64,
-            });
+            }
+            .into());
         }
         let (nx, ny) = (span(0) as usize, span(1) as usize);
         let blocked = |i: usize, j: usize| {
@@ -336,9 +337,19 @@ mod tests {
     #[test]
     fn a_navigation_field_too_large_is_refused_before_allocating() {
         let far = NavField::new([0.0, 0.0], [1000.0, 1000.0], &Obstacles::default(), 0.2);
-        assert!(matches!(far, Err(crate::error::Error::OutOfRange { .. })));
+        assert!(matches!(
+            far,
+            Err(crate::Error::Value(
+                ferrobot_geometry::ValueError::OutOfRange { .. }
+            ))
+        ));
         let nan = NavField::new([0.0, f64::NAN], [1.0, 1.0], &Obstacles::default(), 0.2);
-        assert!(matches!(nan, Err(crate::error::Error::NotFinite { .. })));
+        assert!(matches!(
+            nan,
+            Err(crate::Error::Value(
+                ferrobot_geometry::ValueError::NotFinite { .. }
+            ))
+        ));
     }
 
     /// In free space the field is the straight-line distance within the 8-connected grid's

@@ -258,10 +258,11 @@ impl Obstacles {
         validate::count("obstacles", circles.len(), validate::MAX_OBSTACLES)?;
         for c in &circles {
             if !(c.iter().all(|x| x.is_finite()) && c[2] >= 0.0) {
-                return Err(Error::NotFinite {
+                return Err(ferrobot_geometry::ValueError::NotFinite {
                     what: format!("obstacle {c:?} (needs finite x, y and r ≥ 0)"),
                     value: c[2],
-                });
+                }
+                .into());
             }
             let lim = validate::MAX_BASE_COORDINATE;
             validate::all_in_range("obstacle centre", &c[..2], -lim, lim)?;
