@@ -36,6 +36,7 @@ pub mod clock;
 pub mod create2;
 pub mod dxl;
 pub mod frame;
+pub mod geometry;
 pub mod kobuki;
 pub mod messages;
 pub mod ranges;

@@ -4,6 +4,7 @@
 //! (the simulator's motion capture) is kept in `f64` beside everything the robot measures.
 
 use crate::rng::SimRng;
+use ferrobot_protocol::geometry::wrap;
 
 /// Physical parameters of a base.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -79,16 +80,6 @@ pub struct DiffDrive {
     rng: SimRng,
 }
 
-fn wrap(a: f64) -> f64 {
-    let mut a = a % std::f64::consts::TAU;
-    if a > std::f64::consts::PI {
-        a -= std::f64::consts::TAU;
-    } else if a <= -std::f64::consts::PI {
-        a += std::f64::consts::TAU;
-    }
-    a
-}
-
 impl DiffDrive {
     /// A base at the origin.
     pub fn new(p: DiffDriveParams, rng: SimRng) -> Self {
@@ -159,20 +150,8 @@ impl DiffDrive {
         let dr = rot_r * p.right_radius * (1.0 - sr);
         let ds = 0.5 * (dl + dr);
         let dth = (dr - dl) / p.track;
-        let [x, y, th] = self.truth;
-        let (nx, ny) = if dth.abs() < 1e-9 {
-            (
-                x + ds * (th + 0.5 * dth).cos(),
-                y + ds * (th + 0.5 * dth).sin(),
-            )
-        } else {
-            let r = ds / dth;
-            (
-                x + r * ((th + dth).sin() - th.sin()),
-                y - r * ((th + dth).cos() - th.cos()),
-            )
-        };
-        let nth = wrap(th + dth);
+        let [x, y, _] = self.truth;
+        let [nx, ny, nth] = ferrobot_protocol::geometry::arc_step(self.truth, ds, dth);
         // Obstacles: the body cannot enter them; the bumper reports where it touches.
         let mut contact = Contact::default();
         let mut blocked = false;

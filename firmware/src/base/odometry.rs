@@ -1,18 +1,11 @@
 //! Wheel odometry of a differential-drive base, integrated exactly on arcs.
 
+use ferrobot_protocol::geometry::{arc_step, wrap};
 use ferrobot_protocol::Odometry;
-use libm::{cosf, sinf};
 
-/// Wrap an angle to (−π, π].
+/// Wrap an angle to (−π, π] (the protocol's one wrap, in `f32`).
 pub fn wrap_angle(a: f32) -> f32 {
-    use core::f32::consts::{PI, TAU};
-    let mut a = a % TAU;
-    if a > PI {
-        a -= TAU;
-    } else if a <= -PI {
-        a += TAU;
-    }
-    a
+    wrap(a)
 }
 
 /// Integrates wheel travel into a pose.
@@ -40,17 +33,7 @@ impl OdometryIntegrator {
     pub fn update_with_heading(&mut self, dl: f32, dr: f32, dth: f32, dt: f32) {
         let ds = 0.5 * (dl + dr);
         let p = &mut self.pose;
-        if dth.abs() < 1e-6 {
-            let mid = p.theta + 0.5 * dth;
-            p.x += ds * cosf(mid);
-            p.y += ds * sinf(mid);
-        } else {
-            let r = ds / dth;
-            let th1 = p.theta + dth;
-            p.x += r * (sinf(th1) - sinf(p.theta));
-            p.y -= r * (cosf(th1) - cosf(p.theta));
-        }
-        p.theta = wrap_angle(p.theta + dth);
+        [p.x, p.y, p.theta] = arc_step([p.x, p.y, p.theta], ds, dth);
         if dt > 0.0 {
             p.v = ds / dt;
             p.w = dth / dt;

@@ -66,16 +66,10 @@ impl WheelGeometry {
             let dr = (w[1][1] - w[0][1]) * self.right_radius;
             let ds = 0.5 * (dl + dr);
             let dth = (dr - dl) / self.track;
-            // sin(x)/x, the arc's chord factor, exact for small x too.
-            let h = 0.5 * dth;
-            let k = if h.abs() < 1e-6 {
-                1.0 - h * h / 6.0
-            } else {
-                h.sin() / h
-            };
-            p[0] += ds * k * (p[2] + h).cos();
-            p[1] += ds * k * (p[2] + h).sin();
-            p[2] += dth;
+            // The one arc step of the firmware and the plants; the heading stays unwrapped
+            // here, so a run's total turn (a square's 2π) survives.
+            let [x, y, _] = ferrobot_geometry::arc_step(p, ds, dth);
+            p = [x, y, p[2] + dth];
         }
         p
     }

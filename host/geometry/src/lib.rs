@@ -5,16 +5,13 @@ pub mod validate;
 
 pub use validate::ValueError;
 
-/// Wrap an angle (rad) to (−π, π]: the one convention of every host crate.
+/// Wrap an angle (rad) to (−π, π]: the one convention of every host crate, the firmware and
+/// the plants (`ferrobot_protocol::geometry::wrap`).
 pub fn wrap(a: f64) -> f64 {
-    let mut a = a % std::f64::consts::TAU;
-    if a > std::f64::consts::PI {
-        a -= std::f64::consts::TAU;
-    } else if a <= -std::f64::consts::PI {
-        a += std::f64::consts::TAU;
-    }
-    a
+    ferrobot_protocol::geometry::wrap(a)
 }
+
+pub use ferrobot_protocol::geometry::arc_step;
 
 #[cfg(test)]
 mod tests {
