@@ -24,7 +24,7 @@ use nalgebra::{DMatrix, DVector};
 use serde::Deserialize;
 
 use crate::error::{Error, Result};
-use ferrobot_geometry::wrap;
+use ferrobot_geometry::{wrap, Pose2};
 
 /// Effective geometry of a differential-drive base, m.
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
@@ -92,12 +92,9 @@ impl CalibrationRun {
     /// The measured pose change in the start frame; the heading change is unwrapped to the
     /// multiple of 2π nearest to what `guess` integrates.
     fn measured(&self, guess: &WheelGeometry) -> [f64; 3] {
-        let [x0, y0, t0] = self.start;
-        let (c, s) = (t0.cos(), t0.sin());
-        let (dx, dy) = (self.end[0] - x0, self.end[1] - y0);
+        let d = Pose2::from(self.start).between(&Pose2::from(self.end));
         let odo = guess.integrate(&self.wheels)[2];
-        let dth = odo + wrap(self.end[2] - t0 - odo);
-        [c * dx + s * dy, -s * dx + c * dy, dth]
+        [d.x, d.y, odo + wrap(d.theta - odo)]
     }
 }
 
@@ -243,12 +240,7 @@ mod tests {
                 log.push(wheels);
             }
             let d = truth.integrate(&log);
-            let (c, s) = (pose[2].cos(), pose[2].sin());
-            let end = [
-                pose[0] + c * d[0] - s * d[1],
-                pose[1] + s * d[0] + c * d[1],
-                wrap(pose[2] + d[2]),
-            ];
+            let end = Pose2::from(pose).compose(&Pose2::from(d)).to_array();
             out.push(CalibrationRun {
                 wheels: log,
                 start: pose,

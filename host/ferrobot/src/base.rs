@@ -12,6 +12,7 @@ use crate::base_control::{ilqr, wrap, Dwa, Limits, LqrTracker, NavField, Referen
 use crate::config::BaseController;
 use crate::error::{check_finite, Error, Result};
 use crate::validate;
+use ferrobot_geometry::Pose2;
 
 /// A relative base goal: finite, at most [`validate::MAX_BASE_GOAL_DISTANCE`] away, a turn
 /// within ±[`validate::MAX_ANGLE`].
@@ -993,6 +994,13 @@ impl<'r> Base<'r> {
         }
     }
 
+    /// The odometry-frame goal `delta` (`[x, y, θ]` in the current pose's frame) names.
+    fn relative_goal(&mut self, delta: [f64; 3]) -> Result<[f64; 3]> {
+        check_relative(delta)?;
+        let here = Pose2::from(self.get_state()?);
+        Ok(here.compose(&Pose2::from(delta)).to_array())
+    }
+
     /// Start moving by `[x, y, θ]` relative to the current pose with the chosen controller.
     pub fn go_to_relative_with(
         &mut self,
@@ -1000,13 +1008,7 @@ impl<'r> Base<'r> {
         opts: GoalOptions,
     ) -> Result<Motion<'_>> {
         check_relative(delta)?;
-        let [x, y, th] = self.get_state()?;
-        let (s, c) = th.sin_cos();
-        let goal = [
-            x + c * delta[0] - s * delta[1],
-            y + s * delta[0] + c * delta[1],
-            wrap(th + delta[2]),
-        ];
+        let goal = self.relative_goal(delta)?;
         self.go_to_absolute_with(goal, opts)
     }
 
@@ -1044,13 +1046,7 @@ impl<'r> Base<'r> {
     /// Start moving by `[x, y, θ]` relative to the current pose (x forward, y left).
     pub fn go_to_relative_async(&mut self, delta: [f64; 3]) -> Result<Motion<'_>> {
         check_relative(delta)?;
-        let [x, y, th] = self.get_state()?;
-        let (s, c) = th.sin_cos();
-        let goal = [
-            x + c * delta[0] - s * delta[1],
-            y + s * delta[0] + c * delta[1],
-            wrap(th + delta[2]),
-        ];
+        let goal = self.relative_goal(delta)?;
         self.go_to_absolute_async(goal)
     }
 
