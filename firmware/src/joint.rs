@@ -563,8 +563,16 @@ impl JointControl {
                         // and a goal where it is would let its load carry it on, brake after
                         // brake.
                         let outside = q < lim.min || q > lim.max;
-                        self.cmd = if outside || self.stopped {
-                            self.cmd.clamp(q - BRAKE_HOLD, q + BRAKE_HOLD)
+                        let kept = self.cmd.clamp(q - BRAKE_HOLD, q + BRAKE_HOLD);
+                        self.cmd = if self.stopped {
+                            // Stopped: the joint is held where it came to rest, and the goal
+                            // offset that stopped it becomes its load correction (the goal
+                            // does not jump; the correction then holds it here, it does not
+                            // pull it on to where the brake put its goal).
+                            self.sag = kept - q;
+                            q
+                        } else if outside {
+                            kept
                         } else {
                             q
                         };
