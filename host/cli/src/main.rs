@@ -203,11 +203,11 @@ fn with<E: Into<ferrobot::Error>>(json: bool) -> impl Fn(E) -> (ferrobot::Error,
 }
 
 fn load(robot: &str) -> ferrobot::Result<RobotConfig> {
-    if robot.ends_with(".toml") || robot.contains('/') {
-        RobotConfig::from_file(robot)
+    Ok(if robot.ends_with(".toml") || robot.contains('/') {
+        RobotConfig::from_file(robot)?
     } else {
-        RobotConfig::bundled(robot)
-    }
+        RobotConfig::bundled(robot)?
+    })
 }
 
 fn arm_chain(cfg: &RobotConfig) -> ferrobot::Result<Chain> {

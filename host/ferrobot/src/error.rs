@@ -244,6 +244,22 @@ impl From<ferrobot_geometry::ValueError> for Error {
     }
 }
 
+impl From<ferrobot_description::Error> for Error {
+    fn from(e: ferrobot_description::Error) -> Self {
+        use ferrobot_description::Error as D;
+        match e {
+            D::UnknownRobot { name, known } => Error::UnknownRobot { name, known },
+            D::Config { file, key, problem } => Error::Config { file, key, problem },
+            D::UnknownName { what, name } => Error::UnknownName { what, name },
+            other => Error::Config {
+                file: PathBuf::from("-"),
+                key: "-".into(),
+                problem: other.to_string(),
+            },
+        }
+    }
+}
+
 impl From<ferrobot_kinematics::Error> for Error {
     fn from(e: ferrobot_kinematics::Error) -> Self {
         use ferrobot_kinematics::Error as K;

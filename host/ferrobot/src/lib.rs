@@ -19,7 +19,6 @@
 pub mod arm;
 pub mod backend;
 pub mod base;
-pub mod config;
 pub mod error;
 pub mod gripper;
 pub mod motion;
@@ -27,6 +26,7 @@ pub mod pan_tilt;
 pub mod robot;
 
 pub use ferrobot_control::odometry_calibration;
+pub use ferrobot_description as config;
 pub use ferrobot_geometry::validate;
 pub use ferrobot_kinematics as kinematics;
 pub use ferrobot_nav as obstacles;

@@ -1,7 +1,7 @@
 //! [`Robot`]: one robot, its components and its backend.
 
 use std::collections::HashMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::Duration;
 
 use ferrobot_protocol::{
@@ -13,7 +13,7 @@ use crate::backend::serial::SerialLink;
 use crate::backend::sim::SimLink;
 use crate::backend::{Backend, Link};
 use crate::base::Base;
-use crate::config::{IkKind, RobotConfig};
+use crate::config::{ConfigSource, IkKind, RobotConfig};
 use crate::error::{Error, Result};
 use crate::gripper::Gripper;
 use crate::kinematics::ik::{IkSolver, NumericalIk};
@@ -30,14 +30,9 @@ struct Use {
     base: bool,
 }
 
-enum Source {
-    Bundled(String),
-    File(PathBuf),
-}
-
 /// Builds a [`Robot`]: which robot, which components, which backend, which overrides.
 pub struct RobotBuilder {
-    source: Source,
+    source: ConfigSource,
     backend: Backend,
     uses: Use,
     overrides: Vec<(String, toml::Value)>,
@@ -77,90 +72,9 @@ impl RobotBuilder {
 
     /// Load, connect, configure.
     pub fn build(self) -> Result<Robot> {
-        let cfg = match (&self.source, self.overrides.is_empty()) {
-            (Source::Bundled(n), true) => RobotConfig::bundled(n)?,
-            (Source::File(p), true) => RobotConfig::from_file(p)?,
-            (source, false) => {
-                let (text, file, dir, bundled_urdf) = match source {
-                    Source::Bundled(n) => {
-                        let c = RobotConfig::bundled(n)?;
-                        let text = bundled_toml(n).unwrap_or_default().to_string();
-                        (
-                            text,
-                            c.file,
-                            None,
-                            Some(bundled_urdf(n).unwrap_or_default().to_string()),
-                        )
-                    }
-                    Source::File(p) => {
-                        let text = crate::config::read_text(p, crate::config::MAX_CONFIG_BYTES)
-                            .map_err(|e| Error::Config {
-                                file: p.clone(),
-                                key: "-".into(),
-                                problem: format!("cannot read: {e}"),
-                            })?;
-                        (text, p.clone(), p.parent().map(Path::to_path_buf), None)
-                    }
-                };
-                let text = apply_overrides(&text, &file, &self.overrides)?;
-                RobotConfig::parse(&text, &file, |u| match (&bundled_urdf, &dir) {
-                    (Some(b), _) => Ok(b.clone()),
-                    (None, Some(d)) => {
-                        crate::config::read_text(&d.join(u), crate::config::MAX_URDF_BYTES)
-                            .map_err(Error::from)
-                    }
-                    (None, None) => Err(Error::Link("no URDF".into())),
-                })?
-            }
-        };
+        let cfg = RobotConfig::load(&self.source, &self.overrides)?;
         Robot::connect(cfg, self.backend, self.uses)
     }
-}
-
-fn bundled_toml(name: &str) -> Option<&'static str> {
-    match name {
-        "locobot" => Some(include_str!("../robots/locobot.toml")),
-        "locobot_lite" => Some(include_str!("../robots/locobot_lite.toml")),
-        "sawyer" => Some(include_str!("../robots/sawyer.toml")),
-        _ => None,
-    }
-}
-
-fn bundled_urdf(name: &str) -> Option<&'static str> {
-    match name {
-        "locobot" => Some(include_str!("../robots/locobot.urdf")),
-        "locobot_lite" => Some(include_str!("../robots/locobot_lite.urdf")),
-        "sawyer" => Some(include_str!("../robots/sawyer.urdf")),
-        _ => None,
-    }
-}
-
-fn apply_overrides(text: &str, file: &Path, overrides: &[(String, toml::Value)]) -> Result<String> {
-    let mut doc: toml::Table = text.parse().map_err(|e: toml::de::Error| Error::Config {
-        file: file.to_path_buf(),
-        key: "-".into(),
-        problem: e.message().to_string(),
-    })?;
-    for (key, value) in overrides {
-        let mut parts = key.split('.').peekable();
-        let mut table = &mut doc;
-        while let Some(p) = parts.next() {
-            if parts.peek().is_none() {
-                table.insert(p.to_string(), value.clone());
-            } else {
-                table = table
-                    .entry(p.to_string())
-                    .or_insert_with(|| toml::Value::Table(Default::default()))
-                    .as_table_mut()
-                    .ok_or_else(|| Error::Config {
-                        file: file.to_path_buf(),
-                        key: key.clone(),
-                        problem: format!("{p:?} is not a table"),
-                    })?;
-            }
-        }
-    }
-    Ok(doc.to_string())
 }
 
 /// A robot: its configuration, its components and the link to its firmware.
@@ -194,7 +108,7 @@ impl Robot {
     /// A builder for a bundled robot.
     pub fn builder(name: &str) -> RobotBuilder {
         RobotBuilder {
-            source: Source::Bundled(name.to_string()),
+            source: ConfigSource::Bundled(name.to_string()),
             backend: Backend::default(),
             uses: Use {
                 arm: true,
@@ -209,7 +123,7 @@ impl Robot {
     /// A builder for a robot described by a TOML file.
     pub fn builder_from_config(path: impl AsRef<Path>) -> RobotBuilder {
         RobotBuilder {
-            source: Source::File(path.as_ref().to_path_buf()),
+            source: ConfigSource::File(path.as_ref().to_path_buf()),
             backend: Backend::default(),
             uses: Use {
                 arm: true,

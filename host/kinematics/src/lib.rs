@@ -219,7 +219,7 @@ mod tests {
 
     #[test]
     fn jacobian_matches_finite_differences() {
-        let urdf = urdf_rs::read_from_string(include_str!("../../ferrobot/robots/sawyer.urdf"))
+        let urdf = urdf_rs::read_from_string(include_str!("../../description/robots/sawyer.urdf"))
             .expect("urdf");
         let chain = Chain::from_urdf(&urdf, "base", "right_hand").expect("chain");
         let q = [0.3, -0.7, 0.4, 1.2, -0.5, 0.8, 2.0];

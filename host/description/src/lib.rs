@@ -1,10 +1,12 @@
-//! Robot configuration: a TOML file naming a URDF and describing the arm, gripper, camera,
+//! Robot descriptions: a TOML file naming a URDF and describing the arm, gripper, camera,
 //! base and the firmware's joint table. Bundled robots (`locobot`, `locobot_lite`, `sawyer`)
 //! are compiled in; any other robot is a TOML file plus its URDF on disk.
 //!
 //! Loading is strict: unknown keys, wrong types and inconsistencies (an arm joint the URDF
 //! lacks, a home vector of the wrong length, duplicate servo IDs…) are errors that name the
 //! file, the key and the problem.
+
+#![warn(missing_docs)]
 
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
@@ -17,15 +19,50 @@ use ferrobot_protocol::{
 };
 use serde::Deserialize;
 
-use crate::error::{Error, Result};
-use crate::kinematics::Chain;
-use crate::odometry_calibration::WheelGeometry;
-use crate::validate;
+use ferrobot_control::odometry_calibration::WheelGeometry;
+use ferrobot_geometry::validate;
+use ferrobot_kinematics::Chain;
+
+/// Everything that can go wrong with a description.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum Error {
+    /// No bundled robot of that name.
+    #[error("unknown robot {name:?}; bundled robots are: {known}")]
+    UnknownRobot {
+        /// The name asked for.
+        name: String,
+        /// The bundled names, comma-separated.
+        known: String,
+    },
+    /// A configuration file is missing, unreadable or invalid.
+    #[error("{file}: {key}: {problem}", file = file.display())]
+    Config {
+        /// The file.
+        file: PathBuf,
+        /// The key (dotted path) concerned, or `-` for the whole file.
+        key: String,
+        /// What is wrong.
+        problem: String,
+    },
+    /// An unknown name (a base controller).
+    #[error("unknown {what} {name:?}")]
+    UnknownName {
+        /// What kind of name.
+        what: &'static str,
+        /// The name.
+        name: String,
+    },
+}
+
+/// Result with [`Error`].
+pub type Result<T, E = Error> = std::result::Result<T, E>;
 
 /// Names of the bundled robots.
 pub const BUNDLED: [&str; 3] = ["locobot", "locobot_lite", "sawyer"];
 
-fn bundled_files(name: &str) -> Option<(&'static str, &'static str)> {
+/// The bundled robot `name`'s configuration and URDF texts.
+pub fn bundled_files(name: &str) -> Option<(&'static str, &'static str)> {
     match name {
         "locobot" => Some((
             include_str!("../robots/locobot.toml"),
@@ -173,13 +210,13 @@ impl BaseController {
 }
 
 impl std::str::FromStr for BaseController {
-    type Err = crate::Error;
+    type Err = Error;
 
-    fn from_str(s: &str) -> crate::Result<Self> {
+    fn from_str(s: &str) -> Result<Self> {
         BaseController::ALL
             .into_iter()
             .find(|c| c.name() == s)
-            .ok_or_else(|| crate::Error::UnknownName {
+            .ok_or_else(|| Error::UnknownName {
                 what: "base controller",
                 name: s.to_string(),
             })
@@ -420,7 +457,73 @@ fn num(file: &Path, key: impl Into<String>, value: f64, lo: f64, hi: f64) -> Res
     ))
 }
 
+/// Where a configuration comes from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ConfigSource {
+    /// A bundled robot by name.
+    Bundled(String),
+    /// A TOML file on disk; its `urdf` path is relative to it.
+    File(PathBuf),
+}
+
+/// Set dotted `key`s of a TOML document to values.
+fn apply_overrides(text: &str, file: &Path, overrides: &[(String, toml::Value)]) -> Result<String> {
+    let mut doc: toml::Table = text
+        .parse()
+        .map_err(|e: toml::de::Error| cfg_err(file, "-", e.message().to_string()))?;
+    for (key, value) in overrides {
+        let mut parts = key.split('.').peekable();
+        let mut table = &mut doc;
+        while let Some(p) = parts.next() {
+            if parts.peek().is_none() {
+                table.insert(p.to_string(), value.clone());
+            } else {
+                table = table
+                    .entry(p.to_string())
+                    .or_insert_with(|| toml::Value::Table(Default::default()))
+                    .as_table_mut()
+                    .ok_or_else(|| cfg_err(file, key.clone(), format!("{p:?} is not a table")))?;
+            }
+        }
+    }
+    Ok(doc.to_string())
+}
+
 impl RobotConfig {
+    /// Load from `source` with `overrides` (dotted keys, e.g. `("arm.joint_tolerance", 0.005)`)
+    /// applied to the TOML before it is validated, so an override is checked like the file.
+    pub fn load(source: &ConfigSource, overrides: &[(String, toml::Value)]) -> Result<Self> {
+        if overrides.is_empty() {
+            return match source {
+                ConfigSource::Bundled(n) => Self::bundled(n),
+                ConfigSource::File(p) => Self::from_file(p),
+            };
+        }
+        match source {
+            ConfigSource::Bundled(n) => {
+                let (toml, urdf) = bundled_files(n).ok_or_else(|| Error::UnknownRobot {
+                    name: n.to_string(),
+                    known: BUNDLED.join(", "),
+                })?;
+                let file = PathBuf::from(format!("<bundled>/{n}.toml"));
+                let text = apply_overrides(toml, &file, overrides)?;
+                Self::parse(&text, &file, |_| Ok(urdf.to_string()))
+            }
+            ConfigSource::File(p) => {
+                let text = read_text(p, MAX_CONFIG_BYTES)
+                    .map_err(|e| cfg_err(p, "-", format!("cannot read: {e}")))?;
+                let text = apply_overrides(&text, p, overrides)?;
+                let dir = p.parent().map(Path::to_path_buf).unwrap_or_default();
+                Self::parse(&text, p, |u| {
+                    let up = dir.join(u);
+                    read_text(&up, MAX_URDF_BYTES).map_err(|e| {
+                        cfg_err(p, "urdf", format!("cannot read {}: {e}", up.display()))
+                    })
+                })
+            }
+        }
+    }
+
     /// Load a bundled robot by name.
     pub fn bundled(name: &str) -> Result<Self> {
         let (toml, urdf) = bundled_files(name).ok_or_else(|| Error::UnknownRobot {
