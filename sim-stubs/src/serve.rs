@@ -232,12 +232,10 @@ impl Drop for FirmwareServer {
     }
 }
 
-/// A new PTY behind the symlink `link`, which must not exist: nothing at that path is ever
-/// removed or replaced, except the symlink this server made itself.
+/// A new PTY behind the symlink `link`, which must not exist (creating a symlink never
+/// replaces anything): nothing at that path is ever removed or replaced, except the symlink
+/// this server made itself.
 fn host_pty(link: &std::path::Path) -> Result<(TTYPort, TTYPort, String), ServeError> {
-    if link.symlink_metadata().is_ok() {
-        return Err(ServeError::LinkExists(link.to_path_buf()));
-    }
     let (master, slave, name) = pty()?;
     std::os::unix::fs::symlink(&name, link).map_err(|e| match e.kind() {
         io::ErrorKind::AlreadyExists => ServeError::LinkExists(link.to_path_buf()),
@@ -246,10 +244,13 @@ fn host_pty(link: &std::path::Path) -> Result<(TTYPort, TTYPort, String), ServeE
     Ok((master, slave, name))
 }
 
-/// Remove `link` if it is still the symlink to `target` this server made.
-fn remove_own_link(link: &std::path::Path, target: &str) {
-    if std::fs::read_link(link).is_ok_and(|t| t.as_os_str() == target) {
-        let _ = std::fs::remove_file(link);
+/// Close the host PTY, if open, and remove `link` if it is still the symlink to it this server
+/// made.
+fn unplug(port: &mut Option<(TTYPort, TTYPort, String)>, link: &std::path::Path) {
+    if let Some((_, _, name)) = port.take() {
+        if std::fs::read_link(link).is_ok_and(|t| t.as_os_str() == name.as_str()) {
+            let _ = std::fs::remove_file(link);
+        }
     }
 }
 
@@ -267,17 +268,11 @@ pub fn serve_firmware(
         let mut buf = [0u8; 1024];
         loop {
             match rx.try_recv() {
-                Ok(LinkControl::Unplug) => {
-                    if let Some((_, _, name)) = port.take() {
-                        remove_own_link(&path, &name);
-                    }
-                }
+                Ok(LinkControl::Unplug) => unplug(&mut port, &path),
                 Ok(LinkControl::Plug) if port.is_none() => port = host_pty(&path).ok(),
                 Ok(_) => {}
                 Err(std::sync::mpsc::TryRecvError::Disconnected) => {
-                    if let Some((_, _, name)) = port.take() {
-                        remove_own_link(&path, &name);
-                    }
+                    unplug(&mut port, &path);
                     return;
                 }
                 Err(std::sync::mpsc::TryRecvError::Empty) => {}

@@ -381,7 +381,7 @@ impl BaseDriver {
             let (rl, rr, track) = self.odom_geometry;
             match (gyro, self.last_gyro) {
                 (Some(g), Some(g0)) => {
-                    let dth = odometry::wrap_angle(g - g0);
+                    let dth = ferrobot_protocol::geometry::wrap(g - g0);
                     self.odom.update_with_heading(al * rl, ar * rr, dth, dt)
                 }
                 _ => self.odom.update(al * rl, ar * rr, track, dt),

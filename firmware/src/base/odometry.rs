@@ -1,12 +1,7 @@
 //! Wheel odometry of a differential-drive base, integrated exactly on arcs.
 
-use ferrobot_protocol::geometry::{arc_step, wrap};
+use ferrobot_protocol::geometry::arc_step;
 use ferrobot_protocol::Odometry;
-
-/// Wrap an angle to (−π, π] (the protocol's one wrap, in `f32`).
-pub fn wrap_angle(a: f32) -> f32 {
-    wrap(a)
-}
 
 /// Integrates wheel travel into a pose.
 #[derive(Debug, Clone, Copy, Default)]
@@ -44,6 +39,7 @@ impl OdometryIntegrator {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use ferrobot_protocol::geometry::wrap;
 
     /// With a gyro, unequal wheels do not turn the estimate: 1 m of travel whose right wheel
     /// read 1 % more stays straight when the gyro says the heading did not change.
@@ -91,7 +87,7 @@ mod tests {
 
     #[test]
     fn wraps() {
-        assert!((wrap_angle(3.5) - (3.5 - core::f32::consts::TAU)).abs() < 1e-6);
-        assert!((wrap_angle(-3.5) - (-3.5 + core::f32::consts::TAU)).abs() < 1e-6);
+        assert!((wrap(3.5) - (3.5 - core::f32::consts::TAU)).abs() < 1e-6);
+        assert!((wrap(-3.5) - (-3.5 + core::f32::consts::TAU)).abs() < 1e-6);
     }
 }

@@ -441,18 +441,7 @@ fn run(cli: Cli) -> Result<(), (ferrobot::Error, bool)> {
                     calibrate,
                 },
         } => {
-            validate::count("trials", trials, MAX_TRIALS).map_err(with(json))?;
-            if trials == 0 {
-                return Err((
-                    ferrobot::Error::OutOfRange {
-                        what: "trials".into(),
-                        value: 0.0,
-                        min: 1.0,
-                        max: MAX_TRIALS as f64,
-                    },
-                    json,
-                ));
-            }
+            validate::count("trials", trials, 1..=MAX_TRIALS).map_err(with(json))?;
             bench_base(robot, trials, seed, json, &plot_dir, calibrate).map_err(with(json))?
         }
         Cmd::CalibrateOdometry { robot, seed, json } => {

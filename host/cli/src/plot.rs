@@ -37,15 +37,7 @@ impl Canvas {
     /// An error for a size outside 1-[`Canvas::MAX_SIZE`] px, a centre beyond ±1e6 m, a span
     /// outside [1e-9, 1e6] m, or grid lines denser than one per pixel or sparser than 1e6 m.
     pub fn new(size: usize, centre: [f64; 2], span: f64, grid: f64) -> Result<Canvas> {
-        ferrobot::validate::count("canvas size (px)", size, Self::MAX_SIZE)?;
-        if size == 0 {
-            return Err(ferrobot::Error::OutOfRange {
-                what: "canvas size (px)".into(),
-                value: 0.0,
-                min: 1.0,
-                max: Self::MAX_SIZE as f64,
-            });
-        }
+        ferrobot::validate::count("canvas size (px)", size, 1..=Self::MAX_SIZE)?;
         ferrobot::validate::all_in_range("canvas centre", &centre, -1e6, 1e6)?;
         ferrobot::validate::in_range("canvas span", span, 1e-9, 1e6)?;
         ferrobot::validate::in_range("canvas grid", grid, span / size as f64, 1e6)?;

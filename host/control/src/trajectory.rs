@@ -135,15 +135,13 @@ impl Reference {
         validate::count(
             "trajectory states",
             self.states.len(),
-            validate::MAX_REFERENCE_SAMPLES,
+            0..=validate::MAX_REFERENCE_SAMPLES,
         )?;
-        if self.states.len() != self.controls.len() + 1 {
-            return Err(crate::error::Error::JointCount {
-                what: "trajectory states (one more than controls)",
-                expected: self.controls.len() + 1,
-                got: self.states.len(),
-            });
-        }
+        validate::length(
+            "trajectory states (one more than controls)",
+            self.states.len(),
+            self.controls.len() + 1,
+        )?;
         for x in &self.states {
             validate::base_pose("trajectory state", *x)?;
         }
@@ -284,7 +282,7 @@ impl Reference {
         let n = validate::count(
             "reference samples",
             (duration / dt).round() as usize,
-            validate::MAX_REFERENCE_SAMPLES,
+            0..=validate::MAX_REFERENCE_SAMPLES,
         )?;
         let mut r = Reference {
             dt,
@@ -303,7 +301,7 @@ impl Reference {
         validate::count(
             "reference samples",
             self.states.len().saturating_add(n),
-            validate::MAX_REFERENCE_SAMPLES,
+            0..=validate::MAX_REFERENCE_SAMPLES,
         )?;
         for _ in 0..n {
             self.push([0.0, 0.0]);

@@ -493,12 +493,13 @@ impl RobotConfig {
     /// Load from `source` with `overrides` (dotted keys, e.g. `("arm.joint_tolerance", 0.005)`)
     /// applied to the TOML before it is validated, so an override is checked like the file.
     pub fn load(source: &ConfigSource, overrides: &[(String, toml::Value)]) -> Result<Self> {
-        if overrides.is_empty() {
-            return match source {
-                ConfigSource::Bundled(n) => Self::bundled(n),
-                ConfigSource::File(p) => Self::from_file(p),
-            };
-        }
+        let with_overrides = |text: &str, file: &Path| -> Result<String> {
+            if overrides.is_empty() {
+                Ok(text.to_string())
+            } else {
+                apply_overrides(text, file, overrides)
+            }
+        };
         match source {
             ConfigSource::Bundled(n) => {
                 let (toml, urdf) = bundled_files(n).ok_or_else(|| Error::UnknownRobot {
@@ -506,13 +507,13 @@ impl RobotConfig {
                     known: BUNDLED.join(", "),
                 })?;
                 let file = PathBuf::from(format!("<bundled>/{n}.toml"));
-                let text = apply_overrides(toml, &file, overrides)?;
+                let text = with_overrides(toml, &file)?;
                 Self::parse(&text, &file, |_| Ok(urdf.to_string()))
             }
             ConfigSource::File(p) => {
                 let text = read_text(p, MAX_CONFIG_BYTES)
                     .map_err(|e| cfg_err(p, "-", format!("cannot read: {e}")))?;
-                let text = apply_overrides(&text, p, overrides)?;
+                let text = with_overrides(&text, p)?;
                 let dir = p.parent().map(Path::to_path_buf).unwrap_or_default();
                 Self::parse(&text, p, |u| {
                     let up = dir.join(u);
@@ -526,26 +527,12 @@ impl RobotConfig {
 
     /// Load a bundled robot by name.
     pub fn bundled(name: &str) -> Result<Self> {
-        let (toml, urdf) = bundled_files(name).ok_or_else(|| Error::UnknownRobot {
-            name: name.to_string(),
-            known: BUNDLED.join(", "),
-        })?;
-        Self::parse(toml, Path::new(&format!("<bundled>/{name}.toml")), |_| {
-            Ok(urdf.to_string())
-        })
+        Self::load(&ConfigSource::Bundled(name.to_string()), &[])
     }
 
     /// Load a robot from a TOML file; its `urdf` path is relative to the file.
     pub fn from_file(path: impl AsRef<Path>) -> Result<Self> {
-        let path = path.as_ref();
-        let text = read_text(path, MAX_CONFIG_BYTES)
-            .map_err(|e| cfg_err(path, "-", format!("cannot read: {e}")))?;
-        let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
-        Self::parse(&text, path, |urdf| {
-            let p = dir.join(urdf);
-            read_text(&p, MAX_URDF_BYTES)
-                .map_err(|e| cfg_err(path, "urdf", format!("cannot read {}: {e}", p.display())))
-        })
+        Self::load(&ConfigSource::File(path.as_ref().to_path_buf()), &[])
     }
 
     /// Parse TOML text (named `file` in errors); `read_urdf` fetches the URDF it names.

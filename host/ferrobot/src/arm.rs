@@ -273,27 +273,24 @@ impl<'r> Arm<'r> {
     ) -> Result<()> {
         let since = self.robot.link.now();
         loop {
-            // Keep the firmware queue short: wait while telemetry shows it nearly full.
-            while self.robot.link.telemetry()?.queued as usize >= 8 * self.dof() {
-                self.robot.link.wait(Duration::from_millis(20));
-                if self.robot.link.now().saturating_sub(since) > timeout {
-                    break;
+            // Keep the firmware queue short: send while telemetry shows it not nearly full, and
+            // after the timeout in any case (its rejection is then the answer).
+            let waited_out = self.robot.link.now().saturating_sub(since) > timeout;
+            if waited_out || (self.robot.link.telemetry()?.queued as usize) < 8 * self.dof() {
+                match self.robot.send_rest_waypoint(
+                    mask,
+                    q.iter().copied(),
+                    seconds,
+                    "Cartesian waypoint",
+                ) {
+                    Err(Error::Rejected {
+                        reason: ferrobot_protocol::RejectReason::QueueFull,
+                        ..
+                    }) if !waited_out => {}
+                    r => return r,
                 }
             }
-            match self.robot.send_rest_waypoint(
-                mask,
-                q.iter().copied(),
-                seconds,
-                "Cartesian waypoint",
-            ) {
-                Err(Error::Rejected {
-                    reason: ferrobot_protocol::RejectReason::QueueFull,
-                    ..
-                }) if self.robot.link.now().saturating_sub(since) <= timeout => {
-                    self.robot.link.wait(Duration::from_millis(20));
-                }
-                r => return r,
-            }
+            self.robot.link.wait(Duration::from_millis(20));
         }
     }
 
@@ -538,7 +535,7 @@ impl<'r> Arm<'r> {
         let n = validate::count(
             "Cartesian waypoints (distance / step)",
             steps as usize,
-            validate::MAX_CARTESIAN_WAYPOINTS,
+            0..=validate::MAX_CARTESIAN_WAYPOINTS,
         )?
         .max(1);
         let q0 = self.get_joint_angles()?;

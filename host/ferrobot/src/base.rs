@@ -915,7 +915,8 @@ impl<'r> Base<'r> {
     /// [`Error::Timeout`] when it runs out.
     pub fn go_to_absolute_with(&mut self, goal: [f64; 3], opts: GoalOptions) -> Result<Motion<'_>> {
         check_finite("base goal", &goal)?;
-        validate::base_goal(goal, self.get_state()?)?;
+        let here = self.get_state()?;
+        validate::base_goal(goal, here)?;
         let obstacles = Obstacles::new(opts.obstacles.clone(), opts.map.as_ref())?;
         let controller = opts.controller.unwrap_or(if obstacles.is_empty() {
             self.section().controller
@@ -924,16 +925,15 @@ impl<'r> Base<'r> {
         });
         let lim = self.tracking_limits();
         match controller {
-            BaseController::Proportional => self.proportional_async(goal),
+            BaseController::Proportional => self.proportional_async(goal, here),
             BaseController::Lqr | BaseController::Ilqr => {
-                let start = self.get_state()?;
                 let mut r = if opts.smooth {
-                    Reference::smooth(start, goal, &lim, 0.1, 0.8)?
+                    Reference::smooth(here, goal, &lim, 0.1, 0.8)?
                 } else {
-                    Reference::sharp(start, goal, &lim, 0.1)?
+                    Reference::sharp(here, goal, &lim, 0.1)?
                 };
                 if controller == BaseController::Ilqr {
-                    r = ilqr(start, &r, [3.0, 3.0, 4.0], 0.2, &lim)?.reference;
+                    r = ilqr(here, &r, [3.0, 3.0, 4.0], 0.2, &lim)?.reference;
                 }
                 // Hold the goal a little: the tracker settles while the reference rests; closed
                 // loop, the finisher then removes what the wheels' deadband left.
@@ -941,7 +941,6 @@ impl<'r> Base<'r> {
                 self.track(r.hold(10)?, opts.close_loop, finish)
             }
             BaseController::Dwa => {
-                let here = self.get_state()?;
                 let radius = self.section().footprint_radius;
                 let clear = obstacles.clearance([goal[0], goal[1]]);
                 if clear < radius {
@@ -1017,13 +1016,12 @@ impl<'r> Base<'r> {
         self.go_to_absolute_with(goal, GoalOptions::default())
     }
 
-    /// Start the proportional controller towards `[x, y, θ]` in the odometry frame.
-    fn proportional_async(&mut self, goal: [f64; 3]) -> Result<Motion<'_>> {
-        validate::base_goal(goal, self.get_state()?)?;
+    /// Start the proportional controller from `here` towards `[x, y, θ]` (a goal
+    /// [`Base::go_to_absolute_with`] has validated) in the odometry frame.
+    fn proportional_async(&mut self, goal: [f64; 3], here: [f64; 3]) -> Result<Motion<'_>> {
         let s = self.section().clone();
         self.robot.link.take_faults();
         let now = self.robot.link.now();
-        let here = self.get_state()?;
         let dist = (goal[0] - here[0]).hypot(goal[1] - here[1]);
         let turn = std::f64::consts::TAU;
         let timeout =

@@ -234,6 +234,15 @@ impl From<ferrobot_geometry::ValueError> for Error {
                 min,
                 max,
             },
+            V::Length {
+                what,
+                expected,
+                got,
+            } => Error::JointCount {
+                what,
+                expected,
+                got,
+            },
             other => Error::OutOfRange {
                 what: other.to_string(),
                 value: f64::NAN,
@@ -265,15 +274,6 @@ impl From<ferrobot_kinematics::Error> for Error {
         use ferrobot_kinematics::Error as K;
         match e {
             K::Value(v) => v.into(),
-            K::JointCount {
-                what,
-                expected,
-                got,
-            } => Error::JointCount {
-                what,
-                expected,
-                got,
-            },
             K::Unreachable { why } => Error::Unreachable { why },
             K::UnknownName { what, name } => Error::UnknownName { what, name },
             other => Error::Unreachable {
@@ -288,15 +288,6 @@ impl From<ferrobot_control::Error> for Error {
         use ferrobot_control::Error as C;
         match e {
             C::Value(v) => v.into(),
-            C::JointCount {
-                what,
-                expected,
-                got,
-            } => Error::JointCount {
-                what,
-                expected,
-                got,
-            },
             C::Calibration { why } => Error::Calibration { why },
             other => Error::Calibration {
                 why: other.to_string(),

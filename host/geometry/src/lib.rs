@@ -6,7 +6,7 @@ pub mod validate;
 pub use validate::ValueError;
 
 /// Wrap an angle (rad) to (−π, π]: the one convention of every host crate, the firmware and
-/// the plants (`ferrobot_protocol::geometry::wrap`).
+/// the plants (`ferrobot_protocol::geometry::wrap` in `f64`, so that literals need no type).
 pub fn wrap(a: f64) -> f64 {
     ferrobot_protocol::geometry::wrap(a)
 }

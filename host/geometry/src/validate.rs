@@ -35,6 +35,16 @@ pub enum ValueError {
         /// Largest accepted.
         max: f64,
     },
+    /// A list of values of the wrong length.
+    #[error("{what}: expected {expected} values, got {got}")]
+    Length {
+        /// What was passed.
+        what: &'static str,
+        /// How many were expected.
+        expected: usize,
+        /// How many were given.
+        got: usize,
+    },
 }
 
 /// Result with [`ValueError`].
@@ -97,16 +107,22 @@ pub fn finite(what: &str, values: &[f64]) -> Result<()> {
     for (i, v) in values.iter().enumerate() {
         if !v.is_finite() {
             return Err(ValueError::NotFinite {
-                what: if values.len() > 1 {
-                    format!("{what}[{i}]")
-                } else {
-                    what.to_string()
-                },
+                what: element(what, values.len(), i),
                 value: *v,
             });
         }
     }
     Ok(())
+}
+
+/// The name of element `i` of a list of `len` values called `what`: `what[i]`, or `what` alone
+/// for a single value.
+fn element(what: &str, len: usize, i: usize) -> String {
+    if len > 1 {
+        format!("{what}[{i}]")
+    } else {
+        what.to_string()
+    }
 }
 
 /// `value` finite and within `[min, max]`.
@@ -126,14 +142,16 @@ pub fn in_range(what: &str, value: f64, min: f64, max: f64) -> Result<f64> {
 /// Every value finite and within `[min, max]`.
 pub fn all_in_range(what: &str, values: &[f64], min: f64, max: f64) -> Result<()> {
     finite(what, values)?;
-    for (i, &v) in values.iter().enumerate() {
-        if values.len() > 1 {
-            in_range(&format!("{what}[{i}]"), v, min, max)?;
-        } else {
-            in_range(what, v, min, max)?;
-        }
+    // Names are made only for the value at fault: this runs on every motion command.
+    match values.iter().position(|v| !(min..=max).contains(v)) {
+        Some(i) => Err(ValueError::OutOfRange {
+            what: element(what, values.len(), i),
+            value: values[i],
+            min,
+            max,
+        }),
+        None => Ok(()),
     }
-    Ok(())
 }
 
 /// A duration given in seconds: finite, in `[0, MAX_DURATION_S]`.
@@ -206,14 +224,26 @@ pub fn base_goal(goal: [f64; 3], here: [f64; 3]) -> Result<()> {
     Ok(())
 }
 
-/// A count: at most `max`.
-pub fn count(what: &str, n: usize, max: usize) -> Result<usize> {
-    if n > max {
+/// A list of `got` values where `expected` are needed.
+pub fn length(what: &'static str, got: usize, expected: usize) -> Result<()> {
+    if got != expected {
+        return Err(ValueError::Length {
+            what,
+            expected,
+            got,
+        });
+    }
+    Ok(())
+}
+
+/// A count within `range`.
+pub fn count(what: &str, n: usize, range: std::ops::RangeInclusive<usize>) -> Result<usize> {
+    if !range.contains(&n) {
         return Err(ValueError::OutOfRange {
             what: what.to_string(),
             value: n as f64,
-            min: 0.0,
-            max: max as f64,
+            min: *range.start() as f64,
+            max: *range.end() as f64,
         });
     }
     Ok(n)

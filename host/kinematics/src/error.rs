@@ -6,19 +6,10 @@ pub use ferrobot_geometry::ValueError;
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[non_exhaustive]
 pub enum Error {
-    /// A number that is not valid where it was given (not finite, or out of range).
+    /// A number or a list of numbers that is not valid where it was given (not finite, out of
+    /// range, or of the wrong length).
     #[error(transparent)]
     Value(#[from] ValueError),
-    /// A vector has the wrong number of values.
-    #[error("{what}: expected {expected} values, got {got}")]
-    JointCount {
-        /// What was passed.
-        what: &'static str,
-        /// How many were expected.
-        expected: usize,
-        /// How many were given.
-        got: usize,
-    },
     /// No joint configuration reaches the pose.
     #[error("unreachable pose: {why}")]
     Unreachable {

@@ -46,8 +46,21 @@ impl Default for IkOptions {
 /// An IK solver.
 pub trait IkSolver: Send + Sync {
     /// Joint values (rad or m, chain order) that put the chain's tip at `target` (base frame),
-    /// preferring a solution near `seed` when given.
+    /// preferring a solution near `seed` when given. The request is validated first
+    /// ([`check_request`]), for every solver, then handed to [`IkSolver::solve_valid`].
     fn solve(
+        &self,
+        chain: &Chain,
+        target: &Isometry3<f64>,
+        seed: Option<&[f64]>,
+        opts: &IkOptions,
+    ) -> Result<Vec<f64>> {
+        check_request(chain, target, seed, opts)?;
+        self.solve_valid(chain, target, seed, opts)
+    }
+
+    /// [`IkSolver::solve`] for a request that has passed [`check_request`].
+    fn solve_valid(
         &self,
         chain: &Chain,
         target: &Isometry3<f64>,
@@ -98,13 +111,7 @@ pub fn check_request(
 /// A seed, when given: one finite angle per joint within ±[`ferrobot_geometry::validate::MAX_ANGLE`].
 pub fn check_seed(chain: &Chain, seed: Option<&[f64]>) -> Result<()> {
     if let Some(s) = seed {
-        if s.len() != chain.dof() {
-            return Err(Error::JointCount {
-                what: "IK seed",
-                expected: chain.dof(),
-                got: s.len(),
-            });
-        }
+        ferrobot_geometry::validate::length("IK seed", s.len(), chain.dof())?;
         ferrobot_geometry::validate::angles("IK seed", s)?;
     }
     Ok(())
@@ -224,14 +231,13 @@ impl NumericalIk {
 }
 
 impl IkSolver for NumericalIk {
-    fn solve(
+    fn solve_valid(
         &self,
         chain: &Chain,
         target: &Isometry3<f64>,
         seed: Option<&[f64]>,
         opts: &IkOptions,
     ) -> Result<Vec<f64>> {
-        check_request(chain, target, seed, opts)?;
         let n = chain.dof();
         if n == 0 || n > MAX_DOF {
             return Err(Error::Unreachable {

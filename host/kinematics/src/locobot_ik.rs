@@ -157,14 +157,13 @@ fn dist(a: &[f64], b: &[f64]) -> f64 {
 }
 
 impl IkSolver for LocobotIk {
-    fn solve(
+    fn solve_valid(
         &self,
         chain: &Chain,
         target: &Isometry3<f64>,
         seed: Option<&[f64]>,
         opts: &IkOptions,
     ) -> Result<Vec<f64>> {
-        super::ik::check_request(chain, target, seed, opts)?;
         let pos = target.translation.vector;
         let p = self.base_to_j1.inverse_transform_point(&pos.into());
         let r_j1: Rotation3<f64> =

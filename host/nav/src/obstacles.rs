@@ -255,7 +255,7 @@ impl Obstacles {
     /// ±[`validate::MAX_BASE_COORDINATE`] m, radii in [0, 100] m) and a `map` (checked with
     /// [`OccupancyGrid::check`]).
     pub fn new(circles: Vec<Circle>, map: Option<&OccupancyGrid>) -> Result<Self> {
-        validate::count("obstacles", circles.len(), validate::MAX_OBSTACLES)?;
+        validate::count("obstacles", circles.len(), 0..=validate::MAX_OBSTACLES)?;
         for c in &circles {
             if !(c.iter().all(|x| x.is_finite()) && c[2] >= 0.0) {
                 return Err(ferrobot_geometry::ValueError::NotFinite {
