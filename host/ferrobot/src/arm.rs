@@ -114,6 +114,17 @@ impl<'r> Arm<'r> {
         Arm { robot }
     }
 
+    /// The arm's kinematic chain, base frame to end effector.
+    fn chain(&self) -> Result<&crate::kinematics::Chain> {
+        self.robot
+            .cfg
+            .arm_chain
+            .as_ref()
+            .ok_or_else(|| Error::Unreachable {
+                why: "no arm chain".into(),
+            })
+    }
+
     fn cfg(&self) -> &crate::config::ArmConfig {
         // Present: `Robot::arm` checks it.
         self.robot.cfg.arm.as_ref().expect("arm config")
@@ -447,14 +458,7 @@ impl<'r> Arm<'r> {
             rot,
         );
         let opts = self.ik_options();
-        let chain = self
-            .robot
-            .cfg
-            .arm_chain
-            .as_ref()
-            .ok_or_else(|| Error::Unreachable {
-                why: "no arm chain".into(),
-            })?;
+        let chain = self.chain()?;
         let ik = self.robot.ik.as_ref().ok_or_else(|| Error::Unreachable {
             why: "no IK solver".into(),
         })?;
@@ -500,14 +504,7 @@ impl<'r> Arm<'r> {
             None => self.get_joint_angles()?,
         };
         // Roll is joint 5 up to its sign (its axis is −x on the LoCoBot).
-        let chain = self
-            .robot
-            .cfg
-            .arm_chain
-            .clone()
-            .ok_or_else(|| Error::Unreachable {
-                why: "no arm".into(),
-            })?;
+        let chain = self.chain()?;
         let sign = if chain.joints[4].axis.x < 0.0 {
             -1.0
         } else {
@@ -515,7 +512,7 @@ impl<'r> Arm<'r> {
         };
         let roll = roll.unwrap_or(sign * seed[4]);
         validate::angles("roll", &[roll])?;
-        Ok(solver.solve_pitch_roll(&chain, &Vector3::from(position), pitch, roll, Some(&seed))?)
+        Ok(solver.solve_pitch_roll(chain, &Vector3::from(position), pitch, roll, Some(&seed))?)
     }
 
     /// Move the end effector along a straight line by `displacement` (m, base frame), keeping
@@ -542,28 +539,20 @@ impl<'r> Arm<'r> {
         let ee = self.cfg().ee_frame.clone();
         let start = self.compute_fk_position(&q0, &ee)?;
         // Solve every waypoint first: a line that leaves the workspace moves nothing.
-        let pitch_roll = self.robot.locobot_ik.is_some();
         let mut path = Vec::with_capacity(n);
         let mut seed = q0.clone();
-        let chain = self
-            .robot
-            .cfg
-            .arm_chain
-            .clone()
-            .ok_or_else(|| Error::Unreachable {
-                why: "no arm".into(),
-            })?;
         // Keep the gripper's pitch; roll stays with joint 5. On the pitch-roll arm the pitch is
         // the sum of the three pitch joints (the solver's q4 = pitch − q2 − q3), exact past
-        // π/2 too, where Euler angles would fold it back and flip the gripper.
-        let pitch = if pitch_roll {
-            q0[1] + q0[2] + q0[3]
-        } else {
-            chain.fk(&q0).rotation.euler_angles().1
-        };
+        // π/2 too, where Euler angles would fold it back and flip the gripper. Other arms keep
+        // the whole orientation.
+        let pitch = self
+            .robot
+            .locobot_ik
+            .is_some()
+            .then(|| q0[1] + q0[2] + q0[3]);
         for k in 1..=n {
             let p = Vector3::from(start.position) + d * (k as f64 / n as f64);
-            let q = if pitch_roll {
+            let q = if let Some(pitch) = pitch {
                 self.ik_pitch_roll([p.x, p.y, p.z], pitch, None, Some(seed.clone()))?
             } else {
                 let [x, y, z, w] = start.quaternion;

@@ -803,21 +803,19 @@ impl<'r> Base<'r> {
         check_finite("base velocity", &[v, w])?;
         let duration = validate::seconds("base velocity duration", duration)?;
         let s = self.section();
-        if v.abs() > s.max_linear + 1e-9 {
-            return Err(Error::OutOfLimits {
-                joint: "base forward speed".into(),
-                value: v,
-                min: -s.max_linear,
-                max: s.max_linear,
-            });
-        }
-        if w.abs() > s.max_angular + 1e-9 {
-            return Err(Error::OutOfLimits {
-                joint: "base yaw rate".into(),
-                value: w,
-                min: -s.max_angular,
-                max: s.max_angular,
-            });
+        let speeds = [
+            ("base forward speed", v, s.max_linear),
+            ("base yaw rate", w, s.max_angular),
+        ];
+        for (what, value, max) in speeds {
+            if value.abs() > max + 1e-9 {
+                return Err(Error::OutOfLimits {
+                    joint: what.into(),
+                    value,
+                    min: -max,
+                    max,
+                });
+            }
         }
         self.robot.link.take_faults();
         let now = self.robot.link.now();

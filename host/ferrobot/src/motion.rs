@@ -234,23 +234,13 @@ impl<'r> Motion<'r> {
                         error: worst.1,
                     }));
                 }
-                timed_out.then(|| {
-                    Err(Error::Timeout {
-                        what: self.what.clone(),
-                        after: self.timeout_len(),
-                    })
-                })
+                timed_out.then(|| Err(self.timeout_error()))
             }
             Goal::Gripper(want) => {
                 if want.contains(&t.gripper) {
                     Some(Ok(()))
                 } else {
-                    timed_out.then(|| {
-                        Err(Error::Timeout {
-                            what: self.what.clone(),
-                            after: self.timeout_len(),
-                        })
-                    })
+                    timed_out.then(|| Err(self.timeout_error()))
                 }
             }
             Goal::BaseVelocity {
@@ -273,10 +263,7 @@ impl<'r> Motion<'r> {
             }
             Goal::Track(tr) => {
                 if timed_out {
-                    return Some(Err(Error::Timeout {
-                        what: self.what.clone(),
-                        after: self.timeout_len(),
-                    }));
+                    return Some(Err(self.timeout_error()));
                 }
                 match tr.step(now, &t) {
                     None => {
@@ -292,10 +279,7 @@ impl<'r> Motion<'r> {
             }
             Goal::Base(g) => {
                 if timed_out {
-                    return Some(Err(Error::Timeout {
-                        what: self.what.clone(),
-                        after: self.timeout_len(),
-                    }));
+                    return Some(Err(self.timeout_error()));
                 }
                 match g.step(now, &t) {
                     // Stop explicitly either way: otherwise the firmware would hold the last
@@ -349,8 +333,12 @@ impl<'r> Motion<'r> {
             .map(Err)
     }
 
-    fn timeout_len(&self) -> Duration {
-        self.timeout
+    /// The motion ran out of time.
+    fn timeout_error(&self) -> Error {
+        Error::Timeout {
+            what: self.what.clone(),
+            after: self.timeout,
+        }
     }
 }
 

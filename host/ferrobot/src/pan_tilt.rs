@@ -21,10 +21,7 @@ impl<'r> PanTilt<'r> {
             .cfg
             .camera
             .as_ref()
-            .ok_or_else(|| Error::NoComponent {
-                robot: self.robot.cfg.name.clone(),
-                component: "camera",
-            })?;
+            .ok_or_else(|| self.robot.missing("camera"))?;
         let find = |n: &str| {
             self.robot
                 .cfg

@@ -271,7 +271,8 @@ impl Robot {
         &self.cfg.name
     }
 
-    fn missing(&self, component: &'static str) -> Error {
+    /// The error for a component this robot lacks (or was built without).
+    pub(crate) fn missing(&self, component: &'static str) -> Error {
         Error::NoComponent {
             robot: self.cfg.name.clone(),
             component,
