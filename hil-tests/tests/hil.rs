@@ -63,7 +63,7 @@ fn handshake_and_a_clear_error_on_version_mismatch() {
 #[test]
 fn the_arm_reaches_a_joint_target() {
     let (_g, mut hil) = start();
-    let mut bot = robot(&hil);
+    let bot = robot(&hil);
     let target = [0.3, 0.2, -0.2, 0.3, 0.1];
     bot.arm()
         .expect("arm")
@@ -83,7 +83,7 @@ fn the_arm_reaches_a_joint_target() {
 #[test]
 fn the_gripper_reports_closed_without_and_holding_with_an_object() {
     let (_g, mut hil) = start();
-    let mut bot = robot(&hil);
+    let bot = robot(&hil);
     bot.gripper().expect("gripper").open().expect("opens");
     assert_eq!(
         bot.gripper().expect("gripper").close().expect("closes"),
@@ -104,7 +104,7 @@ fn the_gripper_reports_closed_without_and_holding_with_an_object() {
 #[test]
 fn base_velocity_gives_odometry_that_agrees_with_ground_truth() {
     let (_g, mut hil) = start();
-    let mut bot = robot(&hil);
+    let bot = robot(&hil);
     bot.base().expect("base").reset_odometry().expect("reset");
     let t0 = hil.plants("truth")["truth"].clone();
     bot.base()
@@ -186,7 +186,7 @@ fn the_watchdog_stops_the_base_when_the_host_goes_silent() {
 #[test]
 fn garbage_on_the_host_link_and_the_servo_bus_is_counted_and_the_link_keeps_working() {
     let (_g, mut hil) = start();
-    let mut bot = robot(&hil);
+    let bot = robot(&hil);
     let before = bot.diagnostics().expect("diagnostics");
     drop(bot);
     {
@@ -205,7 +205,7 @@ fn garbage_on_the_host_link_and_the_servo_bus_is_counted_and_the_link_keeps_work
     }
     let noise = hil.plants("noise 300");
     let damaged = noise["damaged_packets"].as_u64().expect("count");
-    let mut bot = robot(&hil);
+    let bot = robot(&hil);
     bot.arm()
         .expect("arm")
         .set_joint_positions(&[0.2, 0.0, 0.0, 0.0, 0.0])
@@ -226,7 +226,7 @@ fn garbage_on_the_host_link_and_the_servo_bus_is_counted_and_the_link_keeps_work
 #[test]
 fn servo_faults_are_reported_to_the_host() {
     let (_g, mut hil) = start();
-    let mut bot = robot(&hil);
+    let bot = robot(&hil);
     // A servo that stops answering.
     assert_eq!(hil.plants("silent 4 on")["ok"], true);
     let lost = hil.eventually(Duration::from_secs(1), "ServoLost of servo 4", |_| {
@@ -268,7 +268,7 @@ fn servo_faults_are_reported_to_the_host() {
 fn an_emulated_robot_is_one_call() {
     let _g = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     let firmware = ferrobot_hil::firmware_elf().unwrap_or_else(|e| panic!("{e}"));
-    let mut bot = Robot::builder("locobot")
+    let bot = Robot::builder("locobot")
         .backend(Backend::Emulated { firmware })
         .build()
         .expect("emulated robot");
@@ -289,7 +289,7 @@ fn an_emulated_robot_is_one_call() {
 #[test]
 fn an_lqr_position_goal_is_millimetre_accurate_through_the_firmware() {
     let (_g, mut hil) = start();
-    let mut bot = robot(&hil);
+    let bot = robot(&hil);
     bot.base().expect("base").reset_odometry().expect("reset");
     let t0 = hil.plants("truth")["truth"].clone();
     let target = [0.3, 0.1, 0.0];
@@ -435,7 +435,7 @@ fn a_board_without_its_plants_fails_within_15_s_naming_them() {
     let _ = qemu.kill();
     let _ = qemu.wait();
     let _ = std::fs::remove_file(&log);
-    let e = r.err().expect("no robot without plants").to_string();
+    let e = r.expect_err("no robot without plants").to_string();
     assert!(took < Duration::from_secs(15), "took {took:?}: {e}");
     assert!(e.contains("no telemetry") && e.contains("plants"), "{e}");
 }
@@ -451,8 +451,7 @@ fn wrong_ports_fail_within_15_s_naming_the_port() {
             path: "/dev/pts/987654".into(),
         })
         .build()
-        .err()
-        .expect("no such port")
+        .expect_err("no such port")
         .to_string();
     assert!(e.contains("/dev/pts/987654"), "{e}");
     // A terminal with nothing behind it.
@@ -464,8 +463,7 @@ fn wrong_ports_fail_within_15_s_naming_the_port() {
             path: path.clone().into(),
         })
         .build()
-        .err()
-        .expect("nothing answers")
+        .expect_err("nothing answers")
         .to_string();
     assert!(e.contains(&path) && e.contains("handshake"), "{e}");
     // QEMU with a servo bus that is not there.
@@ -505,7 +503,7 @@ fn wrong_ports_fail_within_15_s_naming_the_port() {
 #[test]
 fn the_diagnosis_holds_the_firmware_log_the_counters_and_the_last_frames() {
     let (_g, mut hil) = start();
-    let mut bot = robot(&hil);
+    let bot = robot(&hil);
     bot.arm()
         .expect("arm")
         .set_joint_positions(&[0.1, 0.0, 0.0, 0.0, 0.0])

@@ -168,6 +168,9 @@ impl LockstepSim {
     }
 }
 
+/// Messages a [`SimSession`] keeps for callers to wait for, at most.
+pub const INBOX_CAP: usize = 1024;
+
 /// A host talking frames to a [`LockstepSim`]: what tests, benches and the host's sim backend
 /// use.
 pub struct SimSession {
@@ -272,12 +275,21 @@ impl SimSession {
         });
         for f in frames {
             match &f.msg {
-                DeviceMsg::Telemetry(t) => self.telemetry = Some(t.clone()),
+                // Only the newest telemetry is kept: the inbox holds what a caller waits for.
+                DeviceMsg::Telemetry(t) => {
+                    self.telemetry = Some(t.clone());
+                    continue;
+                }
                 DeviceMsg::Ack { seq } if self.heartbeat_seqs.contains(seq) => {
                     self.heartbeat_seqs.retain(|s| s != seq);
                     continue;
                 }
                 _ => {}
+            }
+            // Bounded: messages nobody waits for (acks of frames sent without waiting, logs)
+            // are dropped oldest first.
+            if self.inbox.len() >= INBOX_CAP {
+                self.inbox.remove(0);
             }
             self.inbox.push(f);
         }

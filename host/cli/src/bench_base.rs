@@ -74,7 +74,7 @@ impl Trial {
 /// A simulated base-only robot with the plants seeded by `seed`; its odometry uses
 /// `geometry` when given (a calibration), else the nominal one.
 pub fn base_robot(robot: &str, seed: u64, geometry: Option<WheelGeometry>) -> Result<Robot> {
-    let mut bot = Robot::builder(robot)
+    let bot = Robot::builder(robot)
         .use_arm(false)
         .use_gripper(false)
         .use_camera(false)
@@ -90,7 +90,7 @@ pub fn base_robot(robot: &str, seed: u64, geometry: Option<WheelGeometry>) -> Re
 }
 
 /// The simulator's ground-truth base pose `[x, y, θ]` (the paper's motion capture).
-fn truth(bot: &mut Robot) -> Result<[f64; 3]> {
+fn truth(bot: &Robot) -> Result<[f64; 3]> {
     bot.simulator()
         .and_then(|s| s.base_truth())
         .ok_or_else(|| Error::Link("the benchmark needs the simulated backend".into()))
@@ -107,7 +107,7 @@ pub fn run_trial(
     seed: u64,
     geometry: Option<WheelGeometry>,
 ) -> Result<Trial> {
-    let mut bot = base_robot(robot, seed, geometry)?;
+    let bot = base_robot(robot, seed, geometry)?;
     let opts = GoalOptions {
         controller: Some(controller),
         ..opts
@@ -118,7 +118,7 @@ pub fn run_trial(
         .wait()
         .is_ok();
     let odometry = bot.base()?.get_state()?;
-    let truth = truth(&mut bot)?;
+    let truth = truth(&bot)?;
     Ok(Trial {
         controller,
         category,
@@ -292,20 +292,25 @@ pub fn circle_path(
     seed: u64,
     geometry: Option<WheelGeometry>,
 ) -> Result<(Vec<[f64; 2]>, f64)> {
-    let mut bot = base_robot(robot, seed, geometry)?;
+    let bot = base_robot(robot, seed, geometry)?;
     let mut r = paper_circle();
     if run == CircleRun::Ilqr {
         let lim = ferrobot::base_control::Limits::TRACKING;
         r = ferrobot::base_control::ilqr([0.0; 3], &r, [3.0, 3.0, 4.0], 0.2, &lim)?.reference;
     }
     let end = r.end();
-    if let Some(b) = bot.simulator().and_then(|s| s.hw.base.as_mut()) {
+    if let Some(b) = bot
+        .simulator()
+        .as_deref_mut()
+        .and_then(|s| s.hw.base.as_mut())
+    {
         b.drive.trace = Some(Vec::new());
     }
     bot.base()?
         .track_trajectory(r, run != CircleRun::OpenLoop)?;
     let trace = bot
         .simulator()
+        .as_deref_mut()
         .and_then(|s| s.hw.base.as_mut())
         .and_then(|b| b.drive.trace.take())
         .ok_or_else(|| Error::Link("the circle plot needs the simulated backend".into()))?;
@@ -354,16 +359,16 @@ pub const CALIBRATION_MOVES: [[f64; 3]; 10] = {
 /// motion-capture system on a real base), and fit the geometry by least squares
 /// ([`ferrobot::odometry_calibration`]).
 pub fn calibrate_odometry(robot: &str, seed: u64) -> Result<OdometryCalibration> {
-    let mut bot = base_robot(robot, seed, None)?;
+    let bot = base_robot(robot, seed, None)?;
     let nominal = bot.base()?.odometry_geometry();
     let mut runs = Vec::new();
     for m in CALIBRATION_MOVES {
-        let start = truth(&mut bot)?;
-        let mut base = bot.base()?;
+        let start = truth(&bot)?;
+        let base = bot.base()?;
         base.start_wheel_log()?;
         base.go_to_relative(m)?;
         let wheels = base.take_wheel_log()?;
-        let end = truth(&mut bot)?;
+        let end = truth(&bot)?;
         runs.push(CalibrationRun { wheels, start, end });
     }
     let estimate = cal::estimate(&runs, &nominal)?;

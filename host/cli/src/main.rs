@@ -478,7 +478,7 @@ fn base_move(
     json: bool,
 ) -> ferrobot::Result<()> {
     let controller = controller.map(str::parse::<BaseController>).transpose()?;
-    let mut bot = ferrobot_cli::bench_base::base_robot(robot, seed, None)?;
+    let bot = ferrobot_cli::bench_base::base_robot(robot, seed, None)?;
     let opts = GoalOptions {
         controller,
         smooth,
@@ -732,9 +732,9 @@ fn bench_base(
 /// The quickstart, narrated.
 fn demo(robot: &str) -> ferrobot::Result<()> {
     let wall = std::time::Instant::now();
-    let mut bot = Robot::new(robot)?; // the in-process simulator
+    let bot = Robot::new(robot)?; // the in-process simulator
     println!("Ferrobot demo: simulated {robot} (firmware core and simulated plants in lockstep)");
-    let mut arm = bot.arm()?;
+    let arm = bot.arm()?;
     arm.set_joint_positions(&[0.4, 0.3, -0.5, 0.6, -0.3])?;
     println!("arm     joints {:?}", round(&arm.get_joint_angles()?));
     arm.set_ee_pose_pitch_roll([0.35, 0.0, 0.15], std::f64::consts::FRAC_PI_2, Some(0.0))?;
@@ -748,11 +748,11 @@ fn demo(robot: &str) -> ferrobot::Result<()> {
         "arm     straight up 10 cm, now at {:?} m",
         round(&arm.get_ee_pose()?.position)
     );
-    let mut gripper = bot.gripper()?;
+    let gripper = bot.gripper()?;
     println!("gripper close -> {:?}", gripper.close()?);
     gripper.open()?;
     println!("gripper open  -> {:?}", gripper.get_state()?);
-    let mut camera = bot.camera()?;
+    let camera = bot.camera()?;
     camera.set_pan_tilt(0.5, 0.3)?;
     println!("camera  pan/tilt {:?} rad", round(&camera.get_state()?));
     bot.arm()?.go_home()?;

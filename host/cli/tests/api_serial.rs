@@ -67,7 +67,7 @@ fn connect(fw: &Firmware) -> Robot {
 #[test]
 fn the_arm_and_base_scenario_passes_over_serial() {
     let fw = Firmware::start("locobot", "scenario");
-    let mut bot = connect(&fw);
+    let bot = connect(&fw);
     let target = [0.4, 0.3, -0.5, 0.6, -0.3];
     bot.arm()
         .expect("arm")
@@ -105,6 +105,61 @@ fn the_arm_and_base_scenario_passes_over_serial() {
     ));
 }
 
+/// Over a real serial port, one robot driven from three threads at once: the arm moves in
+/// one, the head in another, and a monitor reads state in a third. Every call gets its own
+/// reply (none is lost to another thread), and nothing deadlocks.
+#[test]
+fn one_robot_is_driven_from_three_threads_over_serial() {
+    let fw = Firmware::start("locobot", "threads");
+    let bot = connect(&fw);
+    let done = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let monitor = {
+        let (bot, done) = (bot.clone(), done.clone());
+        std::thread::spawn(move || {
+            let (mut reads, mut frames) = (0u32, 0u32);
+            while !done.load(std::sync::atomic::Ordering::SeqCst) {
+                let q = bot.arm().expect("arm").get_joint_angles().expect("q");
+                let d = bot
+                    .diagnostics()
+                    .expect("diagnostics (a request and its reply)");
+                // The firmware's count of host frames only grows: each reply is a new one.
+                assert!(q.iter().all(|v| v.is_finite()) && d.host_frames > frames);
+                frames = d.host_frames;
+                reads += 1;
+            }
+            reads
+        })
+    };
+    let head = {
+        let bot = bot.clone();
+        std::thread::spawn(move || {
+            bot.camera()
+                .expect("camera")
+                .set_pan_tilt(0.4, 0.2)
+                .expect("head moves")
+        })
+    };
+    let target = [0.3, 0.2, -0.3, 0.4, 0.0];
+    bot.arm()
+        .expect("arm")
+        .set_joint_positions(&target)
+        .expect("arm moves");
+    head.join().expect("head thread");
+    done.store(true, std::sync::atomic::Ordering::SeqCst);
+    let reads = monitor.join().expect("monitor thread");
+    assert!(reads >= 3, "the monitor got {reads} replies in");
+    let q = bot.arm().expect("arm").get_joint_angles().expect("q");
+    assert!(
+        q.iter().zip(target).all(|(a, b)| (a - b).abs() < 0.01),
+        "{q:?}"
+    );
+    let pt = bot.camera().expect("camera").get_state().expect("pan/tilt");
+    assert!(
+        (pt[0] - 0.4).abs() < 0.01 && (pt[1] - 0.2).abs() < 0.01,
+        "{pt:?}"
+    );
+}
+
 /// A LoCoBot configuration refuses firmware that runs the LoCoBot-Lite profile: the Hello's
 /// robot and base must match the configuration.
 #[test]
@@ -115,8 +170,7 @@ fn a_configuration_refuses_firmware_of_another_robot() {
             path: fw.link.clone(),
         })
         .build()
-        .err()
-        .expect("refused");
+        .expect_err("refused");
     match &e {
         Error::WrongRobot {
             config, firmware, ..
@@ -132,7 +186,7 @@ fn a_configuration_refuses_firmware_of_another_robot() {
 #[test]
 fn a_lost_link_gives_clear_errors_then_reconnects() {
     let mut fw = Firmware::start("locobot", "unplug");
-    let mut bot = connect(&fw);
+    let bot = connect(&fw);
     bot.arm()
         .expect("arm")
         .set_joint_positions(&[0.2, 0.0, 0.0, 0.0, 0.0])

@@ -110,7 +110,7 @@ fn odometry_calibration_recovers_the_wheel_geometry_and_removes_the_drift() {
         table.insert("left_radius".into(), g.left_radius.into());
         table.insert("right_radius".into(), g.right_radius.into());
         table.insert("track".into(), g.track.into());
-        let mut bot = Robot::builder(robot)
+        let bot = Robot::builder(robot)
             .use_arm(false)
             .use_gripper(false)
             .use_camera(false)

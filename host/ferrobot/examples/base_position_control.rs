@@ -4,7 +4,7 @@
 use ferrobot::Robot;
 
 fn main() -> ferrobot::Result<()> {
-    let mut robot = Robot::new("locobot")?;
+    let robot = Robot::new("locobot")?;
     let target_position = [1.0, 1.0, 0.0];
     robot.base()?.go_to_absolute(target_position)?;
     let odom = robot.base()?.get_state()?;

@@ -3,12 +3,12 @@
 use ferrobot::{MoveOptions, Robot};
 
 fn main() -> ferrobot::Result<()> {
-    let mut robot = Robot::new("locobot")?;
+    let robot = Robot::new("locobot")?;
     let target_joints = [
         [0.408, 0.721, -0.471, -1.4, 0.920],
         [-0.675, 0.0, 0.23, 1.0, -0.70],
     ];
-    let mut arm = robot.arm()?;
+    let arm = robot.arm()?;
     arm.go_home()?;
     for joints in target_joints {
         // PyRobot's `plan=False`: the target at once; the firmware limits the joint speeds.

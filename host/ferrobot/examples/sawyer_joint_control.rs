@@ -3,7 +3,7 @@
 use ferrobot::Robot;
 
 fn main() -> ferrobot::Result<()> {
-    let mut robot = Robot::builder("sawyer")
+    let robot = Robot::builder("sawyer")
         .use_base(false)
         .use_camera(false)
         .build()?;
@@ -11,7 +11,7 @@ fn main() -> ferrobot::Result<()> {
         [0.22, -0.41, 0.0, 1.1, -0.2, 0.8, 0.0],
         [-0.3, -0.5, 0.5, 0.9, 0.4, 0.4, 1.2],
     ];
-    let mut arm = robot.arm()?;
+    let arm = robot.arm()?;
     arm.go_home()?;
     for joints in target_joints {
         arm.set_joint_positions(&joints)?;

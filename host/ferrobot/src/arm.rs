@@ -8,10 +8,18 @@ use std::time::Duration;
 use ferrobot_protocol::{HostMsg, JointMode, JointState};
 use nalgebra::{Isometry3, Matrix3, Matrix6xX, Rotation3, Translation3, UnitQuaternion, Vector3};
 
+use std::collections::HashMap;
+use std::sync::Arc;
+
+use parking_lot::Mutex;
+
+use crate::config::{IkKind, RobotConfig};
 use crate::error::{check_finite, Error, Result};
-use crate::kinematics::ik::IkOptions;
-use crate::motion::{Goal, Motion};
-use crate::robot::Robot;
+use crate::kinematics::ik::{IkOptions, IkSolver, NumericalIk};
+use crate::kinematics::locobot_ik::LocobotIk;
+use crate::kinematics::Chain;
+use crate::motion::{Claim, JointsGoal, Motion};
+use crate::robot::{Io, Robot};
 use crate::validate;
 
 /// A pose: position (m), rotation matrix and quaternion `[x, y, z, w]` of a frame.
@@ -104,20 +112,75 @@ impl Default for MoveOptions {
     }
 }
 
-/// The arm of a [`Robot`].
-pub struct Arm<'r> {
-    robot: &'r mut Robot,
+/// The arm's kinematics, fixed once the robot is connected: its joints, its IK solvers and
+/// the chains to its frames.
+pub(crate) struct ArmParts {
+    /// Firmware indices of the arm's joints, base to tip.
+    joints: Vec<usize>,
+    /// The solver the configuration chose.
+    ik: Box<dyn IkSolver>,
+    /// The closed-form pitch-roll solver, on LoCoBot-type arms.
+    locobot_ik: Option<LocobotIk>,
+    /// Chains from the arm's base frame to other frames, built when first asked for.
+    chains: Mutex<HashMap<String, Arc<Chain>>>,
 }
 
-impl<'r> Arm<'r> {
-    pub(crate) fn new(robot: &'r mut Robot) -> Self {
+impl ArmParts {
+    /// The arm of `cfg`; `None` when it has none.
+    pub(crate) fn new(cfg: &RobotConfig) -> Result<Option<ArmParts>> {
+        let (Some(a), Some(chain)) = (&cfg.arm, &cfg.arm_chain) else {
+            return Ok(None);
+        };
+        let (ik, locobot_ik): (Box<dyn IkSolver>, Option<LocobotIk>) = match a.ik {
+            IkKind::LocobotPitchRoll => {
+                let l = LocobotIk::from_chain(chain)?;
+                (Box::new(l), Some(l))
+            }
+            IkKind::Numerical => (Box::new(NumericalIk), None),
+        };
+        Ok(Some(ArmParts {
+            joints: a.joints.iter().filter_map(|n| cfg.joint_index(n)).collect(),
+            ik,
+            locobot_ik,
+            chains: Mutex::new(HashMap::new()),
+        }))
+    }
+
+    /// The firmware joint mask of the arm.
+    fn mask(&self) -> u16 {
+        self.joints.iter().fold(0u16, |m, &j| m | (1 << j))
+    }
+}
+
+/// What the arm remembers between calls.
+#[derive(Debug, Default)]
+pub(crate) struct ArmState {
+    /// The mode the arm's joints were last switched to (`None`: as the firmware started,
+    /// position mode).
+    mode: Option<JointMode>,
+}
+
+/// The arm of a [`Robot`]: a handle (clone of the robot's), so arm motions run while other
+/// components move.
+#[derive(Clone, Debug)]
+pub struct Arm {
+    robot: Robot,
+}
+
+impl Arm {
+    pub(crate) fn new(robot: Robot) -> Self {
         Arm { robot }
+    }
+
+    fn parts(&self) -> &ArmParts {
+        // Present: `Robot::arm` checks it.
+        self.robot.arm_parts().expect("arm parts")
     }
 
     /// The arm's kinematic chain, base frame to end effector.
     fn chain(&self) -> Result<&crate::kinematics::Chain> {
         self.robot
-            .cfg
+            .cfg()
             .arm_chain
             .as_ref()
             .ok_or_else(|| Error::Unreachable {
@@ -127,12 +190,27 @@ impl<'r> Arm<'r> {
 
     fn cfg(&self) -> &crate::config::ArmConfig {
         // Present: `Robot::arm` checks it.
-        self.robot.cfg.arm.as_ref().expect("arm config")
+        self.robot.cfg().arm.as_ref().expect("arm config")
+    }
+
+    /// A chain from the arm's base frame to `frame`, cached.
+    fn chain_to(&self, frame: &str) -> Result<Arc<Chain>> {
+        let mut chains = self.parts().chains.lock();
+        if let Some(c) = chains.get(frame) {
+            return Ok(c.clone());
+        }
+        let c = Arc::new(Chain::from_urdf(
+            &self.robot.cfg().urdf,
+            &self.cfg().base_frame,
+            frame,
+        )?);
+        chains.insert(frame.to_string(), c.clone());
+        Ok(c)
     }
 
     /// Number of arm joints.
     pub fn dof(&self) -> usize {
-        self.robot.arm_joints.len()
+        self.parts().joints.len()
     }
 
     /// Arm joint names, base to tip.
@@ -158,8 +236,8 @@ impl<'r> Arm<'r> {
     }
 
     fn check_limits(&self, q: &[f64]) -> Result<()> {
-        for (&j, &v) in self.robot.arm_joints.iter().zip(q) {
-            let c = &self.robot.cfg.joints[j];
+        for (&j, &v) in self.parts().joints.iter().zip(q) {
+            let c = &self.robot.cfg().joints[j];
             let (lo, hi) = (c.limits.min as f64, c.limits.max as f64);
             if v < lo - 1e-9 || v > hi + 1e-9 {
                 return Err(Error::OutOfLimits {
@@ -173,27 +251,32 @@ impl<'r> Arm<'r> {
         Ok(())
     }
 
-    fn ensure_mode(&mut self, mode: JointMode) -> Result<()> {
-        if self.robot.arm_mode != mode {
-            let idx = self.robot.arm_joints.clone();
-            self.robot.set_mode(&idx, mode)?;
-            self.robot.arm_mode = mode;
+    /// Switch the arm's joints to `mode` unless they are in it.
+    fn ensure_mode(&self, io: &mut Io, mode: JointMode) -> Result<()> {
+        if io.arm.mode.unwrap_or(JointMode::Position) != mode {
+            io.set_mode(&self.parts().joints, mode)?;
+            io.arm.mode = Some(mode);
         }
         Ok(())
     }
 
-    fn states(&mut self) -> Result<Vec<JointState>> {
-        let t = self.robot.link.telemetry()?;
+    fn states_in(&self, io: &mut Io) -> Result<Vec<JointState>> {
+        let t = io.link.telemetry()?;
         Ok(self
-            .robot
-            .arm_joints
+            .parts()
+            .joints
             .iter()
             .map(|&j| t.joints.get(j).copied().unwrap_or_default())
             .collect())
     }
 
-    /// Start moving to joint positions `q` (rad); returns the motion under way.
-    pub fn move_joints(&mut self, q: &[f64], opts: MoveOptions) -> Result<Motion<'_>> {
+    fn states(&self) -> Result<Vec<JointState>> {
+        self.states_in(&mut self.robot.lock_io())
+    }
+
+    /// Start moving to joint positions `q` (rad); returns the motion under way. An arm motion
+    /// still under way is preempted.
+    pub fn move_joints(&self, q: &[f64], opts: MoveOptions) -> Result<Motion> {
         self.check_angles("joint positions", q)?;
         self.check_limits(q)?;
         if let Some(t) = opts.tolerance {
@@ -203,56 +286,65 @@ impl<'r> Arm<'r> {
             Some(t) => validate::timeout("arm motion timeout", t)?,
             None => Duration::from_secs_f64(self.cfg().timeout),
         };
-        self.ensure_mode(JointMode::Position)?;
-        let now = self.states()?;
-        // A cubic between rest states peaks at 1.5·Δq/T: choose T so that no joint exceeds 90 %
-        // of its speed limit.
-        let mut t = 0.0f64;
-        for ((&j, &target), s) in self.robot.arm_joints.iter().zip(q).zip(&now) {
-            let v = self.robot.cfg.joints[j].limits.velocity as f64;
-            t = t.max(1.5 * (target - s.position as f64).abs() / (0.9 * v));
-        }
-        let duration = if opts.plan { t.max(0.2) } else { 0.0 };
-        let idx = self.robot.arm_joints.clone();
-        let mask = self.mask();
-        self.robot
-            .send_rest_waypoint(mask, q.iter().copied(), duration, "arm joint target")?;
         let tolerance = opts.tolerance.unwrap_or(self.cfg().joint_tolerance);
-        Ok(Motion::new(
-            self.robot,
-            Goal::Joints {
-                idx,
-                target: q.to_vec(),
-                tolerance,
-                stall_since: None,
-            },
-            "arm joint motion",
-            timeout,
-        ))
+        let parts = self.parts();
+        let claim = Claim {
+            joints: parts.mask(),
+            ..Claim::default()
+        };
+        self.robot
+            .start_motion(claim, "arm joint motion", |io: &mut Io| {
+                self.ensure_mode(io, JointMode::Position)?;
+                let now = self.states_in(io)?;
+                // A cubic between rest states peaks at 1.5·Δq/T: choose T so that no joint
+                // exceeds 90 % of its speed limit.
+                let mut t = 0.0f64;
+                for ((&j, &target), s) in parts.joints.iter().zip(q).zip(&now) {
+                    let v = self.robot.cfg().joints[j].limits.velocity as f64;
+                    t = t.max(1.5 * (target - s.position as f64).abs() / (0.9 * v));
+                }
+                let duration = if opts.plan { t.max(0.2) } else { 0.0 };
+                io.send_rest_waypoint(
+                    parts.mask(),
+                    q.iter().copied(),
+                    duration,
+                    "arm joint target",
+                )?;
+                let started = io.link.now();
+                let goal = JointsGoal {
+                    idx: parts.joints.clone(),
+                    target: q.to_vec(),
+                    tolerance,
+                    due: started + Duration::from_secs_f64(duration),
+                    started,
+                    stall_since: None,
+                };
+                Ok((Box::new(goal) as Box<dyn crate::motion::Goal>, timeout))
+            })
     }
 
     /// Move to joint positions `q` (rad) on a planned trajectory and wait until every joint is
     /// within the arrival tolerance.
-    pub fn set_joint_positions(&mut self, q: &[f64]) -> Result<()> {
+    pub fn set_joint_positions(&self, q: &[f64]) -> Result<()> {
         self.move_joints(q, MoveOptions::default())?.wait()
     }
 
     /// [`Arm::set_joint_positions`] with options.
-    pub fn set_joint_positions_with(&mut self, q: &[f64], opts: MoveOptions) -> Result<()> {
+    pub fn set_joint_positions_with(&self, q: &[f64], opts: MoveOptions) -> Result<()> {
         self.move_joints(q, opts)?.wait()
     }
 
     /// Send one direct value per arm joint in `mode`, each within ±`limit` of its joint.
     fn direct(
-        &mut self,
+        &self,
         what: &'static str,
         values: &[f64],
         limit: fn(&ferrobot_protocol::JointLimits) -> f32,
         mode: JointMode,
     ) -> Result<()> {
         self.check_count(what, values)?;
-        for (&j, &v) in self.robot.arm_joints.iter().zip(values) {
-            let c = &self.robot.cfg.joints[j];
+        for (&j, &v) in self.parts().joints.iter().zip(values) {
+            let c = &self.robot.cfg().joints[j];
             let l = limit(&c.limits) as f64;
             if v.abs() > l + 1e-9 {
                 return Err(Error::OutOfLimits {
@@ -263,37 +355,37 @@ impl<'r> Arm<'r> {
                 });
             }
         }
-        self.ensure_mode(mode)?;
-        let joints = self.mask();
+        let joints = self.parts().mask();
         let values = values.iter().map(|&v| v as f32).collect();
-        self.robot
-            .link
+        let mut io = self.robot.lock_io();
+        // Direct commands take the joints over from any arm motion under way.
+        io.prepare(
+            self.robot.cfg(),
+            Claim {
+                joints,
+                ..Claim::default()
+            },
+        );
+        self.ensure_mode(&mut io, mode)?;
+        io.link
             .command(&HostMsg::JointCommand { joints, values }, what)
     }
 
-    /// Send one rest knot of the Cartesian path, waiting while the firmware's queue is full.
-    /// The queue's fill is known from telemetry, which lags the knots just sent, so a full
-    /// queue shows as a `QueueFull` rejection: then let a knot play out and send again, for at
-    /// most `timeout` without progress.
-    fn send_when_queued(
-        &mut self,
-        mask: u16,
-        q: &[f64],
-        seconds: f64,
-        timeout: Duration,
-    ) -> Result<()> {
-        let since = self.robot.link.now();
+    /// Send one rest knot of the Cartesian path, waiting while the firmware's queue is full
+    /// (the motions under way go on meanwhile). The queue's fill is known from telemetry,
+    /// which lags the knots just sent, so a full queue shows as a `QueueFull` rejection: then
+    /// let a knot play out and send again, for at most `timeout` without progress.
+    fn send_when_queued(&self, q: &[f64], seconds: f64, timeout: Duration) -> Result<()> {
+        let mask = self.parts().mask();
+        let since = self.robot.lock_io().link.now();
         loop {
+            let mut io = self.robot.lock_io();
             // Keep the firmware queue short: send while telemetry shows it not nearly full, and
             // after the timeout in any case (its rejection is then the answer).
-            let waited_out = self.robot.link.now().saturating_sub(since) > timeout;
-            if waited_out || (self.robot.link.telemetry()?.queued as usize) < 8 * self.dof() {
-                match self.robot.send_rest_waypoint(
-                    mask,
-                    q.iter().copied(),
-                    seconds,
-                    "Cartesian waypoint",
-                ) {
+            let waited_out = io.link.now().saturating_sub(since) > timeout;
+            if waited_out || (io.link.telemetry()?.queued as usize) < 8 * self.dof() {
+                match io.send_rest_waypoint(mask, q.iter().copied(), seconds, "Cartesian waypoint")
+                {
                     Err(Error::Rejected {
                         reason: ferrobot_protocol::RejectReason::QueueFull,
                         ..
@@ -301,45 +393,38 @@ impl<'r> Arm<'r> {
                     r => return r,
                 }
             }
-            self.robot.link.wait(Duration::from_millis(20));
+            drop(io);
+            self.robot.wait_for(Duration::from_millis(20));
         }
-    }
-
-    /// The firmware joint mask of the arm.
-    fn mask(&self) -> u16 {
-        self.robot
-            .arm_joints
-            .iter()
-            .fold(0u16, |m, &j| m | (1 << j))
     }
 
     /// Command joint velocities (rad/s); the arm switches to velocity control and keeps them
     /// until told otherwise (the firmware brakes at the position limits).
-    pub fn set_joint_velocities(&mut self, qd: &[f64]) -> Result<()> {
+    pub fn set_joint_velocities(&self, qd: &[f64]) -> Result<()> {
         self.direct("joint velocities", qd, |l| l.velocity, JointMode::Velocity)
     }
 
     /// Command joint torques (N·m); the arm switches to current control.
-    pub fn set_joint_torques(&mut self, tau: &[f64]) -> Result<()> {
+    pub fn set_joint_torques(&self, tau: &[f64]) -> Result<()> {
         self.direct("joint torques", tau, |l| l.effort, JointMode::Current)
     }
 
     /// Measured joint angles, rad.
-    pub fn get_joint_angles(&mut self) -> Result<Vec<f64>> {
+    pub fn get_joint_angles(&self) -> Result<Vec<f64>> {
         Ok(self.states()?.iter().map(|s| s.position as f64).collect())
     }
 
     /// Measured joint velocities, rad/s.
-    pub fn get_joint_velocities(&mut self) -> Result<Vec<f64>> {
+    pub fn get_joint_velocities(&self) -> Result<Vec<f64>> {
         Ok(self.states()?.iter().map(|s| s.velocity as f64).collect())
     }
 
     /// Measured joint torques, N·m.
-    pub fn get_joint_torques(&mut self) -> Result<Vec<f64>> {
+    pub fn get_joint_torques(&self) -> Result<Vec<f64>> {
         Ok(self.states()?.iter().map(|s| s.effort as f64).collect())
     }
 
-    fn by_name(&mut self, name: &str) -> Result<JointState> {
+    fn by_name(&self, name: &str) -> Result<JointState> {
         let k = self
             .cfg()
             .joints
@@ -353,37 +438,37 @@ impl<'r> Arm<'r> {
     }
 
     /// Measured angle of one joint by name, rad.
-    pub fn get_joint_angle(&mut self, name: &str) -> Result<f64> {
+    pub fn get_joint_angle(&self, name: &str) -> Result<f64> {
         Ok(self.by_name(name)?.position as f64)
     }
 
     /// Measured velocity of one joint by name, rad/s.
-    pub fn get_joint_velocity(&mut self, name: &str) -> Result<f64> {
+    pub fn get_joint_velocity(&self, name: &str) -> Result<f64> {
         Ok(self.by_name(name)?.velocity as f64)
     }
 
     /// Measured torque of one joint by name, N·m.
-    pub fn get_joint_torque(&mut self, name: &str) -> Result<f64> {
+    pub fn get_joint_torque(&self, name: &str) -> Result<f64> {
         Ok(self.by_name(name)?.effort as f64)
     }
 
     /// Move to the configuration's home position.
-    pub fn go_home(&mut self) -> Result<()> {
+    pub fn go_home(&self) -> Result<()> {
         let home = self.cfg().home.clone();
         self.set_joint_positions(&home)
     }
 
     /// Pose of the end effector from the measured joint angles.
-    pub fn get_ee_pose(&mut self) -> Result<Pose> {
+    pub fn get_ee_pose(&self) -> Result<Pose> {
         let q = self.get_joint_angles()?;
         let ee = self.cfg().ee_frame.clone();
         self.compute_fk_position(&q, &ee)
     }
 
-    fn chain_q(&mut self, q: &[f64], frame: &str) -> Result<(crate::kinematics::Chain, Vec<f64>)> {
+    fn chain_q(&self, q: &[f64], frame: &str) -> Result<(crate::kinematics::Chain, Vec<f64>)> {
         self.check_angles("joint positions", q)?;
         let names = self.cfg().joints.clone();
-        let chain = self.robot.chain_to(frame)?.clone();
+        let chain = (*self.chain_to(frame)?).clone();
         // The frame's chain moves a prefix of the arm's joints (or other joints: not ours).
         let mut sub = Vec::new();
         for j in &chain.joints {
@@ -400,21 +485,21 @@ impl<'r> Arm<'r> {
     }
 
     /// Pose of `frame` (any link of the arm's chain) in the base frame at joint angles `q`.
-    pub fn compute_fk_position(&mut self, q: &[f64], frame: &str) -> Result<Pose> {
+    pub fn compute_fk_position(&self, q: &[f64], frame: &str) -> Result<Pose> {
         let (chain, sub) = self.chain_q(q, frame)?;
         Ok(chain.fk(&sub).into())
     }
 
     /// Geometric Jacobian at `q`: rows (vx, vy, vz, ωx, ωy, ωz) in the base frame at the
     /// end effector's origin, one column per arm joint.
-    pub fn get_jacobian(&mut self, q: &[f64]) -> Result<Matrix6xX<f64>> {
+    pub fn get_jacobian(&self, q: &[f64]) -> Result<Matrix6xX<f64>> {
         let ee = self.cfg().ee_frame.clone();
         let (chain, sub) = self.chain_q(q, &ee)?;
         Ok(chain.jacobian(&sub))
     }
 
     /// Twist `[vx, vy, vz, ωx, ωy, ωz]` of the end effector (base frame) at `q` moving at `qd`.
-    pub fn compute_fk_velocity(&mut self, q: &[f64], qd: &[f64]) -> Result<[f64; 6]> {
+    pub fn compute_fk_velocity(&self, q: &[f64], qd: &[f64]) -> Result<[f64; 6]> {
         self.check_count("joint velocities", qd)?;
         validate::all_in_range(
             "joint velocities",
@@ -439,7 +524,7 @@ impl<'r> Arm<'r> {
     /// Joint angles that put the end effector at `position` (m) with `orientation`, nearest to
     /// `seed` (default: the current joint angles).
     pub fn compute_ik(
-        &mut self,
+        &self,
         position: [f64; 3],
         orientation: Orientation,
         seed: Option<&[f64]>,
@@ -459,14 +544,12 @@ impl<'r> Arm<'r> {
         );
         let opts = self.ik_options();
         let chain = self.chain()?;
-        let ik = self.robot.ik.as_ref().ok_or_else(|| Error::Unreachable {
-            why: "no IK solver".into(),
-        })?;
+        let ik = &self.parts().ik;
         Ok(ik.solve(chain, &target, Some(&seed), &opts)?)
     }
 
     /// Move the end effector to a pose (through IK and a planned joint move).
-    pub fn set_ee_pose(&mut self, position: [f64; 3], orientation: Orientation) -> Result<()> {
+    pub fn set_ee_pose(&self, position: [f64; 3], orientation: Orientation) -> Result<()> {
         let q = self.compute_ik(position, orientation, None)?;
         self.set_joint_positions(&q)
     }
@@ -475,7 +558,7 @@ impl<'r> Arm<'r> {
     /// horizontal; π/2 points down) and roll `roll` (rad about the gripper's x axis; the
     /// current roll when `None`).
     pub fn set_ee_pose_pitch_roll(
-        &mut self,
+        &self,
         position: [f64; 3],
         pitch: f64,
         roll: Option<f64>,
@@ -485,7 +568,7 @@ impl<'r> Arm<'r> {
     }
 
     fn ik_pitch_roll(
-        &mut self,
+        &self,
         position: [f64; 3],
         pitch: f64,
         roll: Option<f64>,
@@ -493,10 +576,10 @@ impl<'r> Arm<'r> {
     ) -> Result<Vec<f64>> {
         validate::arm_point("position", position)?;
         validate::angles("pitch", &[pitch])?;
-        let solver = self.robot.locobot_ik.ok_or_else(|| Error::Unreachable {
+        let solver = self.parts().locobot_ik.ok_or_else(|| Error::Unreachable {
             why: format!(
                 "{} has no pitch-roll solver (a 5-DOF LoCoBot-type arm has)",
-                self.robot.cfg.name
+                self.robot.cfg().name
             ),
         })?;
         let seed = match seed {
@@ -520,7 +603,7 @@ impl<'r> Arm<'r> {
     /// `step` is at least [`validate::MIN_CARTESIAN_STEP`], and the line has at most
     /// [`validate::MAX_CARTESIAN_WAYPOINTS`] steps. Waypoints are streamed as the firmware's
     /// queue makes room, so lines of any number of steps run.
-    pub fn move_ee_xyz(&mut self, displacement: [f64; 3], step: f64) -> Result<()> {
+    pub fn move_ee_xyz(&self, displacement: [f64; 3], step: f64) -> Result<()> {
         let d = validate::arm_point("displacement", displacement)?;
         validate::in_range(
             "Cartesian step",
@@ -546,7 +629,7 @@ impl<'r> Arm<'r> {
         // π/2 too, where Euler angles would fold it back and flip the gripper. Other arms keep
         // the whole orientation.
         let pitch = self
-            .robot
+            .parts()
             .locobot_ik
             .is_some()
             .then(|| q0[1] + q0[2] + q0[3]);
@@ -565,33 +648,56 @@ impl<'r> Arm<'r> {
             path.push(q.clone());
             seed = q;
         }
-        // Stream the path as knots, each timed by the joints' speed limits.
-        self.ensure_mode(JointMode::Position)?;
-        let idx = self.robot.arm_joints.clone();
-        let mask = self.mask();
+        // Stream the path as knots, each timed by the joints' speed limits. The motion is under
+        // way from the first knot, so that other motions see (and preempt) it.
+        let parts = self.parts();
+        let idx = parts.joints.clone();
         let timeout = Duration::from_secs_f64(self.cfg().timeout);
-        let mut prev = q0;
+        let tolerance = self.cfg().joint_tolerance;
+        let target = path.last().cloned().unwrap_or_else(|| q0.clone());
+        let mut durations = Vec::with_capacity(path.len());
+        let mut prev = &q0;
         for q in &path {
             let mut t = 0.0f64;
-            for ((&j, a), b) in idx.iter().zip(q).zip(&prev) {
-                t = t.max((a - b).abs() / (0.5 * self.robot.cfg.joints[j].limits.velocity as f64));
+            for ((&j, a), b) in idx.iter().zip(q).zip(prev) {
+                t = t
+                    .max((a - b).abs() / (0.5 * self.robot.cfg().joints[j].limits.velocity as f64));
             }
-            self.send_when_queued(mask, q, t.max(0.02), timeout)?;
-            prev = q.clone();
+            durations.push(t.max(0.02));
+            prev = q;
         }
-        let target = path.last().cloned().unwrap_or(prev);
-        let tolerance = self.cfg().joint_tolerance;
-        Motion::new(
-            self.robot,
-            Goal::Joints {
-                idx,
-                target,
-                tolerance,
-                stall_since: None,
-            },
-            "Cartesian motion",
-            timeout,
-        )
-        .wait()
+        let total: f64 = durations.iter().sum();
+        let claim = Claim {
+            joints: parts.mask(),
+            ..Claim::default()
+        };
+        let motion = self
+            .robot
+            .start_motion(claim, "Cartesian motion", |io: &mut Io| {
+                self.ensure_mode(io, JointMode::Position)?;
+                let started = io.link.now();
+                let goal = JointsGoal {
+                    idx,
+                    target,
+                    tolerance,
+                    // Streaming may fall behind the knots' timing (a full queue): then the
+                    // tolerance decides.
+                    due: started + Duration::from_secs_f64(total),
+                    started,
+                    stall_since: None,
+                };
+                Ok((Box::new(goal) as Box<dyn crate::motion::Goal>, timeout))
+            })?;
+        for (q, &t) in path.iter().zip(&durations) {
+            if motion.is_finished() {
+                // Ended while streaming (a fault, a preemption): its result says why.
+                break;
+            }
+            if let Err(e) = self.send_when_queued(q, t, timeout) {
+                let _ = motion.cancel();
+                return Err(e);
+            }
+        }
+        motion.wait()
     }
 }

@@ -26,10 +26,12 @@ fn check_relative(delta: [f64; 3]) -> Result<()> {
     )?;
     Ok(validate::angles("base goal heading", &delta[2..])?)
 }
-use crate::motion::{Goal, Motion};
+use crate::backend::Link;
+use crate::config::RobotConfig;
+use crate::motion::{Claim, Goal, Motion, Step};
 use crate::obstacles::{Circle, Obstacles, OccupancyGrid};
 use crate::odometry_calibration::WheelGeometry;
-use crate::robot::Robot;
+use crate::robot::{Io, Robot};
 
 /// Control period of the host-side base controllers.
 pub const BASE_CONTROL_PERIOD: Duration = Duration::from_millis(50);
@@ -77,7 +79,7 @@ pub mod gains {
     pub const MIN_WHEEL: f64 = 0.015;
 }
 
-/// A host-side position controller run by a [`Motion`] every telemetry sample.
+/// A host-side position controller run by a [`Motion`] every time the motions are stepped.
 pub(crate) trait BaseLaw: Send {
     /// The next command `(v, ω)` (m/s, rad/s) from odometry at `now`, `Ok(None)` when the goal
     /// is reached, or an error when it cannot be.
@@ -669,14 +671,183 @@ impl Tracking {
     }
 }
 
-/// The base of a [`Robot`].
-pub struct Base<'r> {
-    robot: &'r mut Robot,
+/// What the base remembers between calls.
+#[derive(Debug, Default)]
+pub(crate) struct BaseState {
+    /// Base commands sent by host-side laws: (time s, v m/s, ω rad/s).
+    pub(crate) log: Vec<(f64, f64, f64)>,
+    /// While recording: the wheel angles `[left, right]` (rad) of each telemetry frame the
+    /// motions have seen, with the frame's firmware time (µs).
+    wheel_log: Option<Vec<(u64, [f64; 2])>>,
+    /// The geometry the firmware's odometry uses, when set (calibrated).
+    odometry: Option<WheelGeometry>,
 }
 
-impl<'r> Base<'r> {
-    pub(crate) fn new(robot: &'r mut Robot) -> Self {
+impl BaseState {
+    /// The base state of a robot of `cfg`, before its odometry geometry is pushed.
+    pub(crate) fn new(_cfg: &RobotConfig) -> Self {
+        BaseState::default()
+    }
+
+    /// While a wheel log is kept, add the wheel angles of telemetry frame `t` unless it is the
+    /// frame logged last.
+    pub(crate) fn log_wheels(&mut self, t: &Telemetry) {
+        if let Some(log) = &mut self.wheel_log {
+            if log.last().map(|l| l.0) != Some(t.time_us) {
+                log.push((t.time_us, [t.wheels.left as f64, t.wheels.right as f64]));
+            }
+        }
+    }
+}
+
+/// Stop the base now (best effort: the motion is over either way).
+fn stop_base(link: &mut dyn Link) {
+    let _ = link.command(
+        &HostMsg::BaseVelocity {
+            v: 0.0,
+            w: 0.0,
+            duration_ms: 0,
+        },
+        "stop",
+    );
+}
+
+/// Send a base velocity `(v, ω)` (m/s, rad/s) held for `duration_ms`; `Some(Err)` when the
+/// link refuses it, which ends the motion.
+fn send_base_velocity(link: &mut dyn Link, v: f64, w: f64, duration_ms: u16) -> Option<Result<()>> {
+    link.command(
+        &HostMsg::BaseVelocity {
+            v: v as f32,
+            w: w as f32,
+            duration_ms,
+        },
+        "base velocity",
+    )
+    .err()
+    .map(Err)
+}
+
+/// What every base goal claims.
+const BASE: Claim = Claim {
+    joints: 0,
+    base: true,
+    gripper: false,
+};
+
+/// A base velocity held until a time.
+struct VelocityGoal {
+    v: f64,
+    w: f64,
+    until: Duration,
+    next_send: Duration,
+}
+
+impl Goal for VelocityGoal {
+    fn claim(&self) -> Claim {
+        BASE
+    }
+
+    fn step(&mut self, s: &mut Step<'_>) -> Option<Result<()>> {
+        let now = s.now;
+        if now >= self.until {
+            stop_base(s.link);
+            return Some(Ok(()));
+        }
+        if now >= self.next_send {
+            self.next_send = now + Duration::from_millis(100);
+            let left = (self.until - now).as_millis().min(250) as u16;
+            return send_base_velocity(s.link, self.v, self.w, left);
+        }
+        None
+    }
+
+    fn halt(&mut self, link: &mut dyn Link) {
+        stop_base(link);
+    }
+}
+
+/// A base position goal run by a host-side law.
+struct LawGoal(Box<dyn BaseLaw>);
+
+impl Goal for LawGoal {
+    fn claim(&self) -> Claim {
+        BASE
+    }
+
+    fn step(&mut self, s: &mut Step<'_>) -> Option<Result<()>> {
+        match self.0.step(s.now, s.telemetry) {
+            // Stop explicitly either way: otherwise the firmware would hold the last command
+            // (up to 250 ms) after the law has declared the goal reached.
+            Err(e) => {
+                stop_base(s.link);
+                Some(Err(e))
+            }
+            Ok(None) => {
+                stop_base(s.link);
+                Some(Ok(()))
+            }
+            Ok(Some((v, w))) => {
+                if s.base_log.last().map(|l| (l.1, l.2)) != Some((v, w)) {
+                    s.base_log.push((s.now.as_secs_f64(), v, w));
+                }
+                send_base_velocity(s.link, v, w, self.0.hold_ms())
+            }
+        }
+    }
+
+    fn halt(&mut self, link: &mut dyn Link) {
+        stop_base(link);
+    }
+}
+
+/// A base reference tracked by LQR (closed loop) or played open loop.
+struct TrackGoal(Box<Tracking>);
+
+impl Goal for TrackGoal {
+    fn claim(&self) -> Claim {
+        BASE
+    }
+
+    fn step(&mut self, s: &mut Step<'_>) -> Option<Result<()>> {
+        match self.0.step(s.now, s.telemetry) {
+            None => {
+                stop_base(s.link);
+                Some(Ok(()))
+            }
+            Some(None) => None,
+            Some(Some((v, w))) => {
+                s.base_log.push((s.now.as_secs_f64(), v, w));
+                send_base_velocity(s.link, v, w, 200)
+            }
+        }
+    }
+
+    fn halt(&mut self, link: &mut dyn Link) {
+        stop_base(link);
+    }
+}
+
+/// The base of a [`Robot`]: a handle (clone of the robot's), so base motions run while other
+/// components move.
+#[derive(Clone, Debug)]
+pub struct Base {
+    robot: Robot,
+}
+
+impl Base {
+    pub(crate) fn new(robot: Robot) -> Self {
         Base { robot }
+    }
+
+    /// Put a base goal under way (preempting a base motion under way).
+    fn start(&self, goal: Box<dyn Goal>, what: &str, timeout: Duration) -> Result<Motion> {
+        self.robot
+            .start_motion(BASE, what, |_io: &mut Io| Ok((goal, timeout)))
+    }
+
+    /// The backend's clock.
+    fn now(&self) -> Duration {
+        self.robot.lock_io().link.now()
     }
 
     /// The tracking limits, capped by the configuration's speeds.
@@ -709,12 +880,12 @@ impl<'r> Base<'r> {
 
     fn section(&self) -> &crate::config::BaseSection {
         // Present: `Robot::base` checks it.
-        self.robot.cfg.base.as_ref().expect("base config")
+        self.robot.cfg().base.as_ref().expect("base config")
     }
 
     /// Odometry pose `[x, y, θ]`.
-    pub fn get_state(&mut self) -> Result<[f64; 3]> {
-        let o = self.robot.link.telemetry()?.odometry;
+    pub fn get_state(&self) -> Result<[f64; 3]> {
+        let o = self.robot.telemetry()?.odometry;
         Ok([o.x as f64, o.y as f64, o.theta as f64])
     }
 
@@ -722,13 +893,18 @@ impl<'r> Base<'r> {
     /// the last [`Base::set_odometry_geometry`], else the nominal wheel radius and track.
     pub fn odometry_geometry(&self) -> WheelGeometry {
         let s = self.section();
-        s.odometry.unwrap_or_else(|| s.nominal_geometry())
+        self.robot
+            .lock_io()
+            .base
+            .odometry
+            .or(s.odometry)
+            .unwrap_or_else(|| s.nominal_geometry())
     }
 
     /// Make the firmware's odometry use a calibrated geometry (from
     /// [`crate::odometry_calibration::estimate`]); each value must be within 10 % of the
     /// nominal one. Takes effect from the next wheel sample; the pose is not reset.
-    pub fn set_odometry_geometry(&mut self, g: WheelGeometry) -> Result<()> {
+    pub fn set_odometry_geometry(&self, g: WheelGeometry) -> Result<()> {
         if !g.near(&self.section().nominal_geometry(), 0.1) {
             return Err(Error::Calibration {
                 why: format!(
@@ -737,7 +913,8 @@ impl<'r> Base<'r> {
                 ),
             });
         }
-        self.robot.link.command(
+        let mut io = self.robot.lock_io();
+        io.link.command(
             &HostMsg::SetBaseGeometry {
                 left_radius: g.left_radius as f32,
                 right_radius: g.right_radius as f32,
@@ -745,49 +922,52 @@ impl<'r> Base<'r> {
             },
             "odometry geometry",
         )?;
-        if let Some(b) = self.robot.cfg.base.as_mut() {
-            b.odometry = Some(g);
-        }
+        io.base.odometry = Some(g);
         Ok(())
     }
 
     /// The accumulated wheel angles `[left, right]` (rad) since the firmware started.
-    pub fn wheel_angles(&mut self) -> Result<[f64; 2]> {
-        let w = self.robot.link.telemetry()?.wheels;
+    pub fn wheel_angles(&self) -> Result<[f64; 2]> {
+        let w = self.robot.telemetry()?.wheels;
         Ok([w.left as f64, w.right as f64])
     }
 
     /// Start logging the wheel angles of every telemetry frame that motions see (for odometry
     /// calibration), beginning with the current ones; replaces an earlier log.
-    pub fn start_wheel_log(&mut self) -> Result<()> {
-        let t = self.robot.link.telemetry()?;
-        self.robot.wheel_log = Some(Vec::new());
-        self.robot.log_wheels(&t);
+    pub fn start_wheel_log(&self) -> Result<()> {
+        let mut io = self.robot.lock_io();
+        let t = io.link.telemetry()?;
+        io.base.wheel_log = Some(Vec::new());
+        io.base.log_wheels(&t);
         Ok(())
     }
 
     /// Stop logging and return the wheel angles `[left, right]` (rad) logged since
     /// [`Base::start_wheel_log`], ending with the current ones.
-    pub fn take_wheel_log(&mut self) -> Result<Vec<[f64; 2]>> {
-        let t = self.robot.link.telemetry()?;
-        self.robot.log_wheels(&t);
-        let log = self.robot.wheel_log.take().unwrap_or_default();
+    pub fn take_wheel_log(&self) -> Result<Vec<[f64; 2]>> {
+        let mut io = self.robot.lock_io();
+        let t = io.link.telemetry()?;
+        io.base.log_wheels(&t);
+        let log = io.base.wheel_log.take().unwrap_or_default();
         Ok(log.into_iter().map(|l| l.1).collect())
     }
 
     /// Zero the odometry pose.
-    pub fn reset_odometry(&mut self) -> Result<()> {
+    pub fn reset_odometry(&self) -> Result<()> {
         self.robot
+            .lock_io()
             .link
             .command(&HostMsg::ResetOdometry, "odometry reset")?;
         // Let the reset show in telemetry.
-        self.robot.link.wait(Duration::from_millis(30));
+        self.robot.wait_for(Duration::from_millis(30));
         Ok(())
     }
 
-    /// Stop now.
-    pub fn stop(&mut self) -> Result<()> {
-        self.robot.link.command(
+    /// Stop now; a base motion under way ends ([`Error::Preempted`]).
+    pub fn stop(&self) -> Result<()> {
+        let mut io = self.robot.lock_io();
+        io.prepare(self.robot.cfg(), BASE);
+        io.link.command(
             &HostMsg::BaseVelocity {
                 v: 0.0,
                 w: 0.0,
@@ -799,7 +979,7 @@ impl<'r> Base<'r> {
 
     /// Start driving at `v` (m/s) and `w` (rad/s) for `duration` s (at most
     /// [`validate::MAX_DURATION_S`]).
-    pub fn set_vel_async(&mut self, v: f64, w: f64, duration: f64) -> Result<Motion<'_>> {
+    pub fn set_vel_async(&self, v: f64, w: f64, duration: f64) -> Result<Motion> {
         check_finite("base velocity", &[v, w])?;
         let duration = validate::seconds("base velocity duration", duration)?;
         let s = self.section();
@@ -817,50 +997,43 @@ impl<'r> Base<'r> {
                 });
             }
         }
-        self.robot.link.take_faults();
-        let now = self.robot.link.now();
+        let now = self.now();
         let until = now.saturating_add(duration);
-        Ok(Motion::new(
-            self.robot,
-            Goal::BaseVelocity {
+        self.start(
+            Box::new(VelocityGoal {
                 v,
                 w,
                 until,
                 next_send: now,
-            },
+            }),
             "base velocity",
             duration + Duration::from_secs(1),
-        ))
+        )
     }
 
     /// Drive at `v` (m/s) and `w` (rad/s) for `duration` s, then stop.
-    pub fn set_vel(&mut self, v: f64, w: f64, duration: f64) -> Result<()> {
+    pub fn set_vel(&self, v: f64, w: f64, duration: f64) -> Result<()> {
         self.set_vel_async(v, w, duration)?.wait()
     }
 
     /// Start tracking `reference` (states and controls every `reference.dt`) with LQR from
     /// odometry, or open loop.
-    pub fn track_trajectory_async(
-        &mut self,
-        reference: Reference,
-        close_loop: bool,
-    ) -> Result<Motion<'_>> {
+    pub fn track_trajectory_async(&self, reference: Reference, close_loop: bool) -> Result<Motion> {
         self.track(reference, close_loop, None)
     }
 
     /// Track `reference`; with `finish`, then correct the residual to that pose with
     /// [`Finish`].
     fn track(
-        &mut self,
+        &self,
         reference: Reference,
         close_loop: bool,
         finish: Option<[f64; 3]>,
-    ) -> Result<Motion<'_>> {
+    ) -> Result<Motion> {
         reference.check()?;
         let limits = self.tracking_limits();
         let duration = reference.dt * reference.controls.len() as f64;
-        self.robot.link.take_faults();
-        let now = self.robot.link.now();
+        let now = self.now();
         let tr = Tracking {
             tracker: LqrTracker::new(reference, [3.0, 3.0, 4.0], 0.2),
             closed_loop: close_loop,
@@ -872,7 +1045,7 @@ impl<'r> Base<'r> {
         let timeout = Duration::from_secs_f64(duration + 5.0);
         if let Some(goal) = finish {
             // One encoder tick of one wheel turns the odometry by this much (rad).
-            let fw = self.robot.cfg.firmware_profile().base;
+            let fw = self.robot.cfg().firmware_profile().base;
             let tick = fw.rad_per_tick() as f64 * fw.wheel_radius as f64 / fw.track as f64;
             let s = self.section();
             let law = TrackThenFinish {
@@ -887,23 +1060,21 @@ impl<'r> Base<'r> {
                     limits,
                 ),
             };
-            return Ok(Motion::new(
-                self.robot,
-                Goal::Base(Box::new(law)),
+            return self.start(
+                Box::new(LawGoal(Box::new(law))),
                 "base position goal",
                 timeout + FINISH_TIME,
-            ));
+            );
         }
-        Ok(Motion::new(
-            self.robot,
-            Goal::Track(Box::new(tr)),
+        self.start(
+            Box::new(TrackGoal(Box::new(tr))),
             "trajectory tracking",
             timeout,
-        ))
+        )
     }
 
     /// Track `reference` and wait (PyRobot's `track_trajectory`).
-    pub fn track_trajectory(&mut self, reference: Reference, close_loop: bool) -> Result<()> {
+    pub fn track_trajectory(&self, reference: Reference, close_loop: bool) -> Result<()> {
         self.track_trajectory_async(reference, close_loop)?.wait()
     }
 
@@ -911,7 +1082,7 @@ impl<'r> Base<'r> {
     /// must be at most [`validate::MAX_BASE_GOAL_DISTANCE`] from the current pose; every
     /// controller has a budget (its timeout, in the backend's time) and fails with
     /// [`Error::Timeout`] when it runs out.
-    pub fn go_to_absolute_with(&mut self, goal: [f64; 3], opts: GoalOptions) -> Result<Motion<'_>> {
+    pub fn go_to_absolute_with(&self, goal: [f64; 3], opts: GoalOptions) -> Result<Motion> {
         check_finite("base goal", &goal)?;
         let here = self.get_state()?;
         validate::base_goal(goal, here)?;
@@ -971,8 +1142,7 @@ impl<'r> Base<'r> {
                 let mut finish = self.proportional(goal);
                 finish.max_v = lim.v;
                 finish.max_w = lim.w;
-                self.robot.link.take_faults();
-                let now = self.robot.link.now();
+                let now = self.now();
                 let g = DwaGoal {
                     dwa,
                     finish,
@@ -981,73 +1151,66 @@ impl<'r> Base<'r> {
                     last: (0.0, 0.0),
                     progress: (f64::INFINITY, now),
                 };
-                Ok(Motion::new(
-                    self.robot,
-                    Goal::Base(Box::new(g)),
+                self.start(
+                    Box::new(LawGoal(Box::new(g))),
                     "base position goal (DWA)",
                     timeout,
-                ))
+                )
             }
         }
     }
 
     /// The odometry-frame goal `delta` (`[x, y, θ]` in the current pose's frame) names.
-    fn relative_goal(&mut self, delta: [f64; 3]) -> Result<[f64; 3]> {
+    fn relative_goal(&self, delta: [f64; 3]) -> Result<[f64; 3]> {
         check_relative(delta)?;
         let here = Pose2::from(self.get_state()?);
         Ok(here.compose(&Pose2::from(delta)).to_array())
     }
 
     /// Start moving by `[x, y, θ]` relative to the current pose with the chosen controller.
-    pub fn go_to_relative_with(
-        &mut self,
-        delta: [f64; 3],
-        opts: GoalOptions,
-    ) -> Result<Motion<'_>> {
+    pub fn go_to_relative_with(&self, delta: [f64; 3], opts: GoalOptions) -> Result<Motion> {
         check_relative(delta)?;
         let goal = self.relative_goal(delta)?;
         self.go_to_absolute_with(goal, opts)
     }
 
     /// Start moving to `[x, y, θ]` in the odometry frame with the configuration's controller.
-    pub fn go_to_absolute_async(&mut self, goal: [f64; 3]) -> Result<Motion<'_>> {
+    pub fn go_to_absolute_async(&self, goal: [f64; 3]) -> Result<Motion> {
         self.go_to_absolute_with(goal, GoalOptions::default())
     }
 
     /// Start the proportional controller from `here` towards `[x, y, θ]` (a goal
     /// [`Base::go_to_absolute_with`] has validated) in the odometry frame.
-    fn proportional_async(&mut self, goal: [f64; 3], here: [f64; 3]) -> Result<Motion<'_>> {
+    fn proportional_async(&self, goal: [f64; 3], here: [f64; 3]) -> Result<Motion> {
         let s = self.section().clone();
-        self.robot.link.take_faults();
-        let now = self.robot.link.now();
+        let now = self.now();
         let dist = (goal[0] - here[0]).hypot(goal[1] - here[1]);
         let turn = std::f64::consts::TAU;
         let timeout =
             Duration::from_secs_f64(10.0 + 3.0 * (dist / s.max_linear + turn / s.max_angular));
         let mut g = self.proportional(goal);
         g.next = now;
-        Ok(Motion::new(
-            self.robot,
-            Goal::Base(Box::new(g)),
+        self.start(
+            Box::new(LawGoal(Box::new(g))),
             "base position goal",
             timeout,
-        ))
+        )
     }
 
     /// Move to `[x, y, θ]` in the odometry frame with the configuration's controller and wait.
-    pub fn go_to_absolute(&mut self, goal: [f64; 3]) -> Result<()> {
+    pub fn go_to_absolute(&self, goal: [f64; 3]) -> Result<()> {
         self.go_to_absolute_async(goal)?.wait()
     }
 
     /// Start moving by `[x, y, θ]` relative to the current pose (x forward, y left).
-    pub fn go_to_relative_async(&mut self, delta: [f64; 3]) -> Result<Motion<'_>> {
+    pub fn go_to_relative_async(&self, delta: [f64; 3]) -> Result<Motion> {
         check_relative(delta)?;
         let goal = self.relative_goal(delta)?;
         self.go_to_absolute_async(goal)
     }
 
     /// Move by `[x, y, θ]` relative to the current pose and wait.
-    pub fn go_to_relative(&mut self, delta: [f64; 3]) -> Result<()> {
+    pub fn go_to_relative(&self, delta: [f64; 3]) -> Result<()> {
         self.go_to_relative_async(delta)?.wait()
     }
 }

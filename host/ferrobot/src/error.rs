@@ -134,6 +134,12 @@ pub enum Error {
     /// An emergency stop is active.
     #[error("an emergency stop is active; call resume() first")]
     EmergencyStop,
+    /// A newer motion of the same joints, base or gripper took over; this one was stopped.
+    #[error("{what} was preempted by a newer motion of the same component")]
+    Preempted {
+        /// The motion that was preempted.
+        what: String,
+    },
     /// A fault stopped the motion.
     #[error("motion aborted by a {kind:?} fault{}", detail.as_deref().map(|d| format!(": {d}")).unwrap_or_default())]
     Fault {

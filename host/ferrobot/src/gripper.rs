@@ -5,67 +5,96 @@ use std::time::Duration;
 
 use ferrobot_protocol::{GripperCommand, GripperState, HostMsg};
 
+use crate::backend::Link;
 use crate::error::Result;
-use crate::motion::{Goal, Motion};
-use crate::robot::Robot;
+use crate::motion::{Claim, Goal, Motion, Step};
+use crate::robot::{Io, Robot};
 
 /// How long open and close may take.
 pub const GRIPPER_TIMEOUT: Duration = Duration::from_secs(5);
 
-/// The gripper of a [`Robot`].
-pub struct Gripper<'r> {
-    robot: &'r mut Robot,
+/// The goal of the gripper's state machine reaching one of some states.
+struct GripperGoal(&'static [GripperState]);
+
+impl Goal for GripperGoal {
+    fn claim(&self) -> Claim {
+        Claim {
+            gripper: true,
+            ..Claim::default()
+        }
+    }
+
+    fn step(&mut self, s: &mut Step<'_>) -> Option<Result<()>> {
+        self.0.contains(&s.telemetry.gripper).then_some(Ok(()))
+    }
+
+    /// The firmware's state machine finishes what it started.
+    fn halt(&mut self, _link: &mut dyn Link) {}
 }
 
-impl<'r> Gripper<'r> {
-    pub(crate) fn new(robot: &'r mut Robot) -> Self {
+/// The gripper of a [`Robot`]: a handle (clone of the robot's).
+#[derive(Clone, Debug)]
+pub struct Gripper {
+    robot: Robot,
+}
+
+impl Gripper {
+    pub(crate) fn new(robot: Robot) -> Self {
         Gripper { robot }
     }
 
+    /// Send `cmd` and put the goal of reaching one of `want` under way.
+    fn start(
+        &self,
+        cmd: GripperCommand,
+        want: &'static [GripperState],
+        what: &str,
+    ) -> Result<Motion> {
+        let claim = Claim {
+            gripper: true,
+            ..Claim::default()
+        };
+        self.robot.start_motion(claim, what, |io: &mut Io| {
+            io.link.command(&HostMsg::Gripper(cmd), what)?;
+            Ok((
+                Box::new(GripperGoal(want)) as Box<dyn Goal>,
+                GRIPPER_TIMEOUT,
+            ))
+        })
+    }
+
     /// Start opening.
-    pub fn open_async(&mut self) -> Result<Motion<'_>> {
-        self.robot
-            .link
-            .command(&HostMsg::Gripper(GripperCommand::Open), "gripper open")?;
-        Ok(Motion::new(
-            self.robot,
-            Goal::Gripper(&[GripperState::Open]),
-            "gripper open",
-            GRIPPER_TIMEOUT,
-        ))
+    pub fn open_async(&self) -> Result<Motion> {
+        self.start(GripperCommand::Open, &[GripperState::Open], "gripper open")
     }
 
     /// Start closing; it finishes fully closed or holding an object.
-    pub fn close_async(&mut self) -> Result<Motion<'_>> {
-        self.robot
-            .link
-            .command(&HostMsg::Gripper(GripperCommand::Close), "gripper close")?;
-        Ok(Motion::new(
-            self.robot,
-            Goal::Gripper(&[GripperState::Closed, GripperState::Holding]),
+    pub fn close_async(&self) -> Result<Motion> {
+        self.start(
+            GripperCommand::Close,
+            &[GripperState::Closed, GripperState::Holding],
             "gripper close",
-            GRIPPER_TIMEOUT,
-        ))
+        )
     }
 
     /// Open and wait until open.
-    pub fn open(&mut self) -> Result<()> {
+    pub fn open(&self) -> Result<()> {
         self.open_async()?.wait()
     }
 
     /// Close and wait until fully closed or holding an object; returns which.
-    pub fn close(&mut self) -> Result<GripperState> {
+    pub fn close(&self) -> Result<GripperState> {
         self.close_async()?.wait()?;
         self.get_state()
     }
 
     /// Back to the open state (PyRobot's `reset`).
-    pub fn reset(&mut self) -> Result<()> {
+    pub fn reset(&self) -> Result<()> {
         self.open()
     }
 
     /// Current state: open, closing, holding an object, fully closed (or unknown/opening).
-    pub fn get_state(&mut self) -> Result<GripperState> {
-        Ok(self.robot.link.telemetry()?.gripper)
+    pub fn get_state(&self) -> Result<GripperState> {
+        Ok(self.robot.telemetry()?.gripper)
     }
 }

@@ -7,7 +7,7 @@
 //!
 //! ```no_run
 //! use ferrobot::Robot;
-//! let mut bot = Robot::new("locobot")?;                 // in-process simulator by default
+//! let bot = Robot::new("locobot")?;                     // in-process simulator by default
 //! bot.arm()?.set_joint_positions(&[0.0; 5])?;
 //! bot.base()?.go_to_absolute([1.0, 1.0, 0.0])?;
 //! # Ok::<(), ferrobot::Error>(())

@@ -1,13 +1,24 @@
-//! [`Motion`]: a motion under way, to wait on, poll or cancel. Every blocking call of the API
-//! is its non-blocking form followed by [`Motion::wait`].
+//! Motions: goals under way on the robot's components, and [`Motion`], the owned handle to
+//! one of them (poll, wait, cancel). Every blocking call of the API is its non-blocking form
+//! followed by [`Motion::wait`].
+//!
+//! A motion does not borrow the robot: it holds a clone of the [`Robot`] handle and the number
+//! of its goal. The goals of all components live in one table beside the link ([`Goals`]);
+//! whoever lets time pass (any motion's `poll` or `wait`, [`Robot::wait`]) steps every goal
+//! under way, so the arm, the gripper, the head and the base move at the same time, whichever
+//! of them a program waits on. Each component defines its own goal type ([`Goal`]) in its own
+//! module and claims what it drives ([`Claim`]); a new goal preempts (stops and ends with
+//! [`Error::Preempted`]) the goals whose claims it overlaps.
 
+use std::collections::{HashMap, HashSet, VecDeque};
 use std::time::Duration;
 
-use ferrobot_protocol::{FaultKind, GripperState, HostMsg};
+use ferrobot_protocol::{Fault, FaultKind, Telemetry};
 
-use crate::base::BaseLaw;
+use crate::backend::Link;
+use crate::config::RobotConfig;
 use crate::error::{Error, Result};
-use crate::robot::Robot;
+use crate::robot::{Io, Robot};
 
 /// How long one [`Motion::poll`] lets pass.
 pub const POLL: Duration = Duration::from_millis(10);
@@ -17,328 +28,464 @@ pub const STALL_GRACE: Duration = Duration::from_millis(300);
 pub const STALL_TIME: Duration = Duration::from_millis(500);
 /// Improvement of the largest joint error that counts as progress, rad.
 pub const STALL_PROGRESS: f64 = 0.001;
+/// Faults kept for [`Robot::take_faults`]; older ones are dropped first.
+pub const FAULT_QUEUE: usize = 1024;
 
-pub(crate) enum Goal {
-    /// Joints (firmware indices) to reach targets within a tolerance.
-    Joints {
-        idx: Vec<usize>,
-        target: Vec<f64>,
-        tolerance: f64,
-        /// Best (smallest) worst-joint error so far, and when it was reached.
-        stall_since: Option<(f64, Duration)>,
-    },
-    /// The gripper reaching one of these states.
-    Gripper(&'static [GripperState]),
-    /// A base velocity held until a time.
-    BaseVelocity {
-        v: f64,
-        w: f64,
-        until: Duration,
-        next_send: Duration,
-    },
-    /// A base position goal run by a host-side controller.
-    Base(Box<dyn BaseLaw>),
-    /// A base reference tracked by LQR (closed loop) or played open loop.
-    Track(Box<crate::base::Tracking>),
+/// What a goal drives: joints (firmware joint mask), the base, the gripper. Two goals whose
+/// claims overlap cannot run at once: the newer preempts the older.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub(crate) struct Claim {
+    /// Firmware joint mask.
+    pub joints: u16,
+    /// The mobile base.
+    pub base: bool,
+    /// The gripper's state machine.
+    pub gripper: bool,
 }
 
-/// A motion under way.
-#[must_use = "a motion does nothing unless waited on or polled"]
-pub struct Motion<'r> {
-    pub(crate) robot: &'r mut Robot,
-    pub(crate) goal: Goal,
-    pub(crate) what: String,
-    pub(crate) deadline: Duration,
-    pub(crate) started: Duration,
-    pub(crate) timeout: Duration,
-    pub(crate) result: Option<Result<()>>,
+impl Claim {
+    /// Whether the two claim anything in common.
+    pub fn overlaps(&self, other: &Claim) -> bool {
+        self.joints & other.joints != 0
+            || (self.base && other.base)
+            || (self.gripper && other.gripper)
+    }
+
+    /// Whether `fault` ends a goal with this claim (the emergency stop and the watchdog end
+    /// every goal).
+    fn hit_by(&self, fault: &Fault) -> bool {
+        match fault.kind {
+            FaultKind::Bumper | FaultKind::Cliff | FaultKind::WheelDrop | FaultKind::BaseLost => {
+                self.base
+            }
+            FaultKind::ServoLost | FaultKind::ServoHardware => fault
+                .joint
+                .is_some_and(|j| j < 16 && self.joints & (1 << j) != 0),
+            FaultKind::Watchdog | FaultKind::EmergencyStop => true,
+            _ => false,
+        }
+    }
 }
 
-impl<'r> Motion<'r> {
-    pub(crate) fn new(
-        robot: &'r mut Robot,
-        goal: Goal,
-        what: impl Into<String>,
-        timeout: Duration,
-    ) -> Self {
-        let started = robot.link.now();
-        // Timeouts are validated at the API (`validate::timeout`); saturate all the same.
-        let deadline = started.saturating_add(timeout);
-        Motion {
-            started,
-            robot,
-            goal,
-            what: what.into(),
-            deadline,
-            timeout,
-            result: None,
+/// What a goal sees at each step.
+pub(crate) struct Step<'a> {
+    /// The link, to send commands.
+    pub link: &'a mut dyn Link,
+    /// The robot's configuration.
+    pub cfg: &'a RobotConfig,
+    /// The backend's clock.
+    pub now: Duration,
+    /// The newest telemetry.
+    pub telemetry: &'a Telemetry,
+    /// Base commands sent by host-side laws: (time s, v m/s, ω rad/s).
+    pub base_log: &'a mut Vec<(f64, f64, f64)>,
+}
+
+/// A goal of one component, stepped by whoever lets time pass.
+pub(crate) trait Goal: Send {
+    /// What it drives.
+    fn claim(&self) -> Claim;
+    /// One step at `s.now`: `Some(result)` once finished. Timeouts are judged by the table.
+    fn step(&mut self, s: &mut Step<'_>) -> Option<Result<()>>;
+    /// Stop where it is (best effort): joints hold, the base stops.
+    fn halt(&mut self, link: &mut dyn Link);
+}
+
+struct Running {
+    id: u64,
+    goal: Box<dyn Goal>,
+    what: String,
+    timeout: Duration,
+    deadline: Duration,
+    /// When it was last stepped: a goal is stepped once per instant.
+    stepped: Option<Duration>,
+}
+
+/// The goals under way and the results not yet collected.
+#[derive(Default)]
+pub(crate) struct Goals {
+    next: u64,
+    running: Vec<Running>,
+    finished: HashMap<u64, Result<()>>,
+    /// Goals whose handle was dropped: their results are not kept.
+    detached: HashSet<u64>,
+    /// Faults for [`Robot::take_faults`].
+    faults: VecDeque<Fault>,
+}
+
+impl Goals {
+    fn finish(&mut self, id: u64, r: Result<()>) {
+        if !self.detached.remove(&id) {
+            self.finished.insert(id, r);
         }
     }
 
-    /// Whether it has finished (successfully or not).
-    pub fn is_finished(&self) -> bool {
-        self.result.is_some()
+    /// Whether goal `id` is still under way.
+    pub fn is_running(&self, id: u64) -> bool {
+        self.running.iter().any(|g| g.id == id)
     }
 
-    /// Let [`POLL`] pass and check; `Some(result)` once finished.
-    pub fn poll(&mut self) -> Option<&Result<()>> {
-        if self.result.is_none() {
-            self.robot.link.wait(POLL);
-            let r = self.check();
-            if let Some(r) = r {
-                if r.is_err() {
-                    self.halt();
+    /// The result of goal `id`, once, when it has finished.
+    pub fn take(&mut self, id: u64) -> Option<Result<()>> {
+        self.finished.remove(&id)
+    }
+
+    /// Forget goal `id`'s result; a goal still under way runs on.
+    pub fn detach(&mut self, id: u64) {
+        if self.finished.remove(&id).is_none() && self.is_running(id) {
+            self.detached.insert(id);
+        }
+    }
+
+    /// End every goal under way with the error `e` makes (without halting them: the caller
+    /// has stopped everything).
+    pub fn end_all(&mut self, e: impl Fn() -> Error) {
+        for g in std::mem::take(&mut self.running) {
+            self.finish(g.id, Err(e()));
+        }
+    }
+
+    /// The faults collected since the last call.
+    pub fn take_faults(&mut self) -> Vec<Fault> {
+        self.faults.drain(..).collect()
+    }
+}
+
+impl Io {
+    /// Collect the link's faults: each goal under way that one hits ends with its error; all
+    /// are kept for [`Robot::take_faults`].
+    pub(crate) fn collect_faults(&mut self, cfg: &RobotConfig) {
+        let faults = self.link.take_faults();
+        if faults.is_empty() {
+            return;
+        }
+        for f in faults {
+            let mut ended = Vec::new();
+            let mut i = 0;
+            while i < self.goals.running.len() {
+                if self.goals.running[i].goal.claim().hit_by(&f) {
+                    let mut g = self.goals.running.remove(i);
+                    g.goal.halt(self.link.as_mut());
+                    ended.push((g.id, fault_error(cfg, &f)));
+                } else {
+                    i += 1;
                 }
-                self.result = Some(r);
             }
+            for (id, e) in ended {
+                self.goals.finish(id, Err(e));
+            }
+            if self.goals.faults.len() >= FAULT_QUEUE {
+                self.goals.faults.pop_front();
+            }
+            self.goals.faults.push_back(f);
+        }
+    }
+
+    /// Before a new goal with `claim` sends its first command: collect the faults so far (so
+    /// that the new goal sees only later ones) and preempt the goals it overlaps (each is
+    /// halted and ends with [`Error::Preempted`]).
+    pub(crate) fn prepare(&mut self, cfg: &RobotConfig, claim: Claim) {
+        self.collect_faults(cfg);
+        let mut i = 0;
+        while i < self.goals.running.len() {
+            if self.goals.running[i].goal.claim().overlaps(&claim) {
+                let mut g = self.goals.running.remove(i);
+                g.goal.halt(self.link.as_mut());
+                self.goals
+                    .finish(g.id, Err(Error::Preempted { what: g.what }));
+            } else {
+                i += 1;
+            }
+        }
+    }
+
+    /// Put a goal under way (after [`Io::prepare`] and its first commands); it may take
+    /// `timeout` of the backend's time. Returns its number.
+    pub(crate) fn start(&mut self, goal: Box<dyn Goal>, what: &str, timeout: Duration) -> u64 {
+        let id = self.goals.next;
+        self.goals.next += 1;
+        let now = self.link.now();
+        // Timeouts are validated at the API (`validate::timeout`); saturate all the same.
+        self.goals.running.push(Running {
+            id,
+            goal,
+            what: what.to_string(),
+            timeout,
+            deadline: now.saturating_add(timeout),
+            stepped: None,
+        });
+        id
+    }
+
+    /// Step every goal under way at the present instant (each once per instant).
+    pub(crate) fn step(&mut self, cfg: &RobotConfig) {
+        self.collect_faults(cfg);
+        if self.goals.running.is_empty() {
+            return;
+        }
+        let now = self.link.now();
+        let t = match self.link.telemetry() {
+            Ok(t) => t,
+            Err(e) => {
+                // The link failed: every goal ends with its error.
+                let msg = e.to_string();
+                let mut first = Some(e);
+                for g in std::mem::take(&mut self.goals.running) {
+                    let e = first.take().unwrap_or_else(|| Error::Link(msg.clone()));
+                    self.goals.finish(g.id, Err(e));
+                }
+                return;
+            }
+        };
+        self.base.log_wheels(&t);
+        let mut i = 0;
+        while i < self.goals.running.len() {
+            let g = &mut self.goals.running[i];
+            if g.stepped == Some(now) {
+                i += 1;
+                continue;
+            }
+            g.stepped = Some(now);
+            let mut s = Step {
+                link: self.link.as_mut(),
+                cfg,
+                now,
+                telemetry: &t,
+                base_log: &mut self.base.log,
+            };
+            let r = g.goal.step(&mut s).or_else(|| {
+                (now >= g.deadline).then(|| {
+                    Err(Error::Timeout {
+                        what: g.what.clone(),
+                        after: g.timeout,
+                    })
+                })
+            });
+            match r {
+                None => i += 1,
+                Some(r) => {
+                    let mut g = self.goals.running.remove(i);
+                    if r.is_err() {
+                        g.goal.halt(self.link.as_mut());
+                    }
+                    self.goals.finish(g.id, r);
+                }
+            }
+        }
+    }
+
+    /// Let `dt` pass (the backend's time) and step every goal under way.
+    pub(crate) fn pump(&mut self, cfg: &RobotConfig, dt: Duration) {
+        self.link.wait(dt);
+        self.step(cfg);
+    }
+
+    /// Stop goal `id` where it is, when it is under way; its result is dropped.
+    pub(crate) fn cancel(&mut self, id: u64) {
+        self.goals.finished.remove(&id);
+        if let Some(i) = self.goals.running.iter().position(|g| g.id == id) {
+            let mut g = self.goals.running.remove(i);
+            g.goal.halt(self.link.as_mut());
+        }
+    }
+}
+
+/// The error a fault makes of a goal it ends.
+fn fault_error(cfg: &RobotConfig, f: &Fault) -> Error {
+    if f.kind == FaultKind::EmergencyStop {
+        return Error::EmergencyStop;
+    }
+    let detail = match f.kind {
+        FaultKind::Bumper | FaultKind::Cliff | FaultKind::WheelDrop => Some(sensor_names(f.code)),
+        _ => f.joint.and_then(|j| cfg.joints.get(j as usize)).map(|j| {
+            format!(
+                "joint {} (servo {}), code {:#04x}",
+                j.name.as_str(),
+                j.servo_id,
+                f.code
+            )
+        }),
+    };
+    Error::Fault {
+        kind: f.kind,
+        detail,
+    }
+}
+
+/// A motion under way: an owned handle to poll, wait on or cancel. It does not borrow the
+/// robot; other motions (of other components) and other threads go on meanwhile. Dropping it
+/// lets the motion run on, unobserved.
+#[must_use = "a dropped motion runs on unobserved: wait on it, poll it or cancel it"]
+pub struct Motion {
+    robot: Robot,
+    id: u64,
+    result: Option<Result<()>>,
+    /// The result has been handed out or the goal cancelled: nothing to detach on drop.
+    done: bool,
+}
+
+impl std::fmt::Debug for Motion {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Motion")
+            .field("id", &self.id)
+            .field("result", &self.result)
+            .finish()
+    }
+}
+
+impl Motion {
+    pub(crate) fn new(robot: Robot, id: u64) -> Self {
+        Motion {
+            robot,
+            id,
+            result: None,
+            done: false,
+        }
+    }
+
+    /// Whether it has finished (successfully or not), as of the last time anyone let time
+    /// pass.
+    pub fn is_finished(&self) -> bool {
+        self.result.is_some() || !self.robot.lock_io().goals.is_running(self.id)
+    }
+
+    /// Let [`POLL`] pass (stepping every motion under way) and check; `Some(result)` once
+    /// finished. A motion that has already finished returns at once.
+    pub fn poll(&mut self) -> Option<&Result<()>> {
+        if self.result.is_none() && !self.done {
+            let cfg = self.robot.cfg();
+            let mut io = self.robot.lock_io();
+            self.result = io.goals.take(self.id);
+            if self.result.is_none() {
+                io.pump(cfg, POLL);
+                self.result = io.goals.take(self.id);
+            }
+            // Hand the link to a thread that is waiting for it.
+            parking_lot::MutexGuard::unlock_fair(io);
         }
         self.result.as_ref()
     }
 
-    /// Block until finished.
+    /// Block until finished; the result says why it ended.
     pub fn wait(mut self) -> Result<()> {
         // Check first: a motion may be finished before any time passes.
         if self.result.is_none() {
-            if let Some(r) = self.check() {
-                self.result = Some(r);
-            }
+            let cfg = self.robot.cfg();
+            let mut io = self.robot.lock_io();
+            io.step(cfg);
+            self.result = io.goals.take(self.id);
         }
         loop {
             if let Some(r) = self.result.take() {
+                self.done = true;
                 return r;
             }
             self.poll();
         }
     }
 
-    /// Stop the motion where it is: joints hold, the base stops.
+    /// Stop the motion where it is: joints hold, the base stops. The other motions under way
+    /// run on.
     pub fn cancel(mut self) -> Result<()> {
-        self.halt();
+        self.robot.lock_io().cancel(self.id);
+        self.done = true;
         Ok(())
     }
+}
 
-    fn halt(&mut self) {
-        let msg = match &self.goal {
-            Goal::Joints { idx, .. } => HostMsg::ClearQueue {
-                joints: idx.iter().fold(0, |m, &j| m | (1 << j)),
-            },
-            Goal::BaseVelocity { .. } | Goal::Base(_) | Goal::Track(_) => HostMsg::BaseVelocity {
-                v: 0.0,
-                w: 0.0,
-                duration_ms: 0,
-            },
-            _ => return,
-        };
-        let _ = self.robot.link.command(&msg, "stop");
+impl Drop for Motion {
+    fn drop(&mut self) {
+        if !self.done && self.result.is_none() {
+            self.robot.lock_io().goals.detach(self.id);
+        }
+    }
+}
+
+/// The goal of joints (firmware indices) reaching targets within a tolerance: arm moves,
+/// Cartesian paths and the pan-tilt head.
+pub(crate) struct JointsGoal {
+    /// Firmware joint indices.
+    pub idx: Vec<usize>,
+    /// Targets, rad.
+    pub target: Vec<f64>,
+    /// Arrival tolerance, rad.
+    pub tolerance: f64,
+    /// When the last knot sent for these joints is due (the backend's clock): the goal is not
+    /// reached before, even if the joints pass their targets on the way.
+    pub due: Duration,
+    /// When the motion started.
+    pub started: Duration,
+    /// Best (smallest) worst-joint error so far, and when it was reached.
+    pub stall_since: Option<(f64, Duration)>,
+}
+
+impl JointsGoal {
+    fn mask(&self) -> u16 {
+        self.idx.iter().fold(0, |m, &j| m | (1 << j))
+    }
+}
+
+impl Goal for JointsGoal {
+    fn claim(&self) -> Claim {
+        Claim {
+            joints: self.mask(),
+            ..Claim::default()
+        }
     }
 
-    fn fault_error(&mut self) -> Option<Error> {
-        let joints: Vec<usize> = match &self.goal {
-            Goal::Joints { idx, .. } => idx.clone(),
-            _ => Vec::new(),
-        };
-        let base = matches!(
-            self.goal,
-            Goal::BaseVelocity { .. } | Goal::Base(_) | Goal::Track(_)
-        );
-        for f in self.robot.link.take_faults() {
-            let hit = match f.kind {
-                FaultKind::Bumper
-                | FaultKind::Cliff
-                | FaultKind::WheelDrop
-                | FaultKind::BaseLost => base,
-                FaultKind::ServoLost | FaultKind::ServoHardware => {
-                    f.joint.is_some_and(|j| joints.contains(&(j as usize)))
-                }
-                FaultKind::Watchdog => true,
-                FaultKind::EmergencyStop => return Some(Error::EmergencyStop),
-                _ => false,
-            };
-            if hit {
-                let detail = match f.kind {
-                    FaultKind::Bumper | FaultKind::Cliff | FaultKind::WheelDrop => {
-                        Some(sensor_names(f.code))
-                    }
-                    _ => f
-                        .joint
-                        .and_then(|j| self.robot.cfg.joints.get(j as usize))
-                        .map(|j| {
-                            format!(
-                                "joint {} (servo {}), code {:#04x}",
-                                j.name.as_str(),
-                                j.servo_id,
-                                f.code
-                            )
-                        }),
-                };
-                return Some(Error::Fault {
-                    kind: f.kind,
-                    detail,
-                });
+    fn step(&mut self, s: &mut Step<'_>) -> Option<Result<()>> {
+        let now = s.now;
+        let mut worst = (0usize, 0.0f64);
+        for (&j, &q) in self.idx.iter().zip(self.target.iter()) {
+            let st = s.telemetry.joints.get(j).copied().unwrap_or_default();
+            let e = (st.position as f64 - q).abs();
+            if e > worst.1 {
+                worst = (j, e);
             }
+        }
+        if worst.1 <= self.tolerance && now >= self.due {
+            return Some(Ok(()));
+        }
+        // Stalled: past the start of the motion, the largest joint error has not improved by
+        // STALL_PROGRESS for STALL_TIME (a blocked joint, or a trajectory that ended short of
+        // its target). Progress, not speed readings, so that noise on a joint pressed against
+        // an obstacle does not hide the stall. Joints within tolerance of their targets,
+        // waiting for the last knot to be due, are not stalled.
+        let (best, at) = *self.stall_since.get_or_insert((worst.1, now));
+        if worst.1 < best - STALL_PROGRESS {
+            self.stall_since = Some((worst.1, now));
+        } else if worst.1 > self.tolerance
+            && now > self.started + STALL_GRACE
+            && now - at > STALL_TIME
+        {
+            let joint = s
+                .cfg
+                .joints
+                .get(worst.0)
+                .map(|j| j.name.to_string())
+                .unwrap_or_default();
+            let position = s
+                .telemetry
+                .joints
+                .get(worst.0)
+                .map(|st| st.position as f64)
+                .unwrap_or(0.0);
+            return Some(Err(Error::Stalled {
+                joint,
+                position,
+                error: worst.1,
+            }));
         }
         None
     }
 
-    /// One check of the goal; `Some` once finished.
-    pub(crate) fn check(&mut self) -> Option<Result<()>> {
-        if let Some(e) = self.fault_error() {
-            return Some(Err(e));
-        }
-        let now = self.robot.link.now();
-        let t = match self.robot.link.telemetry() {
-            Ok(t) => t,
-            Err(e) => return Some(Err(e)),
-        };
-        self.robot.log_wheels(&t);
-        let timed_out = now >= self.deadline;
-        match &mut self.goal {
-            Goal::Joints {
-                idx,
-                target,
-                tolerance,
-                stall_since,
-            } => {
-                let mut worst = (0usize, 0.0f64);
-                for (&j, &q) in idx.iter().zip(target.iter()) {
-                    let s = t.joints.get(j).copied().unwrap_or_default();
-                    let e = (s.position as f64 - q).abs();
-                    if e > worst.1 {
-                        worst = (j, e);
-                    }
-                }
-                if worst.1 <= *tolerance && t.queued == 0 {
-                    return Some(Ok(()));
-                }
-                // Stalled: past the start of the motion, the largest joint error has not
-                // improved by STALL_PROGRESS for STALL_TIME (a blocked joint, or a trajectory
-                // that ended short of its target). Progress, not speed readings, so that noise
-                // on a joint pressed against an obstacle does not hide the stall.
-                let (best, at) = *stall_since.get_or_insert((worst.1, now));
-                if worst.1 < best - STALL_PROGRESS {
-                    *stall_since = Some((worst.1, now));
-                } else if now > self.started + STALL_GRACE && now - at > STALL_TIME {
-                    let cfg = &self.robot.cfg.joints;
-                    let joint = cfg
-                        .get(worst.0)
-                        .map(|j| j.name.to_string())
-                        .unwrap_or_default();
-                    let position = t
-                        .joints
-                        .get(worst.0)
-                        .map(|s| s.position as f64)
-                        .unwrap_or(0.0);
-                    return Some(Err(Error::Stalled {
-                        joint,
-                        position,
-                        error: worst.1,
-                    }));
-                }
-                timed_out.then(|| Err(self.timeout_error()))
-            }
-            Goal::Gripper(want) => {
-                if want.contains(&t.gripper) {
-                    Some(Ok(()))
-                } else {
-                    timed_out.then(|| Err(self.timeout_error()))
-                }
-            }
-            Goal::BaseVelocity {
-                v,
-                w,
-                until,
-                next_send,
-            } => {
-                if now >= *until {
-                    self.stop_base();
-                    return Some(Ok(()));
-                }
-                if now >= *next_send {
-                    *next_send = now + Duration::from_millis(100);
-                    let left = (*until - now).as_millis().min(250) as u16;
-                    let (v, w) = (*v, *w);
-                    return self.send_base_velocity(v, w, left);
-                }
-                None
-            }
-            Goal::Track(tr) => {
-                if timed_out {
-                    return Some(Err(self.timeout_error()));
-                }
-                match tr.step(now, &t) {
-                    None => {
-                        self.stop_base();
-                        Some(Ok(()))
-                    }
-                    Some(None) => None,
-                    Some(Some((v, w))) => {
-                        self.robot.base_log.push((now.as_secs_f64(), v, w));
-                        self.send_base_velocity(v, w, 200)
-                    }
-                }
-            }
-            Goal::Base(g) => {
-                if timed_out {
-                    return Some(Err(self.timeout_error()));
-                }
-                match g.step(now, &t) {
-                    // Stop explicitly either way: otherwise the firmware would hold the last
-                    // command (up to 250 ms) after the law has declared the goal reached.
-                    Err(e) => {
-                        self.stop_base();
-                        Some(Err(e))
-                    }
-                    Ok(None) => {
-                        self.stop_base();
-                        Some(Ok(()))
-                    }
-                    Ok(Some((v, w))) => {
-                        if self.robot.base_log.last().map(|l| (l.1, l.2)) != Some((v, w)) {
-                            self.robot.base_log.push((now.as_secs_f64(), v, w));
-                        }
-                        let hold = g.hold_ms();
-                        self.send_base_velocity(v, w, hold)
-                    }
-                }
-            }
-        }
-    }
-
-    /// Stop the base now (best effort: the motion is over either way).
-    fn stop_base(&mut self) {
-        let _ = self.robot.link.command(
-            &HostMsg::BaseVelocity {
-                v: 0.0,
-                w: 0.0,
-                duration_ms: 0,
+    fn halt(&mut self, link: &mut dyn Link) {
+        let _ = link.command(
+            &ferrobot_protocol::HostMsg::ClearQueue {
+                joints: self.mask(),
             },
             "stop",
         );
-    }
-
-    /// Send a base velocity `(v, ω)` (m/s, rad/s) held for `duration_ms`; `Some(Err)` when the
-    /// link refuses it, which ends the motion.
-    fn send_base_velocity(&mut self, v: f64, w: f64, duration_ms: u16) -> Option<Result<()>> {
-        self.robot
-            .link
-            .command(
-                &HostMsg::BaseVelocity {
-                    v: v as f32,
-                    w: w as f32,
-                    duration_ms,
-                },
-                "base velocity",
-            )
-            .err()
-            .map(Err)
-    }
-
-    /// The motion ran out of time.
-    fn timeout_error(&self) -> Error {
-        Error::Timeout {
-            what: self.what.clone(),
-            after: self.timeout,
-        }
     }
 }
 

@@ -1,24 +1,23 @@
 //! [`Robot`]: one robot, its components and its backend.
 
-use std::collections::HashMap;
 use std::path::Path;
+use std::sync::Arc;
 use std::time::Duration;
 
 use ferrobot_protocol::{
     DeviceMsg, Fault, HostMsg, JointLimits, JointMode, JointPoint, PidGains, Telemetry,
 };
+use parking_lot::{MappedMutexGuard, Mutex, MutexGuard};
 
-use crate::arm::Arm;
+use crate::arm::{Arm, ArmParts, ArmState};
 use crate::backend::serial::SerialLink;
 use crate::backend::sim::SimLink;
 use crate::backend::{Backend, Link};
-use crate::base::Base;
-use crate::config::{ConfigSource, IkKind, RobotConfig};
+use crate::base::{Base, BaseState};
+use crate::config::{ConfigSource, RobotConfig};
 use crate::error::{Error, Result};
 use crate::gripper::Gripper;
-use crate::kinematics::ik::{IkSolver, NumericalIk};
-use crate::kinematics::locobot_ik::LocobotIk;
-use crate::kinematics::Chain;
+use crate::motion::{Claim, Goal, Goals, Motion};
 use crate::pan_tilt::PanTilt;
 
 /// Which components to use.
@@ -78,20 +77,45 @@ impl RobotBuilder {
 }
 
 /// A robot: its configuration, its components and the link to its firmware.
+///
+/// A `Robot` is a handle: clones share one robot, and it is `Send + Sync`, so a teleoperation
+/// loop, a monitor and a program can each hold one. Its link sits behind one lock, taken for
+/// each call and for each step of time, so calls from several threads interleave and every
+/// reply reaches the call that asked for it. Component handles ([`Arm`], [`Base`], ...) and
+/// motions ([`Motion`](crate::Motion)) hold a clone too: nothing borrows the robot while it
+/// moves, and the arm, gripper, head and base move at the same time.
+#[derive(Clone)]
 pub struct Robot {
-    pub(crate) cfg: RobotConfig,
-    pub(crate) link: Box<dyn Link>,
+    inner: Arc<Inner>,
+}
+
+/// What a robot's handles share.
+struct Inner {
+    cfg: RobotConfig,
     uses: Use,
-    pub(crate) arm_mode: JointMode,
-    pub(crate) ik: Option<Box<dyn IkSolver>>,
-    pub(crate) locobot_ik: Option<LocobotIk>,
-    pub(crate) chains: HashMap<String, Chain>,
-    pub(crate) arm_joints: Vec<usize>,
-    /// Base commands sent by the trajectory tracker: (time s, v m/s, ω rad/s).
-    pub(crate) base_log: Vec<(f64, f64, f64)>,
-    /// While recording: the wheel angles `[left, right]` (rad) of each telemetry frame a
-    /// motion has seen, with the frame's firmware time (µs).
-    pub(crate) wheel_log: Option<Vec<(u64, [f64; 2])>>,
+    /// The arm's kinematics (absent without an arm).
+    arm: Option<ArmParts>,
+    io: Mutex<Io>,
+}
+
+/// The link and what changes with it: the goals under way and each component's state.
+pub(crate) struct Io {
+    /// The link to the firmware.
+    pub(crate) link: Box<dyn Link>,
+    /// The goals under way, their results, the faults.
+    pub(crate) goals: Goals,
+    /// The arm's state.
+    pub(crate) arm: ArmState,
+    /// The base's state.
+    pub(crate) base: BaseState,
+}
+
+impl std::fmt::Debug for Robot {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Robot")
+            .field("name", &self.inner.cfg.name)
+            .finish_non_exhaustive()
+    }
 }
 
 impl Robot {
@@ -149,40 +173,28 @@ impl Robot {
             camera: uses.camera && cfg.camera.is_some(),
             base: uses.base && cfg.base.is_some(),
         };
-        let (ik, locobot_ik): (Option<Box<dyn IkSolver>>, Option<LocobotIk>) =
-            match (&cfg.arm, &cfg.arm_chain) {
-                (Some(a), Some(chain)) => match a.ik {
-                    IkKind::LocobotPitchRoll => {
-                        let l = LocobotIk::from_chain(chain)?;
-                        (Some(Box::new(l)), Some(l))
-                    }
-                    IkKind::Numerical => (Some(Box::new(NumericalIk)), None),
-                },
-                _ => (None, None),
-            };
-        let arm_joints = cfg
-            .arm
-            .as_ref()
-            .map(|a| a.joints.iter().filter_map(|n| cfg.joint_index(n)).collect())
-            .unwrap_or_default();
-        let mut robot = Robot {
-            cfg,
-            link,
-            uses,
-            arm_mode: JointMode::Position,
-            ik,
-            locobot_ik,
-            chains: HashMap::new(),
-            arm_joints,
-            base_log: Vec::new(),
-            wheel_log: None,
+        let arm = ArmParts::new(&cfg)?;
+        let base = BaseState::new(&cfg);
+        let robot = Robot {
+            inner: Arc::new(Inner {
+                io: Mutex::new(Io {
+                    link,
+                    goals: Goals::default(),
+                    arm: ArmState::default(),
+                    base,
+                }),
+                cfg,
+                uses,
+                arm,
+            }),
         };
         robot.check_joint_table()?;
         let geometry = robot
+            .inner
             .cfg
             .base
             .as_ref()
-            .filter(|_| robot.uses.base)
+            .filter(|_| robot.inner.uses.base)
             .and_then(|b| b.odometry);
         if let Some(g) = geometry {
             robot.base()?.set_odometry_geometry(g)?;
@@ -190,36 +202,74 @@ impl Robot {
         Ok(robot)
     }
 
+    /// The configuration (immutable once connected).
+    pub(crate) fn cfg(&self) -> &RobotConfig {
+        &self.inner.cfg
+    }
+
+    /// The arm's kinematics; present when the robot uses its arm.
+    pub(crate) fn arm_parts(&self) -> Result<&ArmParts> {
+        self.inner
+            .arm
+            .as_ref()
+            .filter(|_| self.inner.uses.arm)
+            .ok_or_else(|| self.missing("arm"))
+    }
+
+    /// The link, the goals and the components' state, locked. Never held across a call that
+    /// locks again.
+    pub(crate) fn lock_io(&self) -> MutexGuard<'_, Io> {
+        self.inner.io.lock()
+    }
+
+    /// Prepare a new goal with `claim`, send its first commands with `send`, and put it under
+    /// way: one step under one lock, so no other thread's command comes between. Returns the
+    /// motion.
+    pub(crate) fn start_motion(
+        &self,
+        claim: Claim,
+        what: &str,
+        send: impl FnOnce(&mut Io) -> Result<(Box<dyn Goal>, Duration)>,
+    ) -> Result<Motion> {
+        let mut io = self.lock_io();
+        io.prepare(self.cfg(), claim);
+        let (goal, timeout) = send(&mut io)?;
+        let id = io.start(goal, what, timeout);
+        drop(io);
+        Ok(Motion::new(self.clone(), id))
+    }
+
     /// Compare the firmware's robot, base and joint table with the configuration and push
     /// limits and gains.
-    fn check_joint_table(&mut self) -> Result<()> {
-        let info = self.link.info();
-        if info.robot.as_str() != self.cfg.firmware_profile().robot.as_str()
-            || info.base != self.cfg.base_kind()
+    fn check_joint_table(&self) -> Result<()> {
+        let cfg = self.cfg();
+        let mut io = self.lock_io();
+        let info = io.link.info().clone();
+        if info.robot.as_str() != cfg.firmware_profile().robot.as_str()
+            || info.base != cfg.base_kind()
         {
             return Err(Error::WrongRobot {
-                config: self.cfg.name.clone(),
-                config_base: format!("{:?}", self.cfg.base_kind()),
+                config: cfg.name.clone(),
+                config_base: format!("{:?}", cfg.base_kind()),
                 firmware: info.robot.as_str().to_string(),
                 firmware_base: format!("{:?}", info.base),
             });
         }
-        let n = self.cfg.joints.len();
-        if self.link.info().joints.len() != n {
+        let n = cfg.joints.len();
+        if info.joints.len() != n {
             return Err(Error::JointTableMismatch(format!(
                 "the firmware has {} joints, the configuration {n}",
-                self.link.info().joints.len()
+                info.joints.len()
             )));
         }
-        for i in 0..n {
-            let reply = self.link.request(
+        for (i, ours) in cfg.joints.iter().enumerate() {
+            let reply = io.link.request(
                 &HostMsg::GetJoint { index: i as u8 },
                 &|m| matches!(m, DeviceMsg::Joint { index, .. } if *index as usize == i),
             )?;
             let DeviceMsg::Joint { config: fw, .. } = reply else {
                 continue;
             };
-            let ours = &self.cfg.joints[i];
             if fw.name != ours.name
                 || fw.servo_id != ours.servo_id
                 || fw.twin_id != ours.twin_id
@@ -239,7 +289,7 @@ impl Robot {
             }
             if fw.limits != ours.limits {
                 let limits: JointLimits = ours.limits;
-                self.link.command(
+                io.link.command(
                     &HostMsg::SetLimits {
                         joint: i as u8,
                         limits,
@@ -249,7 +299,7 @@ impl Robot {
             }
             if fw.pid != ours.pid {
                 let gains: PidGains = ours.pid;
-                self.link.command(
+                io.link.command(
                     &HostMsg::SetPid {
                         joint: i as u8,
                         gains,
@@ -263,73 +313,151 @@ impl Robot {
 
     /// The configuration.
     pub fn config(&self) -> &RobotConfig {
-        &self.cfg
+        &self.inner.cfg
     }
 
     /// The robot's name.
     pub fn name(&self) -> &str {
-        &self.cfg.name
+        &self.inner.cfg.name
     }
 
     /// The error for a component this robot lacks (or was built without).
     pub(crate) fn missing(&self, component: &'static str) -> Error {
         Error::NoComponent {
-            robot: self.cfg.name.clone(),
+            robot: self.inner.cfg.name.clone(),
             component,
         }
     }
 
     /// The arm.
-    pub fn arm(&mut self) -> Result<Arm<'_>> {
-        if !self.uses.arm {
+    pub fn arm(&self) -> Result<Arm> {
+        if !self.inner.uses.arm {
             return Err(self.missing("arm"));
         }
-        Ok(Arm::new(self))
+        Ok(Arm::new(self.clone()))
     }
 
     /// The gripper.
-    pub fn gripper(&mut self) -> Result<Gripper<'_>> {
-        if !self.uses.gripper {
+    pub fn gripper(&self) -> Result<Gripper> {
+        if !self.inner.uses.gripper {
             return Err(self.missing("gripper"));
         }
-        Ok(Gripper::new(self))
+        Ok(Gripper::new(self.clone()))
     }
 
     /// The camera's pan-tilt head.
-    pub fn camera(&mut self) -> Result<PanTilt<'_>> {
-        if !self.uses.camera {
+    pub fn camera(&self) -> Result<PanTilt> {
+        if !self.inner.uses.camera {
             return Err(self.missing("camera"));
         }
-        Ok(PanTilt::new(self))
+        PanTilt::new(self.clone())
     }
 
     /// The mobile base.
-    pub fn base(&mut self) -> Result<Base<'_>> {
-        if !self.uses.base {
+    pub fn base(&self) -> Result<Base> {
+        if !self.inner.uses.base {
             return Err(self.missing("base"));
         }
-        Ok(Base::new(self))
+        Ok(Base::new(self.clone()))
     }
 
     /// Emergency stop: the firmware stops the base, holds the arm and refuses motion until
-    /// [`Robot::resume`].
-    pub fn emergency_stop(&mut self) -> Result<()> {
-        self.link.command(&HostMsg::EmergencyStop, "emergency stop")
+    /// [`Robot::resume`]. Every motion under way ends with [`Error::EmergencyStop`].
+    pub fn emergency_stop(&self) -> Result<()> {
+        let mut io = self.lock_io();
+        io.link.command(&HostMsg::EmergencyStop, "emergency stop")?;
+        io.goals.end_all(|| Error::EmergencyStop);
+        Ok(())
     }
 
     /// Leave the emergency stop.
-    pub fn resume(&mut self) -> Result<()> {
-        self.link.command(&HostMsg::Resume, "resume")
+    pub fn resume(&self) -> Result<()> {
+        self.lock_io().link.command(&HostMsg::Resume, "resume")
     }
 
     /// The firmware's link and bus counters.
-    pub fn diagnostics(&mut self) -> Result<ferrobot_protocol::Diagnostics> {
-        match self.link.request(&HostMsg::GetDiagnostics, &|m| {
-            matches!(m, DeviceMsg::Diagnostics(_))
-        })? {
+    pub fn diagnostics(&self) -> Result<ferrobot_protocol::Diagnostics> {
+        let reply = self
+            .lock_io()
+            .link
+            .request(&HostMsg::GetDiagnostics, &|m| {
+                matches!(m, DeviceMsg::Diagnostics(_))
+            })?;
+        match reply {
             DeviceMsg::Diagnostics(d) => Ok(d),
             _ => Err(Error::Link("unexpected reply".into())),
         }
+    }
+
+    /// The base commands that host-side base laws have sent: (time s, v m/s, ω rad/s).
+    pub fn base_commands(&self) -> Vec<(f64, f64, f64)> {
+        self.lock_io().base.log.clone()
+    }
+
+    /// The newest telemetry.
+    pub fn telemetry(&self) -> Result<Telemetry> {
+        self.lock_io().link.telemetry()
+    }
+
+    /// Faults reported since the last call (the newest [`crate::motion::FAULT_QUEUE`]),
+    /// including those that ended motions.
+    pub fn take_faults(&self) -> Vec<Fault> {
+        let mut io = self.lock_io();
+        io.collect_faults(self.cfg());
+        io.goals.take_faults()
+    }
+
+    /// Let `seconds` pass (simulated time on the simulator): finite, in
+    /// `[0, validate::MAX_DURATION_S]`. The motions under way go on meanwhile.
+    pub fn wait(&self, seconds: f64) -> Result<()> {
+        let dt = crate::validate::seconds("wait time", seconds)?;
+        self.wait_for(dt);
+        Ok(())
+    }
+
+    /// Let `dt` pass in steps of at most [`crate::motion::POLL`], stepping the motions under
+    /// way, and let other threads at the link between steps.
+    pub(crate) fn wait_for(&self, dt: Duration) {
+        let cfg = self.cfg();
+        let start = self.lock_io().link.now();
+        let end = start.saturating_add(dt);
+        loop {
+            let mut io = self.lock_io();
+            let now = io.link.now();
+            if now >= end {
+                break;
+            }
+            // At least the links' resolution (1 µs), so that a sub-microsecond rest ends.
+            let step = (end - now).clamp(Duration::from_micros(1), crate::motion::POLL);
+            io.pump(cfg, step);
+            if io.link.now() <= now {
+                // A clock that does not move (a link that has lost its firmware): the wait is
+                // over; the next call reports the link's state.
+                break;
+            }
+            MutexGuard::unlock_fair(io);
+        }
+    }
+
+    /// The backend's clock, s.
+    pub fn time(&self) -> f64 {
+        self.lock_io().link.now().as_secs_f64()
+    }
+
+    /// The simulator behind this robot, when it is simulated (ground truth, fault injection).
+    /// The guard holds the robot's link: drop it before calling the robot again (from this
+    /// thread or waiting on another).
+    pub fn simulator(&self) -> Option<MappedMutexGuard<'_, ferrobot_sim::LockstepSim>> {
+        MutexGuard::try_map(self.lock_io(), |io| io.link.simulator()).ok()
+    }
+}
+
+impl Io {
+    /// Switch joints to a mode.
+    pub(crate) fn set_mode(&mut self, joints: &[usize], mode: JointMode) -> Result<()> {
+        let mask = joints.iter().fold(0u16, |m, &j| m | (1 << j));
+        self.link
+            .command(&HostMsg::SetMode { joints: mask, mode }, "mode change")
     }
 
     /// Queue one trajectory knot at rest (zero velocity and effort) for the joints in `mask`,
@@ -353,73 +481,5 @@ impl Robot {
             },
             what,
         )
-    }
-
-    /// While a wheel log is kept, add the wheel angles of telemetry frame `t` unless it is the
-    /// frame logged last.
-    pub(crate) fn log_wheels(&mut self, t: &Telemetry) {
-        if let Some(log) = &mut self.wheel_log {
-            if log.last().map(|l| l.0) != Some(t.time_us) {
-                log.push((t.time_us, [t.wheels.left as f64, t.wheels.right as f64]));
-            }
-        }
-    }
-
-    /// The base commands the trajectory tracker has sent: (time s, v m/s, ω rad/s).
-    pub fn base_commands(&self) -> &[(f64, f64, f64)] {
-        &self.base_log
-    }
-
-    /// The newest telemetry.
-    pub fn telemetry(&mut self) -> Result<Telemetry> {
-        self.link.telemetry()
-    }
-
-    /// Faults reported since the last call.
-    pub fn take_faults(&mut self) -> Vec<Fault> {
-        self.link.take_faults()
-    }
-
-    /// Let `seconds` pass (simulated time on the simulator): finite, in
-    /// `[0, validate::MAX_DURATION_S]`.
-    pub fn wait(&mut self, seconds: f64) -> Result<()> {
-        let dt = crate::validate::seconds("wait time", seconds)?;
-        self.link.wait(dt);
-        Ok(())
-    }
-
-    /// The backend's clock, s.
-    pub fn time(&self) -> f64 {
-        self.link.now().as_secs_f64()
-    }
-
-    /// The simulator behind this robot, when it is simulated (ground truth, fault injection).
-    pub fn simulator(&mut self) -> Option<&mut ferrobot_sim::LockstepSim> {
-        self.link.simulator()
-    }
-
-    /// A chain from the arm's base frame to `frame`, cached.
-    pub(crate) fn chain_to(&mut self, frame: &str) -> Result<&Chain> {
-        let base = self
-            .cfg
-            .arm
-            .as_ref()
-            .map(|a| a.base_frame.clone())
-            .ok_or_else(|| self.missing("arm"))?;
-        if !self.chains.contains_key(frame) {
-            let c = Chain::from_urdf(&self.cfg.urdf, &base, frame)?;
-            self.chains.insert(frame.to_string(), c);
-        }
-        self.chains.get(frame).ok_or_else(|| Error::UnknownName {
-            what: "frame",
-            name: frame.into(),
-        })
-    }
-
-    /// Switch joints to a mode.
-    pub(crate) fn set_mode(&mut self, joints: &[usize], mode: JointMode) -> Result<()> {
-        let mask = joints.iter().fold(0u16, |m, &j| m | (1 << j));
-        self.link
-            .command(&HostMsg::SetMode { joints: mask, mode }, "mode change")
     }
 }

@@ -33,8 +33,8 @@ fn pos_err(a: &[f64; 3], b: &[f64; 3]) -> f64 {
 
 #[test]
 fn locobot_joint_control_reads_and_fk() {
-    let mut bot = Robot::new("locobot").expect("robot");
-    let mut arm = bot.arm().expect("arm");
+    let bot = Robot::new("locobot").expect("robot");
+    let arm = bot.arm().expect("arm");
     assert_eq!(arm.dof(), 5);
     let target = [0.4, 0.3, -0.5, 0.6, -0.3];
     arm.set_joint_positions(&target).expect("moves");
@@ -91,8 +91,8 @@ fn locobot_joint_control_reads_and_fk() {
 
 #[test]
 fn locobot_end_effector_poses_ik_and_cartesian_lines() {
-    let mut bot = Robot::new("locobot").expect("robot");
-    let mut arm = bot.arm().expect("arm");
+    let bot = Robot::new("locobot").expect("robot");
+    let arm = bot.arm().expect("arm");
     // A reachable pose from known joints; ask for it in all three orientation forms.
     let q_ref = [0.3, 0.5, 0.3, 0.6, 0.2];
     let pose = arm.compute_fk_position(&q_ref, "gripper_link").expect("fk");
@@ -160,12 +160,12 @@ fn locobot_end_effector_poses_ik_and_cartesian_lines() {
 
 #[test]
 fn locobot_velocity_and_torque_control() {
-    let mut bot = Robot::new("locobot").expect("robot");
-    let mut arm = bot.arm().expect("arm");
+    let bot = Robot::new("locobot").expect("robot");
+    let arm = bot.arm().expect("arm");
     arm.set_joint_velocities(&[0.3, 0.0, 0.0, 0.0, 0.0])
         .expect("velocity mode");
     bot.wait(1.0).expect("wait");
-    let mut arm = bot.arm().expect("arm");
+    let arm = bot.arm().expect("arm");
     let v = arm.get_joint_velocities().expect("v")[0];
     assert!((v - 0.3).abs() < 0.05, "joint_1 at {v} rad/s");
     arm.set_joint_velocities(&[0.0; 5]).expect("stop");
@@ -174,7 +174,7 @@ fn locobot_velocity_and_torque_control() {
     arm.set_joint_torques(&[0.3, 0.0, 0.0, 0.0, 0.0])
         .expect("torque mode");
     bot.wait(0.3).expect("wait");
-    let mut arm = bot.arm().expect("arm");
+    let arm = bot.arm().expect("arm");
     let q1 = arm.get_joint_angles().expect("q")[0];
     assert!(q1 - q0 > 0.05, "joint_1 moved from {q0} to {q1}");
     // Back to position control.
@@ -184,8 +184,8 @@ fn locobot_velocity_and_torque_control() {
 
 #[test]
 fn locobot_gripper_and_pan_tilt() {
-    let mut bot = Robot::new("locobot").expect("robot");
-    let mut g = bot.gripper().expect("gripper");
+    let bot = Robot::new("locobot").expect("robot");
+    let g = bot.gripper().expect("gripper");
     g.open().expect("open");
     assert_eq!(g.get_state().expect("state"), GripperState::Open);
     assert_eq!(g.close().expect("close"), GripperState::Closed);
@@ -205,7 +205,7 @@ fn locobot_gripper_and_pan_tilt() {
         GripperState::Holding
     );
 
-    let mut cam = bot.camera().expect("camera");
+    let cam = bot.camera().expect("camera");
     cam.set_pan(0.6).expect("pan");
     cam.set_tilt(-0.4).expect("tilt");
     let s = cam.get_state().expect("state");
@@ -217,7 +217,7 @@ fn locobot_gripper_and_pan_tilt() {
     assert!(matches!(cam.set_pan(3.0), Err(Error::OutOfLimits { .. })));
 }
 
-fn base_goal_reached(bot: &mut Robot, goal: [f64; 3]) {
+fn base_goal_reached(bot: &Robot, goal: [f64; 3]) {
     let s = bot.base().expect("base").get_state().expect("odometry");
     assert!(
         (s[0] - goal[0]).hypot(s[1] - goal[1]) < BASE_POS_TOL,
@@ -231,8 +231,8 @@ fn base_goal_reached(bot: &mut Robot, goal: [f64; 3]) {
 
 #[test]
 fn locobot_base_velocity_and_position_goals() {
-    let mut bot = Robot::new("locobot").expect("robot");
-    let mut base = bot.base().expect("base");
+    let bot = Robot::new("locobot").expect("robot");
+    let base = bot.base().expect("base");
     base.reset_odometry().expect("reset");
     base.set_vel(0.2, 0.0, 1.0).expect("drive");
     let s = base.get_state().expect("odometry");
@@ -249,7 +249,7 @@ fn locobot_base_velocity_and_position_goals() {
             .expect("base")
             .go_to_absolute(goal)
             .expect("reaches");
-        base_goal_reached(&mut bot, goal);
+        base_goal_reached(&bot, goal);
     }
     // Relative: 0.5 m ahead of wherever it stands.
     let start = bot.base().expect("base").get_state().expect("odometry");
@@ -258,10 +258,10 @@ fn locobot_base_velocity_and_position_goals() {
         .go_to_relative([0.5, 0.0, 0.0])
         .expect("relative");
     let (s, c) = start[2].sin_cos();
-    base_goal_reached(&mut bot, [start[0] + 0.5 * c, start[1] + 0.5 * s, start[2]]);
+    base_goal_reached(&bot, [start[0] + 0.5 * c, start[1] + 0.5 * s, start[2]]);
     // Over a single 1 m move, ground truth agrees with odometry to within the tolerance (over
     // metres of mixed driving the simulated Kobuki's odometry drifts, as a real one does).
-    let mut bot = Robot::new("locobot").expect("robot");
+    let bot = Robot::new("locobot").expect("robot");
     bot.base()
         .expect("base")
         .go_to_relative([1.0, 0.0, 0.0])
@@ -280,8 +280,8 @@ fn locobot_base_velocity_and_position_goals() {
 
 #[test]
 fn base_motion_is_aborted_by_the_bumper_with_an_error_that_says_so() {
-    let mut bot = Robot::new("locobot").expect("robot");
-    common::place_post(&mut bot, 0.8, 0.0, 0.1);
+    let bot = Robot::new("locobot").expect("robot");
+    common::place_post(&bot, 0.8, 0.0, 0.1);
     let e = bot
         .base()
         .expect("base")
@@ -302,8 +302,8 @@ fn base_motion_is_aborted_by_the_bumper_with_an_error_that_says_so() {
 
 #[test]
 fn non_blocking_motions_can_be_polled_and_cancelled() {
-    let mut bot = Robot::new("locobot").expect("robot");
-    let mut arm = bot.arm().expect("arm");
+    let bot = Robot::new("locobot").expect("robot");
+    let arm = bot.arm().expect("arm");
     let mut m = arm
         .move_joints(&[1.2, 0.0, 0.0, 0.0, 0.0], MoveOptions::default())
         .expect("starts");
@@ -320,7 +320,7 @@ fn non_blocking_motions_can_be_polled_and_cancelled() {
     let q = bot.arm().expect("arm").get_joint_angles().expect("q")[0];
     assert!(q > 0.05 && q < 1.0, "cancelled halfway, at {q}");
     // A polled motion runs to completion.
-    let mut arm = bot.arm().expect("arm");
+    let arm = bot.arm().expect("arm");
     let mut m = arm
         .move_joints(&[0.0; 5], MoveOptions::default())
         .expect("starts");
@@ -330,20 +330,20 @@ fn non_blocking_motions_can_be_polled_and_cancelled() {
         }
     };
     assert!(r);
-    let mut base = bot.base().expect("base");
+    let base = bot.base().expect("base");
     let mut m = base.go_to_relative_async([0.3, 0.0, 0.0]).expect("starts");
     for _ in 0..20 {
         m.poll();
     }
     m.cancel().expect("cancel");
-    let mut g = bot.gripper().expect("gripper");
+    let g = bot.gripper().expect("gripper");
     g.close_async().expect("starts").wait().expect("closes");
 }
 
 #[test]
 fn bad_input_gives_typed_errors_and_moves_nothing() {
-    let mut bot = Robot::new("locobot").expect("robot");
-    let mut arm = bot.arm().expect("arm");
+    let bot = Robot::new("locobot").expect("robot");
+    let arm = bot.arm().expect("arm");
     let q0 = arm.get_joint_angles().expect("q");
     assert!(matches!(
         arm.set_joint_positions(&[0.0; 4]),
@@ -414,7 +414,7 @@ fn bad_input_gives_typed_errors_and_moves_nothing() {
         Robot::new("wall-e"),
         Err(Error::UnknownRobot { .. })
     ));
-    let mut sawyer = Robot::new("sawyer").expect("sawyer");
+    let sawyer = Robot::new("sawyer").expect("sawyer");
     assert!(matches!(
         sawyer.base(),
         Err(Error::NoComponent {
@@ -434,7 +434,7 @@ fn bad_input_gives_typed_errors_and_moves_nothing() {
         .expect("arm")
         .set_ee_pose_pitch_roll([0.5, 0.0, 0.3], 0.0, None)
         .is_err());
-    let mut no_base = Robot::builder("locobot")
+    let no_base = Robot::builder("locobot")
         .use_base(false)
         .build()
         .expect("robot");
@@ -449,8 +449,8 @@ fn bad_input_gives_typed_errors_and_moves_nothing() {
 
 #[test]
 fn sawyer_joint_control_and_ik() {
-    let mut bot = Robot::new("sawyer").expect("robot");
-    let mut arm = bot.arm().expect("arm");
+    let bot = Robot::new("sawyer").expect("robot");
+    let arm = bot.arm().expect("arm");
     arm.go_home().expect("home");
     let home = [0.002, -1.182, 0.002, 2.177, 0.001, 0.567, 3.316];
     assert!(max_err(&arm.get_joint_angles().expect("q"), &home) < JOINT_TOL);
@@ -476,7 +476,7 @@ fn sawyer_joint_control_and_ik() {
 
 #[test]
 fn builder_overrides_and_config_files() {
-    let mut bot = Robot::builder("locobot")
+    let bot = Robot::builder("locobot")
         .set("arm.joint_tolerance", 0.002)
         .build()
         .expect("robot");
@@ -493,8 +493,7 @@ fn builder_overrides_and_config_files() {
     let e = Robot::builder("locobot")
         .set("arm.speed", 3.0)
         .build()
-        .err()
-        .expect("unknown key");
+        .expect_err("unknown key");
     assert!(
         e.to_string().contains("arm") && e.to_string().contains("speed"),
         "{e}"
@@ -511,7 +510,7 @@ fn builder_overrides_and_config_files() {
         .replace("name = \"locobot_lite\"", "name = \"mybot\"")
         .replace("locobot_lite.urdf", "mybot.urdf");
     std::fs::write(dir.join("mybot.toml"), toml).expect("toml");
-    let mut bot = Robot::from_config(dir.join("mybot.toml")).expect("custom robot");
+    let bot = Robot::from_config(dir.join("mybot.toml")).expect("custom robot");
     assert_eq!(bot.name(), "mybot");
     bot.arm()
         .expect("arm")
@@ -521,7 +520,7 @@ fn builder_overrides_and_config_files() {
 
 #[test]
 fn a_blocked_joint_is_reported_stalled_and_a_slow_one_times_out() {
-    let mut bot = Robot::new("locobot").expect("robot");
+    let bot = Robot::new("locobot").expect("robot");
     // Something blocks joint_1 at 0.2 rad.
     bot.simulator()
         .expect("sim")
@@ -573,7 +572,7 @@ fn a_blocked_joint_is_reported_stalled_and_a_slow_one_times_out() {
 
 #[test]
 fn realtime_pacing_follows_the_wall_clock() {
-    let mut bot = Robot::builder("locobot")
+    let bot = Robot::builder("locobot")
         .use_base(false)
         .backend(ferrobot::Backend::Sim {
             seed: 1,
@@ -594,8 +593,8 @@ fn realtime_pacing_follows_the_wall_clock() {
 /// orientation, and a track whose last state is NaN is refused without moving.
 #[test]
 fn a_long_cartesian_line_streams_through_the_firmware_queue() {
-    let mut bot = Robot::new("locobot").expect("robot");
-    let mut arm = bot.arm().expect("arm");
+    let bot = Robot::new("locobot").expect("robot");
+    let arm = bot.arm().expect("arm");
     arm.set_ee_pose_pitch_roll([0.3, 0.0, 0.2], std::f64::consts::FRAC_PI_2, Some(0.0))
         .expect("start pose");
     let before = arm.get_ee_pose().expect("pose");

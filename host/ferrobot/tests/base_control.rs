@@ -20,7 +20,7 @@ const TARGETS: [[f64; 3]; 4] = [
 
 fn reaches(robot: &str, controller: BaseController, smooth: bool) {
     for target in TARGETS {
-        let mut bot = Robot::builder(robot).use_arm(false).build().expect("robot");
+        let bot = Robot::builder(robot).use_arm(false).build().expect("robot");
         let opts = GoalOptions {
             controller: Some(controller),
             smooth,
@@ -69,7 +69,7 @@ fn reaches(robot: &str, controller: BaseController, smooth: bool) {
             _ => (Limits::TRACKING, 0.1),
         };
         let mut prev = (0.0, 0.0);
-        for &(t, v, w) in cmds {
+        for &(t, v, w) in &cmds {
             assert!(
                 v.abs() <= lim.v + 1e-9 && w.abs() <= lim.w + 1e-9,
                 "{robot} {controller:?} at {t} s: {v} {w}"
@@ -120,8 +120,8 @@ fn dwa_reaches_the_targets_on_both_bases() {
 #[test]
 fn dwa_goes_around_an_obstacle_on_both_bases() {
     for robot in ["locobot", "locobot_lite"] {
-        let mut bot = Robot::builder(robot).use_arm(false).build().expect("robot");
-        place_post(&mut bot, 1.0, 0.0, 0.1);
+        let bot = Robot::builder(robot).use_arm(false).build().expect("robot");
+        place_post(&bot, 1.0, 0.0, 0.1);
         let opts = GoalOptions {
             obstacles: vec![[1.0, 0.0, 0.1]],
             ..GoalOptions::default()
@@ -143,7 +143,7 @@ fn dwa_goes_around_an_obstacle_on_both_bases() {
 /// Boxed in by obstacles on every side, the dynamic window refuses with a typed error.
 #[test]
 fn dwa_boxed_in_is_unreachable() {
-    let mut bot = Robot::builder("locobot")
+    let bot = Robot::builder("locobot")
         .use_arm(false)
         .build()
         .expect("robot");
@@ -170,7 +170,7 @@ fn dwa_boxed_in_is_unreachable() {
 /// A goal on top of an obstacle is refused before anything moves.
 #[test]
 fn dwa_refuses_a_goal_inside_an_obstacle() {
-    let mut bot = Robot::builder("locobot")
+    let bot = Robot::builder("locobot")
         .use_arm(false)
         .build()
         .expect("robot");
@@ -182,8 +182,7 @@ fn dwa_refuses_a_goal_inside_an_obstacle() {
         .base()
         .expect("base")
         .go_to_absolute_with([1.1, 0.1, 0.0], opts)
-        .err()
-        .expect("refused");
+        .expect_err("refused");
     assert!(matches!(e, Error::Unreachable { .. }), "{e}");
     assert!(bot.base_commands().is_empty());
 }
@@ -191,7 +190,7 @@ fn dwa_refuses_a_goal_inside_an_obstacle() {
 #[test]
 fn circle_tracking_ends_within_5_cm_of_the_reference() {
     for robot in ["locobot", "locobot_lite"] {
-        let mut bot = Robot::builder(robot).use_arm(false).build().expect("robot");
+        let bot = Robot::builder(robot).use_arm(false).build().expect("robot");
         let r = Reference::circle([0.0; 3], 0.1, 0.25, 25.0, 0.1).expect("reference");
         let end = r.end();
         bot.base()
@@ -209,8 +208,8 @@ fn circle_tracking_ends_within_5_cm_of_the_reference() {
 
 #[test]
 fn a_bumper_hit_stops_lqr_tracking_with_an_error() {
-    let mut bot = Robot::new("locobot").expect("robot");
-    place_post(&mut bot, 0.8, 0.0, 0.1);
+    let bot = Robot::new("locobot").expect("robot");
+    place_post(&bot, 0.8, 0.0, 0.1);
     let opts = GoalOptions {
         controller: Some(BaseController::Lqr),
         smooth: false,
@@ -259,14 +258,13 @@ fn implausible_odometry_geometry_is_refused() {
     let e = Robot::builder("locobot_lite")
         .set("base.odometry", toml::Value::Table(table))
         .build()
-        .err()
-        .expect("refused");
+        .expect_err("refused");
     assert!(e.to_string().contains("base.odometry"), "{e}");
-    let mut bot = Robot::builder("locobot_lite")
+    let bot = Robot::builder("locobot_lite")
         .use_arm(false)
         .build()
         .expect("robot");
-    let mut base = bot.base().expect("base");
+    let base = bot.base().expect("base");
     let before = base.odometry_geometry();
     let bad = ferrobot::odometry_calibration::WheelGeometry {
         left_radius: 0.036,
@@ -297,9 +295,9 @@ fn dwa_drives_through_a_door_in_a_map_on_both_bases() {
         map.fill_circle(*p);
     }
     for robot in ["locobot", "locobot_lite"] {
-        let mut bot = Robot::builder(robot).use_arm(false).build().expect("robot");
+        let bot = Robot::builder(robot).use_arm(false).build().expect("robot");
         for p in &posts {
-            place_post(&mut bot, p[0], p[1], p[2]);
+            place_post(&bot, p[0], p[1], p[2]);
         }
         let opts = GoalOptions {
             map: Some(map.clone()),
@@ -324,13 +322,12 @@ fn dwa_drives_through_a_door_in_a_map_on_both_bases() {
             .base()
             .expect("base")
             .go_to_absolute_with([1.0, -1.0, 0.0], opts)
-            .err()
-            .expect("inside the wall");
+            .expect_err("inside the wall");
         assert!(matches!(e, Error::Unreachable { .. }), "{robot}: {e}");
     }
     let mut bad = map.clone();
     bad.occupied.truncate(10);
-    let mut bot = Robot::builder("locobot")
+    let bot = Robot::builder("locobot")
         .use_arm(false)
         .build()
         .expect("robot");
@@ -344,8 +341,7 @@ fn dwa_drives_through_a_door_in_a_map_on_both_bases() {
                 ..GoalOptions::default()
             },
         )
-        .err()
-        .expect("malformed map");
+        .expect_err("malformed map");
     assert!(matches!(e, Error::InvalidMap { .. }), "{e}");
     assert!(bot.base_commands().is_empty());
 }

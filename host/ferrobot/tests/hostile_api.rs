@@ -35,10 +35,10 @@ fn the_arm_refuses_hostile_values() {
     );
     runner(1)
         .run(&strategy, |(q, qd, p, quat, (a, b), (tol, timeout))| {
-            let mut bot = cell.borrow_mut();
+            let bot = cell.borrow_mut();
             let dof = 5;
             let bad_q = q.len() != dof || absurd(&q);
-            let mut arm = bot.arm().expect("arm");
+            let arm = bot.arm().expect("arm");
             let opts = MoveOptions {
                 plan: true,
                 tolerance: tol,
@@ -86,7 +86,7 @@ fn the_arm_refuses_hostile_values() {
             let r = arm.move_ee_xyz(d, a.abs() * 0.01);
             judge("move_ee_xyz", absurd(&d) || absurd(&[a]) || a == 0.0, &r)?;
             calls.set(calls.get() + 11);
-            let mut cam = bot.camera().expect("camera");
+            let cam = bot.camera().expect("camera");
             let r = cam.set_pan_tilt_async(a, b).map(|m| {
                 let _ = m.cancel();
             });
@@ -98,7 +98,7 @@ fn the_arm_refuses_hostile_values() {
         })
         .expect("the arm refuses hostile values");
     report("arm", calls.get());
-    let mut bot = cell.into_inner();
+    let bot = cell.into_inner();
     // Still obeys after all that.
     bot.resume().expect("resume");
     bot.arm()
@@ -128,8 +128,8 @@ fn the_base_refuses_hostile_values() {
         .run(
             &strategy,
             |(goal, delta, (v, w, t), circles, (ox, res, gw, gh), (dt, n))| {
-                let mut bot = cell.borrow_mut();
-                let mut base = bot.base().expect("base");
+                let bot = cell.borrow_mut();
+                let base = bot.base().expect("base");
                 let r = base.go_to_absolute_async(goal).map(|m| {
                     let _ = m.cancel();
                 });
@@ -239,7 +239,7 @@ fn the_base_refuses_hostile_values() {
         )
         .expect("the base refuses hostile values");
     report("base", calls.get());
-    let mut bot = cell.into_inner();
+    let bot = cell.into_inner();
     bot.base()
         .expect("base")
         .go_to_relative([0.2, 0.0, 0.0])

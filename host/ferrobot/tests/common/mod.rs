@@ -3,7 +3,7 @@
 use ferrobot::Robot;
 
 /// A round post of radius `r` at `(x, y)` (m, world frame) in the simulated base's world.
-pub fn place_post(bot: &mut Robot, x: f64, y: f64, r: f64) {
+pub fn place_post(bot: &Robot, x: f64, y: f64, r: f64) {
     bot.simulator()
         .expect("sim")
         .hw
