@@ -1204,7 +1204,11 @@ impl Firmware {
                 }
                 Ok(())
             }
-            _ => Err(RejectReason::Unsupported),
+            // Answered by `handle` before any command; listed so that the match stays
+            // exhaustive and a new message without a handler fails to compile.
+            HostMsg::Hello { .. } | HostMsg::GetJoint { .. } | HostMsg::GetDiagnostics => {
+                Err(RejectReason::Unsupported)
+            }
         }
     }
 }

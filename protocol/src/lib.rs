@@ -61,22 +61,13 @@ pub const MAX_WIRE: usize = MAX_BODY + FRAME_OVERHEAD;
 /// Most joints (servo-driven degrees of freedom, gripper and pan-tilt included) a robot has.
 pub const MAX_JOINTS: usize = 12;
 
-/// A hash of the message definitions: any edit to `messages.rs` changes it. Exchanged in the
-/// handshake, so a host and a firmware built from different message sets refuse each other
-/// even when someone forgot to bump [`PROTOCOL_VERSION`].
-pub const SCHEMA_HASH: u32 = fnv1a32(include_bytes!("messages.rs"));
-
-/// FNV-1a, 32 bit, usable in `const` context.
-pub const fn fnv1a32(bytes: &[u8]) -> u32 {
-    let mut hash: u32 = 0x811c_9dc5;
-    let mut i = 0;
-    while i < bytes.len() {
-        // Index is in bounds: `i < bytes.len()` is the loop condition.
-        #[allow(clippy::indexing_slicing)]
-        let b = bytes[i];
-        hash ^= b as u32;
-        hash = hash.wrapping_mul(0x0100_0193);
-        i += 1;
-    }
-    hash
-}
+/// A hash of the structure of the messages both ways ([`HostMsg`] and [`DeviceMsg`], every
+/// type they contain, with names, fields, variants and their order), from their
+/// [`postcard_schema::Schema`]: any change of a type changes it, a change of a comment does not.
+/// Exchanged in the handshake, so a host and a firmware built from different message sets
+/// refuse each other even when someone forgot to bump [`PROTOCOL_VERSION`] (which marks changes
+/// of meaning that leave the types as they are).
+pub const SCHEMA_HASH: u32 = {
+    let k = postcard_schema::key::Key::for_path::<(HostMsg, DeviceMsg)>("ferrobot").to_bytes();
+    u32::from_le_bytes([k[0] ^ k[4], k[1] ^ k[5], k[2] ^ k[6], k[3] ^ k[7]])
+};

@@ -10,6 +10,7 @@
 //! [`HostMsg::GetDiagnostics`] are answered by their reply message instead.
 
 use heapless::{String, Vec};
+use postcard_schema::Schema;
 use serde::{Deserialize, Serialize};
 
 use crate::MAX_JOINTS;
@@ -24,7 +25,7 @@ pub type JointMask = u16;
 pub const ALL_JOINTS: JointMask = u16::MAX;
 
 /// What a joint is, as far as the firmware cares.
-#[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Serialize, Deserialize, Schema, Debug, Clone, Copy, PartialEq, Eq)]
 #[non_exhaustive]
 pub enum JointKind {
     /// An arm joint, revolute, angle in rad.
@@ -36,7 +37,7 @@ pub enum JointKind {
 }
 
 /// The Dynamixel model that drives a joint. Decides units and which goal registers exist.
-#[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Serialize, Deserialize, Schema, Debug, Clone, Copy, PartialEq, Eq)]
 #[non_exhaustive]
 pub enum ServoModel {
     /// XM430-W350: current sensing and current control.
@@ -46,7 +47,7 @@ pub enum ServoModel {
 }
 
 /// Control mode of a joint.
-#[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Serialize, Deserialize, Schema, Debug, Clone, Copy, PartialEq, Eq)]
 #[non_exhaustive]
 pub enum JointMode {
     /// Torque off; the joint is limp.
@@ -62,7 +63,7 @@ pub enum JointMode {
 }
 
 /// Joint limits the firmware enforces whatever the host sends.
-#[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq)]
+#[derive(Serialize, Deserialize, Schema, Debug, Clone, Copy, PartialEq)]
 pub struct JointLimits {
     /// Lowest joint position, rad.
     pub min: f32,
@@ -75,7 +76,7 @@ pub struct JointLimits {
 }
 
 /// Gains of the firmware's joint PID (current mode).
-#[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq)]
+#[derive(Serialize, Deserialize, Schema, Debug, Clone, Copy, PartialEq)]
 pub struct PidGains {
     /// Proportional gain, N·m/rad.
     pub kp: f32,
@@ -88,7 +89,7 @@ pub struct PidGains {
 }
 
 /// The servo's own control-table gains and motion profile, written at configuration.
-#[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Serialize, Deserialize, Schema, Debug, Clone, Copy, PartialEq, Eq)]
 pub struct ServoGains {
     /// Position P gain (control table 84).
     pub pos_p: u16,
@@ -110,7 +111,7 @@ pub struct ServoGains {
 ///
 /// Servo angle (rad, 0 at tick 2048) = `sign · joint + offset`; a twin servo, when present,
 /// is mirrored: its angle is the negated servo angle.
-#[derive(Serialize, Deserialize, Debug, Clone, PartialEq)]
+#[derive(Serialize, Deserialize, Schema, Debug, Clone, PartialEq)]
 pub struct JointConfig {
     /// Joint name as in the robot description.
     pub name: Name,
@@ -140,7 +141,7 @@ pub struct JointConfig {
 }
 
 /// Which mobile base the firmware drives.
-#[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Serialize, Deserialize, Schema, Debug, Clone, Copy, PartialEq, Eq)]
 #[non_exhaustive]
 pub enum BaseKind {
     /// No base.
@@ -152,7 +153,7 @@ pub enum BaseKind {
 }
 
 /// Gripper commands.
-#[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Serialize, Deserialize, Schema, Debug, Clone, Copy, PartialEq, Eq)]
 #[non_exhaustive]
 pub enum GripperCommand {
     /// Open fully (position mode, goal 2800 ticks on the LoCoBot).
@@ -162,7 +163,7 @@ pub enum GripperCommand {
 }
 
 /// Gripper state as PyRobot reports it (its numeric codes in brackets), plus `Opening`.
-#[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Serialize, Deserialize, Schema, Debug, Clone, Copy, PartialEq, Eq)]
 #[non_exhaustive]
 pub enum GripperState {
     /// Unknown, e.g. before the first command (−1).
@@ -182,7 +183,7 @@ pub enum GripperState {
 }
 
 /// One interpolation knot of a streamed joint trajectory.
-#[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq)]
+#[derive(Serialize, Deserialize, Schema, Debug, Clone, Copy, PartialEq)]
 pub struct JointPoint {
     /// Position, rad.
     pub position: f32,
@@ -204,8 +205,10 @@ impl JointPoint {
 }
 
 /// Messages from the host to the firmware.
-#[derive(Serialize, Deserialize, Debug, Clone, PartialEq)]
-#[non_exhaustive]
+///
+/// Not `#[non_exhaustive]`: the firmware matches it exhaustively, so a message added here
+/// without a handler there fails to compile.
+#[derive(Serialize, Deserialize, Schema, Debug, Clone, PartialEq)]
 pub enum HostMsg {
     /// Start of a session: the host's protocol version. Answered by [`DeviceMsg::Hello`].
     Hello {
@@ -348,7 +351,7 @@ pub enum HostMsg {
 }
 
 /// Why the firmware rejected a command.
-#[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Serialize, Deserialize, Schema, Debug, Clone, Copy, PartialEq, Eq)]
 #[non_exhaustive]
 pub enum RejectReason {
     /// The host's protocol version or schema differs from the firmware's.
@@ -382,7 +385,7 @@ pub enum RejectReason {
 }
 
 /// Description of the firmware, sent in answer to [`HostMsg::Hello`].
-#[derive(Serialize, Deserialize, Debug, Clone, PartialEq)]
+#[derive(Serialize, Deserialize, Schema, Debug, Clone, PartialEq)]
 pub struct DeviceInfo {
     /// The firmware's [`crate::PROTOCOL_VERSION`].
     pub protocol_version: u16,
@@ -405,7 +408,7 @@ pub struct DeviceInfo {
 }
 
 /// Measured state of one joint.
-#[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Serialize, Deserialize, Schema, Debug, Clone, Copy, PartialEq, Default)]
 pub struct JointState {
     /// Position, rad.
     pub position: f32,
@@ -416,7 +419,7 @@ pub struct JointState {
 }
 
 /// Wheel-odometry estimate of the base in the odometry frame.
-#[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Serialize, Deserialize, Schema, Debug, Clone, Copy, PartialEq, Default)]
 pub struct Odometry {
     /// Position x, m.
     pub x: f32,
@@ -431,7 +434,7 @@ pub struct Odometry {
 }
 
 /// Raw wheel data.
-#[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Serialize, Deserialize, Schema, Debug, Clone, Copy, PartialEq, Default)]
 pub struct WheelData {
     /// Left wheel angle accumulated since start, rad.
     pub left: f32,
@@ -490,7 +493,7 @@ pub mod fault_flags {
 }
 
 /// Servo-loop timing.
-#[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Serialize, Deserialize, Schema, Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct LoopStats {
     /// Servo-loop ticks since start.
     pub ticks: u32,
@@ -501,7 +504,7 @@ pub struct LoopStats {
 }
 
 /// One telemetry frame, sent every telemetry period.
-#[derive(Serialize, Deserialize, Debug, Clone, PartialEq)]
+#[derive(Serialize, Deserialize, Schema, Debug, Clone, PartialEq)]
 pub struct Telemetry {
     /// Firmware clock, µs since start.
     pub time_us: u64,
@@ -524,7 +527,7 @@ pub struct Telemetry {
 }
 
 /// Kinds of fault reports.
-#[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Serialize, Deserialize, Schema, Debug, Clone, Copy, PartialEq, Eq)]
 #[non_exhaustive]
 pub enum FaultKind {
     /// A servo stopped answering; its joint is held and left out of the loop.
@@ -561,7 +564,7 @@ pub enum FaultKind {
 }
 
 /// A fault report.
-#[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Serialize, Deserialize, Schema, Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Fault {
     /// What happened.
     pub kind: FaultKind,
@@ -576,7 +579,7 @@ pub struct Fault {
 }
 
 /// Link and bus counters.
-#[derive(Serialize, Deserialize, Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Serialize, Deserialize, Schema, Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct Diagnostics {
     /// Host frames decoded and accepted.
     pub host_frames: u32,
@@ -599,7 +602,7 @@ pub struct Diagnostics {
 }
 
 /// Messages from the firmware to the host.
-#[derive(Serialize, Deserialize, Debug, Clone, PartialEq)]
+#[derive(Serialize, Deserialize, Schema, Debug, Clone, PartialEq)]
 #[non_exhaustive]
 pub enum DeviceMsg {
     /// Answer to [`HostMsg::Hello`].

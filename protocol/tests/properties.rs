@@ -437,3 +437,54 @@ fn locobot_telemetry_fits_and_overhead_is_six() {
     assert_eq!(wire.len(), body.len() + FRAME_OVERHEAD);
     assert!(wire.len() <= MAX_WIRE, "{} bytes", wire.len());
 }
+
+/// The name of every host message, by an exhaustive match with no wildcard arm: this compiles
+/// only while [`HostMsg`] is not `#[non_exhaustive]`, so other crates (the firmware) can match
+/// it exhaustively and a new message without a handler fails to compile there.
+fn host_msg_name(m: &HostMsg) -> &'static str {
+    match m {
+        HostMsg::Hello { .. } => "Hello",
+        HostMsg::GetJoint { .. } => "GetJoint",
+        HostMsg::ConfigureJoint { .. } => "ConfigureJoint",
+        HostMsg::SetPid { .. } => "SetPid",
+        HostMsg::SetLimits { .. } => "SetLimits",
+        HostMsg::SetMode { .. } => "SetMode",
+        HostMsg::Waypoint { .. } => "Waypoint",
+        HostMsg::ClearQueue { .. } => "ClearQueue",
+        HostMsg::JointCommand { .. } => "JointCommand",
+        HostMsg::BaseVelocity { .. } => "BaseVelocity",
+        HostMsg::ResetOdometry => "ResetOdometry",
+        HostMsg::Gripper(_) => "Gripper",
+        HostMsg::SetWatchdog { .. } => "SetWatchdog",
+        HostMsg::Heartbeat => "Heartbeat",
+        HostMsg::EmergencyStop => "EmergencyStop",
+        HostMsg::Resume => "Resume",
+        HostMsg::SetTelemetry { .. } => "SetTelemetry",
+        HostMsg::SetLoopPeriod { .. } => "SetLoopPeriod",
+        HostMsg::RebootJoint { .. } => "RebootJoint",
+        HostMsg::GetDiagnostics => "GetDiagnostics",
+        HostMsg::SetBaseGeometry { .. } => "SetBaseGeometry",
+    }
+}
+
+#[test]
+fn host_messages_can_be_matched_exhaustively() {
+    assert_eq!(host_msg_name(&HostMsg::Heartbeat), "Heartbeat");
+    assert_eq!(host_msg_name(&HostMsg::EmergencyStop), "EmergencyStop");
+}
+
+/// The schema hash comes from the message types' structure: it is the hash of
+/// `(HostMsg, DeviceMsg)`'s schema, and a type that differs anywhere (here: one message set
+/// without the device side) hashes differently.
+#[test]
+fn the_schema_hash_follows_the_message_types() {
+    use postcard_schema::key::Key;
+    let fold =
+        |k: [u8; 8]| u32::from_le_bytes([k[0] ^ k[4], k[1] ^ k[5], k[2] ^ k[6], k[3] ^ k[7]]);
+    let both = fold(Key::for_path::<(HostMsg, DeviceMsg)>("ferrobot").to_bytes());
+    assert_eq!(both, SCHEMA_HASH);
+    let host_only = fold(Key::for_path::<(HostMsg,)>("ferrobot").to_bytes());
+    let swapped = fold(Key::for_path::<(DeviceMsg, HostMsg)>("ferrobot").to_bytes());
+    assert_ne!(host_only, SCHEMA_HASH);
+    assert_ne!(swapped, SCHEMA_HASH);
+}
