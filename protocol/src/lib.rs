@@ -40,6 +40,7 @@ pub mod geometry;
 pub mod kobuki;
 pub mod messages;
 pub mod ranges;
+pub mod session;
 
 pub use frame::{encode_frame, Frame, FrameDecoder, FrameError, FrameStats};
 pub use messages::*;

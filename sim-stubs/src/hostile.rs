@@ -547,7 +547,7 @@ pub fn hostile_stream<R: Rng + ?Sized>(
     let acked = s
         .inbox
         .iter()
-        .any(|f| matches!(f.msg, DeviceMsg::Ack { seq: a } if a == seq));
+        .any(|f| matches!(f, DeviceMsg::Ack { seq: a } if *a == seq));
     assert!(acked, "the emergency stop was not acknowledged");
     if s.sim.hw.base.is_some() {
         // One base cycle (Kobuki 20 ms, Create 2 15 ms) for the command to reach the wheels.

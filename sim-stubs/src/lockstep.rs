@@ -5,12 +5,12 @@
 //!
 //! The host side speaks real frames: [`LockstepSim::write_host`] and
 //! [`LockstepSim::take_host_output`] carry the same bytes a serial port would; [`SimSession`]
-//! wraps them with a frame encoder and decoder for tests, benches and the host's sim backend.
+//! drives them with the protocol's host session for tests, benches and hostile hosts.
 
 use ferrobot_firmware::{config, Firmware, Link};
+use ferrobot_protocol::session::{Answer, HostSession};
 use ferrobot_protocol::{
-    encode_frame, DeviceMsg, Frame, FrameDecoder, HostMsg, RejectReason, Telemetry, MAX_WIRE,
-    PROTOCOL_VERSION, SCHEMA_HASH,
+    DeviceMsg, HostMsg, RejectReason, Telemetry, MAX_WIRE, PROTOCOL_VERSION, SCHEMA_HASH,
 };
 
 use crate::diff_drive::Pose;
@@ -171,22 +171,24 @@ impl LockstepSim {
 /// Messages a [`SimSession`] keeps for callers to wait for, at most.
 pub const INBOX_CAP: usize = 1024;
 
-/// A host talking frames to a [`LockstepSim`]: what tests, benches and the host's sim backend
-/// use.
+/// A host talking frames to a [`LockstepSim`]: the protocol's host session
+/// ([`HostSession`], the one the API's links drive too) in lockstep with the simulator, plus
+/// raw access for tests and hostile hosts (send any message, see every message the session
+/// did not route).
 pub struct SimSession {
     /// The simulator.
     pub sim: LockstepSim,
-    decoder: FrameDecoder,
-    seq: u16,
-    /// Messages received and not yet taken, in order.
-    pub inbox: Vec<Frame<DeviceMsg>>,
+    /// The host session.
+    pub session: HostSession,
+    /// Messages received that answered nothing pending (hellos, faults, logs, answers to
+    /// [`SimSession::send`]), oldest first, at most [`INBOX_CAP`].
+    pub inbox: Vec<DeviceMsg>,
     /// The newest telemetry.
     pub telemetry: Option<Telemetry>,
     /// Send a heartbeat every [`KEEPALIVE_US`] of simulated time, as a host's I/O thread does,
     /// so the firmware's watchdog stays fed (on by default).
     pub keepalive: bool,
     last_keepalive: u64,
-    heartbeat_seqs: Vec<u16>,
 }
 
 /// Heartbeat period of a [`SimSession`] with keepalive on, µs.
@@ -204,13 +206,11 @@ impl SimSession {
     pub fn new(sim: LockstepSim) -> Self {
         Self {
             sim,
-            decoder: FrameDecoder::new(),
-            seq: 0,
+            session: HostSession::new(),
             inbox: Vec::new(),
             telemetry: None,
             keepalive: true,
             last_keepalive: 0,
-            heartbeat_seqs: Vec::new(),
         }
     }
 
@@ -232,22 +232,26 @@ impl SimSession {
         self.sim.write_host(bytes);
     }
 
-    /// Send a message; returns its sequence number.
+    /// Send any message without waiting for its answer (which arrives in the inbox); returns
+    /// its sequence number.
     pub fn send(&mut self, msg: &HostMsg) -> u16 {
-        let seq = self.seq;
-        self.seq = self.seq.wrapping_add(1);
         let mut buf = [0u8; MAX_WIRE];
-        if let Ok(n) = encode_frame(seq, msg, &mut buf) {
-            self.sim.write_host(&buf[..n]);
+        match self.session.send_unrouted(msg, self.sim.now_us(), &mut buf) {
+            Ok((seq, n)) => {
+                self.sim.write_host(&buf[..n]);
+                seq
+            }
+            Err(_) => 0,
         }
-        seq
     }
 
     fn keep_alive(&mut self) {
         if self.keepalive && self.sim.now_us() >= self.last_keepalive + KEEPALIVE_US {
             self.last_keepalive = self.sim.now_us();
-            let seq = self.send(&HostMsg::Heartbeat);
-            self.heartbeat_seqs.push(seq);
+            let mut buf = [0u8; MAX_WIRE];
+            if let Some(n) = self.session.heartbeat_due(self.sim.now_us(), 0, &mut buf) {
+                self.sim.write_host(&buf[..n]);
+            }
         }
     }
 
@@ -267,31 +271,20 @@ impl SimSession {
 
     fn pump(&mut self) {
         let bytes = self.sim.take_host_output();
-        let mut frames = Vec::new();
-        self.decoder.feed(&bytes, |r: Result<Frame<DeviceMsg>, _>| {
-            if let Ok(f) = r {
-                frames.push(f);
+        let inbox = &mut self.inbox;
+        self.session.on_bytes_with(&bytes, |m| {
+            // Bounded: messages nobody waits for are dropped oldest first.
+            if inbox.len() >= INBOX_CAP {
+                inbox.remove(0);
             }
+            inbox.push(m.clone());
         });
-        for f in frames {
-            match &f.msg {
-                // Only the newest telemetry is kept: the inbox holds what a caller waits for.
-                DeviceMsg::Telemetry(t) => {
-                    self.telemetry = Some(t.clone());
-                    continue;
-                }
-                DeviceMsg::Ack { seq } if self.heartbeat_seqs.contains(seq) => {
-                    self.heartbeat_seqs.retain(|s| s != seq);
-                    continue;
-                }
-                _ => {}
+        // Faults are kept in the inbox, in order with the other messages.
+        while self.session.take_fault().is_some() {}
+        if let Some(t) = self.session.telemetry() {
+            if self.telemetry.as_ref() != Some(t) {
+                self.telemetry = Some(t.clone());
             }
-            // Bounded: messages nobody waits for (acks of frames sent without waiting, logs)
-            // are dropped oldest first.
-            if self.inbox.len() >= INBOX_CAP {
-                self.inbox.remove(0);
-            }
-            self.inbox.push(f);
         }
     }
 
@@ -311,8 +304,8 @@ impl SimSession {
         let end = self.sim.now_us() + timeout_us;
         loop {
             self.pump();
-            if let Some(i) = self.inbox.iter().position(|f| pred(&f.msg)) {
-                return Ok(self.inbox.remove(i).msg);
+            if let Some(i) = self.inbox.iter().position(&pred) {
+                return Ok(self.inbox.remove(i));
             }
             if self.sim.now_us() >= end {
                 return Err(SimError::Timeout("a message"));
@@ -321,16 +314,27 @@ impl SimSession {
         }
     }
 
-    /// Send a command and wait for its acknowledgement.
+    /// Send a command and wait for its acknowledgement (routed by the session).
     pub fn command(&mut self, msg: &HostMsg) -> Result<(), SimError> {
-        let seq = self.send(msg);
-        let reply = self.wait_msg(100_000, |m| match m {
-            DeviceMsg::Ack { seq: s } | DeviceMsg::Reject { seq: s, .. } => *s == seq,
-            _ => false,
-        })?;
-        match reply {
-            DeviceMsg::Reject { reason, .. } => Err(SimError::Rejected(reason)),
-            _ => Ok(()),
+        let mut buf = [0u8; MAX_WIRE];
+        let (seq, n) = self
+            .session
+            .command(msg, self.sim.now_us(), &mut buf)
+            .map_err(|_| SimError::Rejected(ferrobot_protocol::RejectReason::Unsupported))?;
+        self.sim.write_host(&buf[..n]);
+        let end = self.sim.now_us() + 100_000;
+        loop {
+            self.pump();
+            match self.session.take_answer(seq) {
+                Some(Answer::Rejected(reason)) => return Err(SimError::Rejected(reason)),
+                Some(_) => return Ok(()),
+                None => {}
+            }
+            if self.sim.now_us() >= end {
+                self.session.forget(seq);
+                return Err(SimError::Timeout("a message"));
+            }
+            self.step(1000);
         }
     }
 
@@ -357,7 +361,7 @@ impl SimSession {
     pub fn take_faults(&mut self) -> Vec<ferrobot_protocol::Fault> {
         self.pump();
         let mut out = Vec::new();
-        self.inbox.retain(|f| match &f.msg {
+        self.inbox.retain(|m| match m {
             DeviceMsg::Fault(x) => {
                 out.push(*x);
                 false

@@ -4,9 +4,7 @@ use std::path::Path;
 use std::sync::Arc;
 use std::time::Duration;
 
-use ferrobot_protocol::{
-    DeviceMsg, Fault, HostMsg, JointLimits, JointMode, JointPoint, PidGains, Telemetry,
-};
+use ferrobot_protocol::{Fault, HostMsg, JointLimits, JointMode, JointPoint, PidGains, Telemetry};
 use parking_lot::{MappedMutexGuard, Mutex, MutexGuard};
 
 use crate::arm::{Arm, ArmParts, ArmState};
@@ -263,13 +261,7 @@ impl Robot {
             )));
         }
         for (i, ours) in cfg.joints.iter().enumerate() {
-            let reply = io.link.request(
-                &HostMsg::GetJoint { index: i as u8 },
-                &|m| matches!(m, DeviceMsg::Joint { index, .. } if *index as usize == i),
-            )?;
-            let DeviceMsg::Joint { config: fw, .. } = reply else {
-                continue;
-            };
+            let fw = io.link.joint_config(i as u8)?;
             if fw.name != ours.name
                 || fw.servo_id != ours.servo_id
                 || fw.twin_id != ours.twin_id
@@ -377,16 +369,7 @@ impl Robot {
 
     /// The firmware's link and bus counters.
     pub fn diagnostics(&self) -> Result<ferrobot_protocol::Diagnostics> {
-        let reply = self
-            .lock_io()
-            .link
-            .request(&HostMsg::GetDiagnostics, &|m| {
-                matches!(m, DeviceMsg::Diagnostics(_))
-            })?;
-        match reply {
-            DeviceMsg::Diagnostics(d) => Ok(d),
-            _ => Err(Error::Link("unexpected reply".into())),
-        }
+        self.lock_io().link.diagnostics()
     }
 
     /// The base commands that host-side base laws have sent: (time s, v m/s, ω rad/s).

@@ -12,7 +12,7 @@ use std::process::{Child, Command, Stdio};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use ferrobot_protocol::{DeviceInfo, DeviceMsg, Fault, HostMsg, Telemetry};
+use ferrobot_protocol::{DeviceInfo, Diagnostics, Fault, HostMsg, JointConfig, Telemetry};
 use ferrobot_sim::board::{BoardOptions, BoardPorts, BoardServer};
 
 use super::serial::SerialLink;
@@ -207,8 +207,11 @@ impl Link for EmulatedLink {
     fn command(&mut self, msg: &HostMsg, what: &str) -> Result<()> {
         self.serial.command(msg, what)
     }
-    fn request(&mut self, msg: &HostMsg, accept: &dyn Fn(&DeviceMsg) -> bool) -> Result<DeviceMsg> {
-        self.serial.request(msg, accept)
+    fn joint_config(&mut self, index: u8) -> Result<JointConfig> {
+        self.serial.joint_config(index)
+    }
+    fn diagnostics(&mut self) -> Result<Diagnostics> {
+        self.serial.diagnostics()
     }
     fn telemetry(&mut self) -> Result<Telemetry> {
         self.serial.telemetry()

@@ -16,7 +16,7 @@ pub mod sim;
 use std::path::PathBuf;
 use std::time::Duration;
 
-use ferrobot_protocol::{DeviceInfo, DeviceMsg, Fault, HostMsg, Telemetry};
+use ferrobot_protocol::{DeviceInfo, Diagnostics, Fault, HostMsg, JointConfig, Telemetry};
 
 use crate::error::Result;
 
@@ -54,14 +54,17 @@ impl Default for Backend {
     }
 }
 
-/// What the API needs from a backend.
+/// What the API needs from a backend. Every link drives the one host-side session of the
+/// protocol ([`ferrobot_protocol::session::HostSession`]): it only moves bytes and waits.
 pub trait Link: Send {
     /// The firmware's self-description from the handshake.
     fn info(&self) -> &DeviceInfo;
     /// Send a command and wait for its acknowledgement; a rejection is an error naming `what`.
     fn command(&mut self, msg: &HostMsg, what: &str) -> Result<()>;
-    /// Send a request and wait for the reply `accept` picks.
-    fn request(&mut self, msg: &HostMsg, accept: &dyn Fn(&DeviceMsg) -> bool) -> Result<DeviceMsg>;
+    /// The firmware's configuration of joint `index` (a typed request).
+    fn joint_config(&mut self, index: u8) -> Result<JointConfig>;
+    /// The firmware's link and bus counters (a typed request).
+    fn diagnostics(&mut self) -> Result<Diagnostics>;
     /// The newest telemetry.
     fn telemetry(&mut self) -> Result<Telemetry>;
     /// Let `dt` pass (simulated time in the simulator, wall time otherwise).
@@ -82,5 +85,20 @@ pub(crate) fn rejection(what: &str, reason: ferrobot_protocol::RejectReason) -> 
             what: what.to_string(),
             reason,
         },
+    }
+}
+
+/// A device description until the handshake brings the real one.
+pub(crate) fn placeholder_info() -> DeviceInfo {
+    DeviceInfo {
+        protocol_version: 0,
+        schema_hash: 0,
+        firmware_version: [0; 3],
+        board: Default::default(),
+        robot: Default::default(),
+        joints: Default::default(),
+        base: ferrobot_protocol::BaseKind::None,
+        loop_period_us: 0,
+        accepted: false,
     }
 }

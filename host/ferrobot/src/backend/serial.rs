@@ -9,7 +9,6 @@
 //! and the API's timings (motion deadlines, control periods) follow it either way. A firmware
 //! that sends no telemetry for [`TELEMETRY_SILENCE`] is reported lost.
 
-use std::collections::{HashSet, VecDeque};
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 use std::sync::mpsc::{channel, Receiver, Sender};
@@ -17,9 +16,12 @@ use std::sync::{Arc, Condvar, Mutex};
 use std::thread;
 use std::time::{Duration, Instant};
 
+use ferrobot_protocol::session::{
+    Answer, GetDiagnostics, GetJoint, Handshake, HostSession, Request, SessionError,
+};
 use ferrobot_protocol::{
-    encode_frame, DeviceInfo, DeviceMsg, Fault, Frame, FrameDecoder, HostMsg, Telemetry, MAX_WIRE,
-    PROTOCOL_VERSION, SCHEMA_HASH,
+    DeviceInfo, Diagnostics, Fault, HostMsg, JointConfig, Telemetry, MAX_WIRE, PROTOCOL_VERSION,
+    SCHEMA_HASH,
 };
 
 use super::{rejection, Link};
@@ -33,28 +35,32 @@ pub const HEARTBEAT: Duration = Duration::from_millis(100);
 /// sends it every few tens of milliseconds of its own time).
 pub const TELEMETRY_SILENCE: Duration = Duration::from_secs(2);
 
-#[derive(Default)]
 struct State {
-    telemetry: Option<Telemetry>,
+    /// The protocol's host session: sequence numbers, handshake, answers, telemetry, faults.
+    session: HostSession,
     /// When the newest telemetry arrived (wall time).
     telemetry_at: Option<Instant>,
-    replies: VecDeque<Frame<DeviceMsg>>,
-    faults: Vec<Fault>,
     lost: Option<String>,
-    info: Option<DeviceInfo>,
-    next_seq: u16,
     quit: bool,
 }
 
 struct Shared {
     state: Mutex<State>,
     cv: Condvar,
+    /// The link's wall clock, the session's time base.
+    start: Instant,
+}
+
+impl Shared {
+    fn now_us(&self) -> u64 {
+        self.start.elapsed().as_micros() as u64
+    }
 }
 
 /// The serial backend.
 pub struct SerialLink {
     shared: Arc<Shared>,
-    tx: Sender<(u16, HostMsg)>,
+    tx: Sender<Vec<u8>>,
     info: DeviceInfo,
     path: PathBuf,
     thread: Option<thread::JoinHandle<()>>,
@@ -67,25 +73,17 @@ fn open(path: &Path) -> std::io::Result<Box<dyn serialport::SerialPort>> {
         .map_err(|e| std::io::Error::other(e.to_string()))
 }
 
-fn frame_bytes(seq: u16, msg: &HostMsg) -> Vec<u8> {
-    let mut buf = [0u8; MAX_WIRE];
-    encode_frame(seq, msg, &mut buf)
-        .map(|n| buf[..n].to_vec())
-        .unwrap_or_default()
-}
-
-fn io_thread(path: PathBuf, shared: Arc<Shared>, rx: Receiver<(u16, HostMsg)>) {
+/// The I/O thread: owns the port, moves bytes between it and the session.
+fn io_thread(path: PathBuf, shared: Arc<Shared>, rx: Receiver<Vec<u8>>) {
     let mut port: Option<Box<dyn serialport::SerialPort>> = None;
-    let mut decoder = FrameDecoder::new();
-    let mut last_tx = Instant::now();
-    let mut heartbeats: HashSet<u16> = HashSet::new();
     let mut buf = [0u8; 512];
+    let mut frame = [0u8; MAX_WIRE];
     let mut next_retry = Instant::now();
     loop {
         if shared.state.lock().map(|s| s.quit).unwrap_or(true) {
             return;
         }
-        // (Re)open.
+        // (Re)open, and start a session.
         if port.is_none() {
             if Instant::now() < next_retry {
                 thread::sleep(Duration::from_millis(10));
@@ -93,86 +91,55 @@ fn io_thread(path: PathBuf, shared: Arc<Shared>, rx: Receiver<(u16, HostMsg)>) {
             }
             next_retry = Instant::now() + Duration::from_millis(250);
             match open(&path) {
-                Ok(p) => {
-                    port = Some(p);
-                    decoder = FrameDecoder::new();
-                    let seq = next_seq(&shared);
-                    let hello = HostMsg::Hello {
-                        protocol_version: PROTOCOL_VERSION,
-                        schema_hash: SCHEMA_HASH,
-                    };
-                    if let Some(p) = port.as_mut() {
-                        let _ = p.write_all(&frame_bytes(seq, &hello));
+                Ok(mut p) => {
+                    let hello = shared.state.lock().ok().and_then(|mut s| {
+                        s.session.restart();
+                        s.session.hello(shared.now_us(), &mut frame).ok()
+                    });
+                    if let Some(n) = hello {
+                        let _ = p.write_all(&frame[..n]);
                     }
-                    last_tx = Instant::now();
+                    port = Some(p);
                 }
                 Err(_) => continue,
             }
         }
         let Some(p) = port.as_mut() else { continue };
-        // Outgoing.
+        // Outgoing: frames the API encoded, then a heartbeat when it has been quiet.
         let mut failed = None;
-        while let Ok((seq, msg)) = rx.try_recv() {
-            if let Err(e) = p.write_all(&frame_bytes(seq, &msg)) {
+        while let Ok(bytes) = rx.try_recv() {
+            if let Err(e) = p.write_all(&bytes) {
                 failed = Some(e.to_string());
                 break;
             }
-            last_tx = Instant::now();
         }
-        if failed.is_none() && last_tx.elapsed() >= HEARTBEAT {
-            let seq = next_seq(&shared);
-            heartbeats.insert(seq);
-            if let Err(e) = p.write_all(&frame_bytes(seq, &HostMsg::Heartbeat)) {
-                failed = Some(e.to_string());
+        if failed.is_none() {
+            let beat = shared.state.lock().ok().and_then(|mut s| {
+                s.session
+                    .heartbeat_due(shared.now_us(), HEARTBEAT.as_micros() as u64, &mut frame)
+            });
+            if let Some(n) = beat {
+                if let Err(e) = p.write_all(&frame[..n]) {
+                    failed = Some(e.to_string());
+                }
             }
-            last_tx = Instant::now();
         }
         // Incoming.
         if failed.is_none() {
             match p.read(&mut buf) {
                 Ok(0) => {}
                 Ok(n) => {
-                    let mut frames = Vec::new();
-                    decoder.feed(&buf[..n], |r: Result<Frame<DeviceMsg>, _>| {
-                        if let Ok(f) = r {
-                            frames.push(f)
+                    if let Ok(mut s) = shared.state.lock() {
+                        let before = s.session.telemetry().map(|t| t.time_us);
+                        s.session.on_bytes(&buf[..n]);
+                        if s.session.telemetry().map(|t| t.time_us) != before {
+                            s.telemetry_at = Some(Instant::now());
                         }
-                    });
-                    if !frames.is_empty() {
-                        if let Ok(mut s) = shared.state.lock() {
-                            for f in frames {
-                                match f.msg {
-                                    DeviceMsg::Telemetry(t) => {
-                                        s.telemetry = Some(t);
-                                        s.telemetry_at = Some(Instant::now());
-                                    }
-                                    DeviceMsg::Fault(x) => s.faults.push(x),
-                                    DeviceMsg::Ack { seq } if heartbeats.remove(&seq) => {}
-                                    DeviceMsg::Hello(info) => {
-                                        if info.accepted {
-                                            s.lost = None;
-                                        }
-                                        // Faults sent before this answer belong to an earlier
-                                        // session (left in the port's buffer while nobody read).
-                                        s.faults.clear();
-                                        s.info = Some(info.clone());
-                                        s.replies.push_back(Frame {
-                                            seq: f.seq,
-                                            msg: DeviceMsg::Hello(info),
-                                        });
-                                    }
-                                    other => s.replies.push_back(Frame {
-                                        seq: f.seq,
-                                        msg: other,
-                                    }),
-                                }
-                            }
-                            while s.replies.len() > 256 {
-                                s.replies.pop_front();
-                            }
+                        if matches!(s.session.handshake(), Handshake::Accepted(_)) {
+                            s.lost = None;
                         }
-                        shared.cv.notify_all();
                     }
+                    shared.cv.notify_all();
                 }
                 Err(e)
                     if e.kind() == std::io::ErrorKind::TimedOut
@@ -182,7 +149,7 @@ fn io_thread(path: PathBuf, shared: Arc<Shared>, rx: Receiver<(u16, HostMsg)>) {
         }
         if failed.is_none() {
             let silent = shared.state.lock().is_ok_and(|s| {
-                s.info.as_ref().is_some_and(|i| i.accepted)
+                matches!(s.session.handshake(), Handshake::Accepted(_))
                     && s.telemetry_at
                         .is_some_and(|t| t.elapsed() > TELEMETRY_SILENCE)
             });
@@ -195,27 +162,14 @@ fn io_thread(path: PathBuf, shared: Arc<Shared>, rx: Receiver<(u16, HostMsg)>) {
         }
         if let Some(why) = failed {
             port = None;
-            heartbeats.clear();
             if let Ok(mut s) = shared.state.lock() {
                 s.lost = Some(why);
                 s.telemetry_at = None;
-                s.info = None;
+                s.session.restart();
             }
             shared.cv.notify_all();
         }
     }
-}
-
-fn next_seq(shared: &Shared) -> u16 {
-    shared
-        .state
-        .lock()
-        .map(|mut s| {
-            let q = s.next_seq;
-            s.next_seq = s.next_seq.wrapping_add(1);
-            q
-        })
-        .unwrap_or(0)
 }
 
 impl SerialLink {
@@ -225,8 +179,14 @@ impl SerialLink {
         // Fail early and clearly when the port cannot be opened at all.
         drop(open(&path).map_err(|e| Error::Link(format!("cannot open {}: {e}", path.display())))?);
         let shared = Arc::new(Shared {
-            state: Mutex::new(State::default()),
+            state: Mutex::new(State {
+                session: HostSession::new(),
+                telemetry_at: None,
+                lost: None,
+                quit: false,
+            }),
             cv: Condvar::new(),
+            start: Instant::now(),
         });
         let (tx, rx) = channel();
         let thread = {
@@ -237,7 +197,7 @@ impl SerialLink {
         let mut link = SerialLink {
             shared,
             tx,
-            info: placeholder_info(),
+            info: super::placeholder_info(),
             path,
             thread: Some(thread),
         };
@@ -246,9 +206,14 @@ impl SerialLink {
         let deadline = Instant::now() + timeout;
         let mut next_hello = Instant::now() + Duration::from_millis(300);
         loop {
-            let info = link.shared.state.lock().ok().and_then(|s| s.info.clone());
-            if let Some(info) = info {
-                if !info.accepted {
+            let handshake = link
+                .shared
+                .state
+                .lock()
+                .ok()
+                .map(|s| s.session.handshake().clone());
+            match handshake {
+                Some(Handshake::Refused(info)) => {
                     return Err(Error::VersionMismatch {
                         host: PROTOCOL_VERSION,
                         host_schema: SCHEMA_HASH,
@@ -256,8 +221,11 @@ impl SerialLink {
                         firmware_schema: info.schema_hash,
                     });
                 }
-                link.info = info;
-                break;
+                Some(Handshake::Accepted(info)) => {
+                    link.info = info;
+                    break;
+                }
+                _ => {}
             }
             if Instant::now() >= deadline {
                 return Err(Error::Link(format!(
@@ -268,10 +236,16 @@ impl SerialLink {
             }
             if Instant::now() >= next_hello {
                 next_hello += Duration::from_millis(300);
-                link.send(HostMsg::Hello {
-                    protocol_version: PROTOCOL_VERSION,
-                    schema_hash: SCHEMA_HASH,
-                });
+                let mut frame = [0u8; MAX_WIRE];
+                let n = link
+                    .shared
+                    .state
+                    .lock()
+                    .ok()
+                    .and_then(|mut s| s.session.hello(link.shared.now_us(), &mut frame).ok());
+                if let Some(n) = n {
+                    let _ = link.tx.send(frame[..n].to_vec());
+                }
             }
             thread::sleep(Duration::from_millis(5));
         }
@@ -282,7 +256,7 @@ impl SerialLink {
                 if let Some(why) = &s.lost {
                     return Some(Err(Error::Link(format!("{why} (reconnecting)"))));
                 }
-                s.telemetry.clone().map(Ok)
+                s.session.telemetry().cloned().map(Ok)
             })
             .map_err(|e| match e {
                 Error::Timeout { after, .. } => Error::Link(format!(
@@ -310,14 +284,55 @@ impl SerialLink {
         Ok(link)
     }
 
-    fn send(&mut self, msg: HostMsg) -> u16 {
-        let seq = next_seq(&self.shared);
-        let _ = self.tx.send((seq, msg));
-        seq
+    /// Encode with `encode` (a command or a request) under the session's lock and hand the
+    /// frame to the I/O thread; wait for the answer to its sequence number.
+    fn exchange(
+        &mut self,
+        what: &str,
+        encode: impl FnOnce(
+            &mut HostSession,
+            u64,
+            &mut [u8],
+        ) -> std::result::Result<(u16, usize), SessionError>,
+    ) -> Result<Answer> {
+        let mut frame = [0u8; MAX_WIRE];
+        let seq = {
+            let mut s = self
+                .shared
+                .state
+                .lock()
+                .map_err(|_| Error::Link("I/O thread panicked".into()))?;
+            if let Some(why) = &s.lost {
+                return Err(Error::Link(format!("{why} (reconnecting)")));
+            }
+            let (seq, n) = encode(&mut s.session, self.shared.now_us(), &mut frame)
+                .map_err(|e| Error::Link(format!("{what}: {e:?}")))?;
+            // Sent under the lock, so frames leave in the order of their sequence numbers.
+            let _ = self.tx.send(frame[..n].to_vec());
+            seq
+        };
+        let r = self.wait_for(REPLY_TIMEOUT, what, |s| {
+            if let Some(a) = s.session.take_answer(seq) {
+                return Some(Ok(a));
+            }
+            s.lost
+                .as_ref()
+                .map(|why| Err(Error::Link(format!("{why} (reconnecting)"))))
+        });
+        if r.is_err() {
+            if let Ok(mut s) = self.shared.state.lock() {
+                s.session.forget(seq);
+            }
+        }
+        r
     }
 
-    fn lost(&self) -> Option<String> {
-        self.shared.state.lock().ok().and_then(|s| s.lost.clone())
+    /// A typed request and its reply.
+    fn request<R: Request>(&mut self, r: &R, what: &str) -> Result<R::Reply> {
+        match self.exchange(what, |s, now, out| s.request(r, now, out))? {
+            Answer::Rejected(reason) => Err(rejection(what, reason)),
+            a => R::reply(a).ok_or_else(|| Error::Link(format!("{what}: unexpected answer"))),
+        }
     }
 
     /// Wait on the I/O thread's state until `ready` has an answer, or time out after
@@ -357,41 +372,6 @@ impl SerialLink {
                 .0;
         }
     }
-
-    fn wait_reply(
-        &mut self,
-        pred: &dyn Fn(&Frame<DeviceMsg>) -> bool,
-        timeout: Duration,
-        what: &str,
-    ) -> Result<DeviceMsg> {
-        self.wait_for(timeout, what, |s| {
-            if let Some(i) = s.replies.iter().position(pred) {
-                return Some(
-                    s.replies
-                        .remove(i)
-                        .map(|f| f.msg)
-                        .ok_or_else(|| Error::Link("reply vanished".into())),
-                );
-            }
-            s.lost
-                .as_ref()
-                .map(|why| Err(Error::Link(format!("{why} (reconnecting)"))))
-        })
-    }
-}
-
-fn placeholder_info() -> DeviceInfo {
-    DeviceInfo {
-        protocol_version: 0,
-        schema_hash: 0,
-        firmware_version: [0; 3],
-        board: Default::default(),
-        robot: Default::default(),
-        joints: Default::default(),
-        base: ferrobot_protocol::BaseKind::None,
-        loop_period_us: 0,
-        accepted: false,
-    }
 }
 
 impl Drop for SerialLink {
@@ -411,24 +391,22 @@ impl Link for SerialLink {
     }
 
     fn command(&mut self, msg: &HostMsg, what: &str) -> Result<()> {
-        if let Some(why) = self.lost() {
-            return Err(Error::Link(format!("{why} (reconnecting)")));
-        }
-        let seq = self.send(msg.clone());
-        let reply = self.wait_reply(
-            &|f| matches!(f.msg, DeviceMsg::Ack { seq: s } | DeviceMsg::Reject { seq: s, .. } if s == seq),
-            REPLY_TIMEOUT,
-            what,
-        )?;
-        match reply {
-            DeviceMsg::Reject { reason, .. } => Err(rejection(what, reason)),
-            _ => Ok(()),
+        match self.exchange(what, |s, now, out| s.command(msg, now, out))? {
+            Answer::Ack => Ok(()),
+            Answer::Rejected(reason) => Err(rejection(what, reason)),
+            _ => Err(rejection(
+                what,
+                ferrobot_protocol::RejectReason::Unsupported,
+            )),
         }
     }
 
-    fn request(&mut self, msg: &HostMsg, accept: &dyn Fn(&DeviceMsg) -> bool) -> Result<DeviceMsg> {
-        self.send(msg.clone());
-        self.wait_reply(&|f| accept(&f.msg), REPLY_TIMEOUT, "request")
+    fn joint_config(&mut self, index: u8) -> Result<JointConfig> {
+        self.request(&GetJoint(index), "joint configuration")
+    }
+
+    fn diagnostics(&mut self) -> Result<Diagnostics> {
+        self.request(&GetDiagnostics, "diagnostics")
     }
 
     fn telemetry(&mut self) -> Result<Telemetry> {
@@ -436,7 +414,7 @@ impl Link for SerialLink {
             if let Some(why) = &s.lost {
                 return Some(Err(Error::Link(format!("{why} (reconnecting)"))));
             }
-            s.telemetry.clone().map(Ok)
+            s.session.telemetry().cloned().map(Ok)
         })
     }
 
@@ -448,8 +426,8 @@ impl Link for SerialLink {
         let cap = dt.saturating_mul(100).saturating_add(TELEMETRY_SILENCE);
         let _ = self.wait_for(cap, "the firmware's clock", |s| {
             let reached = s
-                .telemetry
-                .as_ref()
+                .session
+                .telemetry()
                 .is_some_and(|t| Duration::from_micros(t.time_us) >= target);
             (reached || s.lost.is_some()).then_some(Ok(()))
         });
@@ -461,8 +439,8 @@ impl Link for SerialLink {
             .lock()
             .ok()
             .and_then(|s| {
-                s.telemetry
-                    .as_ref()
+                s.session
+                    .telemetry()
                     .map(|t| Duration::from_micros(t.time_us))
             })
             .unwrap_or_default()
@@ -472,7 +450,7 @@ impl Link for SerialLink {
         self.shared
             .state
             .lock()
-            .map(|mut s| std::mem::take(&mut s.faults))
+            .map(|mut s| std::iter::from_fn(|| s.session.take_fault()).collect())
             .unwrap_or_default()
     }
 
