@@ -6,7 +6,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::thread;
 
-use ferrobot::{Error, MoveOptions, Robot};
+use ferrobot::{Error, Motion, MoveOptions, Robot};
 
 const ARM_TARGET: [f64; 5] = [0.4, 0.3, -0.5, 0.6, -0.3];
 const PAN_TILT: [f64; 2] = [0.5, 0.3];
@@ -54,11 +54,9 @@ fn alone() -> (f64, f64, f64) {
     (base, arm, bot.time() - t0)
 }
 
-#[test]
-fn the_base_the_arm_and_the_head_move_at_once() {
-    let (base_alone, arm_alone, head_alone) = alone();
-    let bot = Robot::new("locobot").expect("robot");
-    let t0 = bot.time();
+/// Start the base 1 m forward, the arm to [`ARM_TARGET`] and the head to [`PAN_TILT`], in
+/// that order, without waiting: (base, arm, head).
+fn start_all(bot: &Robot) -> (Motion, Motion, Motion) {
     let base = bot
         .base()
         .expect("base")
@@ -74,6 +72,15 @@ fn the_base_the_arm_and_the_head_move_at_once() {
         .expect("camera")
         .set_pan_tilt_async(PAN_TILT[0], PAN_TILT[1])
         .expect("head starts");
+    (base, arm, head)
+}
+
+#[test]
+fn the_base_the_arm_and_the_head_move_at_once() {
+    let (base_alone, arm_alone, head_alone) = alone();
+    let bot = Robot::new("locobot").expect("robot");
+    let t0 = bot.time();
+    let (base, arm, head) = start_all(&bot);
     // Wait on the head first: the others go on meanwhile.
     head.wait().expect("head arrives");
     let t_head = bot.time() - t0;
@@ -123,21 +130,7 @@ fn the_base_the_arm_and_the_head_move_at_once() {
 #[test]
 fn cancelling_one_motion_leaves_the_others_running() {
     let bot = Robot::new("locobot").expect("robot");
-    let base = bot
-        .base()
-        .expect("base")
-        .go_to_relative_async([1.0, 0.0, 0.0])
-        .expect("base starts");
-    let arm = bot
-        .arm()
-        .expect("arm")
-        .move_joints(&ARM_TARGET, MoveOptions::default())
-        .expect("arm starts");
-    let head = bot
-        .camera()
-        .expect("camera")
-        .set_pan_tilt_async(PAN_TILT[0], PAN_TILT[1])
-        .expect("head starts");
+    let (base, arm, head) = start_all(&bot);
     bot.wait(0.5).expect("wait");
     let before = arm_error(&bot, &ARM_TARGET);
     let at_cancel = bot.arm().expect("arm").get_joint_angles().expect("q");

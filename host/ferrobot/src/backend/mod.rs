@@ -102,3 +102,27 @@ pub(crate) fn placeholder_info() -> DeviceInfo {
         accepted: false,
     }
 }
+
+/// A command's answer as the API's result.
+pub(crate) fn acked(what: &str, answer: ferrobot_protocol::session::Answer) -> Result<()> {
+    use ferrobot_protocol::session::Answer;
+    match answer {
+        Answer::Ack => Ok(()),
+        Answer::Rejected(reason) => Err(rejection(what, reason)),
+        _ => Err(rejection(
+            what,
+            ferrobot_protocol::RejectReason::Unsupported,
+        )),
+    }
+}
+
+/// A typed request's answer as its reply.
+pub(crate) fn replied<R: ferrobot_protocol::session::Request>(
+    what: &str,
+    answer: ferrobot_protocol::session::Answer,
+) -> Result<R::Reply> {
+    match answer {
+        ferrobot_protocol::session::Answer::Rejected(reason) => Err(rejection(what, reason)),
+        a => R::reply(a).ok_or_else(|| crate::Error::Link(format!("{what}: unexpected answer"))),
+    }
+}

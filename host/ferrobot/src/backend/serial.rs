@@ -24,7 +24,7 @@ use ferrobot_protocol::{
     SCHEMA_HASH,
 };
 
-use super::{rejection, Link};
+use super::{acked, replied, Link};
 use crate::error::{Error, Result};
 
 /// How long a command waits for its acknowledgement.
@@ -329,10 +329,8 @@ impl SerialLink {
 
     /// A typed request and its reply.
     fn request<R: Request>(&mut self, r: &R, what: &str) -> Result<R::Reply> {
-        match self.exchange(what, |s, now, out| s.request(r, now, out))? {
-            Answer::Rejected(reason) => Err(rejection(what, reason)),
-            a => R::reply(a).ok_or_else(|| Error::Link(format!("{what}: unexpected answer"))),
-        }
+        let a = self.exchange(what, |s, now, out| s.request(r, now, out))?;
+        replied::<R>(what, a)
     }
 
     /// Wait on the I/O thread's state until `ready` has an answer, or time out after
@@ -391,14 +389,8 @@ impl Link for SerialLink {
     }
 
     fn command(&mut self, msg: &HostMsg, what: &str) -> Result<()> {
-        match self.exchange(what, |s, now, out| s.command(msg, now, out))? {
-            Answer::Ack => Ok(()),
-            Answer::Rejected(reason) => Err(rejection(what, reason)),
-            _ => Err(rejection(
-                what,
-                ferrobot_protocol::RejectReason::Unsupported,
-            )),
-        }
+        let a = self.exchange(what, |s, now, out| s.command(msg, now, out))?;
+        acked(what, a)
     }
 
     fn joint_config(&mut self, index: u8) -> Result<JointConfig> {

@@ -6,10 +6,10 @@
 use std::time::{Duration, Instant};
 
 use ferrobot_protocol::session::{
-    Answer, GetDiagnostics, GetJoint, Handshake, HostSession, Request,
+    Answer, GetDiagnostics, GetJoint, Handshake, HostSession, Request, SessionError,
 };
 use ferrobot_protocol::{
-    DeviceInfo, Diagnostics, Fault, HostMsg, JointConfig, RejectReason, Telemetry, MAX_WIRE,
+    DeviceInfo, Diagnostics, Fault, HostMsg, JointConfig, Telemetry, MAX_WIRE,
 };
 use ferrobot_sim::arm::ArmJoint;
 use ferrobot_sim::chain::ServoMount;
@@ -17,7 +17,7 @@ use ferrobot_sim::lockstep::KEEPALIVE_US;
 use ferrobot_sim::robots::{BaseModel as SimBase, SimRobot};
 use ferrobot_sim::LockstepSim;
 
-use super::{rejection, Link};
+use super::{acked, replied, Link};
 use crate::config::{BaseModel, RobotConfig};
 use crate::error::{Error, Result};
 
@@ -285,18 +285,31 @@ impl SimLink {
         }
     }
 
-    /// A typed request and its reply.
-    fn request<R: Request>(&mut self, r: &R, what: &str) -> Result<R::Reply> {
+    /// Encode with `encode` (a command or a request), send it, and wait for its answer for at
+    /// most `timeout_us`.
+    fn exchange(
+        &mut self,
+        what: &str,
+        timeout_us: u64,
+        encode: impl FnOnce(
+            &mut HostSession,
+            u64,
+            &mut [u8],
+        ) -> std::result::Result<(u16, usize), SessionError>,
+    ) -> Result<Answer> {
         let mut buf = [0u8; MAX_WIRE];
-        let (seq, n) = self
-            .session
-            .request(r, self.sim.now_us(), &mut buf)
+        let (seq, n) = encode(&mut self.session, self.sim.now_us(), &mut buf)
             .map_err(|e| Error::Link(format!("{what}: {e:?}")))?;
         self.sim.write_host(&buf[..n]);
-        match self.answer(seq, REQUEST_TIMEOUT_US, what)? {
-            Answer::Rejected(reason) => Err(rejection(what, reason)),
-            a => R::reply(a).ok_or_else(|| Error::Link(format!("{what}: unexpected answer"))),
-        }
+        self.answer(seq, timeout_us, what)
+    }
+
+    /// A typed request and its reply.
+    fn request<R: Request>(&mut self, r: &R, what: &str) -> Result<R::Reply> {
+        let a = self.exchange(what, REQUEST_TIMEOUT_US, |s, now, out| {
+            s.request(r, now, out)
+        })?;
+        replied::<R>(what, a)
     }
 }
 
@@ -306,17 +319,10 @@ impl Link for SimLink {
     }
 
     fn command(&mut self, msg: &HostMsg, what: &str) -> Result<()> {
-        let mut buf = [0u8; MAX_WIRE];
-        let (seq, n) = self
-            .session
-            .command(msg, self.sim.now_us(), &mut buf)
-            .map_err(|e| Error::Link(format!("{what}: {e:?}")))?;
-        self.sim.write_host(&buf[..n]);
-        match self.answer(seq, COMMAND_TIMEOUT_US, what)? {
-            Answer::Ack => Ok(()),
-            Answer::Rejected(reason) => Err(rejection(what, reason)),
-            _ => Err(rejection(what, RejectReason::Unsupported)),
-        }
+        let a = self.exchange(what, COMMAND_TIMEOUT_US, |s, now, out| {
+            s.command(msg, now, out)
+        })?;
+        acked(what, a)
     }
 
     fn joint_config(&mut self, index: u8) -> Result<JointConfig> {
