@@ -25,8 +25,13 @@ scripts/build-boards.sh
 step "cargo fmt --check"
 cargo fmt --all -- --check
 
-step "cargo clippy --all-targets -D warnings"
+step "cargo clippy --all-targets -D warnings (workspace, fuzz targets, both boards)"
 cargo clippy --workspace --all-targets -- -D warnings
+(cd fuzz && cargo clippy --all-targets -- -D warnings)
+for board in mps2-an386 opencr; do
+    (cd "boards/$board" && env -u RUSTUP_TOOLCHAIN -u CARGO -u RUSTC -u RUSTC_WRAPPER -u CARGO_TARGET_DIR \
+        cargo clippy --release --quiet -- -D warnings)
+done
 
 step "cargo test"
 cargo test --workspace --no-fail-fast

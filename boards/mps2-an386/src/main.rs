@@ -140,7 +140,7 @@ unsafe extern "C" fn EXECUTOR() {
 fn main() -> ! {
     let mut cp = cortex_m::Peripherals::take().unwrap_or_else(|| panic!("peripherals taken twice"));
     for u in [&UART0, &UART1, &UART2, &UART3, &UART4] {
-        u.init(u as *const Uart != &UART3 as *const Uart);
+        u.init(!core::ptr::eq(u, &UART3));
     }
     if cfg!(feature = "tick-bench") {
         #[cfg(feature = "tick-bench")]
