@@ -131,7 +131,7 @@ pub fn encode_stream(s: &Sensors, out: &mut [u8]) -> Option<usize> {
     let mut w = 0;
     for &b in head.iter().chain(&body).chain(&[0u8.wrapping_sub(sum)]) {
         *out.get_mut(w)? = b;
-        w += 1;
+        w = w.saturating_add(1);
     }
     Some(w)
 }
@@ -195,7 +195,7 @@ impl StreamParser {
                 if let Some(s) = self.buf.get_mut(self.n) {
                     *s = b;
                 }
-                self.n += 1;
+                self.n = self.n.saturating_add(1);
                 if self.n >= self.len {
                     self.st = 3;
                 }
@@ -211,13 +211,13 @@ impl StreamParser {
                     })
                     .wrapping_add(b);
                 if sum != 0 {
-                    self.bad += 1;
+                    self.bad = self.bad.saturating_add(1);
                     return Some(Err(StreamError::Checksum));
                 }
                 let r = parse_body(body);
                 match r {
-                    Ok(_) => self.ok += 1,
-                    Err(_) => self.bad += 1,
+                    Ok(_) => self.ok = self.ok.saturating_add(1),
+                    Err(_) => self.bad = self.bad.saturating_add(1),
                 }
                 Some(r)
             }
@@ -233,7 +233,7 @@ fn parse_body(mut body: &[u8]) -> Result<Sensors, StreamError> {
         match (id, d) {
             (packet::BUMPS_WHEEL_DROPS, [v]) => s.bumps_drops = *v,
             (9..=12, [v]) => {
-                if let Some(c) = s.cliffs.get_mut((id - 9) as usize) {
+                if let Some(c) = s.cliffs.get_mut(id.wrapping_sub(9) as usize) {
                     *c = *v;
                 }
             }

@@ -383,7 +383,7 @@ impl<'a> PacketWriter<'a> {
         match self.buf.get_mut(self.w) {
             Some(slot) => {
                 *slot = b;
-                self.w += 1;
+                self.w = self.w.saturating_add(1);
             }
             None => self.overflow = true,
         }
@@ -413,7 +413,7 @@ impl<'a> PacketWriter<'a> {
 
     /// Write length and CRC; returns the packet length in bytes.
     pub fn finish(mut self) -> Result<usize, DxlError> {
-        let len = self.w - 7 + 2;
+        let len = self.w.saturating_sub(7).saturating_add(2);
         let len = u16::try_from(len).map_err(|_| DxlError::TooLong)?;
         if let Some(l) = self.buf.get_mut(5..7) {
             l.copy_from_slice(&len.to_le_bytes());
@@ -623,7 +623,7 @@ impl<const N: usize> PacketDecoder<N> {
             0 | 1 => {
                 if b == 0xFF {
                     self.set(self.len, b);
-                    self.len += 1;
+                    self.len = self.len.saturating_add(1);
                 } else {
                     self.len = 0;
                 }
@@ -653,11 +653,11 @@ impl<const N: usize> PacketDecoder<N> {
         }
         if self.len >= N {
             self.len = 0;
-            self.stats.length += 1;
+            self.stats.length = self.stats.length.saturating_add(1);
             return Step::Bad(DxlError::TooLong);
         }
         self.set(self.len, b);
-        self.len += 1;
+        self.len = self.len.saturating_add(1);
         if self.len == 7 {
             let declared = u16::from_le_bytes([
                 self.buf.get(5).copied().unwrap_or(0),
@@ -665,13 +665,13 @@ impl<const N: usize> PacketDecoder<N> {
             ]) as usize;
             if declared < 3 {
                 self.restart_with(b);
-                self.stats.length += 1;
+                self.stats.length = self.stats.length.saturating_add(1);
                 return Step::Bad(DxlError::BadLength);
             }
-            self.total = 7 + declared;
+            self.total = declared.saturating_add(7);
             if self.total > N {
                 self.len = 0;
-                self.stats.length += 1;
+                self.stats.length = self.stats.length.saturating_add(1);
                 return Step::Bad(DxlError::TooLong);
             }
         }
@@ -686,7 +686,7 @@ impl<const N: usize> PacketDecoder<N> {
     fn finish(&mut self) -> Result<Packet<'_>, DxlError> {
         let total = self.total;
         self.len = 0;
-        let body_end = total - 2;
+        let body_end = total.saturating_sub(2);
         let crc_ok = match (self.buf.get(..body_end), self.buf.get(body_end..total)) {
             (Some(body), Some(c)) => {
                 crc16(body)
@@ -698,7 +698,7 @@ impl<const N: usize> PacketDecoder<N> {
             _ => false,
         };
         if !crc_ok {
-            self.stats.crc += 1;
+            self.stats.crc = self.stats.crc.saturating_add(1);
             return Err(DxlError::Crc);
         }
         // Destuff the body (instruction and parameters) in place; most bodies hold no 0xFD.
@@ -709,17 +709,17 @@ impl<const N: usize> PacketDecoder<N> {
             let mut tail = [0u8; 3];
             while r < body_end {
                 let c = self.buf.get(r).copied().unwrap_or(0);
-                r += 1;
+                r = r.saturating_add(1);
                 if tail == [0xFF, 0xFF, 0xFD] && c == 0xFD {
                     tail = [0; 3];
                     continue;
                 }
                 self.set(w, c);
-                w += 1;
+                w = w.saturating_add(1);
                 tail = [tail[1], tail[2], c];
             }
         }
-        self.stats.ok += 1;
+        self.stats.ok = self.stats.ok.saturating_add(1);
         let id = self.buf.get(4).copied().unwrap_or(0);
         let instruction = self.buf.get(7).copied().unwrap_or(0);
         let params = self.buf.get(8..w).unwrap_or(&[]);
@@ -747,22 +747,25 @@ impl<const N: usize> PacketDecoder<N> {
         let mut i = 0;
         while i < bytes.len() {
             if self.len >= 7 && self.total > self.len {
-                let want = (self.total - self.len).min(bytes.len() - i);
+                let want = self
+                    .total
+                    .saturating_sub(self.len)
+                    .min(bytes.len().saturating_sub(i));
                 if let (Some(dst), Some(src)) = (
-                    self.buf.get_mut(self.len..self.len + want),
-                    bytes.get(i..i + want),
+                    self.buf.get_mut(self.len..self.len.saturating_add(want)),
+                    bytes.get(i..i.saturating_add(want)),
                 ) {
                     dst.copy_from_slice(src);
                 }
-                self.len += want;
-                i += want;
+                self.len = self.len.saturating_add(want);
+                i = i.saturating_add(want);
                 if self.len == self.total {
                     return (i, Some(self.finish()));
                 }
                 continue;
             }
             let b = bytes.get(i).copied().unwrap_or(0);
-            i += 1;
+            i = i.saturating_add(1);
             match self.step(b) {
                 Step::More => {}
                 Step::Bad(e) => return (i, Some(Err(e))),
@@ -775,7 +778,7 @@ impl<const N: usize> PacketDecoder<N> {
 
 /// Little-endian `u16` at `at`, or 0 when out of range.
 pub fn le_u16(bytes: &[u8], at: usize) -> u16 {
-    match bytes.get(at..at + 2) {
+    match bytes.get(at..at.saturating_add(2)) {
         Some(&[a, b]) => u16::from_le_bytes([a, b]),
         _ => 0,
     }
@@ -783,7 +786,7 @@ pub fn le_u16(bytes: &[u8], at: usize) -> u16 {
 
 /// Little-endian `u32` at `at`, or 0 when out of range.
 pub fn le_u32(bytes: &[u8], at: usize) -> u32 {
-    match bytes.get(at..at + 4) {
+    match bytes.get(at..at.saturating_add(4)) {
         Some(&[a, b, c, d]) => u32::from_le_bytes([a, b, c, d]),
         _ => 0,
     }

@@ -55,13 +55,15 @@ pub fn encode_frame<M: Serialize>(seq: u16, msg: &M, out: &mut [u8]) -> Result<u
             .len()
     };
     let crc = CRC32C.checksum(raw.get(..body_len).ok_or(FrameError::TooLong)?);
-    raw.get_mut(body_len..body_len + 4)
+    raw.get_mut(body_len..body_len.saturating_add(4))
         .ok_or(FrameError::TooLong)?
         .copy_from_slice(&crc.to_le_bytes());
-    let raw = raw.get(..body_len + 4).ok_or(FrameError::TooLong)?;
+    let raw = raw
+        .get(..body_len.saturating_add(4))
+        .ok_or(FrameError::TooLong)?;
     let n = cobs_encode(raw, out)?;
     *out.get_mut(n).ok_or(FrameError::BufferTooSmall)? = 0;
-    Ok(n + 1)
+    Ok(n.saturating_add(1))
 }
 
 /// COBS-encode `input` into `out` (no delimiter); returns the encoded length.
@@ -73,16 +75,16 @@ fn cobs_encode(input: &[u8], out: &mut [u8]) -> Result<usize, FrameError> {
         if b == 0 {
             *out.get_mut(code_at).ok_or(FrameError::BufferTooSmall)? = code;
             code_at = w;
-            w += 1;
+            w = w.saturating_add(1);
             code = 1;
         } else {
             *out.get_mut(w).ok_or(FrameError::BufferTooSmall)? = b;
-            w += 1;
-            code += 1;
+            w = w.saturating_add(1);
+            code = code.saturating_add(1);
             if code == 0xFF {
                 *out.get_mut(code_at).ok_or(FrameError::BufferTooSmall)? = code;
                 code_at = w;
-                w += 1;
+                w = w.saturating_add(1);
                 code = 1;
             }
         }
@@ -101,10 +103,10 @@ fn cobs_decoded_len(src: &[u8]) -> Option<usize> {
         if code == 0 {
             return None;
         }
-        r += code;
-        n += code - 1;
+        r = r.saturating_add(code);
+        n = n.saturating_add(code.saturating_sub(1));
         if code != 0xFF && r < src.len() {
-            n += 1;
+            n = n.saturating_add(1);
         }
     }
     (r == src.len()).then_some(n)
@@ -120,17 +122,17 @@ fn cobs_decode(src: &[u8], dst: &mut [u8]) -> Result<usize, FrameError> {
         if code == 0 {
             return Err(FrameError::Cobs);
         }
-        r += 1;
-        let end = r + code - 1;
+        r = r.saturating_add(1);
+        let end = r.saturating_add(code).saturating_sub(1);
         let run = src.get(r..end).ok_or(FrameError::Cobs)?;
-        dst.get_mut(w..w + run.len())
+        dst.get_mut(w..w.saturating_add(run.len()))
             .ok_or(FrameError::Cobs)?
             .copy_from_slice(run);
-        w += run.len();
+        w = w.saturating_add(run.len());
         r = end;
         if code != 0xFF && r < len {
             *dst.get_mut(w).ok_or(FrameError::Cobs)? = 0;
-            w += 1;
+            w = w.saturating_add(1);
         }
     }
     Ok(w)
@@ -154,7 +156,10 @@ pub struct FrameStats {
 impl FrameStats {
     /// All dropped frames.
     pub fn dropped(&self) -> u32 {
-        self.too_long + self.cobs + self.crc + self.body
+        self.too_long
+            .saturating_add(self.cobs)
+            .saturating_add(self.crc)
+            .saturating_add(self.body)
     }
 }
 
@@ -209,13 +214,13 @@ impl FrameDecoder {
         if byte != 0 {
             if self.len == self.buf.len() {
                 // Keep the newest MAX_WIRE bytes: a good frame behind long garbage survives.
-                self.buf.copy_within(self.len - MAX_WIRE.., 0);
+                self.buf.copy_within(self.len.saturating_sub(MAX_WIRE).., 0);
                 self.len = MAX_WIRE;
                 self.overflow = true;
             }
             if let Some(slot) = self.buf.get_mut(self.len) {
                 *slot = byte;
-                self.len += 1;
+                self.len = self.len.saturating_add(1);
             }
             return None;
         }
@@ -230,11 +235,11 @@ impl FrameDecoder {
             self.decode(0, len)
         };
         match result {
-            Ok(_) => self.stats.ok += 1,
-            Err(FrameError::Crc) => self.stats.crc += 1,
-            Err(FrameError::Body) => self.stats.body += 1,
-            Err(FrameError::TooLong) => self.stats.too_long += 1,
-            Err(_) => self.stats.cobs += 1,
+            Ok(_) => self.stats.ok = self.stats.ok.saturating_add(1),
+            Err(FrameError::Crc) => self.stats.crc = self.stats.crc.saturating_add(1),
+            Err(FrameError::Body) => self.stats.body = self.stats.body.saturating_add(1),
+            Err(FrameError::TooLong) => self.stats.too_long = self.stats.too_long.saturating_add(1),
+            Err(_) => self.stats.cobs = self.stats.cobs.saturating_add(1),
         }
         if result.is_err() {
             // Garbage glued to the front of a good frame: recover the frame.
@@ -249,7 +254,7 @@ impl FrameDecoder {
                     continue;
                 }
                 if let Ok(frame) = self.decode(start, len) {
-                    self.stats.ok += 1;
+                    self.stats.ok = self.stats.ok.saturating_add(1);
                     return Some(Ok(frame));
                 }
             }
@@ -280,7 +285,7 @@ impl FrameDecoder {
         if n < 5 {
             return Err(FrameError::TooShort);
         }
-        let body_len = n - 4;
+        let body_len = n.saturating_sub(4);
         let body = self.scratch.get(..body_len).ok_or(FrameError::TooShort)?;
         let crc_bytes = self.scratch.get(body_len..n).ok_or(FrameError::TooShort)?;
         let mut crc = [0u8; 4];

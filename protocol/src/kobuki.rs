@@ -137,7 +137,7 @@ pub fn encode_packet(payload: &[u8], out: &mut [u8]) -> Option<usize> {
     let mut w = 0;
     for &b in [HEADER0, HEADER1, len].iter().chain(payload).chain(&[cs]) {
         *out.get_mut(w)? = b;
-        w += 1;
+        w = w.saturating_add(1);
     }
     Some(w)
 }
@@ -260,7 +260,7 @@ impl Parser {
                 if let Some(s) = self.buf.get_mut(self.n) {
                     *s = b;
                 }
-                self.n += 1;
+                self.n = self.n.saturating_add(1);
                 if self.n >= self.len {
                     self.st = St::Cs;
                 }
@@ -270,10 +270,10 @@ impl Parser {
                 let payload = self.buf.get(..self.len).unwrap_or(&[]);
                 let cs = payload.iter().fold(self.len as u8, |a, x| a ^ x);
                 if cs != b {
-                    self.bad += 1;
+                    self.bad = self.bad.saturating_add(1);
                     return Some(Err(KobukiError::Checksum));
                 }
-                self.ok += 1;
+                self.ok = self.ok.saturating_add(1);
                 return Some(Ok(payload));
             }
         }
