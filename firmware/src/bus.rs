@@ -360,13 +360,15 @@ impl ServoBus {
     }
 
     fn reply_deadline(&self, now: u64, sent: usize, reply_bytes: usize) -> u64 {
-        now + self.cfg.bytes_us(sent + reply_bytes) + self.cfg.reply_margin_us as u64
+        now.saturating_add(self.cfg.bytes_us(sent.saturating_add(reply_bytes)))
+            .saturating_add(u64::from(self.cfg.reply_margin_us))
     }
 
     /// Deadline of a configuration transaction: the servo may still answer after its factory
     /// return delay.
     fn op_deadline(&self, now: u64, sent: usize, reply_bytes: usize) -> u64 {
-        self.reply_deadline(now, sent, reply_bytes) + UNCONFIGURED_RETURN_DELAY_US
+        self.reply_deadline(now, sent, reply_bytes)
+            .saturating_add(UNCONFIGURED_RETURN_DELAY_US)
     }
 
     /// Start a bus cycle at `now`: one configuration transaction if any is pending, then the
@@ -374,7 +376,7 @@ impl ServoBus {
     pub fn begin_tick(&mut self, now: u64, joints: &[JointConfig]) {
         // A packet still half-received belongs to the last cycle: it is broken.
         if self.decoder.in_packet() {
-            self.stats.bad_packets += 1;
+            self.stats.bad_packets = self.stats.bad_packets.saturating_add(1);
         }
         self.decoder.reset();
         for s in self.servos.iter_mut() {
@@ -564,7 +566,7 @@ impl ServoBus {
                 s.retries = 0;
                 let was_configuring = s.status == ServoStatus::Configuring;
                 s.status = ServoStatus::Lost;
-                s.next_probe = now + PROBE_PERIOD_US;
+                s.next_probe = now.saturating_add(PROBE_PERIOD_US);
                 lost = Some(was_configuring);
             }
         }
@@ -590,9 +592,11 @@ impl ServoBus {
             return;
         }
         let n = self.send(|b| dxl::sync_read(b, addr::PRESENT_CURRENT, SYNC_READ_LEN, &ids));
-        let per_status = dxl::PACKET_OVERHEAD + 2 + SYNC_READ_LEN as usize;
+        // Compile-time constants: evaluated (and overflow-checked) by the compiler.
+        const PER_STATUS: usize = dxl::PACKET_OVERHEAD + 2 + SYNC_READ_LEN as usize;
+        let per_status = PER_STATUS;
         self.phase = Phase::AwaitSync {
-            deadline: self.reply_deadline(now, n, per_status * ids.len()),
+            deadline: self.reply_deadline(now, n, per_status.saturating_mul(ids.len())),
         };
     }
 
@@ -614,13 +618,13 @@ impl ServoBus {
                 // An instruction echo (half-duplex) or another master: not for us.
                 Some(Ok(_)) => None,
                 Some(Err(_)) => {
-                    self.stats.bad_packets += 1;
+                    self.stats.bad_packets = self.stats.bad_packets.saturating_add(1);
                     None
                 }
                 None => None,
             };
             if let Some((id, err, (data, len))) = pkt {
-                self.stats.packets += 1;
+                self.stats.packets = self.stats.packets.saturating_add(1);
                 self.on_status(now, id, err, &data, len);
             }
         }
@@ -628,7 +632,7 @@ impl ServoBus {
 
     fn on_status(&mut self, now: u64, id: u8, err: u8, data: &[u8; 10], len: usize) {
         if err & status_error::ALERT != 0 {
-            self.stats.alerts += 1;
+            self.stats.alerts = self.stats.alerts.saturating_add(1);
         }
         match self.phase {
             Phase::AwaitOp {
@@ -715,14 +719,14 @@ impl ServoBus {
                 deadline,
                 ..
             } if now >= deadline => {
-                self.stats.timeouts += 1;
+                self.stats.timeouts = self.stats.timeouts.saturating_add(1);
                 let lost = self
                     .servos
                     .get(servo)
                     .is_some_and(|s| s.status == ServoStatus::Lost);
                 if lost && o == op::PING {
                     if let Some(s) = self.servos.get_mut(servo) {
-                        s.next_probe = now + PROBE_PERIOD_US;
+                        s.next_probe = now.saturating_add(PROBE_PERIOD_US);
                     }
                 } else {
                     self.op_failed(now, servo);
@@ -731,8 +735,9 @@ impl ServoBus {
                 self.after_ops(now);
             }
             Phase::AwaitSync { deadline } if now >= deadline => {
-                let missing = self.read_list.len() as u32 - self.received.count_ones();
-                self.stats.timeouts += missing;
+                let missing =
+                    (self.read_list.len() as u32).saturating_sub(self.received.count_ones());
+                self.stats.timeouts = self.stats.timeouts.saturating_add(missing);
                 // Only the first missing servo is to blame: the ones after it wait for its
                 // status before answering.
                 let first = (0..self.read_list.len()).find(|k| self.received & (1 << k) == 0);
@@ -744,7 +749,7 @@ impl ServoBus {
                         if s.misses >= MISSES_TO_LOSE {
                             s.status = ServoStatus::Lost;
                             s.misses = 0;
-                            s.next_probe = now + PROBE_PERIOD_US;
+                            s.next_probe = now.saturating_add(PROBE_PERIOD_US);
                             lost = true;
                         }
                     }

@@ -125,7 +125,9 @@ impl BusConfig {
 
     /// Time `n` bytes take on the bus, µs (rounded up).
     pub fn bytes_us(&self, n: usize) -> u64 {
-        (n as u64 * self.byte_ns as u64).div_ceil(1000)
+        (n as u64)
+            .saturating_mul(u64::from(self.byte_ns))
+            .div_ceil(1000)
     }
 }
 

@@ -69,7 +69,7 @@ impl Gripper {
         let load = (present.current as i32).abs();
         match self.state {
             GripperState::Opening => {
-                if (pos - c.open_tick).abs() <= c.open_tolerance {
+                if pos.saturating_sub(c.open_tick).saturating_abs() <= c.open_tolerance {
                     self.state = GripperState::Open;
                 }
                 GripperDrive::Position(c.open_tick)
@@ -85,7 +85,7 @@ impl Gripper {
                 if loaded {
                     if !self.kicked {
                         self.kicked = true;
-                        self.kick_until = now + c.kick_us;
+                        self.kick_until = now.saturating_add(c.kick_us);
                     }
                     let since = *self.load_since.get_or_insert(now);
                     if now >= self.kick_until && now.saturating_sub(since) >= c.persist_us {

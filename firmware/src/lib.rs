@@ -25,7 +25,8 @@
         clippy::unwrap_used,
         clippy::expect_used,
         clippy::panic,
-        clippy::indexing_slicing
+        clippy::indexing_slicing,
+        clippy::arithmetic_side_effects
     )
 )]
 #![warn(missing_docs)]
@@ -261,8 +262,10 @@ impl Firmware {
     /// The watchdog, once armed by an accepted Hello, runs in every session state: a refused
     /// or silent host is a reason to stop, never a way around it.
     fn watchdog_deadline(&self) -> Option<u64> {
-        (self.watchdog_ms > 0 && !self.watchdog_tripped)
-            .then(|| self.last_host_rx + self.watchdog_ms as u64 * 1000)
+        (self.watchdog_ms > 0 && !self.watchdog_tripped).then(|| {
+            self.last_host_rx
+                .saturating_add(u64::from(self.watchdog_ms) * 1000)
+        })
     }
 
     /// Bytes from the host.
@@ -309,13 +312,17 @@ impl Firmware {
         }
         if self.bus.is_idle() && now >= self.next_tick {
             let period = self.loop_period_us as u64;
-            let late = now - self.next_tick;
+            let late = now.saturating_sub(self.next_tick);
+            // The period is at least 1 µs (`SetLoopPeriod` refuses less); 0 would tick now.
+            let periods_late = late.checked_div(period).unwrap_or(0);
             if late >= period {
-                let skipped = (late / period) as u32;
+                let skipped = periods_late as u32;
                 self.loop_stats.overruns = self.loop_stats.overruns.saturating_add(skipped);
                 self.overrun_since_telemetry = true;
             }
-            self.next_tick += period * (1 + late / period);
+            self.next_tick = self
+                .next_tick
+                .saturating_add(period.saturating_mul(periods_late.saturating_add(1)));
             self.tick_started = now;
             self.bus.begin_tick(now, &self.profile.joints);
             self.drain_bus_events(now);
@@ -325,14 +332,16 @@ impl Firmware {
         }
         if now >= self.next_telemetry {
             self.send_telemetry(now);
-            let p = self.telemetry_ms as u64 * 1000;
+            let p = u64::from(self.telemetry_ms) * 1000;
             self.next_telemetry = if p == 0 {
                 u64::MAX
             } else {
-                self.next_telemetry.max(now - p.min(now)) + p
+                self.next_telemetry
+                    .max(now.saturating_sub(p))
+                    .saturating_add(p)
             };
             if self.next_telemetry <= now {
-                self.next_telemetry = now + p;
+                self.next_telemetry = now.saturating_add(p);
             }
         }
     }
@@ -654,7 +663,7 @@ impl Firmware {
             JointOutput::Velocity(v) => {
                 let raw = sign * v / units::RAD_S_PER_VELOCITY_UNIT;
                 let raw = if raw >= 0.0 { raw + 0.5 } else { raw - 0.5 } as i32;
-                (Goal::Velocity(raw), Goal::Velocity(-raw))
+                (Goal::Velocity(raw), Goal::Velocity(raw.saturating_neg()))
             }
             JointOutput::Effort(tau, qd) | JointOutput::PwmEffort(tau, qd) => {
                 // Twins share the effort.
@@ -899,7 +908,7 @@ impl Firmware {
         self.next_telemetry = if ms == 0 {
             u64::MAX
         } else {
-            now + ms as u64 * 1000
+            now.saturating_add(u64::from(ms) * 1000)
         };
     }
 

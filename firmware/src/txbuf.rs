@@ -29,6 +29,6 @@ impl<const N: usize> TxBuf<N> {
     pub fn consume(&mut self, n: usize) {
         let n = n.min(self.bytes.len());
         self.bytes.copy_within(n.., 0);
-        self.bytes.truncate(self.bytes.len() - n);
+        self.bytes.truncate(self.bytes.len().saturating_sub(n));
     }
 }

@@ -160,7 +160,7 @@ impl BaseDriver {
             return Err(RejectReason::BaseSafety);
         }
         self.cmd = self.limit(v, w);
-        self.cmd_until = now + duration_ms as u64 * 1000;
+        self.cmd_until = now.saturating_add(u64::from(duration_ms) * 1000);
         self.next_send = now.max(self.line_free_at); // as soon as the line is free
         Ok(())
     }
@@ -212,7 +212,7 @@ impl BaseDriver {
         }
         if let Some(t) = self.last_rx {
             if !self.lost {
-                d = d.min(t + self.cfg.feedback_timeout_us);
+                d = d.min(t.saturating_add(self.cfg.feedback_timeout_us));
             }
         }
         if let Proto::Create2 { next_start, .. } = self.proto {
@@ -234,14 +234,14 @@ impl BaseDriver {
             self.next_send = now;
         }
         if let Some(t) = self.last_rx {
-            if !self.lost && now >= t + self.cfg.feedback_timeout_us {
+            if !self.lost && now >= t.saturating_add(self.cfg.feedback_timeout_us) {
                 self.lost = true;
                 let _ = self.events.push_back(BaseEvent::Lost);
             }
         }
         if let Proto::Create2 { next_start, .. } = &mut self.proto {
             if (self.last_rx.is_none() || self.lost) && now >= *next_start {
-                *next_start = now + 500_000;
+                *next_start = now.saturating_add(500_000);
                 let mut start: Vec<u8, 16> = Vec::new();
                 let _ = start.extend_from_slice(&[
                     create2::OP_START,
@@ -262,9 +262,13 @@ impl BaseDriver {
                         Proto::Create2 { .. } => create2::BAUD,
                         _ => kobuki::BAUD,
                     };
-                    let line_us = n as u64 * 10_000_000 / baud as u64 + 1;
-                    self.line_free_at = now.max(self.line_free_at) + line_us;
-                    now + self.period_us()
+                    let line_us = (n as u64)
+                        .saturating_mul(10_000_000)
+                        .checked_div(u64::from(baud))
+                        .unwrap_or(0)
+                        .saturating_add(1);
+                    self.line_free_at = now.max(self.line_free_at).saturating_add(line_us);
+                    now.saturating_add(self.period_us())
                 }
                 None => now,
             };
@@ -326,7 +330,7 @@ impl BaseDriver {
                         out.map(|(l, r, f)| (l, r, f, gyro))
                     }
                     Some(Err(_)) => {
-                        self.stats.bad_packets += 1;
+                        self.stats.bad_packets = self.stats.bad_packets.saturating_add(1);
                         None
                     }
                     None => None,
@@ -339,7 +343,7 @@ impl BaseDriver {
                         None,
                     )),
                     Some(Err(_)) => {
-                        self.stats.bad_packets += 1;
+                        self.stats.bad_packets = self.stats.bad_packets.saturating_add(1);
                         None
                     }
                     None => None,
@@ -356,7 +360,7 @@ impl BaseDriver {
     /// base has one. With a gyro, the heading change comes from it (gyro-aided odometry):
     /// wheel-radius and track errors and wheel slip then no longer turn the estimate.
     fn on_feedback(&mut self, now: u64, left: i32, right: i32, flags: u16, gyro: Option<f32>) {
-        self.stats.packets += 1;
+        self.stats.packets = self.stats.packets.saturating_add(1);
         let dt = self
             .last_rx
             .map(|t| now.saturating_sub(t) as f32 * 1e-6)
