@@ -38,8 +38,8 @@ impl Link<f32> {
     }
 }
 
-/// Standard gravity, m/s².
-pub const G: f64 = 9.80665;
+/// Gravity, m/s² (the value the simulated arm uses too).
+pub const G: f32 = 9.81;
 
 type V3<R> = [R; 3];
 type M3<R> = [[R; 3]; 3];
@@ -60,7 +60,11 @@ fn apply<R: Real>(m: &M3<R>, v: V3<R>) -> V3<R> {
 fn mul<R: Real>(a: &M3<R>, b: &M3<R>) -> M3<R> {
     let col = |j: usize| apply(a, [b[0][j], b[1][j], b[2][j]]);
     let (c0, c1, c2) = (col(0), col(1), col(2));
-    [[c0[0], c1[0], c2[0]], [c0[1], c1[1], c2[1]], [c0[2], c1[2], c2[2]]]
+    [
+        [c0[0], c1[0], c2[0]],
+        [c0[1], c1[1], c2[1]],
+        [c0[2], c1[2], c2[2]],
+    ]
 }
 
 /// Rotation by `q` about the unit `axis` (Rodrigues).
@@ -153,7 +157,10 @@ mod tests {
             // +y takes x along the link to x·cos q.
             let t2 = 9.81 * 0.5 * 0.1 * (q1 + q2).cos();
             let t1 = 9.81 * (1.0 * 0.2 * q1.cos() + 0.5 * (0.4 * q1.cos() + 0.1 * (q1 + q2).cos()));
-            assert!((t[0] - t1).abs() < 1e-12 && (t[1] - t2).abs() < 1e-12, "{t:?}");
+            assert!(
+                (t[0] - t1).abs() < 1e-12 && (t[1] - t2).abs() < 1e-12,
+                "{t:?}"
+            );
         }
         // In f32 too, and short slices are not a panic.
         let l32 = [Link {
