@@ -193,6 +193,9 @@ pub const SAG_MAX: f32 = 0.2;
 pub const STALL_TIME_US: u64 = 300_000;
 /// See [`STALL_TIME_US`], rad/s.
 pub const STALL_SPEED: f32 = 0.05;
+/// See [`STALL_TIME_US`]: held back means the command leads the joint by at least this share
+/// of its lead ([`position_lead`]).
+pub const STALL_LEAD_SHARE: f32 = 0.75;
 /// Current and PWM modes: the effort ramps from what the joint held at the mode change to its
 /// full strength in at least this long, s (a step of torque would outrun the guard's braking).
 pub const EFFORT_RAMP_TIME: f32 = 0.1;
@@ -692,8 +695,18 @@ impl JointControl {
                 let outside = q < lim.min || q > lim.max;
                 // Held back and standing still for a while: stalled against a load the model
                 // does not know.
-                let still = held && qd.is_finite() && qd.abs() < STALL_SPEED;
-                self.held_since = if still {
+                // Held back: its command near the lead's end, ahead of it (one encoder tick
+                // of give lets the command step on once, that is not catching up). Once
+                // stalled it stays so while it is held back (pushing harder against an
+                // obstacle's give moves it a little); a joint that catches up with its command
+                // is free again.
+                let lead = position_lead(cfg);
+                let held_back = lead > 0.0 && (self.cmd - q).abs() >= STALL_LEAD_SHARE * lead;
+                let still = qd.is_finite() && qd.abs() < STALL_SPEED;
+                let stalled_before = self
+                    .held_since
+                    .is_some_and(|t| now.saturating_sub(t) >= STALL_TIME_US);
+                self.held_since = if held_back && (still || stalled_before) {
                     Some(self.held_since.unwrap_or(now))
                 } else {
                     None
