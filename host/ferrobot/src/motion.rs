@@ -17,6 +17,11 @@ pub const STALL_GRACE: Duration = Duration::from_millis(300);
 pub const STALL_TIME: Duration = Duration::from_millis(500);
 /// Improvement of the largest joint error that counts as progress, rad.
 pub const STALL_PROGRESS: f64 = 0.001;
+/// A joint motion has arrived once every joint is within its tolerance and at rest: measured
+/// slower than this, rad/s (above the velocity reading's quantum, 0.024 rad/s, and its noise).
+/// A joint within tolerance may still be moving (the servo's last creep against its gear
+/// friction): returning then would leave the arm moving on.
+pub const ARRIVAL_SPEED: f64 = 0.05;
 
 pub(crate) enum Goal {
     /// Joints (firmware indices) to reach targets within a tolerance.
@@ -200,14 +205,16 @@ impl<'r> Motion<'r> {
                 stall_since,
             } => {
                 let mut worst = (0usize, 0.0f64);
+                let mut at_rest = true;
                 for (&j, &q) in idx.iter().zip(target.iter()) {
                     let s = t.joints.get(j).copied().unwrap_or_default();
                     let e = (s.position as f64 - q).abs();
                     if e > worst.1 {
                         worst = (j, e);
                     }
+                    at_rest &= (s.velocity as f64).abs() < ARRIVAL_SPEED;
                 }
-                if worst.1 <= *tolerance && t.queued == 0 {
+                if worst.1 <= *tolerance && at_rest && t.queued == 0 {
                     return Some(Ok(()));
                 }
                 // Stalled: past the start of the motion, the largest joint error has not
