@@ -722,7 +722,7 @@ impl JointControl {
                 };
                 if (settled || (outside && !self.stopped)) && self.measured && cfg.position_ki > 0.0
                 {
-                    self.sag = self.sag + cfg.position_ki * (self.cmd - q) * dt;
+                    self.sag += cfg.position_ki * (self.cmd - q) * dt;
                 }
                 self.sag = self.sag.clamp(-bound, bound);
                 // The goal stays within the limits, or between them and a joint outside them:

@@ -58,8 +58,12 @@ fn apply<R: Real>(m: &M3<R>, v: V3<R>) -> V3<R> {
 }
 
 fn mul<R: Real>(a: &M3<R>, b: &M3<R>) -> M3<R> {
-    let col = |j: usize| apply(a, [b[0][j], b[1][j], b[2][j]]);
-    let (c0, c1, c2) = (col(0), col(1), col(2));
+    let [[b00, b01, b02], [b10, b11, b12], [b20, b21, b22]] = *b;
+    let (c0, c1, c2) = (
+        apply(a, [b00, b10, b20]),
+        apply(a, [b01, b11, b21]),
+        apply(a, [b02, b12, b22]),
+    );
     [
         [c0[0], c1[0], c2[0]],
         [c0[1], c1[1], c2[1]],
