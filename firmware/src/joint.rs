@@ -309,6 +309,8 @@ pub struct JointControl {
     feed_forward: f32,
     /// Position mode: since when (µs) the joint has been held back and standing still.
     held_since: Option<u64>,
+    /// Position mode: where the joint was last held back, rad.
+    stall_q: f32,
     /// Current and PWM modes: the effort of the last tick (the ramp starts from it), N·m;
     /// `None` right after a mode change.
     effort: Option<f32>,
@@ -351,6 +353,7 @@ impl JointControl {
             gravity: None,
             feed_forward: 0.0,
             held_since: None,
+            stall_q: 0.0,
             effort: None,
             stopped: false,
             anchor: None,
@@ -698,16 +701,25 @@ impl JointControl {
                 // Held back: its command near the lead's end, ahead of it (one encoder tick
                 // of give lets the command step on once, that is not catching up). Once
                 // stalled it stays so while it is held back (pushing harder against an
-                // obstacle's give moves it a little); a joint that catches up with its command
-                // is free again.
+                // obstacle's give moves it a little) and, once the command stops pushing (the
+                // host gave up on the motion and holds it where it is: the obstacle is still
+                // there), until it has moved that share of its lead from where it was last
+                // held back (the obstacle gave way); speed readings alone would let the noise
+                // of a joint pressed against an obstacle free it.
                 let lead = position_lead(cfg);
                 let held_back = lead > 0.0 && (self.cmd - q).abs() >= STALL_LEAD_SHARE * lead;
                 let still = qd.is_finite() && qd.abs() < STALL_SPEED;
                 let stalled_before = self
                     .held_since
                     .is_some_and(|t| now.saturating_sub(t) >= STALL_TIME_US);
+                let moved = !((q - self.stall_q).abs() <= STALL_LEAD_SHARE * lead);
+                if held_back {
+                    self.stall_q = q;
+                }
                 self.held_since = if held_back && (still || stalled_before) {
                     Some(self.held_since.unwrap_or(now))
+                } else if stalled_before && !moved {
+                    self.held_since
                 } else {
                     None
                 };
