@@ -712,7 +712,7 @@ impl JointControl {
                 let stalled_before = self
                     .held_since
                     .is_some_and(|t| now.saturating_sub(t) >= STALL_TIME_US);
-                let moved = !((q - self.stall_q).abs() <= STALL_LEAD_SHARE * lead);
+                let moved = !q.is_finite() || (q - self.stall_q).abs() > STALL_LEAD_SHARE * lead;
                 if held_back {
                     self.stall_q = q;
                 }
