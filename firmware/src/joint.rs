@@ -178,6 +178,43 @@ pub fn position_goal_window(
     (lo, hi)
 }
 
+/// Position mode with a gravity model: the load correction may add at most this share of the
+/// model's goal offset to it ...
+pub const SAG_MODEL_SHARE: f32 = 0.3;
+/// ... plus this, rad: it mends the model's error (masses, friction), not the load.
+pub const SAG_MODEL_MIN: f32 = 0.005;
+/// Without a model (or for a stalled joint, see [`STALL_TIME_US`]), the load correction's
+/// bound, rad.
+pub const SAG_MAX: f32 = 0.2;
+/// Position mode: a joint held back by the command's lead (it cannot follow its command) and
+/// slower than [`STALL_SPEED`] for this long (µs) is stalled against something the gravity
+/// model does not know (an obstacle, a payload): its load correction may then use
+/// [`SAG_MAX`], as without a model, and the servo pushes as hard as its own protection allows.
+pub const STALL_TIME_US: u64 = 300_000;
+/// See [`STALL_TIME_US`], rad/s.
+pub const STALL_SPEED: f32 = 0.05;
+/// See [`STALL_TIME_US`]: held back means the command leads the joint by at least this share
+/// of its lead ([`position_lead`]).
+pub const STALL_LEAD_SHARE: f32 = 0.75;
+/// Current and PWM modes: the effort ramps from what the joint held at the mode change to its
+/// full strength in at least this long, s (a step of torque would outrun the guard's braking).
+pub const EFFORT_RAMP_TIME: f32 = 0.1;
+
+/// The goal offset (rad) that makes a joint's servo(s), in position mode at rest, give the
+/// effort `tau` (N·m): their proportional loop's stiffness at zero speed; within the goal
+/// distance of full PWM. Zero when the gains give no stiffness or `tau` is not finite.
+pub fn goal_offset_for_effort(cfg: &JointConfig, tau: f32) -> f32 {
+    let (kp, _) = position_loop_gains(cfg);
+    let spec = cfg.model.spec();
+    let servos = if cfg.twin_id.is_some() { 2.0 } else { 1.0 };
+    if kp <= 0.0 || !tau.is_finite() {
+        return 0.0;
+    }
+    let f = spec.pwm_fraction_for_effort(tau / servos, 0.0);
+    let reach = position_reach(cfg, 0.0);
+    (f * units::PWM_MAX / kp).clamp(-reach, reach)
+}
+
 /// One queued trajectory knot at an absolute firmware time.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Knot {
@@ -265,6 +302,19 @@ pub struct JointControl {
     /// (signed): one reading alone may be a motor rattling inside the backlash.
     fast_ticks: i8,
 
+    /// The gravity load the arm's model gives this joint at its measured pose (N·m, what
+    /// gravity exerts), set by the core before every tick; `None` without a trusted model.
+    pub gravity: Option<f32>,
+    /// Position mode: the goal offset that carries the modelled load, rad (last tick).
+    feed_forward: f32,
+    /// Position mode: since when (µs) the joint has been held back and standing still.
+    held_since: Option<u64>,
+    /// Position mode: where the joint was last held back, rad.
+    stall_q: f32,
+    /// Current and PWM modes: the effort of the last tick (the ramp starts from it), N·m;
+    /// `None` right after a mode change.
+    effort: Option<f32>,
+
     /// Emergency stop: hold exactly where the joint stopped, even outside its limits (no
     /// motion at all, not even back inside), until released.
     pub stopped: bool,
@@ -300,6 +350,11 @@ impl JointControl {
             sag: 0.0,
             braking: false,
             fast_ticks: 0,
+            gravity: None,
+            feed_forward: 0.0,
+            held_since: None,
+            stall_q: 0.0,
+            effort: None,
             stopped: false,
             anchor: None,
             state: JointState::default(),
@@ -333,6 +388,12 @@ impl JointControl {
     /// found again where it is at the next tick.
     pub fn reset_anchor(&mut self) {
         self.anchor = None;
+    }
+
+    /// Position mode: the goal offset that carried the modelled gravity load at the last tick,
+    /// rad (within [`position_reach`] at rest).
+    pub fn feed_forward(&self) -> f32 {
+        self.feed_forward
     }
 
     /// The position command of the last tick (rad), and whether the joint is being braked.
@@ -426,6 +487,8 @@ impl JointControl {
     pub fn set_mode(&mut self, now: u64, mode: JointMode) {
         self.mode = mode;
         self.sag = 0.0;
+        self.held_since = None;
+        self.effort = None;
         self.braking = false;
         self.anchor = None;
         self.hold_measured(now);
@@ -512,10 +575,16 @@ impl JointControl {
         let qd = self.state.velocity;
         self.update_anchor(lim);
         let mut clamped = false;
+        self.feed_forward = 0.0;
         let out = match self.mode {
             JointMode::Off => JointOutput::None,
             JointMode::Position => {
                 let r = self.reference(now);
+                // The modelled gravity load rides in the goal: the servo's proportional loop
+                // gives the holding effort at the commanded position.
+                let model = self.gravity.filter(|t| t.is_finite());
+                let ff = model.map_or(0.0, |t| goal_offset_for_effort(cfg, -t));
+                self.feed_forward = ff;
                 let target = if self.stopped {
                     self.cmd
                 } else {
@@ -564,7 +633,12 @@ impl JointControl {
                         // brake.
                         let outside = q < lim.min || q > lim.max;
                         let kept = self.cmd.clamp(q - BRAKE_HOLD, q + BRAKE_HOLD);
-                        self.cmd = if self.stopped {
+                        self.cmd = if model.is_some() {
+                            // The model carries the load: the brake lets go where the joint
+                            // rests, with no offset of its own left to pull it on.
+                            self.sag = 0.0;
+                            q
+                        } else if self.stopped {
                             // Stopped: the joint is held where it came to rest, and the goal
                             // offset that stopped it becomes its load correction (the goal
                             // does not jump; the correction then holds it here, it does not
@@ -622,12 +696,51 @@ impl JointControl {
                 // Outside its limits a loaded joint must not sag further out: the correction
                 // runs there too, on the way back.
                 let outside = q < lim.min || q > lim.max;
+                // Held back and standing still for a while: stalled against a load the model
+                // does not know.
+                // Held back: its command near the lead's end, ahead of it (one encoder tick
+                // of give lets the command step on once, that is not catching up). Once
+                // stalled it stays so while it is held back (pushing harder against an
+                // obstacle's give moves it a little) and, once the command stops pushing (the
+                // host gave up on the motion and holds it where it is: the obstacle is still
+                // there), until it has moved that share of its lead from where it was last
+                // held back (the obstacle gave way); speed readings alone would let the noise
+                // of a joint pressed against an obstacle free it.
+                let lead = position_lead(cfg);
+                let held_back = lead > 0.0 && (self.cmd - q).abs() >= STALL_LEAD_SHARE * lead;
+                let still = qd.is_finite() && qd.abs() < STALL_SPEED;
+                let stalled_before = self
+                    .held_since
+                    .is_some_and(|t| now.saturating_sub(t) >= STALL_TIME_US);
+                let moved = !q.is_finite() || (q - self.stall_q).abs() > STALL_LEAD_SHARE * lead;
+                if held_back {
+                    self.stall_q = q;
+                }
+                self.held_since = if held_back && (still || stalled_before) {
+                    Some(self.held_since.unwrap_or(now))
+                } else if stalled_before && !moved {
+                    self.held_since
+                } else {
+                    None
+                };
+                let stalled = self
+                    .held_since
+                    .is_some_and(|t| now.saturating_sub(t) >= STALL_TIME_US);
+                // With a model the correction only mends its error; without one (or stalled),
+                // it carries the whole load.
+                let bound = match model {
+                    Some(_) if !stalled => SAG_MODEL_SHARE * ff.abs() + SAG_MODEL_MIN,
+                    _ => SAG_MAX,
+                };
                 if (settled || (outside && !self.stopped)) && self.measured && cfg.position_ki > 0.0
                 {
-                    self.sag = (self.sag + cfg.position_ki * (self.cmd - q) * dt).clamp(-0.2, 0.2);
+                    self.sag += cfg.position_ki * (self.cmd - q) * dt;
                 }
+                self.sag = self.sag.clamp(-bound, bound);
                 // The goal stays within the limits, or between them and a joint outside them:
                 // never further out than the joint is.
+                // The model's offset may carry the goal beyond that by itself: the goal
+                // that holds the joint at a limit against its load lies beyond the limit.
                 let (lo, hi) = position_goal_window(
                     lim,
                     self.anchor,
@@ -635,7 +748,8 @@ impl JointControl {
                     (q, qd),
                     position_reach(cfg, qd),
                 );
-                JointOutput::Position((self.cmd + self.sag).clamp(lo, hi))
+                let (lo, hi) = (lo + ff.min(0.0), hi + ff.max(0.0));
+                JointOutput::Position((self.cmd + ff + self.sag).clamp(lo, hi))
             }
             JointMode::Current | JointMode::Pwm if !self.measured => JointOutput::None,
             JointMode::Current | JointMode::Pwm => {
@@ -649,7 +763,16 @@ impl JointControl {
                 let tau = asked.clamp(-lim.effort, lim.effort);
                 let servos = if cfg.twin_id.is_some() { 2.0 } else { 1.0 };
                 let strength = servos * spec.stall_torque;
+                // The effort ramps from what held the joint before (its modelled load, in
+                // position mode) rather than stepping.
+                let from = self
+                    .effort
+                    .filter(|e| e.is_finite())
+                    .unwrap_or_else(|| self.gravity.filter(|g| g.is_finite()).map_or(0.0, |g| -g));
+                let ramp = strength / EFFORT_RAMP_TIME * dt;
+                let tau = tau.clamp(from - ramp, from + ramp);
                 let t = guard_effort(tau, (q, qd), lim, strength, dt, self.stopped);
+                self.effort = Some(t);
                 clamped |= t != asked;
                 if self.mode == JointMode::Pwm {
                     JointOutput::PwmEffort(t, qd)

@@ -70,11 +70,15 @@ fn goal_is_safe(
     (anchor, braking): (Option<f32>, bool),
     strength: f32,
     (state, reach): ((f32, f32), f32),
+    ff: f32,
 ) -> bool {
     match *out {
         JointOutput::None => true,
         JointOutput::Position(g) => {
             let (lo, hi) = joint::position_goal_window(lim, anchor, braking, state, reach);
+            // The gravity model's goal offset (within the servo's full-PWM reach at rest) may
+            // carry the goal beyond that.
+            let (lo, hi) = (lo + ff.min(0.0), hi + ff.max(0.0));
             g.is_finite() && (lo..=hi).contains(&g)
         }
         JointOutput::Velocity(v) => v.is_finite() && v.abs() <= lim.velocity,
@@ -113,6 +117,9 @@ pub struct Firmware {
     /// Per joint, the limits its row was configured with (at start or by `ConfigureJoint`):
     /// `SetLimits` may narrow a joint's limits within them, never widen them.
     envelope: Vec<ferrobot_protocol::JointLimits, MAX_JOINTS>,
+    /// The sign and offset of each gravity-model joint's row at start: the rows the model was
+    /// built for (a row the host configures differently measures other angles).
+    gravity_rows: [Option<(i8, f32)>; config::GRAVITY_LINKS],
     board: Name,
     joints: Vec<JointControl, MAX_JOINTS>,
     bus: ServoBus,
@@ -151,8 +158,15 @@ impl Firmware {
         let bus = ServoBus::new(&profile.joints, profile.bus);
         let base = BaseDriver::new(profile.base);
         let envelope = profile.joints.iter().map(|c| c.limits).collect();
+        let mut gravity_rows = [None; config::GRAVITY_LINKS];
+        if let Some(m) = profile.gravity {
+            for (r, &j) in gravity_rows.iter_mut().zip(&m.joints) {
+                *r = profile.joints.get(j as usize).map(|c| (c.sign, c.offset));
+            }
+        }
         let mut fw = Self {
             envelope,
+            gravity_rows,
             board: b,
             joints: Vec::new(),
             bus,
@@ -356,8 +370,14 @@ impl Firmware {
         let gripper = self.gripper.as_ref().map(|(j, _)| *j);
         for (k, j) in self.joints.iter_mut().enumerate() {
             // A joint in a torque mode is held by its servo's own stiff position loop: a
-            // torque that only limits its speed would let a load (gravity) carry it on.
-            if matches!(j.mode, JointMode::Current | JointMode::Pwm) && gripper != Some(k) {
+            // torque that only limits its speed would let a load (gravity) carry it on. So is
+            // one in velocity mode: the servo's velocity loop brakes softly, and its hold
+            // point would let the joint run on past where the stop found it.
+            if matches!(
+                j.mode,
+                JointMode::Current | JointMode::Pwm | JointMode::Velocity
+            ) && gripper != Some(k)
+            {
                 j.set_mode(now, JointMode::Position);
             }
             j.stopped = true;
@@ -477,6 +497,7 @@ impl Firmware {
     fn finish_tick(&mut self, now: u64) {
         let dt = self.loop_period_us as f32 * 1e-6;
         self.measure(now);
+        self.model_gravity();
         let mut goals: Vec<Goal, { bus::MAX_SERVOS }> = Vec::new();
         for _ in 0..self.bus.servos.len() {
             let _ = goals.push(Goal::None);
@@ -493,6 +514,44 @@ impl Firmware {
         if took > self.loop_period_us as u64 {
             s.overruns = s.overruns.saturating_add(1);
             self.overrun_since_telemetry = true;
+        }
+    }
+
+    /// Give every joint its modelled gravity load at the measured pose (or none: no model, a
+    /// joint of the model unmeasured, or its row no longer the one the model was built for).
+    fn model_gravity(&mut self) {
+        for j in self.joints.iter_mut() {
+            j.gravity = None;
+        }
+        let Some(m) = self.profile.gravity else {
+            return;
+        };
+        let mut q = [0.0f32; config::GRAVITY_LINKS];
+        for ((qk, &j), row) in q.iter_mut().zip(&m.joints).zip(&self.gravity_rows) {
+            let j = j as usize;
+            let (Some(jc), Some(cfg)) = (self.joints.get(j), self.profile.joints.get(j)) else {
+                return;
+            };
+            let p = jc.state.position;
+            if !jc.measured || !p.is_finite() || Some((cfg.sign, cfg.offset)) != *row {
+                return;
+            }
+            *qk = p;
+        }
+        let mut tau = [0.0f32; config::GRAVITY_LINKS];
+        let n = ferrobot_protocol::gravity::torques(
+            &m.links,
+            &q,
+            ferrobot_protocol::gravity::G,
+            &mut tau,
+        );
+        if n != config::GRAVITY_LINKS || tau.iter().any(|t| !t.is_finite()) {
+            return;
+        }
+        for (&j, &t) in m.joints.iter().zip(&tau) {
+            if let Some(jc) = self.joints.get_mut(j as usize) {
+                jc.gravity = Some(t);
+            }
         }
     }
 
@@ -609,14 +668,18 @@ impl Firmware {
             (f32::NAN, f32::NAN)
         };
         let window = (state, joint::position_reach(&cfg, state.1));
+        // The model's offset is trusted only within the servos' full-PWM reach at rest.
+        let ff = Some(jc.feed_forward())
+            .filter(|f| f.is_finite() && f.abs() <= joint::position_reach(&cfg, 0.0))
+            .unwrap_or(0.0);
         let strength =
             cfg.model.spec().stall_torque * if cfg.twin_id.is_some() { 2.0 } else { 1.0 };
         // The last gate before the bus: a goal that is not finite or outside the joint's
         // limits never reaches a servo; the joint holds where it is and the fault is reported.
-        if !goal_is_safe(&out, &cfg.limits, anchor, strength, window) {
+        if !goal_is_safe(&out, &cfg.limits, anchor, strength, window, ff) {
             jc.hold_here(now);
             out = jc.tick(now, dt, &cfg);
-            if !goal_is_safe(&out, &cfg.limits, anchor, strength, window) {
+            if !goal_is_safe(&out, &cfg.limits, anchor, strength, window, ff) {
                 out = JointOutput::None;
             }
             let bit = 1u16 << (j as u32 % 16);

@@ -21,6 +21,10 @@ pub trait Real:
     + Neg<Output = Self>
     + Rem<Output = Self>
 {
+    /// 0.
+    const ZERO: Self;
+    /// 1.
+    const ONE: Self;
     /// 0.5.
     const HALF: Self;
     /// π.
@@ -39,6 +43,8 @@ pub trait Real:
 }
 
 impl Real for f32 {
+    const ZERO: f32 = 0.0;
+    const ONE: f32 = 1.0;
     const HALF: f32 = 0.5;
     const PI: f32 = core::f32::consts::PI;
     const TAU: f32 = core::f32::consts::TAU;
@@ -55,6 +61,8 @@ impl Real for f32 {
 }
 
 impl Real for f64 {
+    const ZERO: f64 = 0.0;
+    const ONE: f64 = 1.0;
     const HALF: f64 = 0.5;
     const PI: f64 = core::f64::consts::PI;
     const TAU: f64 = core::f64::consts::TAU;

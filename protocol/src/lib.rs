@@ -12,6 +12,8 @@
 //! * [`kobuki`] and [`create2`]: the wire formats of the two mobile bases (Kobuki serial
 //!   protocol, iRobot Create 2 Open Interface), shared by the firmware's drivers and the
 //!   simulated bases.
+//! * [`gravity`]: gravity torques on a serial arm from a compact link table (the firmware's
+//!   gravity feed-forward, the simulated arm's load).
 //! * [`clock`]: the virtual-time link between an emulated board and its simulated plants.
 //! * [`dxl`]: a Dynamixel Protocol 2.0 codec (instruction and status packets, byte stuffing,
 //!   CRC-16/UMTS), plus the X-series control-table facts both the firmware and the simulated
@@ -38,6 +40,7 @@ pub mod create2;
 pub mod dxl;
 pub mod frame;
 pub mod geometry;
+pub mod gravity;
 pub mod kobuki;
 pub mod messages;
 pub mod ranges;

@@ -19,46 +19,25 @@ pub struct ArmJoint {
     pub com: [f64; 3],
 }
 
-/// LoCoBot arm (joint_1 … joint_5) from the published kinematics and inertial data of
-/// PyRobot's "cmu" description (origins, axes and link masses; the gripper link carries the
-/// fingers and the AR tag). Angles in the joint convention of the description.
-pub const LOCOBOT_ARM: [ArmJoint; 5] = [
-    ArmJoint {
-        rpy: [0.0; 3],
-        origin: [0.0, 0.0, 0.072],
-        axis: [0.0, 0.0, 1.0],
-        mass: 0.1199,
-        com: [-5.7e-5, 0.0, 0.0228],
-    },
-    ArmJoint {
-        rpy: [0.0; 3],
-        origin: [0.0, 0.0, 0.04125],
-        axis: [0.0, 1.0, 0.0],
-        mass: 0.2125,
-        com: [0.0096, 0.0, 0.1343],
-    },
-    ArmJoint {
-        rpy: [0.0; 3],
-        origin: [0.05, 0.0, 0.2],
-        axis: [0.0, 1.0, 0.0],
-        mass: 0.1875,
-        com: [0.1178, 0.0, 0.0],
-    },
-    ArmJoint {
-        rpy: [0.0; 3],
-        origin: [0.2002, 0.0, 0.0],
-        axis: [0.0, 1.0, 0.0],
-        mass: 0.0606,
-        com: [0.0429, 0.0, 0.0114],
-    },
-    ArmJoint {
-        rpy: [0.0; 3],
-        origin: [0.063, 0.0001, 0.0],
-        axis: [-1.0, 0.0, 0.0],
-        mass: 0.1242,
-        com: [0.0407, 0.0, 0.0137],
-    },
-];
+/// The LoCoBot arm (joint_1 … joint_5): the firmware's gravity model
+/// ([`ferrobot_firmware::config::LOCOBOT_GRAVITY`], checked against the bundled description),
+/// so the simulated arm has the description's masses. The hostile checker may perturb them.
+pub fn locobot_arm() -> Vec<ArmJoint> {
+    ferrobot_firmware::config::LOCOBOT_GRAVITY
+        .links
+        .iter()
+        .map(|l| {
+            let l = l.to_f64();
+            ArmJoint {
+                origin: l.origin,
+                rpy: [0.0; 3],
+                axis: l.axis,
+                mass: l.mass,
+                com: l.com,
+            }
+        })
+        .collect()
+}
 
 type M3 = [[f64; 3]; 3];
 
@@ -161,17 +140,17 @@ mod tests {
     fn shoulder_load_matches_a_hand_calculation() {
         // At zero angles the upper arm stands vertical and the forearm points along +x. About
         // joint_2 (axis +y), gravity's torque is g · Σ m·x over the links it carries:
-        // 0.2125·0.0096 + 0.1875·(0.05+0.1178) + 0.0606·(0.05+0.2002+0.0429)
-        // + 0.1242·(0.05+0.2002+0.063+0.0407) = 0.09521 kg·m.
+        // 0.21248·0.009598 + 0.18746·(0.05+0.11783) + 0.06059·(0.05+0.2002+0.04294)
+        // + 0.12421·(0.05+0.2002+0.063+0.040623) = 0.09522 kg·m.
         let mut t = [0.0; 5];
-        gravity_torques(&LOCOBOT_ARM, &[0.0; 5], &mut t);
-        assert!((t[1] - 0.09521 * 9.81).abs() < 1e-3, "{}", t[1]);
+        gravity_torques(&locobot_arm(), &[0.0; 5], &mut t);
+        assert!((t[1] - 0.09522 * 9.81).abs() < 1e-3, "{}", t[1]);
         // Yaw never carries gravity load; folding the forearm up (joint_3 = −π/2) shortens the
         // lever of joint_2.
         assert!(t[0].abs() < 1e-12);
         let mut folded = [0.0; 5];
         gravity_torques(
-            &LOCOBOT_ARM,
+            &locobot_arm(),
             &[0.0, 0.0, -std::f64::consts::FRAC_PI_2, 0.0, 0.0],
             &mut folded,
         );

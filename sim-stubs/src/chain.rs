@@ -122,6 +122,14 @@ impl ServoChain {
         self.servos.iter_mut().find(|s| s.id == id)
     }
 
+    /// Scale the mass of each arm link by `scale(link index)`: a plant whose masses differ
+    /// from the description's (a model is never exact).
+    pub fn scale_arm_masses(&mut self, mut scale: impl FnMut(usize) -> f64) {
+        for (i, l) in self.arm.iter_mut().enumerate() {
+            l.mass *= scale(i);
+        }
+    }
+
     /// Corrupt one byte of each of the next `n` status packets.
     pub fn corrupt_next_replies(&mut self, n: u32) {
         self.corrupt_replies += n;

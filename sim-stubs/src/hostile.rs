@@ -42,6 +42,8 @@ fn stopping(v: f64) -> f64 {
 /// How long (µs) a joint taken under control (switched on, or switched to another mode) may
 /// still run on as it was: its servo changes mode and its first goals go out.
 pub const GRACE_US: u64 = 5_000;
+/// How far (relative) the plant's link masses may differ from the description's.
+pub const MASS_TOL: f64 = 0.2;
 /// Relative tolerance over the base's top wheel speed.
 pub const WHEEL_TOL: f64 = 0.05;
 
@@ -290,10 +292,8 @@ struct Watch {
     outside: f64,
     /// How fast it may still move, beyond its limit (it may only slow down).
     speed: f64,
-    /// The last sample: time (µs) and output angle (rad), for the joint's speed.
+    /// The last sample: time (µs) and output angle (rad).
     last: Option<(u64, f64)>,
-    /// The joint's speed over the last millisecond or more, rad/s.
-    qd: f64,
     /// Until when (µs) a joint just taken under control may still speed up: its servo is
     /// switched on and its first goals go out.
     grace_until: u64,
@@ -310,7 +310,6 @@ impl Watch {
             outside: 0.0,
             speed: 0.0,
             last: None,
-            qd: 0.0,
             grace_until: 0,
             was_controlled: false,
             mode: JointMode::Off,
@@ -368,28 +367,19 @@ impl Checker {
             let sign = cfg.sign as f64;
             let q = sign * (servo.theta - cfg.offset as f64);
             let w = &mut self.watch[j];
-            // The output's speed over the last millisecond (the motor may turn inside the
-            // backlash while the joint stands still).
+            // The output's speed now (the motor may turn inside the backlash while the joint
+            // stands still: that is not the joint moving).
             let now = sim.now_us();
-            let qd = match w.last {
-                // Over at least a millisecond: the physics advances in substeps.
-                Some((t, th)) if now >= t + 1000 => {
-                    w.last = Some((now, servo.theta));
-                    w.qd = sign * (servo.theta - th) / ((now - t) as f64 * 1e-6);
-                    w.qd
-                }
-                Some(_) => w.qd,
-                None => {
-                    w.last = Some((now, servo.theta));
-                    sign * servo.omega
-                }
-            };
+            let qd = sign * servo.output_speed();
+            // Time since the last sample, for the allowed speed's fall.
+            let dt = w
+                .last
+                .map_or(0.0, |(t, _)| now.saturating_sub(t) as f64 * 1e-6);
+            w.last = Some((now, servo.theta));
             if w.row.as_ref() != Some(cfg) {
                 // A new row (limits, servo, sign, offset): the joint may be outside its new
                 // limits, and may only come back.
                 w.row = Some(cfg.clone());
-                w.last = Some((now, servo.theta));
-                let qd = sign * servo.omega;
                 w.outside = outside(q, &cfg.limits) + stopping(qd);
                 w.speed = qd.abs();
                 continue;
@@ -408,7 +398,11 @@ impl Checker {
                     .iter()
                     .filter(|s| s.joint as usize == j)
                     .all(|s| {
-                        s.status == ferrobot_firmware::bus::ServoStatus::Ok && s.hw_error == 0
+                        // Under control once its configuration (a mode change: torque off,
+                        // mode, goal, torque on) is done: until then the servo is limp.
+                        s.status == ferrobot_firmware::bus::ServoStatus::Ok
+                            && s.hw_error == 0
+                            && s.ops == 0
                     });
             let d = outside(q, &cfg.limits);
             let vmax = cfg.limits.velocity as f64 * (1.0 + SPEED_TOL) + SPEED_ABS;
@@ -471,7 +465,9 @@ impl Checker {
                 ));
             }
             w.outside = w.outside.min(d + stopping(qd));
-            w.speed = w.speed.min(qd.abs());
+            // A joint found too fast slows down at most at the braking rate: the allowed speed
+            // falls at that rate (never below what it is now).
+            w.speed = w.speed.min((w.speed - BRAKING * dt).max(qd.abs()));
         }
         // Every servo the firmware believes configured runs the mode and torque it asked for.
         for b in fw.bus().servos.iter() {
@@ -525,6 +521,13 @@ pub fn hostile_stream<R: Rng + ?Sized>(
 ) -> (Checker, u64) {
     let rng = &mut *rng;
     let mut s = SimSession::start(robot, seed).expect("simulator");
+    // The plant's masses differ from the description's (and so from the firmware's gravity
+    // model) by up to ±MASS_TOL, seeded: the model is not assumed exact.
+    let mut masses = crate::rng::SimRng::new(seed, 4242);
+    s.sim
+        .hw
+        .chain
+        .scale_arm_masses(|_| 1.0 + MASS_TOL * (2.0 * masses.uniform() - 1.0));
     let mut c = Checker::new(&s.sim);
     run(&mut s, &mut c, 1_500_000, "configuration");
     for k in 0..messages {

@@ -4,7 +4,7 @@
 use ferrobot_protocol::dxl::units;
 use ferrobot_protocol::ServoModel::{Xl430W250, Xm430W350};
 
-use crate::arm::{ArmJoint, LOCOBOT_ARM};
+use crate::arm::{locobot_arm, ArmJoint};
 use crate::chain::ServoMount;
 
 /// Which base a robot stands on.
@@ -100,7 +100,7 @@ pub fn by_name(name: &str) -> Option<SimRobot> {
     Some(SimRobot {
         name: name.to_string(),
         servos: locobot_servos(),
-        arm: LOCOBOT_ARM.to_vec(),
+        arm: locobot_arm(),
         base,
         bus_baud: 4_000_000,
     })

@@ -417,6 +417,21 @@ impl ServoSim {
         }
     }
 
+    /// The output's speed now, rad/s: the motor's, while the gear is engaged (the output
+    /// rests against one side of the backlash and is carried along); zero while the motor
+    /// turns inside the play.
+    pub fn output_speed(&self) -> f64 {
+        let half = 0.5 * self.phys.backlash;
+        let lead = self.theta_m - self.theta;
+        let engaged = (self.omega > 0.0 && lead >= half - 1e-12)
+            || (self.omega < 0.0 && lead <= -half + 1e-12);
+        if engaged {
+            self.omega
+        } else {
+            0.0
+        }
+    }
+
     /// Refresh the present-value registers from the physical state (with quantisation and noise).
     pub fn update_present(&mut self) {
         let pos = units::rad_to_tick(self.theta as f32);

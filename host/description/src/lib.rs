@@ -947,6 +947,8 @@ impl RobotConfig {
             loop_period_us: 1000,
             watchdog_ms: 500,
             telemetry_ms: 10,
+            // The built-in profile's arm model, for the robots that have one.
+            gravity: ferrobot_firmware::config::by_name(&self.name).and_then(|p| p.gravity),
         }
     }
 

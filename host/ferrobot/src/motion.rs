@@ -28,6 +28,11 @@ pub const STALL_GRACE: Duration = Duration::from_millis(300);
 pub const STALL_TIME: Duration = Duration::from_millis(500);
 /// Improvement of the largest joint error that counts as progress, rad.
 pub const STALL_PROGRESS: f64 = 0.001;
+/// A joint motion has arrived once every joint is within its tolerance and at rest: measured
+/// slower than this, rad/s (above the velocity reading's quantum, 0.024 rad/s, and its noise).
+/// A joint within tolerance may still be moving (the servo's last creep against its gear
+/// friction): returning then would leave the arm moving on.
+pub const ARRIVAL_SPEED: f64 = 0.05;
 /// Faults kept for [`Robot::take_faults`]; older ones are dropped first.
 pub const FAULT_QUEUE: usize = 1024;
 
@@ -436,14 +441,16 @@ impl Goal for JointsGoal {
     fn step(&mut self, s: &mut Step<'_>) -> Option<Result<()>> {
         let now = s.now;
         let mut worst = (0usize, 0.0f64);
+        let mut at_rest = true;
         for (&j, &q) in self.idx.iter().zip(self.target.iter()) {
             let st = s.telemetry.joints.get(j).copied().unwrap_or_default();
             let e = (st.position as f64 - q).abs();
             if e > worst.1 {
                 worst = (j, e);
             }
+            at_rest &= (st.velocity as f64).abs() < ARRIVAL_SPEED;
         }
-        if worst.1 <= self.tolerance && now >= self.due {
+        if worst.1 <= self.tolerance && at_rest && now >= self.due {
             return Some(Ok(()));
         }
         // Stalled: past the start of the motion, the largest joint error has not improved by
