@@ -10,6 +10,11 @@
 //! the joint's axis and origin, `cₖ` the centres of mass and `Mᵢ = Σₖ≥ᵢ mₖ`, all in the base
 //! frame. `no_std`, no allocation, no panics: two passes down the chain, nothing stored.
 
+// The arithmetic here is on `Real` (f32, f64) only: floating point neither overflows nor
+// panics, so the crate's denial of integer arithmetic side effects does not apply; clippy
+// cannot tell a generic float apart.
+#![allow(clippy::arithmetic_side_effects)]
+
 use crate::geometry::Real;
 
 /// One joint of the chain and the body it carries.
