@@ -36,6 +36,7 @@ pub mod config;
 pub mod gripper;
 pub mod joint;
 mod log;
+pub mod shell;
 pub mod txbuf;
 
 use log::{log_info, log_warn};
