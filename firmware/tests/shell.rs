@@ -119,10 +119,13 @@ impl HostTx for LinkTx {
     }
 }
 
+/// What the firmware wrote on a bus: (time µs, bytes) per write.
+type BusLog = RefCell<Vec<(u64, Vec<u8>)>>;
+
 /// A bus that logs what the firmware writes, with the time, and never answers.
 struct MuteBus {
     clock: Rc<FakeClock>,
-    log: Rc<RefCell<Vec<(u64, Vec<u8>)>>>,
+    log: Rc<BusLog>,
 }
 
 impl Bus for MuteBus {
@@ -174,15 +177,7 @@ fn drive(v: f32) -> HostMsg {
 }
 
 /// Run the shell (both futures, joined as on the board) beside `script`, on the fake clock.
-fn with_shell(
-    script: impl AsyncFnOnce(
-        &Shell,
-        &FakeClock,
-        &Wire,
-        &RefCell<Vec<(u64, Vec<u8>)>>,
-        &RefCell<Vec<(u64, Vec<u8>)>>,
-    ),
-) {
+fn with_shell(script: impl AsyncFnOnce(&Shell, &FakeClock, &Wire, &BusLog, &BusLog)) {
     let clock = Rc::new(FakeClock::default());
     let wire = Rc::new(Wire::default());
     let servo_log = Rc::new(RefCell::new(Vec::new()));
