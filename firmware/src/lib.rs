@@ -4,7 +4,8 @@
 //! [`Firmware`] is a pure state machine. A shell (a board's async tasks, a Linux process, or
 //! the lockstep simulator) feeds it bytes from its three links and the time, calls
 //! [`Firmware::poll`] no later than [`Firmware::next_deadline`], and sends what
-//! [`Firmware::pending`] holds. Nothing here blocks, allocates or panics: the crate denies
+//! [`Firmware::pending`] holds; [`shell`] is that shell for a board whose host link comes and
+//! goes (USB). Nothing here blocks, allocates or panics: the crate denies
 //! `unwrap`, `expect`, `panic` and unchecked indexing outside tests.
 //!
 //! What it runs:
@@ -37,6 +38,7 @@ pub mod config;
 pub mod gripper;
 pub mod joint;
 mod log;
+pub mod shell;
 pub mod txbuf;
 
 use log::{log_info, log_warn};

@@ -13,7 +13,7 @@
 #![no_main]
 
 use embassy_executor::Spawner;
-use embassy_futures::select::{select4, Either4};
+use embassy_futures::join::join;
 use embassy_stm32::gpio::{Level, Output, Speed};
 use embassy_stm32::peripherals::{USART2, USART3, USB_OTG_FS};
 use embassy_stm32::time::Hertz;
@@ -21,12 +21,12 @@ use embassy_stm32::usart::{self, BufferedUart};
 use embassy_stm32::usb::{self, Driver};
 use embassy_stm32::{bind_interrupts, Config};
 use embassy_time::{Instant, Timer};
-use embassy_usb::class::cdc_acm::{CdcAcmClass, State};
-use embassy_usb::driver::EndpointError;
+use embassy_usb::class::cdc_acm::{CdcAcmClass, Receiver, Sender, State};
 use embassy_usb::{Builder, UsbDevice};
-use embedded_io_async::Read as _;
+use embedded_io_async::{Read as _, Write as _};
 use ferrobot_firmware::config;
-use ferrobot_firmware::{Firmware, Link};
+use ferrobot_firmware::shell::{Bus, Clock, Disconnected, HostRx, HostTx, Shell};
+use ferrobot_firmware::Firmware;
 use static_cell::StaticCell;
 
 bind_interrupts!(struct Irqs {
@@ -100,14 +100,14 @@ async fn main(spawner: Spawner) {
     let class = CdcAcmClass::new(&mut builder, CDC.init(State::new()), 64);
     let usb = builder.build();
     spawner.spawn(usb_task(usb).unwrap_or_else(|_| panic!("task arena")));
-    let (mut host_tx, mut host_rx) = class.split();
+    let (host_tx, host_rx) = class.split();
 
     // Dynamixel TTL bus, half duplex.
     let mut dxl_cfg = usart::Config::default();
     dxl_cfg.baudrate = 4_000_000;
     static DXL_TX: StaticCell<[u8; 512]> = StaticCell::new();
     static DXL_RX: StaticCell<[u8; 1024]> = StaticCell::new();
-    let mut dxl = BufferedUart::new(
+    let dxl = BufferedUart::new(
         p.USART3,
         p.PC11,
         p.PC10,
@@ -117,14 +117,14 @@ async fn main(spawner: Spawner) {
         dxl_cfg,
     )
     .unwrap_or_else(|_| panic!("USART3"));
-    let mut dxl_dir = Output::new(p.PC9, Level::Low, Speed::VeryHigh);
+    let dxl_dir = Output::new(p.PC9, Level::Low, Speed::VeryHigh);
 
     // Base.
     let mut base_cfg = usart::Config::default();
     base_cfg.baudrate = 115_200;
     static BASE_TX: StaticCell<[u8; 256]> = StaticCell::new();
     static BASE_RX: StaticCell<[u8; 512]> = StaticCell::new();
-    let mut base = BufferedUart::new(
+    let base = BufferedUart::new(
         p.USART2,
         p.PD6,
         p.PD5,
@@ -140,69 +140,90 @@ async fn main(spawner: Spawner) {
     } else {
         config::locobot()
     };
-    let mut fw = Firmware::new(profile, "opencr", Instant::now().as_micros());
-    let mut host_buf = [0u8; 64];
-    let mut dxl_buf = [0u8; 256];
-    let mut base_buf = [0u8; 128];
-    loop {
-        let now = Instant::now().as_micros();
-        if fw.next_deadline() <= now {
-            fw.poll(now);
-        }
-        // Servo bus: drive the line only while sending.
-        let out = fw.pending(Link::Servo);
-        if !out.is_empty() {
-            dxl_dir.set_high();
-            let ok = embedded_io_async_write(&mut dxl, out).await;
-            let n = out.len();
-            let _ = embedded_io_async_flush(&mut dxl).await;
-            dxl_dir.set_low();
-            if ok {
-                fw.consume(Link::Servo, n);
-            }
-        }
-        let out = fw.pending(Link::Base);
-        if !out.is_empty() {
-            let n = out.len();
-            if embedded_io_async_write(&mut base, out).await {
-                fw.consume(Link::Base, n);
-            }
-        }
-        let out = fw.pending(Link::Host);
-        if !out.is_empty() {
-            let n = out.len().min(64);
-            let sent = host_tx.write_packet(&out[..n]).await;
-            match sent {
-                Ok(()) => fw.consume(Link::Host, n),
-                Err(EndpointError::Disabled) => fw.consume(Link::Host, out.len()), // no host
-                Err(_) => {}
-            }
-        }
-        let deadline = fw.next_deadline();
-        let wait = Timer::at(Instant::from_micros(deadline));
-        match select4(
-            host_rx.read_packet(&mut host_buf),
-            dxl.read(&mut dxl_buf),
-            base.read(&mut base_buf),
-            wait,
-        )
-        .await
-        {
-            Either4::First(Ok(n)) => fw.on_host_bytes(Instant::now().as_micros(), &host_buf[..n]),
-            Either4::First(Err(_)) => host_rx.wait_connection().await,
-            Either4::Second(Ok(n)) => fw.on_servo_bytes(Instant::now().as_micros(), &dxl_buf[..n]),
-            Either4::Third(Ok(n)) => fw.on_base_bytes(Instant::now().as_micros(), &base_buf[..n]),
-            _ => {}
-        }
+    let shell = Shell::new(Firmware::new(profile, "opencr", Instant::now().as_micros()));
+    let mut servo = Dxl {
+        uart: dxl,
+        dir: dxl_dir,
+    };
+    let mut base = Uart(base);
+    // The control loop and the host link run side by side: waiting for a host, or a host
+    // that stops reading, never stops the control loop (nor the watchdog).
+    join(
+        shell.control(&BoardClock, &mut servo, &mut base),
+        shell.host(&BoardClock, &mut UsbRx(host_rx), &mut UsbTx(host_tx)),
+    )
+    .await;
+}
+
+/// Embassy's time driver, µs.
+struct BoardClock;
+
+impl Clock for BoardClock {
+    fn now(&self) -> u64 {
+        Instant::now().as_micros()
+    }
+
+    async fn at(&self, t: u64) {
+        Timer::at(Instant::from_micros(t)).await
     }
 }
 
-async fn embedded_io_async_write<W: embedded_io_async::Write>(w: &mut W, bytes: &[u8]) -> bool {
-    w.write_all(bytes).await.is_ok()
+type Usb = Driver<'static, USB_OTG_FS>;
+
+/// The CDC-ACM receiver: an endpoint error means the host has gone.
+struct UsbRx(Receiver<'static, Usb>);
+
+impl HostRx for UsbRx {
+    async fn wait_connection(&mut self) {
+        self.0.wait_connection().await
+    }
+
+    async fn read(&mut self, buf: &mut [u8]) -> Result<usize, Disconnected> {
+        self.0.read_packet(buf).await.map_err(|_| Disconnected)
+    }
 }
 
-async fn embedded_io_async_flush<W: embedded_io_async::Write>(w: &mut W) -> bool {
-    w.flush().await.is_ok()
+/// The CDC-ACM sender.
+struct UsbTx(Sender<'static, Usb>);
+
+impl HostTx for UsbTx {
+    async fn write(&mut self, bytes: &[u8]) -> Result<(), Disconnected> {
+        self.0.write_packet(bytes).await.map_err(|_| Disconnected)
+    }
+}
+
+/// The half-duplex Dynamixel bus: the board drives the line only while sending.
+struct Dxl {
+    uart: BufferedUart<'static>,
+    dir: Output<'static>,
+}
+
+impl Bus for Dxl {
+    async fn read(&mut self, buf: &mut [u8]) -> usize {
+        self.uart.read(buf).await.unwrap_or(0)
+    }
+
+    async fn write(&mut self, bytes: &[u8]) -> bool {
+        self.dir.set_high();
+        let ok = self.uart.write_all(bytes).await.is_ok();
+        // Release the line only once the last byte is out.
+        let _ = self.uart.flush().await;
+        self.dir.set_low();
+        ok
+    }
+}
+
+/// A full-duplex UART (the base).
+struct Uart(BufferedUart<'static>);
+
+impl Bus for Uart {
+    async fn read(&mut self, buf: &mut [u8]) -> usize {
+        self.0.read(buf).await.unwrap_or(0)
+    }
+
+    async fn write(&mut self, bytes: &[u8]) -> bool {
+        self.0.write_all(bytes).await.is_ok()
+    }
 }
 
 #[panic_handler]
