@@ -116,7 +116,8 @@ impl Shell {
     }
 
     /// Run `f` on the core. Every borrow ends before the next `.await`, and the two futures
-    /// run in one task, so borrows never overlap.
+    /// run in one task, so borrows never overlap. Not re-entrant: `f` must not call `with`
+    /// (it cannot: it gets the core, not the shell).
     pub fn with<R>(&self, f: impl FnOnce(&mut Firmware) -> R) -> R {
         f(&mut self.fw.borrow_mut())
     }
