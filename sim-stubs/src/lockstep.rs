@@ -8,7 +8,7 @@
 //! drives them with the protocol's host session for tests, benches and hostile hosts.
 
 use ferrobot_firmware::{config, Firmware, Link};
-use ferrobot_protocol::session::{Answer, HostSession};
+use ferrobot_protocol::session::{Answer, HostSession, Request, SessionError};
 use ferrobot_protocol::{
     DeviceMsg, HostMsg, RejectReason, Telemetry, MAX_WIRE, PROTOCOL_VERSION, SCHEMA_HASH,
 };
@@ -294,6 +294,27 @@ impl SimSession {
         self.pump();
     }
 
+    /// Run in 1 ms steps until `ready` has an answer (checked after each pump), or
+    /// `timeout_us` of simulated time pass (a timeout naming `what`).
+    fn run_until<T>(
+        &mut self,
+        timeout_us: u64,
+        what: &'static str,
+        mut ready: impl FnMut(&mut Self) -> Option<T>,
+    ) -> Result<T, SimError> {
+        let end = self.sim.now_us() + timeout_us;
+        loop {
+            self.pump();
+            if let Some(r) = ready(self) {
+                return Ok(r);
+            }
+            if self.sim.now_us() >= end {
+                return Err(SimError::Timeout(what));
+            }
+            self.step(1000);
+        }
+    }
+
     /// Run in 1 ms steps until a received message satisfies `pred` (it is removed from the
     /// inbox and returned) or `timeout_us` of simulated time pass.
     pub fn wait_msg(
@@ -301,41 +322,43 @@ impl SimSession {
         timeout_us: u64,
         pred: impl Fn(&DeviceMsg) -> bool,
     ) -> Result<DeviceMsg, SimError> {
-        let end = self.sim.now_us() + timeout_us;
-        loop {
-            self.pump();
-            if let Some(i) = self.inbox.iter().position(&pred) {
-                return Ok(self.inbox.remove(i));
-            }
-            if self.sim.now_us() >= end {
-                return Err(SimError::Timeout("a message"));
-            }
-            self.step(1000);
+        self.run_until(timeout_us, "a message", |s| {
+            let i = s.inbox.iter().position(&pred)?;
+            Some(s.inbox.remove(i))
+        })
+    }
+
+    /// Encode with `encode` (a command or a request), send it and wait (1 ms steps, at most
+    /// `timeout_us`) for its answer, routed by the session.
+    fn exchange(
+        &mut self,
+        timeout_us: u64,
+        encode: impl FnOnce(&mut HostSession, u64, &mut [u8]) -> Result<(u16, usize), SessionError>,
+    ) -> Result<Answer, SimError> {
+        let mut buf = [0u8; MAX_WIRE];
+        let (seq, n) = encode(&mut self.session, self.sim.now_us(), &mut buf)
+            .map_err(|_| SimError::Rejected(RejectReason::Unsupported))?;
+        self.sim.write_host(&buf[..n]);
+        let r = self.run_until(timeout_us, "a message", |s| s.session.take_answer(seq));
+        if r.is_err() {
+            self.session.forget(seq);
+        }
+        match r? {
+            Answer::Rejected(reason) => Err(SimError::Rejected(reason)),
+            a => Ok(a),
         }
     }
 
     /// Send a command and wait for its acknowledgement (routed by the session).
     pub fn command(&mut self, msg: &HostMsg) -> Result<(), SimError> {
-        let mut buf = [0u8; MAX_WIRE];
-        let (seq, n) = self
-            .session
-            .command(msg, self.sim.now_us(), &mut buf)
-            .map_err(|_| SimError::Rejected(ferrobot_protocol::RejectReason::Unsupported))?;
-        self.sim.write_host(&buf[..n]);
-        let end = self.sim.now_us() + 100_000;
-        loop {
-            self.pump();
-            match self.session.take_answer(seq) {
-                Some(Answer::Rejected(reason)) => return Err(SimError::Rejected(reason)),
-                Some(_) => return Ok(()),
-                None => {}
-            }
-            if self.sim.now_us() >= end {
-                self.session.forget(seq);
-                return Err(SimError::Timeout("a message"));
-            }
-            self.step(1000);
-        }
+        self.exchange(100_000, |s, now, out| s.command(msg, now, out))
+            .map(|_| ())
+    }
+
+    /// Send a typed request and wait for its reply (routed by the session).
+    pub fn request<R: Request>(&mut self, r: &R) -> Result<R::Reply, SimError> {
+        let a = self.exchange(200_000, |s, now, out| s.request(r, now, out))?;
+        R::reply(a).ok_or(SimError::Timeout("a reply of the right kind"))
     }
 
     /// Run in 1 ms steps until the newest telemetry satisfies `pred`, or time out.
@@ -344,17 +367,9 @@ impl SimSession {
         timeout_us: u64,
         pred: impl Fn(&Telemetry) -> bool,
     ) -> Result<Telemetry, SimError> {
-        let end = self.sim.now_us() + timeout_us;
-        loop {
-            self.pump();
-            if let Some(t) = self.telemetry.as_ref().filter(|t| pred(t)) {
-                return Ok(t.clone());
-            }
-            if self.sim.now_us() >= end {
-                return Err(SimError::Timeout("telemetry"));
-            }
-            self.step(1000);
-        }
+        self.run_until(timeout_us, "telemetry", |s| {
+            s.telemetry.as_ref().filter(|t| pred(t)).cloned()
+        })
     }
 
     /// Take every fault received so far.

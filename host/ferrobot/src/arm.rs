@@ -148,7 +148,7 @@ impl ArmParts {
 
     /// The firmware joint mask of the arm.
     fn mask(&self) -> u16 {
-        self.joints.iter().fold(0u16, |m, &j| m | (1 << j))
+        crate::motion::joint_mask(self.joints.iter().copied())
     }
 }
 

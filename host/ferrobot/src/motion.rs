@@ -36,6 +36,11 @@ pub const ARRIVAL_SPEED: f64 = 0.05;
 /// Faults kept for [`Robot::take_faults`]; older ones are dropped first.
 pub const FAULT_QUEUE: usize = 1024;
 
+/// The firmware joint mask of joints (firmware indices, each below 16).
+pub(crate) fn joint_mask(joints: impl IntoIterator<Item = usize>) -> u16 {
+    joints.into_iter().fold(0, |m, j| m | (1 << j))
+}
+
 /// What a goal drives: joints (firmware joint mask), the base, the gripper. Two goals whose
 /// claims overlap cannot run at once: the newer preempts the older.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -165,24 +170,24 @@ impl Io {
             return;
         }
         for f in faults {
-            let mut ended = Vec::new();
-            let mut i = 0;
-            while i < self.goals.running.len() {
-                if self.goals.running[i].goal.claim().hit_by(&f) {
-                    let mut g = self.goals.running.remove(i);
-                    g.goal.halt(self.link.as_mut());
-                    ended.push((g.id, fault_error(cfg, &f)));
-                } else {
-                    i += 1;
-                }
-            }
-            for (id, e) in ended {
-                self.goals.finish(id, Err(e));
-            }
+            self.end_where(|c| c.hit_by(&f), |_| fault_error(cfg, &f));
             if self.goals.faults.len() >= FAULT_QUEUE {
                 self.goals.faults.pop_front();
             }
             self.goals.faults.push_back(f);
+        }
+    }
+
+    /// Halt every goal under way whose claim `hit` picks, and end it with the error `error`
+    /// makes of its description.
+    fn end_where(&mut self, hit: impl Fn(&Claim) -> bool, error: impl Fn(String) -> Error) {
+        let (ended, running): (Vec<_>, Vec<_>) = std::mem::take(&mut self.goals.running)
+            .into_iter()
+            .partition(|g| hit(&g.goal.claim()));
+        self.goals.running = running;
+        for mut g in ended {
+            g.goal.halt(self.link.as_mut());
+            self.goals.finish(g.id, Err(error(g.what)));
         }
     }
 
@@ -191,17 +196,7 @@ impl Io {
     /// halted and ends with [`Error::Preempted`]).
     pub(crate) fn prepare(&mut self, cfg: &RobotConfig, claim: Claim) {
         self.collect_faults(cfg);
-        let mut i = 0;
-        while i < self.goals.running.len() {
-            if self.goals.running[i].goal.claim().overlaps(&claim) {
-                let mut g = self.goals.running.remove(i);
-                g.goal.halt(self.link.as_mut());
-                self.goals
-                    .finish(g.id, Err(Error::Preempted { what: g.what }));
-            } else {
-                i += 1;
-            }
-        }
+        self.end_where(|c| c.overlaps(&claim), |what| Error::Preempted { what });
     }
 
     /// Put a goal under way (after [`Io::prepare`] and its first commands); it may take
@@ -426,7 +421,7 @@ pub(crate) struct JointsGoal {
 
 impl JointsGoal {
     fn mask(&self) -> u16 {
-        self.idx.iter().fold(0, |m, &j| m | (1 << j))
+        joint_mask(self.idx.iter().copied())
     }
 }
 

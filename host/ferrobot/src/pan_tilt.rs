@@ -53,7 +53,7 @@ impl PanTilt {
         }
         let mut sorted = targets.to_vec();
         sorted.sort_by_key(|(j, _)| *j);
-        let mask = sorted.iter().fold(0u16, |m, (j, _)| m | (1 << j));
+        let mask = crate::motion::joint_mask(sorted.iter().map(|(j, _)| *j));
         let claim = Claim {
             joints: mask,
             ..Claim::default()

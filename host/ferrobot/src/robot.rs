@@ -438,7 +438,7 @@ impl Robot {
 impl Io {
     /// Switch joints to a mode.
     pub(crate) fn set_mode(&mut self, joints: &[usize], mode: JointMode) -> Result<()> {
-        let mask = joints.iter().fold(0u16, |m, &j| m | (1 << j));
+        let mask = crate::motion::joint_mask(joints.iter().copied());
         self.link
             .command(&HostMsg::SetMode { joints: mask, mode }, "mode change")
     }

@@ -1,23 +1,17 @@
-//! The in-process simulator backend: the protocol's host session
-//! ([`ferrobot_protocol::session::HostSession`]) driving a lockstep simulator built from the
-//! robot's configuration (servo chain, gravity from the URDF's link masses, base) in virtual
-//! time: waiting for an answer runs the simulation.
+//! The in-process simulator backend: a [`SimSession`] (the protocol's host session in virtual
+//! time) on a lockstep simulator built from the robot's configuration (servo chain, gravity
+//! from the URDF's link masses, base): waiting for an answer runs the simulation.
 
 use std::time::{Duration, Instant};
 
-use ferrobot_protocol::session::{
-    Answer, GetDiagnostics, GetJoint, Handshake, HostSession, Request, SessionError,
-};
-use ferrobot_protocol::{
-    DeviceInfo, Diagnostics, Fault, HostMsg, JointConfig, Telemetry, MAX_WIRE,
-};
+use ferrobot_protocol::session::{GetDiagnostics, GetJoint};
+use ferrobot_protocol::{DeviceInfo, Diagnostics, Fault, HostMsg, JointConfig, Telemetry};
 use ferrobot_sim::arm::ArmJoint;
 use ferrobot_sim::chain::ServoMount;
-use ferrobot_sim::lockstep::KEEPALIVE_US;
 use ferrobot_sim::robots::{BaseModel as SimBase, SimRobot};
-use ferrobot_sim::LockstepSim;
+use ferrobot_sim::{LockstepSim, SimError, SimSession};
 
-use super::{acked, replied, Link};
+use super::{rejection, Link};
 use crate::config::{BaseModel, RobotConfig};
 use crate::error::{Error, Result};
 
@@ -153,163 +147,47 @@ pub fn sim_robot(cfg: &RobotConfig) -> SimRobot {
     }
 }
 
-/// How long (simulated) a command waits for its acknowledgement, µs.
-const COMMAND_TIMEOUT_US: u64 = 100_000;
-/// How long (simulated) a request, the handshake or the first telemetry may take, µs.
-const REQUEST_TIMEOUT_US: u64 = 200_000;
-
-/// The simulator backend.
+/// The simulator backend: the lockstep simulator driven by [`SimSession`], the protocol's host
+/// session in virtual time.
 pub struct SimLink {
-    sim: LockstepSim,
-    session: HostSession,
+    session: SimSession,
     info: DeviceInfo,
     realtime: Option<(Instant, u64)>,
-    /// When the last heartbeat went out (simulated µs).
-    last_keepalive: u64,
+}
+
+/// The API's error for a simulator session's, naming `what` was asked.
+fn sim_err(what: &str, e: SimError) -> Error {
+    match e {
+        SimError::Rejected(r) => rejection(what, r),
+        SimError::Timeout(waited) => Error::Timeout {
+            what: format!("{what} ({waited})"),
+            after: Duration::from_millis(200),
+        },
+        other => Error::Link(other.to_string()),
+    }
 }
 
 impl SimLink {
     /// Simulate the robot of `cfg` with plants seeded by `seed`.
     pub fn start(cfg: &RobotConfig, seed: u64, realtime: bool) -> Result<Self> {
         let sim = LockstepSim::with(sim_robot(cfg), cfg.firmware_profile(), seed);
+        let mut session = SimSession::new(sim);
+        let info = session.handshake().map_err(|e| sim_err("hello", e))?;
         let mut link = SimLink {
-            sim,
-            session: HostSession::new(),
-            info: super::placeholder_info(),
+            session,
+            info,
             realtime: None,
-            last_keepalive: 0,
         };
-        link.info = link.handshake()?;
         // Let the firmware configure its servos before the first command.
-        let end = link.sim.now_us() + 2_000_000;
-        loop {
-            link.pump();
-            let configured = link
-                .session
-                .telemetry()
-                .is_some_and(|t| t.faults & ferrobot_protocol::fault_flags::CONFIGURING == 0);
-            if configured {
-                break;
-            }
-            if link.sim.now_us() >= end {
-                return Err(Error::Timeout {
-                    what: "servo configuration".into(),
-                    after: Duration::from_secs(2),
-                });
-            }
-            link.step(1000);
-        }
+        link.session
+            .wait_telemetry(2_000_000, |t| {
+                t.faults & ferrobot_protocol::fault_flags::CONFIGURING == 0
+            })
+            .map_err(|e| sim_err("servo configuration", e))?;
         if realtime {
-            link.realtime = Some((Instant::now(), link.sim.now_us()));
+            link.realtime = Some((Instant::now(), link.session.sim.now_us()));
         }
         Ok(link)
-    }
-
-    fn handshake(&mut self) -> Result<DeviceInfo> {
-        let mut buf = [0u8; MAX_WIRE];
-        let n = self
-            .session
-            .hello(self.sim.now_us(), &mut buf)
-            .map_err(|e| Error::Link(format!("hello: {e:?}")))?;
-        self.sim.write_host(&buf[..n]);
-        let end = self.sim.now_us() + REQUEST_TIMEOUT_US;
-        loop {
-            self.pump();
-            match self.session.handshake() {
-                Handshake::Accepted(info) => return Ok(info.clone()),
-                Handshake::Refused(info) => {
-                    return Err(Error::VersionMismatch {
-                        host: ferrobot_protocol::PROTOCOL_VERSION,
-                        host_schema: ferrobot_protocol::SCHEMA_HASH,
-                        firmware: info.protocol_version,
-                        firmware_schema: info.schema_hash,
-                    })
-                }
-                Handshake::Waiting => {}
-            }
-            if self.sim.now_us() >= end {
-                return Err(Error::Timeout {
-                    what: "hello".into(),
-                    after: Duration::from_micros(REQUEST_TIMEOUT_US),
-                });
-            }
-            self.step(1000);
-        }
-    }
-
-    /// A heartbeat every [`KEEPALIVE_US`] of simulated time, as a host's I/O thread sends
-    /// when it is quiet, so that the firmware's watchdog stays fed.
-    fn keep_alive(&mut self) {
-        let now = self.sim.now_us();
-        if now >= self.last_keepalive + KEEPALIVE_US {
-            self.last_keepalive = now;
-            let mut buf = [0u8; MAX_WIRE];
-            if let Some(n) = self.session.heartbeat_due(now, 0, &mut buf) {
-                self.sim.write_host(&buf[..n]);
-            }
-        }
-    }
-
-    /// Advance the simulation by `dt_us`, feeding the watchdog on the way.
-    fn step(&mut self, dt_us: u64) {
-        let end = self.sim.now_us() + dt_us;
-        while self.sim.now_us() < end {
-            self.keep_alive();
-            let chunk = KEEPALIVE_US.min(end - self.sim.now_us());
-            self.sim.run_for(chunk);
-        }
-    }
-
-    /// Hand what the firmware sent to the session.
-    fn pump(&mut self) {
-        let bytes = self.sim.take_host_output();
-        self.session.on_bytes(&bytes);
-    }
-
-    /// Run in 1 ms steps until the answer to `seq` comes, for at most `timeout_us`.
-    fn answer(&mut self, seq: u16, timeout_us: u64, what: &str) -> Result<Answer> {
-        let end = self.sim.now_us() + timeout_us;
-        loop {
-            self.pump();
-            if let Some(a) = self.session.take_answer(seq) {
-                return Ok(a);
-            }
-            if self.sim.now_us() >= end {
-                self.session.forget(seq);
-                return Err(Error::Timeout {
-                    what: what.to_string(),
-                    after: Duration::from_micros(timeout_us),
-                });
-            }
-            self.step(1000);
-        }
-    }
-
-    /// Encode with `encode` (a command or a request), send it, and wait for its answer for at
-    /// most `timeout_us`.
-    fn exchange(
-        &mut self,
-        what: &str,
-        timeout_us: u64,
-        encode: impl FnOnce(
-            &mut HostSession,
-            u64,
-            &mut [u8],
-        ) -> std::result::Result<(u16, usize), SessionError>,
-    ) -> Result<Answer> {
-        let mut buf = [0u8; MAX_WIRE];
-        let (seq, n) = encode(&mut self.session, self.sim.now_us(), &mut buf)
-            .map_err(|e| Error::Link(format!("{what}: {e:?}")))?;
-        self.sim.write_host(&buf[..n]);
-        self.answer(seq, timeout_us, what)
-    }
-
-    /// A typed request and its reply.
-    fn request<R: Request>(&mut self, r: &R, what: &str) -> Result<R::Reply> {
-        let a = self.exchange(what, REQUEST_TIMEOUT_US, |s, now, out| {
-            s.request(r, now, out)
-        })?;
-        replied::<R>(what, a)
     }
 }
 
@@ -319,39 +197,31 @@ impl Link for SimLink {
     }
 
     fn command(&mut self, msg: &HostMsg, what: &str) -> Result<()> {
-        let a = self.exchange(what, COMMAND_TIMEOUT_US, |s, now, out| {
-            s.command(msg, now, out)
-        })?;
-        acked(what, a)
+        self.session.command(msg).map_err(|e| sim_err(what, e))
     }
 
     fn joint_config(&mut self, index: u8) -> Result<JointConfig> {
-        self.request(&GetJoint(index), "joint configuration")
+        self.session
+            .request(&GetJoint(index))
+            .map_err(|e| sim_err("joint configuration", e))
     }
 
     fn diagnostics(&mut self) -> Result<Diagnostics> {
-        self.request(&GetDiagnostics, "diagnostics")
+        self.session
+            .request(&GetDiagnostics)
+            .map_err(|e| sim_err("diagnostics", e))
     }
 
     fn telemetry(&mut self) -> Result<Telemetry> {
-        let end = self.sim.now_us() + REQUEST_TIMEOUT_US;
-        loop {
-            self.pump();
-            if let Some(t) = self.session.telemetry() {
-                return Ok(t.clone());
-            }
-            if self.sim.now_us() >= end {
-                return Err(Error::Link("no telemetry".into()));
-            }
-            self.step(1000);
-        }
+        self.session
+            .wait_telemetry(200_000, |_| true)
+            .map_err(|_| Error::Link("no telemetry".into()))
     }
 
     fn wait(&mut self, dt: Duration) {
-        self.step(dt.as_micros() as u64);
-        self.pump();
+        self.session.run_for(dt.as_micros() as u64);
         if let Some((wall0, sim0)) = self.realtime {
-            let due = Duration::from_micros(self.sim.now_us() - sim0);
+            let due = Duration::from_micros(self.session.sim.now_us() - sim0);
             if let Some(rest) = due.checked_sub(wall0.elapsed()) {
                 std::thread::sleep(rest);
             }
@@ -359,15 +229,14 @@ impl Link for SimLink {
     }
 
     fn now(&self) -> Duration {
-        Duration::from_micros(self.sim.now_us())
+        Duration::from_micros(self.session.sim.now_us())
     }
 
     fn take_faults(&mut self) -> Vec<Fault> {
-        self.pump();
-        std::iter::from_fn(|| self.session.take_fault()).collect()
+        self.session.take_faults()
     }
 
     fn simulator(&mut self) -> Option<&mut LockstepSim> {
-        Some(&mut self.sim)
+        Some(&mut self.session.sim)
     }
 }
