@@ -74,7 +74,22 @@ pub mod op {
     pub const MODE_CHANGE: u16 = TORQUE_OFF | MODE | READ_POS | GOAL_HOLD | TORQUE_ON;
     /// Operations during which no goal may be written.
     pub const BLOCKS_GOALS: u16 = CONFIGURE | REBOOT;
+
+    /// Parameters in the status that answers operation `o` (a ping's model and firmware
+    /// version, a position read's 4 bytes, a hardware-error read's 1; writes and reboots
+    /// answer with none).
+    pub const fn reply_params(o: u16) -> usize {
+        match o {
+            PING => 3,
+            READ_POS => 4,
+            READ_HW => 1,
+            _ => 0,
+        }
+    }
 }
+
+/// Bytes of a status packet besides its parameters.
+const STATUS_OVERHEAD: usize = dxl::PACKET_OVERHEAD + 2;
 
 /// Where a servo stands.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -172,6 +187,9 @@ pub struct BusStats {
     pub timeouts: u32,
     /// Statuses with the alert bit.
     pub alerts: u32,
+    /// Statuses that answered nothing awaited (a late reply to an earlier transaction, or one
+    /// out of a sync read's order), dropped.
+    pub stale: u32,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -400,7 +418,11 @@ impl ServoBus {
             self.phase = Phase::AwaitOp {
                 servo: i,
                 op: op::PING,
-                deadline: self.op_deadline(now, n, 14),
+                deadline: self.op_deadline(
+                    now,
+                    n,
+                    STATUS_OVERHEAD.saturating_add(op::reply_params(op::PING)),
+                ),
                 gen: self.servos.get(i).map_or(0, |s| s.gen),
             };
             return true;
@@ -446,56 +468,35 @@ impl ServoBus {
         let o = s.ops & s.ops.wrapping_neg(); // lowest pending op
         let cfg = joints.get(s.joint as usize);
         let id = s.id;
-        let (n, reply) = match o {
-            op::REBOOT => (self.send(|b| dxl::reboot(b, id)), 11),
-            op::PING => (self.send(|b| dxl::ping(b, id)), 14),
-            op::TORQUE_OFF => (
-                self.send(|b| dxl::write(b, id, addr::TORQUE_ENABLE, &[0])),
-                11,
-            ),
-            op::RETURN_DELAY => (
-                self.send(|b| dxl::write(b, id, addr::RETURN_DELAY_TIME, &[0])),
-                11,
-            ),
-            op::MODE => (
-                self.send(|b| dxl::write(b, id, addr::OPERATING_MODE, &[s.mode])),
-                11,
-            ),
+        let n = match o {
+            op::REBOOT => self.send(|b| dxl::reboot(b, id)),
+            op::PING => self.send(|b| dxl::ping(b, id)),
+            op::TORQUE_OFF => self.send(|b| dxl::write(b, id, addr::TORQUE_ENABLE, &[0])),
+            op::RETURN_DELAY => self.send(|b| dxl::write(b, id, addr::RETURN_DELAY_TIME, &[0])),
+            op::MODE => self.send(|b| dxl::write(b, id, addr::OPERATING_MODE, &[s.mode])),
             op::POS_GAINS => {
                 let g = cfg.map(|c| c.servo).unwrap_or(s.model.factory_gains());
                 let mut d = [0u8; 6];
                 d[..2].copy_from_slice(&g.pos_d.to_le_bytes());
                 d[2..4].copy_from_slice(&g.pos_i.to_le_bytes());
                 d[4..].copy_from_slice(&g.pos_p.to_le_bytes());
-                (
-                    self.send(|b| dxl::write(b, id, addr::POSITION_D_GAIN, &d)),
-                    11,
-                )
+                self.send(|b| dxl::write(b, id, addr::POSITION_D_GAIN, &d))
             }
             op::VEL_GAINS => {
                 let g = cfg.map(|c| c.servo).unwrap_or(s.model.factory_gains());
                 let mut d = [0u8; 4];
                 d[..2].copy_from_slice(&g.vel_i.to_le_bytes());
                 d[2..].copy_from_slice(&g.vel_p.to_le_bytes());
-                (
-                    self.send(|b| dxl::write(b, id, addr::VELOCITY_I_GAIN, &d)),
-                    11,
-                )
+                self.send(|b| dxl::write(b, id, addr::VELOCITY_I_GAIN, &d))
             }
             op::PROFILE => {
                 let g = cfg.map(|c| c.servo).unwrap_or(s.model.factory_gains());
                 let mut d = [0u8; 8];
                 d[..4].copy_from_slice(&g.profile_acceleration.to_le_bytes());
                 d[4..].copy_from_slice(&g.profile_velocity.to_le_bytes());
-                (
-                    self.send(|b| dxl::write(b, id, addr::PROFILE_ACCELERATION, &d)),
-                    11,
-                )
+                self.send(|b| dxl::write(b, id, addr::PROFILE_ACCELERATION, &d))
             }
-            op::READ_POS => (
-                self.send(|b| dxl::read(b, id, addr::PRESENT_POSITION, 4)),
-                15,
-            ),
+            op::READ_POS => self.send(|b| dxl::read(b, id, addr::PRESENT_POSITION, 4)),
             op::GOAL_HOLD => {
                 let (a, data, len): (u16, [u8; 4], usize) = match s.mode {
                     mode::POSITION | mode::EXTENDED_POSITION | mode::CURRENT_BASED_POSITION => {
@@ -505,10 +506,7 @@ impl ServoBus {
                     mode::CURRENT => (addr::GOAL_CURRENT, [0; 4], 2),
                     _ => (addr::GOAL_PWM, [0; 4], 2),
                 };
-                (
-                    self.send(|b| dxl::write(b, id, a, data.get(..len).unwrap_or(&[]))),
-                    11,
-                )
+                self.send(|b| dxl::write(b, id, a, data.get(..len).unwrap_or(&[])))
             }
             op::TORQUE_ON => {
                 if !s.torque {
@@ -516,15 +514,9 @@ impl ServoBus {
                     self.op_done(i, o, s.gen);
                     return false;
                 }
-                (
-                    self.send(|b| dxl::write(b, id, addr::TORQUE_ENABLE, &[1])),
-                    11,
-                )
+                self.send(|b| dxl::write(b, id, addr::TORQUE_ENABLE, &[1]))
             }
-            op::READ_HW => (
-                self.send(|b| dxl::read(b, id, addr::HARDWARE_ERROR_STATUS, 1)),
-                12,
-            ),
+            op::READ_HW => self.send(|b| dxl::read(b, id, addr::HARDWARE_ERROR_STATUS, 1)),
             _ => {
                 if let Some(s) = self.servos.get_mut(i) {
                     s.ops &= !o;
@@ -535,7 +527,7 @@ impl ServoBus {
         self.phase = Phase::AwaitOp {
             servo: i,
             op: o,
-            deadline: self.op_deadline(now, n, reply),
+            deadline: self.op_deadline(now, n, STATUS_OVERHEAD.saturating_add(op::reply_params(o))),
             gen: s.gen,
         };
         true
@@ -593,7 +585,7 @@ impl ServoBus {
         }
         let n = self.send(|b| dxl::sync_read(b, addr::PRESENT_CURRENT, SYNC_READ_LEN, &ids));
         // Compile-time constants: evaluated (and overflow-checked) by the compiler.
-        const PER_STATUS: usize = dxl::PACKET_OVERHEAD + 2 + SYNC_READ_LEN as usize;
+        const PER_STATUS: usize = STATUS_OVERHEAD + SYNC_READ_LEN as usize;
         let per_status = PER_STATUS;
         self.phase = Phase::AwaitSync {
             deadline: self.reply_deadline(now, n, per_status.saturating_mul(ids.len())),
@@ -642,9 +634,18 @@ impl ServoBus {
                     return;
                 };
                 if s.id != id {
+                    self.stats.stale = self.stats.stale.saturating_add(1);
                     return;
                 }
                 let ok = err & 0x7F == 0;
+                // Protocol 2.0 statuses carry no sequence number: a status of the right servo
+                // with the wrong shape (a late sync-read status, a ping's answer to a write)
+                // answers an earlier transaction. Taking it would complete this one before
+                // the servo has even seen it. An error status carries no data.
+                if ok && len != op::reply_params(o) {
+                    self.stats.stale = self.stats.stale.saturating_add(1);
+                    return;
+                }
                 if !ok {
                     self.op_failed(now, servo);
                 } else if o == op::PING && s.status == ServoStatus::Lost {
@@ -679,12 +680,17 @@ impl ServoBus {
                 }
             }
             Phase::AwaitSync { .. } => {
-                let slot = self
+                // Servos answer a sync read in the order of its list, each after the one
+                // before it: only the next one's status belongs to this read (anything else
+                // is late from an earlier one).
+                let k = self.received.count_ones() as usize;
+                let expected = self
                     .read_list
-                    .iter()
-                    .position(|&i| self.servos.get(i as usize).is_some_and(|s| s.id == id));
-                let Some(k) = slot else { return };
-                if self.received & (1 << k) != 0 || len < SYNC_READ_LEN as usize {
+                    .get(k)
+                    .and_then(|&i| self.servos.get(i as usize))
+                    .is_some_and(|s| s.id == id);
+                if !expected || len != SYNC_READ_LEN as usize {
+                    self.stats.stale = self.stats.stale.saturating_add(1);
                     return;
                 }
                 self.received |= 1 << k;

@@ -870,6 +870,7 @@ impl Firmware {
             servo_bad_packets: self.bus.stats.bad_packets,
             servo_timeouts: self.bus.stats.timeouts,
             servo_alerts: self.bus.stats.alerts,
+            servo_stale: self.bus.stats.stale,
             base_packets: self.base.stats.packets,
             base_bad_packets: self.base.stats.bad_packets,
         }

@@ -529,3 +529,127 @@ fn calibrated_geometry_is_used_by_the_odometry_and_bad_geometry_is_rejected() {
         "{o:?} vs ({x}, {y}) m"
     );
 }
+
+/// A sync-read status of servo `id` (current, velocity, position), as the bus would send it.
+fn sync_status(bus: &FakeBus, id: u8, position: i32) -> Vec<u8> {
+    let mut d = Vec::new();
+    d.extend_from_slice(&0i16.to_le_bytes());
+    d.extend_from_slice(&0i32.to_le_bytes());
+    d.extend_from_slice(&position.to_le_bytes());
+    bus.status(id, &d)
+}
+
+#[test]
+fn a_late_status_never_completes_a_mode_change_the_servo_has_not_seen() {
+    // Protocol 2.0 statuses carry no sequence number. Here a mode change's torque-off write is
+    // lost on the line while a late sync-read status of the same servo arrives: taking it as
+    // the write's answer would put every later step one answer ahead, and the firmware would
+    // count torque on before the servo has seen it (found by the hostile stream, seed 560).
+    let (mut fw, mut bus, mut now) = locobot();
+    fw.on_host_bytes(now, &hello());
+    run(&mut fw, &mut bus, &mut now, 200);
+    bus.log.clear();
+    fw.on_host_bytes(
+        now,
+        &frame(
+            1,
+            &HostMsg::SetMode {
+                joints: 0b1,
+                mode: JointMode::Velocity,
+            },
+        ),
+    );
+    let mut dropped = false;
+    let end = now + 50_000;
+    while now < end {
+        now = (now + 1).max(fw.next_deadline().min(end));
+        fw.poll(now);
+        for _ in 0..4 {
+            let n = fw.pending(Link::Servo).len();
+            if n == 0 {
+                break;
+            }
+            let tx = fw.pending(Link::Servo).to_vec();
+            fw.consume(Link::Servo, n);
+            let torque_off = {
+                let mut d = PacketDecoder::<512>::new();
+                tx.iter().any(|&b| {
+                    matches!(d.push(b), Some(Ok(p)) if p.id == 1
+                        && p.instruction == inst::WRITE
+                        && dxl::le_u16(p.params, 0) == addr::TORQUE_ENABLE
+                        && p.params.get(2) == Some(&0))
+                })
+            };
+            let rx = if torque_off && !dropped {
+                dropped = true;
+                sync_status(&bus, 1, 2048)
+            } else {
+                bus.respond(&tx)
+            };
+            if !rx.is_empty() {
+                now += 100;
+                fw.on_servo_bytes(now, &rx);
+            }
+        }
+        for link in [Link::Host, Link::Base] {
+            let n = fw.pending(link).len();
+            fw.consume(link, n);
+        }
+    }
+    assert!(dropped, "no torque-off write to servo 1");
+    // What servo 1 saw, in order: torque off, then the mode, then torque on.
+    let writes: Vec<(u16, Vec<u8>)> = bus
+        .log
+        .iter()
+        .filter(|(id, ins, _)| *id == 1 && *ins == inst::WRITE)
+        .map(|(_, _, p)| (dxl::le_u16(p, 0), p[2..].to_vec()))
+        .collect();
+    let first = |a: u16| writes.iter().position(|(w, _)| *w == a);
+    let (off, mode, on) = (
+        writes
+            .iter()
+            .position(|(a, d)| *a == addr::TORQUE_ENABLE && d == &[0]),
+        first(addr::OPERATING_MODE),
+        writes
+            .iter()
+            .position(|(a, d)| *a == addr::TORQUE_ENABLE && d == &[1]),
+    );
+    assert!(
+        matches!((off, mode, on), (Some(a), Some(b), Some(c)) if a < b && b < c),
+        "servo 1 saw {writes:?}"
+    );
+    assert_eq!(writes[mode.unwrap()].1, vec![dxl::mode::VELOCITY]);
+    assert!(fw.diagnostics().servo_stale >= 1);
+    assert_eq!(fw.bus().servos[0].ops, 0, "the mode change did not finish");
+}
+
+#[test]
+fn a_status_out_of_a_sync_reads_order_is_dropped() {
+    // A late status of the last servo arriving first must not count as this read's: the
+    // read would end before that servo's own status and the position would be stale.
+    let (mut fw, mut bus, mut now) = locobot();
+    fw.on_host_bytes(now, &hello());
+    run(&mut fw, &mut bus, &mut now, 200);
+    bus.present.insert(9, (0, 0, 3000));
+    let before = fw.diagnostics().servo_stale;
+    let end = now + 5_000;
+    while now < end {
+        now = (now + 1).max(fw.next_deadline().min(end));
+        fw.poll(now);
+        let n = fw.pending(Link::Servo).len();
+        if n > 0 {
+            let tx = fw.pending(Link::Servo).to_vec();
+            fw.consume(Link::Servo, n);
+            let mut rx = sync_status(&bus, 9, 1000);
+            rx.extend(bus.respond(&tx));
+            now += 100;
+            fw.on_servo_bytes(now, &rx);
+        }
+        for link in [Link::Host, Link::Base] {
+            let n = fw.pending(link).len();
+            fw.consume(link, n);
+        }
+    }
+    assert!(fw.diagnostics().servo_stale > before);
+    assert_eq!(fw.bus().servos[8].present.position, 3000);
+}

@@ -595,6 +595,9 @@ pub struct Diagnostics {
     pub servo_timeouts: u32,
     /// Status packets with the hardware-alert bit.
     pub servo_alerts: u32,
+    /// Status packets that answered nothing awaited (late from an earlier transaction, or
+    /// out of a sync read's order), dropped.
+    pub servo_stale: u32,
     /// Base feedback packets received.
     pub base_packets: u32,
     /// Base packets dropped for checksum or framing errors.

@@ -242,7 +242,7 @@ fn device_msg() -> impl Strategy<Value = DeviceMsg> {
                     time_us,
                 })
             }),
-        any::<[u32; 9]>().prop_map(|c| DeviceMsg::Diagnostics(Diagnostics {
+        any::<[u32; 10]>().prop_map(|c| DeviceMsg::Diagnostics(Diagnostics {
             host_frames: c[0],
             host_bad_frames: c[1],
             host_tx_dropped: c[2],
@@ -252,6 +252,7 @@ fn device_msg() -> impl Strategy<Value = DeviceMsg> {
             servo_alerts: c[6],
             base_packets: c[7],
             base_bad_packets: c[8],
+            servo_stale: c[9],
         })),
         "[ -~]{0,64}"
             .prop_map(|s| DeviceMsg::Log(String::try_from(s.as_str()).unwrap_or_default())),
