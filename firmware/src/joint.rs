@@ -662,7 +662,7 @@ impl JointControl {
                     let lead = position_lead(cfg);
                     if self.measured
                         && q.is_finite()
-                        && qd.abs() > lim.velocity + LEAVING_SPEED
+                        && qd.abs() > lim.velocity
                         && lead > 0.0
                     {
                         if qd > 0.0 && self.cmd > q + lead {
