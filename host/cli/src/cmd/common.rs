@@ -1,0 +1,42 @@
+//! Helpers shared by the subcommands: loading a robot, its arm chain, checking joint angles,
+//! rounding for display.
+
+use ferrobot::kinematics::Chain;
+use ferrobot::{validate, RobotConfig};
+
+/// A bundled robot by name, or the configuration file at a path (ending `.toml` or holding
+/// a `/`).
+pub fn load(robot: &str) -> ferrobot::Result<RobotConfig> {
+    Ok(if robot.ends_with(".toml") || robot.contains('/') {
+        RobotConfig::from_file(robot)?
+    } else {
+        RobotConfig::bundled(robot)?
+    })
+}
+
+/// The arm's kinematic chain, or the error that the robot has no arm.
+pub fn arm_chain(cfg: &RobotConfig) -> ferrobot::Result<Chain> {
+    cfg.arm_chain
+        .clone()
+        .ok_or_else(|| ferrobot::Error::NoComponent {
+            robot: cfg.name.clone(),
+            component: "arm",
+        })
+}
+
+/// Joint angles for `chain`: its count, each finite and within ±`validate::MAX_ANGLE`.
+pub fn check_q(chain: &Chain, q: &[f64]) -> ferrobot::Result<()> {
+    if q.len() != chain.dof() {
+        return Err(ferrobot::Error::JointCount {
+            what: "joint angles",
+            expected: chain.dof(),
+            got: q.len(),
+        });
+    }
+    Ok(validate::angles("joint angles", q)?)
+}
+
+/// `v` rounded to 3 decimals, for text output.
+pub fn round(v: &[f64]) -> Vec<f64> {
+    v.iter().map(|x| (x * 1000.0).round() / 1000.0).collect()
+}
