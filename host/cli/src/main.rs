@@ -15,7 +15,9 @@
 use std::process::ExitCode;
 
 use clap::{Args, Parser, Subcommand};
-use serde_json::json;
+use serde::Serialize;
+
+use cmd::common::print_json;
 
 mod cmd;
 
@@ -248,6 +250,17 @@ fn run(cli: Cli) -> Result<(), (ferrobot::Error, bool)> {
     result.map_err(|e| (e, json))
 }
 
+/// The error object of `--json`, fields in alphabetical order (see [`print_json`]).
+#[derive(Serialize)]
+struct ErrorJson {
+    /// What went wrong.
+    error: String,
+    /// Whether the input was at fault (exit code 2) rather than the robot or the world (1).
+    input_error: bool,
+    /// Always false.
+    success: bool,
+}
+
 /// Exit codes: 0 success, 1 the robot or the world failed (unreachable, timeout, fault), 2
 /// the input was wrong (arguments, values, names, files). With `--json`, an error is one
 /// object `{"success": false, "error": "...", "input_error": bool}` on standard output.
@@ -260,10 +273,11 @@ fn main() -> ExitCode {
                 let text = e.to_string();
                 let first = text.lines().next().unwrap_or_default();
                 let msg = first.strip_prefix("error: ").unwrap_or(first).to_string();
-                println!(
-                    "{}",
-                    json!({"success": false, "error": msg, "input_error": true})
-                );
+                print_json(&ErrorJson {
+                    error: msg,
+                    input_error: true,
+                    success: false,
+                });
                 return ExitCode::from(2);
             }
             // Help and version print and succeed; usage errors exit with code 2.
@@ -275,10 +289,11 @@ fn main() -> ExitCode {
         Err((e, json)) => {
             let input = e.is_input();
             if json {
-                println!(
-                    "{}",
-                    json!({"success": false, "error": e.to_string(), "input_error": input})
-                );
+                print_json(&ErrorJson {
+                    error: e.to_string(),
+                    input_error: input,
+                    success: false,
+                });
             } else {
                 eprintln!("error: {e}");
             }

@@ -5,12 +5,46 @@ use std::path::Path;
 
 use ferrobot::config::BaseController;
 use ferrobot::{validate, GoalOptions};
-use serde_json::json;
+use ferrobot_cli::bench_base::RowJson;
+use serde::Serialize;
 
-use super::calibrate_odometry::{calibration_json, calibration_text};
+use super::calibrate_odometry::{calibration_text, CalibrationJson};
+use super::common::print_json;
 
 /// Most trials per target of `bench base`.
 const MAX_TRIALS: usize = 100;
+
+/// `bench base --json`: one robot's table, circle plots and settings, fields in alphabetical
+/// order, here and below (see [`print_json`]).
+#[derive(Serialize)]
+struct BenchBaseJson<'a> {
+    /// How far each circle run ended from the reference's end.
+    circle_end_error_m: Vec<CircleEndJson>,
+    /// The circle plot's file.
+    circle_plot: String,
+    /// The file of the plot zoomed on the end of the lap.
+    circle_plot_end: String,
+    /// The odometry calibration the trials used (with `--calibrate` only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    odometry_calibration: Option<CalibrationJson>,
+    /// The robot.
+    robot: &'a str,
+    /// The table's rows.
+    rows: Vec<RowJson>,
+    /// Trial k's seed is this + k.
+    seed: u64,
+    /// Trials per target.
+    trials_per_target: usize,
+}
+
+/// Where one circle run ended.
+#[derive(Serialize)]
+struct CircleEndJson {
+    /// Distance from the reference's end, m.
+    error: f64,
+    /// The run's name.
+    run: &'static str,
+}
 
 /// Run the trials (`trials` per target, trial k seeded `seed + k`) on each of `robots`
 /// (default: locobot and locobot_lite), draw the circle plots into `plot_dir`, and print
@@ -148,19 +182,19 @@ pub fn run(
         zoom.save(&png_zoom)?;
         bar.finish_and_clear();
         if json {
-            let mut o = bb::json(&robot, &rows);
-            o["circle_plot"] = json!(png.display().to_string());
-            o["circle_plot_end"] = json!(png_zoom.display().to_string());
-            o["circle_end_error_m"] = json!(ends
-                .iter()
-                .map(|(n, e)| json!({"run": n, "error": e}))
-                .collect::<Vec<_>>());
-            o["seed"] = json!(seed);
-            o["trials_per_target"] = json!(trials);
-            if let Some(c) = &calibration {
-                o["odometry_calibration"] = calibration_json(c);
-            }
-            println!("{o}");
+            print_json(&BenchBaseJson {
+                circle_end_error_m: ends
+                    .iter()
+                    .map(|&(run, error)| CircleEndJson { error, run })
+                    .collect(),
+                circle_plot: png.display().to_string(),
+                circle_plot_end: png_zoom.display().to_string(),
+                odometry_calibration: calibration.as_ref().map(CalibrationJson::new),
+                robot: &robot,
+                rows: rows.iter().map(bb::Row::json).collect(),
+                seed,
+                trials_per_target: trials,
+            });
         } else {
             if let Some(c) = &calibration {
                 println!("{robot}, seed {}: {}\n", seed + 1000, calibration_text(c));

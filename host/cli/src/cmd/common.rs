@@ -3,6 +3,7 @@
 
 use ferrobot::kinematics::Chain;
 use ferrobot::{validate, RobotConfig};
+use serde::Serialize;
 
 /// A bundled robot by name, or the configuration file at a path (ending `.toml` or holding
 /// a `/`).
@@ -39,4 +40,18 @@ pub fn check_q(chain: &Chain, q: &[f64]) -> ferrobot::Result<()> {
 /// `v` rounded to 3 decimals, for text output.
 pub fn round(v: &[f64]) -> Vec<f64> {
     v.iter().map(|x| (x * 1000.0).round() / 1000.0).collect()
+}
+
+/// Print `value` as one line of compact JSON.
+///
+/// Every `--json` output is a struct deriving `Serialize` whose fields are declared in
+/// alphabetical order: the order the objects of `serde_json::Value` used to print.
+pub fn print_json<T: Serialize>(value: &T) {
+    println!("{}", to_json(value));
+}
+
+/// `value` as compact JSON.
+pub fn to_json<T: Serialize>(value: &T) -> String {
+    // Plain structs of numbers, strings and sequences: serialising them cannot fail.
+    serde_json::to_string(value).expect("a plain struct serialises")
 }

@@ -2,12 +2,19 @@
 
 use ferrobot::kinematics::Chain;
 use ferrobot::Pose;
-use serde_json::json;
+use serde::Serialize;
 
-use super::common::{arm_chain, check_q, load};
+use super::common::{arm_chain, check_q, load, print_json};
 
-fn pose_json(p: &Pose) -> serde_json::Value {
-    json!({"position": p.position, "rotation": p.rotation, "quaternion": p.quaternion})
+/// `fk --json`: the pose, fields in alphabetical order (see [`print_json`]).
+#[derive(Serialize)]
+struct PoseJson {
+    /// Position, m.
+    position: [f64; 3],
+    /// Unit quaternion `[x, y, z, w]`.
+    quaternion: [f64; 4],
+    /// Rotation matrix, rows.
+    rotation: [[f64; 3]; 3],
 }
 
 /// Print the pose of the end effector (or of `frame`, a link of the arm's chain) in the
@@ -38,7 +45,11 @@ pub fn run(robot: &str, q: &[f64], frame: Option<&str>, json: bool) -> ferrobot:
     }
     let p: Pose = chain.fk(&sub).into();
     if json {
-        println!("{}", pose_json(&p));
+        print_json(&PoseJson {
+            position: p.position,
+            quaternion: p.quaternion,
+            rotation: p.rotation,
+        });
     } else {
         println!("frame {} in {}", chain.tip, chain.base);
         println!(

@@ -5,10 +5,20 @@ use ferrobot::kinematics::ik::{IkOptions, IkSolver, NumericalIk};
 use ferrobot::kinematics::locobot_ik::LocobotIk;
 use ferrobot::{validate, Orientation};
 use nalgebra::{Isometry3, Translation3};
-use serde_json::json;
+use serde::Serialize;
 
-use super::common::{arm_chain, check_q, load};
+use super::common::{arm_chain, check_q, load, print_json};
 use crate::IkArgs;
+
+/// `ik --json` when solved (a failure is `main`'s error object), fields in alphabetical
+/// order (see [`print_json`]).
+#[derive(Serialize)]
+struct IkJson {
+    /// The arm's joint angles, rad.
+    joints: Vec<f64>,
+    /// Always true.
+    success: bool,
+}
 
 /// Solve for the joint angles (rad) that put the end effector at the target of `a`: the
 /// pitch-roll solver with `--pitch`, else the robot's solver for a full orientation.
@@ -60,7 +70,10 @@ pub fn run(a: &IkArgs) -> ferrobot::Result<()> {
     };
     let q = result?;
     if a.json {
-        println!("{}", json!({"success": true, "joints": q}));
+        print_json(&IkJson {
+            joints: q,
+            success: true,
+        });
     } else {
         println!(
             "{}",

@@ -1,8 +1,15 @@
 //! `ferrobot jacobian`: the arm's geometric Jacobian.
 
-use serde_json::json;
+use serde::Serialize;
 
-use super::common::{arm_chain, check_q, load};
+use super::common::{arm_chain, check_q, load, print_json};
+
+/// `jacobian --json`.
+#[derive(Serialize)]
+struct JacobianJson {
+    /// Six rows (vx vy vz wx wy wz) of one column per joint.
+    jacobian: Vec<Vec<f64>>,
+}
 
 /// Print the geometric Jacobian at joint angles `q` (rad): rows vx vy vz wx wy wz in the root
 /// frame, at the end effector's origin.
@@ -15,7 +22,7 @@ pub fn run(robot: &str, q: &[f64], json: bool) -> ferrobot::Result<()> {
         .map(|r| (0..arm.dof()).map(|c| j[(r, c)]).collect())
         .collect();
     if json {
-        println!("{}", json!({"jacobian": rows}));
+        print_json(&JacobianJson { jacobian: rows });
     } else {
         for (name, r) in ["vx", "vy", "vz", "wx", "wy", "wz"].iter().zip(rows) {
             println!(

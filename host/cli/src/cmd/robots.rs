@@ -1,11 +1,22 @@
 //! `ferrobot robots`: the bundled robots.
 
-use serde_json::json;
+use serde::Serialize;
+
+use super::common::print_json;
+
+/// `robots --json`.
+#[derive(Serialize)]
+struct RobotsJson {
+    /// The bundled robots' names.
+    robots: &'static [&'static str],
+}
 
 /// Print the bundled robots' names, one a line or as one JSON object.
 pub fn run(json: bool) -> ferrobot::Result<()> {
     if json {
-        println!("{}", json!({"robots": ferrobot::config::BUNDLED}));
+        print_json(&RobotsJson {
+            robots: &ferrobot::config::BUNDLED,
+        });
     } else {
         for r in ferrobot::config::BUNDLED {
             println!("{r}");
