@@ -6,6 +6,7 @@ use std::path::Path;
 use ferrobot::config::BaseController;
 use ferrobot::{validate, GoalOptions};
 use ferrobot_cli::bench_base::RowJson;
+use rayon::prelude::*;
 use serde::Serialize;
 
 use super::calibrate_odometry::{calibration_text, CalibrationJson};
@@ -74,8 +75,8 @@ pub fn run(
             None
         };
         let geometry = calibration.as_ref().map(|c| c.estimate);
-        // Every (controller, category, target, trial), run on all cores; each is seeded, so
-        // the order of execution does not change the results.
+        // Every (controller, category, target, trial), run on rayon's pool (all cores); each
+        // is seeded, so the order of execution does not change the results.
         let mut jobs = Vec::new();
         for c in BaseController::ALL {
             for cat in Category::ALL {
@@ -93,43 +94,16 @@ pub fn run(
                 .progress_chars("=> "),
         );
         bar.set_message(robot.clone());
-        let next = std::sync::atomic::AtomicUsize::new(0);
-        let threads = std::thread::available_parallelism().map_or(2, |n| n.get());
-        let results: Vec<ferrobot::Result<bb::Trial>> = std::thread::scope(|s| {
-            let handles: Vec<_> = (0..threads)
-                .map(|_| {
-                    s.spawn(|| {
-                        let mut out = Vec::new();
-                        loop {
-                            let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                            let Some(&(c, cat, target, sd)) = jobs.get(i) else {
-                                break;
-                            };
-                            out.push((
-                                i,
-                                bb::run_trial(
-                                    &robot,
-                                    c,
-                                    cat,
-                                    target,
-                                    GoalOptions::default(),
-                                    sd,
-                                    geometry,
-                                ),
-                            ));
-                            bar.inc(1);
-                        }
-                        out
-                    })
-                })
-                .collect();
-            let mut all: Vec<_> = handles
-                .into_iter()
-                .flat_map(|h| h.join().expect("trial thread"))
-                .collect();
-            all.sort_by_key(|(i, _)| *i);
-            all.into_iter().map(|(_, r)| r).collect()
-        });
+        // Results come back in the jobs' order; the first error in that order is reported.
+        let results: Vec<ferrobot::Result<bb::Trial>> = jobs
+            .par_iter()
+            .map(|&(c, cat, target, sd)| {
+                let trial =
+                    bb::run_trial(&robot, c, cat, target, GoalOptions::default(), sd, geometry);
+                bar.inc(1);
+                trial
+            })
+            .collect();
         let trials_done = results.into_iter().collect::<ferrobot::Result<Vec<_>>>()?;
         let rows = bb::summarize(&trials_done);
         // The circle comparison: the whole lap, and a zoom on its end (±6 cm).
