@@ -8,6 +8,7 @@ use ferrobot::config::BaseController;
 use ferrobot::error::{Error, Result};
 use ferrobot::odometry_calibration::{self as cal, CalibrationRun, WheelGeometry};
 use ferrobot::{Backend, GoalOptions, Robot};
+use serde::Serialize;
 
 /// A motion category of the paper's trials.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -238,19 +239,36 @@ pub fn markdown(robot: &str, trials_per_target: usize, seed: u64, rows: &[Row]) 
     s
 }
 
-/// The table as the JSON object of the command line's `--json`.
-pub fn json(robot: &str, rows: &[Row]) -> serde_json::Value {
-    serde_json::json!({
-        "robot": robot,
-        "rows": rows.iter().map(|r| serde_json::json!({
-            "controller": r.controller.name(),
-            "category": r.category.name(),
-            "reference": r.reference.name(),
-            "translation_mm": r.translation_mm,
-            "rotation_deg": r.rotation_deg,
-            "successes": [r.successes.0, r.successes.1],
-        })).collect::<Vec<_>>(),
-    })
+/// A row of the table as in the command line's `--json`: the fields of [`Row`] with names
+/// for the enums, in alphabetical order (the order the command line has always printed).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RowJson {
+    /// [`Category::name`].
+    pub category: &'static str,
+    /// [`BaseController::name`].
+    pub controller: &'static str,
+    /// [`Measured::name`].
+    pub reference: &'static str,
+    /// Mean and sample standard deviation of the rotation error, degrees.
+    pub rotation_deg: [f64; 2],
+    /// Trials that reported success, and all trials.
+    pub successes: [usize; 2],
+    /// Mean and sample standard deviation of the translation error, mm.
+    pub translation_mm: [f64; 2],
+}
+
+impl Row {
+    /// The row as in the command line's `--json`.
+    pub fn json(&self) -> RowJson {
+        RowJson {
+            category: self.category.name(),
+            controller: self.controller.name(),
+            reference: self.reference.name(),
+            rotation_deg: self.rotation_deg,
+            successes: [self.successes.0, self.successes.1],
+            translation_mm: self.translation_mm,
+        }
+    }
 }
 
 /// How the circle is executed in the tracking comparison.

@@ -1,0 +1,189 @@
+//! `ferrobot bench base`: PyRobot's base accuracy trials for every controller, and the
+//! circle-tracking plots.
+
+use std::path::Path;
+
+use ferrobot::config::BaseController;
+use ferrobot::{validate, GoalOptions};
+use ferrobot_cli::bench_base::RowJson;
+use rayon::prelude::*;
+use serde::Serialize;
+
+use super::calibrate_odometry::{calibration_text, CalibrationJson};
+use super::common::print_json;
+
+/// Most trials per target of `bench base`.
+const MAX_TRIALS: usize = 100;
+
+/// `bench base --json`: one robot's table, circle plots and settings, fields in alphabetical
+/// order, here and below (see [`print_json`]).
+#[derive(Serialize)]
+struct BenchBaseJson<'a> {
+    /// How far each circle run ended from the reference's end.
+    circle_end_error_m: Vec<CircleEndJson>,
+    /// The circle plot's file.
+    circle_plot: String,
+    /// The file of the plot zoomed on the end of the lap.
+    circle_plot_end: String,
+    /// The odometry calibration the trials used (with `--calibrate` only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    odometry_calibration: Option<CalibrationJson>,
+    /// The robot.
+    robot: &'a str,
+    /// The table's rows.
+    rows: Vec<RowJson>,
+    /// Trial k's seed is this + k.
+    seed: u64,
+    /// Trials per target.
+    trials_per_target: usize,
+}
+
+/// Where one circle run ended.
+#[derive(Serialize)]
+struct CircleEndJson {
+    /// Distance from the reference's end, m.
+    error: f64,
+    /// The run's name.
+    run: &'static str,
+}
+
+/// Run the trials (`trials` per target, trial k seeded `seed + k`) on each of `robots`
+/// (default: locobot and locobot_lite), draw the circle plots into `plot_dir`, and print
+/// one Markdown table or one JSON line per robot. With `calibrate`, each base's odometry is
+/// first calibrated (seed `seed + 1000`) and the trials use the estimate.
+pub fn run(
+    robots: Vec<String>,
+    trials: usize,
+    seed: u64,
+    json: bool,
+    plot_dir: &Path,
+    calibrate: bool,
+) -> ferrobot::Result<()> {
+    validate::count("trials", trials, 1..=MAX_TRIALS)?;
+    use ferrobot_cli::bench_base::{self as bb, Category, CircleRun};
+    use ferrobot_cli::plot::{Canvas, COLOURS};
+    let robots = if robots.is_empty() {
+        vec!["locobot".to_string(), "locobot_lite".to_string()]
+    } else {
+        robots
+    };
+    std::fs::create_dir_all(plot_dir)?;
+    for robot in robots {
+        let calibration = if calibrate {
+            Some(bb::calibrate_odometry(&robot, seed + 1000)?)
+        } else {
+            None
+        };
+        let geometry = calibration.as_ref().map(|c| c.estimate);
+        // Every (controller, category, target, trial), run on rayon's pool (all cores); each
+        // is seeded, so the order of execution does not change the results.
+        let mut jobs = Vec::new();
+        for c in BaseController::ALL {
+            for cat in Category::ALL {
+                for target in cat.targets() {
+                    for k in 0..trials {
+                        jobs.push((c, cat, target, seed + k as u64));
+                    }
+                }
+            }
+        }
+        let bar = indicatif::ProgressBar::new(jobs.len() as u64 + CircleRun::ALL.len() as u64);
+        bar.set_style(
+            indicatif::ProgressStyle::with_template("{msg:>14} [{bar:40}] {pos}/{len} {elapsed}")
+                .expect("template")
+                .progress_chars("=> "),
+        );
+        bar.set_message(robot.clone());
+        // Results come back in the jobs' order; the first error in that order is reported.
+        let results: Vec<ferrobot::Result<bb::Trial>> = jobs
+            .par_iter()
+            .map(|&(c, cat, target, sd)| {
+                let trial =
+                    bb::run_trial(&robot, c, cat, target, GoalOptions::default(), sd, geometry);
+                bar.inc(1);
+                trial
+            })
+            .collect();
+        let trials_done = results.into_iter().collect::<ferrobot::Result<Vec<_>>>()?;
+        let rows = bb::summarize(&trials_done);
+        // The circle comparison: the whole lap, and a zoom on its end (±6 cm).
+        let reference: Vec<[f64; 2]> = bb::paper_circle()
+            .states
+            .iter()
+            .map(|s| [s[0], s[1]])
+            .collect();
+        let end_ref = reference.last().copied().unwrap_or([0.0; 2]);
+        let mut canvas = Canvas::new(800, [0.0, 0.4], 1.2, 0.1)?;
+        let mut zoom = Canvas::new(800, end_ref, 0.12, 0.01)?;
+        let mut entries = vec![(COLOURS[0].1, "reference circle (r = 0.4 m)".to_string())];
+        let mut legend = vec![format!("{}: reference circle (r = 0.4 m)", COLOURS[0].0)];
+        let mut ends = Vec::new();
+        let runs = CircleRun::ALL.len();
+        for (k, run) in CircleRun::ALL.into_iter().enumerate() {
+            let (path, end) = bb::circle_path(&robot, run, seed, geometry)?;
+            // Earlier series wider, so that identical paths stay visible.
+            let width = 2 + 2 * (runs - 1 - k);
+            canvas.polyline(&path, COLOURS[k + 1].1, width);
+            zoom.polyline(&path, COLOURS[k + 1].1, 2 * width);
+            let label = format!(
+                "{}: ends {:.1} mm from the reference end",
+                run.name(),
+                end * 1000.0
+            );
+            legend.push(format!("{}: {label}", COLOURS[k + 1].0));
+            entries.push((COLOURS[k + 1].1, label));
+            ends.push((run.name(), end));
+            bar.inc(1);
+        }
+        // The reference last, thin, on top.
+        canvas.polyline(&reference, COLOURS[0].1, 1);
+        zoom.polyline(&reference, COLOURS[0].1, 2);
+        let what = if calibrate {
+            ", calibrated odometry"
+        } else {
+            ""
+        };
+        canvas.legend(&entries);
+        canvas.caption(&format!(
+            "{robot}{what}: circle tracking, ground truth; grid 0.1 m"
+        ));
+        zoom.legend(&entries);
+        zoom.caption(&format!("{robot}{what}: the end of the lap; grid 1 cm"));
+        let suffix = if calibrate { "_calibrated" } else { "" };
+        let png = plot_dir.join(format!("circle_{robot}{suffix}.png"));
+        let png_zoom = plot_dir.join(format!("circle_{robot}{suffix}_end.png"));
+        canvas.save(&png)?;
+        zoom.save(&png_zoom)?;
+        bar.finish_and_clear();
+        if json {
+            print_json(&BenchBaseJson {
+                circle_end_error_m: ends
+                    .iter()
+                    .map(|&(run, error)| CircleEndJson { error, run })
+                    .collect(),
+                circle_plot: png.display().to_string(),
+                circle_plot_end: png_zoom.display().to_string(),
+                odometry_calibration: calibration.as_ref().map(CalibrationJson::new),
+                robot: &robot,
+                rows: rows.iter().map(bb::Row::json).collect(),
+                seed,
+                trials_per_target: trials,
+            });
+        } else {
+            if let Some(c) = &calibration {
+                println!("{robot}, seed {}: {}\n", seed + 1000, calibration_text(c));
+            }
+            println!("{}", bb::markdown(&robot, trials, seed, &rows));
+            println!(
+                "Circle tracking, ground truth, in {} (the end zoomed in {}):",
+                png.display(),
+                png_zoom.display()
+            );
+            for l in legend {
+                println!("- {l}");
+            }
+            println!();
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,57 @@
+//! Helpers shared by the subcommands: loading a robot, its arm chain, checking joint angles,
+//! rounding for display.
+
+use ferrobot::kinematics::Chain;
+use ferrobot::{validate, RobotConfig};
+use serde::Serialize;
+
+/// A bundled robot by name, or the configuration file at a path (ending `.toml` or holding
+/// a `/`).
+pub fn load(robot: &str) -> ferrobot::Result<RobotConfig> {
+    Ok(if robot.ends_with(".toml") || robot.contains('/') {
+        RobotConfig::from_file(robot)?
+    } else {
+        RobotConfig::bundled(robot)?
+    })
+}
+
+/// The arm's kinematic chain, or the error that the robot has no arm.
+pub fn arm_chain(cfg: &RobotConfig) -> ferrobot::Result<Chain> {
+    cfg.arm_chain
+        .clone()
+        .ok_or_else(|| ferrobot::Error::NoComponent {
+            robot: cfg.name.clone(),
+            component: "arm",
+        })
+}
+
+/// Joint angles for `chain`: its count, each finite and within ±`validate::MAX_ANGLE`.
+pub fn check_q(chain: &Chain, q: &[f64]) -> ferrobot::Result<()> {
+    if q.len() != chain.dof() {
+        return Err(ferrobot::Error::JointCount {
+            what: "joint angles",
+            expected: chain.dof(),
+            got: q.len(),
+        });
+    }
+    Ok(validate::angles("joint angles", q)?)
+}
+
+/// `v` rounded to 3 decimals, for text output.
+pub fn round(v: &[f64]) -> Vec<f64> {
+    v.iter().map(|x| (x * 1000.0).round() / 1000.0).collect()
+}
+
+/// Print `value` as one line of compact JSON.
+///
+/// Every `--json` output is a struct deriving `Serialize` whose fields are declared in
+/// alphabetical order: the order the objects of `serde_json::Value` used to print.
+pub fn print_json<T: Serialize>(value: &T) {
+    println!("{}", to_json(value));
+}
+
+/// `value` as compact JSON.
+pub fn to_json<T: Serialize>(value: &T) -> String {
+    // Plain structs of numbers, strings and sequences: serialising them cannot fail.
+    serde_json::to_string(value).expect("a plain struct serialises")
+}

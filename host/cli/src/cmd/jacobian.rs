@@ -1,0 +1,38 @@
+//! `ferrobot jacobian`: the arm's geometric Jacobian.
+
+use serde::Serialize;
+
+use super::common::{arm_chain, check_q, load, print_json};
+
+/// `jacobian --json`.
+#[derive(Serialize)]
+struct JacobianJson {
+    /// Six rows (vx vy vz wx wy wz) of one column per joint.
+    jacobian: Vec<Vec<f64>>,
+}
+
+/// Print the geometric Jacobian at joint angles `q` (rad): rows vx vy vz wx wy wz in the root
+/// frame, at the end effector's origin.
+pub fn run(robot: &str, q: &[f64], json: bool) -> ferrobot::Result<()> {
+    let cfg = load(robot)?;
+    let arm = arm_chain(&cfg)?;
+    check_q(&arm, q)?;
+    let j = arm.jacobian(q);
+    let rows: Vec<Vec<f64>> = (0..6)
+        .map(|r| (0..arm.dof()).map(|c| j[(r, c)]).collect())
+        .collect();
+    if json {
+        print_json(&JacobianJson { jacobian: rows });
+    } else {
+        for (name, r) in ["vx", "vy", "vz", "wx", "wy", "wz"].iter().zip(rows) {
+            println!(
+                "{name} {}",
+                r.iter()
+                    .map(|v| format!("{v:>10.6}"))
+                    .collect::<Vec<_>>()
+                    .join(" ")
+            );
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,14 @@
+//! One module per subcommand of `ferrobot`; each `run` does the work and prints, and returns
+//! the API's error for `main` to print and turn into an exit code.
+
+pub mod base_move;
+pub mod bench_base;
+pub mod calibrate_odometry;
+pub mod common;
+pub mod demo;
+pub mod fk;
+pub mod ik;
+pub mod info;
+pub mod jacobian;
+pub mod robots;
+pub mod sim_firmware;

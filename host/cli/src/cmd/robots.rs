@@ -1,0 +1,26 @@
+//! `ferrobot robots`: the bundled robots.
+
+use serde::Serialize;
+
+use super::common::print_json;
+
+/// `robots --json`.
+#[derive(Serialize)]
+struct RobotsJson {
+    /// The bundled robots' names.
+    robots: &'static [&'static str],
+}
+
+/// Print the bundled robots' names, one a line or as one JSON object.
+pub fn run(json: bool) -> ferrobot::Result<()> {
+    if json {
+        print_json(&RobotsJson {
+            robots: &ferrobot::config::BUNDLED,
+        });
+    } else {
+        for r in ferrobot::config::BUNDLED {
+            println!("{r}");
+        }
+    }
+    Ok(())
+}
