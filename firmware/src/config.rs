@@ -205,8 +205,9 @@ pub struct RobotProfile {
     pub joints: Vec<JointConfig, MAX_JOINTS>,
     /// The base.
     pub base: BaseConfig,
-    /// The gripper (used when a joint has kind [`JointKind::Gripper`]).
-    pub gripper: GripperConfig,
+    /// The gripper's driver, for the joint of kind [`JointKind::Gripper`]; `None` for a robot
+    /// without a gripper (a gripper row then runs as a plain position joint).
+    pub gripper: Option<GripperConfig>,
     /// Servo bus.
     pub bus: BusConfig,
     /// Servo-loop period, µs.
@@ -333,7 +334,7 @@ pub fn locobot() -> RobotProfile {
         robot: name("locobot"),
         joints: locobot_joints(),
         base: BaseConfig::KOBUKI,
-        gripper: GripperConfig::LOCOBOT,
+        gripper: Some(GripperConfig::LOCOBOT),
         bus: BusConfig::at_baud(4_000_000),
         loop_period_us: 1000,
         watchdog_ms: 500,
@@ -351,11 +352,49 @@ pub fn locobot_lite() -> RobotProfile {
     }
 }
 
+/// Sawyer's seven joints on the simulated stand-in (position-controlled XM430s, IDs 1-7):
+/// position limits from Rethink's URDF, velocity limits from Rethink's joint specification
+/// (`host/description/robots/sawyer.toml`). No gripper and no base; the stand-in has no
+/// gravity model.
+fn sawyer_joints() -> Vec<JointConfig, MAX_JOINTS> {
+    use JointKind::Arm;
+    use ServoModel::Xm430W350;
+    let rows = [
+        ("right_j0", lim(-3.0503, 3.0503, 1.74, 3.5)),
+        ("right_j1", lim(-3.8095, 2.2736, 1.328, 3.5)),
+        ("right_j2", lim(-3.0426, 3.0426, 1.957, 3.5)),
+        ("right_j3", lim(-3.0439, 3.0439, 1.957, 3.5)),
+        ("right_j4", lim(-2.9761, 2.9761, 3.0, 3.5)),
+        ("right_j5", lim(-2.9761, 2.9761, 3.0, 3.5)),
+        ("right_j6", lim(-4.7124, 4.7124, 3.0, 3.5)),
+    ];
+    rows.into_iter()
+        .zip(1u8..)
+        .map(|((n, l), id)| joint(n, Arm, Xm430W350, id, None, 1, l))
+        .collect()
+}
+
+/// Sawyer's stand-in: seven servos on a 4 Mbps bus, 1 kHz loop, no gripper, no base.
+pub fn sawyer() -> RobotProfile {
+    RobotProfile {
+        robot: name("sawyer"),
+        joints: sawyer_joints(),
+        base: BaseConfig::NONE,
+        gripper: None,
+        bus: BusConfig::at_baud(4_000_000),
+        loop_period_us: 1000,
+        watchdog_ms: 500,
+        telemetry_ms: 20,
+        gravity: None,
+    }
+}
+
 /// A profile by robot name.
 pub fn by_name(robot: &str) -> Option<RobotProfile> {
     match robot {
         "locobot" => Some(locobot()),
         "locobot_lite" => Some(locobot_lite()),
+        "sawyer" => Some(sawyer()),
         _ => None,
     }
 }

@@ -208,8 +208,10 @@ impl Firmware {
             // too, until it is told to open or close.
             jc.set_mode(now, JointMode::Position);
             let _ = self.joints.push(jc);
-            if c.kind == JointKind::Gripper && self.gripper.is_none() {
-                self.gripper = Some((j, Gripper::new(self.profile.gripper)));
+            if let (JointKind::Gripper, None, Some(g)) =
+                (c.kind, &self.gripper, self.profile.gripper)
+            {
+                self.gripper = Some((j, Gripper::new(g)));
             }
         }
         self.bus.rebuild(&self.profile.joints);
@@ -1095,9 +1097,11 @@ impl Firmware {
                     if let Some(jc) = self.joints.get_mut(j) {
                         jc.set_mode(now, mode);
                     }
-                    if let Some((gj, g)) = self.gripper.as_mut() {
+                    if let (Some((gj, g)), Some(cfg)) =
+                        (self.gripper.as_mut(), self.profile.gripper)
+                    {
                         if *gj == j {
-                            *g = Gripper::new(self.profile.gripper);
+                            *g = Gripper::new(cfg);
                         }
                     }
                 }
@@ -1250,7 +1254,7 @@ impl Firmware {
                 Ok(())
             }
             HostMsg::SetLoopPeriod { period_us } => {
-                if !(250..=100_000).contains(&period_us) {
+                if !(ranges::LOOP_PERIOD_MIN_US..=ranges::LOOP_PERIOD_MAX_US).contains(&period_us) {
                     return Err(RejectReason::InvalidConfig);
                 }
                 self.loop_period_us = period_us;

@@ -322,7 +322,8 @@ pub enum HostMsg {
         /// Period, ms.
         period_ms: u16,
     },
-    /// Servo-loop period, µs (at least 250).
+    /// Servo-loop period, µs, within [`crate::ranges::LOOP_PERIOD_MIN_US`]
+    /// ..= [`crate::ranges::LOOP_PERIOD_MAX_US`].
     SetLoopPeriod {
         /// Period, µs.
         period_us: u32,

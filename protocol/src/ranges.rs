@@ -14,6 +14,10 @@
 
 use crate::{JointConfig, JointLimits, JointPoint, PidGains};
 
+/// Shortest servo-loop period, µs (`SetLoopPeriod` refuses less).
+pub const LOOP_PERIOD_MIN_US: u32 = 250;
+/// Longest servo-loop period, µs (`SetLoopPeriod` refuses more).
+pub const LOOP_PERIOD_MAX_US: u32 = 100_000;
 /// Longest host watchdog period, ms. Periods of 0 (off) or longer are refused.
 pub const WATCHDOG_MAX_MS: u16 = 2000;
 /// Largest joint position anything may name (limits, knots, offsets), rad: two turns.

@@ -127,6 +127,26 @@ fn hostile_configs() -> Vec<(&'static str, String, &'static str)> {
             "camera.depth_max",
         ),
         (
+            "gripper_ticks_inverted",
+            edit("closed_tick = 1800", "closed_tick = 2900"),
+            "gripper.open_tick",
+        ),
+        (
+            "gripper_stop_negative",
+            edit("stops = [1650, 3050]", "stops = [-5, 3050]"),
+            "gripper.stops[0]",
+        ),
+        (
+            "bus_baud_zero",
+            edit("baud = 4_000_000", "baud = 0"),
+            "bus.baud",
+        ),
+        (
+            "loop_period_tiny",
+            edit("loop_period_us = 1000", "loop_period_us = 1"),
+            "bus.loop_period_us",
+        ),
+        (
             "rotation_tolerance_huge",
             edit("rotation_tolerance = 0.0175", "rotation_tolerance = 1e9"),
             "base.rotation_tolerance",

@@ -128,12 +128,50 @@ fn default_timeout() -> f64 {
     20.0
 }
 
-/// `[gripper]`.
+/// `[gripper]`: a Dynamixel gripper driven by the firmware's gripper state machine, in servo
+/// ticks (4096 per turn, 2048 at the centre).
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct GripperSection {
     /// The joint-table entry of the gripper motor.
     pub joint: String,
+    /// Goal position when open, ticks.
+    pub open_tick: i32,
+    /// Below this present position the gripper is fully closed, ticks.
+    pub closed_tick: i32,
+    /// The fingers' mechanical stops (closed, open), ticks: where the simulated gripper stops.
+    pub stops: [i32; 2],
+}
+
+impl GripperSection {
+    /// The firmware's gripper driver for these ticks; the closing, kick and holding PWM, the
+    /// load threshold and the timing are those of PyRobot's LoCoBot gripper driver.
+    pub fn driver(&self) -> GripperConfig {
+        GripperConfig {
+            open_tick: self.open_tick,
+            closed_tick: self.closed_tick,
+            ..GripperConfig::LOCOBOT
+        }
+    }
+}
+
+/// `[bus]`: the servo bus (optional; 4 Mbit/s and a 1 kHz servo loop when absent).
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BusSection {
+    /// Bit rate, bit/s.
+    pub baud: u32,
+    /// Servo-loop period, µs.
+    pub loop_period_us: u32,
+}
+
+impl Default for BusSection {
+    fn default() -> Self {
+        BusSection {
+            baud: 4_000_000,
+            loop_period_us: 1000,
+        }
+    }
 }
 
 /// `[camera]`: the pan-tilt head and the RGB-D camera's intrinsics.
@@ -376,6 +414,7 @@ struct ConfigFile {
     gripper: Option<GripperSection>,
     camera: Option<CameraSection>,
     base: Option<BaseSection>,
+    bus: Option<BusSection>,
     #[serde(rename = "joint", default)]
     joints: Vec<JointSection>,
     sim: Option<SimSection>,
@@ -388,6 +427,11 @@ pub struct RobotConfig {
     pub name: String,
     /// Where it came from (`<bundled>/NAME.toml` for bundled robots).
     pub file: PathBuf,
+    /// The firmware's built-in profile a board runs for this robot, if it has one
+    /// (`ferrobot_firmware::config::by_name`).
+    pub board_profile: Option<String>,
+    /// `[bus]`.
+    pub bus: BusSection,
     /// The parsed URDF.
     pub urdf: urdf_rs::Robot,
     /// `[arm]`.
@@ -818,7 +862,35 @@ impl RobotConfig {
             }
             arm_chain = Some(chain);
         }
+        if let (None, Some(j)) = (
+            &raw.gripper,
+            joints.iter().find(|j| j.kind == JointKind::Gripper),
+        ) {
+            return Err(cfg_err(
+                file,
+                "gripper",
+                format!("joint {:?} is a gripper but there is no [gripper]", j.name),
+            ));
+        }
         if let Some(g) = &raw.gripper {
+            for (k, v) in [
+                ("gripper.open_tick", g.open_tick),
+                ("gripper.closed_tick", g.closed_tick),
+                ("gripper.stops[0]", g.stops[0]),
+                ("gripper.stops[1]", g.stops[1]),
+            ] {
+                num(file, k, v as f64, 0.0, 4095.0)?;
+            }
+            let order = "the ticks must satisfy stops[0] < closed_tick < open_tick <= stops[1]";
+            for (k, ok) in [
+                ("gripper.closed_tick", g.stops[0] < g.closed_tick),
+                ("gripper.open_tick", g.closed_tick < g.open_tick),
+                ("gripper.stops[1]", g.open_tick <= g.stops[1]),
+            ] {
+                if !ok {
+                    return Err(cfg_err(file, k, order));
+                }
+            }
             if !joints
                 .iter()
                 .any(|j| j.name.as_str() == g.joint && j.kind == JointKind::Gripper)
@@ -905,10 +977,20 @@ impl RobotConfig {
                 }
             }
         }
-        let _ = raw.board_profile;
+        let bus = raw.bus.unwrap_or_default();
+        num(file, "bus.baud", bus.baud as f64, 9600.0, 10_500_000.0)?;
+        num(
+            file,
+            "bus.loop_period_us",
+            bus.loop_period_us as f64,
+            ranges::LOOP_PERIOD_MIN_US as f64,
+            ranges::LOOP_PERIOD_MAX_US as f64,
+        )?;
         Ok(RobotConfig {
             name: raw.name,
             file: file.to_path_buf(),
+            board_profile: raw.board_profile,
+            bus,
             urdf,
             arm: raw.arm,
             gripper: raw.gripper,
@@ -927,9 +1009,17 @@ impl RobotConfig {
 
     /// The firmware profile this configuration asks for.
     pub fn firmware_profile(&self) -> RobotProfile {
-        let base = match self.base.as_ref().map(|b| b.kind) {
-            Some(BaseModel::Kobuki) => BaseConfig::KOBUKI,
-            Some(BaseModel::Create2) => BaseConfig::CREATE2,
+        // The base's model gives its encoder, top speed and feedback timing; the description
+        // gives its wheel geometry.
+        let base = match self.base.as_ref() {
+            Some(b) => BaseConfig {
+                wheel_radius: b.wheel_radius as f32,
+                track: b.track as f32,
+                ..match b.kind {
+                    BaseModel::Kobuki => BaseConfig::KOBUKI,
+                    BaseModel::Create2 => BaseConfig::CREATE2,
+                }
+            },
             None => BaseConfig::NONE,
         };
         let mut robot = ferrobot_protocol::Name::new();
@@ -942,9 +1032,9 @@ impl RobotConfig {
             robot,
             joints: self.joints.iter().cloned().collect(),
             base,
-            gripper: GripperConfig::LOCOBOT,
-            bus: BusConfig::at_baud(4_000_000),
-            loop_period_us: 1000,
+            gripper: self.gripper.as_ref().map(GripperSection::driver),
+            bus: BusConfig::at_baud(self.bus.baud),
+            loop_period_us: self.bus.loop_period_us,
             watchdog_ms: 500,
             telemetry_ms: 10,
             // The built-in profile's arm model, for the robots that have one.
