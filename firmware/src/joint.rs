@@ -660,11 +660,7 @@ impl JointControl {
                     // (a motor racing across the gear backlash towards a goal a brake left
                     // behind) has that command brought within its lead at once.
                     let lead = position_lead(cfg);
-                    if self.measured
-                        && q.is_finite()
-                        && qd.abs() > lim.velocity
-                        && lead > 0.0
-                    {
+                    if self.measured && q.is_finite() && qd.abs() > lim.velocity && lead > 0.0 {
                         if qd > 0.0 && self.cmd > q + lead {
                             self.cmd = q + lead;
                         } else if qd < 0.0 && self.cmd < q - lead {

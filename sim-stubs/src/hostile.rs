@@ -20,7 +20,7 @@
 //! the arm obeys a waypoint again. `FERROBOT_HOSTILE_MESSAGES` sets the messages per profile
 //! (CI: 20,000) and `FERROBOT_HOSTILE_SEED` shifts the seeds (CI: 0), for longer searches.
 
-use crate::{LockstepSim, SimSession};
+use crate::{LockstepSim, SimHost};
 use ferrobot_firmware::config;
 use ferrobot_protocol::*;
 use rand::Rng;
@@ -501,7 +501,7 @@ impl Checker {
 }
 
 /// Run `dt_us` in 1 ms steps, checking after each.
-pub fn run(s: &mut SimSession, c: &mut Checker, dt_us: u64, what: &str) {
+pub fn run(s: &mut SimHost, c: &mut Checker, dt_us: u64, what: &str) {
     let end = s.sim.now_us() + dt_us;
     while s.sim.now_us() < end {
         let step = 1000.min(end - s.sim.now_us());
@@ -520,7 +520,7 @@ pub fn hostile_stream<R: Rng + ?Sized>(
     messages: usize,
 ) -> (Checker, u64) {
     let rng = &mut *rng;
-    let mut s = SimSession::start(robot, seed).expect("simulator");
+    let mut s = SimHost::start(robot, seed).expect("simulator");
     // The plant's masses differ from the description's (and so from the firmware's gravity
     // model) by up to ±MASS_TOL, seeded: the model is not assumed exact.
     let mut masses = crate::rng::SimRng::new(seed, 4242);

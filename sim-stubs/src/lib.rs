@@ -31,4 +31,4 @@ pub mod robots;
 pub mod serve;
 pub mod servo;
 
-pub use lockstep::{LockstepSim, SimError, SimSession};
+pub use lockstep::{LockstepSim, SimError, SimHost};

@@ -4,7 +4,7 @@
 //! feedback), so simulated seconds cost milliseconds. Everything is deterministic for a seed.
 //!
 //! The host side speaks real frames: [`LockstepSim::write_host`] and
-//! [`LockstepSim::take_host_output`] carry the same bytes a serial port would; [`SimSession`]
+//! [`LockstepSim::take_host_output`] carry the same bytes a serial port would; [`SimHost`]
 //! drives them with the protocol's host session for tests, benches and hostile hosts.
 
 use ferrobot_firmware::{config, Firmware, Link};
@@ -168,20 +168,20 @@ impl LockstepSim {
     }
 }
 
-/// Messages a [`SimSession`] keeps for callers to wait for, at most.
+/// Messages a [`SimHost`] keeps for callers to wait for, at most.
 pub const INBOX_CAP: usize = 1024;
 
 /// A host talking frames to a [`LockstepSim`]: the protocol's host session
 /// ([`HostSession`], the one the API's links drive too) in lockstep with the simulator, plus
 /// raw access for tests and hostile hosts (send any message, see every message the session
 /// did not route).
-pub struct SimSession {
+pub struct SimHost {
     /// The simulator.
     pub sim: LockstepSim,
     /// The host session.
     pub session: HostSession,
     /// Messages received that answered nothing pending (hellos, faults, logs, answers to
-    /// [`SimSession::send`]), oldest first, at most [`INBOX_CAP`].
+    /// [`SimHost::send`]), oldest first, at most [`INBOX_CAP`].
     pub inbox: Vec<DeviceMsg>,
     /// The newest telemetry.
     pub telemetry: Option<Telemetry>,
@@ -191,10 +191,10 @@ pub struct SimSession {
     last_keepalive: u64,
 }
 
-/// Heartbeat period of a [`SimSession`] with keepalive on, µs.
+/// Heartbeat period of a [`SimHost`] with keepalive on, µs.
 pub const KEEPALIVE_US: u64 = 100_000;
 
-impl SimSession {
+impl SimHost {
     /// Start `robot` with `seed` and perform the handshake.
     pub fn start(robot: &str, seed: u64) -> Result<Self, SimError> {
         let mut s = Self::new(LockstepSim::new(robot, seed)?);
@@ -389,9 +389,9 @@ impl SimSession {
 
 /// The scenario the benchmarks and profiles run: the LoCoBot, configured, its arm on a slow
 /// 30 s move and its base driving a 2 m circle, so that every bus and every plant is busy.
-pub fn locobot_busy(seed: u64) -> Result<SimSession, SimError> {
+pub fn locobot_busy(seed: u64) -> Result<SimHost, SimError> {
     use ferrobot_protocol::JointPoint;
-    let mut s = SimSession::start("locobot", seed)?;
+    let mut s = SimHost::start("locobot", seed)?;
     s.wait_telemetry(2_000_000, |t| {
         t.faults & ferrobot_protocol::fault_flags::CONFIGURING == 0
     })?;
@@ -417,7 +417,7 @@ pub fn locobot_busy(seed: u64) -> Result<SimSession, SimError> {
 pub fn demo(robot: &str, seed: u64, out: &mut dyn std::io::Write) -> Result<(), SimError> {
     use ferrobot_protocol::{GripperCommand, GripperState, JointPoint};
     let wall = std::time::Instant::now();
-    let mut s = SimSession::new(LockstepSim::new(robot, seed)?);
+    let mut s = SimHost::new(LockstepSim::new(robot, seed)?);
     let info = s.handshake()?;
     let w = |out: &mut dyn std::io::Write, line: String| {
         let _ = writeln!(out, "{line}");

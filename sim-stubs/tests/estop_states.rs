@@ -9,26 +9,26 @@ mod common;
 
 use common::*;
 use ferrobot_protocol::*;
-use ferrobot_sim::{LockstepSim, SimError, SimSession};
+use ferrobot_sim::{LockstepSim, SimError, SimHost};
 
 /// How far (rad) an arm joint may move after the stop: the braking from its motion, about
 /// `v² / 2a` at the servos' acceleration, plus backlash.
 const HOLD_TOL: f32 = 0.03;
 
-fn base_cycle_us(s: &SimSession) -> u64 {
+fn base_cycle_us(s: &SimHost) -> u64 {
     s.sim.hw.base.as_ref().expect("a base").period_us()
 }
 
 /// Run in 0.1 ms steps until the base's wheel command is zero or the simulated clock reaches
 /// `deadline` (µs).
-fn run_until_wheels_stop(s: &mut SimSession, deadline: u64) {
+fn run_until_wheels_stop(s: &mut SimHost, deadline: u64) {
     while s.sim.now_us() < deadline && s.sim.hw.wheel_command() != (0.0, 0.0) {
         s.run_for(100);
     }
 }
 
 /// Drive the base and move the arm slowly (joint 0 towards 1.0 rad over 3 s).
-fn drive_and_move(s: &mut SimSession) {
+fn drive_and_move(s: &mut SimHost) {
     s.command(&HostMsg::BaseVelocity {
         v: 0.2,
         w: 0.3,
@@ -48,7 +48,7 @@ fn drive_and_move(s: &mut SimSession) {
 /// Send the emergency stop and check what every state must give: an Ack, the stop engaged,
 /// the base's wheel command zero within one base cycle, the arm held where it was, motion
 /// refused.
-fn stop_and_check(s: &mut SimSession, state: &str) {
+fn stop_and_check(s: &mut SimHost, state: &str) {
     let at_stop = true_arm(s);
     let seq = s.send(&HostMsg::EmergencyStop);
     let sent = s.sim.now_us();
@@ -104,7 +104,7 @@ fn stop_and_check(s: &mut SimSession, state: &str) {
 
 /// With a valid session: motion is refused with `EmergencyStop` until `Resume`, the telemetry
 /// shows the flag, and after `Resume` the arm obeys again.
-fn refused_until_resume(s: &mut SimSession, state: &str) {
+fn refused_until_resume(s: &mut SimHost, state: &str) {
     assert_eq!(
         s.command(&HostMsg::BaseVelocity {
             v: 0.1,
@@ -151,7 +151,7 @@ fn for_both(test: impl Fn(&str)) {
 #[test]
 fn the_stop_works_before_any_hello() {
     for_both(|robot| {
-        let mut s = SimSession::new(LockstepSim::new(robot, 3).expect("sim"));
+        let mut s = SimHost::new(LockstepSim::new(robot, 3).expect("sim"));
         s.run_for(200_000);
         let state = format!("{robot}, before any Hello");
         stop_and_check(&mut s, &state);

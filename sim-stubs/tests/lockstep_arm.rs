@@ -101,7 +101,7 @@ fn out_of_limit_and_malformed_commands_are_rejected() {
     let mut s = session("locobot");
     s.run_for(2_000_000);
     let before = true_arm(&s);
-    let reject = |s: &mut ferrobot_sim::SimSession, m: HostMsg| match s.command(&m) {
+    let reject = |s: &mut ferrobot_sim::SimHost, m: HostMsg| match s.command(&m) {
         Err(ferrobot_sim::SimError::Rejected(r)) => r,
         other => panic!("{m:?} gave {other:?}"),
     };

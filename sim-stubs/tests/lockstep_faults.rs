@@ -5,7 +5,7 @@ mod common;
 use common::*;
 use ferrobot_firmware::Link;
 use ferrobot_protocol::*;
-use ferrobot_sim::{SimError, SimSession};
+use ferrobot_sim::{SimError, SimHost};
 
 #[test]
 fn watchdog_stops_the_base_within_one_cycle_and_holds_the_arm() {
@@ -289,7 +289,7 @@ fn emergency_stop_halts_everything_and_rejects_motion_until_resumed() {
 
 #[test]
 fn a_protocol_mismatch_is_refused_at_the_handshake() {
-    let mut s = SimSession::new(ferrobot_sim::LockstepSim::new("locobot", 1).expect("sim"));
+    let mut s = SimHost::new(ferrobot_sim::LockstepSim::new("locobot", 1).expect("sim"));
     s.send(&HostMsg::Hello {
         protocol_version: PROTOCOL_VERSION + 1,
         schema_hash: SCHEMA_HASH,

@@ -3,15 +3,15 @@
 
 use ferrobot_protocol::dxl::units;
 use ferrobot_protocol::*;
-use ferrobot_sim::SimSession;
+use ferrobot_sim::SimHost;
 
 /// Arm joints of the LoCoBot profile (joint_1 … joint_5).
 pub const ARM: u16 = 0b1_1111;
 
 /// A session on `robot`; the session's keepalive feeds the watchdog, as a host's I/O thread
 /// would.
-pub fn session(robot: &str) -> SimSession {
-    let mut s = SimSession::start(robot, 7).expect("simulator starts");
+pub fn session(robot: &str) -> SimHost {
+    let mut s = SimHost::start(robot, 7).expect("simulator starts");
     s.command(&HostMsg::SetTelemetry { period_ms: 10 })
         .expect("telemetry at 100 Hz");
     // Let the servos be configured and measured.
@@ -38,7 +38,7 @@ pub fn waypoint(joints: u16, duration_us: u32, q: &[f32]) -> HostMsg {
 
 /// Joint angles (rad) of the arm as the simulated servos really are (ground truth, not
 /// the firmware's reading): servo angle through the joint's sign.
-pub fn true_arm(s: &SimSession) -> Vec<f32> {
+pub fn true_arm(s: &SimHost) -> Vec<f32> {
     let chain = &s.sim.hw.chain;
     let profile = s.sim.fw.profile();
     profile.joints[..5]
@@ -51,7 +51,7 @@ pub fn true_arm(s: &SimSession) -> Vec<f32> {
 }
 
 /// Measured arm angles from the newest telemetry.
-pub fn measured_arm(s: &SimSession) -> Vec<f32> {
+pub fn measured_arm(s: &SimHost) -> Vec<f32> {
     s.telemetry.as_ref().expect("telemetry").joints[..5]
         .iter()
         .map(|j| j.position)
@@ -67,6 +67,6 @@ pub fn max_err(a: &[f32], b: &[f32]) -> f32 {
 }
 
 /// Gripper servo position, ticks.
-pub fn gripper_ticks(s: &SimSession) -> i32 {
+pub fn gripper_ticks(s: &SimHost) -> i32 {
     units::rad_to_tick(s.sim.hw.chain.servo(7).expect("gripper").theta as f32)
 }

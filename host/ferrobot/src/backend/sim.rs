@@ -1,4 +1,4 @@
-//! The in-process simulator backend: a [`SimSession`] (the protocol's host session in virtual
+//! The in-process simulator backend: a [`SimHost`] (the protocol's host session in virtual
 //! time) on a lockstep simulator built from the robot's configuration (servo chain, gravity
 //! from the URDF's link masses, base): waiting for an answer runs the simulation.
 
@@ -7,7 +7,7 @@ use std::time::{Duration, Instant};
 use ferrobot_protocol::session::{GetDiagnostics, GetJoint};
 use ferrobot_protocol::{DeviceInfo, Diagnostics, Fault, HostMsg, JointConfig, Telemetry};
 use ferrobot_sim::robots::SimRobot;
-use ferrobot_sim::{LockstepSim, SimError, SimSession};
+use ferrobot_sim::{LockstepSim, SimError, SimHost};
 
 use super::{rejection, Link};
 use crate::config::RobotConfig;
@@ -18,10 +18,10 @@ pub fn sim_robot(cfg: &RobotConfig) -> SimRobot {
     ferrobot_sim::robots::from_description(cfg)
 }
 
-/// The simulator backend: the lockstep simulator driven by [`SimSession`], the protocol's host
+/// The simulator backend: the lockstep simulator driven by [`SimHost`], the protocol's host
 /// session in virtual time.
 pub struct SimLink {
-    session: SimSession,
+    session: SimHost,
     info: DeviceInfo,
     realtime: Option<(Instant, u64)>,
 }
@@ -42,7 +42,7 @@ impl SimLink {
     /// Simulate the robot of `cfg` with plants seeded by `seed`.
     pub fn start(cfg: &RobotConfig, seed: u64, realtime: bool) -> Result<Self> {
         let sim = LockstepSim::with(sim_robot(cfg), cfg.firmware_profile(), seed);
-        let mut session = SimSession::new(sim);
+        let mut session = SimHost::new(sim);
         let info = session.handshake().map_err(|e| sim_err("hello", e))?;
         let mut link = SimLink {
             session,
