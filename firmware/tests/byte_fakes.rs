@@ -84,6 +84,18 @@ impl FakeBus {
 
 /// Run the firmware against the fake bus for `ticks` loop periods from `*now`.
 fn run(fw: &mut Firmware, bus: &mut FakeBus, now: &mut u64, ticks: u64) {
+    run_with(fw, bus, now, ticks, |bus, tx| bus.respond(tx));
+}
+
+/// [`run`], with `line` standing between the firmware and the bus: it gets the bytes the
+/// firmware sent and returns what comes back.
+fn run_with(
+    fw: &mut Firmware,
+    bus: &mut FakeBus,
+    now: &mut u64,
+    ticks: u64,
+    mut line: impl FnMut(&mut FakeBus, &[u8]) -> Vec<u8>,
+) {
     let end = *now + ticks * 1000;
     while *now < end {
         *now = (*now + 1).max(fw.next_deadline().min(end));
@@ -96,7 +108,7 @@ fn run(fw: &mut Firmware, bus: &mut FakeBus, now: &mut u64, ticks: u64) {
             }
             let tx = fw.pending(Link::Servo).to_vec();
             fw.consume(Link::Servo, n);
-            let rx = bus.respond(&tx);
+            let rx = line(bus, &tx);
             if !rx.is_empty() {
                 *now += 100;
                 fw.on_servo_bytes(*now, &rx);
@@ -560,42 +572,23 @@ fn a_late_status_never_completes_a_mode_change_the_servo_has_not_seen() {
         ),
     );
     let mut dropped = false;
-    let end = now + 50_000;
-    while now < end {
-        now = (now + 1).max(fw.next_deadline().min(end));
-        fw.poll(now);
-        for _ in 0..4 {
-            let n = fw.pending(Link::Servo).len();
-            if n == 0 {
-                break;
-            }
-            let tx = fw.pending(Link::Servo).to_vec();
-            fw.consume(Link::Servo, n);
-            let torque_off = {
-                let mut d = PacketDecoder::<512>::new();
-                tx.iter().any(|&b| {
-                    matches!(d.push(b), Some(Ok(p)) if p.id == 1
-                        && p.instruction == inst::WRITE
-                        && dxl::le_u16(p.params, 0) == addr::TORQUE_ENABLE
-                        && p.params.get(2) == Some(&0))
-                })
-            };
-            let rx = if torque_off && !dropped {
-                dropped = true;
-                sync_status(&bus, 1, 2048)
-            } else {
-                bus.respond(&tx)
-            };
-            if !rx.is_empty() {
-                now += 100;
-                fw.on_servo_bytes(now, &rx);
-            }
+    run_with(&mut fw, &mut bus, &mut now, 50, |bus, tx| {
+        let torque_off = {
+            let mut d = PacketDecoder::<512>::new();
+            tx.iter().any(|&b| {
+                matches!(d.push(b), Some(Ok(p)) if p.id == 1
+                    && p.instruction == inst::WRITE
+                    && dxl::le_u16(p.params, 0) == addr::TORQUE_ENABLE
+                    && p.params.get(2) == Some(&0))
+            })
+        };
+        if torque_off && !dropped {
+            dropped = true;
+            sync_status(bus, 1, 2048)
+        } else {
+            bus.respond(tx)
         }
-        for link in [Link::Host, Link::Base] {
-            let n = fw.pending(link).len();
-            fw.consume(link, n);
-        }
-    }
+    });
     assert!(dropped, "no torque-off write to servo 1");
     // What servo 1 saw, in order: torque off, then the mode, then torque on.
     let writes: Vec<(u16, Vec<u8>)> = bus
@@ -632,24 +625,11 @@ fn a_status_out_of_a_sync_reads_order_is_dropped() {
     run(&mut fw, &mut bus, &mut now, 200);
     bus.present.insert(9, (0, 0, 3000));
     let before = fw.diagnostics().servo_stale;
-    let end = now + 5_000;
-    while now < end {
-        now = (now + 1).max(fw.next_deadline().min(end));
-        fw.poll(now);
-        let n = fw.pending(Link::Servo).len();
-        if n > 0 {
-            let tx = fw.pending(Link::Servo).to_vec();
-            fw.consume(Link::Servo, n);
-            let mut rx = sync_status(&bus, 9, 1000);
-            rx.extend(bus.respond(&tx));
-            now += 100;
-            fw.on_servo_bytes(now, &rx);
-        }
-        for link in [Link::Host, Link::Base] {
-            let n = fw.pending(link).len();
-            fw.consume(link, n);
-        }
-    }
+    run_with(&mut fw, &mut bus, &mut now, 5, |bus, tx| {
+        let mut rx = sync_status(bus, 9, 1000);
+        rx.extend(bus.respond(tx));
+        rx
+    });
     assert!(fw.diagnostics().servo_stale > before);
     assert_eq!(fw.bus().servos[8].present.position, 3000);
 }
