@@ -216,6 +216,9 @@ pub struct ServoBus {
     phase: Phase,
     read_list: Vec<u8, MAX_SERVOS>,
     received: u32,
+    /// When the last byte handed to the line has left it, µs (estimated from the bit rate):
+    /// a reply cannot start before.
+    line_free_at: u64,
     tx: TxBuf<512>,
     events: Deque<BusEvent, 16>,
     /// Whether the transactions under way belong to a tick (the sync read follows them).
@@ -252,6 +255,7 @@ impl ServoBus {
             phase: Phase::Idle,
             read_list: Vec::new(),
             received: 0,
+            line_free_at: 0,
             tx: TxBuf::new(),
             events: Deque::new(),
             ops_then_read: true,
@@ -363,29 +367,37 @@ impl ServoBus {
         })
     }
 
-    fn send(&mut self, build: impl FnOnce(&mut [u8]) -> Result<usize, dxl::DxlError>) -> usize {
+    /// Hand a packet built by `build` to the line at `now`; the bytes sent (0 if it did not
+    /// fit). The line stays busy for their time after whatever was still on it.
+    fn send(
+        &mut self,
+        now: u64,
+        build: impl FnOnce(&mut [u8]) -> Result<usize, dxl::DxlError>,
+    ) -> usize {
         let mut buf = [0u8; 160];
-        match build(&mut buf) {
-            Ok(n) => {
-                if self.tx.push(buf.get(..n).unwrap_or(&[])) {
-                    n
-                } else {
-                    0
-                }
-            }
-            Err(_) => 0,
-        }
+        let n = match build(&mut buf) {
+            Ok(n) if self.tx.push(buf.get(..n).unwrap_or(&[])) => n,
+            _ => 0,
+        };
+        self.line_free_at = now
+            .max(self.line_free_at)
+            .saturating_add(self.cfg.bytes_us(n));
+        n
     }
 
-    fn reply_deadline(&self, now: u64, sent: usize, reply_bytes: usize) -> u64 {
-        now.saturating_add(self.cfg.bytes_us(sent.saturating_add(reply_bytes)))
+    /// When `reply_bytes` of answer must have arrived: after everything sent so far has left
+    /// the line (bytes still queued from earlier packets included), the answer's own time,
+    /// and the margin.
+    fn reply_deadline(&self, reply_bytes: usize) -> u64 {
+        self.line_free_at
+            .saturating_add(self.cfg.bytes_us(reply_bytes))
             .saturating_add(u64::from(self.cfg.reply_margin_us))
     }
 
     /// Deadline of a configuration transaction: the servo may still answer after its factory
     /// return delay.
-    fn op_deadline(&self, now: u64, sent: usize, reply_bytes: usize) -> u64 {
-        self.reply_deadline(now, sent, reply_bytes)
+    fn op_deadline(&self, reply_bytes: usize) -> u64 {
+        self.reply_deadline(reply_bytes)
             .saturating_add(UNCONFIGURED_RETURN_DELAY_US)
     }
 
@@ -414,15 +426,12 @@ impl ServoBus {
             .position(|s| s.status == ServoStatus::Lost && s.next_probe <= now);
         if let Some(i) = probe {
             let id = self.servos.get(i).map(|s| s.id).unwrap_or(0);
-            let n = self.send(|b| dxl::ping(b, id));
+            self.send(now, |b| dxl::ping(b, id));
             self.phase = Phase::AwaitOp {
                 servo: i,
                 op: op::PING,
-                deadline: self.op_deadline(
-                    now,
-                    n,
-                    STATUS_OVERHEAD.saturating_add(op::reply_params(op::PING)),
-                ),
+                deadline: self
+                    .op_deadline(STATUS_OVERHEAD.saturating_add(op::reply_params(op::PING))),
                 gen: self.servos.get(i).map_or(0, |s| s.gen),
             };
             return true;
@@ -468,35 +477,37 @@ impl ServoBus {
         let o = s.ops & s.ops.wrapping_neg(); // lowest pending op
         let cfg = joints.get(s.joint as usize);
         let id = s.id;
-        let n = match o {
-            op::REBOOT => self.send(|b| dxl::reboot(b, id)),
-            op::PING => self.send(|b| dxl::ping(b, id)),
-            op::TORQUE_OFF => self.send(|b| dxl::write(b, id, addr::TORQUE_ENABLE, &[0])),
-            op::RETURN_DELAY => self.send(|b| dxl::write(b, id, addr::RETURN_DELAY_TIME, &[0])),
-            op::MODE => self.send(|b| dxl::write(b, id, addr::OPERATING_MODE, &[s.mode])),
+        match o {
+            op::REBOOT => self.send(now, |b| dxl::reboot(b, id)),
+            op::PING => self.send(now, |b| dxl::ping(b, id)),
+            op::TORQUE_OFF => self.send(now, |b| dxl::write(b, id, addr::TORQUE_ENABLE, &[0])),
+            op::RETURN_DELAY => {
+                self.send(now, |b| dxl::write(b, id, addr::RETURN_DELAY_TIME, &[0]))
+            }
+            op::MODE => self.send(now, |b| dxl::write(b, id, addr::OPERATING_MODE, &[s.mode])),
             op::POS_GAINS => {
                 let g = cfg.map(|c| c.servo).unwrap_or(s.model.factory_gains());
                 let mut d = [0u8; 6];
                 d[..2].copy_from_slice(&g.pos_d.to_le_bytes());
                 d[2..4].copy_from_slice(&g.pos_i.to_le_bytes());
                 d[4..].copy_from_slice(&g.pos_p.to_le_bytes());
-                self.send(|b| dxl::write(b, id, addr::POSITION_D_GAIN, &d))
+                self.send(now, |b| dxl::write(b, id, addr::POSITION_D_GAIN, &d))
             }
             op::VEL_GAINS => {
                 let g = cfg.map(|c| c.servo).unwrap_or(s.model.factory_gains());
                 let mut d = [0u8; 4];
                 d[..2].copy_from_slice(&g.vel_i.to_le_bytes());
                 d[2..].copy_from_slice(&g.vel_p.to_le_bytes());
-                self.send(|b| dxl::write(b, id, addr::VELOCITY_I_GAIN, &d))
+                self.send(now, |b| dxl::write(b, id, addr::VELOCITY_I_GAIN, &d))
             }
             op::PROFILE => {
                 let g = cfg.map(|c| c.servo).unwrap_or(s.model.factory_gains());
                 let mut d = [0u8; 8];
                 d[..4].copy_from_slice(&g.profile_acceleration.to_le_bytes());
                 d[4..].copy_from_slice(&g.profile_velocity.to_le_bytes());
-                self.send(|b| dxl::write(b, id, addr::PROFILE_ACCELERATION, &d))
+                self.send(now, |b| dxl::write(b, id, addr::PROFILE_ACCELERATION, &d))
             }
-            op::READ_POS => self.send(|b| dxl::read(b, id, addr::PRESENT_POSITION, 4)),
+            op::READ_POS => self.send(now, |b| dxl::read(b, id, addr::PRESENT_POSITION, 4)),
             op::GOAL_HOLD => {
                 let (a, data, len): (u16, [u8; 4], usize) = match s.mode {
                     mode::POSITION | mode::EXTENDED_POSITION | mode::CURRENT_BASED_POSITION => {
@@ -506,7 +517,9 @@ impl ServoBus {
                     mode::CURRENT => (addr::GOAL_CURRENT, [0; 4], 2),
                     _ => (addr::GOAL_PWM, [0; 4], 2),
                 };
-                self.send(|b| dxl::write(b, id, a, data.get(..len).unwrap_or(&[])))
+                self.send(now, |b| {
+                    dxl::write(b, id, a, data.get(..len).unwrap_or(&[]))
+                })
             }
             op::TORQUE_ON => {
                 if !s.torque {
@@ -514,9 +527,9 @@ impl ServoBus {
                     self.op_done(i, o, s.gen);
                     return false;
                 }
-                self.send(|b| dxl::write(b, id, addr::TORQUE_ENABLE, &[1]))
+                self.send(now, |b| dxl::write(b, id, addr::TORQUE_ENABLE, &[1]))
             }
-            op::READ_HW => self.send(|b| dxl::read(b, id, addr::HARDWARE_ERROR_STATUS, 1)),
+            op::READ_HW => self.send(now, |b| dxl::read(b, id, addr::HARDWARE_ERROR_STATUS, 1)),
             _ => {
                 if let Some(s) = self.servos.get_mut(i) {
                     s.ops &= !o;
@@ -527,7 +540,7 @@ impl ServoBus {
         self.phase = Phase::AwaitOp {
             servo: i,
             op: o,
-            deadline: self.op_deadline(now, n, STATUS_OVERHEAD.saturating_add(op::reply_params(o))),
+            deadline: self.op_deadline(STATUS_OVERHEAD.saturating_add(op::reply_params(o))),
             gen: s.gen,
         };
         true
@@ -583,12 +596,14 @@ impl ServoBus {
             self.phase = Phase::ReadDone;
             return;
         }
-        let n = self.send(|b| dxl::sync_read(b, addr::PRESENT_CURRENT, SYNC_READ_LEN, &ids));
+        self.send(now, |b| {
+            dxl::sync_read(b, addr::PRESENT_CURRENT, SYNC_READ_LEN, &ids)
+        });
         // Compile-time constants: evaluated (and overflow-checked) by the compiler.
         const PER_STATUS: usize = STATUS_OVERHEAD + SYNC_READ_LEN as usize;
         let per_status = PER_STATUS;
         self.phase = Phase::AwaitSync {
-            deadline: self.reply_deadline(now, n, per_status.saturating_mul(ids.len())),
+            deadline: self.reply_deadline(per_status.saturating_mul(ids.len())),
         };
     }
 
@@ -812,7 +827,7 @@ impl ServoBus {
             }
             if !entries.is_empty() {
                 let l = *len as usize;
-                self.send(|b| {
+                self.send(now, |b| {
                     dxl::sync_write(
                         b,
                         *address,
