@@ -19,6 +19,14 @@ use serde::Serialize;
 
 use cmd::common::print_json;
 
+/// `println!` for the subcommands, through [`cmd::common::say`]: a closed pipe ends the program
+/// quietly instead of a panic.
+macro_rules! say {
+    ($($t:tt)*) => {
+        $crate::cmd::common::say(format_args!($($t)*))
+    };
+}
+
 mod cmd;
 
 #[derive(Parser)]

@@ -258,3 +258,27 @@ fn calibrate_odometry_prints_the_estimate() {
     let (ok, v) = run(&["calibrate-odometry", "sawyer", "--json"]);
     assert!(!ok, "{v}");
 }
+
+#[test]
+fn a_reader_that_goes_away_ends_the_demo_quietly() {
+    // `ferrobot demo | head -1`: the pipe closes after the first line; the demo must end
+    // with success and no panic, not "failed printing to stdout".
+    use std::io::{BufRead, BufReader};
+    use std::process::Stdio;
+    let mut child = Command::new(env!("CARGO_BIN_EXE_ferrobot"))
+        .arg("demo")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("ferrobot");
+    let mut first = String::new();
+    BufReader::new(child.stdout.take().expect("stdout"))
+        .read_line(&mut first)
+        .expect("first line");
+    // The reader is dropped here: the pipe is closed.
+    assert!(first.starts_with("Ferrobot demo"), "{first}");
+    let out = child.wait_with_output().expect("exit");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{:?}: {err}", out.status);
+    assert!(!err.contains("panicked"), "{err}");
+}

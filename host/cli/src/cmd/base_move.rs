@@ -60,9 +60,9 @@ pub fn run(
         });
         return Ok(());
     }
-    println!("target       {:?}", round(&target));
-    println!("odometry     {:?}", round(&odometry));
-    println!("ground truth {:?}", round(&truth));
+    say!("target       {:?}", round(&target));
+    say!("odometry     {:?}", round(&odometry));
+    say!("ground truth {:?}", round(&truth));
     r
 }
 

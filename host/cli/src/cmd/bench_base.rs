@@ -171,18 +171,18 @@ pub fn run(
             });
         } else {
             if let Some(c) = &calibration {
-                println!("{robot}, seed {}: {}\n", seed + 1000, calibration_text(c));
+                say!("{robot}, seed {}: {}\n", seed + 1000, calibration_text(c));
             }
-            println!("{}", bb::markdown(&robot, trials, seed, &rows));
-            println!(
+            say!("{}", bb::markdown(&robot, trials, seed, &rows));
+            say!(
                 "Circle tracking, ground truth, in {} (the end zoomed in {}):",
                 png.display(),
                 png_zoom.display()
             );
             for l in legend {
-                println!("- {l}");
+                say!("- {l}");
             }
-            println!();
+            say!("");
         }
     }
     Ok(())

@@ -143,7 +143,7 @@ pub fn run(robot: &str, seed: u64, json: bool) -> ferrobot::Result<()> {
             seed,
         });
     } else {
-        println!("{robot}, seed {seed}: {}", calibration_text(&c));
+        say!("{robot}, seed {seed}: {}", calibration_text(&c));
     }
     Ok(())
 }

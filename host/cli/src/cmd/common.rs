@@ -47,7 +47,22 @@ pub fn round(v: &[f64]) -> Vec<f64> {
 /// Every `--json` output is a struct deriving `Serialize` whose fields are declared in
 /// alphabetical order: the order the objects of `serde_json::Value` used to print.
 pub fn print_json<T: Serialize>(value: &T) {
-    println!("{}", to_json(value));
+    say!("{}", to_json(value));
+}
+
+/// Print one line on standard output (the [`say!`] macro). A reader that has gone away
+/// (`ferrobot demo | head -1`) ends the program quietly and successfully, as Unix tools do,
+/// instead of a panic; any other write error ends it with exit code 1 and a message.
+pub fn say(args: std::fmt::Arguments) {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    if let Err(e) = out.write_fmt(args).and_then(|()| out.write_all(b"\n")) {
+        if e.kind() == std::io::ErrorKind::BrokenPipe {
+            std::process::exit(0);
+        }
+        eprintln!("error: cannot write to standard output: {e}");
+        std::process::exit(1);
+    }
 }
 
 /// `value` as compact JSON.

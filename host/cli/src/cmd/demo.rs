@@ -8,28 +8,28 @@ use super::common::round;
 pub fn run(robot: &str) -> ferrobot::Result<()> {
     let wall = std::time::Instant::now();
     let bot = Robot::new(robot)?; // the in-process simulator
-    println!("Ferrobot demo: simulated {robot} (firmware core and simulated plants in lockstep)");
+    say!("Ferrobot demo: simulated {robot} (firmware core and simulated plants in lockstep)");
     let arm = bot.arm()?;
     arm.set_joint_positions(&[0.4, 0.3, -0.5, 0.6, -0.3])?;
-    println!("arm     joints {:?}", round(&arm.get_joint_angles()?));
+    say!("arm     joints {:?}", round(&arm.get_joint_angles()?));
     arm.set_ee_pose_pitch_roll([0.35, 0.0, 0.15], std::f64::consts::FRAC_PI_2, Some(0.0))?;
     let p = arm.get_ee_pose()?;
-    println!(
+    say!(
         "arm     gripper pointing down at {:?} m",
         round(&p.position)
     );
     arm.move_ee_xyz([0.0, 0.0, 0.1], 0.01)?;
-    println!(
+    say!(
         "arm     straight up 10 cm, now at {:?} m",
         round(&arm.get_ee_pose()?.position)
     );
     let gripper = bot.gripper()?;
-    println!("gripper close -> {:?}", gripper.close()?);
+    say!("gripper close -> {:?}", gripper.close()?);
     gripper.open()?;
-    println!("gripper open  -> {:?}", gripper.get_state()?);
+    say!("gripper open  -> {:?}", gripper.get_state()?);
     let camera = bot.camera()?;
     camera.set_pan_tilt(0.5, 0.3)?;
-    println!("camera  pan/tilt {:?} rad", round(&camera.get_state()?));
+    say!("camera  pan/tilt {:?} rad", round(&camera.get_state()?));
     bot.arm()?.go_home()?;
     bot.base()?.go_to_absolute([1.0, 1.0, 0.0])?;
     let odom = bot.base()?.get_state()?;
@@ -37,13 +37,13 @@ pub fn run(robot: &str) -> ferrobot::Result<()> {
         .simulator()
         .and_then(|s| s.base_truth())
         .unwrap_or([f64::NAN; 3]);
-    println!(
+    say!(
         "base    go_to_absolute([1, 1, 0]): odometry {:?}, ground truth {:?}",
         round(&odom),
         round(&truth)
     );
     let t = bot.time();
-    println!(
+    say!(
         "done: {t:.1} s simulated in {:.2} s",
         wall.elapsed().as_secs_f64()
     );

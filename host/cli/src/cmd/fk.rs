@@ -51,17 +51,22 @@ pub fn run(robot: &str, q: &[f64], frame: Option<&str>, json: bool) -> ferrobot:
             rotation: p.rotation,
         });
     } else {
-        println!("frame {} in {}", chain.tip, chain.base);
-        println!(
+        say!("frame {} in {}", chain.tip, chain.base);
+        say!(
             "position   {:.6} {:.6} {:.6}",
-            p.position[0], p.position[1], p.position[2]
+            p.position[0],
+            p.position[1],
+            p.position[2]
         );
-        println!(
+        say!(
             "quaternion {:.6} {:.6} {:.6} {:.6}  [x y z w]",
-            p.quaternion[0], p.quaternion[1], p.quaternion[2], p.quaternion[3]
+            p.quaternion[0],
+            p.quaternion[1],
+            p.quaternion[2],
+            p.quaternion[3]
         );
         for r in p.rotation {
-            println!("rotation   {:.6} {:.6} {:.6}", r[0], r[1], r[2]);
+            say!("rotation   {:.6} {:.6} {:.6}", r[0], r[1], r[2]);
         }
     }
     Ok(())

@@ -75,7 +75,7 @@ pub fn run(a: &IkArgs) -> ferrobot::Result<()> {
             success: true,
         });
     } else {
-        println!(
+        say!(
             "{}",
             q.iter()
                 .map(|v| format!("{v:.6}"))

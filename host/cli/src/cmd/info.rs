@@ -146,7 +146,7 @@ pub fn run(robot: &str, json: bool) -> ferrobot::Result<()> {
     if json {
         print_json(&info);
     } else {
-        println!(
+        say!(
             "{}",
             serde_json::to_string_pretty(&info).unwrap_or_default()
         );

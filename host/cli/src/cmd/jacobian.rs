@@ -25,7 +25,7 @@ pub fn run(robot: &str, q: &[f64], json: bool) -> ferrobot::Result<()> {
         print_json(&JacobianJson { jacobian: rows });
     } else {
         for (name, r) in ["vx", "vy", "vz", "wx", "wy", "wz"].iter().zip(rows) {
-            println!(
+            say!(
                 "{name} {}",
                 r.iter()
                     .map(|v| format!("{v:>10.6}"))

@@ -19,7 +19,7 @@ pub fn run(json: bool) -> ferrobot::Result<()> {
         });
     } else {
         for r in ferrobot::config::BUNDLED {
-            println!("{r}");
+            say!("{r}");
         }
     }
     Ok(())
