@@ -1278,8 +1278,12 @@ impl Firmware {
                 for i in [p, t].into_iter().flatten() {
                     self.bus.reboot(i);
                 }
+                // The reboot leaves the servo limp and then configures it anew: the joint
+                // starts again from where it is, as after a mode switch (no load correction,
+                // stall or brake carried over from before the fault).
                 if let Some(jc) = self.joints.get_mut(joint as usize) {
-                    jc.hold_here(now);
+                    let mode = jc.mode;
+                    jc.set_mode(now, mode);
                 }
                 Ok(())
             }

@@ -60,6 +60,27 @@ fn hostile_messages_never_drive_the_locobot_lite_outside_its_limits() {
     assert_clean("locobot_lite", 2);
 }
 
+/// Streams that once found a violation (the survey's seeds, 5,000 messages each), kept as
+/// regression cases: 560, a mode change counted done one bus answer ahead; 364, a joint
+/// rebooted after an overload thrown towards where it had been allowed before the fault.
+#[test]
+fn the_streams_that_found_violations_stay_clean() {
+    for seed in [364u64, 560] {
+        let robot = if seed % 2 == 0 {
+            "locobot_lite"
+        } else {
+            "locobot"
+        };
+        let (c, _) = hostile_stream(&mut ChaCha8Rng::seed_from_u64(seed), robot, seed, 5000);
+        assert!(
+            c.violations.is_empty(),
+            "seed {seed}: {} violations, first: {}",
+            c.violations.len(),
+            c.violations[0]
+        );
+    }
+}
+
 /// A survey for long searches, not run in CI: `FERROBOT_SURVEY_FROM` (first seed, default
 /// 300), `FERROBOT_SURVEY_COUNT` (streams, default 80) and `FERROBOT_HOSTILE_MESSAGES`
 /// (messages per stream); even seeds run the LoCoBot-Lite, odd ones the LoCoBot. Prints, per
