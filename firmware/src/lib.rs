@@ -39,6 +39,7 @@ pub mod gripper;
 pub mod joint;
 mod log;
 pub mod shell;
+pub mod time;
 pub mod txbuf;
 
 use log::{log_info, log_warn};
