@@ -16,6 +16,7 @@ use ferrobot_protocol::{JointConfig, ServoModel};
 use heapless::Vec;
 
 use crate::config::BusConfig;
+use crate::time::{Duration, Instant};
 use crate::txbuf::TxBuf;
 use heapless::Deque;
 
@@ -27,11 +28,11 @@ pub const SYNC_READ_LEN: u16 = 10;
 pub const MISSES_TO_LOSE: u8 = 3;
 /// Failed transactions after which a servo being configured is lost.
 pub const OP_RETRIES: u8 = 3;
-/// Ping period of a lost servo, µs.
-pub const PROBE_PERIOD_US: u64 = 100_000;
+/// Ping period of a lost servo.
+pub const PROBE_PERIOD: Duration = Duration::from_millis(100);
 /// Longest Return Delay Time a servo may still have before configuration sets it to 0
-/// (254 × 2 µs; the factory default is 250 × 2 µs), µs.
-pub const UNCONFIGURED_RETURN_DELAY_US: u64 = 508;
+/// (254 × 2 µs; the factory default is 250 × 2 µs).
+pub const UNCONFIGURED_RETURN_DELAY: Duration = Duration::from_micros(508);
 
 /// Pending-operation bits of a servo, executed lowest first.
 pub mod op {
@@ -142,7 +143,7 @@ pub struct Servo {
     pub hw_error: u8,
     retries: u8,
     misses: u8,
-    next_probe: u64,
+    next_probe: Instant,
     /// Bumped whenever the desired mode or torque changes: a mode-change transaction that
     /// was under way when the request changed does not count as done.
     gen: u8,
@@ -198,11 +199,11 @@ enum Phase {
     AwaitOp {
         servo: usize,
         op: u16,
-        deadline: u64,
+        deadline: Instant,
         gen: u8,
     },
     AwaitSync {
-        deadline: u64,
+        deadline: Instant,
     },
     ReadDone,
 }
@@ -283,7 +284,7 @@ impl ServoBus {
                         hw_error: 0,
                         retries: 0,
                         misses: 0,
-                        next_probe: 0,
+                        next_probe: Instant::ZERO,
                         gen: 0,
                     });
                 }
@@ -322,7 +323,7 @@ impl ServoBus {
     }
 
     /// When the bus next needs `poll`, if it waits for a reply.
-    pub fn deadline(&self) -> Option<u64> {
+    pub fn deadline(&self) -> Option<Instant> {
         match self.phase {
             Phase::AwaitOp { deadline, .. } | Phase::AwaitSync { deadline } => Some(deadline),
             _ => None,
@@ -377,21 +378,19 @@ impl ServoBus {
         }
     }
 
-    fn reply_deadline(&self, now: u64, sent: usize, reply_bytes: usize) -> u64 {
-        now.saturating_add(self.cfg.bytes_us(sent.saturating_add(reply_bytes)))
-            .saturating_add(u64::from(self.cfg.reply_margin_us))
+    fn reply_deadline(&self, now: Instant, sent: usize, reply_bytes: usize) -> Instant {
+        now + self.cfg.bytes_time(sent.saturating_add(reply_bytes)) + self.cfg.reply_margin
     }
 
     /// Deadline of a configuration transaction: the servo may still answer after its factory
     /// return delay.
-    fn op_deadline(&self, now: u64, sent: usize, reply_bytes: usize) -> u64 {
-        self.reply_deadline(now, sent, reply_bytes)
-            .saturating_add(UNCONFIGURED_RETURN_DELAY_US)
+    fn op_deadline(&self, now: Instant, sent: usize, reply_bytes: usize) -> Instant {
+        self.reply_deadline(now, sent, reply_bytes) + UNCONFIGURED_RETURN_DELAY
     }
 
     /// Start a bus cycle at `now`: one configuration transaction if any is pending, then the
     /// sync read.
-    pub fn begin_tick(&mut self, now: u64, joints: &[JointConfig]) {
+    pub fn begin_tick(&mut self, now: Instant, joints: &[JointConfig]) {
         // A packet still half-received belongs to the last cycle: it is broken.
         if self.decoder.in_packet() {
             self.stats.bad_packets = self.stats.bad_packets.saturating_add(1);
@@ -406,7 +405,7 @@ impl ServoBus {
         }
     }
 
-    fn start_op(&mut self, now: u64, joints: &[JointConfig]) -> bool {
+    fn start_op(&mut self, now: Instant, joints: &[JointConfig]) -> bool {
         // Probe one lost servo whose time has come.
         let probe = self
             .servos
@@ -444,7 +443,7 @@ impl ServoBus {
     /// After a mode-change transaction, the next one of any servo changing mode, in the same
     /// tick: a servo is never left limp, or running a goal of its old mode, for longer than
     /// the transactions take. Returns whether one was started.
-    fn chain_mode_ops(&mut self, now: u64) -> bool {
+    fn chain_mode_ops(&mut self, now: Instant) -> bool {
         loop {
             let changing = self.servos.iter().position(|s| {
                 s.status == ServoStatus::Ok && s.ops != 0 && s.ops & !op::MODE_CHANGE == 0
@@ -461,7 +460,7 @@ impl ServoBus {
 
     /// Send servo `i`'s lowest pending operation; false when it needed no transaction (it is
     /// then done).
-    fn issue_op(&mut self, now: u64, i: usize, joints: &[JointConfig]) -> bool {
+    fn issue_op(&mut self, now: Instant, i: usize, joints: &[JointConfig]) -> bool {
         let Some(s) = self.servos.get(i).cloned() else {
             return false;
         };
@@ -550,7 +549,7 @@ impl ServoBus {
         }
     }
 
-    fn op_failed(&mut self, now: u64, i: usize) {
+    fn op_failed(&mut self, now: Instant, i: usize) {
         let mut lost = None;
         if let Some(s) = self.servos.get_mut(i) {
             s.retries = s.retries.saturating_add(1);
@@ -558,7 +557,7 @@ impl ServoBus {
                 s.retries = 0;
                 let was_configuring = s.status == ServoStatus::Configuring;
                 s.status = ServoStatus::Lost;
-                s.next_probe = now.saturating_add(PROBE_PERIOD_US);
+                s.next_probe = now + PROBE_PERIOD;
                 lost = Some(was_configuring);
             }
         }
@@ -569,7 +568,7 @@ impl ServoBus {
         }
     }
 
-    fn start_sync_read(&mut self, now: u64) {
+    fn start_sync_read(&mut self, now: Instant) {
         self.read_list.clear();
         let mut ids: Vec<u8, MAX_SERVOS> = Vec::new();
         for (i, s) in self.servos.iter().enumerate() {
@@ -593,7 +592,7 @@ impl ServoBus {
     }
 
     /// Bytes from the bus.
-    pub fn on_bytes(&mut self, now: u64, bytes: &[u8]) {
+    pub fn on_bytes(&mut self, now: Instant, bytes: &[u8]) {
         let mut rest = bytes;
         while !rest.is_empty() {
             let (used, outcome) = self.decoder.push_slice(rest);
@@ -622,7 +621,7 @@ impl ServoBus {
         }
     }
 
-    fn on_status(&mut self, now: u64, id: u8, err: u8, data: &[u8; 10], len: usize) {
+    fn on_status(&mut self, now: Instant, id: u8, err: u8, data: &[u8; 10], len: usize) {
         if err & status_error::ALERT != 0 {
             self.stats.alerts = self.stats.alerts.saturating_add(1);
         }
@@ -717,7 +716,7 @@ impl ServoBus {
     }
 
     /// Handle timeouts at `now`.
-    pub fn poll(&mut self, now: u64) {
+    pub fn poll(&mut self, now: Instant) {
         match self.phase {
             Phase::AwaitOp {
                 servo,
@@ -732,7 +731,7 @@ impl ServoBus {
                     .is_some_and(|s| s.status == ServoStatus::Lost);
                 if lost && o == op::PING {
                     if let Some(s) = self.servos.get_mut(servo) {
-                        s.next_probe = now.saturating_add(PROBE_PERIOD_US);
+                        s.next_probe = now + PROBE_PERIOD;
                     }
                 } else {
                     self.op_failed(now, servo);
@@ -755,7 +754,7 @@ impl ServoBus {
                         if s.misses >= MISSES_TO_LOSE {
                             s.status = ServoStatus::Lost;
                             s.misses = 0;
-                            s.next_probe = now.saturating_add(PROBE_PERIOD_US);
+                            s.next_probe = now + PROBE_PERIOD;
                             lost = true;
                         }
                     }
@@ -770,7 +769,7 @@ impl ServoBus {
     }
 
     /// Finish the tick: write the goals (one per servo, `Goal::None` to skip).
-    pub fn finish_tick(&mut self, now: u64, goals: &[Goal]) {
+    pub fn finish_tick(&mut self, now: Instant, goals: &[Goal]) {
         let groups: [(u16, u16); 4] = [
             (addr::GOAL_POSITION, 4),
             (addr::GOAL_VELOCITY, 4),
@@ -830,7 +829,7 @@ impl ServoBus {
 
     /// Between ticks: start the transactions of any servo changing mode now, rather than at
     /// the next tick, so that no servo runs a goal of its old mode for a tick longer.
-    pub fn kick(&mut self, now: u64) {
+    pub fn kick(&mut self, now: Instant) {
         if self.phase == Phase::Idle {
             self.ops_then_read = false;
             self.chain_mode_ops(now);
@@ -839,7 +838,7 @@ impl ServoBus {
 
     /// The transactions of this bus cycle are done: read the servos (within a tick), or rest
     /// (between ticks).
-    fn after_ops(&mut self, now: u64) {
+    fn after_ops(&mut self, now: Instant) {
         if self.ops_then_read {
             self.start_sync_read(now);
         } else {

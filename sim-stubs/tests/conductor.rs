@@ -5,6 +5,7 @@
 
 use std::collections::VecDeque;
 
+use ferrobot_firmware::time::Duration;
 use ferrobot_firmware::{config, Firmware, Link};
 use ferrobot_protocol::clock::{Advance, Idle};
 use ferrobot_protocol::{encode_frame, Frame, FrameDecoder, MAX_WIRE};
@@ -29,7 +30,7 @@ struct Board {
 impl Board {
     fn new() -> Self {
         let mut profile = config::locobot();
-        profile.loop_period_us = 25_000;
+        profile.loop_period = Duration::from_millis(25);
         Board {
             fw: Firmware::new(profile, "fake", 0),
             now: 0,

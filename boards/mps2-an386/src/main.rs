@@ -30,6 +30,7 @@ use embassy_executor::InterruptExecutor;
 use embassy_futures::select::select;
 use embassy_time::{Instant, Timer};
 use ferrobot_firmware::config;
+use ferrobot_firmware::time;
 use ferrobot_firmware::{Firmware, Link};
 
 use uart::{Uart, ACTIVITY};
@@ -225,7 +226,7 @@ async fn firmware_task() {
     } else {
         config::locobot()
     };
-    profile.loop_period_us = LOOP_US;
+    profile.loop_period = time::Duration::from_micros(u64::from(LOOP_US));
     let mut fw = Firmware::new(profile, "mps2-an386", Instant::now().as_micros());
     let links = [
         (&UART0, Link::Host),
