@@ -215,7 +215,7 @@ pub struct RobotProfile {
     pub gripper: Option<GripperConfig>,
     /// Servo bus.
     pub bus: BusConfig,
-    /// Servo-loop period (the firmware runs at least 250 µs).
+    /// Servo-loop period (the firmware runs none shorter than [`crate::MIN_LOOP_PERIOD`]).
     pub loop_period: Duration,
     /// Host watchdog period, armed at the first accepted Hello; zero disables.
     pub watchdog_period: Duration,

@@ -17,7 +17,9 @@
 //! * the base drivers and odometry ([`base`]);
 //! * safety: host watchdog, emergency stop, base safety sensors; every fault is reported.
 //!
-//! Time is a `u64` of microseconds from any epoch, never going backwards.
+//! Time is a [`time::Instant`] on the shell's clock (µs from any epoch, never going
+//! backwards); spans of it are [`time::Duration`]s. The wire's integer µs and ms are converted
+//! where a message is handled or built.
 #![no_std]
 #![forbid(unsafe_code)]
 #![cfg_attr(
@@ -155,8 +157,7 @@ pub struct Firmware {
 
 impl Firmware {
     /// A firmware for `profile` on board `board`, starting at time `now`.
-    pub fn new(profile: RobotProfile, board: &str, now: u64) -> Self {
-        let now = Instant::from_micros(now);
+    pub fn new(profile: RobotProfile, board: &str, now: Instant) -> Self {
         let mut b = Name::new();
         for c in board.chars() {
             if b.push(c).is_err() {
@@ -268,11 +269,7 @@ impl Firmware {
     }
 
     /// The latest time by which [`Firmware::poll`] must run.
-    pub fn next_deadline(&self) -> u64 {
-        self.deadline().as_micros()
-    }
-
-    fn deadline(&self) -> Instant {
+    pub fn next_deadline(&self) -> Instant {
         let mut d = if self.bus.read_done() {
             Instant::ZERO
         } else if self.bus.is_idle() {
@@ -295,8 +292,7 @@ impl Firmware {
     }
 
     /// Bytes from the host.
-    pub fn on_host_bytes(&mut self, now: u64, bytes: &[u8]) {
-        let now = Instant::from_micros(now);
+    pub fn on_host_bytes(&mut self, now: Instant, bytes: &[u8]) {
         for &b in bytes {
             if let Some(Ok(frame)) = self.decoder.push::<HostMsg>(b) {
                 self.last_host_rx = now;
@@ -309,8 +305,7 @@ impl Firmware {
     }
 
     /// Bytes from the servo bus.
-    pub fn on_servo_bytes(&mut self, now: u64, bytes: &[u8]) {
-        let now = Instant::from_micros(now);
+    pub fn on_servo_bytes(&mut self, now: Instant, bytes: &[u8]) {
         self.bus.on_bytes(now, bytes);
         self.drain_bus_events(now);
         if self.bus.read_done() {
@@ -319,15 +314,13 @@ impl Firmware {
     }
 
     /// Bytes from the base.
-    pub fn on_base_bytes(&mut self, now: u64, bytes: &[u8]) {
-        let now = Instant::from_micros(now);
+    pub fn on_base_bytes(&mut self, now: Instant, bytes: &[u8]) {
         self.base.on_bytes(now, bytes);
         self.drain_base_events(now);
     }
 
     /// Advance timers to `now`: servo-loop ticks, bus timeouts, base, watchdog, telemetry.
-    pub fn poll(&mut self, now: u64) {
-        let now = Instant::from_micros(now);
+    pub fn poll(&mut self, now: Instant) {
         if let Some(w) = self.watchdog_deadline() {
             if now >= w {
                 self.trip_watchdog(now);
@@ -842,11 +835,7 @@ impl Firmware {
     }
 
     /// The telemetry frame as of now.
-    pub fn telemetry(&self, now: u64) -> Telemetry {
-        self.telemetry_at(Instant::from_micros(now))
-    }
-
-    fn telemetry_at(&self, now: Instant) -> Telemetry {
+    pub fn telemetry(&self, now: Instant) -> Telemetry {
         Telemetry {
             time_us: now.as_micros(),
             joints: self.joints.iter().map(|j| j.state).collect(),
@@ -870,7 +859,7 @@ impl Firmware {
     }
 
     fn send_telemetry(&mut self, now: Instant) {
-        let t = self.telemetry_at(now);
+        let t = self.telemetry(now);
         self.overrun_since_telemetry = false;
         self.send(&DeviceMsg::Telemetry(t));
     }
