@@ -138,7 +138,7 @@ pub fn run() -> ! {
         }
         let t1 = clocks();
         let ms = now.as_micros() / 1000;
-        if ms % 20 == 0 {
+        if ms.is_multiple_of(20) {
             let (b, n) = kobuki_feedback(ms as u32);
             fw.on_base_bytes(now + reply, &b[..n]);
         }
