@@ -16,6 +16,7 @@ use ferrobot_protocol::{JointConfig, ServoModel};
 use heapless::Vec;
 
 use crate::config::BusConfig;
+use crate::time::{Duration, Instant};
 use crate::txbuf::TxBuf;
 use heapless::Deque;
 
@@ -27,11 +28,11 @@ pub const SYNC_READ_LEN: u16 = 10;
 pub const MISSES_TO_LOSE: u8 = 3;
 /// Failed transactions after which a servo being configured is lost.
 pub const OP_RETRIES: u8 = 3;
-/// Ping period of a lost servo, µs.
-pub const PROBE_PERIOD_US: u64 = 100_000;
+/// Ping period of a lost servo.
+pub const PROBE_PERIOD: Duration = Duration::from_millis(100);
 /// Longest Return Delay Time a servo may still have before configuration sets it to 0
-/// (254 × 2 µs; the factory default is 250 × 2 µs), µs.
-pub const UNCONFIGURED_RETURN_DELAY_US: u64 = 508;
+/// (254 × 2 µs; the factory default is 250 × 2 µs).
+pub const UNCONFIGURED_RETURN_DELAY: Duration = Duration::from_micros(508);
 
 /// Pending-operation bits of a servo, executed lowest first.
 pub mod op {
@@ -142,7 +143,7 @@ pub struct Servo {
     pub hw_error: u8,
     retries: u8,
     misses: u8,
-    next_probe: u64,
+    next_probe: Instant,
     /// Bumped whenever the desired mode or torque changes: a mode-change transaction that
     /// was under way when the request changed does not count as done.
     gen: u8,
@@ -198,11 +199,11 @@ enum Phase {
     AwaitOp {
         servo: usize,
         op: u16,
-        deadline: u64,
+        deadline: Instant,
         gen: u8,
     },
     AwaitSync {
-        deadline: u64,
+        deadline: Instant,
     },
     ReadDone,
 }
@@ -216,9 +217,9 @@ pub struct ServoBus {
     phase: Phase,
     read_list: Vec<u8, MAX_SERVOS>,
     received: u32,
-    /// When the last byte handed to the line has left it, µs (estimated from the bit rate):
+    /// When the last byte handed to the line has left it (estimated from the bit rate):
     /// a reply cannot start before.
-    line_free_at: u64,
+    line_free_at: Instant,
     tx: TxBuf<512>,
     events: Deque<BusEvent, 16>,
     /// Whether the transactions under way belong to a tick (the sync read follows them).
@@ -255,7 +256,7 @@ impl ServoBus {
             phase: Phase::Idle,
             read_list: Vec::new(),
             received: 0,
-            line_free_at: 0,
+            line_free_at: Instant::ZERO,
             tx: TxBuf::new(),
             events: Deque::new(),
             ops_then_read: true,
@@ -287,7 +288,7 @@ impl ServoBus {
                         hw_error: 0,
                         retries: 0,
                         misses: 0,
-                        next_probe: 0,
+                        next_probe: Instant::ZERO,
                         gen: 0,
                     });
                 }
@@ -326,7 +327,7 @@ impl ServoBus {
     }
 
     /// When the bus next needs `poll`, if it waits for a reply.
-    pub fn deadline(&self) -> Option<u64> {
+    pub fn deadline(&self) -> Option<Instant> {
         match self.phase {
             Phase::AwaitOp { deadline, .. } | Phase::AwaitSync { deadline } => Some(deadline),
             _ => None,
@@ -371,7 +372,7 @@ impl ServoBus {
     /// fit). The line stays busy for their time after whatever was still on it.
     fn send(
         &mut self,
-        now: u64,
+        now: Instant,
         build: impl FnOnce(&mut [u8]) -> Result<usize, dxl::DxlError>,
     ) -> usize {
         let mut buf = [0u8; 160];
@@ -379,31 +380,26 @@ impl ServoBus {
             Ok(n) if self.tx.push(buf.get(..n).unwrap_or(&[])) => n,
             _ => 0,
         };
-        self.line_free_at = now
-            .max(self.line_free_at)
-            .saturating_add(self.cfg.bytes_us(n));
+        self.line_free_at = now.max(self.line_free_at) + self.cfg.bytes_time(n);
         n
     }
 
     /// When `reply_bytes` of answer must have arrived: after everything sent so far has left
     /// the line (bytes still queued from earlier packets included), the answer's own time,
     /// and the margin.
-    fn reply_deadline(&self, reply_bytes: usize) -> u64 {
-        self.line_free_at
-            .saturating_add(self.cfg.bytes_us(reply_bytes))
-            .saturating_add(u64::from(self.cfg.reply_margin_us))
+    fn reply_deadline(&self, reply_bytes: usize) -> Instant {
+        self.line_free_at + self.cfg.bytes_time(reply_bytes) + self.cfg.reply_margin
     }
 
     /// Deadline of a configuration transaction: the servo may still answer after its factory
     /// return delay.
-    fn op_deadline(&self, reply_bytes: usize) -> u64 {
-        self.reply_deadline(reply_bytes)
-            .saturating_add(UNCONFIGURED_RETURN_DELAY_US)
+    fn op_deadline(&self, reply_bytes: usize) -> Instant {
+        self.reply_deadline(reply_bytes) + UNCONFIGURED_RETURN_DELAY
     }
 
     /// Start a bus cycle at `now`: one configuration transaction if any is pending, then the
     /// sync read.
-    pub fn begin_tick(&mut self, now: u64, joints: &[JointConfig]) {
+    pub fn begin_tick(&mut self, now: Instant, joints: &[JointConfig]) {
         // A packet still half-received belongs to the last cycle: it is broken.
         if self.decoder.in_packet() {
             self.stats.bad_packets = self.stats.bad_packets.saturating_add(1);
@@ -418,7 +414,7 @@ impl ServoBus {
         }
     }
 
-    fn start_op(&mut self, now: u64, joints: &[JointConfig]) -> bool {
+    fn start_op(&mut self, now: Instant, joints: &[JointConfig]) -> bool {
         // Probe one lost servo whose time has come.
         let probe = self
             .servos
@@ -453,7 +449,7 @@ impl ServoBus {
     /// After a mode-change transaction, the next one of any servo changing mode, in the same
     /// tick: a servo is never left limp, or running a goal of its old mode, for longer than
     /// the transactions take. Returns whether one was started.
-    fn chain_mode_ops(&mut self, now: u64) -> bool {
+    fn chain_mode_ops(&mut self, now: Instant) -> bool {
         loop {
             let changing = self.servos.iter().position(|s| {
                 s.status == ServoStatus::Ok && s.ops != 0 && s.ops & !op::MODE_CHANGE == 0
@@ -470,7 +466,7 @@ impl ServoBus {
 
     /// Send servo `i`'s lowest pending operation; false when it needed no transaction (it is
     /// then done).
-    fn issue_op(&mut self, now: u64, i: usize, joints: &[JointConfig]) -> bool {
+    fn issue_op(&mut self, now: Instant, i: usize, joints: &[JointConfig]) -> bool {
         let Some(s) = self.servos.get(i).cloned() else {
             return false;
         };
@@ -563,7 +559,7 @@ impl ServoBus {
         }
     }
 
-    fn op_failed(&mut self, now: u64, i: usize) {
+    fn op_failed(&mut self, now: Instant, i: usize) {
         let mut lost = None;
         if let Some(s) = self.servos.get_mut(i) {
             s.retries = s.retries.saturating_add(1);
@@ -571,7 +567,7 @@ impl ServoBus {
                 s.retries = 0;
                 let was_configuring = s.status == ServoStatus::Configuring;
                 s.status = ServoStatus::Lost;
-                s.next_probe = now.saturating_add(PROBE_PERIOD_US);
+                s.next_probe = now + PROBE_PERIOD;
                 lost = Some(was_configuring);
             }
         }
@@ -582,7 +578,7 @@ impl ServoBus {
         }
     }
 
-    fn start_sync_read(&mut self, now: u64) {
+    fn start_sync_read(&mut self, now: Instant) {
         self.read_list.clear();
         let mut ids: Vec<u8, MAX_SERVOS> = Vec::new();
         for (i, s) in self.servos.iter().enumerate() {
@@ -608,7 +604,7 @@ impl ServoBus {
     }
 
     /// Bytes from the bus.
-    pub fn on_bytes(&mut self, now: u64, bytes: &[u8]) {
+    pub fn on_bytes(&mut self, now: Instant, bytes: &[u8]) {
         let mut rest = bytes;
         while !rest.is_empty() {
             let (used, outcome) = self.decoder.push_slice(rest);
@@ -637,7 +633,7 @@ impl ServoBus {
         }
     }
 
-    fn on_status(&mut self, now: u64, id: u8, err: u8, data: &[u8; 10], len: usize) {
+    fn on_status(&mut self, now: Instant, id: u8, err: u8, data: &[u8; 10], len: usize) {
         if err & status_error::ALERT != 0 {
             self.stats.alerts = self.stats.alerts.saturating_add(1);
         }
@@ -732,7 +728,7 @@ impl ServoBus {
     }
 
     /// Handle timeouts at `now`.
-    pub fn poll(&mut self, now: u64) {
+    pub fn poll(&mut self, now: Instant) {
         match self.phase {
             Phase::AwaitOp {
                 servo,
@@ -747,7 +743,7 @@ impl ServoBus {
                     .is_some_and(|s| s.status == ServoStatus::Lost);
                 if lost && o == op::PING {
                     if let Some(s) = self.servos.get_mut(servo) {
-                        s.next_probe = now.saturating_add(PROBE_PERIOD_US);
+                        s.next_probe = now + PROBE_PERIOD;
                     }
                 } else {
                     self.op_failed(now, servo);
@@ -770,7 +766,7 @@ impl ServoBus {
                         if s.misses >= MISSES_TO_LOSE {
                             s.status = ServoStatus::Lost;
                             s.misses = 0;
-                            s.next_probe = now.saturating_add(PROBE_PERIOD_US);
+                            s.next_probe = now + PROBE_PERIOD;
                             lost = true;
                         }
                     }
@@ -785,7 +781,7 @@ impl ServoBus {
     }
 
     /// Finish the tick: write the goals (one per servo, `Goal::None` to skip).
-    pub fn finish_tick(&mut self, now: u64, goals: &[Goal]) {
+    pub fn finish_tick(&mut self, now: Instant, goals: &[Goal]) {
         let groups: [(u16, u16); 4] = [
             (addr::GOAL_POSITION, 4),
             (addr::GOAL_VELOCITY, 4),
@@ -845,7 +841,7 @@ impl ServoBus {
 
     /// Between ticks: start the transactions of any servo changing mode now, rather than at
     /// the next tick, so that no servo runs a goal of its old mode for a tick longer.
-    pub fn kick(&mut self, now: u64) {
+    pub fn kick(&mut self, now: Instant) {
         if self.phase == Phase::Idle {
             self.ops_then_read = false;
             self.chain_mode_ops(now);
@@ -854,7 +850,7 @@ impl ServoBus {
 
     /// The transactions of this bus cycle are done: read the servos (within a tick), or rest
     /// (between ticks).
-    fn after_ops(&mut self, now: u64) {
+    fn after_ops(&mut self, now: Instant) {
         if self.ops_then_read {
             self.start_sync_read(now);
         } else {

@@ -7,6 +7,8 @@ use ferrobot_protocol::{
 };
 use heapless::Vec;
 
+use crate::time::Duration;
+
 /// Wheel geometry and encoder of a differential-drive base.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BaseConfig {
@@ -20,8 +22,8 @@ pub struct BaseConfig {
     pub ticks_per_rev: f32,
     /// Largest wheel speed the base accepts, m/s.
     pub max_wheel_speed: f32,
-    /// Feedback silence after which the base counts as lost, µs.
-    pub feedback_timeout_us: u64,
+    /// Feedback silence after which the base counts as lost.
+    pub feedback_timeout: Duration,
 }
 
 impl BaseConfig {
@@ -32,7 +34,7 @@ impl BaseConfig {
         track: 0.0,
         ticks_per_rev: 1.0,
         max_wheel_speed: 0.0,
-        feedback_timeout_us: 0,
+        feedback_timeout: Duration::ZERO,
     };
 
     /// Yujin Kobuki: wheel separation 0.230 m, wheel radius 0.035 m, 2578.33 ticks per wheel
@@ -43,7 +45,7 @@ impl BaseConfig {
         track: 0.230,
         ticks_per_rev: 2578.33,
         max_wheel_speed: 0.7,
-        feedback_timeout_us: 200_000,
+        feedback_timeout: Duration::from_millis(200),
     };
 
     /// iRobot Create 2: wheel diameter 72 mm and axle 235 mm as the Open Interface
@@ -55,7 +57,7 @@ impl BaseConfig {
         track: 0.235,
         ticks_per_rev: 508.8,
         max_wheel_speed: 0.5,
-        feedback_timeout_us: 200_000,
+        feedback_timeout: Duration::from_millis(200),
     };
 
     /// Wheel angle per encoder tick, rad.
@@ -79,12 +81,12 @@ pub struct GripperConfig {
     pub hold_pwm: i16,
     /// Load (present-load units) above which an object is suspected.
     pub load_threshold: i16,
-    /// Kick duration, µs.
-    pub kick_us: u64,
-    /// How long the load must persist after the kick to count as an object, µs.
-    pub persist_us: u64,
-    /// Ignore the load this long after closing starts (breakaway transient), µs.
-    pub grace_us: u64,
+    /// Kick duration.
+    pub kick_time: Duration,
+    /// How long the load must persist after the kick to count as an object.
+    pub persist_time: Duration,
+    /// Ignore the load this long after closing starts (breakaway transient).
+    pub grace_time: Duration,
     /// Within this many ticks of `open_tick` the gripper counts as open.
     pub open_tolerance: i32,
 }
@@ -99,9 +101,9 @@ impl GripperConfig {
         kick_pwm: -700,
         hold_pwm: -350,
         load_threshold: 500,
-        kick_us: 50_000,
-        persist_us: 150_000,
-        grace_us: 100_000,
+        kick_time: Duration::from_millis(50),
+        persist_time: Duration::from_millis(150),
+        grace_time: Duration::from_millis(100),
         open_tolerance: 25,
     };
 }
@@ -109,10 +111,11 @@ impl GripperConfig {
 /// Servo-bus timing used to size reply timeouts.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct BusConfig {
-    /// Time one byte takes on the bus, ns (10 bits per byte: 2500 ns at 4 Mbps).
+    /// Time one byte takes on the bus, ns (10 bits per byte: 2500 ns at 4 Mbps): finer than a
+    /// [`Duration`]'s µs, so a count of ns; [`BusConfig::bytes_time`] rounds a packet's up.
     pub byte_ns: u32,
-    /// Slack added to every reply timeout for the servo's processing and the shell's latency, µs.
-    pub reply_margin_us: u32,
+    /// Slack added to every reply timeout for the servo's processing and the shell's latency.
+    pub reply_margin: Duration,
 }
 
 impl BusConfig {
@@ -120,15 +123,17 @@ impl BusConfig {
     pub const fn at_baud(baud: u32) -> Self {
         BusConfig {
             byte_ns: 10_000_000_000u64.div_ceil(baud as u64) as u32,
-            reply_margin_us: 150,
+            reply_margin: Duration::from_micros(150),
         }
     }
 
-    /// Time `n` bytes take on the bus, µs (rounded up).
-    pub fn bytes_us(&self, n: usize) -> u64 {
-        (n as u64)
-            .saturating_mul(u64::from(self.byte_ns))
-            .div_ceil(1000)
+    /// Time `n` bytes take on the bus (rounded up to whole µs).
+    pub fn bytes_time(&self, n: usize) -> Duration {
+        Duration::from_micros(
+            (n as u64)
+                .saturating_mul(u64::from(self.byte_ns))
+                .div_ceil(1000),
+        )
     }
 }
 
@@ -210,12 +215,12 @@ pub struct RobotProfile {
     pub gripper: Option<GripperConfig>,
     /// Servo bus.
     pub bus: BusConfig,
-    /// Servo-loop period, µs.
-    pub loop_period_us: u32,
-    /// Host watchdog period, ms, armed at the first accepted Hello; 0 disables.
-    pub watchdog_ms: u16,
-    /// Telemetry period after the first accepted Hello, ms.
-    pub telemetry_ms: u16,
+    /// Servo-loop period (the firmware runs none shorter than [`crate::MIN_LOOP_PERIOD`]).
+    pub loop_period: Duration,
+    /// Host watchdog period, armed at the first accepted Hello; zero disables.
+    pub watchdog_period: Duration,
+    /// Telemetry period after the first accepted Hello; zero sends none.
+    pub telemetry_period: Duration,
     /// The arm's gravity model, if it has one: position mode then carries the modelled load
     /// in its goals.
     pub gravity: Option<GravityModel>,
@@ -336,9 +341,9 @@ pub fn locobot() -> RobotProfile {
         base: BaseConfig::KOBUKI,
         gripper: Some(GripperConfig::LOCOBOT),
         bus: BusConfig::at_baud(4_000_000),
-        loop_period_us: 1000,
-        watchdog_ms: 500,
-        telemetry_ms: 20,
+        loop_period: Duration::from_millis(1),
+        watchdog_period: Duration::from_millis(500),
+        telemetry_period: Duration::from_millis(20),
         gravity: Some(LOCOBOT_GRAVITY),
     }
 }
@@ -382,9 +387,9 @@ pub fn sawyer() -> RobotProfile {
         base: BaseConfig::NONE,
         gripper: None,
         bus: BusConfig::at_baud(4_000_000),
-        loop_period_us: 1000,
-        watchdog_ms: 500,
-        telemetry_ms: 20,
+        loop_period: Duration::from_millis(1),
+        watchdog_period: Duration::from_millis(500),
+        telemetry_period: Duration::from_millis(20),
         gravity: None,
     }
 }

@@ -6,6 +6,7 @@ use ferrobot_protocol::{GripperCommand, GripperState};
 
 use crate::bus::Present;
 use crate::config::GripperConfig;
+use crate::time::Instant;
 
 /// What the gripper servo should do this tick.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -24,9 +25,9 @@ pub struct Gripper {
     cfg: GripperConfig,
     /// Current state.
     pub state: GripperState,
-    started: u64,
-    kick_until: u64,
-    load_since: Option<u64>,
+    started: Instant,
+    kick_until: Instant,
+    load_since: Option<Instant>,
     kicked: bool,
 }
 
@@ -36,17 +37,17 @@ impl Gripper {
         Self {
             cfg,
             state: GripperState::Unknown,
-            started: 0,
-            kick_until: 0,
+            started: Instant::ZERO,
+            kick_until: Instant::ZERO,
             load_since: None,
             kicked: false,
         }
     }
 
     /// Start a command.
-    pub fn command(&mut self, now: u64, cmd: GripperCommand) {
+    pub fn command(&mut self, now: Instant, cmd: GripperCommand) {
         self.started = now;
-        self.kick_until = 0;
+        self.kick_until = Instant::ZERO;
         self.load_since = None;
         self.kicked = false;
         self.state = match cmd {
@@ -63,7 +64,7 @@ impl Gripper {
     }
 
     /// One tick with the servo's present position and load.
-    pub fn tick(&mut self, now: u64, present: &Present) -> GripperDrive {
+    pub fn tick(&mut self, now: Instant, present: &Present) -> GripperDrive {
         let c = &self.cfg;
         let pos = present.position;
         let load = (present.current as i32).abs();
@@ -80,15 +81,14 @@ impl Gripper {
                     self.state = GripperState::Closed;
                     return GripperDrive::Pwm(c.hold_pwm);
                 }
-                let loaded = now.saturating_sub(self.started) >= c.grace_us
-                    && load > c.load_threshold as i32;
+                let loaded = now - self.started >= c.grace_time && load > c.load_threshold as i32;
                 if loaded {
                     if !self.kicked {
                         self.kicked = true;
-                        self.kick_until = now.saturating_add(c.kick_us);
+                        self.kick_until = now + c.kick_time;
                     }
                     let since = *self.load_since.get_or_insert(now);
-                    if now >= self.kick_until && now.saturating_sub(since) >= c.persist_us {
+                    if now >= self.kick_until && now - since >= c.persist_time {
                         self.state = GripperState::Holding;
                         return GripperDrive::Pwm(c.hold_pwm);
                     }

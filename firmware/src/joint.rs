@@ -5,6 +5,8 @@ use ferrobot_protocol::dxl::units;
 use ferrobot_protocol::{JointConfig, JointMode, JointPoint, JointState};
 use heapless::Deque;
 
+use crate::time::{Duration, Instant};
+
 /// Knots a joint can queue.
 pub const QUEUE_LEN: usize = 16;
 
@@ -183,17 +185,17 @@ pub fn position_goal_window(
 pub const SAG_MODEL_SHARE: f32 = 0.3;
 /// ... plus this, rad: it mends the model's error (masses, friction), not the load.
 pub const SAG_MODEL_MIN: f32 = 0.005;
-/// Without a model (or for a stalled joint, see [`STALL_TIME_US`]), the load correction's
+/// Without a model (or for a stalled joint, see [`STALL_TIME`]), the load correction's
 /// bound, rad.
 pub const SAG_MAX: f32 = 0.2;
 /// Position mode: a joint held back by the command's lead (it cannot follow its command) and
-/// slower than [`STALL_SPEED`] for this long (µs) is stalled against something the gravity
+/// slower than [`STALL_SPEED`] for this long is stalled against something the gravity
 /// model does not know (an obstacle, a payload): its load correction may then use
 /// [`SAG_MAX`], as without a model, and the servo pushes as hard as its own protection allows.
-pub const STALL_TIME_US: u64 = 300_000;
-/// See [`STALL_TIME_US`], rad/s.
+pub const STALL_TIME: Duration = Duration::from_millis(300);
+/// See [`STALL_TIME`], rad/s.
 pub const STALL_SPEED: f32 = 0.05;
-/// See [`STALL_TIME_US`]: held back means the command leads the joint by at least this share
+/// See [`STALL_TIME`]: held back means the command leads the joint by at least this share
 /// of its lead ([`position_lead`]).
 pub const STALL_LEAD_SHARE: f32 = 0.75;
 /// Current and PWM modes: the effort ramps from what the joint held at the mode change to its
@@ -218,8 +220,8 @@ pub fn goal_offset_for_effort(cfg: &JointConfig, tau: f32) -> f32 {
 /// One queued trajectory knot at an absolute firmware time.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Knot {
-    /// Firmware time, µs.
-    pub t: u64,
+    /// Firmware time.
+    pub t: Instant,
     /// Position, rad.
     pub q: f32,
     /// Velocity, rad/s.
@@ -240,17 +242,17 @@ pub struct Reference {
 }
 
 /// Cubic Hermite interpolation between knots `a` and `b` at time `t` (a.t ≤ t ≤ b.t).
-pub fn hermite(a: &Knot, b: &Knot, t: u64) -> Reference {
-    let h_us = b.t.saturating_sub(a.t);
-    if h_us == 0 {
+pub fn hermite(a: &Knot, b: &Knot, t: Instant) -> Reference {
+    let span = b.t - a.t;
+    if span.is_zero() {
         return Reference {
             q: b.q,
             qd: b.qd,
             eff: b.eff,
         };
     }
-    let h = h_us as f32 * 1e-6;
-    let s = (t.saturating_sub(a.t) as f32 / h_us as f32).clamp(0.0, 1.0);
+    let h = span.as_secs_f32();
+    let s = ((t - a.t).as_micros() as f32 / span.as_micros() as f32).clamp(0.0, 1.0);
     let s2 = s * s;
     let s3 = s2 * s;
     let h00 = 2.0 * s3 - 3.0 * s2 + 1.0;
@@ -307,8 +309,8 @@ pub struct JointControl {
     pub gravity: Option<f32>,
     /// Position mode: the goal offset that carries the modelled load, rad (last tick).
     feed_forward: f32,
-    /// Position mode: since when (µs) the joint has been held back and standing still.
-    held_since: Option<u64>,
+    /// Position mode: since when the joint has been held back and standing still.
+    held_since: Option<Instant>,
     /// Position mode: where the joint was last held back, rad.
     stall_q: f32,
     /// Current and PWM modes: the effort of the last tick (the ramp starts from it), N·m;
@@ -407,7 +409,7 @@ impl JointControl {
     }
 
     /// Forget the queue and the direct command; hold at `q` (rad).
-    pub fn hold_at(&mut self, now: u64, q: f32) {
+    pub fn hold_at(&mut self, now: Instant, q: f32) {
         self.queue.clear();
         self.direct = None;
         self.integral = 0.0;
@@ -422,7 +424,7 @@ impl JointControl {
 
     /// The joint's first measurement: from now on it starts from where it really is. Knots
     /// already queued are kept (the trajectory to them starts here); an idle joint holds here.
-    pub fn first_measurement(&mut self, now: u64, q: f32) {
+    pub fn first_measurement(&mut self, now: Instant, q: f32) {
         if self.queue.is_empty() && self.direct.is_none() {
             self.hold_at(now, q);
         } else {
@@ -439,7 +441,7 @@ impl JointControl {
     /// Stop the motion where the joint is measured to be (or was commanded, if never
     /// measured, or where it is being braked towards: a joint running on under a load is not
     /// let go).
-    pub fn hold_here(&mut self, now: u64) {
+    pub fn hold_here(&mut self, now: Instant) {
         if self.braking {
             let q = self.cmd;
             self.hold_at(now, q);
@@ -449,7 +451,7 @@ impl JointControl {
     }
 
     /// Hold where the joint is measured to be (or was commanded, if never measured).
-    fn hold_measured(&mut self, now: u64) {
+    fn hold_measured(&mut self, now: Instant) {
         let q = if self.measured {
             self.state.position
         } else {
@@ -484,7 +486,7 @@ impl JointControl {
     }
 
     /// Switch mode; the joint holds where it is.
-    pub fn set_mode(&mut self, now: u64, mode: JointMode) {
+    pub fn set_mode(&mut self, now: Instant, mode: JointMode) {
         self.mode = mode;
         self.sag = 0.0;
         self.held_since = None;
@@ -494,9 +496,9 @@ impl JointControl {
         self.hold_measured(now);
     }
 
-    /// Queue a knot `duration_us` after the last one (or after `now` when idle).
+    /// Queue a knot `duration` after the last one (or after `now` when idle).
     /// Returns false when the queue is full.
-    pub fn push(&mut self, now: u64, duration_us: u32, p: &JointPoint) -> bool {
+    pub fn push(&mut self, now: Instant, duration: Duration, p: &JointPoint) -> bool {
         if self.queue.is_full() {
             return false;
         }
@@ -516,7 +518,7 @@ impl JointControl {
         self.direct = None;
         self.queue
             .push_back(Knot {
-                t: start.saturating_add(duration_us as u64),
+                t: start + duration,
                 q: p.position,
                 qd: p.velocity,
                 eff: p.effort,
@@ -531,7 +533,7 @@ impl JointControl {
     }
 
     /// The interpolated reference at `now`, popping knots already passed.
-    pub fn reference(&mut self, now: u64) -> Reference {
+    pub fn reference(&mut self, now: Instant) -> Reference {
         while let Some(k) = self.queue.front() {
             if k.t <= now {
                 self.seg_start = *k;
@@ -552,7 +554,7 @@ impl JointControl {
 
     /// The joint PID on the interpolated reference (clamped into the limits), with its
     /// feed-forward and anti-windup integral, N·m.
-    fn pid(&mut self, now: u64, dt: f32, cfg: &JointConfig) -> f32 {
+    fn pid(&mut self, now: Instant, dt: f32, cfg: &JointConfig) -> f32 {
         let lim = &cfg.limits;
         let (q, qd) = (self.state.position, self.state.velocity);
         let r = self.reference(now);
@@ -569,7 +571,7 @@ impl JointControl {
     }
 
     /// Run one control tick of length `dt` (s) for joint `cfg`; returns what to command.
-    pub fn tick(&mut self, now: u64, dt: f32, cfg: &JointConfig) -> JointOutput {
+    pub fn tick(&mut self, now: Instant, dt: f32, cfg: &JointConfig) -> JointOutput {
         let lim = &cfg.limits;
         let q = self.state.position;
         let qd = self.state.velocity;
@@ -705,9 +707,7 @@ impl JointControl {
                 let lead = position_lead(cfg);
                 let held_back = lead > 0.0 && (self.cmd - q).abs() >= STALL_LEAD_SHARE * lead;
                 let still = qd.is_finite() && qd.abs() < STALL_SPEED;
-                let stalled_before = self
-                    .held_since
-                    .is_some_and(|t| now.saturating_sub(t) >= STALL_TIME_US);
+                let stalled_before = self.held_since.is_some_and(|t| now - t >= STALL_TIME);
                 let moved = !q.is_finite() || (q - self.stall_q).abs() > STALL_LEAD_SHARE * lead;
                 if held_back {
                     self.stall_q = q;
@@ -719,9 +719,7 @@ impl JointControl {
                 } else {
                     None
                 };
-                let stalled = self
-                    .held_since
-                    .is_some_and(|t| now.saturating_sub(t) >= STALL_TIME_US);
+                let stalled = self.held_since.is_some_and(|t| now - t >= STALL_TIME);
                 // With a model the correction only mends its error; without one (or stalled),
                 // it carries the whole load.
                 let bound = match model {
@@ -802,20 +800,20 @@ mod tests {
     #[test]
     fn hermite_meets_knots_and_slopes() {
         let a = Knot {
-            t: 0,
+            t: Instant::ZERO,
             q: 0.0,
             qd: 0.0,
             eff: 0.0,
         };
         let b = Knot {
-            t: 1_000_000,
+            t: Instant::from_secs(1),
             q: 1.0,
             qd: 0.0,
             eff: 2.0,
         };
-        assert_eq!(hermite(&a, &b, 0).q, 0.0);
-        assert!((hermite(&a, &b, 1_000_000).q - 1.0).abs() < 1e-6);
-        let mid = hermite(&a, &b, 500_000);
+        assert_eq!(hermite(&a, &b, Instant::ZERO).q, 0.0);
+        assert!((hermite(&a, &b, Instant::from_secs(1)).q - 1.0).abs() < 1e-6);
+        let mid = hermite(&a, &b, Instant::from_millis(500));
         assert!((mid.q - 0.5).abs() < 1e-6);
         assert!((mid.qd - 1.5).abs() < 1e-4, "{}", mid.qd); // peak speed of a cubic: 1.5·Δq/T
         assert!((mid.eff - 1.0).abs() < 1e-6);
@@ -825,11 +823,11 @@ mod tests {
     fn position_reference_is_rate_limited_and_clamped() {
         let cfg = crate::config::locobot().joints[0].clone();
         let mut j = JointControl::new();
-        j.set_mode(0, JointMode::Position);
-        assert!(j.push(0, 0, &JointPoint::at_rest(5.0)));
+        j.set_mode(Instant::ZERO, JointMode::Position);
+        assert!(j.push(Instant::ZERO, Duration::ZERO, &JointPoint::at_rest(5.0)));
         let mut last = 0.0;
         for k in 1..=3000u64 {
-            if let JointOutput::Position(p) = j.tick(k * 1000, 1e-3, &cfg) {
+            if let JointOutput::Position(p) = j.tick(Instant::from_millis(k), 1e-3, &cfg) {
                 assert!(p - last <= cfg.limits.velocity * 1e-3 + 1e-6);
                 last = p;
             }
@@ -840,11 +838,11 @@ mod tests {
     #[test]
     fn queue_is_bounded() {
         let mut j = JointControl::new();
-        j.set_mode(0, JointMode::Position);
+        j.set_mode(Instant::ZERO, JointMode::Position);
         let p = JointPoint::at_rest(0.1);
         for _ in 0..QUEUE_LEN {
-            assert!(j.push(0, 1000, &p));
+            assert!(j.push(Instant::ZERO, Duration::from_millis(1), &p));
         }
-        assert!(!j.push(0, 1000, &p));
+        assert!(!j.push(Instant::ZERO, Duration::from_millis(1), &p));
     }
 }

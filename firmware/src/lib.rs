@@ -17,7 +17,9 @@
 //! * the base drivers and odometry ([`base`]);
 //! * safety: host watchdog, emergency stop, base safety sensors; every fault is reported.
 //!
-//! Time is a `u64` of microseconds from any epoch, never going backwards.
+//! Time is a [`time::Instant`] on the shell's clock (µs from any epoch, never going
+//! backwards); spans of it are [`time::Duration`]s. The wire's integer µs and ms are converted
+//! where a message is handled or built.
 #![no_std]
 #![forbid(unsafe_code)]
 #![cfg_attr(
@@ -39,6 +41,7 @@ pub mod gripper;
 pub mod joint;
 mod log;
 pub mod shell;
+pub mod time;
 pub mod txbuf;
 
 use log::{log_info, log_warn};
@@ -57,6 +60,7 @@ use bus::{BusEvent, Goal, ServoBus, ServoStatus};
 pub use config::RobotProfile;
 use gripper::{Gripper, GripperDrive};
 use joint::{JointControl, JointOutput};
+use time::{Duration, Instant};
 use txbuf::TxBuf;
 
 /// Firmware version, major/minor/patch.
@@ -113,6 +117,9 @@ enum Session {
 /// Size of the host transmit buffer, bytes.
 pub const HOST_TX_LEN: usize = 4096;
 
+/// The shortest servo-loop period the firmware runs, whatever its profile asks.
+pub const MIN_LOOP_PERIOD: Duration = Duration::from_micros(250);
+
 /// The firmware core.
 pub struct Firmware {
     profile: RobotProfile,
@@ -131,15 +138,15 @@ pub struct Firmware {
     host_tx: TxBuf<HOST_TX_LEN>,
     tx_seq: u16,
     session: Session,
-    watchdog_ms: u16,
-    last_host_rx: u64,
+    watchdog_period: Duration,
+    last_host_rx: Instant,
     watchdog_tripped: bool,
     estop: bool,
-    telemetry_ms: u16,
-    next_telemetry: u64,
-    loop_period_us: u32,
-    next_tick: u64,
-    tick_started: u64,
+    telemetry_period: Duration,
+    next_telemetry: Instant,
+    loop_period: Duration,
+    next_tick: Instant,
+    tick_started: Instant,
     loop_stats: LoopStats,
     overrun_since_telemetry: bool,
     host_tx_dropped: u32,
@@ -150,7 +157,7 @@ pub struct Firmware {
 
 impl Firmware {
     /// A firmware for `profile` on board `board`, starting at time `now`.
-    pub fn new(profile: RobotProfile, board: &str, now: u64) -> Self {
+    pub fn new(profile: RobotProfile, board: &str, now: Instant) -> Self {
         let mut b = Name::new();
         for c in board.chars() {
             if b.push(c).is_err() {
@@ -178,13 +185,13 @@ impl Firmware {
             host_tx: TxBuf::new(),
             tx_seq: 0,
             session: Session::None,
-            watchdog_ms: 0,
+            watchdog_period: Duration::ZERO,
             last_host_rx: now,
             watchdog_tripped: false,
             estop: false,
-            telemetry_ms: 0,
-            next_telemetry: u64::MAX,
-            loop_period_us: profile.loop_period_us.max(250),
+            telemetry_period: Duration::ZERO,
+            next_telemetry: Instant::MAX,
+            loop_period: profile.loop_period.max(MIN_LOOP_PERIOD),
             next_tick: now,
             tick_started: now,
             loop_stats: LoopStats::default(),
@@ -199,7 +206,7 @@ impl Firmware {
         fw
     }
 
-    fn rebuild_joints(&mut self, now: u64) {
+    fn rebuild_joints(&mut self, now: Instant) {
         self.joints.clear();
         self.gripper = None;
         for (j, c) in self.profile.joints.iter().enumerate() {
@@ -262,9 +269,9 @@ impl Firmware {
     }
 
     /// The latest time by which [`Firmware::poll`] must run.
-    pub fn next_deadline(&self) -> u64 {
+    pub fn next_deadline(&self) -> Instant {
         let mut d = if self.bus.read_done() {
-            0
+            Instant::ZERO
         } else if self.bus.is_idle() {
             self.next_tick
         } else {
@@ -279,15 +286,13 @@ impl Firmware {
 
     /// The watchdog, once armed by an accepted Hello, runs in every session state: a refused
     /// or silent host is a reason to stop, never a way around it.
-    fn watchdog_deadline(&self) -> Option<u64> {
-        (self.watchdog_ms > 0 && !self.watchdog_tripped).then(|| {
-            self.last_host_rx
-                .saturating_add(u64::from(self.watchdog_ms) * 1000)
-        })
+    fn watchdog_deadline(&self) -> Option<Instant> {
+        (!self.watchdog_period.is_zero() && !self.watchdog_tripped)
+            .then(|| self.last_host_rx + self.watchdog_period)
     }
 
     /// Bytes from the host.
-    pub fn on_host_bytes(&mut self, now: u64, bytes: &[u8]) {
+    pub fn on_host_bytes(&mut self, now: Instant, bytes: &[u8]) {
         for &b in bytes {
             if let Some(Ok(frame)) = self.decoder.push::<HostMsg>(b) {
                 self.last_host_rx = now;
@@ -300,7 +305,7 @@ impl Firmware {
     }
 
     /// Bytes from the servo bus.
-    pub fn on_servo_bytes(&mut self, now: u64, bytes: &[u8]) {
+    pub fn on_servo_bytes(&mut self, now: Instant, bytes: &[u8]) {
         self.bus.on_bytes(now, bytes);
         self.drain_bus_events(now);
         if self.bus.read_done() {
@@ -309,13 +314,13 @@ impl Firmware {
     }
 
     /// Bytes from the base.
-    pub fn on_base_bytes(&mut self, now: u64, bytes: &[u8]) {
+    pub fn on_base_bytes(&mut self, now: Instant, bytes: &[u8]) {
         self.base.on_bytes(now, bytes);
         self.drain_base_events(now);
     }
 
     /// Advance timers to `now`: servo-loop ticks, bus timeouts, base, watchdog, telemetry.
-    pub fn poll(&mut self, now: u64) {
+    pub fn poll(&mut self, now: Instant) {
         if let Some(w) = self.watchdog_deadline() {
             if now >= w {
                 self.trip_watchdog(now);
@@ -329,18 +334,16 @@ impl Firmware {
             self.finish_tick(now);
         }
         if self.bus.is_idle() && now >= self.next_tick {
-            let period = self.loop_period_us as u64;
-            let late = now.saturating_sub(self.next_tick);
+            let period = self.loop_period;
+            let late = now - self.next_tick;
             // The period is at least 1 µs (`SetLoopPeriod` refuses less); 0 would tick now.
-            let periods_late = late.checked_div(period).unwrap_or(0);
+            let periods_late = late.checked_div_duration(period).unwrap_or(0);
             if late >= period {
                 let skipped = periods_late as u32;
                 self.loop_stats.overruns = self.loop_stats.overruns.saturating_add(skipped);
                 self.overrun_since_telemetry = true;
             }
-            self.next_tick = self
-                .next_tick
-                .saturating_add(period.saturating_mul(periods_late.saturating_add(1)));
+            self.next_tick += period.saturating_mul(periods_late.saturating_add(1));
             self.tick_started = now;
             self.bus.begin_tick(now, &self.profile.joints);
             self.drain_bus_events(now);
@@ -350,23 +353,21 @@ impl Firmware {
         }
         if now >= self.next_telemetry {
             self.send_telemetry(now);
-            let p = u64::from(self.telemetry_ms) * 1000;
-            self.next_telemetry = if p == 0 {
-                u64::MAX
+            let p = self.telemetry_period;
+            self.next_telemetry = if p.is_zero() {
+                Instant::MAX
             } else {
-                self.next_telemetry
-                    .max(now.saturating_sub(p))
-                    .saturating_add(p)
+                self.next_telemetry.max(now - p) + p
             };
             if self.next_telemetry <= now {
-                self.next_telemetry = now.saturating_add(p);
+                self.next_telemetry = now + p;
             }
         }
     }
 
     /// Engage the emergency stop: the base stops at once, every joint holds where it is, and
     /// motion is refused until `Resume`.
-    fn emergency_stop(&mut self, now: u64) {
+    fn emergency_stop(&mut self, now: Instant) {
         self.estop = true;
         self.base.stop(now);
         self.base.poll(now);
@@ -390,7 +391,7 @@ impl Firmware {
         self.fault(now, FaultKind::EmergencyStop, None, None, 0);
     }
 
-    fn trip_watchdog(&mut self, now: u64) {
+    fn trip_watchdog(&mut self, now: Instant) {
         self.watchdog_tripped = true;
         self.base.stop(now);
         self.base.poll(now);
@@ -398,7 +399,7 @@ impl Firmware {
         self.fault(now, FaultKind::Watchdog, None, None, 0);
     }
 
-    fn hold_all(&mut self, now: u64) {
+    fn hold_all(&mut self, now: Instant) {
         for j in self.joints.iter_mut() {
             j.hold_here(now);
         }
@@ -407,7 +408,7 @@ impl Firmware {
         }
     }
 
-    fn drain_bus_events(&mut self, now: u64) {
+    fn drain_bus_events(&mut self, now: Instant) {
         while let Some(e) = self.bus.pop_event() {
             let (i, kind, code) = match e {
                 BusEvent::Lost(i) => (i, FaultKind::ServoLost, 0),
@@ -435,7 +436,7 @@ impl Firmware {
             .fold(0u16, |m, (i, _)| m | (1u16 << (i as u32 % 16)));
     }
 
-    fn drain_base_events(&mut self, now: u64) {
+    fn drain_base_events(&mut self, now: Instant) {
         use ferrobot_protocol::base_flags as bf;
         while let Some(e) = self.base.pop_event() {
             match e {
@@ -459,7 +460,7 @@ impl Firmware {
 
     fn fault(
         &mut self,
-        now: u64,
+        now: Instant,
         kind: FaultKind,
         joint: Option<u8>,
         servo_id: Option<u8>,
@@ -478,7 +479,7 @@ impl Firmware {
                 joint,
                 servo_id,
                 code,
-                time_us: now,
+                time_us: now.as_micros(),
             }));
         }
     }
@@ -498,8 +499,8 @@ impl Firmware {
     }
 
     /// Measure, control, write goals.
-    fn finish_tick(&mut self, now: u64) {
-        let dt = self.loop_period_us as f32 * 1e-6;
+    fn finish_tick(&mut self, now: Instant) {
+        let dt = self.loop_period.as_secs_f32();
         self.measure(now);
         self.model_gravity();
         let mut goals: Vec<Goal, { bus::MAX_SERVOS }> = Vec::new();
@@ -511,11 +512,13 @@ impl Firmware {
         }
         self.apply_modes();
         self.bus.finish_tick(now, &goals);
-        let took = now.saturating_sub(self.tick_started);
+        let took = now - self.tick_started;
         let s = &mut self.loop_stats;
         s.ticks = s.ticks.wrapping_add(1);
-        s.worst_tick_us = s.worst_tick_us.max(took.min(u32::MAX as u64) as u32);
-        if took > self.loop_period_us as u64 {
+        s.worst_tick_us = s
+            .worst_tick_us
+            .max(u32::try_from(took.as_micros()).unwrap_or(u32::MAX));
+        if took > self.loop_period {
             s.overruns = s.overruns.saturating_add(1);
             self.overrun_since_telemetry = true;
         }
@@ -559,7 +562,7 @@ impl Firmware {
         }
     }
 
-    fn measure(&mut self, now: u64) {
+    fn measure(&mut self, now: Instant) {
         let mut states: [Option<JointState>; MAX_JOINTS] = [None; MAX_JOINTS];
         for s in self.bus.servos.iter() {
             if !(s.fresh || (s.position_valid && !s.twin)) {
@@ -620,7 +623,7 @@ impl Firmware {
         (p, t)
     }
 
-    fn control_joint(&mut self, now: u64, dt: f32, j: usize, goals: &mut [Goal]) {
+    fn control_joint(&mut self, now: Instant, dt: f32, j: usize, goals: &mut [Goal]) {
         let Some(cfg) = self.profile.joints.get(j).cloned() else {
             return;
         };
@@ -832,9 +835,9 @@ impl Firmware {
     }
 
     /// The telemetry frame as of now.
-    pub fn telemetry(&self, now: u64) -> Telemetry {
+    pub fn telemetry(&self, now: Instant) -> Telemetry {
         Telemetry {
-            time_us: now,
+            time_us: now.as_micros(),
             joints: self.joints.iter().map(|j| j.state).collect(),
             queued: self
                 .joints
@@ -855,7 +858,7 @@ impl Firmware {
         }
     }
 
-    fn send_telemetry(&mut self, now: u64) {
+    fn send_telemetry(&mut self, now: Instant) {
         let t = self.telemetry(now);
         self.overrun_since_telemetry = false;
         self.send(&DeviceMsg::Telemetry(t));
@@ -887,12 +890,12 @@ impl Firmware {
             robot: self.profile.robot.clone(),
             joints: self.profile.joints.iter().map(|j| j.kind).collect(),
             base: self.profile.base.kind,
-            loop_period_us: self.loop_period_us,
+            loop_period_us: u32::try_from(self.loop_period.as_micros()).unwrap_or(u32::MAX),
             accepted,
         }
     }
 
-    fn handle(&mut self, now: u64, seq: u16, msg: HostMsg) {
+    fn handle(&mut self, now: Instant, seq: u16, msg: HostMsg) {
         match msg {
             // The emergency stop overrides everything, in every session state (ISO 13850).
             HostMsg::EmergencyStop => {
@@ -919,8 +922,8 @@ impl Firmware {
                 let info = self.info(ok);
                 self.send(&DeviceMsg::Hello(info));
                 if ok {
-                    self.watchdog_ms = self.profile.watchdog_ms;
-                    self.set_telemetry(now, self.profile.telemetry_ms);
+                    self.watchdog_period = self.profile.watchdog_period;
+                    self.set_telemetry(now, self.profile.telemetry_period);
                 } else {
                     // A refused session is a safe state: the base stops, the joints hold.
                     self.base.stop(now);
@@ -971,12 +974,12 @@ impl Firmware {
         self.send(&reply);
     }
 
-    fn set_telemetry(&mut self, now: u64, ms: u16) {
-        self.telemetry_ms = ms;
-        self.next_telemetry = if ms == 0 {
-            u64::MAX
+    fn set_telemetry(&mut self, now: Instant, period: Duration) {
+        self.telemetry_period = period;
+        self.next_telemetry = if period.is_zero() {
+            Instant::MAX
         } else {
-            now.saturating_add(u64::from(ms) * 1000)
+            now + period
         };
     }
 
@@ -989,7 +992,7 @@ impl Firmware {
         Ok((0..n).filter(|j| mask & (1 << j) != 0).collect())
     }
 
-    fn command(&mut self, now: u64, msg: HostMsg) -> Result<(), RejectReason> {
+    fn command(&mut self, now: Instant, msg: HostMsg) -> Result<(), RejectReason> {
         match msg {
             HostMsg::ConfigureJoint { index, config } => {
                 if self.joints.iter().any(|j| j.mode != JointMode::Off) {
@@ -1146,7 +1149,7 @@ impl Firmware {
                 }
                 for (&j, p) in sel.iter().zip(points.iter()) {
                     if let Some(jc) = self.joints.get_mut(j) {
-                        jc.push(now, duration_us, p);
+                        jc.push(now, Duration::from_micros(u64::from(duration_us)), p);
                     }
                 }
                 Ok(())
@@ -1199,7 +1202,8 @@ impl Firmware {
                 if self.estop && (v != 0.0 || w != 0.0) {
                     return Err(RejectReason::EmergencyStop);
                 }
-                self.base.set_velocity(now, v, w, duration_ms)?;
+                self.base
+                    .set_velocity(now, v, w, Duration::from_millis(u64::from(duration_ms)))?;
                 self.base.poll(now);
                 Ok(())
             }
@@ -1234,7 +1238,7 @@ impl Firmware {
                 if !(1..=ranges::WATCHDOG_MAX_MS).contains(&period_ms) {
                     return Err(RejectReason::InvalidConfig);
                 }
-                self.watchdog_ms = period_ms;
+                self.watchdog_period = Duration::from_millis(u64::from(period_ms));
                 Ok(())
             }
             HostMsg::Heartbeat => Ok(()),
@@ -1250,14 +1254,14 @@ impl Firmware {
                 Ok(())
             }
             HostMsg::SetTelemetry { period_ms } => {
-                self.set_telemetry(now, period_ms);
+                self.set_telemetry(now, Duration::from_millis(u64::from(period_ms)));
                 Ok(())
             }
             HostMsg::SetLoopPeriod { period_us } => {
                 if !(ranges::LOOP_PERIOD_MIN_US..=ranges::LOOP_PERIOD_MAX_US).contains(&period_us) {
                     return Err(RejectReason::InvalidConfig);
                 }
-                self.loop_period_us = period_us;
+                self.loop_period = Duration::from_micros(u64::from(period_us));
                 Ok(())
             }
             HostMsg::RebootJoint { joint } => {

@@ -17,6 +17,7 @@ use core::task::{Poll, Waker};
 
 use embassy_futures::select::{select, select4, Either4};
 
+use crate::time::Instant;
 use crate::{Firmware, Link};
 
 /// The host link went away (USB unplugged, unconfigured or reset).
@@ -45,12 +46,12 @@ pub trait Bus {
     fn write(&mut self, bytes: &[u8]) -> impl Future<Output = bool>;
 }
 
-/// The board's time, µs from any epoch, never going backwards.
+/// The board's time, from any epoch, never going backwards.
 pub trait Clock {
-    /// The time now, µs.
-    fn now(&self) -> u64;
-    /// Complete at time `t` (µs) or at once if it has passed.
-    fn at(&self, t: u64) -> impl Future<Output = ()>;
+    /// The time now.
+    fn now(&self) -> Instant;
+    /// Complete at time `t`, or at once if it has passed.
+    fn at(&self, t: Instant) -> impl Future<Output = ()>;
 }
 
 /// Most bytes one [`HostTx::write`] carries (one full-speed USB bulk packet).

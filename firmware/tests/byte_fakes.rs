@@ -3,6 +3,7 @@
 
 use std::collections::{BTreeMap, BTreeSet};
 
+use ferrobot_firmware::time::{Duration, Instant};
 use ferrobot_firmware::{config, Firmware, Link};
 use ferrobot_protocol::dxl::{self, addr, inst, units, PacketDecoder};
 use ferrobot_protocol::*;
@@ -83,7 +84,7 @@ impl FakeBus {
 }
 
 /// Run the firmware against the fake bus for `ticks` loop periods from `*now`.
-fn run(fw: &mut Firmware, bus: &mut FakeBus, now: &mut u64, ticks: u64) {
+fn run(fw: &mut Firmware, bus: &mut FakeBus, now: &mut Instant, ticks: u64) {
     run_with(fw, bus, now, ticks, |bus, tx| bus.respond(tx));
 }
 
@@ -92,13 +93,13 @@ fn run(fw: &mut Firmware, bus: &mut FakeBus, now: &mut u64, ticks: u64) {
 fn run_with(
     fw: &mut Firmware,
     bus: &mut FakeBus,
-    now: &mut u64,
+    now: &mut Instant,
     ticks: u64,
     mut line: impl FnMut(&mut FakeBus, &[u8]) -> Vec<u8>,
 ) {
-    let end = *now + ticks * 1000;
+    let end = *now + Duration::from_millis(ticks);
     while *now < end {
-        *now = (*now + 1).max(fw.next_deadline().min(end));
+        *now = (*now + Duration::from_micros(1)).max(fw.next_deadline().min(end));
         fw.poll(*now);
         // Exchange until the bus has nothing more to say within this instant (+100 µs per reply).
         for _ in 0..4 {
@@ -110,7 +111,7 @@ fn run_with(
             fw.consume(Link::Servo, n);
             let rx = line(bus, &tx);
             if !rx.is_empty() {
-                *now += 100;
+                *now += Duration::from_micros(100);
                 fw.on_servo_bytes(*now, &rx);
             }
         }
@@ -137,10 +138,15 @@ fn frame(seq: u16, m: &HostMsg) -> Vec<u8> {
     b[..n].to_vec()
 }
 
-fn locobot() -> (Firmware, FakeBus, u64) {
-    let fw = Firmware::new(config::locobot(), "test", 0);
+fn locobot() -> (Firmware, FakeBus, Instant) {
+    let fw = Firmware::new(config::locobot(), "test", Instant::ZERO);
     let bus = FakeBus::new(1..=9);
-    (fw, bus, 0)
+    (fw, bus, Instant::ZERO)
+}
+
+/// The instant `t` µs after boot.
+fn us(t: u64) -> Instant {
+    Instant::from_micros(t)
 }
 
 #[test]
@@ -335,14 +341,14 @@ fn kobuki_feedback(left: u16, right: u16, bumper: u8) -> Vec<u8> {
 
 #[test]
 fn kobuki_odometry_survives_encoder_wrap_around() {
-    let mut fw = Firmware::new(config::locobot(), "test", 0);
+    let mut fw = Firmware::new(config::locobot(), "test", Instant::ZERO);
     // Both wheels advance 1000 ticks per packet, starting just below the wrap.
     let mut enc: u16 = 65_000;
     for k in 0..=10u64 {
-        fw.on_base_bytes(k * 20_000, &kobuki_feedback(enc, enc, 0));
+        fw.on_base_bytes(us(k * 20_000), &kobuki_feedback(enc, enc, 0));
         enc = enc.wrapping_add(1000);
     }
-    let o = fw.telemetry(200_000).odometry;
+    let o = fw.telemetry(us(200_000)).odometry;
     let expected = 10.0 * 1000.0 * 0.002436917 * 0.035;
     assert!((o.x as f64 - expected).abs() < 1e-4, "{o:?} vs {expected}");
     assert!(o.y.abs() < 1e-6 && o.theta.abs() < 1e-6);
@@ -350,10 +356,10 @@ fn kobuki_odometry_survives_encoder_wrap_around() {
 
 #[test]
 fn watchdog_sends_zero_to_the_base_at_once_and_reports() {
-    let mut fw = Firmware::new(config::locobot(), "test", 0);
-    fw.on_host_bytes(0, &hello());
+    let mut fw = Firmware::new(config::locobot(), "test", Instant::ZERO);
+    fw.on_host_bytes(Instant::ZERO, &hello());
     fw.on_host_bytes(
-        0,
+        Instant::ZERO,
         &frame(
             1,
             &HostMsg::BaseVelocity {
@@ -365,10 +371,10 @@ fn watchdog_sends_zero_to_the_base_at_once_and_reports() {
     );
     let n = fw.pending(Link::Base).len();
     fw.consume(Link::Base, n);
-    fw.poll(499_000);
+    fw.poll(us(499_000));
     let n = fw.pending(Link::Base).len();
     fw.consume(Link::Base, n);
-    fw.poll(500_000);
+    fw.poll(us(500_000));
     // The last base command sent is speed 0, radius 0.
     let tx = fw.pending(Link::Base).to_vec();
     let mut p = kobuki::Parser::new();
@@ -381,14 +387,14 @@ fn watchdog_sends_zero_to_the_base_at_once_and_reports() {
         }
     }
     assert_eq!(last, Some(vec![0, 0, 0, 0]));
-    assert!(fw.telemetry(500_000).faults & fault_flags::WATCHDOG != 0);
+    assert!(fw.telemetry(us(500_000)).faults & fault_flags::WATCHDOG != 0);
 }
 
 #[test]
 fn create2_driver_starts_the_stream_drives_direct_and_integrates_odometry() {
-    let mut fw = Firmware::new(config::locobot_lite(), "test", 0);
-    fw.on_host_bytes(0, &hello());
-    fw.poll(0);
+    let mut fw = Firmware::new(config::locobot_lite(), "test", Instant::ZERO);
+    fw.on_host_bytes(Instant::ZERO, &hello());
+    fw.poll(Instant::ZERO);
     let tx = fw.pending(Link::Base).to_vec();
     // Start, Safe, Stream of bumps/drops, four cliffs and both encoders.
     let mut start = vec![create2::OP_START, create2::OP_SAFE, create2::OP_STREAM, 7];
@@ -397,7 +403,7 @@ fn create2_driver_starts_the_stream_drives_direct_and_integrates_odometry() {
     let n = fw.pending(Link::Base).len();
     fw.consume(Link::Base, n);
     fw.on_host_bytes(
-        1000,
+        us(1000),
         &frame(
             1,
             &HostMsg::BaseVelocity {
@@ -419,10 +425,10 @@ fn create2_driver_starts_the_stream_drives_direct_and_integrates_odometry() {
         };
         let mut b = [0u8; 64];
         let n = create2::encode_stream(&s, &mut b).expect("fits");
-        fw.on_base_bytes(2000 + k * 15_000, &b[..n]);
+        fw.on_base_bytes(us(2000 + k * 15_000), &b[..n]);
         enc = enc.wrapping_add(100);
     }
-    let o = fw.telemetry(400_000).odometry;
+    let o = fw.telemetry(us(400_000)).odometry;
     let expected = 20.0 * 100.0 * (std::f64::consts::TAU / 508.8) * 0.036;
     assert!((o.x as f64 - expected).abs() < 1e-4, "{o:?} vs {expected}");
     assert_eq!(fw.diagnostics().base_packets, 21);
@@ -474,9 +480,9 @@ fn host_replies(fw: &mut Firmware) -> Vec<DeviceMsg> {
 
 #[test]
 fn calibrated_geometry_is_used_by_the_odometry_and_bad_geometry_is_rejected() {
-    let mut fw = Firmware::new(config::locobot_lite(), "test", 0);
-    fw.on_host_bytes(0, &hello());
-    fw.poll(0);
+    let mut fw = Firmware::new(config::locobot_lite(), "test", Instant::ZERO);
+    fw.on_host_bytes(Instant::ZERO, &hello());
+    fw.poll(Instant::ZERO);
     host_replies(&mut fw);
     let set = |seq, left_radius, right_radius, track| {
         frame(
@@ -489,11 +495,11 @@ fn calibrated_geometry_is_used_by_the_odometry_and_bad_geometry_is_rejected() {
         )
     };
     let (rl, rr, track) = (0.0363f32, 0.0360f32, 0.2370f32);
-    fw.on_host_bytes(10, &set(1, rl, rr, track));
+    fw.on_host_bytes(us(10), &set(1, rl, rr, track));
     // Rejected, and the good geometry stays: not finite, 39 % off, a track 15 % off.
-    fw.on_host_bytes(20, &set(2, f32::NAN, rr, track));
-    fw.on_host_bytes(30, &set(3, 0.05, rr, track));
-    fw.on_host_bytes(40, &set(4, rl, rr, 0.27));
+    fw.on_host_bytes(us(20), &set(2, f32::NAN, rr, track));
+    fw.on_host_bytes(us(30), &set(3, 0.05, rr, track));
+    fw.on_host_bytes(us(40), &set(4, rl, rr, 0.27));
     let replies = host_replies(&mut fw);
     let acks: Vec<_> = replies
         .iter()
@@ -523,9 +529,9 @@ fn calibrated_geometry_is_used_by_the_odometry_and_bad_geometry_is_rejected() {
         };
         let mut b = [0u8; 64];
         let n = create2::encode_stream(&s, &mut b).expect("fits");
-        fw.on_base_bytes(1000 + k * 15_000, &b[..n]);
+        fw.on_base_bytes(us(1000 + k * 15_000), &b[..n]);
     }
-    let o = fw.telemetry(400_000).odometry;
+    let o = fw.telemetry(us(400_000)).odometry;
     let phi = 2000.0 * std::f64::consts::TAU / 508.8;
     let (dl, dr) = (phi * rl as f64, phi * rr as f64);
     let theta = (dr - dl) / track as f64;

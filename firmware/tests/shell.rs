@@ -14,6 +14,7 @@ use embassy_futures::join::join;
 use embassy_futures::select::select;
 use embassy_futures::yield_now;
 use ferrobot_firmware::shell::{Bus, Clock, Disconnected, HostRx, HostTx, Shell};
+use ferrobot_firmware::time::Instant;
 use ferrobot_firmware::{config, Firmware};
 use ferrobot_protocol::*;
 
@@ -21,14 +22,21 @@ use ferrobot_protocol::*;
 #[derive(Default)]
 struct FakeClock(Cell<u64>);
 
-impl Clock for FakeClock {
-    fn now(&self) -> u64 {
+impl FakeClock {
+    /// The time now, µs (the script's unit).
+    fn micros(&self) -> u64 {
         self.0.get()
     }
+}
 
-    async fn at(&self, t: u64) {
+impl Clock for FakeClock {
+    fn now(&self) -> Instant {
+        Instant::from_micros(self.0.get())
+    }
+
+    async fn at(&self, t: Instant) {
         poll_fn(|cx| {
-            if self.0.get() >= t {
+            if self.now() >= t {
                 Poll::Ready(())
             } else {
                 cx.waker().wake_by_ref();
@@ -136,7 +144,7 @@ impl Bus for MuteBus {
     async fn write(&mut self, bytes: &[u8]) -> bool {
         self.log
             .borrow_mut()
-            .push((self.clock.now(), bytes.to_vec()));
+            .push((self.clock.micros(), bytes.to_vec()));
         true
     }
 }
@@ -182,7 +190,7 @@ fn with_shell(script: impl AsyncFnOnce(&Shell, &FakeClock, &Wire, &BusLog, &BusL
     let wire = Rc::new(Wire::default());
     let servo_log = Rc::new(RefCell::new(Vec::new()));
     let base_log = Rc::new(RefCell::new(Vec::new()));
-    let shell = Shell::new(Firmware::new(config::locobot(), "test", 0));
+    let shell = Shell::new(Firmware::new(config::locobot(), "test", Instant::ZERO));
     let (mut rx, mut tx) = (LinkRx(wire.clone()), LinkTx(wire.clone()));
     let mut servo = MuteBus {
         clock: clock.clone(),
@@ -204,8 +212,8 @@ fn with_shell(script: impl AsyncFnOnce(&Shell, &FakeClock, &Wire, &BusLog, &BusL
 
 /// Move virtual time to `t` in 100 µs steps, letting the shell run at each.
 async fn run_until(clock: &FakeClock, t: u64) {
-    while clock.now() < t {
-        clock.0.set(clock.now() + 100);
+    while clock.micros() < t {
+        clock.0.set(clock.micros() + 100);
         for _ in 0..4 {
             yield_now().await;
         }

@@ -1,6 +1,7 @@
 //! Base feedback: the Kobuki and Create 2 parsers, then both firmware base drivers fed the
 //! bytes. Nothing may panic.
 #![no_main]
+use ferrobot_firmware::time::Instant;
 use ferrobot_firmware::{config, Firmware};
 use ferrobot_protocol::{create2, kobuki};
 use libfuzzer_sys::fuzz_target;
@@ -15,9 +16,9 @@ fuzz_target!(|data: &[u8]| {
         let _ = c.push(b);
     }
     for profile in [config::locobot(), config::locobot_lite()] {
-        let mut fw = Firmware::new(profile, "fuzz", 0);
+        let mut fw = Firmware::new(profile, "fuzz", Instant::ZERO);
         for (i, chunk) in data.chunks(19).enumerate() {
-            let now = 5000 * i as u64;
+            let now = Instant::from_micros(5000 * i as u64);
             fw.on_base_bytes(now, chunk);
             fw.poll(now);
         }

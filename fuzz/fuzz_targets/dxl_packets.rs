@@ -1,6 +1,7 @@
 //! Dynamixel packets: the packet decoder alone, then the firmware's bus master fed the bytes
 //! as servo replies while it runs its loop. Nothing may panic.
 #![no_main]
+use ferrobot_firmware::time::{Duration, Instant};
 use ferrobot_firmware::{config, Firmware, Link};
 use ferrobot_protocol::dxl::PacketDecoder;
 use libfuzzer_sys::fuzz_target;
@@ -29,11 +30,11 @@ fuzz_target!(|data: &[u8]| {
         rest = &rest[n.max(1).min(rest.len())..];
     }
     assert_eq!(by_byte, by_slice);
-    let mut fw = Firmware::new(config::locobot(), "fuzz", 0);
+    let mut fw = Firmware::new(config::locobot(), "fuzz", Instant::ZERO);
     for (i, chunk) in data.chunks(23).enumerate() {
-        let now = 250 * i as u64;
+        let now = Instant::from_micros(250 * i as u64);
         fw.poll(now);
-        fw.on_servo_bytes(now + 100, chunk);
+        fw.on_servo_bytes(now + Duration::from_micros(100), chunk);
         for link in [Link::Host, Link::Servo, Link::Base] {
             let n = fw.pending(link).len();
             fw.consume(link, n);

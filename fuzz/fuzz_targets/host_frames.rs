@@ -3,6 +3,7 @@
 //! bytes, framed validly (so that arbitrary commands and values reach the firmware's
 //! handlers past the CRC). Nothing may panic.
 #![no_main]
+use ferrobot_firmware::time::Instant;
 use ferrobot_firmware::{config, Firmware, Link};
 use ferrobot_protocol::*;
 use libfuzzer_sys::fuzz_target;
@@ -16,13 +17,13 @@ fuzz_target!(|data: &[u8]| {
     for &b in data {
         let _ = d.push::<DeviceMsg>(b);
     }
-    let mut fw = Firmware::new(config::locobot(), "fuzz", 0);
+    let mut fw = Firmware::new(config::locobot(), "fuzz", Instant::ZERO);
     let mut hello = [0u8; MAX_WIRE];
     if let Ok(n) = encode_frame(0, &HostMsg::Hello { protocol_version: PROTOCOL_VERSION, schema_hash: SCHEMA_HASH }, &mut hello) {
-        fw.on_host_bytes(0, &hello[..n]);
+        fw.on_host_bytes(Instant::ZERO, &hello[..n]);
     }
     for (i, chunk) in data.chunks(17).enumerate() {
-        let now = 1000 * i as u64;
+        let now = Instant::from_millis(i as u64);
         fw.on_host_bytes(now, chunk);
         fw.poll(now);
         for link in [Link::Host, Link::Servo, Link::Base] {
@@ -37,7 +38,7 @@ fuzz_target!(|data: &[u8]| {
             Ok((msg, tail)) => {
                 let mut buf = [0u8; MAX_WIRE];
                 if let Ok(n) = encode_frame(seq, &msg, &mut buf) {
-                    let now = 1000 * seq as u64;
+                    let now = Instant::from_millis(seq as u64);
                     fw.on_host_bytes(now, &buf[..n]);
                     fw.poll(now);
                     for link in [Link::Host, Link::Servo, Link::Base] {

@@ -10,6 +10,7 @@
 //!   servo loop, everything (firmware, servo physics at 4 kHz, base physics at 1 kHz, wires).
 
 use criterion::{criterion_group, criterion_main, Criterion};
+use ferrobot_firmware::time;
 use ferrobot_firmware::{config, Firmware, Link};
 use ferrobot_protocol::*;
 use ferrobot_sim::lockstep::locobot_busy;
@@ -46,15 +47,19 @@ fn bench(c: &mut Criterion) {
         // A firmware configured against the real chain, taken out of the simulator.
         let mut sim = LockstepSim::new("locobot", 5).expect("sim");
         sim.run_until(300_000);
-        let mut now = sim.now_us();
-        let mut fw = std::mem::replace(&mut sim.fw, Firmware::new(config::locobot(), "bench", 0));
+        let mut now = time::Instant::from_micros(sim.now_us());
+        let mut fw = std::mem::replace(
+            &mut sim.fw,
+            Firmware::new(config::locobot(), "bench", time::Instant::ZERO),
+        );
+        let reply = time::Duration::from_micros(300);
         b.iter(|| {
-            now += 1000;
+            now += time::Duration::from_millis(1);
             fw.poll(now);
             let n = fw.pending(Link::Servo).len();
             fw.consume(Link::Servo, n);
-            fw.on_servo_bytes(now + 300, black_box(&statuses));
-            fw.on_base_bytes(now + 300, black_box(&feedback));
+            fw.on_servo_bytes(now + reply, black_box(&statuses));
+            fw.on_base_bytes(now + reply, black_box(&feedback));
             for link in [Link::Servo, Link::Base, Link::Host] {
                 let n = fw.pending(link).len();
                 fw.consume(link, n);

@@ -7,6 +7,7 @@
 //! [`LockstepSim::take_host_output`] carry the same bytes a serial port would; [`SimHost`]
 //! drives them with the protocol's host session for tests, benches and hostile hosts.
 
+use ferrobot_firmware::time::Instant;
 use ferrobot_firmware::{config, Firmware, Link};
 use ferrobot_protocol::session::{Answer, HostSession, Request, SessionError};
 use ferrobot_protocol::{
@@ -74,7 +75,7 @@ impl LockstepSim {
     pub fn with(desc: robots::SimRobot, profile: config::RobotProfile, seed: u64) -> Self {
         Self {
             now: 0,
-            fw: Firmware::new(profile, "sim", 0),
+            fw: Firmware::new(profile, "sim", Instant::ZERO),
             hw: Hardware::new(&desc, seed),
             host_in: Vec::new(),
             host_out: Vec::new(),
@@ -129,33 +130,33 @@ impl LockstepSim {
     /// Run until simulated time `t_end` (µs).
     pub fn run_until(&mut self, t_end: u64) {
         loop {
+            // The plants' clock (µs) as the firmware's.
+            let now = Instant::from_micros(self.now);
             if !self.host_in.is_empty() {
                 let bytes = std::mem::take(&mut self.host_in);
-                self.fw.on_host_bytes(self.now, &bytes);
+                self.fw.on_host_bytes(now, &bytes);
             }
-            if self.fw.next_deadline() <= self.now {
-                self.fw.poll(self.now);
+            if self.fw.next_deadline() <= now {
+                self.fw.poll(now);
             }
             self.flush();
             // Deliveries due now.
             self.hw.step(self.now);
             if let Some(b) = self.hw.to_firmware(Link::Servo, self.now) {
-                self.fw.on_servo_bytes(self.now, &b);
+                self.fw.on_servo_bytes(now, &b);
             }
             if let Some(b) = self.hw.to_firmware(Link::Base, self.now) {
-                self.fw.on_base_bytes(self.now, &b);
+                self.fw.on_base_bytes(now, &b);
             }
-            if self.fw.next_deadline() <= self.now {
-                self.fw.poll(self.now);
+            if self.fw.next_deadline() <= now {
+                self.fw.poll(now);
             }
             self.flush();
             if self.now >= t_end {
                 break;
             }
-            let next = self
-                .hw
-                .next_event()
-                .map_or(self.fw.next_deadline(), |t| t.min(self.fw.next_deadline()));
+            let deadline = self.fw.next_deadline().as_micros();
+            let next = self.hw.next_event().map_or(deadline, |t| t.min(deadline));
             self.now = next.max(self.now + 1).min(t_end);
             self.events += 1;
         }

@@ -5,6 +5,7 @@
 
 use std::collections::VecDeque;
 
+use ferrobot_firmware::time::{Duration, Instant};
 use ferrobot_firmware::{config, Firmware, Link};
 use ferrobot_protocol::clock::{Advance, Idle};
 use ferrobot_protocol::{encode_frame, Frame, FrameDecoder, MAX_WIRE};
@@ -29,9 +30,9 @@ struct Board {
 impl Board {
     fn new() -> Self {
         let mut profile = config::locobot();
-        profile.loop_period_us = 25_000;
+        profile.loop_period = Duration::from_millis(25);
         Board {
-            fw: Firmware::new(profile, "fake", 0),
+            fw: Firmware::new(profile, "fake", Instant::ZERO),
             now: 0,
             release: [0; 2],
             consumed: [0; 2],
@@ -55,19 +56,20 @@ impl Board {
     /// The firmware task and the idle loop: consume released bytes, poll when due, send;
     /// returns bytes for each plant line and the clock report, if any.
     fn run(&mut self) -> ([Vec<u8>; 2], Vec<u8>) {
+        let now = Instant::from_micros(self.now);
         for (i, link) in LINES.iter().enumerate() {
             let n = (self.release[i].wrapping_sub(self.consumed[i]) as usize).min(self.rx[i].len());
             if n > 0 {
                 let bytes: Vec<u8> = self.rx[i].drain(..n).collect();
                 self.consumed[i] = self.consumed[i].wrapping_add(n as u32);
                 match link {
-                    Link::Servo => self.fw.on_servo_bytes(self.now, &bytes),
-                    _ => self.fw.on_base_bytes(self.now, &bytes),
+                    Link::Servo => self.fw.on_servo_bytes(now, &bytes),
+                    _ => self.fw.on_base_bytes(now, &bytes),
                 }
             }
         }
-        if self.fw.next_deadline() <= self.now {
-            self.fw.poll(self.now);
+        if self.fw.next_deadline() <= now {
+            self.fw.poll(now);
         }
         let mut out: [Vec<u8>; 2] = Default::default();
         for (i, link) in LINES.iter().enumerate() {
@@ -82,7 +84,7 @@ impl Board {
         if self.release == self.consumed {
             let idle = Idle {
                 now_us: self.now,
-                next_us: self.fw.next_deadline(),
+                next_us: self.fw.next_deadline().as_micros(),
                 rx: self.consumed,
                 tx: self.sent,
             };

@@ -30,6 +30,7 @@ use embassy_executor::InterruptExecutor;
 use embassy_futures::select::select;
 use embassy_time::{Instant, Timer};
 use ferrobot_firmware::config;
+use ferrobot_firmware::time;
 use ferrobot_firmware::{Firmware, Link};
 
 use uart::{Uart, ACTIVITY};
@@ -202,7 +203,7 @@ fn limit(link: Link, released: [u32; 2]) -> Option<u32> {
 }
 
 /// Drain a UART's receive ring into the firmware, up to `total` bytes since start.
-fn feed(u: &Uart, now: u64, fw: &mut Firmware, link: Link, total: Option<u32>) {
+fn feed(u: &Uart, now: time::Instant, fw: &mut Firmware, link: Link, total: Option<u32>) {
     let mut buf = [0u8; 64];
     loop {
         let n = u.read_until(&mut buf, total);
@@ -225,8 +226,12 @@ async fn firmware_task() {
     } else {
         config::locobot()
     };
-    profile.loop_period_us = LOOP_US;
-    let mut fw = Firmware::new(profile, "mps2-an386", Instant::now().as_micros());
+    profile.loop_period = time::Duration::from_micros(u64::from(LOOP_US));
+    let mut fw = Firmware::new(
+        profile,
+        "mps2-an386",
+        time::Instant::from_micros(Instant::now().as_micros()),
+    );
     let links = [
         (&UART0, Link::Host),
         (&UART1, Link::Servo),
@@ -234,7 +239,8 @@ async fn firmware_task() {
     ];
     loop {
         // The time and the bytes released for it, read together.
-        let (now, released) = clock::now_and_released();
+        let (now_us, released) = clock::now_and_released();
+        let now = time::Instant::from_micros(now_us);
         for (u, l) in links {
             feed(u, now, &mut fw, l, limit(l, released));
         }
@@ -259,7 +265,8 @@ async fn firmware_task() {
             }
         });
         if deadline > now {
-            select(activity, Timer::at(Instant::from_micros(deadline))).await;
+            let at = Instant::from_micros(deadline.as_micros());
+            select(activity, Timer::at(at)).await;
         }
     }
 }

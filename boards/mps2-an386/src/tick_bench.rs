@@ -8,6 +8,7 @@
 //! nanoseconds are the instructions executed. The result goes out on UART0 as one text line:
 //! `ticks=N instructions_per_tick=I worst_tick_instructions=W`.
 
+use ferrobot_firmware::time::{Duration, Instant};
 use ferrobot_firmware::{config, Firmware, Link};
 use ferrobot_protocol::dxl::{self, inst, PacketDecoder};
 use ferrobot_protocol::kobuki;
@@ -94,12 +95,14 @@ fn kobuki_feedback(k: u32) -> ([u8; 24], usize) {
 /// Run the measurement and report it on UART0.
 pub fn run() -> ! {
     start_clock();
-    let mut fw = Firmware::new(config::locobot(), "mps2-an386", 0);
+    let mut fw = Firmware::new(config::locobot(), "mps2-an386", Instant::ZERO);
     let mut chain = FakeChain {
         decoder: PacketDecoder::new(),
         out: heapless::Vec::new(),
     };
-    let mut now: u64 = 0;
+    let mut now = Instant::ZERO;
+    // The servos and the base answer 300 µs after the firmware's time.
+    let reply = Duration::from_micros(300);
     let mut measured = false;
     let mut timed: u64 = 0;
     let mut worst: u32 = 0;
@@ -107,7 +110,7 @@ pub fn run() -> ! {
     const TICKS: u32 = 1000;
     // One loop iteration is one servo-loop period (1 ms of firmware time).
     while ticks < TICKS {
-        now += 1000;
+        now += Duration::from_millis(1);
         let t0 = clocks();
         fw.poll(now);
         let mut spent = clocks().wrapping_sub(t0);
@@ -129,14 +132,15 @@ pub fn run() -> ! {
             let replies = chain.out.clone();
             if !replies.is_empty() {
                 let t = clocks();
-                fw.on_servo_bytes(now + 300, &replies);
+                fw.on_servo_bytes(now + reply, &replies);
                 spent = spent.wrapping_add(clocks().wrapping_sub(t));
             }
         }
         let t1 = clocks();
-        if (now / 1000) % 20 == 0 {
-            let (b, n) = kobuki_feedback((now / 1000) as u32);
-            fw.on_base_bytes(now + 300, &b[..n]);
+        let ms = now.as_micros() / 1000;
+        if ms.is_multiple_of(20) {
+            let (b, n) = kobuki_feedback(ms as u32);
+            fw.on_base_bytes(now + reply, &b[..n]);
         }
         for l in [Link::Servo, Link::Base, Link::Host] {
             let n = fw.pending(l).len();

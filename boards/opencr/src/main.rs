@@ -26,6 +26,7 @@ use embassy_usb::{Builder, UsbDevice};
 use embedded_io_async::{Read as _, Write as _};
 use ferrobot_firmware::config;
 use ferrobot_firmware::shell::{Bus, Clock, Disconnected, HostRx, HostTx, Shell};
+use ferrobot_firmware::time;
 use ferrobot_firmware::Firmware;
 use static_cell::StaticCell;
 
@@ -140,7 +141,7 @@ async fn main(spawner: Spawner) {
     } else {
         config::locobot()
     };
-    let shell = Shell::new(Firmware::new(profile, "opencr", Instant::now().as_micros()));
+    let shell = Shell::new(Firmware::new(profile, "opencr", BoardClock.now()));
     let mut servo = Dxl {
         uart: dxl,
         dir: dxl_dir,
@@ -155,16 +156,16 @@ async fn main(spawner: Spawner) {
     .await;
 }
 
-/// Embassy's time driver, µs.
+/// Embassy's time driver (1 MHz ticks) as the firmware's clock.
 struct BoardClock;
 
 impl Clock for BoardClock {
-    fn now(&self) -> u64 {
-        Instant::now().as_micros()
+    fn now(&self) -> time::Instant {
+        time::Instant::from_micros(Instant::now().as_micros())
     }
 
-    async fn at(&self, t: u64) {
-        Timer::at(Instant::from_micros(t)).await
+    async fn at(&self, t: time::Instant) {
+        Timer::at(Instant::from_micros(t.as_micros())).await
     }
 }
 

@@ -11,8 +11,14 @@ use ferrobot_protocol::{base_flags, create2, kobuki, BaseKind, RejectReason, Whe
 use heapless::{Deque, Vec};
 
 use crate::config::BaseConfig;
+use crate::time::{Duration, Instant};
 use crate::txbuf::TxBuf;
 use odometry::OdometryIntegrator;
+
+/// Kobuki's feedback period (50 Hz), at which the driver also repeats its command.
+const KOBUKI_PERIOD: Duration = Duration::from_millis(20);
+/// How often a silent Create 2 is sent Start, Safe and the stream request again.
+const CREATE2_RESTART: Duration = Duration::from_millis(500);
 
 /// Events the firmware reports.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -30,7 +36,7 @@ enum Proto {
     Kobuki(kobuki::Parser),
     Create2 {
         parser: create2::StreamParser,
-        next_start: u64,
+        next_start: Instant,
     },
 }
 
@@ -55,23 +61,23 @@ pub struct BaseDriver {
     /// Current [`base_flags`].
     pub flags: u16,
     cmd: (f32, f32),
-    cmd_until: u64,
+    cmd_until: Instant,
     sent: Option<(f32, f32)>,
-    next_send: u64,
+    next_send: Instant,
     last_enc: Option<(i32, i32)>,
     /// The previous gyro heading, rad (Kobuki).
     last_gyro: Option<f32>,
-    last_rx: Option<u64>,
+    last_rx: Option<Instant>,
     /// Whether feedback is missing.
     pub lost: bool,
     /// Odometry geometry: left and right wheel radius and wheel separation, m (the nominal
     /// ones until [`BaseDriver::set_geometry`]).
     pub odom_geometry: (f32, f32, f32),
     tx: TxBuf<128>,
-    /// When the last wheel command will have left the line, µs. A newer command waits for
+    /// When the last wheel command will have left the line. A newer command waits for
     /// it (the newest one wins), so that a burst of commands cannot queue up on the line
     /// ahead of a stop: a stop reaches the base within two packet times.
-    line_free_at: u64,
+    line_free_at: Instant,
     events: Deque<BaseEvent, 8>,
     /// Counters.
     pub stats: BaseStats,
@@ -84,7 +90,7 @@ impl BaseDriver {
             BaseKind::Kobuki => Proto::Kobuki(kobuki::Parser::new()),
             BaseKind::Create2 => Proto::Create2 {
                 parser: create2::StreamParser::new(),
-                next_start: 0,
+                next_start: Instant::ZERO,
             },
             _ => Proto::None,
         };
@@ -95,16 +101,16 @@ impl BaseDriver {
             wheels: WheelData::default(),
             flags: 0,
             cmd: (0.0, 0.0),
-            cmd_until: 0,
+            cmd_until: Instant::ZERO,
             sent: None,
-            next_send: 0,
+            next_send: Instant::ZERO,
             last_enc: None,
             last_gyro: None,
             last_rx: None,
             lost: false,
             odom_geometry: (cfg.wheel_radius, cfg.wheel_radius, cfg.track),
             tx: TxBuf::new(),
-            line_free_at: 0,
+            line_free_at: Instant::ZERO,
             events: Deque::new(),
             stats: BaseStats::default(),
         }
@@ -130,20 +136,21 @@ impl BaseDriver {
         !matches!(self.proto, Proto::None)
     }
 
-    fn period_us(&self) -> u64 {
+    /// The base's feedback period, at which the driver repeats its command.
+    fn period(&self) -> Duration {
         match self.proto {
-            Proto::Create2 { .. } => create2::STREAM_PERIOD_US,
-            _ => 20_000,
+            Proto::Create2 { .. } => Duration::from_micros(create2::STREAM_PERIOD_US),
+            _ => KOBUKI_PERIOD,
         }
     }
 
-    /// Command a body velocity (`v` m/s, `w` rad/s) for `duration_ms`.
+    /// Command a body velocity (`v` m/s, `w` rad/s) for `duration`.
     pub fn set_velocity(
         &mut self,
-        now: u64,
+        now: Instant,
         v: f32,
         w: f32,
-        duration_ms: u16,
+        duration: Duration,
     ) -> Result<(), RejectReason> {
         if !self.present() {
             return Err(RejectReason::NoBase);
@@ -160,7 +167,7 @@ impl BaseDriver {
             return Err(RejectReason::BaseSafety);
         }
         self.cmd = self.limit(v, w);
-        self.cmd_until = now.saturating_add(u64::from(duration_ms) * 1000);
+        self.cmd_until = now + duration;
         self.next_send = now.max(self.line_free_at); // as soon as the line is free
         Ok(())
     }
@@ -178,7 +185,7 @@ impl BaseDriver {
     }
 
     /// Stop at once.
-    pub fn stop(&mut self, now: u64) {
+    pub fn stop(&mut self, now: Instant) {
         self.cmd = (0.0, 0.0);
         self.cmd_until = now;
         self.next_send = now.max(self.line_free_at);
@@ -205,14 +212,14 @@ impl BaseDriver {
     }
 
     /// When `poll` must run next.
-    pub fn deadline(&self) -> u64 {
+    pub fn deadline(&self) -> Instant {
         let mut d = self.next_send;
         if self.cmd != (0.0, 0.0) {
             d = d.min(self.cmd_until);
         }
         if let Some(t) = self.last_rx {
             if !self.lost {
-                d = d.min(t.saturating_add(self.cfg.feedback_timeout_us));
+                d = d.min(t + self.cfg.feedback_timeout);
             }
         }
         if let Proto::Create2 { next_start, .. } = self.proto {
@@ -224,9 +231,9 @@ impl BaseDriver {
     }
 
     /// Timers: command expiry, periodic send, loss of feedback.
-    pub fn poll(&mut self, now: u64) {
+    pub fn poll(&mut self, now: Instant) {
         if !self.present() {
-            self.next_send = u64::MAX;
+            self.next_send = Instant::MAX;
             return;
         }
         if self.cmd != (0.0, 0.0) && now >= self.cmd_until {
@@ -234,14 +241,14 @@ impl BaseDriver {
             self.next_send = now;
         }
         if let Some(t) = self.last_rx {
-            if !self.lost && now >= t.saturating_add(self.cfg.feedback_timeout_us) {
+            if !self.lost && now >= t + self.cfg.feedback_timeout {
                 self.lost = true;
                 let _ = self.events.push_back(BaseEvent::Lost);
             }
         }
         if let Proto::Create2 { next_start, .. } = &mut self.proto {
             if (self.last_rx.is_none() || self.lost) && now >= *next_start {
-                *next_start = now.saturating_add(500_000);
+                *next_start = now + CREATE2_RESTART;
                 let mut start: Vec<u8, 16> = Vec::new();
                 let _ = start.extend_from_slice(&[
                     create2::OP_START,
@@ -262,13 +269,15 @@ impl BaseDriver {
                         Proto::Create2 { .. } => create2::BAUD,
                         _ => kobuki::BAUD,
                     };
-                    let line_us = (n as u64)
-                        .saturating_mul(10_000_000)
-                        .checked_div(u64::from(baud))
-                        .unwrap_or(0)
-                        .saturating_add(1);
-                    self.line_free_at = now.max(self.line_free_at).saturating_add(line_us);
-                    now.saturating_add(self.period_us())
+                    let line = Duration::from_micros(
+                        (n as u64)
+                            .saturating_mul(10_000_000)
+                            .checked_div(u64::from(baud))
+                            .unwrap_or(0)
+                            .saturating_add(1),
+                    );
+                    self.line_free_at = now.max(self.line_free_at) + line;
+                    now + self.period()
                 }
                 None => now,
             };
@@ -307,7 +316,7 @@ impl BaseDriver {
     }
 
     /// Bytes from the base.
-    pub fn on_bytes(&mut self, now: u64, bytes: &[u8]) {
+    pub fn on_bytes(&mut self, now: Instant, bytes: &[u8]) {
         for &b in bytes {
             let fb: Option<(i32, i32, u16, Option<f32>)> = match &mut self.proto {
                 Proto::Kobuki(p) => match p.push(b) {
@@ -359,12 +368,9 @@ impl BaseDriver {
     /// One feedback sample: encoder counts, safety flags, and the gyro heading (rad) when the
     /// base has one. With a gyro, the heading change comes from it (gyro-aided odometry):
     /// wheel-radius and track errors and wheel slip then no longer turn the estimate.
-    fn on_feedback(&mut self, now: u64, left: i32, right: i32, flags: u16, gyro: Option<f32>) {
+    fn on_feedback(&mut self, now: Instant, left: i32, right: i32, flags: u16, gyro: Option<f32>) {
         self.stats.packets = self.stats.packets.saturating_add(1);
-        let dt = self
-            .last_rx
-            .map(|t| now.saturating_sub(t) as f32 * 1e-6)
-            .unwrap_or(0.0);
+        let dt = self.last_rx.map(|t| (now - t).as_secs_f32()).unwrap_or(0.0);
         self.last_rx = Some(now);
         if self.lost {
             self.lost = false;

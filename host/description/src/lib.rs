@@ -14,6 +14,7 @@ use std::path::{Path, PathBuf};
 use ferrobot_firmware::config::{
     self as fwcfg, BaseConfig, BusConfig, GripperConfig, RobotProfile,
 };
+use ferrobot_firmware::time::Duration;
 use ferrobot_protocol::{
     ranges, BaseKind, JointConfig, JointKind, JointLimits, PidGains, ServoModel,
 };
@@ -1034,9 +1035,9 @@ impl RobotConfig {
             base,
             gripper: self.gripper.as_ref().map(GripperSection::driver),
             bus: BusConfig::at_baud(self.bus.baud),
-            loop_period_us: self.bus.loop_period_us,
-            watchdog_ms: 500,
-            telemetry_ms: 10,
+            loop_period: Duration::from_micros(u64::from(self.bus.loop_period_us)),
+            watchdog_period: Duration::from_millis(500),
+            telemetry_period: Duration::from_millis(10),
             // The built-in profile's arm model, for the robots that have one.
             gravity: ferrobot_firmware::config::by_name(&self.name).and_then(|p| p.gravity),
         }

@@ -27,12 +27,9 @@ fn every_bundled_robot_runs_the_built_in_profile_its_description_derives() {
         assert_eq!(derived.base, built_in.base, "{name}: base");
         assert_eq!(derived.gripper, built_in.gripper, "{name}: gripper");
         assert_eq!(derived.bus, built_in.bus, "{name}: bus");
+        assert_eq!(derived.loop_period, built_in.loop_period, "{name}: loop");
         assert_eq!(
-            derived.loop_period_us, built_in.loop_period_us,
-            "{name}: loop"
-        );
-        assert_eq!(
-            derived.watchdog_ms, built_in.watchdog_ms,
+            derived.watchdog_period, built_in.watchdog_period,
             "{name}: watchdog"
         );
         assert_eq!(derived.gravity, built_in.gravity, "{name}: gravity");
