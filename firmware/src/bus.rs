@@ -391,10 +391,11 @@ impl ServoBus {
         self.line_free_at + self.cfg.bytes_time(reply_bytes) + self.cfg.reply_margin
     }
 
-    /// Deadline of a configuration transaction: the servo may still answer after its factory
+    /// Deadline of operation `o`'s status: the servo may still answer after its factory
     /// return delay.
-    fn op_deadline(&self, reply_bytes: usize) -> Instant {
-        self.reply_deadline(reply_bytes) + UNCONFIGURED_RETURN_DELAY
+    fn op_deadline(&self, o: u16) -> Instant {
+        self.reply_deadline(STATUS_OVERHEAD.saturating_add(op::reply_params(o)))
+            + UNCONFIGURED_RETURN_DELAY
     }
 
     /// Start a bus cycle at `now`: one configuration transaction if any is pending, then the
@@ -426,8 +427,7 @@ impl ServoBus {
             self.phase = Phase::AwaitOp {
                 servo: i,
                 op: op::PING,
-                deadline: self
-                    .op_deadline(STATUS_OVERHEAD.saturating_add(op::reply_params(op::PING))),
+                deadline: self.op_deadline(op::PING),
                 gen: self.servos.get(i).map_or(0, |s| s.gen),
             };
             return true;
@@ -536,7 +536,7 @@ impl ServoBus {
         self.phase = Phase::AwaitOp {
             servo: i,
             op: o,
-            deadline: self.op_deadline(STATUS_OVERHEAD.saturating_add(op::reply_params(o))),
+            deadline: self.op_deadline(o),
             gen: s.gen,
         };
         true
