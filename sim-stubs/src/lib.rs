@@ -25,9 +25,11 @@ pub mod diff_drive;
 pub mod hardware;
 pub mod hostile;
 pub mod lockstep;
+pub mod mesh;
 pub mod pipe;
 pub mod rng;
 pub mod robots;
+pub mod scene;
 pub mod serve;
 pub mod servo;
 

@@ -142,6 +142,24 @@ pub struct GripperSection {
     pub closed_tick: i32,
     /// The fingers' mechanical stops (closed, open), ticks: where the simulated gripper stops.
     pub stops: [i32; 2],
+    /// The URDF's finger joints (prismatic), each moving its finger away from the centre
+    /// line as the gripper opens, with the sign of that motion along the joint's axis.
+    #[serde(default)]
+    pub fingers: Vec<FingerSection>,
+    /// Each finger's distance from the centre line (m) at the closed and at the open stop;
+    /// linear in the motor's angle in between.
+    #[serde(default)]
+    pub finger_travel: [f64; 2],
+}
+
+/// `[[gripper.fingers]]`: one finger joint of the URDF.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FingerSection {
+    /// URDF joint name (prismatic).
+    pub joint: String,
+    /// +1 or -1: the direction of opening along the joint's axis.
+    pub sign: f64,
 }
 
 impl GripperSection {
@@ -153,6 +171,27 @@ impl GripperSection {
             closed_tick: self.closed_tick,
             ..GripperConfig::LOCOBOT
         }
+    }
+
+    /// Each finger's distance from the centre line (m) when the motor is at `ticks`
+    /// (clamped to the stops).
+    pub fn finger_offset(&self, ticks: f64) -> f64 {
+        let [c, o] = self.stops.map(f64::from);
+        let t = if ticks.is_finite() {
+            ((ticks - c) / (o - c)).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        self.finger_travel[0] + t * (self.finger_travel[1] - self.finger_travel[0])
+    }
+
+    /// The finger joints' values (m, in `fingers` order) when the motor is at `ticks`.
+    pub fn finger_positions(&self, ticks: f64) -> Vec<(String, f64)> {
+        let s = self.finger_offset(ticks);
+        self.fingers
+            .iter()
+            .map(|f| (f.joint.clone(), f.sign * s))
+            .collect()
     }
 }
 
@@ -891,6 +930,32 @@ impl RobotConfig {
                 if !ok {
                     return Err(cfg_err(file, k, order));
                 }
+            }
+            for (k, f) in g.fingers.iter().enumerate() {
+                let key = format!("gripper.fingers[{k}]");
+                match urdf.joints.iter().find(|j| j.name == f.joint) {
+                    Some(j) if j.joint_type == urdf_rs::JointType::Prismatic => {}
+                    _ => {
+                        return Err(cfg_err(
+                            file,
+                            format!("{key}.joint"),
+                            format!("{:?} is not a prismatic joint of the URDF", f.joint),
+                        ))
+                    }
+                }
+                if f.sign != 1.0 && f.sign != -1.0 {
+                    return Err(cfg_err(file, format!("{key}.sign"), "the sign is 1 or -1"));
+                }
+            }
+            for v in g.finger_travel {
+                num(file, "gripper.finger_travel", v, 0.0, 0.5)?;
+            }
+            if !g.fingers.is_empty() && g.finger_travel[0] >= g.finger_travel[1] {
+                return Err(cfg_err(
+                    file,
+                    "gripper.finger_travel",
+                    "a finger is farther from the centre open than closed",
+                ));
             }
             if !joints
                 .iter()

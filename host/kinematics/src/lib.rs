@@ -10,8 +10,10 @@
 pub mod error;
 pub mod ik;
 pub mod locobot_ik;
+pub mod tree;
 
 pub use error::{Error, Result};
+pub use tree::{LinkTree, TreeJoint};
 
 use nalgebra::{Isometry3, Matrix6xX, Translation3, UnitQuaternion, Vector3, Vector6};
 

@@ -1,0 +1,218 @@
+//! Forward kinematics of a whole URDF tree: the pose of every link in the root link's frame
+//! for given joint values, and the transform between any two frames (PyRobot's
+//! `get_link_transform`).
+
+use std::collections::HashMap;
+
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+
+use crate::{pose_from_urdf, Error, JointType, Result};
+
+/// One link of the tree, with the joint that carries it.
+#[derive(Debug, Clone, PartialEq)]
+struct Node {
+    name: String,
+    parent: Option<usize>,
+    /// Parent link frame to this link's joint frame.
+    origin: Isometry3<f64>,
+    /// The movable joint (index into `joints`), if the joint is not fixed.
+    joint: Option<usize>,
+}
+
+/// A movable joint of the tree.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TreeJoint {
+    /// URDF name.
+    pub name: String,
+    /// Type.
+    pub kind: JointType,
+    /// Unit axis in the joint frame.
+    pub axis: Vector3<f64>,
+}
+
+/// A URDF's links in parent-before-child order.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LinkTree {
+    nodes: Vec<Node>,
+    joints: Vec<TreeJoint>,
+    index: HashMap<String, usize>,
+}
+
+impl LinkTree {
+    /// The tree of `urdf`, rooted at its one link without a parent joint.
+    pub fn from_urdf(urdf: &urdf_rs::Robot) -> Result<Self> {
+        let unreachable = |why: String| Error::Unreachable { why };
+        let mut parent_joint: HashMap<&str, &urdf_rs::Joint> = HashMap::new();
+        for j in &urdf.joints {
+            if parent_joint.insert(j.child.link.as_str(), j).is_some() {
+                return Err(unreachable(format!(
+                    "link {} has two parents",
+                    j.child.link
+                )));
+            }
+        }
+        let roots: Vec<&str> = urdf
+            .links
+            .iter()
+            .map(|l| l.name.as_str())
+            .filter(|n| !parent_joint.contains_key(n))
+            .collect();
+        if roots.len() != 1 {
+            return Err(unreachable(format!(
+                "the URDF has {} root links ({roots:?}), not one",
+                roots.len()
+            )));
+        }
+        let mut tree = LinkTree {
+            nodes: Vec::new(),
+            joints: Vec::new(),
+            index: HashMap::new(),
+        };
+        tree.index.insert(roots[0].to_string(), 0);
+        tree.nodes.push(Node {
+            name: roots[0].to_string(),
+            parent: None,
+            origin: Isometry3::identity(),
+            joint: None,
+        });
+        // Breadth first from the root, so parents come before children.
+        let mut k = 0;
+        while k < tree.nodes.len() {
+            let parent = tree.nodes[k].name.clone();
+            for j in urdf.joints.iter().filter(|j| j.parent.link == parent) {
+                if tree.index.contains_key(&j.child.link) {
+                    return Err(unreachable("the URDF has a cycle".into()));
+                }
+                let kind = match j.joint_type {
+                    urdf_rs::JointType::Revolute | urdf_rs::JointType::Continuous => {
+                        Some(JointType::Revolute)
+                    }
+                    urdf_rs::JointType::Prismatic => Some(JointType::Prismatic),
+                    _ => None,
+                };
+                let joint = kind.map(|kind| {
+                    let a = Vector3::new(j.axis.xyz[0], j.axis.xyz[1], j.axis.xyz[2]);
+                    tree.joints.push(TreeJoint {
+                        name: j.name.clone(),
+                        kind,
+                        axis: a.try_normalize(1e-12).unwrap_or(Vector3::z()),
+                    });
+                    tree.joints.len() - 1
+                });
+                tree.index.insert(j.child.link.clone(), tree.nodes.len());
+                tree.nodes.push(Node {
+                    name: j.child.link.clone(),
+                    parent: Some(k),
+                    origin: pose_from_urdf(&j.origin),
+                    joint,
+                });
+            }
+            k += 1;
+        }
+        if tree.nodes.len() != urdf.links.len() {
+            return Err(unreachable(format!(
+                "{} of the URDF's {} links hang from no joint path to the root",
+                urdf.links.len() - tree.nodes.len(),
+                urdf.links.len()
+            )));
+        }
+        Ok(tree)
+    }
+
+    /// The root link.
+    pub fn root(&self) -> &str {
+        &self.nodes[0].name
+    }
+
+    /// Link names, parents before children (the order of [`LinkTree::poses`]).
+    pub fn links(&self) -> impl Iterator<Item = &str> {
+        self.nodes.iter().map(|n| n.name.as_str())
+    }
+
+    /// Index of a link in [`LinkTree::links`].
+    pub fn link_index(&self, name: &str) -> Option<usize> {
+        self.index.get(name).copied()
+    }
+
+    /// The movable joints (the order of the values [`LinkTree::poses`] takes).
+    pub fn joints(&self) -> &[TreeJoint] {
+        &self.joints
+    }
+
+    /// Index of a movable joint in [`LinkTree::joints`].
+    pub fn joint_index(&self, name: &str) -> Option<usize> {
+        self.joints.iter().position(|j| j.name == name)
+    }
+
+    /// Pose of every link in the root frame, in [`LinkTree::links`] order, for joint values
+    /// `q` (rad or m, in [`LinkTree::joints`] order; missing values count as 0).
+    pub fn poses(&self, q: &[f64]) -> Vec<Isometry3<f64>> {
+        let mut out: Vec<Isometry3<f64>> = Vec::with_capacity(self.nodes.len());
+        for n in &self.nodes {
+            let parent = n.parent.map_or(Isometry3::identity(), |p| out[p]);
+            let motion = n.joint.map_or(Isometry3::identity(), |j| {
+                let v = q.get(j).copied().unwrap_or(0.0);
+                let joint = &self.joints[j];
+                match joint.kind {
+                    JointType::Revolute => Isometry3::from_parts(
+                        Translation3::identity(),
+                        UnitQuaternion::from_scaled_axis(joint.axis * v),
+                    ),
+                    JointType::Prismatic => Isometry3::from_parts(
+                        Translation3::from(joint.axis * v),
+                        UnitQuaternion::identity(),
+                    ),
+                }
+            });
+            out.push(parent * n.origin * motion);
+        }
+        out
+    }
+
+    /// Pose of frame `src` in frame `dst` (`T_dst_src`) given the link poses of
+    /// [`LinkTree::poses`]: PyRobot's `get_link_transform(src, dst)`.
+    pub fn transform(
+        &self,
+        poses: &[Isometry3<f64>],
+        src: &str,
+        dst: &str,
+    ) -> Result<Isometry3<f64>> {
+        let find = |n: &str| {
+            self.link_index(n)
+                .and_then(|i| poses.get(i))
+                .ok_or_else(|| Error::UnknownName {
+                    what: "frame",
+                    name: n.to_string(),
+                })
+        };
+        let (s, d) = (find(src)?, find(dst)?);
+        Ok(d.inverse() * s)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::Chain;
+
+    const URDF: &str = include_str!("../../description/robots/locobot.urdf");
+
+    #[test]
+    fn the_tree_agrees_with_the_arm_chain() {
+        let urdf = urdf_rs::read_from_string(URDF).unwrap();
+        let tree = LinkTree::from_urdf(&urdf).unwrap();
+        assert_eq!(tree.root(), "base_footprint");
+        let chain = Chain::from_urdf(&urdf, "base_link", "gripper_link").unwrap();
+        let qa = [0.3, -0.4, 0.5, 0.2, -0.7];
+        let mut q = vec![0.0; tree.joints().len()];
+        for (j, v) in chain.joints.iter().zip(qa) {
+            q[tree.joint_index(&j.name).unwrap()] = v;
+        }
+        let poses = tree.poses(&q);
+        let t = tree.transform(&poses, "gripper_link", "base_link").unwrap();
+        let f = chain.fk(&qa);
+        assert!((t.translation.vector - f.translation.vector).norm() < 1e-12);
+        assert!(t.rotation.angle_to(&f.rotation) < 1e-12);
+        assert!(tree.transform(&poses, "nope", "base_link").is_err());
+    }
+}

@@ -1,0 +1,239 @@
+//! Scene files: the bundled scenes say what the issue asks of them, and hostile files are
+//! typed errors that name the file, the key and the problem.
+
+use std::path::Path;
+
+use ferrobot_sim::scene::{Scene, SceneError, SceneSource, Shape, BUNDLED};
+
+fn parse(text: &str) -> Result<Scene, SceneError> {
+    Scene::parse(text, Path::new("test.toml"), &|p, _| {
+        Err(format!("no file {p:?} in this test"))
+    })
+}
+
+fn invalid_key(text: &str) -> String {
+    match parse(text) {
+        Err(SceneError::Invalid { key, problem, file }) => {
+            assert_eq!(file, Path::new("test.toml"));
+            assert!(!problem.is_empty());
+            key
+        }
+        other => panic!("expected an invalid-scene error, got {other:?}"),
+    }
+}
+
+#[test]
+fn every_bundled_scene_loads() {
+    for name in BUNDLED {
+        let s = Scene::bundled(name).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_eq!(s.name, name);
+        assert!(
+            s.bodies.iter().any(|b| b.id == "floor"),
+            "{name} has a floor"
+        );
+    }
+}
+
+#[test]
+fn the_tabletop_has_eight_graspable_objects_of_two_to_eight_centimetres() {
+    let s = Scene::bundled("tabletop").unwrap();
+    let table = s.body("table").unwrap();
+    let (lo, hi) = table.world_bounds();
+    let graspable: Vec<_> = s.bodies.iter().filter(|b| !b.fixed).collect();
+    assert!(graspable.len() >= 8, "{} objects", graspable.len());
+    let mut kinds = std::collections::BTreeSet::new();
+    let mut colours = Vec::new();
+    for b in &graspable {
+        let (blo, bhi) = b.world_bounds();
+        let ext = bhi - blo;
+        let largest = ext.amax();
+        assert!(
+            (0.02 - 1e-9..=0.08 + 1e-9).contains(&largest),
+            "{}: largest extent {largest} m",
+            b.id
+        );
+        // On the table: inside its top's outline, resting on its top (within 1 mm).
+        let c = b.pose.translation.vector;
+        assert!(
+            c.x > lo.x && c.x < hi.x && c.y > lo.y && c.y < hi.y,
+            "{} on the table",
+            b.id
+        );
+        assert!(
+            (blo.z - hi.z).abs() < 1e-3,
+            "{} rests on the table: {}",
+            b.id,
+            blo.z
+        );
+        kinds.insert(b.shape.kind());
+        colours.push(b.colour);
+    }
+    assert_eq!(kinds.len(), 5, "every shape kind: {kinds:?}");
+    for (i, a) in colours.iter().enumerate() {
+        for b in &colours[i + 1..] {
+            let d: f32 = a.iter().zip(b).map(|(x, y)| (x - y).abs()).sum();
+            assert!(d > 0.05, "distinct colours {a:?} {b:?}");
+        }
+    }
+}
+
+#[test]
+fn the_apartment_has_three_rooms_and_forty_square_metres() {
+    let s = Scene::bundled("apartment").unwrap();
+    let walls: Vec<_> = s
+        .bodies
+        .iter()
+        .filter(|b| b.id.starts_with("wall"))
+        .collect();
+    let mut lo = nalgebra::Point3::new(f64::MAX, f64::MAX, 0.0);
+    let mut hi = -lo;
+    for w in &walls {
+        let (a, b) = w.world_bounds();
+        lo = lo.inf(&a);
+        hi = hi.sup(&b);
+    }
+    let inner = (hi.x - lo.x - 0.2) * (hi.y - lo.y - 0.2);
+    assert!(inner >= 40.0, "{inner} m^2");
+    // Doors: lintels above openings, at 2 m, at least 0.9 m wide.
+    let lintels: Vec<_> = walls
+        .iter()
+        .filter(|w| w.world_bounds().0.z > 1.9)
+        .collect();
+    assert!(lintels.len() >= 3, "{} doors", lintels.len());
+    for l in lintels {
+        if let Shape::Box(sz) = l.shape {
+            assert!(sz[0] >= 0.9 - 1e-9, "door {} m wide", sz[0]);
+        }
+    }
+    // Textured floor and walls (features for SLAM).
+    assert!(s.body("floor").unwrap().texture.is_some());
+    assert!(walls.iter().all(|w| w.texture.is_some()));
+}
+
+#[test]
+fn hostile_scene_files_name_the_key_and_the_problem() {
+    let ok = "name = \"t\"\n";
+    assert!(parse(ok).is_ok());
+    assert_eq!(invalid_key("name = \"t\"\nbogus = 1\n"), "bogus");
+    assert_eq!(
+        invalid_key("name = \"t\"\n[robot]\npose = [0, 0]\n"),
+        "robot.pose"
+    );
+    assert_eq!(
+        invalid_key("name = \"t\"\n[robot]\npose = [nan, 0, 0]\n"),
+        "robot.pose"
+    );
+    let obj =
+        |body: &str| format!("name = \"t\"\n[[object]]\nid = \"a\"\ncolour = [1, 0, 0]\n{body}");
+    assert_eq!(
+        invalid_key(&obj(
+            "shape = \"box\"\nsize = [0.1, 0.1]\nposition = [0, 0, 0]\nmass = 1\n"
+        )),
+        "object[0].size"
+    );
+    assert_eq!(
+        invalid_key(&obj(
+            "shape = \"box\"\nsize = [0.1, -0.1, 0.1]\nposition = [0, 0, 0]\nmass = 1\n"
+        )),
+        "object[0].size"
+    );
+    assert_eq!(
+        invalid_key(&obj(
+            "shape = \"cone\"\nsize = [0.1]\nposition = [0, 0, 0]\nmass = 1\n"
+        )),
+        "object[0].shape"
+    );
+    assert_eq!(
+        invalid_key(&obj(
+            "shape = \"sphere\"\nsize = [0.1]\nposition = [0, 0, 1e300]\nmass = 1\n"
+        )),
+        "object[0].position"
+    );
+    assert_eq!(
+        invalid_key(&obj(
+            "shape = \"sphere\"\nsize = [0.1]\nposition = [0, 0, 0]\n"
+        )),
+        "object[0].mass"
+    );
+    assert_eq!(
+        invalid_key(&obj(
+            "shape = \"sphere\"\nsize = [0.1]\nposition = [0, 0, 0]\nmass = inf\n"
+        )),
+        "object[0].mass"
+    );
+    assert_eq!(
+        invalid_key(&obj(
+            "shape = \"sphere\"\nsize = [0.1]\nposition = [0, 0, 0]\nmass = 1\nquaternion = [0, 0, 0, 2]\n"
+        )),
+        "object[0].quaternion"
+    );
+    assert_eq!(
+        invalid_key(&obj(
+            "shape = \"mesh\"\nmesh = \"x.obj\"\nposition = [0, 0, 0]\nmass = 1\n"
+        )),
+        "object[0].mesh"
+    );
+    assert_eq!(
+        invalid_key(
+            "name = \"t\"\n[[wall]]\nfrom = [0, 0]\nto = [2, 0]\ndoors = [{ at = 1.5, width = 0.9, height = 2 }]\n"
+        ),
+        "wall[0].doors[0].width"
+    );
+    assert_eq!(
+        invalid_key(
+            "name = \"t\"\n[floor]\nsize = [1, 1]\ntexture = { pattern = \"zebra\", scale = 1 }\n"
+        ),
+        "floor.texture.pattern"
+    );
+    // Twice the same id.
+    let twice = format!(
+        "{}[[object]]\nid = \"a\"\ncolour = [1, 0, 0]\nshape = \"sphere\"\nsize = [0.1]\nposition = [0, 0, 0]\nmass = 1\n",
+        obj("shape = \"sphere\"\nsize = [0.1]\nposition = [0, 0, 0]\nmass = 1\n")
+    );
+    assert_eq!(invalid_key(&twice), "object.id");
+}
+
+#[test]
+fn unknown_scenes_and_unreadable_files_are_typed_errors() {
+    match Scene::load(&SceneSource::from_arg("kitchen_of_dreams")) {
+        Err(SceneError::Unknown { name, known }) => {
+            assert_eq!(name, "kitchen_of_dreams");
+            assert!(known.contains("tabletop"));
+        }
+        other => panic!("{other:?}"),
+    }
+    assert!(matches!(
+        Scene::load(&SceneSource::from_arg("/nonexistent/x.toml")),
+        Err(SceneError::Unknown { .. })
+    ));
+    assert!(matches!(
+        Scene::load(&SceneSource::File("/dev/zero".into())),
+        Err(SceneError::Invalid { .. })
+    ));
+    assert!(matches!(
+        Scene::load(&SceneSource::File("/tmp".into())),
+        Err(SceneError::Invalid { .. })
+    ));
+}
+
+#[test]
+fn a_scene_file_reads_its_meshes_beside_it() {
+    let dir = std::env::temp_dir().join(format!("ferrobot-scene-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(
+        dir.join("tri.obj"),
+        "v 0 0 0\nv 0.1 0 0\nv 0 0.1 0\nv 0 0 0.1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n",
+    )
+    .unwrap();
+    std::fs::write(
+        dir.join("s.toml"),
+        "name = \"s\"\n[[object]]\nid = \"t\"\nshape = \"mesh\"\nmesh = \"tri.obj\"\nscale = 2.0\nposition = [0, 0, 0.5]\nmass = 0.1\ncolour = [0, 1, 0]\n",
+    )
+    .unwrap();
+    let s = Scene::load(&SceneSource::File(dir.join("s.toml"))).unwrap();
+    let t = s.body("t").unwrap();
+    assert_eq!(t.shape.kind(), "mesh");
+    let v = t.shape.volume();
+    assert!((v - 0.2f64.powi(3) / 6.0).abs() < 1e-9, "{v}");
+    std::fs::remove_dir_all(&dir).ok();
+}
