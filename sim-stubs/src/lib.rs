@@ -18,6 +18,7 @@
 pub mod arm;
 pub mod bases;
 pub mod board;
+pub mod body;
 pub mod chain;
 pub mod conductor;
 pub mod control;

@@ -7,6 +7,12 @@
 //! [`LockstepSim::take_host_output`] carry the same bytes a serial port would; [`SimHost`]
 //! drives them with the protocol's host session for tests, benches and hostile hosts.
 
+use std::sync::Arc;
+
+use nalgebra::Isometry3;
+
+use crate::body::RobotBody;
+use crate::scene::Scene;
 use ferrobot_firmware::time::Instant;
 use ferrobot_firmware::{config, Firmware, Link};
 use ferrobot_protocol::session::{Answer, HostSession, Request, SessionError};
@@ -59,6 +65,24 @@ pub struct LockstepSim {
     host_out: Vec<u8>,
     /// Events processed (for benchmarks).
     pub events: u64,
+    scene: Arc<Scene>,
+    body: Option<Arc<RobotBody>>,
+}
+
+/// The simulated world's ground truth at one instant (the simulator's "motion capture").
+#[derive(Debug, Clone, PartialEq)]
+pub struct Truth {
+    /// Simulated time, µs.
+    pub time_us: u64,
+    /// Pose of the robot's root link in the world.
+    pub root: Isometry3<f64>,
+    /// Value of every movable joint of the URDF tree ([`ferrobot_kinematics::LinkTree::joints`]
+    /// order), rad or m.
+    pub joints: Vec<f64>,
+    /// Pose of every URDF link in the world ([`ferrobot_kinematics::LinkTree::links`] order).
+    pub links: Vec<Isometry3<f64>>,
+    /// Pose of every scene body in the world ([`Scene::bodies`] order).
+    pub bodies: Vec<Isometry3<f64>>,
 }
 
 impl LockstepSim {
@@ -73,13 +97,63 @@ impl LockstepSim {
 
     /// A simulator for an explicit description and firmware profile.
     pub fn with(desc: robots::SimRobot, profile: config::RobotProfile, seed: u64) -> Self {
+        Self::with_scene(desc, profile, seed, Arc::new(Scene::empty()))
+    }
+
+    /// A simulator for an explicit description and firmware profile in `scene`, the robot at
+    /// the scene's start pose.
+    pub fn with_scene(
+        desc: robots::SimRobot,
+        profile: config::RobotProfile,
+        seed: u64,
+        scene: Arc<Scene>,
+    ) -> Self {
+        let mut hw = Hardware::new(&desc, seed);
+        if let Some(b) = hw.base.as_mut() {
+            b.drive.truth = scene.robot_pose;
+        }
         Self {
             now: 0,
             fw: Firmware::new(profile, "sim", Instant::ZERO),
-            hw: Hardware::new(&desc, seed),
+            hw,
             host_in: Vec::new(),
             host_out: Vec::new(),
             events: 0,
+            scene,
+            body: desc.body.clone(),
+        }
+    }
+
+    /// The scene.
+    pub fn scene(&self) -> &Arc<Scene> {
+        &self.scene
+    }
+
+    /// The robot's body (links and shapes), when its URDF has one.
+    pub fn body(&self) -> Option<&Arc<RobotBody>> {
+        self.body.as_ref()
+    }
+
+    /// The world's ground truth now: the robot's root, joints and links, and the scene's
+    /// bodies.
+    pub fn truth(&self) -> Truth {
+        let base = self.hw.base_truth().unwrap_or(self.scene.robot_pose);
+        let root = RobotBody::root_pose(base, self.scene.robot_height);
+        let theta: Vec<f64> = self.hw.chain.servos.iter().map(|s| s.theta).collect();
+        let (joints, links) = match &self.body {
+            Some(b) => {
+                let q = b.joint_values(&theta);
+                let links = b.link_poses(&root, &q);
+                (q, links)
+            }
+            None => (Vec::new(), Vec::new()),
+        };
+        Truth {
+            time_us: self.now,
+            root,
+            joints,
+            links,
+            bodies: self.scene.bodies.iter().map(|b| b.pose).collect(),
         }
     }
 

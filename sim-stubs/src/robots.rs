@@ -10,6 +10,7 @@ use ferrobot_protocol::dxl::units;
 use ferrobot_protocol::JointKind;
 
 use crate::arm::ArmJoint;
+use crate::body::{JointServo, RobotBody};
 use crate::chain::ServoMount;
 
 /// Which base a robot stands on.
@@ -36,6 +37,8 @@ pub struct SimRobot {
     pub base: BaseModel,
     /// Servo-bus bit rate, bit/s.
     pub bus_baud: u32,
+    /// The body in the world (links, shapes, joints), when the URDF has one root.
+    pub body: Option<std::sync::Arc<RobotBody>>,
 }
 
 /// Names of the robots the simulator knows: the bundled descriptions.
@@ -63,6 +66,7 @@ pub fn from_description(cfg: &RobotConfig) -> SimRobot {
     };
     let tick = |t: i32| units::tick_to_rad(t) as f64;
     let mut servos = Vec::new();
+    let mut joint_servos = Vec::new();
     for j in &cfg.joints {
         // Servo angle = sign·q + offset (the twin: its negation).
         let s = j.sign as f64;
@@ -80,6 +84,12 @@ pub fn from_description(cfg: &RobotConfig) -> SimRobot {
             None => ((lo, hi), j.offset as f64),
         };
         let arm_joint = arm_index.get(j.name.as_str()).copied();
+        joint_servos.push(JointServo {
+            joint: j.name.to_string(),
+            servo: servos.len(),
+            sign: s,
+            offset: j.offset as f64,
+        });
         servos.push(ServoMount {
             id: j.servo_id,
             model: j.model,
@@ -111,6 +121,7 @@ pub fn from_description(cfg: &RobotConfig) -> SimRobot {
             None => BaseModel::None,
         },
         bus_baud: cfg.bus.baud,
+        body: RobotBody::new(cfg, &joint_servos),
     }
 }
 

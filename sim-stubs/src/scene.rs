@@ -841,6 +841,18 @@ impl Scene {
         })
     }
 
+    /// The empty world with no floor: nothing to see or touch (the simulator's default
+    /// without a scene).
+    pub fn empty() -> Scene {
+        Scene {
+            name: "none".into(),
+            file: PathBuf::from("<none>"),
+            robot_pose: [0.0; 3],
+            robot_height: 0.0,
+            bodies: Vec::new(),
+        }
+    }
+
     /// A body by id.
     pub fn body(&self, id: &str) -> Option<&Body> {
         self.bodies.iter().find(|b| b.id == id)
