@@ -1,0 +1,211 @@
+//! The renderer's geometry is exact without noise, and the depth noise follows its model.
+
+use std::path::Path;
+
+use ferrobot_sim::camera::StereoNoise;
+use ferrobot_sim::render::{PinholeCamera, RenderedImage, Renderer};
+use ferrobot_sim::rng::SimRng;
+use ferrobot_sim::scene::Scene;
+use nalgebra::{Isometry3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
+
+fn scene(text: &str) -> Scene {
+    Scene::parse(text, Path::new("test.toml"), &|p, _| Err(format!("no {p}"))).unwrap()
+}
+
+/// The D435's intrinsics at 640 x 480.
+fn camera(pose: Isometry3<f64>) -> PinholeCamera {
+    PinholeCamera {
+        width: 640,
+        height: 480,
+        fx: 619.8997,
+        fy: 620.11,
+        cx: 320.654,
+        cy: 241.1125,
+        pose,
+    }
+}
+
+/// An optical frame at `eye` looking along world +x (x right = -y, y down = -z).
+fn looking_along_x(eye: [f64; 3]) -> Isometry3<f64> {
+    let r = Rotation3::from_basis_unchecked(&[-Vector3::y(), -Vector3::z(), Vector3::x()]);
+    Isometry3::from_parts(
+        Translation3::new(eye[0], eye[1], eye[2]),
+        UnitQuaternion::from_rotation_matrix(&r),
+    )
+}
+
+fn wall_scene(distance: f64) -> Scene {
+    scene(&format!(
+        "name = \"wall\"\n[[object]]\nid = \"wall\"\nshape = \"box\"\nsize = [0.2, 20.0, 20.0]\n\
+         position = [{}, 0.0, 0.0]\ncolour = [0.5, 0.5, 0.5]\nstatic = true\n\
+         texture = {{ pattern = \"noise\", scale = 0.05, colour = [0.2, 0.3, 0.4] }}\n",
+        distance + 0.1
+    ))
+}
+
+fn render(s: &Scene, cam: &PinholeCamera) -> (Renderer, RenderedImage) {
+    let r = Renderer::new(s, None);
+    let poses: Vec<_> = s.bodies.iter().map(|b| b.pose).collect();
+    let mut img = RenderedImage::new(cam.width, cam.height);
+    r.render(cam, &poses, &[], &mut img);
+    (r, img)
+}
+
+#[test]
+fn a_wall_at_one_metre_reads_one_metre_in_every_pixel() {
+    let s = wall_scene(1.0);
+    let cam = camera(looking_along_x([0.0, 0.0, 0.0]));
+    let (_, img) = render(&s, &cam);
+    let mut worst = 0.0f64;
+    for &d in &img.depth {
+        assert!(d > 0.0, "the wall fills the image");
+        worst = worst.max((f64::from(d) - 1.0).abs());
+    }
+    assert!(worst <= 0.0005, "worst error {worst} m (tolerance 0.5 mm)");
+    // The texture gives the image contrast (features).
+    let (lo, hi) = img
+        .rgb
+        .iter()
+        .fold((255u8, 0u8), |(l, h), &v| (l.min(v), h.max(v)));
+    assert!(hi - lo > 40, "contrast {lo}..{hi}");
+}
+
+#[test]
+fn a_boxs_corners_project_where_the_intrinsics_say() {
+    // A 0.3 m cube 1.5 m ahead, turned and lifted so that its silhouette is a hexagon.
+    let s = scene(
+        "name = \"box\"\n[[object]]\nid = \"cube\"\nshape = \"box\"\nsize = [0.3, 0.3, 0.3]\n\
+         position = [1.5, 0.1, -0.05]\nrpy = [0.3, 0.2, 0.6]\ncolour = [0.9, 0.2, 0.2]\nstatic = true\n",
+    );
+    let cam = camera(looking_along_x([0.0, 0.0, 0.0]));
+    let (r, img) = render(&s, &cam);
+    let cube = s.body("cube").unwrap();
+    let label = (1..10).find(|&l| r.label_name(l) == Some("cube")).unwrap();
+    // Projected corners.
+    let mut corners = Vec::new();
+    for sx in [-0.15, 0.15] {
+        for sy in [-0.15, 0.15] {
+            for sz in [-0.15, 0.15] {
+                let p = cube.pose * Point3::new(sx, sy, sz);
+                corners.push(cam.project(&p).unwrap());
+            }
+        }
+    }
+    let (umin, umax) = corners
+        .iter()
+        .fold((f64::MAX, f64::MIN), |(a, b), c| (a.min(c.0), b.max(c.0)));
+    let (vmin, vmax) = corners
+        .iter()
+        .fold((f64::MAX, f64::MIN), |(a, b), c| (a.min(c.1), b.max(c.1)));
+    // The rendered silhouette's extremes.
+    let (w, _) = (img.width as usize, img.height as usize);
+    let px: Vec<(f64, f64)> = img
+        .labels
+        .iter()
+        .enumerate()
+        .filter(|(_, &l)| l == label)
+        .map(|(i, _)| ((i % w) as f64, (i / w) as f64))
+        .collect();
+    assert!(px.len() > 1000, "{} pixels", px.len());
+    let (cmin, cmax) = px
+        .iter()
+        .fold((f64::MAX, f64::MIN), |(a, b), c| (a.min(c.0), b.max(c.0)));
+    let (rmin, rmax) = px
+        .iter()
+        .fold((f64::MAX, f64::MIN), |(a, b), c| (a.min(c.1), b.max(c.1)));
+    // Pixel centres sample the silhouette: none lies outside the projected corners' box, and
+    // the extremes are within a pixel and a half of it (a vertex between two rows).
+    for (lo, hi, want_lo, want_hi) in [(cmin, cmax, umin, umax), (rmin, rmax, vmin, vmax)] {
+        assert!(
+            lo >= want_lo - 1e-9 && hi <= want_hi + 1e-9,
+            "[{lo}, {hi}] in [{want_lo}, {want_hi}]"
+        );
+        assert!(
+            lo - want_lo < 1.5 && want_hi - hi < 1.5,
+            "[{lo}, {hi}] vs [{want_lo}, {want_hi}]"
+        );
+    }
+    // The pixel of each corner on the silhouette's outline has a cube pixel within 1 px.
+    for c in &corners {
+        let (u, v) = (c.0.round(), c.1.round());
+        let near = px
+            .iter()
+            .any(|p| (p.0 - u).abs() <= 1.0 && (p.1 - v).abs() <= 1.0);
+        let inside_outline =
+            c.0 > umin + 1.0 && c.0 < umax - 1.0 && c.1 > vmin + 1.0 && c.1 < vmax - 1.0;
+        assert!(
+            near || inside_outline,
+            "corner at {c:?} has no cube pixel within 1 px"
+        );
+    }
+}
+
+#[test]
+fn depth_noise_follows_the_stereo_model_at_one_and_two_metres() {
+    let noise = StereoNoise::D435;
+    for distance in [1.0, 2.0] {
+        let s = wall_scene(distance);
+        let cam = camera(looking_along_x([0.0, 0.0, 0.0]));
+        let (_, mut img) = render(&s, &cam);
+        let mut rng = SimRng::new(7, 1);
+        noise.apply(&mut img.depth, 640, cam.fx, &mut rng);
+        let valid: Vec<f64> = img
+            .depth
+            .iter()
+            .filter(|&&d| d > 0.0)
+            .map(|&d| f64::from(d) - distance)
+            .collect();
+        // The left band the right imager cannot see: f B / z px.
+        let band = (cam.fx * noise.baseline / distance).floor() as usize;
+        let invalid_cols = (0..640)
+            .filter(|&c| img.depth[240 * 640 + c] == 0.0)
+            .count();
+        assert!(
+            invalid_cols.abs_diff(band) <= 1,
+            "band {invalid_cols} px, model {band} px"
+        );
+        let n = valid.len() as f64;
+        let mean = valid.iter().sum::<f64>() / n;
+        let std = (valid.iter().map(|e| (e - mean).powi(2)).sum::<f64>() / n).sqrt();
+        // Model: sigma_z = z^2 sigma_d / (f B), plus the 1 mm quantisation (q^2 / 12).
+        let model = (noise.sigma(distance, cam.fx).powi(2) + noise.quantum.powi(2) / 12.0).sqrt();
+        assert!(
+            (std / model - 1.0).abs() < 0.2,
+            "at {distance} m: spread {std} m, model {model} m"
+        );
+        assert!(mean.abs() < 0.2 * model, "bias {mean} m");
+    }
+}
+
+#[test]
+fn nearer_objects_cast_a_stereo_shadow_to_their_left_and_lose_their_edges() {
+    // A post 1 m ahead in front of a wall at 2 m.
+    let s = scene(
+        "name = \"post\"\n[[object]]\nid = \"wall\"\nshape = \"box\"\nsize = [0.2, 20.0, 20.0]\n\
+         position = [2.1, 0.0, 0.0]\ncolour = [0.5, 0.5, 0.5]\nstatic = true\n\
+         [[object]]\nid = \"post\"\nshape = \"box\"\nsize = [0.1, 0.1, 3.0]\nposition = [1.05, 0.0, 0.0]\n\
+         colour = [0.2, 0.6, 0.2]\nstatic = true\n",
+    );
+    let cam = camera(looking_along_x([0.0, 0.0, 0.0]));
+    let (_, clean) = render(&s, &cam);
+    let mut noisy = clean.clone();
+    StereoNoise::D435.apply(&mut noisy.depth, 640, cam.fx, &mut SimRng::new(1, 1));
+    let row = 240 * 640;
+    // The post spans columns where the clean depth is 1 m.
+    let post: Vec<usize> = (0..640)
+        .filter(|&c| (clean.depth[row + c] - 1.0).abs() < 0.01)
+        .collect();
+    let left = *post.first().unwrap();
+    // Shadow width: f B (1/z_near - 1/z_far) = 620 * 0.05 * (1 - 0.5) = 15.5 px.
+    let shadow = (0..left)
+        .rev()
+        .take_while(|&c| noisy.depth[row + c] == 0.0)
+        .count();
+    assert!(
+        (14..=18).contains(&shadow),
+        "shadow {shadow} px (model 15.5 plus the edge)"
+    );
+    // No shadow on its right side beyond the edge pixel.
+    let right = *post.last().unwrap();
+    assert!(noisy.depth[row + right + 2] > 0.0);
+}
