@@ -65,6 +65,8 @@ pub struct RenderedImage {
     pub depth: Vec<f32>,
     /// Which body or link each pixel shows (see [`Renderer::label_name`]); 0 for nothing.
     pub labels: Vec<u32>,
+    /// The renderer's scratch: the triangle each pixel shows.
+    ids: Vec<u32>,
 }
 
 impl RenderedImage {
@@ -77,6 +79,7 @@ impl RenderedImage {
             rgb: vec![0; 3 * n],
             depth: vec![0.0; n],
             labels: vec![0; n],
+            ids: vec![u32::MAX; n],
         }
     }
 }
@@ -237,14 +240,11 @@ impl Renderer {
         out: &mut RenderedImage,
     ) {
         let (w, h) = (camera.width as usize, camera.height as usize);
-        if out.width != camera.width || out.height != camera.height {
+        if out.width != camera.width || out.height != camera.height || out.ids.len() != w * h {
             *out = RenderedImage::new(camera.width, camera.height);
         }
         out.depth.fill(f32::INFINITY);
-        out.labels.fill(0);
-        // Per pixel: which mesh and triangle is nearest (deferred shading).
-        let mut tri_of = vec![u32::MAX; w * h];
-        let mut mesh_of = vec![u32::MAX; w * h];
+        out.ids.fill(u32::MAX);
         let world_to_cam = camera.pose.inverse();
         let k = Intr {
             fx: camera.fx as f32,
@@ -254,75 +254,115 @@ impl Renderer {
             w,
             h,
         };
-        let mut to_cam = Vec::with_capacity(self.meshes.len());
-        for (mi, (owner, m)) in self.meshes.iter().enumerate() {
+        let sun: Vector3<f32> = world_to_cam
+            .rotation
+            .to_rotation_matrix()
+            .matrix()
+            .cast::<f32>()
+            * self.sun;
+        // Every triangle that survives culling gets a shading record; the id buffer names the
+        // nearest one per pixel (deferred shading: each pixel is shaded once).
+        let mut shades: Vec<Shade> = Vec::new();
+        for (owner, m) in &self.meshes {
             let owner_pose = match owner {
                 Owner::Body(i) => bodies.get(*i),
                 Owner::Link(i) => links.get(*i),
             };
             let Some(owner_pose) = owner_pose else {
-                to_cam.push(None);
                 continue;
             };
             let t = world_to_cam * owner_pose * m.origin;
             let rot: Matrix3<f32> = t.rotation.to_rotation_matrix().matrix().cast::<f32>();
             let tr: Vector3<f32> = t.translation.vector.cast::<f32>();
-            to_cam.push(Some((rot, tr)));
-            for (ti, (tri, n)) in m.tris.iter().zip(&m.normals).enumerate() {
+            let mat = &self.materials[m.material as usize];
+            for (tri, n) in m.tris.iter().zip(&m.normals) {
                 let v = tri.map(|p| rot * p + tr);
-                let nc = rot * n;
-                if m.closed && nc.dot(&v[0]) >= 0.0 {
+                let mut nc = rot * n;
+                let facing = nc.dot(&v[0]);
+                if facing >= 0.0 {
+                    if m.closed {
+                        continue;
+                    }
+                    nc = -nc;
+                }
+                let id = shades.len() as u32;
+                if !raster_clipped(&k, &v, &mut out.depth, &mut out.ids, id) {
                     continue;
                 }
-                raster_clipped(&k, &v, &mut out.depth, |px| {
-                    tri_of[px] = ti as u32;
-                    mesh_of[px] = mi as u32;
+                // Flat shading: ambient, sun, and a headlight along the optical axis.
+                let view = -Vector3::z();
+                let light = 0.35 + 0.45 * nc.dot(&sun).max(0.0) + 0.3 * nc.dot(&view).max(0.0);
+                // The texture's plane: the mesh-frame axes across the dominant axis of the
+                // normal, as camera-frame rows (u = a . p + a0).
+                let (ia, ib) = if n.x.abs() >= n.y.abs() && n.x.abs() >= n.z.abs() {
+                    (1, 2)
+                } else if n.y.abs() >= n.z.abs() {
+                    (0, 2)
+                } else {
+                    (0, 1)
+                };
+                let rt = rot.transpose();
+                let (ra, rb): (Vector3<f32>, Vector3<f32>) =
+                    (rt.row(ia).transpose(), rt.row(ib).transpose());
+                shades.push(Shade {
+                    rgb: mat.colour.map(|c| to_u8(c * light)),
+                    light,
+                    material: m.material,
+                    a: ra,
+                    a0: -ra.dot(&tr),
+                    b: rb,
+                    b0: -rb.dot(&tr),
+                    label: m.label,
                 });
             }
         }
-        // Shade.
-        let sun_cam: Vector3<f32> = (world_to_cam
-            .rotation
-            .to_rotation_matrix()
-            .matrix()
-            .cast::<f32>())
-            * self.sun;
-        let bg = self.background.map(|c| (c * 255.0).round() as u8);
-        for px in 0..w * h {
-            let mi = mesh_of[px];
-            if mi == u32::MAX {
-                out.depth[px] = 0.0;
-                out.rgb[3 * px..3 * px + 3].copy_from_slice(&bg);
-                continue;
+        let bg = self.background.map(to_u8);
+        for r in 0..h {
+            let ry = (r as f32 - k.cy) / k.fy;
+            for c in 0..w {
+                let px = r * w + c;
+                let id = out.ids[px];
+                let Some(sh) = shades.get(id as usize) else {
+                    out.depth[px] = 0.0;
+                    out.labels[px] = 0;
+                    out.rgb[3 * px..3 * px + 3].copy_from_slice(&bg);
+                    continue;
+                };
+                out.labels[px] = sh.label;
+                let mat = &self.materials[sh.material as usize];
+                let rgb = match &mat.texture {
+                    None => sh.rgb,
+                    Some(t) => {
+                        let z = out.depth[px];
+                        let p = Vector3::new((c as f32 - k.cx) / k.fx * z, ry * z, z);
+                        let (u, v) = (sh.a.dot(&p) + sh.a0, sh.b.dot(&p) + sh.b0);
+                        texture_colour(t, mat.colour, u, v).map(|x| to_u8(x * sh.light))
+                    }
+                };
+                out.rgb[3 * px..3 * px + 3].copy_from_slice(&rgb);
             }
-            let (_, m) = &self.meshes[mi as usize];
-            let Some((rot, tr)) = &to_cam[mi as usize] else {
-                continue;
-            };
-            let n = rot * m.normals[tri_of[px] as usize];
-            let z = out.depth[px];
-            let (r, c) = ((px / w) as f32, (px % w) as f32);
-            let p_cam = Vector3::new((c - k.cx) / k.fx * z, (r - k.cy) / k.fy * z, z);
-            // Two-sided surfaces face the camera.
-            let n = if n.dot(&p_cam) > 0.0 { -n } else { n };
-            let view = -p_cam.normalize();
-            let light = 0.3 + 0.5 * n.dot(&sun_cam).max(0.0) + 0.25 * n.dot(&view).max(0.0);
-            let mat = &self.materials[m.material as usize];
-            let base = match &mat.texture {
-                None => mat.colour,
-                Some(t) => {
-                    // The point and normal in the mesh's own frame pick the texture.
-                    let local = rot.transpose() * (p_cam - tr);
-                    let nl = rot.transpose() * n;
-                    texture_colour(t, mat.colour, &local, &nl)
-                }
-            };
-            for (o, b) in out.rgb[3 * px..3 * px + 3].iter_mut().zip(base) {
-                *o = ((b * light).clamp(0.0, 1.0) * 255.0).round() as u8;
-            }
-            out.labels[px] = m.label;
         }
     }
+}
+
+/// A colour channel 0-1 as 8 bits.
+fn to_u8(x: f32) -> u8 {
+    (x.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
+}
+
+/// How one drawn triangle is shaded.
+struct Shade {
+    /// Lit colour without texture.
+    rgb: [u8; 3],
+    /// Light factor.
+    light: f32,
+    material: u32,
+    /// Texture coordinates: u = a . p + a0, v = b . p + b0 for a camera-frame point p.
+    a: Vector3<f32>,
+    a0: f32,
+    b: Vector3<f32>,
+    b0: f32,
+    label: u32,
 }
 
 /// Intrinsics in f32 for the inner loop.
@@ -335,15 +375,21 @@ struct Intr {
     h: usize,
 }
 
-/// Clip a camera-frame triangle at the near plane and rasterise the pieces.
-fn raster_clipped(k: &Intr, v: &[Vector3<f32>; 3], depth: &mut [f32], mut hit: impl FnMut(usize)) {
+/// Clip a camera-frame triangle at the near plane and rasterise the pieces; true if any
+/// pixel was written.
+fn raster_clipped(
+    k: &Intr,
+    v: &[Vector3<f32>; 3],
+    depth: &mut [f32],
+    ids: &mut [u32],
+    id: u32,
+) -> bool {
     let inside = v.map(|p| p.z >= NEAR);
     if inside.iter().all(|&i| i) {
-        raster(k, v, depth, &mut hit);
-        return;
+        return raster(k, v, depth, ids, id);
     }
     if !inside.iter().any(|&i| i) {
-        return;
+        return false;
     }
     // Sutherland-Hodgman against z = NEAR: at most a quad.
     let mut poly: [Vector3<f32>; 4] = [Vector3::zeros(); 4];
@@ -363,25 +409,25 @@ fn raster_clipped(k: &Intr, v: &[Vector3<f32>; 3], depth: &mut [f32], mut hit: i
             n += 1;
         }
     }
-    raster(k, &[poly[0], poly[1], poly[2]], depth, &mut hit);
-    if n == 4 {
-        raster(k, &[poly[0], poly[2], poly[3]], depth, &mut hit);
-    }
+    let first = raster(k, &[poly[0], poly[1], poly[2]], depth, ids, id);
+    let second = n == 4 && raster(k, &[poly[0], poly[2], poly[3]], depth, ids, id);
+    first || second
 }
 
 /// Rasterise a triangle in front of the near plane: every pixel centre inside it (top-left
-/// fill rule) whose depth is nearer than the buffer's is written and reported to `hit`.
-fn raster(k: &Intr, v: &[Vector3<f32>; 3], depth: &mut [f32], hit: &mut impl FnMut(usize)) {
-    // Screen coordinates (column, row) and 1/z.
+/// fill rule) nearer than the depth buffer gets its depth and `id`; true if any did.
+///
+/// Edge functions and 1/z are affine in the pixel coordinates, so they are stepped by
+/// additions along each row.
+fn raster(k: &Intr, v: &[Vector3<f32>; 3], depth: &mut [f32], ids: &mut [u32], id: u32) -> bool {
     let s = v.map(|p| {
         let iz = 1.0 / p.z;
         (k.fx * p.x * iz + k.cx, k.fy * p.y * iz + k.cy, iz)
     });
     let area = (s[1].0 - s[0].0) * (s[2].1 - s[0].1) - (s[1].1 - s[0].1) * (s[2].0 - s[0].0);
     if !area.is_finite() || area.abs() < 1e-12 {
-        return;
+        return false;
     }
-    // Counter-clockwise in screen space (rows down) after this swap.
     let (a, b, c) = if area > 0.0 {
         (s[0], s[1], s[2])
     } else {
@@ -393,47 +439,60 @@ fn raster(k: &Intr, v: &[Vector3<f32>; 3], depth: &mut [f32], hit: &mut impl FnM
     let ymin = a.1.min(b.1).min(c.1).ceil().max(0.0);
     let ymax = a.1.max(b.1).max(c.1).floor().min(k.h as f32 - 1.0);
     if xmin > xmax || ymin > ymax {
-        return;
+        return false;
     }
-    // Edge functions e(p) = (q1 - q0) x (p - q0), positive inside; top-left rule for ties.
+    // Edge i from q0 to q1: e(x, y) = dx (y - y0) - dy (x - x0) = ex x + ey y + e0, positive
+    // inside; on an edge a pixel belongs to the triangle only for top or left edges.
     let edge = |q0: (f32, f32, f32), q1: (f32, f32, f32)| {
         let (dx, dy) = (q1.0 - q0.0, q1.1 - q0.1);
         let top_left = (dy == 0.0 && dx < 0.0) || dy > 0.0;
-        (dx, dy, q0.0, q0.1, top_left)
+        (-dy, dx, dy * q0.0 - dx * q0.1, top_left)
     };
     let es = [edge(b, c), edge(c, a), edge(a, b)];
-    let inv_area = 1.0 / area;
-    let (xmin, xmax, ymin, ymax) = (xmin as usize, xmax as usize, ymin as usize, ymax as usize);
+    // 1/z = (e_bc a.iz + e_ca b.iz + e_ab c.iz) / area, affine too.
+    let inv = 1.0 / area;
+    let zx = (es[0].0 * a.2 + es[1].0 * b.2 + es[2].0 * c.2) * inv;
+    let zy = (es[0].1 * a.2 + es[1].1 * b.2 + es[2].1 * c.2) * inv;
+    let z0 = (es[0].2 * a.2 + es[1].2 * b.2 + es[2].2 * c.2) * inv;
+    let (ymin, ymax) = (ymin as usize, ymax as usize);
+    let mut any = false;
     for y in ymin..=ymax {
-        let py = y as f32;
-        let row = y * k.w;
-        for x in xmin..=xmax {
-            let px = x as f32;
-            let mut wts = [0.0f32; 3];
-            let mut inside = true;
-            for (wt, &(dx, dy, x0, y0, tl)) in wts.iter_mut().zip(&es) {
-                let e = dx * (py - y0) - dy * (px - x0);
-                if e < 0.0 || (e == 0.0 && !tl) {
-                    inside = false;
-                    break;
-                }
-                *wt = e;
-            }
-            if !inside {
-                continue;
-            }
-            let iz = (wts[0] * a.2 + wts[1] * b.2 + wts[2] * c.2) * inv_area;
-            if iz <= 0.0 {
-                continue;
-            }
-            let z = 1.0 / iz;
-            let i = row + x;
-            if z < depth[i] {
-                depth[i] = z;
-                hit(i);
+        let fy = y as f32;
+        // The row's span: each edge bounds x from one side (e = ex x + c >= 0).
+        let (mut lo, mut hi) = (xmin as i64, xmax as i64);
+        for &(ex, ey, e0, tl) in &es {
+            let c = ey * fy + e0;
+            if ex > 0.0 {
+                let t = -c / ex;
+                let xs = if tl { t.ceil() } else { t.floor() + 1.0 };
+                lo = lo.max(xs as i64);
+            } else if ex < 0.0 {
+                let t = -c / ex;
+                let xe = if tl { t.floor() } else { t.ceil() - 1.0 };
+                hi = hi.min(xe as i64);
+            } else if c < 0.0 || (c == 0.0 && !tl) {
+                hi = lo - 1;
             }
         }
+        if lo > hi {
+            continue;
+        }
+        let row = y * k.w;
+        let mut iz = zx * lo as f32 + zy * fy + z0;
+        for x in lo as usize..=hi as usize {
+            if iz > 0.0 {
+                let z = 1.0 / iz;
+                let i = row + x;
+                if z < depth[i] {
+                    depth[i] = z;
+                    ids[i] = id;
+                    any = true;
+                }
+            }
+            iz += zx;
+        }
     }
+    any
 }
 
 /// A cheap integer hash to [0, 1).
@@ -445,16 +504,43 @@ fn hash2(x: i32, y: i32) -> f32 {
     (h & 0xff_ffff) as f32 / 16_777_216.0
 }
 
-/// Smooth value noise in [0, 1).
-fn value_noise(x: f32, y: f32) -> f32 {
-    let (xi, yi) = (x.floor(), y.floor());
-    let (fx, fy) = (x - xi, y - yi);
+/// Texels per noise cell of the baked noise table.
+const NOISE_TEXELS: usize = 8;
+/// Side of the baked noise table, texels (a power of two): it repeats every
+/// `NOISE_SIZE / NOISE_TEXELS` = 128 cells, far beyond what one view shows.
+const NOISE_SIZE: usize = 1024;
+
+/// Two octaves of value noise, tileable, baked once (a lookup per pixel instead of eight
+/// hashes).
+fn noise_table() -> &'static [u8] {
+    static TABLE: std::sync::OnceLock<Vec<u8>> = std::sync::OnceLock::new();
+    TABLE.get_or_init(|| {
+        let cells = (NOISE_SIZE / NOISE_TEXELS) as i32;
+        let mut t = vec![0u8; NOISE_SIZE * NOISE_SIZE];
+        for y in 0..NOISE_SIZE {
+            for x in 0..NOISE_SIZE {
+                let (u, v) = (
+                    x as f32 / NOISE_TEXELS as f32,
+                    y as f32 / NOISE_TEXELS as f32,
+                );
+                let n = 0.6 * value_noise(u, v, cells) + 0.4 * value_noise(u * 4.0, v * 4.0, cells);
+                t[y * NOISE_SIZE + x] = (n * 255.0) as u8;
+            }
+        }
+        t
+    })
+}
+
+/// Smooth value noise in [0, 1), repeating every `period` cells.
+fn value_noise(x: f32, y: f32, period: i32) -> f32 {
+    let (xi, yi) = (floor_i(x), floor_i(y));
+    let (fx, fy) = (x - xi as f32, y - yi as f32);
     let (sx, sy) = (fx * fx * (3.0 - 2.0 * fx), fy * fy * (3.0 - 2.0 * fy));
-    let (xi, yi) = (xi as i32, yi as i32);
-    let a = hash2(xi, yi);
-    let b = hash2(xi.wrapping_add(1), yi);
-    let c = hash2(xi, yi.wrapping_add(1));
-    let d = hash2(xi.wrapping_add(1), yi.wrapping_add(1));
+    let h = |i: i32, j: i32| hash2(i.rem_euclid(period), j.rem_euclid(period));
+    let a = h(xi, yi);
+    let b = h(xi + 1, yi);
+    let c = h(xi, yi + 1);
+    let d = h(xi + 1, yi + 1);
     let top = a + (b - a) * sx;
     let bottom = c + (d - c) * sx;
     top + (bottom - top) * sy
@@ -464,20 +550,24 @@ fn mix(a: [f32; 3], b: [f32; 3], t: f32) -> [f32; 3] {
     [0, 1, 2].map(|i| a[i] + (b[i] - a[i]) * t)
 }
 
-/// A texture's colour at `p` on a surface with normal `n` (both in the body's frame):
-/// planar projection along the normal's dominant axis.
-fn texture_colour(t: &Texture, colour: [f32; 3], p: &Vector3<f32>, n: &Vector3<f32>) -> [f32; 3] {
-    let (u, v) = if n.x.abs() >= n.y.abs() && n.x.abs() >= n.z.abs() {
-        (p.y, p.z)
-    } else if n.y.abs() >= n.z.abs() {
-        (p.x, p.z)
-    } else {
-        (p.x, p.y)
-    };
+/// floor(x) for |x| < 2^31 without a libm call.
+fn floor_i(x: f32) -> i32 {
+    let i = x as i32;
+    i - i32::from((i as f32) > x)
+}
+
+/// x mod 1 in [0, 1).
+fn fract(x: f32) -> f32 {
+    x - floor_i(x) as f32
+}
+
+/// A texture's colour at planar coordinates (u, v) of the body's frame (m): the two axes
+/// across the dominant axis of the surface's normal.
+fn texture_colour(t: &Texture, colour: [f32; 3], u: f32, v: f32) -> [f32; 3] {
     match t {
         Texture::Checker { scale, colour: c2 } => {
             let s = *scale as f32;
-            let parity = ((u / s).floor() as i64 + (v / s).floor() as i64).rem_euclid(2);
+            let parity = (floor_i(u / s).wrapping_add(floor_i(v / s))) & 1;
             if parity == 0 {
                 colour
             } else {
@@ -486,18 +576,19 @@ fn texture_colour(t: &Texture, colour: [f32; 3], p: &Vector3<f32>, n: &Vector3<f
         }
         Texture::Noise { scale, colour: c2 } => {
             let s = *scale as f32;
-            let n = 0.6 * value_noise(u / s, v / s)
-                + 0.4 * value_noise(u / s * 3.7 + 17.0, v / s * 3.7 - 5.0);
-            mix(colour, *c2, n)
+            let t = noise_table();
+            let x = (floor_i(u / s * NOISE_TEXELS as f32) as usize) & (NOISE_SIZE - 1);
+            let y = (floor_i(v / s * NOISE_TEXELS as f32) as usize) & (NOISE_SIZE - 1);
+            mix(colour, *c2, f32::from(t[y * NOISE_SIZE + x]) / 255.0)
         }
         Texture::Tiles { scale, colour: c2 } => {
             let s = *scale as f32;
-            let (fu, fv) = ((u / s).rem_euclid(1.0), (v / s).rem_euclid(1.0));
+            let (fu, fv) = (fract(u / s), fract(v / s));
             if fu < 0.04 || fv < 0.04 {
                 *c2
             } else {
                 // Each tile a slightly different shade, so tiles are told apart.
-                let shade = 0.9 + 0.2 * hash2((u / s).floor() as i32, (v / s).floor() as i32);
+                let shade = 0.9 + 0.2 * hash2(floor_i(u / s), floor_i(v / s));
                 colour.map(|c| c * shade)
             }
         }
@@ -509,7 +600,7 @@ fn texture_colour(t: &Texture, colour: [f32; 3], p: &Vector3<f32>, n: &Vector3<f
             ..
         } => {
             let s = *scale as f32;
-            let (fu, fv) = ((u / s).rem_euclid(1.0), (v / s).rem_euclid(1.0));
+            let (fu, fv) = (fract(u / s), fract(v / s));
             let x = ((fu * *width as f32) as usize).min(*width as usize - 1);
             let y = (((1.0 - fv) * *height as f32) as usize).min(*height as usize - 1);
             let p = pixels[y * *width as usize + x];
