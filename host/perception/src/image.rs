@@ -1,0 +1,109 @@
+//! Colour and depth images, row-major, row 0 at the top.
+
+use crate::error::{PerceptionError, Result};
+
+/// A colour image: `height` rows of `width` pixels of 8-bit R, G, B (H x W x 3, row-major).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct RgbImage {
+    /// Width, px.
+    pub width: u32,
+    /// Height, px.
+    pub height: u32,
+    /// `width * height * 3` bytes.
+    pub data: Vec<u8>,
+}
+
+impl RgbImage {
+    /// An image from its bytes; the length must be `width * height * 3`.
+    pub fn new(width: u32, height: u32, data: Vec<u8>) -> Result<Self> {
+        let n = width as usize * height as usize * 3;
+        if data.len() != n {
+            return Err(PerceptionError::Size(format!(
+                "a {width}x{height} colour image needs {n} bytes, got {}",
+                data.len()
+            )));
+        }
+        Ok(RgbImage {
+            width,
+            height,
+            data,
+        })
+    }
+
+    /// The colour of pixel (row, col); `None` outside the image.
+    pub fn get(&self, row: usize, col: usize) -> Option<[u8; 3]> {
+        if row >= self.height as usize || col >= self.width as usize {
+            return None;
+        }
+        let i = 3 * (row * self.width as usize + col);
+        Some([self.data[i], self.data[i + 1], self.data[i + 2]])
+    }
+}
+
+/// A depth image: `height` rows of `width` depths along the optical axis (z), m; 0 marks a
+/// pixel without a valid measurement.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DepthImage {
+    /// Width, px.
+    pub width: u32,
+    /// Height, px.
+    pub height: u32,
+    /// `width * height` depths, m (0 = invalid).
+    pub data: Vec<f32>,
+}
+
+impl DepthImage {
+    /// An image from its depths; the length must be `width * height`. Non-finite or negative
+    /// depths become 0 (invalid), so every depth is either 0 or a positive finite distance.
+    pub fn new(width: u32, height: u32, mut data: Vec<f32>) -> Result<Self> {
+        let n = width as usize * height as usize;
+        if data.len() != n {
+            return Err(PerceptionError::Size(format!(
+                "a {width}x{height} depth image needs {n} values, got {}",
+                data.len()
+            )));
+        }
+        for d in &mut data {
+            if !d.is_finite() || *d < 0.0 {
+                *d = 0.0;
+            }
+        }
+        Ok(DepthImage {
+            width,
+            height,
+            data,
+        })
+    }
+
+    /// The depth of pixel (row, col), m (0 = invalid); `None` outside the image.
+    pub fn get(&self, row: usize, col: usize) -> Option<f32> {
+        if row >= self.height as usize || col >= self.width as usize {
+            return None;
+        }
+        Some(self.data[row * self.width as usize + col])
+    }
+
+    /// Fraction of pixels with a valid depth, 0-1.
+    pub fn valid_fraction(&self) -> f64 {
+        if self.data.is_empty() {
+            return 0.0;
+        }
+        self.data.iter().filter(|&&d| d > 0.0).count() as f64 / self.data.len() as f64
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sizes_are_checked_and_bad_depths_become_invalid() {
+        assert!(RgbImage::new(2, 2, vec![0; 11]).is_err());
+        assert!(DepthImage::new(2, 2, vec![0.0; 3]).is_err());
+        let d = DepthImage::new(2, 2, vec![1.0, f32::NAN, -2.0, f32::INFINITY]).unwrap();
+        assert_eq!(d.data, vec![1.0, 0.0, 0.0, 0.0]);
+        assert_eq!(d.get(0, 0), Some(1.0));
+        assert_eq!(d.get(2, 0), None);
+        assert_eq!(d.valid_fraction(), 0.25);
+    }
+}
