@@ -133,7 +133,7 @@ fn one_robot_is_driven_from_three_threads_over_serial() {
     let head = {
         let bot = bot.clone();
         std::thread::spawn(move || {
-            bot.camera()
+            bot.head()
                 .expect("camera")
                 .set_pan_tilt(0.4, 0.2)
                 .expect("head moves")
@@ -153,7 +153,7 @@ fn one_robot_is_driven_from_three_threads_over_serial() {
         q.iter().zip(target).all(|(a, b)| (a - b).abs() < 0.01),
         "{q:?}"
     );
-    let pt = bot.camera().expect("camera").get_state().expect("pan/tilt");
+    let pt = bot.head().expect("camera").get_state().expect("pan/tilt");
     assert!(
         (pt[0] - 0.4).abs() < 0.01 && (pt[1] - 0.2).abs() < 0.01,
         "{pt:?}"

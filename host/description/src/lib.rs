@@ -240,6 +240,13 @@ pub struct CameraSection {
     pub depth_min: f64,
     /// Farthest depth kept in point clouds, m.
     pub depth_max: f64,
+    /// Frames per second (default 30, the D435's colour and depth rate).
+    #[serde(default = "default_camera_rate")]
+    pub rate: f64,
+}
+
+fn default_camera_rate() -> f64 {
+    30.0
 }
 
 /// Which base.
@@ -985,6 +992,7 @@ impl RobotConfig {
             num(file, "camera.cx", c.cx, 0.0, c.width as f64)?;
             num(file, "camera.cy", c.cy, 0.0, c.height as f64)?;
             num(file, "camera.depth_min", c.depth_min, 0.0, 100.0)?;
+            num(file, "camera.rate", c.rate, 0.1, 1000.0)?;
             num(
                 file,
                 "camera.depth_max",

@@ -190,6 +190,13 @@ pub enum Error {
         /// The path.
         path: PathBuf,
     },
+    /// A scene that cannot be loaded or placed (unknown name, malformed file, an object where
+    /// the robot stands).
+    #[error("scene: {0}")]
+    Scene(#[from] ferrobot_sim::scene::SceneError),
+    /// A bad image, pixel, depth range, cloud or file in perception.
+    #[error("camera: {0}")]
+    Perception(ferrobot_perception::PerceptionError),
     /// An I/O error.
     #[error("I/O error: {0}")]
     Io(#[from] std::io::Error),
@@ -215,6 +222,8 @@ impl Error {
                 | Error::UnknownName { .. }
                 | Error::PathExists { .. }
                 | Error::Usage(_)
+                | Error::Scene(_)
+                | Error::Perception(_)
         )
     }
 }

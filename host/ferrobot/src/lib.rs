@@ -19,10 +19,12 @@
 pub mod arm;
 pub mod backend;
 pub mod base;
+pub mod camera;
 pub mod error;
+mod frames;
 pub mod gripper;
+pub mod head;
 pub mod motion;
-pub mod pan_tilt;
 pub mod robot;
 
 pub use ferrobot_control::odometry_calibration;
@@ -41,9 +43,12 @@ pub mod base_control {
 pub use arm::{MoveOptions, Orientation, Pose};
 pub use backend::Backend;
 pub use base::GoalOptions;
+pub use camera::{Camera, CameraDevice, Frame};
 pub use config::RobotConfig;
 pub use error::{Error, Result};
+pub use ferrobot_perception as perception;
 pub use ferrobot_protocol::GripperState;
+pub use ferrobot_sim::scene;
 pub use motion::Motion;
 pub use robot::{Robot, RobotBuilder};
 

@@ -12,11 +12,14 @@ use crate::backend::serial::SerialLink;
 use crate::backend::sim::SimLink;
 use crate::backend::{Backend, Link};
 use crate::base::{Base, BaseState};
+use crate::camera::{Camera, CameraDevice};
 use crate::config::{ConfigSource, RobotConfig};
 use crate::error::{Error, Result};
+use crate::frames::Frames;
 use crate::gripper::Gripper;
+use crate::head::Head;
 use crate::motion::{Claim, Goal, Goals, Motion};
-use crate::pan_tilt::PanTilt;
+use ferrobot_sim::scene::{Scene, SceneSource};
 
 /// Which components to use.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -33,9 +36,37 @@ pub struct RobotBuilder {
     backend: Backend,
     uses: Use,
     overrides: Vec<(String, toml::Value)>,
+    scene: SceneSource,
+    depth_noise: bool,
+    camera_device: Option<Box<dyn CameraDevice>>,
+    start_pose: Option<[f64; 3]>,
 }
 
 impl RobotBuilder {
+    /// Start the simulated robot at `[x, y, θ]` (m, m, rad) in the scene's world frame instead
+    /// of the scene's own start pose.
+    pub fn start_pose(mut self, pose: [f64; 3]) -> Self {
+        self.start_pose = Some(pose);
+        self
+    }
+    /// The simulated world the robot lives in: a bundled scene (`empty`, `tabletop`,
+    /// `apartment`, `shelf`) or the path of a scene file (default `empty`: an empty world, as
+    /// before scenes existed). The simulator backend renders its camera from this world.
+    pub fn scene(mut self, scene: &str) -> Self {
+        self.scene = SceneSource::from_arg(scene);
+        self
+    }
+    /// Simulate the depth camera's noise (default on: the D435's stereo noise model); off for
+    /// exact depth.
+    pub fn depth_noise(mut self, on: bool) -> Self {
+        self.depth_noise = on;
+        self
+    }
+    /// Use this camera device instead of the backend's (a real driver, a recording).
+    pub fn camera_device(mut self, device: Box<dyn CameraDevice>) -> Self {
+        self.camera_device = Some(device);
+        self
+    }
     /// Use the arm (default: when the robot has one).
     pub fn use_arm(mut self, on: bool) -> Self {
         self.uses.arm = on;
@@ -46,7 +77,7 @@ impl RobotBuilder {
         self.uses.gripper = on;
         self
     }
-    /// Use the camera's pan-tilt head (default: when the robot has one).
+    /// Use the camera and its pan-tilt head (default: when the robot has them).
     pub fn use_camera(mut self, on: bool) -> Self {
         self.uses.camera = on;
         self
@@ -70,7 +101,22 @@ impl RobotBuilder {
     /// Load, connect, configure.
     pub fn build(self) -> Result<Robot> {
         let cfg = RobotConfig::load(&self.source, &self.overrides)?;
-        Robot::connect(cfg, self.backend, self.uses)
+        let mut scene = Scene::load(&self.scene)?;
+        if let Some(p) = self.start_pose {
+            let m = crate::validate::MAX_BASE_COORDINATE;
+            crate::validate::all_in_range("start position", &p[..2], -m, m)?;
+            crate::validate::in_range("start heading", p[2], -m, m)?;
+            scene.robot_pose = p;
+        }
+        let scene = Arc::new(scene);
+        Robot::connect(
+            cfg,
+            self.backend,
+            self.uses,
+            scene,
+            self.depth_noise,
+            self.camera_device,
+        )
     }
 }
 
@@ -93,6 +139,10 @@ struct Inner {
     uses: Use,
     /// The arm's kinematics (absent without an arm).
     arm: Option<ArmParts>,
+    /// The URDF's frames (absent when the URDF's tree cannot be built).
+    frames: Result<Frames, String>,
+    /// The URDF frame of the camera's images (absent without a camera).
+    optical: Option<String>,
     io: Mutex<Io>,
 }
 
@@ -106,6 +156,8 @@ pub(crate) struct Io {
     pub(crate) arm: ArmState,
     /// The base's state.
     pub(crate) base: BaseState,
+    /// The RGB-D camera, when the robot has and uses one.
+    pub(crate) camera: Option<Box<dyn CameraDevice>>,
 }
 
 impl std::fmt::Debug for Robot {
@@ -139,6 +191,10 @@ impl Robot {
                 base: true,
             },
             overrides: Vec::new(),
+            scene: SceneSource::default(),
+            depth_noise: true,
+            camera_device: None,
+            start_pose: None,
         }
     }
 
@@ -154,12 +210,25 @@ impl Robot {
                 base: true,
             },
             overrides: Vec::new(),
+            scene: SceneSource::default(),
+            depth_noise: true,
+            camera_device: None,
+            start_pose: None,
         }
     }
 
-    fn connect(cfg: RobotConfig, backend: Backend, uses: Use) -> Result<Robot> {
-        let link: Box<dyn Link> = match &backend {
-            Backend::Sim { seed, realtime } => Box::new(SimLink::start(&cfg, *seed, *realtime)?),
+    fn connect(
+        cfg: RobotConfig,
+        backend: Backend,
+        uses: Use,
+        scene: Arc<Scene>,
+        depth_noise: bool,
+        camera_device: Option<Box<dyn CameraDevice>>,
+    ) -> Result<Robot> {
+        let mut link: Box<dyn Link> = match &backend {
+            Backend::Sim { seed, realtime } => {
+                Box::new(SimLink::start(&cfg, *seed, *realtime, scene.clone())?)
+            }
             Backend::Serial { path } => Box::new(SerialLink::open(path, Duration::from_secs(10))?),
             Backend::Emulated { firmware } => Box::new(
                 crate::backend::emulated::EmulatedLink::start(&cfg.name, firmware)?,
@@ -173,6 +242,19 @@ impl Robot {
         };
         let arm = ArmParts::new(&cfg)?;
         let base = BaseState::new(&cfg);
+        let camera = match (&cfg.camera, uses.camera, camera_device) {
+            (Some(_), true, Some(d)) => Some(d),
+            (Some(section), true, None) => match (&backend, link.simulator()) {
+                (Backend::Sim { seed, .. }, Some(sim)) => Some(Box::new(
+                    crate::backend::sim::SimCameraDevice::new(sim, section, depth_noise, *seed)?,
+                )
+                    as Box<dyn CameraDevice>),
+                _ => None,
+            },
+            _ => None,
+        };
+        let frames = Frames::new(&cfg).map_err(|e| e.to_string());
+        let optical = cfg.camera.as_ref().map(|c| c.frame.clone());
         let robot = Robot {
             inner: Arc::new(Inner {
                 io: Mutex::new(Io {
@@ -180,10 +262,13 @@ impl Robot {
                     goals: Goals::default(),
                     arm: ArmState::default(),
                     base,
+                    camera,
                 }),
                 cfg,
                 uses,
                 arm,
+                frames,
+                optical,
             }),
         };
         robot.check_joint_table()?;
@@ -337,12 +422,46 @@ impl Robot {
         Ok(Gripper::new(self.clone()))
     }
 
-    /// The camera's pan-tilt head.
-    pub fn camera(&self) -> Result<PanTilt> {
+    /// The pan-tilt head that carries the camera.
+    pub fn head(&self) -> Result<Head> {
         if !self.inner.uses.camera {
+            return Err(self.missing("pan-tilt head"));
+        }
+        Head::new(self.clone())
+    }
+
+    /// The RGB-D camera: PyRobot's camera API. An error naming the robot when it has no
+    /// camera, was built without it, or its backend serves no images.
+    pub fn camera(&self) -> Result<Camera> {
+        if !self.inner.uses.camera || self.lock_io().camera.is_none() {
             return Err(self.missing("camera"));
         }
-        PanTilt::new(self.clone())
+        Ok(Camera::new(self.clone()))
+    }
+
+    /// The URDF's frames.
+    pub(crate) fn frames(&self) -> Result<&Frames> {
+        self.inner.frames.as_ref().map_err(|e| Error::Config {
+            file: "robot description".into(),
+            key: "urdf".into(),
+            problem: e.clone(),
+        })
+    }
+
+    /// The camera's optical frame.
+    pub(crate) fn optical_frame(&self) -> Result<String> {
+        self.inner
+            .optical
+            .clone()
+            .ok_or_else(|| self.missing("camera"))
+    }
+
+    /// Pose of URDF frame `src` in frame `dst` now (maps points of `src` into `dst`), from the
+    /// measured joints: PyRobot's `get_link_transform`. Unknown frames are an error naming
+    /// them.
+    pub fn link_transform(&self, src: &str, dst: &str) -> Result<nalgebra::Isometry3<f64>> {
+        let tel = self.telemetry()?;
+        self.frames()?.transform_at(&tel, src, dst)
     }
 
     /// The mobile base.

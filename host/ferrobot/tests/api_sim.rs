@@ -205,7 +205,7 @@ fn locobot_gripper_and_pan_tilt() {
         GripperState::Holding
     );
 
-    let cam = bot.camera().expect("camera");
+    let cam = bot.head().expect("camera");
     cam.set_pan(0.6).expect("pan");
     cam.set_tilt(-0.4).expect("tilt");
     let s = cam.get_state().expect("state");

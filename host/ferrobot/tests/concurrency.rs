@@ -47,7 +47,7 @@ fn alone() -> (f64, f64, f64) {
         .expect("arm alone");
     let arm = bot.time() - t0;
     let t0 = bot.time();
-    bot.camera()
+    bot.head()
         .expect("camera")
         .set_pan_tilt(PAN_TILT[0], PAN_TILT[1])
         .expect("head alone");
@@ -68,7 +68,7 @@ fn start_all(bot: &Robot) -> (Motion, Motion, Motion) {
         .move_joints(&ARM_TARGET, MoveOptions::default())
         .expect("arm starts");
     let head = bot
-        .camera()
+        .head()
         .expect("camera")
         .set_pan_tilt_async(PAN_TILT[0], PAN_TILT[1])
         .expect("head starts");
@@ -114,7 +114,7 @@ fn the_base_the_arm_and_the_head_move_at_once() {
     // 0.01 rad, the base (LQR and the finisher) within 1 mm and 0.1° by odometry and 2 cm of
     // ground truth.
     assert!(arm_error(&bot, &ARM_TARGET) < 0.01);
-    let pt = bot.camera().expect("camera").get_state().expect("pan/tilt");
+    let pt = bot.head().expect("camera").get_state().expect("pan/tilt");
     assert!(
         (pt[0] - PAN_TILT[0]).abs() < 0.01 && (pt[1] - PAN_TILT[1]).abs() < 0.01,
         "{pt:?}"
@@ -161,7 +161,7 @@ fn cancelling_one_motion_leaves_the_others_running() {
     // ...while the base and the head reached their goals.
     let (odom, _) = base_poses(&bot);
     assert!((odom[0] - 1.0).abs() < 1e-3, "{odom:?}");
-    let pt = bot.camera().expect("camera").get_state().expect("pan/tilt");
+    let pt = bot.head().expect("camera").get_state().expect("pan/tilt");
     assert!((pt[0] - PAN_TILT[0]).abs() < 0.01, "{pt:?}");
 
     // The other way round: cancel the base, the arm goes on.
@@ -217,7 +217,7 @@ fn a_newer_motion_of_a_component_preempts_the_older() {
     let arm_motion = arm
         .move_joints(&ARM_TARGET, MoveOptions::default())
         .expect("arm starts");
-    bot.camera()
+    bot.head()
         .expect("camera")
         .set_pan_tilt(0.2, 0.1)
         .expect("head moves");
@@ -273,7 +273,7 @@ fn one_robot_is_driven_from_two_threads() {
         thread::spawn(move || {
             for k in 0..4 {
                 let pan = if k % 2 == 0 { 0.4 } else { -0.4 };
-                bot.camera()
+                bot.head()
                     .expect("camera")
                     .set_pan_tilt(pan, 0.2)
                     .expect("head moves");
@@ -300,7 +300,7 @@ fn one_robot_is_driven_from_two_threads() {
         "the monitor saw {times:?} of {end} s"
     );
     assert!(arm_error(&bot, &ARM_TARGET) < 0.01);
-    let pt = bot.camera().expect("camera").get_state().expect("pan/tilt");
+    let pt = bot.head().expect("camera").get_state().expect("pan/tilt");
     assert!((pt[0] + 0.4).abs() < 0.01, "{pt:?}");
     let odom = bot.base().expect("base").get_state().expect("odometry");
     assert!((odom[0] - 0.3).abs() < 1e-3, "{odom:?}");
@@ -313,7 +313,8 @@ fn robots_and_handles_are_send_and_sync() {
     is::<ferrobot::arm::Arm>();
     is::<ferrobot::base::Base>();
     is::<ferrobot::gripper::Gripper>();
-    is::<ferrobot::pan_tilt::PanTilt>();
+    is::<ferrobot::head::Head>();
+    is::<ferrobot::camera::Camera>();
     fn send<T: Send>() {}
     send::<ferrobot::Motion>();
 }

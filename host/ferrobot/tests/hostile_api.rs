@@ -86,7 +86,7 @@ fn the_arm_refuses_hostile_values() {
             let r = arm.move_ee_xyz(d, a.abs() * 0.01);
             judge("move_ee_xyz", absurd(&d) || absurd(&[a]) || a == 0.0, &r)?;
             calls.set(calls.get() + 11);
-            let cam = bot.camera().expect("camera");
+            let cam = bot.head().expect("camera");
             let r = cam.set_pan_tilt_async(a, b).map(|m| {
                 let _ = m.cancel();
             });
@@ -299,4 +299,108 @@ fn the_ik_solvers_refuse_hostile_targets() {
         })
         .expect("the IK solvers refuse hostile targets");
     report("ik", calls.get());
+}
+
+/// The camera and its perception under hostile pixels, depth ranges, frame names, intrinsics,
+/// scenes and start poses. A frame is captured once and reused (a capture renders 640x480);
+/// the camera's own calls capture for the first few cases.
+#[test]
+fn the_camera_refuses_hostile_values() {
+    use ferrobot::perception::{DepthRange, Intrinsics};
+    let bot = Robot::new("locobot").expect("robot");
+    let cam = bot.camera().expect("camera");
+    let frame = cam.get_frame().expect("frame");
+    let calls = std::cell::Cell::new(0usize);
+    let pixel = || prop_oneof![3 => 0i64..480, 1 => any::<i64>(), 1 => -2i64..2];
+    let strategy = (
+        prop::collection::vec(pixel(), 0..6),
+        prop::collection::vec(pixel(), 0..6),
+        (value(), value()),
+        "[a-z_]{0,12}",
+        [value(), value(), value(), value()],
+        prop::bool::ANY,
+    );
+    runner(9)
+        .run(&strategy, |(rows, cols, (lo, hi), name, k, in_cam)| {
+            let outside = rows.len() != cols.len()
+                || rows
+                    .iter()
+                    .zip(&cols)
+                    .any(|(&r, &c)| !(0..480).contains(&r) || !(0..640).contains(&c));
+            let r = frame.pixels(&rows, &cols, in_cam);
+            judge("Frame::pixels", outside, &r)?;
+            if let Ok(p) = &r {
+                prop_assert_eq!(p.points.len(), rows.len());
+                prop_assert!(p
+                    .points
+                    .iter()
+                    .flatten()
+                    .all(|p| p.coords.iter().all(|v| v.is_finite())));
+            }
+            let range = DepthRange::new(lo, hi);
+            judge(
+                "DepthRange::new",
+                !(lo.is_finite() && hi.is_finite()) || lo < 0.0 || lo >= hi,
+                &range,
+            )?;
+            if let Ok(range) = range {
+                let c = frame
+                    .cloud(range, in_cam)
+                    .expect("a valid range makes a cloud");
+                prop_assert!(c
+                    .points
+                    .iter()
+                    .all(|p| p.coords.iter().all(|v| v.is_finite())));
+                prop_assert_eq!(c.points.len(), c.colours.len());
+            }
+            let r = cam.get_link_transform(&name, "base_link");
+            judge(
+                "get_link_transform",
+                bot.config().urdf.links.iter().all(|l| l.name != name),
+                &r,
+            )?;
+            let r = Intrinsics::new(
+                640,
+                480,
+                k[0] * 600.0,
+                k[1] * 600.0,
+                k[2] * 320.0,
+                k[3] * 240.0,
+            );
+            judge(
+                "Intrinsics::new",
+                absurd(&k) || k[0] <= 0.0 || k[1] <= 0.0,
+                &r,
+            )?;
+            let r = ferrobot::scene::Scene::load(&ferrobot::scene::SceneSource::from_arg(&name));
+            let bundled = ["empty", "tabletop", "apartment", "shelf"].contains(&name.as_str());
+            judge("Scene::load", !bundled, &r)?;
+            if calls.get() < 60 {
+                let r = cam.pix_to_3dpt(&rows, &cols, in_cam);
+                judge("Camera::pix_to_3dpt", outside, &r)?;
+                let r = cam.get_current_pcd_in(range.unwrap_or(DepthRange::PYROBOT), in_cam);
+                judge("Camera::get_current_pcd_in", false, &r)?;
+            }
+            calls.set(calls.get() + 6);
+            Ok(())
+        })
+        .expect("the camera refuses hostile values");
+    // Hostile start poses: refused before anything starts.
+    for p in [
+        [f64::NAN, 0.0, 0.0],
+        [0.0, f64::INFINITY, 0.0],
+        [0.0, 0.0, f64::NEG_INFINITY],
+        [1e300, 0.0, 0.0],
+        [0.0, -f64::MAX, 0.0],
+        [0.0, 0.0, 1e9],
+    ] {
+        let r = Robot::builder("locobot")
+            .use_arm(false)
+            .start_pose(p)
+            .build();
+        assert!(r.is_err(), "start pose {p:?} accepted");
+    }
+    report("camera", calls.get());
+    // Still sees after all that.
+    assert_eq!(cam.get_rgb().expect("rgb").data.len(), 640 * 480 * 3);
 }

@@ -6,6 +6,9 @@ use crate::error::{PerceptionError, Result};
 use crate::image::{DepthImage, RgbImage};
 use crate::intrinsics::Intrinsics;
 
+/// Farthest depth a range may keep, m (no depth camera sees further).
+pub const MAX_DEPTH: f64 = 1000.0;
+
 /// The depths a point cloud keeps: `min < z < max`, m (PyRobot's default is (0.2, 1.5)).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DepthRange {
@@ -19,9 +22,9 @@ impl DepthRange {
     /// PyRobot's LoCoBot default, (0.2, 1.5) m.
     pub const PYROBOT: DepthRange = DepthRange { min: 0.2, max: 1.5 };
 
-    /// A checked range: finite, `0 <= min < max`.
+    /// A checked range: `0 <= min < max <= MAX_DEPTH`.
     pub fn new(min: f64, max: f64) -> Result<Self> {
-        if !(min.is_finite() && max.is_finite() && min >= 0.0 && min < max) {
+        if !(min.is_finite() && max.is_finite() && min >= 0.0 && min < max && max <= MAX_DEPTH) {
             return Err(PerceptionError::DepthRange { min, max });
         }
         Ok(DepthRange { min, max })

@@ -31,7 +31,7 @@ pub enum PerceptionError {
     #[error("invalid camera intrinsics: {0}")]
     Intrinsics(String),
     /// A depth filter range that keeps nothing or is not finite.
-    #[error("invalid depth range ({min}, {max}) m: need 0 <= min < max, both finite")]
+    #[error("invalid depth range ({min}, {max}) m: need 0 <= min < max <= 1000")]
     DepthRange {
         /// Lower bound, m.
         min: f64,

@@ -6,6 +6,8 @@ use crate::error::{PerceptionError, Result};
 
 /// Largest image side accepted, px.
 pub const MAX_SIDE: u32 = 16_384;
+/// Largest focal length accepted, px (a 16k-pixel image with a 0.1 degree field of view).
+pub const MAX_FOCAL: f64 = 1e7;
 
 /// A pinhole camera without distortion: focal lengths and principal point in pixels, and the
 /// image size. A point (x, y, z) of the optical frame (x right, y down, z forward) projects to
@@ -27,7 +29,7 @@ pub struct Intrinsics {
 }
 
 impl Intrinsics {
-    /// Checked intrinsics: positive finite focal lengths, a non-empty image of at most
+    /// Checked intrinsics: focal lengths in (0, [`MAX_FOCAL`]], a non-empty image of at most
     /// [`MAX_SIDE`] px a side, and a finite principal point within one image size of the image.
     pub fn new(width: u32, height: u32, fx: f64, fy: f64, cx: f64, cy: f64) -> Result<Self> {
         let k = Intrinsics {
@@ -52,8 +54,10 @@ impl Intrinsics {
             ));
         }
         for (name, f) in [("fx", self.fx), ("fy", self.fy)] {
-            if !f.is_finite() || f <= 0.0 {
-                return bad(format!("{name} = {f} px (need a positive finite value)"));
+            if !f.is_finite() || f <= 0.0 || f > MAX_FOCAL {
+                return bad(format!(
+                    "{name} = {f} px (need a value in (0, {MAX_FOCAL}])"
+                ));
             }
         }
         let (w, h) = (self.width as f64, self.height as f64);

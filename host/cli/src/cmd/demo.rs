@@ -27,7 +27,7 @@ pub fn run(robot: &str) -> ferrobot::Result<()> {
     say!("gripper close -> {:?}", gripper.close()?);
     gripper.open()?;
     say!("gripper open  -> {:?}", gripper.get_state()?);
-    let camera = bot.camera()?;
+    let camera = bot.head()?;
     camera.set_pan_tilt(0.5, 0.3)?;
     say!("camera  pan/tilt {:?} rad", round(&camera.get_state()?));
     bot.arm()?.go_home()?;

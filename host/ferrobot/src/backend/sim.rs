@@ -39,9 +39,15 @@ fn sim_err(what: &str, e: SimError) -> Error {
 }
 
 impl SimLink {
-    /// Simulate the robot of `cfg` with plants seeded by `seed`.
-    pub fn start(cfg: &RobotConfig, seed: u64, realtime: bool) -> Result<Self> {
-        let sim = LockstepSim::with(sim_robot(cfg), cfg.firmware_profile(), seed);
+    /// Simulate the robot of `cfg` in `scene` (at its start pose) with plants seeded by
+    /// `seed`.
+    pub fn start(
+        cfg: &RobotConfig,
+        seed: u64,
+        realtime: bool,
+        scene: std::sync::Arc<ferrobot_sim::scene::Scene>,
+    ) -> Result<Self> {
+        let sim = LockstepSim::with_scene(sim_robot(cfg), cfg.firmware_profile(), seed, scene);
         let mut session = SimHost::new(sim);
         let info = session.handshake().map_err(|e| sim_err("hello", e))?;
         let mut link = SimLink {
@@ -109,5 +115,97 @@ impl Link for SimLink {
 
     fn simulator(&mut self) -> Option<&mut LockstepSim> {
         Some(&mut self.session.sim)
+    }
+}
+
+/// The simulated world's RGB-D camera ([`ferrobot_sim::camera::SimCamera`]) as a
+/// [`CameraDevice`]: frames come at the description's rate, on the simulator's clock; a
+/// capture lets simulated time reach the next frame instant and renders the world's ground
+/// truth there (the true joint angles and base pose, the scene's bodies).
+pub struct SimCameraDevice {
+    camera: ferrobot_sim::camera::SimCamera,
+    image: ferrobot_sim::render::RenderedImage,
+    intrinsics: ferrobot_perception::Intrinsics,
+    period_us: u64,
+    /// The frame index of the last capture.
+    last: Option<u64>,
+}
+
+impl SimCameraDevice {
+    /// The camera of `section` in the simulator `sim` (its scene and the robot's body), depth
+    /// noise on or off, seeded by `seed`, at the section's rate (frames at whole multiples of
+    /// the period on the simulator's clock; each capture takes the next one not yet taken).
+    pub fn new(
+        sim: &LockstepSim,
+        section: &ferrobot_description::CameraSection,
+        noise: bool,
+        seed: u64,
+    ) -> Result<Self> {
+        let intrinsics = ferrobot_perception::Intrinsics::new(
+            section.width,
+            section.height,
+            section.fx,
+            section.fy,
+            section.cx,
+            section.cy,
+        )?;
+        let bad = |problem: String| Error::Config {
+            file: "robot description".into(),
+            key: "camera".into(),
+            problem,
+        };
+        let body = sim
+            .body()
+            .ok_or_else(|| bad("the simulated robot has no body to mount a camera on".into()))?;
+        let mut camera = ferrobot_sim::camera::SimCamera::new(sim.scene(), body, section, seed)
+            .ok_or_else(|| bad(format!("the URDF has no optical frame {:?}", section.frame)))?;
+        if !noise {
+            camera.noise = None;
+        }
+        if !(section.rate.is_finite() && section.rate > 0.0 && section.rate <= 1000.0) {
+            return Err(bad(format!("rate {} Hz (need (0, 1000])", section.rate)));
+        }
+        Ok(SimCameraDevice {
+            camera,
+            image: ferrobot_sim::render::RenderedImage::new(section.width, section.height),
+            intrinsics,
+            period_us: (1e6 / section.rate).round() as u64,
+            last: None,
+        })
+    }
+}
+
+impl crate::camera::CameraDevice for SimCameraDevice {
+    fn intrinsics(&self) -> ferrobot_perception::Intrinsics {
+        self.intrinsics
+    }
+
+    fn rate(&self) -> f64 {
+        1e6 / self.period_us as f64
+    }
+
+    fn capture(&mut self, link: &mut dyn Link) -> Result<crate::camera::RawFrame> {
+        // The next frame instant not yet captured.
+        let now = link.now().as_micros() as u64;
+        let mut index = now.div_ceil(self.period_us);
+        if let Some(last) = self.last {
+            index = index.max(last + 1);
+        }
+        self.last = Some(index);
+        let next = index * self.period_us;
+        if next > now {
+            link.wait(Duration::from_micros(next - now));
+        }
+        let sim = link.simulator().ok_or_else(|| {
+            Error::Link("the simulated camera needs the simulator backend".into())
+        })?;
+        let truth = sim.truth();
+        self.camera.capture_into(&truth, &mut self.image);
+        let (w, h) = (self.image.width, self.image.height);
+        Ok(crate::camera::RawFrame {
+            rgb: ferrobot_perception::RgbImage::new(w, h, self.image.rgb.clone())?,
+            depth: ferrobot_perception::DepthImage::new(w, h, self.image.depth.clone())?,
+            time: Duration::from_micros(truth.time_us),
+        })
     }
 }

@@ -1,4 +1,4 @@
-//! The camera's pan-tilt head: two position-controlled joints.
+//! The pan-tilt head that carries the camera: two position-controlled joints.
 
 use std::time::Duration;
 
@@ -9,14 +9,14 @@ use crate::robot::{Io, Robot};
 /// The pan-tilt head of a [`Robot`]'s camera: a handle (clone of the robot's). Angles in rad;
 /// pan about the head's z axis (positive left), tilt about its y axis (positive down).
 #[derive(Clone, Debug)]
-pub struct PanTilt {
+pub struct Head {
     robot: Robot,
     /// Firmware indices of the pan and tilt joints.
     pan: usize,
     tilt: usize,
 }
 
-impl PanTilt {
+impl Head {
     pub(crate) fn new(robot: Robot) -> Result<Self> {
         let cfg = robot.cfg();
         let c = cfg.camera.as_ref().ok_or_else(|| robot.missing("camera"))?;
@@ -27,7 +27,7 @@ impl PanTilt {
             })
         };
         let (pan, tilt) = (find(&c.pan_joint)?, find(&c.tilt_joint)?);
-        Ok(PanTilt { robot, pan, tilt })
+        Ok(Head { robot, pan, tilt })
     }
 
     fn joints(&self) -> Result<(usize, usize)> {

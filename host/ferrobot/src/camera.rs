@@ -1,0 +1,210 @@
+//! The RGB-D camera: PyRobot's camera API (`get_rgb`, `get_depth`, `get_rgb_depth`,
+//! `get_intrinsics`, `get_current_pcd`, `pix_to_3dpt`, `get_link_transform`) on a host-side
+//! [`CameraDevice`].
+//!
+//! A camera is a host device (a RealSense is USB on the host computer, not behind the
+//! microcontroller), so it sits beside the firmware's link, not behind it. Every [`Frame`]
+//! carries its capture time on the robot's clock and the optical frame's pose in `base_link`
+//! at that time, from the joint telemetry taken with it: clouds in `base_link` use the head's
+//! pose when the picture was taken, not when the call returns.
+//!
+//! Unlike PyRobot on main (which divides depth by 1000 twice and returns empty clouds, its
+//! issues #139 and #153), depth is in metres throughout; rows and columns are named as such.
+
+use std::time::Duration;
+
+use ferrobot_perception::{
+    backproject, pixels_to_points, DepthImage, DepthRange, Intrinsics, PixelPoints, PointCloud,
+    RgbImage,
+};
+use nalgebra::Isometry3;
+
+use crate::backend::Link;
+use crate::error::{Error, Result};
+use crate::head::Head;
+use crate::robot::Robot;
+
+/// One picture from a [`CameraDevice`], before the API adds the camera's pose.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RawFrame {
+    /// Colour, H x W x 3.
+    pub rgb: RgbImage,
+    /// Depth aligned to colour, m (0 = invalid).
+    pub depth: DepthImage,
+    /// Capture time on the robot's clock (the link's [`Link::now`]).
+    pub time: Duration,
+}
+
+/// A source of colour and depth frames on the host: the simulated world's renderer, or (later)
+/// a RealSense or UVC driver. `capture` gets the robot's link so that a simulated camera can
+/// let simulated time reach its next frame and look at the world; a real driver ignores it
+/// and stamps frames with the link's clock.
+pub trait CameraDevice: Send {
+    /// The camera's intrinsics (depth is aligned to colour, so one set).
+    fn intrinsics(&self) -> Intrinsics;
+    /// Frames per second.
+    fn rate(&self) -> f64;
+    /// The next frame: waits for it (at most one frame period).
+    fn capture(&mut self, link: &mut dyn Link) -> Result<RawFrame>;
+}
+
+/// One RGB-D frame with its time and the camera's pose.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Frame {
+    /// Colour, H x W x 3.
+    pub rgb: RgbImage,
+    /// Depth aligned to colour, m (0 = invalid).
+    pub depth: DepthImage,
+    /// The intrinsics.
+    pub intrinsics: Intrinsics,
+    /// Capture time on the robot's clock (since the firmware started).
+    pub time: Duration,
+    /// Pose of the optical frame (x right, y down, z forward) in `base_link` at capture, from
+    /// the measured joints.
+    pub camera_pose: Isometry3<f64>,
+}
+
+impl Frame {
+    /// The cloud of the pixels whose depth `range` keeps, with colours: in the optical frame
+    /// (`in_cam`) or in `base_link`.
+    pub fn cloud(&self, range: DepthRange, in_cam: bool) -> Result<PointCloud> {
+        let c = backproject(&self.intrinsics, &self.depth, Some(&self.rgb), range)?;
+        Ok(if in_cam {
+            c
+        } else {
+            c.transformed(&self.camera_pose)
+        })
+    }
+
+    /// The points seen at pixels (`rows[i]`, `cols[i]`), in the optical frame (`in_cam`) or in
+    /// `base_link`; `None` where the depth is invalid.
+    pub fn pixels(&self, rows: &[i64], cols: &[i64], in_cam: bool) -> Result<PixelPoints> {
+        let p = pixels_to_points(&self.intrinsics, &self.depth, Some(&self.rgb), rows, cols)?;
+        Ok(if in_cam {
+            p
+        } else {
+            p.transformed(&self.camera_pose)
+        })
+    }
+}
+
+/// The RGB-D camera of a [`Robot`]: a handle (a clone of the robot's).
+#[derive(Clone, Debug)]
+pub struct Camera {
+    robot: Robot,
+}
+
+impl Camera {
+    pub(crate) fn new(robot: Robot) -> Self {
+        Camera { robot }
+    }
+
+    /// The next frame with its time and the camera's pose at that time.
+    pub fn get_frame(&self) -> Result<Frame> {
+        let frame = self.robot.optical_frame()?;
+        let (intrinsics, tel, raw) = {
+            let mut guard = self.robot.lock_io();
+            let io = &mut *guard;
+            let device = io
+                .camera
+                .as_mut()
+                .ok_or_else(|| self.robot.missing("camera"))?;
+            // The joints as the newest report has them, then the next picture (at most one
+            // frame period later).
+            let tel = io.link.telemetry()?;
+            let raw = device.capture(&mut *io.link)?;
+            (device.intrinsics(), tel, raw)
+        };
+        let camera_pose = self
+            .robot
+            .frames()?
+            .transform_at(&tel, &frame, "base_link")?;
+        Ok(Frame {
+            rgb: raw.rgb,
+            depth: raw.depth,
+            intrinsics,
+            time: raw.time,
+            camera_pose,
+        })
+    }
+
+    /// The next colour image (H x W x 3, 8-bit RGB).
+    pub fn get_rgb(&self) -> Result<RgbImage> {
+        Ok(self.get_frame()?.rgb)
+    }
+
+    /// The next depth image (f32 metres, 0 = invalid), aligned to colour.
+    pub fn get_depth(&self) -> Result<DepthImage> {
+        Ok(self.get_frame()?.depth)
+    }
+
+    /// The next colour and depth images, from one capture.
+    pub fn get_rgb_depth(&self) -> Result<(RgbImage, DepthImage)> {
+        let f = self.get_frame()?;
+        Ok((f.rgb, f.depth))
+    }
+
+    /// The camera's intrinsics.
+    pub fn intrinsics(&self) -> Result<Intrinsics> {
+        let io = self.robot.lock_io();
+        let device = io
+            .camera
+            .as_ref()
+            .ok_or_else(|| self.robot.missing("camera"))?;
+        Ok(device.intrinsics())
+    }
+
+    /// The 3x3 camera matrix K, rows `[[fx, 0, cx], [0, fy, cy], [0, 0, 1]]`, px.
+    pub fn get_intrinsics(&self) -> Result<[[f64; 3]; 3]> {
+        Ok(self.intrinsics()?.rows())
+    }
+
+    /// The depth range clouds keep by default: the description's `camera.depth_min` and
+    /// `camera.depth_max` (PyRobot's (0.2, 1.5) m for the LoCoBot; override with
+    /// `RobotBuilder::set`).
+    pub fn depth_range(&self) -> Result<DepthRange> {
+        let c = self
+            .robot
+            .config()
+            .camera
+            .as_ref()
+            .ok_or_else(|| self.robot.missing("camera"))?;
+        Ok(DepthRange::new(c.depth_min, c.depth_max)?)
+    }
+
+    /// The cloud of the next frame (points in m with colours), depths filtered by
+    /// [`Camera::depth_range`]: in the optical frame (`in_cam`) or in `base_link`.
+    pub fn get_current_pcd(&self, in_cam: bool) -> Result<PointCloud> {
+        self.get_current_pcd_in(self.depth_range()?, in_cam)
+    }
+
+    /// [`Camera::get_current_pcd`] with an explicit depth range.
+    pub fn get_current_pcd_in(&self, range: DepthRange, in_cam: bool) -> Result<PointCloud> {
+        self.get_frame()?.cloud(range, in_cam)
+    }
+
+    /// The points seen now at pixels (`rows[i]`, `cols[i]`) (row 0 at the top), in the optical
+    /// frame (`in_cam`) or in `base_link`, with their colours; `None` where the depth is
+    /// invalid. Pixels outside the image are an error naming the first.
+    pub fn pix_to_3dpt(&self, rows: &[i64], cols: &[i64], in_cam: bool) -> Result<PixelPoints> {
+        self.get_frame()?.pixels(rows, cols, in_cam)
+    }
+
+    /// Pose of URDF frame `src` in frame `dst` now (maps points of `src` into `dst`), from the
+    /// measured joints.
+    pub fn get_link_transform(&self, src: &str, dst: &str) -> Result<Isometry3<f64>> {
+        self.robot.link_transform(src, dst)
+    }
+
+    /// The pan-tilt head that carries the camera.
+    pub fn head(&self) -> Result<Head> {
+        self.robot.head()
+    }
+}
+
+/// The camera's errors from perception's.
+impl From<ferrobot_perception::PerceptionError> for Error {
+    fn from(e: ferrobot_perception::PerceptionError) -> Self {
+        Error::Perception(e)
+    }
+}
