@@ -8,6 +8,8 @@
 //! ferrobot ik locobot --position 0.35 0 0.15 --pitch 1.5708 --roll 0
 //! ferrobot ik sawyer --position 0.6 0.1 0.4 --quaternion 0 1 0 0 --seed 0 -1 0 2 0 0.5 3
 //! ferrobot demo
+//! ferrobot scene tabletop --json
+//! ferrobot snapshot locobot --scene tabletop --tilt 0.8 --out target/snapshot
 //! ferrobot base-move locobot --relative 1 1 1.5708 --controller lqr --smooth --json
 //! ferrobot bench base --robot locobot --trials 5 --seed 1
 //! ```
@@ -137,6 +139,18 @@ enum Cmd {
         #[command(subcommand)]
         which: BenchCmd,
     },
+    /// What a scene holds (bundled name or scene file): its bodies in the world frame (z up,
+    /// metres) and the robot's start pose.
+    Scene {
+        /// `empty`, `tabletop`, `apartment`, `shelf`, or a scene file's path.
+        name: String,
+        /// Print one JSON object.
+        #[arg(long)]
+        json: bool,
+    },
+    /// One RGB-D frame of the simulated robot in a scene: writes rgb.png, depth.png (16-bit
+    /// mm, 0 invalid), cloud.ply (world frame) and snapshot.png (colour | depth) to --out.
+    Snapshot(SnapshotCli),
     /// Run the quickstart on the simulated LoCoBot.
     Demo {
         /// Robot (default locobot).
@@ -170,6 +184,42 @@ enum BenchCmd {
         #[arg(long)]
         calibrate: bool,
     },
+}
+
+#[derive(Args)]
+struct SnapshotCli {
+    /// Robot name or configuration path.
+    robot: String,
+    /// Scene name or path.
+    #[arg(long, default_value = "tabletop")]
+    scene: String,
+    /// Head pan, rad (positive left).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pan: f64,
+    /// Head tilt, rad (positive down; PyRobot's grasping view is 0.8).
+    #[arg(long, default_value_t = 0.8, allow_negative_numbers = true)]
+    tilt: f64,
+    /// Arm joint angles, rad (default: as the robot starts).
+    #[arg(long, num_args = 1.., allow_negative_numbers = true)]
+    joints: Option<Vec<f64>>,
+    /// Base start pose X Y THETA in the world (default: the scene's).
+    #[arg(long, num_args = 3, allow_negative_numbers = true, value_names = ["X", "Y", "THETA"])]
+    base: Option<Vec<f64>>,
+    /// Exact depth (no stereo noise).
+    #[arg(long)]
+    no_noise: bool,
+    /// Depth range of the cloud MIN MAX, m (default: the description's).
+    #[arg(long, num_args = 2, value_names = ["MIN", "MAX"])]
+    depth_range: Option<Vec<f64>>,
+    /// Output directory (created if missing).
+    #[arg(long)]
+    out: std::path::PathBuf,
+    /// Seed of the plants' and the camera's noise.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Print one JSON object.
+    #[arg(long)]
+    json: bool,
 }
 
 #[derive(Args)]
@@ -213,6 +263,23 @@ fn run(cli: Cli) -> Result<(), (ferrobot::Error, bool)> {
         Cmd::Jacobian { robot, q, json } => (cmd::jacobian::run(&robot, &q, json), json),
         Cmd::Ik(a) => (cmd::ik::run(&a), a.json),
         Cmd::Demo { robot } => (cmd::demo::run(&robot), false),
+        Cmd::Scene { name, json } => (cmd::scene::run(&name, json), json),
+        Cmd::Snapshot(a) => (
+            cmd::snapshot::run(&cmd::snapshot::SnapshotArgs {
+                robot: &a.robot,
+                scene: &a.scene,
+                pan: a.pan,
+                tilt: a.tilt,
+                joints: a.joints.as_deref(),
+                base: a.base.as_ref().map(|b| [b[0], b[1], b[2]]),
+                no_noise: a.no_noise,
+                depth_range: a.depth_range.as_ref().map(|r| [r[0], r[1]]),
+                out: &a.out,
+                seed: a.seed,
+                json: a.json,
+            }),
+            a.json,
+        ),
         Cmd::BaseMove {
             robot,
             relative,

@@ -282,3 +282,111 @@ fn a_reader_that_goes_away_ends_the_demo_quietly() {
     assert!(out.status.success(), "{:?}: {err}", out.status);
     assert!(!err.contains("panicked"), "{err}");
 }
+
+#[test]
+fn scene_json_lists_every_body_in_the_world_frame() {
+    let (ok, v) = run(&["scene", "tabletop", "--json"]);
+    assert!(ok, "{v}");
+    assert_eq!(v["scene"], "tabletop");
+    assert_eq!(v["robot_pose"], serde_json::json!([0.0, 0.0, 0.0]));
+    let objects = v["objects"].as_array().unwrap();
+    let scene = ferrobot::scene::Scene::bundled("tabletop").unwrap();
+    assert_eq!(objects.len(), scene.bodies.len());
+    let cube = objects.iter().find(|o| o["id"] == "red_cube").unwrap();
+    assert_eq!(cube["shape"], "box");
+    assert_eq!(cube["size"], serde_json::json!([0.03, 0.03, 0.03]));
+    assert_eq!(cube["position"], serde_json::json!([0.36, 0.0, 0.115]));
+    assert_eq!(cube["quaternion"], serde_json::json!([0.0, 0.0, 0.0, 1.0]));
+    assert_eq!(cube["static"], false);
+    assert_eq!(cube["mesh"], serde_json::Value::Null);
+    let mug = objects.iter().find(|o| o["id"] == "mug").unwrap();
+    assert_eq!(mug["shape"], "mesh");
+    assert!(mug["mesh"].as_str().unwrap().ends_with("mug.obj"));
+    let cyl = objects
+        .iter()
+        .find(|o| o["id"] == "green_cylinder")
+        .unwrap();
+    assert_eq!(cyl["size"], serde_json::json!([0.02, 0.06]));
+    let (ok, v) = run(&["scene", "kitchen", "--json"]);
+    assert!(!ok && v["input_error"] == true, "{v}");
+}
+
+/// A snapshot without noise: the files are what they claim (8-bit RGB, 16-bit millimetre
+/// depth of the same size, a PLY cloud), the printed pose and intrinsics are the description's
+/// and the camera's, and the cloud (world frame) holds the table's top at 0.10 m.
+#[test]
+fn snapshot_writes_images_and_a_cloud_in_the_world_frame() {
+    let dir = std::env::temp_dir().join(format!("ferrobot-snapshot-{}", std::process::id()));
+    let out = dir.to_str().unwrap();
+    let (ok, v) = run(&[
+        "snapshot",
+        "locobot",
+        "--scene",
+        "tabletop",
+        "--tilt",
+        "0.8",
+        "--joints",
+        "1.5",
+        "0",
+        "0",
+        "0",
+        "0",
+        "--no-noise",
+        "--out",
+        out,
+        "--json",
+    ]);
+    assert!(ok, "{v}");
+    assert_eq!(
+        (v["width"].as_u64(), v["height"].as_u64()),
+        (Some(640), Some(480))
+    );
+    assert_eq!(v["intrinsics"][0][0].as_f64(), Some(619.8997));
+    assert_eq!(v["intrinsics"][2][2].as_f64(), Some(1.0));
+    let p: Vec<f64> = (0..3)
+        .map(|i| v["camera_position"][i].as_f64().unwrap())
+        .collect();
+    let q: Vec<f64> = (0..4)
+        .map(|i| v["camera_quaternion"][i].as_f64().unwrap())
+        .collect();
+    assert!(p[2] > 0.4 && p[2] < 0.7, "camera height {}", p[2]);
+    let norm = q.iter().map(|x| x * x).sum::<f64>().sqrt();
+    assert!((norm - 1.0).abs() < 1e-9);
+    // The optical axis (z) points forward and 0.8 rad down.
+    let rot = nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(
+        q[3], q[0], q[1], q[2],
+    ));
+    let z = rot * nalgebra::Vector3::z();
+    assert!(((-z.z).asin() - 0.8).abs() < 0.01 && z.x > 0.0, "{z:?}");
+
+    let rgb = ferrobot::perception::io::read_rgb_png(dir.join("rgb.png")).unwrap();
+    let depth = ferrobot::perception::io::read_depth_png(dir.join("depth.png")).unwrap();
+    assert_eq!(
+        (rgb.width, rgb.height, depth.width, depth.height),
+        (640, 480, 640, 480)
+    );
+    assert!(depth.valid_fraction() > 0.9, "{}", depth.valid_fraction());
+    let cloud = ferrobot::perception::io::read_ply(dir.join("cloud.ply")).unwrap();
+    // Points over the table (x 0.28-0.73 m, |y| < 0.4 m) lie on its top, z = 0.10 m, within
+    // 2 mm, or above it on the objects; none below it (the table is opaque).
+    let over: Vec<f64> = cloud
+        .points
+        .iter()
+        .filter(|p| (0.30..0.71).contains(&p.x) && p.y.abs() < 0.38)
+        .map(|p| p.z)
+        .collect();
+    let on_top = over.iter().filter(|z| (*z - 0.10).abs() < 2e-3).count();
+    let lowest = over.iter().copied().fold(f64::INFINITY, f64::min);
+    assert!(
+        on_top > 50_000 && on_top as f64 > 0.8 * over.len() as f64,
+        "{on_top} of {}",
+        over.len()
+    );
+    assert!(
+        lowest > 0.098,
+        "a point {lowest} m high under the table's top"
+    );
+    let side = ferrobot::perception::io::read_rgb_png(dir.join("snapshot.png")).unwrap();
+    assert_eq!((side.width, side.height), (1280, 480));
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -122,6 +122,16 @@ fn hostile_configs() -> Vec<(&'static str, String, &'static str)> {
             "base.wheel_radius",
         ),
         (
+            "camera_rate_nan",
+            edit("rate = 30.0", "rate = nan"),
+            "camera.rate",
+        ),
+        (
+            "camera_rate_zero",
+            edit("rate = 30.0", "rate = 0.0"),
+            "camera.rate",
+        ),
+        (
             "depth_inverted",
             edit("depth_max = 1.5", "depth_max = 0.1"),
             "camera.depth_max",
@@ -425,6 +435,100 @@ fn cases() -> Vec<Case> {
             "--json",
         ],
         Input,
+    ));
+    // scene, snapshot: unknown and hostile scene names and files, hostile poses, angles and
+    // ranges, robots without a camera, wrong counts.
+    for scene in [
+        "kitchen",
+        "",
+        "./",
+        "./binary.toml",
+        "./huge.toml",
+        "./empty.toml",
+        "/dev/zero",
+        "./notes.txt",
+        "./nonexistent.toml",
+    ] {
+        c.push(case(&["scene", scene, "--json"], Input));
+        c.push(case(
+            &[
+                "snapshot", "locobot", "--scene", scene, "--out", "./out", "--json",
+            ],
+            Input,
+        ));
+    }
+    for v in HOSTILE {
+        c.push(case(
+            &[
+                "snapshot", "locobot", "--pan", v, "--out", "./out", "--json",
+            ],
+            Input,
+        ));
+        c.push(case(
+            &["snapshot", "locobot", "--tilt", v, "--out", "./out"],
+            Input,
+        ));
+        c.push(case(
+            &[
+                "snapshot", "locobot", "--base", v, "0", "0", "--out", "./out", "--json",
+            ],
+            Input,
+        ));
+        c.push(case(
+            &[
+                "snapshot", "locobot", "--joints", "0", v, "0", "0", "0", "--out", "./out",
+                "--json",
+            ],
+            Input,
+        ));
+        c.push(case(
+            &[
+                "snapshot",
+                "locobot",
+                "--depth-range",
+                "0.2",
+                v,
+                "--out",
+                "./out",
+                "--json",
+            ],
+            Input,
+        ));
+    }
+    c.push(case(
+        &["snapshot", "sawyer", "--out", "./out", "--json"],
+        Input,
+    ));
+    c.push(case(
+        &[
+            "snapshot", "locobot", "--joints", "0", "0", "--out", "./out", "--json",
+        ],
+        Input,
+    ));
+    c.push(case(
+        &[
+            "snapshot", "locobot", "--tilt", "3", "--out", "./out", "--json",
+        ],
+        Input,
+    ));
+    c.push(case(
+        &[
+            "snapshot",
+            "locobot",
+            "--depth-range",
+            "1.5",
+            "0.2",
+            "--out",
+            "./out",
+            "--json",
+        ],
+        Input,
+    ));
+    c.push(case(&["snapshot", "locobot", "--json"], Input));
+    // An output path that is a file, not a directory.
+    c.push(case(
+        &["snapshot", "locobot", "--out", "./notes.txt", "--json"],
+        Failure,
     ));
     // base-move: absurd goals for every controller, unknown controller, wrong counts.
     for v in HOSTILE {

@@ -11,4 +11,6 @@ pub mod ik;
 pub mod info;
 pub mod jacobian;
 pub mod robots;
+pub mod scene;
 pub mod sim_firmware;
+pub mod snapshot;

@@ -1,0 +1,106 @@
+//! `ferrobot scene`: what a scene holds, in the world frame (z up, metres).
+
+use ferrobot::scene::{Scene, SceneSource, Shape};
+use serde::Serialize;
+
+use super::common::{print_json, round};
+
+/// `scene --json`, fields in alphabetical order (see [`print_json`]).
+#[derive(Serialize)]
+struct SceneJson {
+    /// Every body: floor, walls, furniture and objects.
+    objects: Vec<ObjectJson>,
+    /// The robot's start pose `[x, y, θ]` (m, m, rad).
+    robot_pose: [f64; 3],
+    /// The scene's name.
+    scene: String,
+}
+
+/// One body of `scene --json`.
+#[derive(Serialize)]
+struct ObjectJson {
+    /// Colour `[r, g, b]`, 0-1.
+    colour: [f32; 3],
+    /// Its id.
+    id: String,
+    /// The mesh file as the scene names it (meshes only).
+    mesh: Option<String>,
+    /// Position of its frame's origin `[x, y, z]`, m.
+    position: [f64; 3],
+    /// Orientation `[x, y, z, w]`.
+    quaternion: [f64; 4],
+    /// `box`, `cylinder`, `sphere`, `capsule` or `mesh`.
+    shape: &'static str,
+    /// Box: full extents x y z; cylinder and capsule: radius and length along z; sphere:
+    /// radius; mesh: the full extents of its bounding box in its own frame (m).
+    size: Vec<f64>,
+    /// Fixed in the world.
+    #[serde(rename = "static")]
+    fixed: bool,
+}
+
+fn object(b: &ferrobot::scene::Body) -> ObjectJson {
+    let (size, mesh) = match &b.shape {
+        Shape::Box(s) => (s.to_vec(), None),
+        Shape::Cylinder { radius, length } | Shape::Capsule { radius, length } => {
+            (vec![*radius, *length], None)
+        }
+        Shape::Sphere(r) => (vec![*r], None),
+        Shape::Mesh { path, .. } => (
+            b.shape.half_extents().iter().map(|h| 2.0 * h).collect(),
+            Some(path.clone()),
+        ),
+    };
+    let t = b.pose.translation.vector;
+    let q = b.pose.rotation.coords;
+    ObjectJson {
+        colour: b.colour,
+        id: b.id.clone(),
+        mesh,
+        position: [t.x, t.y, t.z],
+        quaternion: [q.x, q.y, q.z, q.w],
+        shape: b.shape.kind(),
+        size,
+        fixed: b.fixed,
+    }
+}
+
+/// Print the scene `name` (a bundled name or a scene file's path).
+pub fn run(name: &str, json: bool) -> ferrobot::Result<()> {
+    let scene = Scene::load(&SceneSource::from_arg(name))?;
+    if json {
+        print_json(&SceneJson {
+            objects: scene.bodies.iter().map(object).collect(),
+            robot_pose: scene.robot_pose,
+            scene: scene.name.clone(),
+        });
+        return Ok(());
+    }
+    say!(
+        "scene {} ({}): robot at {:?} (x m, y m, θ rad), {} bodies",
+        scene.name,
+        scene.file.display(),
+        round(&scene.robot_pose),
+        scene.bodies.len()
+    );
+    say!(
+        "{:<18} {:<9} {:<7} {:<26} {}",
+        "id",
+        "shape",
+        "static",
+        "position (m)",
+        "size (m)"
+    );
+    for b in &scene.bodies {
+        let o = object(b);
+        say!(
+            "{:<18} {:<9} {:<7} {:<26} {:?}",
+            o.id,
+            o.shape,
+            o.fixed,
+            format!("{:?}", round(&o.position)),
+            round(&o.size)
+        );
+    }
+    Ok(())
+}
