@@ -163,6 +163,11 @@ impl SimCamera {
         })
     }
 
+    /// The camera's description (intrinsics, rate, optical frame).
+    pub fn section(&self) -> &CameraSection {
+        &self.section
+    }
+
     /// The renderer (labels, triangle count).
     pub fn renderer(&self) -> &Renderer {
         &self.renderer

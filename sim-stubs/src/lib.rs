@@ -20,6 +20,7 @@ pub mod bases;
 pub mod board;
 pub mod body;
 pub mod camera;
+pub mod camera_server;
 pub mod chain;
 pub mod conductor;
 pub mod control;

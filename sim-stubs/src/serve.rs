@@ -211,6 +211,19 @@ pub struct FirmwareServer {
     pub link: std::path::PathBuf,
     control: Option<std::sync::mpsc::Sender<LinkControl>>,
     thread: Option<thread::JoinHandle<()>>,
+    /// The camera served beside the link ([`crate::camera_server`]), if the robot has one.
+    pub camera: Option<crate::camera_server::CameraServer>,
+}
+
+/// The robot's camera to serve beside a firmware server.
+#[derive(Debug, Clone)]
+pub struct CameraOptions {
+    /// The description's camera.
+    pub section: ferrobot_description::CameraSection,
+    /// Seed of the depth noise.
+    pub seed: u64,
+    /// Simulate the depth noise.
+    pub noise: bool,
 }
 
 impl FirmwareServer {
@@ -225,6 +238,7 @@ impl FirmwareServer {
 impl Drop for FirmwareServer {
     /// Stop serving and remove the link this server made.
     fn drop(&mut self) {
+        self.camera = None;
         self.control = None;
         if let Some(t) = self.thread.take() {
             let _ = t.join();
@@ -254,12 +268,40 @@ fn unplug(port: &mut Option<(TTYPort, TTYPort, String)>, link: &std::path::Path)
     }
 }
 
-/// Serve `sim`'s host link on a PTY behind `link`, in real time, on a thread of its own.
+/// Serve `sim`'s host link on a PTY behind `link`, in real time, on a thread of its own, and
+/// its world's camera (`camera`) on the Unix socket `LINK.camera`
+/// ([`crate::camera_server::socket_beside`]).
 pub fn serve_firmware(
     mut sim: crate::LockstepSim,
     link: std::path::PathBuf,
+    camera: Option<CameraOptions>,
 ) -> Result<FirmwareServer, ServeError> {
     let (tx, rx) = std::sync::mpsc::channel();
+    let (tap, truth_rx) = std::sync::mpsc::channel();
+    let camera = match (camera, sim.body()) {
+        (Some(c), Some(body)) => {
+            let Some(mut cam) =
+                crate::camera::SimCamera::new(sim.scene(), body, &c.section, c.seed)
+            else {
+                return Err(ServeError::Io(io::Error::other(format!(
+                    "the URDF has no camera frame {:?}",
+                    c.section.frame
+                ))));
+            };
+            if !c.noise {
+                cam.noise = None;
+            }
+            Some(crate::camera_server::serve_camera(
+                &crate::camera_server::socket_beside(&link),
+                cam,
+                c.section.width,
+                c.section.height,
+                c.section.rate,
+                tap,
+            )?)
+        }
+        _ => None,
+    };
     let mut port = Some(host_pty(&link)?);
     let path = link.clone();
     let thread = thread::spawn(move || {
@@ -285,6 +327,7 @@ pub fn serve_firmware(
                 None => thread::sleep(Duration::from_millis(1)),
             }
             sim.run_until(t0 + micros(start));
+            crate::camera_server::answer_truth_requests(&truth_rx, || sim.truth());
             let out = sim.take_host_output();
             if let Some((master, _, _)) = port.as_mut() {
                 if !out.is_empty() {
@@ -297,6 +340,7 @@ pub fn serve_firmware(
         link,
         control: Some(tx),
         thread: Some(thread),
+        camera,
     })
 }
 
@@ -307,12 +351,14 @@ pub fn run_firmware_server(
     sim: crate::LockstepSim,
     robot: &str,
     link: std::path::PathBuf,
+    camera: Option<CameraOptions>,
 ) -> Result<(), ServeError> {
     use std::io::BufRead;
-    let server = serve_firmware(sim, link.clone())?;
+    let server = serve_firmware(sim, link.clone(), camera)?;
+    let camera = server.camera.as_ref().map(|c| c.path.display().to_string());
     println!(
         "{}",
-        serde_json::json!({"robot": robot, "host": link.display().to_string()})
+        serde_json::json!({"robot": robot, "host": link.display().to_string(), "camera": camera})
     );
     for line in std::io::stdin().lock().lines() {
         match line.as_deref().map(str::trim) {

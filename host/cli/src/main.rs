@@ -85,8 +85,9 @@ enum Cmd {
     },
     /// Inverse kinematics of the end effector.
     Ik(IkArgs),
-    /// Serve a simulated robot's firmware core (with its plants, in real time) on a PTY behind
-    /// the symlink LINK, for the Serial backend and outside tools. Prints one JSON line; reads
+    /// Serve a simulated robot's firmware core (with its plants, in real time, in a scene) on a
+    /// PTY behind the symlink LINK, and its camera on the Unix socket LINK.camera, for the
+    /// Serial backend and outside tools. Prints one JSON line; reads
     /// `unplug` and `plug` lines on standard input to drop and restore the link; exits when
     /// standard input closes.
     SimFirmware {
@@ -98,6 +99,12 @@ enum Cmd {
         /// Seed of the plants' noise.
         #[arg(long, default_value_t = 1)]
         seed: u64,
+        /// The world: a bundled scene or a scene file (default: empty).
+        #[arg(long, default_value = "empty")]
+        scene: String,
+        /// Exact depth from the camera (no stereo noise).
+        #[arg(long)]
+        no_noise: bool,
     },
     /// One base motion on the simulated robot, from rest at the origin.
     BaseMove {
@@ -318,9 +325,16 @@ fn run(cli: Cli) -> Result<(), (ferrobot::Error, bool)> {
             (cmd::calibrate_odometry::run(&robot, seed, json), json)
         }
         // Its one line on standard output is JSON, and so are its errors.
-        Cmd::SimFirmware { robot, link, seed } => {
-            (cmd::sim_firmware::run(&robot, link, seed), true)
-        }
+        Cmd::SimFirmware {
+            robot,
+            link,
+            seed,
+            scene,
+            no_noise,
+        } => (
+            cmd::sim_firmware::run(&robot, link, seed, &scene, !no_noise),
+            true,
+        ),
     };
     result.map_err(|e| (e, json))
 }

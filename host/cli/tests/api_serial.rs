@@ -22,11 +22,16 @@ impl Drop for Firmware {
         let _ = self.child.kill();
         let _ = self.child.wait();
         let _ = std::fs::remove_file(&self.link);
+        let _ = std::fs::remove_file(ferrobot_sim::camera_server::socket_beside(&self.link));
     }
 }
 
 impl Firmware {
     fn start(robot: &str, tag: &str) -> Firmware {
+        Self::start_with(robot, tag, &[])
+    }
+
+    fn start_with(robot: &str, tag: &str, extra: &[&str]) -> Firmware {
         let dir =
             std::env::temp_dir().join(format!("ferrobot-serial-{}-{tag}", std::process::id()));
         std::fs::create_dir_all(&dir).expect("dir");
@@ -34,6 +39,7 @@ impl Firmware {
         let mut child = Command::new(env!("CARGO_BIN_EXE_ferrobot"))
             .args(["sim-firmware", robot, "--link"])
             .arg(&link)
+            .args(extra)
             .stdin(Stdio::piped())
             .stdout(Stdio::piped())
             .spawn()
@@ -264,4 +270,54 @@ fn a_protocol_mismatch_is_refused_at_the_handshake() {
     };
     assert!(!info.accepted);
     assert_eq!(info.protocol_version, PROTOCOL_VERSION);
+}
+
+/// The same program in the same scene gets the same images from the simulator backend and over
+/// a serial port from `ferrobot sim-firmware`'s world (its camera on the socket beside the
+/// port): same size, intrinsics and content (exact depth: at least 99 % of the pixels within
+/// 5 mm of each other; the two runs' joints settle to within a few encoder ticks).
+#[test]
+fn the_camera_sees_the_same_scene_over_serial() {
+    let fw = Firmware::start_with("locobot", "camera", &["--scene", "tabletop", "--no-noise"]);
+    let serial = Robot::builder("locobot")
+        .backend(Backend::Serial {
+            path: fw.link.clone(),
+        })
+        .build()
+        .expect("connects over serial");
+    let sim = Robot::builder("locobot")
+        .scene("tabletop")
+        .depth_noise(false)
+        .build()
+        .expect("simulator");
+    let mut frames = Vec::new();
+    for bot in [&sim, &serial] {
+        bot.arm()
+            .expect("arm")
+            .set_joint_positions(&[1.5, 0.0, 0.0, 0.0, 0.0])
+            .expect("arm aside");
+        bot.head()
+            .expect("head")
+            .set_pan_tilt(0.0, 0.8)
+            .expect("head");
+        bot.wait(0.5).expect("settles");
+        frames.push(bot.camera().expect("camera").get_frame().expect("frame"));
+    }
+    let (a, b) = (&frames[0], &frames[1]);
+    assert_eq!(a.intrinsics, b.intrinsics);
+    assert_eq!((b.rgb.width, b.rgb.height), (640, 480));
+    let close = a
+        .depth
+        .data
+        .iter()
+        .zip(&b.depth.data)
+        .filter(|(x, y)| (*x - *y).abs() < 5e-3)
+        .count();
+    let share = close as f64 / a.depth.data.len() as f64;
+    println!("{:.2} % of the depths within 5 mm", 100.0 * share);
+    assert!(share > 0.99, "{share}");
+    // Stamped on the firmware's clock, which had run through the motions above.
+    assert!(b.time > Duration::from_secs(1), "{:?}", b.time);
+    let angle = a.camera_pose.rotation.angle_to(&b.camera_pose.rotation);
+    assert!(angle < 0.01, "camera poses differ by {angle} rad");
 }

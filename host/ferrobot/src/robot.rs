@@ -249,6 +249,18 @@ impl Robot {
                     crate::backend::sim::SimCameraDevice::new(sim, section, depth_noise, *seed)?,
                 )
                     as Box<dyn CameraDevice>),
+                // A camera served beside the serial port (`ferrobot sim-firmware`'s world).
+                (Backend::Serial { path }, _) => {
+                    let socket = ferrobot_sim::camera_server::socket_beside(path);
+                    match socket.exists() {
+                        true => Some(
+                            Box::new(crate::backend::camera_socket::SocketCamera::connect(
+                                socket,
+                            )?) as Box<dyn CameraDevice>,
+                        ),
+                        false => None,
+                    }
+                }
                 _ => None,
             },
             _ => None,

@@ -400,3 +400,76 @@ fn frames_come_at_the_camera_rate_with_their_pose() {
     let valid = c.depth.valid_fraction();
     assert!(valid > 0.5 && valid < 0.98, "{valid}");
 }
+
+/// A camera socket that answers with garbage, absurd intrinsics, a frame of the wrong size or
+/// a truncated frame: each a typed error naming the socket, never a panic or a hang.
+#[test]
+fn a_hostile_camera_socket_is_a_clear_error() {
+    use ferrobot::backend::camera_socket::SocketCamera;
+    use std::io::{BufRead, BufReader, Write};
+    use std::os::unix::net::UnixListener;
+    let good_info = r#"{"width":4,"height":2,"fx":5.0,"fy":5.0,"cx":2.0,"cy":1.0,"rate":30.0}"#;
+    let cases: Vec<(&str, Vec<u8>)> = vec![
+        ("garbage", b"\x00\xffnot json\n".to_vec()),
+        (
+            "huge focal",
+            br#"{"width":4,"height":2,"fx":1e300,"fy":5.0,"cx":2.0,"cy":1.0,"rate":30.0}"#.to_vec(),
+        ),
+        (
+            "zero rate",
+            br#"{"width":4,"height":2,"fx":5.0,"fy":5.0,"cx":2.0,"cy":1.0,"rate":0.0}"#.to_vec(),
+        ),
+        ("error", br#"{"error":"broken"}"#.to_vec()),
+        (
+            "wrong size",
+            format!("{good_info}\n{{\"time_us\":1,\"width\":640,\"height\":480}}").into_bytes(),
+        ),
+        (
+            "truncated",
+            format!("{good_info}\n{{\"time_us\":1,\"width\":4,\"height\":2}}\n\x01\x02")
+                .into_bytes(),
+        ),
+        ("silence", Vec::new()),
+    ];
+    let dir = std::env::temp_dir().join(format!("ferrobot-hostile-socket-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let bot = Robot::builder("locobot").use_camera(false).build().unwrap();
+    for (i, (name, reply)) in cases.into_iter().enumerate() {
+        let path = dir.join(format!("cam{i}"));
+        let listener = UnixListener::bind(&path).unwrap();
+        let server = std::thread::spawn(move || {
+            let (s, _) = listener.accept().unwrap();
+            let mut r = BufReader::new(s.try_clone().unwrap());
+            let mut w = s;
+            let mut line = String::new();
+            let _ = r.read_line(&mut line);
+            let _ = w.write_all(&reply);
+            let _ = w.write_all(b"\n");
+            line.clear();
+            let _ = r.read_line(&mut line);
+            // Close: the client must not wait for more.
+        });
+        // A socket camera ignores the link it is given; a simulator's will do.
+        let mut link = ferrobot::backend::sim::SimLink::start(
+            bot.config(),
+            1,
+            false,
+            std::sync::Arc::new(ferrobot::scene::Scene::empty()),
+        )
+        .unwrap();
+        let r = SocketCamera::connect(&path).and_then(|mut c| {
+            use ferrobot::CameraDevice;
+            c.capture(&mut link)
+        });
+        let e = r.expect_err(name);
+        assert!(
+            matches!(e, Error::Link(_) | Error::Perception(_)),
+            "{name}: {e}"
+        );
+        assert!(
+            e.to_string().contains("cam") || matches!(e, Error::Perception(_)),
+            "{name}: {e}"
+        );
+        server.join().unwrap();
+    }
+}

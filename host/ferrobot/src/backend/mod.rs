@@ -9,6 +9,7 @@
 //! * [`Backend::Emulated`]: the real board firmware in QEMU with the simulated plants, started
 //!   in one call, over the serial backend.
 
+pub mod camera_socket;
 pub mod emulated;
 pub mod serial;
 pub mod sim;

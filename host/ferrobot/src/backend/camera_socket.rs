@@ -1,0 +1,142 @@
+//! A camera served on a Unix socket ([`ferrobot_sim::camera_server`]'s protocol): the
+//! simulated world's camera beside a firmware served on a serial port, as a [`CameraDevice`].
+//! Behind the serial and emulated backends, the world that moves the plants renders the
+//! frames, so a program sees the same scene whichever backend it uses.
+
+use std::io::{BufRead, BufReader, Read, Write};
+use std::os::unix::net::UnixStream;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use ferrobot_perception::{DepthImage, Intrinsics, RgbImage};
+use serde::Deserialize;
+
+use super::Link;
+use crate::camera::{CameraDevice, RawFrame};
+use crate::error::{Error, Result};
+
+/// How long a frame may take to arrive (wall time).
+pub const FRAME_TIMEOUT: Duration = Duration::from_secs(10);
+/// Longest header line accepted, bytes.
+const MAX_HEADER: u64 = 4096;
+
+#[derive(Deserialize)]
+struct Info {
+    width: u32,
+    height: u32,
+    fx: f64,
+    fy: f64,
+    cx: f64,
+    cy: f64,
+    rate: f64,
+}
+
+#[derive(Deserialize)]
+struct Header {
+    time_us: u64,
+    width: u32,
+    height: u32,
+}
+
+/// A camera on a Unix socket.
+pub struct SocketCamera {
+    path: PathBuf,
+    reader: BufReader<UnixStream>,
+    writer: UnixStream,
+    intrinsics: Intrinsics,
+    rate: f64,
+}
+
+impl SocketCamera {
+    /// Connect to the camera served at `path` and read its intrinsics.
+    pub fn connect(path: impl AsRef<Path>) -> Result<Self> {
+        let path = path.as_ref().to_path_buf();
+        let stream = UnixStream::connect(&path).map_err(|e| {
+            Error::Link(format!(
+                "cannot reach the camera at {}: {e}",
+                path.display()
+            ))
+        })?;
+        stream.set_read_timeout(Some(FRAME_TIMEOUT))?;
+        let writer = stream.try_clone()?;
+        let mut cam = SocketCamera {
+            reader: BufReader::new(stream),
+            writer,
+            intrinsics: Intrinsics {
+                width: 1,
+                height: 1,
+                fx: 1.0,
+                fy: 1.0,
+                cx: 0.0,
+                cy: 0.0,
+            },
+            rate: 1.0,
+            path,
+        };
+        let info: Info = cam.ask("info")?;
+        cam.intrinsics =
+            Intrinsics::new(info.width, info.height, info.fx, info.fy, info.cx, info.cy)?;
+        if !(info.rate.is_finite() && info.rate > 0.0 && info.rate <= 1000.0) {
+            return Err(cam.bad(format!("a frame rate of {} Hz", info.rate)));
+        }
+        cam.rate = info.rate;
+        Ok(cam)
+    }
+
+    fn bad(&self, what: String) -> Error {
+        Error::Link(format!("the camera at {} sent {what}", self.path.display()))
+    }
+
+    /// Send `request` and read one JSON line of answer.
+    fn ask<T: for<'de> Deserialize<'de>>(&mut self, request: &str) -> Result<T> {
+        writeln!(self.writer, "{request}").map_err(|e| self.bad(format!("nothing ({e})")))?;
+        let mut line = String::new();
+        (&mut self.reader)
+            .take(MAX_HEADER)
+            .read_line(&mut line)
+            .map_err(|e| self.bad(format!("nothing ({e})")))?;
+        if let Ok(v) = serde_json::from_str::<serde_json::Value>(&line) {
+            if let Some(e) = v.get("error") {
+                return Err(self.bad(format!("an error: {e}")));
+            }
+        }
+        serde_json::from_str(&line).map_err(|e| self.bad(format!("{line:?} ({e})")))
+    }
+}
+
+impl CameraDevice for SocketCamera {
+    fn intrinsics(&self) -> Intrinsics {
+        self.intrinsics
+    }
+
+    fn rate(&self) -> f64 {
+        self.rate
+    }
+
+    fn capture(&mut self, _link: &mut dyn Link) -> Result<RawFrame> {
+        let h: Header = self.ask("frame")?;
+        let k = self.intrinsics;
+        if (h.width, h.height) != (k.width, k.height) {
+            return Err(self.bad(format!(
+                "a {}x{} frame from a {}x{} camera",
+                h.width, h.height, k.width, k.height
+            )));
+        }
+        let n = k.pixels();
+        let mut rgb = vec![0u8; 3 * n];
+        let mut raw = vec![0u8; 4 * n];
+        self.reader
+            .read_exact(&mut rgb)
+            .and_then(|()| self.reader.read_exact(&mut raw))
+            .map_err(|e| self.bad(format!("a truncated frame ({e})")))?;
+        let depth = raw
+            .chunks_exact(4)
+            .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+            .collect();
+        Ok(RawFrame {
+            rgb: RgbImage::new(k.width, k.height, rgb)?,
+            depth: DepthImage::new(k.width, k.height, depth)?,
+            time: Duration::from_micros(h.time_us),
+        })
+    }
+}
