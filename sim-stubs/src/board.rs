@@ -239,14 +239,30 @@ pub struct BoardServer {
     inner: Arc<Mutex<Inner>>,
     quit: Arc<AtomicBool>,
     thread: Option<JoinHandle<()>>,
+    scene: Arc<crate::scene::Scene>,
+    body: Option<Arc<crate::body::RobotBody>>,
 }
 
 impl BoardServer {
-    /// Make the ports and start serving the plants of `robot`.
+    /// Make the ports and start serving the plants of `robot` in an empty world.
     pub fn start(robot: &str, opts: BoardOptions) -> Result<BoardServer, ServeError> {
+        Self::start_in(robot, opts, Arc::new(crate::scene::Scene::empty()))
+    }
+
+    /// Make the ports and start serving the plants of `robot` in `scene`, the base at the
+    /// scene's start pose.
+    pub fn start_in(
+        robot: &str,
+        opts: BoardOptions,
+        scene: Arc<crate::scene::Scene>,
+    ) -> Result<BoardServer, ServeError> {
         let desc = robots::by_name(robot)
             .ok_or_else(|| ServeError::Sim(SimError::UnknownRobot(robot.into())))?;
-        let hw = Hardware::new(&desc, opts.seed);
+        let mut hw = Hardware::new(&desc, opts.seed);
+        if let Some(b) = hw.base.as_mut() {
+            b.drive.truth = scene.robot_pose;
+        }
+        let body = desc.body.clone();
         let has_base = hw.base.is_some();
         let board_host = pty(true)?;
         let servo = pty(true)?;
@@ -303,7 +319,50 @@ impl BoardServer {
             inner,
             quit,
             thread: Some(thread),
+            scene,
+            body,
         })
+    }
+
+    /// The world's ground truth now ([`crate::lockstep::truth_of`]).
+    pub fn truth(&self) -> crate::lockstep::Truth {
+        self.with_hardware(|hw, now| {
+            crate::lockstep::truth_of(hw, now, &self.scene, self.body.as_deref())
+        })
+    }
+
+    /// Serve the robot's camera of this world on a new Unix socket at `path`
+    /// ([`crate::camera_server`]); dropping the returned server stops it.
+    pub fn serve_camera(
+        &self,
+        path: &std::path::Path,
+        camera: &crate::serve::CameraOptions,
+    ) -> Result<crate::camera_server::CameraServer, ServeError> {
+        let body = self.body.clone().ok_or_else(|| {
+            ServeError::Io(std::io::Error::other(
+                "the robot has no body to mount a camera on",
+            ))
+        })?;
+        let mut cam =
+            crate::camera::SimCamera::new(&self.scene, &body, &camera.section, camera.seed)
+                .ok_or_else(|| {
+                    ServeError::Io(std::io::Error::other(format!(
+                        "the URDF has no camera frame {:?}",
+                        camera.section.frame
+                    )))
+                })?;
+        if !camera.noise {
+            cam.noise = None;
+        }
+        let (inner, scene) = (self.inner.clone(), self.scene.clone());
+        let truth = move || {
+            let mut i = inner.lock().ok()?;
+            let now = i.conductor.now_us();
+            let hw = i.conductor.hardware();
+            hw.chain.advance_to(now);
+            Some(crate::lockstep::truth_of(hw, now, &scene, Some(&body)))
+        };
+        crate::camera_server::serve_camera(path, cam, camera.section.rate, truth)
     }
 
     fn lock(&self) -> MutexGuard<'_, Inner> {

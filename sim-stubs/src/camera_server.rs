@@ -10,8 +10,9 @@
 //!   simulated clock that has not been served yet; `time_us` is that clock (the firmware's).
 //! * anything else → `{"error": ...}` and the connection stays open.
 //!
-//! The server asks the simulation thread for the world's ground truth through a channel
-//! ([`TruthTap`]), so the simulation is never locked while a frame renders.
+//! The server asks for the world's ground truth through a closure: a channel to the
+//! simulation thread ([`TruthTap`], [`tap_truth`]) or a short lock of the plants; the
+//! simulation is never held while a frame renders.
 
 use std::io::{BufRead, BufReader, Read, Write};
 use std::os::unix::net::{UnixListener, UnixStream};
@@ -41,6 +42,15 @@ pub fn answer_truth_requests(rx: &mpsc::Receiver<mpsc::Sender<Truth>>, truth: im
     }
 }
 
+/// A source of truth for a camera server: asks the simulation thread through `tap`.
+pub fn tap_truth(tap: TruthTap) -> impl FnMut() -> Option<Truth> + Send + 'static {
+    move || {
+        let (tx, rx) = mpsc::channel();
+        tap.send(tx).ok()?;
+        rx.recv_timeout(Duration::from_secs(5)).ok()
+    }
+}
+
 /// A camera being served; dropping it stops the server and removes its socket.
 pub struct CameraServer {
     /// The socket's path.
@@ -67,15 +77,15 @@ pub fn socket_beside(link: &Path) -> PathBuf {
 }
 
 /// Serve `camera` at `rate` Hz on a new Unix socket at `path` (which must not exist: nothing
-/// is ever replaced), taking the world's truth from `tap`. One client at a time.
+/// is ever replaced), taking the world's truth from `truth` (`None`: the simulation has
+/// stopped). One client at a time.
 pub fn serve_camera(
     path: &Path,
     camera: SimCamera,
-    width: u32,
-    height: u32,
     rate: f64,
-    tap: TruthTap,
+    truth: impl FnMut() -> Option<Truth> + Send + 'static,
 ) -> Result<CameraServer, ServeError> {
+    let (width, height) = (camera.section().width, camera.section().height);
     if path.symlink_metadata().is_ok() {
         return Err(ServeError::LinkExists(path.to_path_buf()));
     }
@@ -90,7 +100,7 @@ pub fn serve_camera(
             image: RenderedImage::new(width, height),
             period_us,
             last: None,
-            tap,
+            truth: Box::new(truth),
         };
         while !flag.load(Ordering::Relaxed) {
             match listener.accept() {
@@ -111,14 +121,12 @@ struct Served {
     image: RenderedImage,
     period_us: u64,
     last: Option<u64>,
-    tap: TruthTap,
+    truth: Box<dyn FnMut() -> Option<Truth> + Send>,
 }
 
 impl Served {
-    fn truth(&self) -> Option<Truth> {
-        let (tx, rx) = mpsc::channel();
-        self.tap.send(tx).ok()?;
-        rx.recv_timeout(Duration::from_secs(5)).ok()
+    fn truth(&mut self) -> Option<Truth> {
+        (self.truth)()
     }
 
     fn client(&mut self, stream: UnixStream, stop: &AtomicBool) {

@@ -85,6 +85,30 @@ pub struct Truth {
     pub bodies: Vec<Isometry3<f64>>,
 }
 
+/// The ground truth of the plants `hw` at `now_us` in `scene`, for the robot's `body`: the
+/// root from the base's true pose (or the scene's start pose without a base), the joints from
+/// the servos' true angles.
+pub fn truth_of(hw: &Hardware, now_us: u64, scene: &Scene, body: Option<&RobotBody>) -> Truth {
+    let base = hw.base_truth().unwrap_or(scene.robot_pose);
+    let root = RobotBody::root_pose(base, scene.robot_height);
+    let theta: Vec<f64> = hw.chain.servos.iter().map(|s| s.theta).collect();
+    let (joints, links) = match body {
+        Some(b) => {
+            let q = b.joint_values(&theta);
+            let links = b.link_poses(&root, &q);
+            (q, links)
+        }
+        None => (Vec::new(), Vec::new()),
+    };
+    Truth {
+        time_us: now_us,
+        root,
+        joints,
+        links,
+        bodies: scene.bodies.iter().map(|b| b.pose).collect(),
+    }
+}
+
 impl LockstepSim {
     /// The simulated `robot` with plants seeded by `seed`.
     pub fn new(robot: &str, seed: u64) -> Result<Self, SimError> {
@@ -137,24 +161,7 @@ impl LockstepSim {
     /// The world's ground truth now: the robot's root, joints and links, and the scene's
     /// bodies.
     pub fn truth(&self) -> Truth {
-        let base = self.hw.base_truth().unwrap_or(self.scene.robot_pose);
-        let root = RobotBody::root_pose(base, self.scene.robot_height);
-        let theta: Vec<f64> = self.hw.chain.servos.iter().map(|s| s.theta).collect();
-        let (joints, links) = match &self.body {
-            Some(b) => {
-                let q = b.joint_values(&theta);
-                let links = b.link_poses(&root, &q);
-                (q, links)
-            }
-            None => (Vec::new(), Vec::new()),
-        };
-        Truth {
-            time_us: self.now,
-            root,
-            joints,
-            links,
-            bodies: self.scene.bodies.iter().map(|b| b.pose).collect(),
-        }
+        truth_of(&self.hw, self.now, &self.scene, self.body.as_deref())
     }
 
     /// Simulated time, µs.

@@ -294,10 +294,8 @@ pub fn serve_firmware(
             Some(crate::camera_server::serve_camera(
                 &crate::camera_server::socket_beside(&link),
                 cam,
-                c.section.width,
-                c.section.height,
                 c.section.rate,
-                tap,
+                crate::camera_server::tap_truth(tap),
             )?)
         }
         _ => None,

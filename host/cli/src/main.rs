@@ -12,6 +12,7 @@
 //! ferrobot snapshot locobot --scene tabletop --tilt 0.8 --out target/snapshot
 //! ferrobot base-move locobot --relative 1 1 1.5708 --controller lqr --smooth --json
 //! ferrobot bench base --robot locobot --trials 5 --seed 1
+//! ferrobot bench camera --scene apartment --seconds 10
 //! ```
 
 use std::process::ExitCode;
@@ -191,6 +192,19 @@ enum BenchCmd {
         #[arg(long)]
         calibrate: bool,
     },
+    /// The simulator's real-time factor for the LoCoBot with its camera streaming at 30 Hz
+    /// while the base drives a circle, per scene, beside the same run without frames.
+    Camera {
+        /// Scenes (repeatable; default tabletop and apartment).
+        #[arg(long)]
+        scene: Vec<String>,
+        /// Simulated seconds per run.
+        #[arg(long, default_value_t = 10.0)]
+        seconds: f64,
+        /// Print one JSON object per scene, one per line, instead of Markdown.
+        #[arg(long)]
+        json: bool,
+    },
 }
 
 #[derive(Args)]
@@ -321,6 +335,21 @@ fn run(cli: Cli) -> Result<(), (ferrobot::Error, bool)> {
             cmd::bench_base::run(robot, trials, seed, json, &plot_dir, calibrate),
             json,
         ),
+        Cmd::Bench {
+            which:
+                BenchCmd::Camera {
+                    scene,
+                    seconds,
+                    json,
+                },
+        } => {
+            let scenes = if scene.is_empty() {
+                vec!["tabletop".to_string(), "apartment".to_string()]
+            } else {
+                scene
+            };
+            (cmd::bench_camera::run(&scenes, seconds, json), json)
+        }
         Cmd::CalibrateOdometry { robot, seed, json } => {
             (cmd::calibrate_odometry::run(&robot, seed, json), json)
         }

@@ -225,14 +225,40 @@ impl Robot {
         depth_noise: bool,
         camera_device: Option<Box<dyn CameraDevice>>,
     ) -> Result<Robot> {
-        let mut link: Box<dyn Link> = match &backend {
-            Backend::Sim { seed, realtime } => {
-                Box::new(SimLink::start(&cfg, *seed, *realtime, scene.clone())?)
-            }
-            Backend::Serial { path } => Box::new(SerialLink::open(path, Duration::from_secs(10))?),
-            Backend::Emulated { firmware } => Box::new(
-                crate::backend::emulated::EmulatedLink::start(&cfg.name, firmware)?,
+        // The link, and the socket of a camera served from the backend's world, if any.
+        let (mut link, served_camera): (Box<dyn Link>, Option<std::path::PathBuf>) = match &backend
+        {
+            Backend::Sim { seed, realtime } => (
+                Box::new(SimLink::start(&cfg, *seed, *realtime, scene.clone())?),
+                None,
             ),
+            // `ferrobot sim-firmware` serves its world's camera beside the port.
+            Backend::Serial { path } => {
+                let socket = ferrobot_sim::camera_server::socket_beside(path);
+                (
+                    Box::new(SerialLink::open(path, Duration::from_secs(10))?),
+                    socket.exists().then_some(socket),
+                )
+            }
+            Backend::Emulated { firmware } => {
+                let camera = cfg
+                    .camera
+                    .clone()
+                    .filter(|_| uses.camera && camera_device.is_none())
+                    .map(|section| ferrobot_sim::serve::CameraOptions {
+                        section,
+                        seed: 1,
+                        noise: depth_noise,
+                    });
+                let link = crate::backend::emulated::EmulatedLink::start_in(
+                    &cfg.name,
+                    firmware,
+                    scene.clone(),
+                    camera,
+                )?;
+                let socket = link.camera.as_ref().map(|c| c.path.clone());
+                (Box::new(link), socket)
+            }
         };
         let uses = Use {
             arm: uses.arm && cfg.arm.is_some(),
@@ -244,23 +270,14 @@ impl Robot {
         let base = BaseState::new(&cfg);
         let camera = match (&cfg.camera, uses.camera, camera_device) {
             (Some(_), true, Some(d)) => Some(d),
-            (Some(section), true, None) => match (&backend, link.simulator()) {
-                (Backend::Sim { seed, .. }, Some(sim)) => Some(Box::new(
+            (Some(section), true, None) => match (&backend, link.simulator(), served_camera) {
+                (Backend::Sim { seed, .. }, Some(sim), _) => Some(Box::new(
                     crate::backend::sim::SimCameraDevice::new(sim, section, depth_noise, *seed)?,
                 )
                     as Box<dyn CameraDevice>),
-                // A camera served beside the serial port (`ferrobot sim-firmware`'s world).
-                (Backend::Serial { path }, _) => {
-                    let socket = ferrobot_sim::camera_server::socket_beside(path);
-                    match socket.exists() {
-                        true => Some(
-                            Box::new(crate::backend::camera_socket::SocketCamera::connect(
-                                socket,
-                            )?) as Box<dyn CameraDevice>,
-                        ),
-                        false => None,
-                    }
-                }
+                (_, _, Some(socket)) => Some(Box::new(
+                    crate::backend::camera_socket::SocketCamera::connect(socket)?,
+                ) as Box<dyn CameraDevice>),
                 _ => None,
             },
             _ => None,

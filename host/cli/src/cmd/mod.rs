@@ -3,6 +3,7 @@
 
 pub mod base_move;
 pub mod bench_base;
+pub mod bench_camera;
 pub mod calibrate_odometry;
 pub mod common;
 pub mod demo;

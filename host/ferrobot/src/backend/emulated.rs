@@ -121,8 +121,25 @@ impl EmulatedBoard {
         opts: BoardOptions,
         log: PathBuf,
     ) -> Result<EmulatedBoard> {
-        let server =
-            BoardServer::start(robot, opts).map_err(|e| Error::Link(format!("plants: {e}")))?;
+        Self::start_in(
+            robot,
+            firmware,
+            opts,
+            log,
+            std::sync::Arc::new(ferrobot_sim::scene::Scene::empty()),
+        )
+    }
+
+    /// [`EmulatedBoard::start_with`] in `scene` (the base at its start pose).
+    pub fn start_in(
+        robot: &str,
+        firmware: &Path,
+        opts: BoardOptions,
+        log: PathBuf,
+        scene: std::sync::Arc<ferrobot_sim::scene::Scene>,
+    ) -> Result<EmulatedBoard> {
+        let server = BoardServer::start_in(robot, opts, scene)
+            .map_err(|e| Error::Link(format!("plants: {e}")))?;
         let (qemu, qemu_stderr) = start_qemu(firmware, &server.board, &log)?;
         let mut board = EmulatedBoard {
             qemu,
@@ -184,19 +201,58 @@ impl Drop for EmulatedBoard {
     }
 }
 
-/// The serial backend on an [`EmulatedBoard`] it keeps alive.
+/// The serial backend on an [`EmulatedBoard`] it keeps alive, and the board's world's camera
+/// on a Unix socket.
 pub struct EmulatedLink {
     serial: SerialLink,
+    /// The camera served from the board's world, if the robot has one.
+    pub camera: Option<ferrobot_sim::camera_server::CameraServer>,
     /// The board (dropped after the link).
     pub board: EmulatedBoard,
 }
 
 impl EmulatedLink {
-    /// Start the board and connect.
+    /// Start the board in an empty world and connect.
     pub fn start(robot: &str, firmware: &Path) -> Result<Self> {
-        let board = EmulatedBoard::start(robot, firmware)?;
+        Self::start_in(
+            robot,
+            firmware,
+            std::sync::Arc::new(ferrobot_sim::scene::Scene::empty()),
+            None,
+        )
+    }
+
+    /// Start the board in `scene`, serve its camera (`camera`) on a Unix socket in the
+    /// temporary directory, and connect.
+    pub fn start_in(
+        robot: &str,
+        firmware: &Path,
+        scene: std::sync::Arc<ferrobot_sim::scene::Scene>,
+        camera: Option<ferrobot_sim::serve::CameraOptions>,
+    ) -> Result<Self> {
+        static NEXT: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+        let n = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let tag = format!("ferrobot-emulated-{}-{n}", std::process::id());
+        let log = std::env::temp_dir().join(format!("{tag}.defmt"));
+        let board = EmulatedBoard::start_in(robot, firmware, BoardOptions::default(), log, scene)?;
+        let camera = match camera {
+            Some(c) => {
+                let path = std::env::temp_dir().join(format!("{tag}.camera"));
+                Some(
+                    board
+                        .server
+                        .serve_camera(&path, &c)
+                        .map_err(|e| Error::Link(format!("camera: {e}")))?,
+                )
+            }
+            None => None,
+        };
         let serial = SerialLink::open(&board.server.host, Duration::from_secs(10))?;
-        Ok(EmulatedLink { serial, board })
+        Ok(EmulatedLink {
+            serial,
+            camera,
+            board,
+        })
     }
 }
 

@@ -1,0 +1,81 @@
+//! `ferrobot bench camera`: the simulator's real-time factor for the LoCoBot with its camera
+//! streaming at 30 Hz while the base drives, per scene, beside the same run without frames.
+
+use std::time::Instant;
+
+use ferrobot::Robot;
+use serde::Serialize;
+
+use super::common::print_json;
+
+/// One scene's row, fields in alphabetical order (see [`print_json`]).
+#[derive(Serialize)]
+struct RowJson {
+    /// Frames taken.
+    frames: usize,
+    /// Wall time per frame, including the simulation between frames, ms.
+    ms_per_frame: f64,
+    /// Simulated seconds per wall-clock second, camera streaming.
+    real_time_factor: f64,
+    /// Simulated seconds per wall-clock second, the same program without frames.
+    real_time_factor_blind: f64,
+    /// The scene.
+    scene: String,
+    /// Simulated time, s.
+    sim_seconds: f64,
+}
+
+/// Drive `seconds` of simulated time in `scene`: the base on a 0.5 m circle, a frame every
+/// camera period (with `camera`), or the same waits without frames. Returns (frames, wall s).
+fn drive(scene: &str, seconds: f64, camera: bool) -> ferrobot::Result<(usize, f64)> {
+    let bot = Robot::builder("locobot").scene(scene).build()?;
+    let cam = bot.camera()?;
+    bot.head()?.set_pan_tilt(0.0, 0.3)?;
+    let period = 1.0 / 30.0;
+    let n = (seconds / period).round() as usize;
+    let t0 = Instant::now();
+    let _drive = bot.base()?.set_vel_async(0.15, 0.3, seconds)?;
+    for _ in 0..n {
+        if camera {
+            cam.get_frame()?;
+        } else {
+            bot.wait(period)?;
+        }
+    }
+    Ok((n, t0.elapsed().as_secs_f64()))
+}
+
+/// Run the benchmark for `scenes`, `seconds` of simulated time each.
+pub fn run(scenes: &[String], seconds: f64, json: bool) -> ferrobot::Result<()> {
+    ferrobot::validate::in_range("seconds", seconds, 0.1, 600.0)?;
+    if !json {
+        say!("| scene | simulated s | frames | wall ms per frame | real-time factor (camera at 30 Hz) | real-time factor (no camera) |");
+        say!("|---|---|---|---|---|---|");
+    }
+    for scene in scenes {
+        let (frames, wall) = drive(scene, seconds, true)?;
+        let (_, blind) = drive(scene, seconds, false)?;
+        let row = RowJson {
+            frames,
+            ms_per_frame: 1e3 * wall / frames.max(1) as f64,
+            real_time_factor: seconds / wall,
+            real_time_factor_blind: seconds / blind,
+            scene: scene.clone(),
+            sim_seconds: seconds,
+        };
+        if json {
+            print_json(&row);
+        } else {
+            say!(
+                "| {} | {:.1} | {} | {:.2} | {:.1} | {:.0} |",
+                row.scene,
+                row.sim_seconds,
+                row.frames,
+                row.ms_per_frame,
+                row.real_time_factor,
+                row.real_time_factor_blind
+            );
+        }
+    }
+    Ok(())
+}
