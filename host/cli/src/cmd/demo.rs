@@ -27,9 +27,19 @@ pub fn run(robot: &str) -> ferrobot::Result<()> {
     say!("gripper close -> {:?}", gripper.close()?);
     gripper.open()?;
     say!("gripper open  -> {:?}", gripper.get_state()?);
-    let camera = bot.head()?;
-    camera.set_pan_tilt(0.5, 0.3)?;
-    say!("camera  pan/tilt {:?} rad", round(&camera.get_state()?));
+    let head = bot.head()?;
+    head.set_pan_tilt(0.5, 0.3)?;
+    say!("head    pan/tilt {:?} rad", round(&head.get_state()?));
+    let frame = bot.camera()?.get_frame()?;
+    let cloud = frame.cloud(bot.camera()?.depth_range()?, false)?;
+    say!(
+        "camera  {}x{} colour and depth at t = {:.3} s, {:.0} % valid depth, {} points in base_link",
+        frame.rgb.width,
+        frame.rgb.height,
+        frame.time.as_secs_f64(),
+        100.0 * frame.depth.valid_fraction(),
+        cloud.len()
+    );
     bot.arm()?.go_home()?;
     bot.base()?.go_to_absolute([1.0, 1.0, 0.0])?;
     let odom = bot.base()?.get_state()?;
