@@ -237,3 +237,169 @@ fn a_scene_file_reads_its_meshes_beside_it() {
     assert!((v - 0.2f64.powi(3) / 6.0).abs() < 1e-9, "{v}");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// A number as TOML writes it (`nan`, `inf`, `-inf` included).
+fn toml_num(v: f64) -> String {
+    if v.is_nan() {
+        "nan".into()
+    } else if v.is_infinite() {
+        if v > 0.0 {
+            "inf".into()
+        } else {
+            "-inf".into()
+        }
+    } else {
+        format!("{v:?}")
+    }
+}
+
+/// Seeded random edits of a valid scene file: one or two of its 26 numbers replaced by a
+/// hostile value (NaN, ±inf, ±1e300, ±f64::MAX, 5e6, or an ordinary value). Parsing never
+/// panics; an absurd number (not finite, or beyond 1e5 in magnitude) anywhere is refused
+/// naming a key; an accepted scene holds only finite, bounded numbers (poses within 1e4 m,
+/// sizes positive and bounded, unit quaternions, colours in 0-1).
+#[test]
+fn hostile_numbers_anywhere_are_refused_or_sane() {
+    use proptest::prelude::*;
+    use proptest::test_runner::{Config, RngAlgorithm, TestRng, TestRunner};
+    // A valid scene's numbers, in the order of the template below.
+    let base: [f64; 26] = [
+        0.3, 0.2, 0.1, // object size
+        0.5, 0.0, 0.1, 0.0, // robot pose, height
+        6.0, 6.0, 0.5, 0.5, 0.5, 0.8, // floor size, colour, friction
+        -2.0, 2.0, 2.0, 2.0, 2.4, 0.1, // wall from, to, height, thickness
+        2.0, 0.9, 2.0, // door at, width, height
+        1.0, 1.0, 0.15, // object position
+        0.0,  // (unused slot: rpy below reuses the first numbers)
+    ];
+    let hostile = prop::sample::select(vec![
+        f64::NAN,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        1e300,
+        -1e300,
+        f64::MAX,
+        -f64::MAX,
+        5e6,
+        -5e6,
+        0.0,
+        -0.3,
+        1e-310,
+        0.7,
+    ]);
+    let cfg = Config {
+        cases: 400,
+        failure_persistence: None,
+        ..Config::default()
+    };
+    let mut runner =
+        TestRunner::new_with_rng(cfg, TestRng::from_seed(RngAlgorithm::ChaCha, &[11; 32]));
+    let strategy = (
+        prop::collection::vec((0usize..26, hostile), 0..3),
+        prop::sample::select(vec!["box", "cylinder", "sphere", "capsule"]),
+    );
+    let accepted = std::cell::Cell::new(0usize);
+    let keys = std::cell::RefCell::new(std::collections::BTreeSet::new());
+    runner
+        .run(&strategy, |(edits, shape)| {
+            let mut v = base;
+            for &(slot, x) in &edits {
+                v[slot] = x;
+            }
+            // Size slots a shape does not have are not in the file.
+            let used = |slot: usize| match shape {
+                "box" => true,
+                "sphere" => slot > 0 && slot != 1 && slot != 2 || slot == 0,
+                _ => slot != 2,
+            };
+            let absurd = edits
+                .iter()
+                .any(|&(slot, x)| used(slot) && (!x.is_finite() || x.abs() > 1e5));
+            let n: Vec<String> = v.iter().map(|&x| toml_num(x)).collect();
+            let size = match shape {
+                "box" => format!("[{}, {}, {}]", n[0], n[1], n[2]),
+                "sphere" => format!("[{}]", n[0]),
+                _ => format!("[{}, {}]", n[0], n[1]),
+            };
+            let text = format!(
+                "name = \"h\"\n[robot]\npose = [{}, {}, {}]\nheight = {}\n\
+                 [floor]\nsize = [{}, {}]\ncolour = [{}, {}, {}]\nfriction = {}\n\
+                 [[wall]]\nfrom = [{}, {}]\nto = [{}, {}]\nheight = {}\nthickness = {}\n\
+                 colour = [0.5, 0.5, 0.5]\ndoors = [{{ at = {}, width = {}, height = {} }}]\n\
+                 [[object]]\nid = \"o\"\nshape = \"{shape}\"\nsize = {size}\n\
+                 position = [{}, {}, {}]\nrpy = [{}, 0.0, 0.2]\nmass = 0.5\nfriction = 0.5\n\
+                 colour = [0.2, 0.3, 0.4]\n",
+                n[3],
+                n[4],
+                n[5],
+                n[6],
+                n[7],
+                n[8],
+                n[9],
+                n[10],
+                n[11],
+                n[12],
+                n[13],
+                n[14],
+                n[15],
+                n[16],
+                n[17],
+                n[18],
+                n[19],
+                n[20],
+                n[21],
+                n[22],
+                n[23],
+                n[24],
+                n[25]
+            );
+            match parse(&text) {
+                Ok(scene) => {
+                    accepted.set(accepted.get() + 1);
+                    prop_assert!(!absurd, "accepted an absurd number: {edits:?}");
+                    prop_assert!(scene
+                        .robot_pose
+                        .iter()
+                        .all(|x| x.is_finite() && x.abs() <= 1e4));
+                    prop_assert!(scene.robot_height.is_finite() && scene.robot_height >= 0.0);
+                    for b in &scene.bodies {
+                        let t = b.pose.translation.vector;
+                        prop_assert!(
+                            t.iter().all(|x| x.is_finite() && x.abs() <= 1e4),
+                            "{}: {t:?}",
+                            b.id
+                        );
+                        prop_assert!((b.pose.rotation.coords.norm() - 1.0).abs() < 1e-9);
+                        let h = b.shape.half_extents();
+                        prop_assert!(
+                            h.iter().all(|x| x.is_finite() && *x > 0.0 && *x <= 1e4),
+                            "{}: {h:?}",
+                            b.id
+                        );
+                        prop_assert!(b.mass.is_finite() && b.mass >= 0.0 && b.mass <= 1e6);
+                        prop_assert!(b.friction.is_finite() && b.friction >= 0.0);
+                        prop_assert!(b.colour.iter().all(|c| (0.0..=1.0).contains(c)));
+                    }
+                }
+                Err(SceneError::Invalid { key, problem, .. }) => {
+                    prop_assert!(
+                        !edits.is_empty(),
+                        "the valid scene was refused: {key}: {problem}"
+                    );
+                    prop_assert!(!key.is_empty() && !problem.is_empty());
+                    keys.borrow_mut().insert(key);
+                }
+                Err(e) => prop_assert!(false, "unexpected error {e}"),
+            }
+            Ok(())
+        })
+        .expect("hostile scene numbers are refused or sane");
+    // Both sides were exercised: files accepted, refusals at many different keys.
+    println!(
+        "accepted {} of 400; refused at {:?}",
+        accepted.get(),
+        keys.borrow()
+    );
+    assert!(accepted.get() >= 40, "{}", accepted.get());
+    assert!(keys.borrow().len() >= 12, "{:?}", keys.borrow());
+}
