@@ -10,6 +10,23 @@ use ferrobot_sim::camera::{SimCamera, StereoNoise};
 use ferrobot_sim::render::RenderedImage;
 use ferrobot_sim::scene::Scene;
 
+/// This thread's time on a CPU so far, s (Linux: /proc/thread-self/schedstat); wall time
+/// elsewhere.
+fn cpu_time() -> f64 {
+    std::fs::read_to_string("/proc/thread-self/schedstat")
+        .ok()
+        .and_then(|s| s.split_whitespace().next()?.parse::<u64>().ok())
+        .map_or_else(
+            || {
+                std::time::UNIX_EPOCH
+                    .elapsed()
+                    .expect("clock")
+                    .as_secs_f64()
+            },
+            |ns| ns as f64 * 1e-9,
+        )
+}
+
 fn write_png(path: &str, w: u32, h: u32, colour: png::ColorType, data: &[u8]) {
     let f = std::io::BufWriter::new(std::fs::File::create(path).expect("create"));
     let mut e = png::Encoder::new(f, w, h);
@@ -49,11 +66,12 @@ fn main() {
         for noise in [None, Some(StereoNoise::D435)] {
             cam.noise = noise;
             let n = 200;
-            let t = std::time::Instant::now();
+            let (t, c) = (std::time::Instant::now(), cpu_time());
             for _ in 0..n {
                 cam.capture_into(&truth, &mut img);
             }
             let dt = t.elapsed().as_secs_f64() / f64::from(n);
+            let dc = (cpu_time() - c) / f64::from(n);
             let tag = if noise.is_some() { "noise" } else { "exact" };
             let valid = img.depth.iter().filter(|&&d| d > 0.0).count();
             let centre = img.depth[240 * 640 + 320];
@@ -71,10 +89,11 @@ fn main() {
                     (h ^ u64::from(b)).wrapping_mul(0x100_0000_01b3)
                 });
             println!(
-                "{name} {tag}: {} tris, {:.2} ms/frame ({:.0} fps), valid {valid}, centre {centre:.4} m, hash {hash:016x}",
+                "{name} {tag}: {} tris, {:.2} ms/frame ({:.0} fps), cpu {:.2} ms/frame, valid {valid}, centre {centre:.4} m, hash {hash:016x}",
                 cam.renderer().triangles(),
                 dt * 1e3,
-                1.0 / dt
+                1.0 / dt,
+                dc * 1e3
             );
             let (w, h) = (img.width, img.height);
             let raw: Vec<u8> = img.depth.iter().flat_map(|d| d.to_le_bytes()).collect();

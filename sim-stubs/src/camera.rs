@@ -86,15 +86,21 @@ impl StereoNoise {
             }
             // Out of range, or an occluding edge: a jump in depth to a 4-neighbour (the image's
             // border counts as none).
-            let below = depth.get((r + 1) * w..(r + 2) * w);
-            let jump = |o: f32, z: f32| o <= 0.0 || (o - z).abs() > edge_jump * z;
+            // Off the image a neighbour is the pixel itself (no jump).
+            let up: &[f32] = if r > 0 { &above } else { &row };
+            let down = depth.get((r + 1) * w..(r + 2) * w).unwrap_or(&row);
             for c in 0..w {
                 let z = row[c];
-                let up = r > 0 && jump(above[c], z);
-                let down = below.is_some_and(|b| jump(b[c], z));
-                let left = c > 0 && jump(row[c - 1], z);
-                let right = c + 1 < w && jump(row[c + 1], z);
-                bad[c] = z <= 0.0 || !(zmin..=zmax).contains(&z) || up | down | left | right;
+                let (left, right) = (row[c.saturating_sub(1)], row[(c + 1).min(w - 1)]);
+                let t = edge_jump * z;
+                let jump = |o: f32| (o <= 0.0) | ((o - z).abs() > t);
+                bad[c] = (z <= 0.0)
+                    | (z < zmin)
+                    | (z > zmax)
+                    | jump(up[c])
+                    | jump(down[c])
+                    | jump(left)
+                    | jump(right);
             }
             // Stereo shadow: scanning right to left, a pixel whose match in the right image
             // lies at or right of a match already taken by a pixel to its right is hidden from
@@ -108,7 +114,9 @@ impl StereoNoise {
                 if ur < 0.0 || ur > min_right + 0.5 {
                     bad[c] = true;
                 }
-                min_right = min_right.min(ur);
+                if ur < min_right {
+                    min_right = ur;
+                }
             }
             // Five 12-bit table indices from each 64-bit draw.
             for chunk in error.chunks_mut(5) {

@@ -329,6 +329,7 @@ impl Renderer {
             }
         }
         let bg = self.background.map(to_u8);
+        let mut scratch = vec![0u32; w];
         for r in 0..h {
             let row = r * w;
             let ry = (r as f32 - k.cy) / k.fy;
@@ -356,7 +357,8 @@ impl Renderer {
                         for d in depth.iter_mut() {
                             *d = 1.0 / *d;
                         }
-                        self.shade_run(sh, &k, x, ry, depth, rgb);
+                        let scratch = &mut scratch[..end - x];
+                        self.shade_run(sh, &k, x, ry, depth, rgb, scratch);
                     }
                 }
                 x = end;
@@ -366,7 +368,17 @@ impl Renderer {
 
     /// Colour one run of pixels of one triangle, starting at column `x0` of the row at
     /// normalised height `ry`, from their depths.
-    fn shade_run(&self, sh: &Shade, k: &Intr, x0: usize, ry: f32, depth: &[f32], rgb: &mut [u8]) {
+    #[allow(clippy::too_many_arguments)]
+    fn shade_run(
+        &self,
+        sh: &Shade,
+        k: &Intr,
+        x0: usize,
+        ry: f32,
+        depth: &[f32],
+        rgb: &mut [u8],
+        scratch: &mut [u32],
+    ) {
         let mat = &self.materials[sh.material as usize];
         let Some(tex) = &mat.texture else {
             for p in rgb.chunks_exact_mut(3) {
@@ -385,14 +397,22 @@ impl Renderer {
         match tex {
             Texture::Noise { .. } => {
                 let t = noise_table();
-                let (c1, dc) = (sh.c1, sh.dc);
-                for (i, (p, &z)) in rgb.chunks_exact_mut(3).zip(depth).enumerate() {
+                // Colour in 1/256 steps: c1 + dc n for the table's value n, from end colours
+                // within 0-255 (and dc rounded towards zero), so that it needs no clamp.
+                let c2 = [0, 1, 2].map(|c| (sh.c1[c] + 255.0 * sh.dc[c]).clamp(0.0, 255.0));
+                let c1 = sh.c1.map(|c| c.clamp(0.0, 255.0));
+                let dc = [0, 1, 2].map(|c| ((c2[c] - c1[c]) * 256.0 / 255.0) as i32);
+                let c1 = c1.map(|c| (c * 256.0) as i32 + 128);
+                // First the table's indices (a loop that vectorises), then the look-ups.
+                let mask = NOISE_SIZE as u32 - 1;
+                for (i, (ix, &z)) in scratch.iter_mut().zip(depth).enumerate() {
                     let (u, v) = uv(i, z);
-                    let tx = (floor_i(u) as usize) & (NOISE_SIZE - 1);
-                    let ty = (floor_i(v) as usize) & (NOISE_SIZE - 1);
-                    let n = f32::from(t[ty * NOISE_SIZE + tx]);
+                    *ix = (floor_bits(v) & mask) * NOISE_SIZE as u32 + (floor_bits(u) & mask);
+                }
+                for (p, &ix) in rgb.chunks_exact_mut(3).zip(scratch.iter()) {
+                    let n = i32::from(t[ix as usize]);
                     for c in 0..3 {
-                        p[c] = to_u8_255(c1[c] + dc[c] * n);
+                        p[c] = ((c1[c] + dc[c] * n) >> 8) as u8;
                     }
                 }
             }
@@ -401,7 +421,7 @@ impl Renderer {
                 let c2 = [0, 1, 2].map(|c| to_u8_255(c2.0[c] + c2.1[c] * 255.0));
                 for (i, (p, &z)) in rgb.chunks_exact_mut(3).zip(depth).enumerate() {
                     let (u, v) = uv(i, z);
-                    let odd = (floor_i(u).wrapping_add(floor_i(v))) & 1 != 0;
+                    let odd = floor_bits(u).wrapping_add(floor_bits(v)) & 1 != 0;
                     p.copy_from_slice(if odd { &c2 } else { &c1 });
                 }
             }
@@ -416,6 +436,13 @@ impl Renderer {
             }
         }
     }
+}
+
+/// floor(x) in the low bits (two's complement) for |x| < 2^21: x - 1/2 rounded to an integer
+/// by adding 1.5 * 2^23, which leaves no fraction bits (ties, at integers, may go either way).
+fn floor_bits(x: f32) -> u32 {
+    const MAGIC: f32 = 12_582_912.0;
+    (x - 0.5 + MAGIC).to_bits()
 }
 
 /// A colour channel 0-255 as 8 bits.
