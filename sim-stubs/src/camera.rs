@@ -129,9 +129,10 @@ impl StereoNoise {
             let out = &mut depth[r * w..(r + 1) * w];
             for c in 0..w {
                 let d = disparity[c] + error[c];
-                // Depth in quanta, rounded (it is positive where it counts).
+                // Depth in quanta, rounded by adding and taking away 1.5 * 2^23 (exact below
+                // 2^22 quanta, far beyond the range; infinity becomes NaN, out of range too).
                 let steps = if d > 0.0 { fb_steps / d } else { -1.0 };
-                let q = (steps + 0.5) as i32 as f32 * quantum;
+                let q = ((steps + ROUND) - ROUND) * quantum;
                 out[c] = if bad[c] || !(zmin..=zmax).contains(&q) {
                     0.0
                 } else {
@@ -142,6 +143,9 @@ impl StereoNoise {
         }
     }
 }
+
+/// 1.5 * 2^23: a float of magnitude below 2^22 plus this has no fraction bits left.
+const ROUND: f32 = 12_582_912.0;
 
 /// Quantiles of the standard normal at (i + 0.5) / 4096, i = 0..4096: a uniform 12-bit index
 /// into it draws a normal (standard deviation 0.9995; tails cut at 3.5).

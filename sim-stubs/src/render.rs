@@ -605,15 +605,17 @@ fn raster(
         let iz0 = zx * lo as f32 + zy * fy + z0;
         let zs = &mut inv_depth[row + lo..=row + hi];
         let is = &mut ids[row + lo..=row + hi];
-        let mut wrote = false;
-        // Branch-free, so that it vectorises: 1/z at the span's i-th pixel from its start.
+        let mut wrote = 0u32;
+        // Branch-free, so that it vectorises: 1/z at the span's i-th pixel from its start; the
+        // id goes in through a mask (a select would be turned back into a branch).
         for (i, (zb, ib)) in zs.iter_mut().zip(is.iter_mut()).enumerate() {
             let iz = iz0 + zx * i as f32;
-            let nearer = iz > *zb;
-            *zb = if nearer { iz } else { *zb };
-            *ib = if nearer { id } else { *ib };
-            wrote |= nearer;
+            let mask = 0u32.wrapping_sub(u32::from(iz > *zb));
+            *zb = zb.max(iz);
+            *ib ^= (*ib ^ id) & mask;
+            wrote |= mask;
         }
+        let wrote = wrote != 0;
         any |= wrote;
     }
     any
