@@ -314,6 +314,16 @@ fn depth_png(path: &Path, w: u32, h: u32, depth: &[f32]) {
     write_png(path, w, h, png::ColorType::Grayscale, &grey);
 }
 
+/// One scene's line of the comparison: [wall, CPU] seconds per frame, and the ratios.
+struct Row {
+    scene: &'static str,
+    triangles: usize,
+    ours: [f64; 2],
+    noisy: [f64; 2],
+    pybullet: [f64; 2],
+    ratio: [f64; 2],
+}
+
 fn compare_with_pybullet(cpu: Option<usize>) {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
     let setup = Command::new(root.join("scripts/python-env.sh"))
@@ -343,15 +353,9 @@ fn compare_with_pybullet(cpu: Option<usize>) {
         let n_ours = ((ROUND_S / (t.elapsed().as_secs_f64() / 10.0)) as usize).max(10);
         let (w1, _) = py.render(2);
         let n_py = ((ROUND_S / (w1 / 2.0)) as usize).max(2);
-        let (
-            mut ours,
-            mut ours_cpu,
-            mut noisy,
-            mut theirs,
-            mut theirs_cpu,
-            mut ratio,
-            mut ratio_cpu,
-        ) = (vec![], vec![], vec![], vec![], vec![], vec![], vec![]);
+        let (mut ours, mut ours_cpu, mut noisy, mut noisy_cpu) = (vec![], vec![], vec![], vec![]);
+        let (mut theirs, mut theirs_cpu) = (vec![], vec![]);
+        let (mut ratio, mut ratio_cpu) = (vec![], vec![]);
         for _ in 0..ROUNDS {
             let (t, c) = (Instant::now(), cpu_time());
             for _ in 0..n_ours {
@@ -362,12 +366,13 @@ fn compare_with_pybullet(cpu: Option<usize>) {
                 t.elapsed().as_secs_f64() / n_ours as f64,
                 (cpu_time() - c) / n_ours as f64,
             );
-            let t = Instant::now();
+            let (t, c) = (Instant::now(), cpu_time());
             for _ in 0..n_ours {
                 v.render(&mut img, Some(&mut rng));
                 black_box(&img);
             }
             noisy.push(t.elapsed().as_secs_f64() / n_ours as f64);
+            noisy_cpu.push((cpu_time() - c) / n_ours as f64);
             let (w, c) = py.render(n_py);
             let (w_py, c_py) = (w / n_py as f64, c / n_py as f64);
             ours.push(w_ours);
@@ -432,41 +437,46 @@ fn compare_with_pybullet(cpu: Option<usize>) {
             100.0 * close,
             1e3 * median(diffs.clone()),
         );
-        rows.push((
-            v.name,
-            median(ours),
-            median(ours_cpu),
-            median(noisy),
-            median(theirs),
-            median(theirs_cpu),
-            median(ratio),
-            median(ratio_cpu),
-            v.renderer.triangles(),
-        ));
+        rows.push(Row {
+            scene: v.name,
+            triangles: v.renderer.triangles(),
+            ours: [median(ours), median(ours_cpu)],
+            noisy: [median(noisy), median(noisy_cpu)],
+            pybullet: [median(theirs), median(theirs_cpu)],
+            ratio: [median(ratio), median(ratio_cpu)],
+        });
     }
     let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
     println!(
-        "\nRendering 640x480 colour + depth + labels, one CPU ({}), {ROUNDS} rounds alternating, medians; load average {}",
+        "\nRendering 640x480 colour + depth + labels on one CPU ({}), {ROUNDS} rounds alternating, \
+         medians of wall-clock (CPU-time) ms per frame; load average {}",
         cpu.map_or("not pinned".into(), |c| format!("cpu {c}")),
         load.split_whitespace().take(3).collect::<Vec<_>>().join(" "),
     );
-    println!("| scene | triangles | ours ms/frame (fps) | ours with depth noise | PyBullet ER_TINY_RENDERER ms/frame (fps) | PyBullet / ours (wall) | PyBullet / ours (CPU time) |");
-    println!("|---|---|---|---|---|---|---|");
-    for (name, o, oc, n, t, tc, r, rc) in rows
-        .iter()
-        .map(|r| (r.0, r.1, r.2, r.3, r.4, r.5, r.6, r.7))
-    {
-        let tris = rows.iter().find(|x| x.0 == name).map_or(0, |x| x.8);
+    println!(
+        "| scene | triangles | ours, ms (fps) | ours with depth noise, ms (fps) | \
+         PyBullet ER_TINY_RENDERER, ms (fps) | PyBullet / ours |"
+    );
+    println!("|---|---|---|---|---|---|");
+    let ms = |t: [f64; 2]| {
+        format!(
+            "{:.2} ({:.0}); CPU {:.2} ({:.0})",
+            t[0] * 1e3,
+            1.0 / t[0],
+            t[1] * 1e3,
+            1.0 / t[1]
+        )
+    };
+    for r in &rows {
         println!(
-            "| {name} | {tris} | {:.2} ({:.0}); CPU {:.2} | {:.2} ({:.0}) | {:.1} ({:.1}); CPU {:.1} | {r:.0}x | {rc:.0}x |",
-            o * 1e3,
-            1.0 / o,
-            oc * 1e3,
-            n * 1e3,
-            1.0 / n,
-            t * 1e3,
-            1.0 / t,
-            tc * 1e3,
+            "| {} | {} | {} | {} | {} | {:.0}x; CPU {:.0}x |",
+            r.scene,
+            r.triangles,
+            ms(r.ours),
+            ms(r.noisy),
+            ms(r.pybullet),
+            r.ratio[0],
+            r.ratio[1],
         );
     }
     println!("Images: {}", dir.display());

@@ -104,6 +104,9 @@ struct DrawMesh {
     /// Closed and outward-wound: back faces can be skipped.
     closed: bool,
     label: u32,
+    /// A sphere around every vertex: centre in the mesh's frame and radius, m.
+    centre: Vector3<f32>,
+    radius: f32,
 }
 
 /// Where a mesh sits: a scene body or a robot link.
@@ -158,6 +161,15 @@ fn draw_mesh(
         tris.push([a, b, c]);
         normals.push(n);
     }
+    let (lo, hi) = m.bounds();
+    let centre = ((lo.coords + hi.coords) / 2.0).cast::<f32>();
+    let radius = tris
+        .iter()
+        .flatten()
+        .map(|p| (p - centre).norm())
+        .fold(0.0f32, f32::max)
+        * 1.0001
+        + 1e-6;
     DrawMesh {
         tris,
         normals,
@@ -165,6 +177,8 @@ fn draw_mesh(
         material,
         closed,
         label,
+        centre,
+        radius,
     }
 }
 
@@ -262,6 +276,16 @@ impl Renderer {
             .matrix()
             .cast::<f32>()
             * self.sun;
+        // The side planes of the view (through the optical centre, unit normals pointing in):
+        // the image's outer pixel edges, half a pixel beyond the outer pixel centres.
+        let (wf, hf) = (w as f32, h as f32);
+        let frustum = [
+            Vector3::new(k.fx, 0.0, k.cx + 0.5),
+            Vector3::new(-k.fx, 0.0, wf - 0.5 - k.cx),
+            Vector3::new(0.0, k.fy, k.cy + 0.5),
+            Vector3::new(0.0, -k.fy, hf - 0.5 - k.cy),
+        ]
+        .map(|n| n.normalize());
         // Every triangle that survives culling gets a shading record; the id buffer names the
         // nearest one per pixel (deferred shading: each pixel is shaded once).
         let mut shades: Vec<Shade> = Vec::new();
@@ -276,6 +300,11 @@ impl Renderer {
             let t = world_to_cam * owner_pose * m.origin;
             let rot: Matrix3<f32> = t.rotation.to_rotation_matrix().matrix().cast::<f32>();
             let tr: Vector3<f32> = t.translation.vector.cast::<f32>();
+            // Meshes wholly behind the near plane or outside the view are skipped.
+            let c = rot * m.centre + tr;
+            if c.z + m.radius < NEAR || frustum.iter().any(|n| n.dot(&c) < -m.radius) {
+                continue;
+            }
             let mat = &self.materials[m.material as usize];
             for (tri, n) in m.tris.iter().zip(&m.normals) {
                 let v = tri.map(|p| rot * p + tr);
