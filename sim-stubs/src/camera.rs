@@ -89,18 +89,24 @@ impl StereoNoise {
             // Off the image a neighbour is the pixel itself (no jump).
             let up: &[f32] = if r > 0 { &above } else { &row };
             let down = depth.get((r + 1) * w..(r + 2) * w).unwrap_or(&row);
-            for c in 0..w {
-                let z = row[c];
-                let (left, right) = (row[c.saturating_sub(1)], row[(c + 1).min(w - 1)]);
+            let flag = |z: f32, u: f32, d: f32, l: f32, r: f32| {
                 let t = edge_jump * z;
                 let jump = |o: f32| (o <= 0.0) | ((o - z).abs() > t);
-                bad[c] = (z <= 0.0)
-                    | (z < zmin)
-                    | (z > zmax)
-                    | jump(up[c])
-                    | jump(down[c])
-                    | jump(left)
-                    | jump(right);
+                (z <= 0.0) | (z < zmin) | (z > zmax) | jump(u) | jump(d) | jump(l) | jump(r)
+            };
+            // The interior columns from slices of one length (a loop that vectorises), then
+            // the two border columns.
+            if w > 2 {
+                let n = w - 2;
+                let (l, m, rt) = (&row[..n], &row[1..n + 1], &row[2..]);
+                let (u, d, b) = (&up[1..n + 1], &down[1..n + 1], &mut bad[1..n + 1]);
+                for i in 0..n {
+                    b[i] = flag(m[i], u[i], d[i], l[i], rt[i]);
+                }
+            }
+            for c in [0, w - 1] {
+                let (l, r) = (row[c.saturating_sub(1)], row[(c + 1).min(w - 1)]);
+                bad[c] = flag(row[c], up[c], down[c], l, r);
             }
             // Stereo shadow: scanning right to left, a pixel whose match in the right image
             // lies at or right of a match already taken by a pixel to its right is hidden from

@@ -288,7 +288,7 @@ impl Renderer {
         .map(|n| n.normalize());
         // Every triangle that survives culling gets a shading record; the id buffer names the
         // nearest one per pixel (deferred shading: each pixel is shaded once).
-        let mut shades: Vec<Shade> = Vec::new();
+        let mut shades: Vec<Shade> = Vec::with_capacity(self.triangles());
         for (owner, m) in &self.meshes {
             let owner_pose = match owner {
                 Owner::Body(i) => bodies.get(*i),
