@@ -2,7 +2,7 @@
 //! out of the view) in the bundled tabletop and apartment scenes, with and without depth
 //! noise, and the last frames in DIR (default /tmp) as PNGs for a look and as raw colour and
 //! depth (f32, little-endian) for comparisons. Run:
-//! `cargo run --release -p ferrobot-sim --example render_fps [DIR]`.
+//! `cargo run --release -p ferrobot-sim --example render_fps [DIR [SCENE]]`.
 
 use std::sync::Arc;
 
@@ -40,7 +40,11 @@ fn write_png(path: &str, w: u32, h: u32, colour: png::ColorType, data: &[u8]) {
 
 fn main() {
     let dir = std::env::args().nth(1).unwrap_or_else(|| "/tmp".into());
+    let only = std::env::args().nth(2);
     for name in ["tabletop", "apartment"] {
+        if only.as_deref().is_some_and(|o| o != name) {
+            continue;
+        }
         let cfg = ferrobot_description::RobotConfig::bundled("locobot").expect("locobot");
         let desc = ferrobot_sim::robots::from_description(&cfg);
         let scene = Arc::new(Scene::bundled(name).expect("scene"));
@@ -65,7 +69,7 @@ fn main() {
         let mut img = RenderedImage::new(640, 480);
         for noise in [None, Some(StereoNoise::D435)] {
             cam.noise = noise;
-            let n = 200;
+            let n = 1000;
             let (t, c) = (std::time::Instant::now(), cpu_time());
             for _ in 0..n {
                 cam.capture_into(&truth, &mut img);

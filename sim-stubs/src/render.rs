@@ -616,12 +616,12 @@ fn raster(
             let c = ey * fy + e0;
             if ex > 0.0 {
                 let t = -c / ex;
-                let xs = if tl { t.ceil() } else { t.floor() + 1.0 };
-                lo = lo.max(xs as i64);
+                let xs = if tl { ceil_i64(t) } else { floor_i64(t) + 1 };
+                lo = lo.max(xs);
             } else if ex < 0.0 {
                 let t = -c / ex;
-                let xe = if tl { t.floor() } else { t.ceil() - 1.0 };
-                hi = hi.min(xe as i64);
+                let xe = if tl { floor_i64(t) } else { ceil_i64(t) - 1 };
+                hi = hi.min(xe);
             } else if c < 0.0 || (c == 0.0 && !tl) {
                 hi = lo - 1;
             }
@@ -636,11 +636,11 @@ fn raster(
         let is = &mut ids[row + lo..=row + hi];
         let mut wrote = 0u32;
         // Branch-free, so that it vectorises: 1/z at the span's i-th pixel from its start; the
-        // id goes in through a mask (a select would be turned back into a branch).
+        // id and 1/z go in through a mask (a select would be turned back into a branch).
         for (i, (zb, ib)) in zs.iter_mut().zip(is.iter_mut()).enumerate() {
             let iz = iz0 + zx * i as f32;
             let mask = 0u32.wrapping_sub(u32::from(iz > *zb));
-            *zb = zb.max(iz);
+            *zb = f32::from_bits(zb.to_bits() ^ ((zb.to_bits() ^ iz.to_bits()) & mask));
             *ib ^= (*ib ^ id) & mask;
             wrote |= mask;
         }
@@ -648,6 +648,18 @@ fn raster(
         any |= wrote;
     }
     any
+}
+
+/// floor(t) without a libm call (saturating beyond the i64 range, 0 for NaN).
+fn floor_i64(t: f32) -> i64 {
+    let i = t as i64;
+    i - i64::from((i as f32) > t)
+}
+
+/// ceil(t) without a libm call (saturating beyond the i64 range, 0 for NaN).
+fn ceil_i64(t: f32) -> i64 {
+    let i = t as i64;
+    i + i64::from((i as f32) < t)
 }
 
 /// A cheap integer hash to [0, 1).
