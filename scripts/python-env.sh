@@ -1,10 +1,17 @@
 #!/usr/bin/env bash
 # Creates target/py-venv with the Python packages the conformance tests need (ROBOTIS'
-# official Dynamixel SDK). Idempotent: does nothing when they are already there.
+# official Dynamixel SDK); with `bench`, also those the benchmarks compare against (PyBullet,
+# sim-stubs/benches/requirements.txt). Idempotent: does nothing when they are already there.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 venv=target/py-venv
-req=sim-stubs/tests/conformance/requirements.txt
+install() { # REQUIREMENTS STAMP MODULE
+    if ! cmp -s "$1" "$venv/$2" 2>/dev/null; then
+        "$venv/bin/pip" install --quiet --disable-pip-version-check -r "$1"
+        cp "$1" "$venv/$2"
+    fi
+    "$venv/bin/python" -c "import $3"
+}
 if [ ! -x "$venv/bin/python" ]; then
     mkdir -p target
     if ! python3 -m venv "$venv" 2>/dev/null; then
@@ -13,8 +20,9 @@ if [ ! -x "$venv/bin/python" ]; then
         python3 -m venv "$venv"
     fi
 fi
-if ! cmp -s "$req" "$venv/.installed-requirements" 2>/dev/null; then
-    "$venv/bin/pip" install --quiet --disable-pip-version-check -r "$req"
-    cp "$req" "$venv/.installed-requirements"
-fi
-"$venv/bin/python" -c "import dynamixel_sdk" 
+install sim-stubs/tests/conformance/requirements.txt .installed-requirements dynamixel_sdk
+case "${1:-}" in
+    "") ;;
+    bench) install sim-stubs/benches/requirements.txt .installed-bench-requirements pybullet ;;
+    *) echo "usage: $0 [bench]" >&2; exit 2 ;;
+esac

@@ -55,66 +55,139 @@ impl StereoNoise {
 
     /// Apply the noise and the invalid pixels to a row-major depth image (m, 0 = invalid) of
     /// width `w` taken with focal length `fx` px.
+    ///
+    /// The disparity errors are normal, drawn from a table of 4096 quantiles of the standard
+    /// normal by a fast generator seeded from `rng` once per image (one draw of `rng` per
+    /// call): the same `rng` state gives the same image.
     pub fn apply(&self, depth: &mut [f32], w: usize, fx: f64, rng: &mut SimRng) {
         if w == 0 {
             return;
         }
         let h = depth.len() / w;
-        let clean = depth.to_vec();
-        let fb = fx * self.baseline;
-        let mut invalid = vec![false; depth.len()];
+        let fb = (fx * self.baseline) as f32;
+        let subpixel = self.subpixel as f32;
+        let (zmin, zmax) = (self.min_depth as f32, self.max_depth as f32);
+        let edge_jump = self.edge_jump as f32;
+        let quantum = self.quantum as f32;
+        let fb_steps = (fx * self.baseline / self.quantum) as f32;
+        let table = normal_table();
+        let mut gen = WyRand(rng.next_u64());
+        // Scratch rows: the clean depths of the row above and of this row, this row's
+        // disparities, invalid flags and disparity errors.
+        let mut above = vec![0.0f32; w];
+        let mut row = vec![0.0f32; w];
+        let mut disparity = vec![0.0f32; w];
+        let mut bad = vec![false; w];
+        let mut error = vec![0.0f32; w];
         for r in 0..h {
-            let row = &clean[r * w..(r + 1) * w];
-            // Stereo shadow: scanning right to left, a pixel whose match in the right image
-            // lies at or right of a match already taken by a pixel to its right is hidden
-            // from the right imager; so is one whose match falls off the right image's left
-            // edge.
-            let mut min_right = f64::INFINITY;
-            for c in (0..w).rev() {
-                let z = f64::from(row[c]);
-                if z <= 0.0 {
-                    continue;
-                }
-                let ur = c as f64 - fb / z;
-                if ur < 0.0 || ur > min_right + 0.5 {
-                    invalid[r * w + c] = true;
-                }
-                min_right = min_right.min(ur);
+            row.copy_from_slice(&depth[r * w..(r + 1) * w]);
+            for (d, &z) in disparity.iter_mut().zip(&row) {
+                *d = if z > 0.0 { fb / z } else { 0.0 };
             }
-            for c in 0..w {
-                let z = f64::from(row[c]);
-                if z <= 0.0 {
-                    continue;
-                }
-                if !(self.min_depth..=self.max_depth).contains(&z) {
-                    invalid[r * w + c] = true;
-                    continue;
-                }
-                let jump = |o: f32| o <= 0.0 || (f64::from(o) - z).abs() > self.edge_jump * z;
-                let up = r > 0 && jump(clean[(r - 1) * w + c]);
-                let down = r + 1 < h && jump(clean[(r + 1) * w + c]);
-                let left = c > 0 && jump(row[c - 1]);
-                let right = c + 1 < w && jump(row[c + 1]);
-                if up || down || left || right {
-                    invalid[r * w + c] = true;
-                }
-            }
-        }
-        for (d, bad) in depth.iter_mut().zip(invalid) {
-            let z = f64::from(*d);
-            if bad || z <= 0.0 {
-                *d = 0.0;
-                continue;
-            }
-            let disparity = fb / z + rng.normal(self.subpixel);
-            let noisy = if disparity > 0.0 { fb / disparity } else { 0.0 };
-            let q = (noisy / self.quantum).round() * self.quantum;
-            *d = if (self.min_depth..=self.max_depth).contains(&q) {
-                q as f32
-            } else {
-                0.0
+            // Out of range, or an occluding edge: a jump in depth to a 4-neighbour (the image's
+            // border counts as none).
+            // Off the image a neighbour is the pixel itself (no jump).
+            let up: &[f32] = if r > 0 { &above } else { &row };
+            let down = depth.get((r + 1) * w..(r + 2) * w).unwrap_or(&row);
+            let flag = |z: f32, u: f32, d: f32, l: f32, r: f32| {
+                let t = edge_jump * z;
+                let jump = |o: f32| (o <= 0.0) | ((o - z).abs() > t);
+                (z <= 0.0) | (z < zmin) | (z > zmax) | jump(u) | jump(d) | jump(l) | jump(r)
             };
+            // The interior columns from slices of one length (a loop that vectorises), then
+            // the two border columns.
+            if w > 2 {
+                let n = w - 2;
+                let (l, m, rt) = (&row[..n], &row[1..n + 1], &row[2..]);
+                let (u, d, b) = (&up[1..n + 1], &down[1..n + 1], &mut bad[1..n + 1]);
+                for i in 0..n {
+                    b[i] = flag(m[i], u[i], d[i], l[i], rt[i]);
+                }
+            }
+            for c in [0, w - 1] {
+                let (l, r) = (row[c.saturating_sub(1)], row[(c + 1).min(w - 1)]);
+                bad[c] = flag(row[c], up[c], down[c], l, r);
+            }
+            // Stereo shadow: scanning right to left, a pixel whose match in the right image
+            // lies at or right of a match already taken by a pixel to its right is hidden from
+            // the right imager; so is one whose match falls off the right image's left edge.
+            let mut min_right = f32::INFINITY;
+            for c in (0..w).rev() {
+                if row[c] <= 0.0 {
+                    continue;
+                }
+                let ur = c as f32 - disparity[c];
+                if ur < 0.0 || ur > min_right + 0.5 {
+                    bad[c] = true;
+                }
+                if ur < min_right {
+                    min_right = ur;
+                }
+            }
+            // Five 12-bit table indices from each 64-bit draw.
+            for chunk in error.chunks_mut(5) {
+                let mut bits = gen.next();
+                for e in chunk {
+                    *e = table[(bits & 0xfff) as usize] * subpixel;
+                    bits >>= 12;
+                }
+            }
+            let out = &mut depth[r * w..(r + 1) * w];
+            for c in 0..w {
+                let d = disparity[c] + error[c];
+                // Depth in quanta, rounded by adding and taking away 1.5 * 2^23 (exact below
+                // 2^22 quanta, far beyond the range; infinity becomes NaN, out of range too).
+                let steps = if d > 0.0 { fb_steps / d } else { -1.0 };
+                let q = ((steps + ROUND) - ROUND) * quantum;
+                out[c] = if bad[c] || !(zmin..=zmax).contains(&q) {
+                    0.0
+                } else {
+                    q
+                };
+            }
+            std::mem::swap(&mut above, &mut row);
         }
+    }
+}
+
+/// 1.5 * 2^23: a float of magnitude below 2^22 plus this has no fraction bits left.
+const ROUND: f32 = 12_582_912.0;
+
+/// Quantiles of the standard normal at (i + 0.5) / 4096, i = 0..4096: a uniform 12-bit index
+/// into it draws a normal (standard deviation 0.9995; tails cut at 3.5).
+fn normal_table() -> &'static [f32; 4096] {
+    static TABLE: std::sync::OnceLock<[f32; 4096]> = std::sync::OnceLock::new();
+    TABLE.get_or_init(|| {
+        // The normal's CDF by integrating its density (Simpson's rule on steps of 1e-4 from
+        // -8), then each quantile by linear interpolation in it.
+        let step = 1e-4;
+        let pdf = |x: f64| (-0.5 * x * x).exp() / (2.0 * std::f64::consts::PI).sqrt();
+        let mut t = [0.0f32; 4096];
+        let (mut x, mut cdf) = (-8.0f64, 0.0f64);
+        for (i, q) in t.iter_mut().enumerate() {
+            let p = (i as f64 + 0.5) / 4096.0;
+            loop {
+                let next = cdf + step / 6.0 * (pdf(x) + 4.0 * pdf(x + step / 2.0) + pdf(x + step));
+                if next >= p {
+                    *q = (x + step * (p - cdf) / (next - cdf)) as f32;
+                    break;
+                }
+                cdf = next;
+                x += step;
+            }
+        }
+        t
+    })
+}
+
+/// wyrand: a fast 64-bit generator (one multiply a draw) for the per-pixel noise.
+struct WyRand(u64);
+
+impl WyRand {
+    fn next(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0xa076_1d64_78bd_642f);
+        let t = u128::from(self.0) * u128::from(self.0 ^ 0xe703_7ed1_a0b4_28db);
+        (t >> 64) as u64 ^ t as u64
     }
 }
 

@@ -104,6 +104,9 @@ struct DrawMesh {
     /// Closed and outward-wound: back faces can be skipped.
     closed: bool,
     label: u32,
+    /// A sphere around every vertex: centre in the mesh's frame and radius, m.
+    centre: Vector3<f32>,
+    radius: f32,
 }
 
 /// Where a mesh sits: a scene body or a robot link.
@@ -158,6 +161,15 @@ fn draw_mesh(
         tris.push([a, b, c]);
         normals.push(n);
     }
+    let (lo, hi) = m.bounds();
+    let centre = ((lo.coords + hi.coords) / 2.0).cast::<f32>();
+    let radius = tris
+        .iter()
+        .flatten()
+        .map(|p| (p - centre).norm())
+        .fold(0.0f32, f32::max)
+        * 1.0001
+        + 1e-6;
     DrawMesh {
         tris,
         normals,
@@ -165,6 +177,8 @@ fn draw_mesh(
         material,
         closed,
         label,
+        centre,
+        radius,
     }
 }
 
@@ -243,7 +257,9 @@ impl Renderer {
         if out.width != camera.width || out.height != camera.height || out.ids.len() != w * h {
             *out = RenderedImage::new(camera.width, camera.height);
         }
-        out.depth.fill(f32::INFINITY);
+        // While rasterising, the depth buffer holds 1/z (0: nothing yet); the shading pass
+        // turns it into z.
+        out.depth.fill(0.0);
         out.ids.fill(u32::MAX);
         let world_to_cam = camera.pose.inverse();
         let k = Intr {
@@ -260,9 +276,19 @@ impl Renderer {
             .matrix()
             .cast::<f32>()
             * self.sun;
+        // The side planes of the view (through the optical centre, unit normals pointing in):
+        // the image's outer pixel edges, half a pixel beyond the outer pixel centres.
+        let (wf, hf) = (w as f32, h as f32);
+        let frustum = [
+            Vector3::new(k.fx, 0.0, k.cx + 0.5),
+            Vector3::new(-k.fx, 0.0, wf - 0.5 - k.cx),
+            Vector3::new(0.0, k.fy, k.cy + 0.5),
+            Vector3::new(0.0, -k.fy, hf - 0.5 - k.cy),
+        ]
+        .map(|n| n.normalize());
         // Every triangle that survives culling gets a shading record; the id buffer names the
         // nearest one per pixel (deferred shading: each pixel is shaded once).
-        let mut shades: Vec<Shade> = Vec::new();
+        let mut shades: Vec<Shade> = Vec::with_capacity(self.triangles());
         for (owner, m) in &self.meshes {
             let owner_pose = match owner {
                 Owner::Body(i) => bodies.get(*i),
@@ -274,6 +300,11 @@ impl Renderer {
             let t = world_to_cam * owner_pose * m.origin;
             let rot: Matrix3<f32> = t.rotation.to_rotation_matrix().matrix().cast::<f32>();
             let tr: Vector3<f32> = t.translation.vector.cast::<f32>();
+            // Meshes wholly behind the near plane or outside the view are skipped.
+            let c = rot * m.centre + tr;
+            if c.z + m.radius < NEAR || frustum.iter().any(|n| n.dot(&c) < -m.radius) {
+                continue;
+            }
             let mat = &self.materials[m.material as usize];
             for (tri, n) in m.tris.iter().zip(&m.normals) {
                 let v = tri.map(|p| rot * p + tr);
@@ -304,45 +335,148 @@ impl Renderer {
                 let rt = rot.transpose();
                 let (ra, rb): (Vector3<f32>, Vector3<f32>) =
                     (rt.row(ia).transpose(), rt.row(ib).transpose());
+                let units = mat.texture.as_ref().map_or(1.0, texture_units);
+                let second = match &mat.texture {
+                    Some(Texture::Checker { colour, .. } | Texture::Noise { colour, .. }) => {
+                        *colour
+                    }
+                    _ => mat.colour,
+                };
+                let c1 = mat.colour.map(|c| c * light * 255.0);
                 shades.push(Shade {
                     rgb: mat.colour.map(|c| to_u8(c * light)),
                     light,
                     material: m.material,
-                    a: ra,
-                    a0: -ra.dot(&tr),
-                    b: rb,
-                    b0: -rb.dot(&tr),
+                    c1,
+                    dc: [0, 1, 2].map(|i| (second[i] * light * 255.0 - c1[i]) / 255.0),
+                    a: (ra * units).into(),
+                    a0: -ra.dot(&tr) * units,
+                    b: (rb * units).into(),
+                    b0: -rb.dot(&tr) * units,
                     label: m.label,
                 });
             }
         }
         let bg = self.background.map(to_u8);
+        let mut scratch = vec![0u32; w];
         for r in 0..h {
+            let row = r * w;
             let ry = (r as f32 - k.cy) / k.fy;
-            for c in 0..w {
-                let px = r * w + c;
-                let id = out.ids[px];
-                let Some(sh) = shades.get(id as usize) else {
-                    out.depth[px] = 0.0;
-                    out.labels[px] = 0;
-                    out.rgb[3 * px..3 * px + 3].copy_from_slice(&bg);
-                    continue;
-                };
-                out.labels[px] = sh.label;
-                let mat = &self.materials[sh.material as usize];
-                let rgb = match &mat.texture {
-                    None => sh.rgb,
-                    Some(t) => {
-                        let z = out.depth[px];
-                        let p = Vector3::new((c as f32 - k.cx) / k.fx * z, ry * z, z);
-                        let (u, v) = (sh.a.dot(&p) + sh.a0, sh.b.dot(&p) + sh.b0);
-                        texture_colour(t, mat.colour, u, v).map(|x| to_u8(x * sh.light))
+            let ids = &out.ids[row..row + w];
+            let mut x = 0;
+            while x < w {
+                // One run of pixels showing the same triangle is shaded at a time.
+                let id = ids[x];
+                let end = ids[x..].iter().position(|&i| i != id).map_or(w, |n| x + n);
+                let span = row + x..row + end;
+                let depth = &mut out.depth[span.clone()];
+                let labels = &mut out.labels[span.clone()];
+                let rgb = &mut out.rgb[3 * span.start..3 * span.end];
+                match shades.get(id as usize) {
+                    None => {
+                        depth.fill(0.0);
+                        labels.fill(0);
+                        for p in rgb.chunks_exact_mut(3) {
+                            p.copy_from_slice(&bg);
+                        }
                     }
-                };
-                out.rgb[3 * px..3 * px + 3].copy_from_slice(&rgb);
+                    Some(sh) => {
+                        labels.fill(sh.label);
+                        // The buffer held 1/z while rasterising.
+                        for d in depth.iter_mut() {
+                            *d = 1.0 / *d;
+                        }
+                        let scratch = &mut scratch[..end - x];
+                        self.shade_run(sh, &k, x, ry, depth, rgb, scratch);
+                    }
+                }
+                x = end;
             }
         }
     }
+
+    /// Colour one run of pixels of one triangle, starting at column `x0` of the row at
+    /// normalised height `ry`, from their depths.
+    #[allow(clippy::too_many_arguments)]
+    fn shade_run(
+        &self,
+        sh: &Shade,
+        k: &Intr,
+        x0: usize,
+        ry: f32,
+        depth: &[f32],
+        rgb: &mut [u8],
+        scratch: &mut [u32],
+    ) {
+        let mat = &self.materials[sh.material as usize];
+        let Some(tex) = &mat.texture else {
+            for p in rgb.chunks_exact_mut(3) {
+                p.copy_from_slice(&sh.rgb);
+            }
+            return;
+        };
+        // Texture coordinates are affine in the camera-frame point p = z (rx, ry, 1) with
+        // rx = (x - cx) / fx: u = z (ua x + ub) + a0, v likewise.
+        let coeffs = |a: &[f32; 3]| (a[0] / k.fx, a[1] * ry + a[2] - a[0] * k.cx / k.fx);
+        let ((ua, ub), (va, vb)) = (coeffs(&sh.a), coeffs(&sh.b));
+        let uv = |i: usize, z: f32| {
+            let x = (x0 + i) as f32;
+            (z * (ua * x + ub) + sh.a0, z * (va * x + vb) + sh.b0)
+        };
+        match tex {
+            Texture::Noise { .. } => {
+                let t = noise_table();
+                // Colour in 1/256 steps: c1 + dc n for the table's value n, from end colours
+                // within 0-255 (and dc rounded towards zero), so that it needs no clamp.
+                let c2 = [0, 1, 2].map(|c| (sh.c1[c] + 255.0 * sh.dc[c]).clamp(0.0, 255.0));
+                let c1 = sh.c1.map(|c| c.clamp(0.0, 255.0));
+                let dc = [0, 1, 2].map(|c| ((c2[c] - c1[c]) * 256.0 / 255.0) as i32);
+                let c1 = c1.map(|c| (c * 256.0) as i32 + 128);
+                // First the table's indices (a loop that vectorises), then the look-ups.
+                let mask = NOISE_SIZE as u32 - 1;
+                for (i, (ix, &z)) in scratch.iter_mut().zip(depth).enumerate() {
+                    let (u, v) = uv(i, z);
+                    *ix = (floor_bits(v) & mask) * NOISE_SIZE as u32 + (floor_bits(u) & mask);
+                }
+                for (p, &ix) in rgb.chunks_exact_mut(3).zip(scratch.iter()) {
+                    let n = i32::from(t[ix as usize]);
+                    for c in 0..3 {
+                        p[c] = ((c1[c] + dc[c] * n) >> 8) as u8;
+                    }
+                }
+            }
+            Texture::Checker { .. } => {
+                let (c1, c2) = (sh.c1.map(to_u8_255), (sh.c1, sh.dc));
+                let c2 = [0, 1, 2].map(|c| to_u8_255(c2.0[c] + c2.1[c] * 255.0));
+                for (i, (p, &z)) in rgb.chunks_exact_mut(3).zip(depth).enumerate() {
+                    let (u, v) = uv(i, z);
+                    let odd = floor_bits(u).wrapping_add(floor_bits(v)) & 1 != 0;
+                    p.copy_from_slice(if odd { &c2 } else { &c1 });
+                }
+            }
+            _ => {
+                for (i, (p, &z)) in rgb.chunks_exact_mut(3).zip(depth).enumerate() {
+                    let (u, v) = uv(i, z);
+                    let c = texture_colour(tex, mat.colour, u, v);
+                    for ch in 0..3 {
+                        p[ch] = to_u8(c[ch] * sh.light);
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// floor(x) in the low bits (two's complement) for |x| < 2^21: x - 1/2 rounded to an integer
+/// by adding 1.5 * 2^23, which leaves no fraction bits (ties, at integers, may go either way).
+fn floor_bits(x: f32) -> u32 {
+    const MAGIC: f32 = 12_582_912.0;
+    (x - 0.5 + MAGIC).to_bits()
+}
+
+/// A colour channel 0-255 as 8 bits.
+fn to_u8_255(x: f32) -> u8 {
+    (x.clamp(0.0, 255.0) + 0.5) as u8
 }
 
 /// A colour channel 0-1 as 8 bits.
@@ -357,10 +491,15 @@ struct Shade {
     /// Light factor.
     light: f32,
     material: u32,
-    /// Texture coordinates: u = a . p + a0, v = b . p + b0 for a camera-frame point p.
-    a: Vector3<f32>,
+    /// The lit colour, 0-255 per channel, and the step towards the texture's second colour
+    /// per step of the noise table ((second - first) / 255).
+    c1: [f32; 3],
+    dc: [f32; 3],
+    /// Texture coordinates in the texture's units (see [`texture_units`]): u = a . p + a0,
+    /// v = b . p + b0 for a camera-frame point p.
+    a: [f32; 3],
     a0: f32,
-    b: Vector3<f32>,
+    b: [f32; 3],
     b0: f32,
     label: u32,
 }
@@ -380,13 +519,13 @@ struct Intr {
 fn raster_clipped(
     k: &Intr,
     v: &[Vector3<f32>; 3],
-    depth: &mut [f32],
+    inv_depth: &mut [f32],
     ids: &mut [u32],
     id: u32,
 ) -> bool {
     let inside = v.map(|p| p.z >= NEAR);
     if inside.iter().all(|&i| i) {
-        return raster(k, v, depth, ids, id);
+        return raster(k, v, inv_depth, ids, id);
     }
     if !inside.iter().any(|&i| i) {
         return false;
@@ -409,17 +548,24 @@ fn raster_clipped(
             n += 1;
         }
     }
-    let first = raster(k, &[poly[0], poly[1], poly[2]], depth, ids, id);
-    let second = n == 4 && raster(k, &[poly[0], poly[2], poly[3]], depth, ids, id);
+    let first = raster(k, &[poly[0], poly[1], poly[2]], inv_depth, ids, id);
+    let second = n == 4 && raster(k, &[poly[0], poly[2], poly[3]], inv_depth, ids, id);
     first || second
 }
 
 /// Rasterise a triangle in front of the near plane: every pixel centre inside it (top-left
-/// fill rule) nearer than the depth buffer gets its depth and `id`; true if any did.
+/// fill rule) nearer than the buffer of 1/z gets its 1/z and `id`; true if any did.
 ///
-/// Edge functions and 1/z are affine in the pixel coordinates, so they are stepped by
-/// additions along each row.
-fn raster(k: &Intr, v: &[Vector3<f32>; 3], depth: &mut [f32], ids: &mut [u32], id: u32) -> bool {
+/// Edge functions and 1/z are affine in the pixel coordinates. Each row's span is solved from
+/// the edge functions; an edge shared by two triangles gets the same (negated) coefficients
+/// in both, so the fill rule leaves no crack and no overlap along it.
+fn raster(
+    k: &Intr,
+    v: &[Vector3<f32>; 3],
+    inv_depth: &mut [f32],
+    ids: &mut [u32],
+    id: u32,
+) -> bool {
     let s = v.map(|p| {
         let iz = 1.0 / p.z;
         (k.fx * p.x * iz + k.cx, k.fy * p.y * iz + k.cy, iz)
@@ -433,7 +579,6 @@ fn raster(k: &Intr, v: &[Vector3<f32>; 3], depth: &mut [f32], ids: &mut [u32], i
     } else {
         (s[0], s[2], s[1])
     };
-    let area = area.abs();
     let xmin = a.0.min(b.0).min(c.0).ceil().max(0.0);
     let xmax = a.0.max(b.0).max(c.0).floor().min(k.w as f32 - 1.0);
     let ymin = a.1.min(b.1).min(c.1).ceil().max(0.0);
@@ -441,16 +586,23 @@ fn raster(k: &Intr, v: &[Vector3<f32>; 3], depth: &mut [f32], ids: &mut [u32], i
     if xmin > xmax || ymin > ymax {
         return false;
     }
-    // Edge i from q0 to q1: e(x, y) = dx (y - y0) - dy (x - x0) = ex x + ey y + e0, positive
-    // inside; on an edge a pixel belongs to the triangle only for top or left edges.
+    // Edge from q0 to q1: e(x, y) = dx (y - y0) - dy (x - x0) = ex x + ey y + e0, positive
+    // inside; on an edge a pixel belongs to the triangle only for top or left edges. The
+    // coefficients are computed from the edge's lower endpoint (in (y, x) order), so the two
+    // triangles sharing an edge get exactly opposite ones.
     let edge = |q0: (f32, f32, f32), q1: (f32, f32, f32)| {
         let (dx, dy) = (q1.0 - q0.0, q1.1 - q0.1);
         let top_left = (dy == 0.0 && dx < 0.0) || dy > 0.0;
-        (-dy, dx, dy * q0.0 - dx * q0.1, top_left)
+        let e0 = if (q0.1, q0.0) <= (q1.1, q1.0) {
+            dy * q0.0 - dx * q0.1
+        } else {
+            -((-dy) * q1.0 - (-dx) * q1.1)
+        };
+        (-dy, dx, e0, top_left)
     };
     let es = [edge(b, c), edge(c, a), edge(a, b)];
     // 1/z = (e_bc a.iz + e_ca b.iz + e_ab c.iz) / area, affine too.
-    let inv = 1.0 / area;
+    let inv = 1.0 / area.abs();
     let zx = (es[0].0 * a.2 + es[1].0 * b.2 + es[2].0 * c.2) * inv;
     let zy = (es[0].1 * a.2 + es[1].1 * b.2 + es[2].1 * c.2) * inv;
     let z0 = (es[0].2 * a.2 + es[1].2 * b.2 + es[2].2 * c.2) * inv;
@@ -464,12 +616,12 @@ fn raster(k: &Intr, v: &[Vector3<f32>; 3], depth: &mut [f32], ids: &mut [u32], i
             let c = ey * fy + e0;
             if ex > 0.0 {
                 let t = -c / ex;
-                let xs = if tl { t.ceil() } else { t.floor() + 1.0 };
-                lo = lo.max(xs as i64);
+                let xs = if tl { ceil_i64(t) } else { floor_i64(t) + 1 };
+                lo = lo.max(xs);
             } else if ex < 0.0 {
                 let t = -c / ex;
-                let xe = if tl { t.floor() } else { t.ceil() - 1.0 };
-                hi = hi.min(xe as i64);
+                let xe = if tl { floor_i64(t) } else { ceil_i64(t) - 1 };
+                hi = hi.min(xe);
             } else if c < 0.0 || (c == 0.0 && !tl) {
                 hi = lo - 1;
             }
@@ -477,22 +629,37 @@ fn raster(k: &Intr, v: &[Vector3<f32>; 3], depth: &mut [f32], ids: &mut [u32], i
         if lo > hi {
             continue;
         }
+        let (lo, hi) = (lo as usize, hi as usize);
         let row = y * k.w;
-        let mut iz = zx * lo as f32 + zy * fy + z0;
-        for x in lo as usize..=hi as usize {
-            if iz > 0.0 {
-                let z = 1.0 / iz;
-                let i = row + x;
-                if z < depth[i] {
-                    depth[i] = z;
-                    ids[i] = id;
-                    any = true;
-                }
-            }
-            iz += zx;
+        let iz0 = zx * lo as f32 + zy * fy + z0;
+        let zs = &mut inv_depth[row + lo..=row + hi];
+        let is = &mut ids[row + lo..=row + hi];
+        let mut wrote = 0u32;
+        // Branch-free, so that it vectorises: 1/z at the span's i-th pixel from its start; the
+        // id and 1/z go in through a mask (a select would be turned back into a branch).
+        for (i, (zb, ib)) in zs.iter_mut().zip(is.iter_mut()).enumerate() {
+            let iz = iz0 + zx * i as f32;
+            let mask = 0u32.wrapping_sub(u32::from(iz > *zb));
+            *zb = f32::from_bits(zb.to_bits() ^ ((zb.to_bits() ^ iz.to_bits()) & mask));
+            *ib ^= (*ib ^ id) & mask;
+            wrote |= mask;
         }
+        let wrote = wrote != 0;
+        any |= wrote;
     }
     any
+}
+
+/// floor(t) without a libm call (saturating beyond the i64 range, 0 for NaN).
+fn floor_i64(t: f32) -> i64 {
+    let i = t as i64;
+    i - i64::from((i as f32) > t)
+}
+
+/// ceil(t) without a libm call (saturating beyond the i64 range, 0 for NaN).
+fn ceil_i64(t: f32) -> i64 {
+    let i = t as i64;
+    i + i64::from((i as f32) < t)
 }
 
 /// A cheap integer hash to [0, 1).
@@ -561,46 +728,52 @@ fn fract(x: f32) -> f32 {
     x - floor_i(x) as f32
 }
 
-/// A texture's colour at planar coordinates (u, v) of the body's frame (m): the two axes
-/// across the dominant axis of the surface's normal.
+/// Texture coordinates per metre on the surface: one unit is a checker square, a tile, an
+/// image's width or a texel of the noise table.
+fn texture_units(t: &Texture) -> f32 {
+    match t {
+        Texture::Checker { scale, .. }
+        | Texture::Tiles { scale, .. }
+        | Texture::Image { scale, .. } => 1.0 / *scale as f32,
+        Texture::Noise { scale, .. } => NOISE_TEXELS as f32 / *scale as f32,
+    }
+}
+
+/// A texture's colour at planar coordinates (u, v) of the body's frame in the texture's
+/// units ([`texture_units`]): the two axes across the dominant axis of the surface's normal.
 fn texture_colour(t: &Texture, colour: [f32; 3], u: f32, v: f32) -> [f32; 3] {
     match t {
-        Texture::Checker { scale, colour: c2 } => {
-            let s = *scale as f32;
-            let parity = (floor_i(u / s).wrapping_add(floor_i(v / s))) & 1;
+        Texture::Checker { colour: c2, .. } => {
+            let parity = (floor_i(u).wrapping_add(floor_i(v))) & 1;
             if parity == 0 {
                 colour
             } else {
                 *c2
             }
         }
-        Texture::Noise { scale, colour: c2 } => {
-            let s = *scale as f32;
+        Texture::Noise { colour: c2, .. } => {
             let t = noise_table();
-            let x = (floor_i(u / s * NOISE_TEXELS as f32) as usize) & (NOISE_SIZE - 1);
-            let y = (floor_i(v / s * NOISE_TEXELS as f32) as usize) & (NOISE_SIZE - 1);
+            let x = (floor_i(u) as usize) & (NOISE_SIZE - 1);
+            let y = (floor_i(v) as usize) & (NOISE_SIZE - 1);
             mix(colour, *c2, f32::from(t[y * NOISE_SIZE + x]) / 255.0)
         }
-        Texture::Tiles { scale, colour: c2 } => {
-            let s = *scale as f32;
-            let (fu, fv) = (fract(u / s), fract(v / s));
+        Texture::Tiles { colour: c2, .. } => {
+            let (fu, fv) = (fract(u), fract(v));
             if fu < 0.04 || fv < 0.04 {
                 *c2
             } else {
                 // Each tile a slightly different shade, so tiles are told apart.
-                let shade = 0.9 + 0.2 * hash2(floor_i(u / s), floor_i(v / s));
+                let shade = 0.9 + 0.2 * hash2(floor_i(u), floor_i(v));
                 colour.map(|c| c * shade)
             }
         }
         Texture::Image {
-            scale,
             width,
             height,
             pixels,
             ..
         } => {
-            let s = *scale as f32;
-            let (fu, fv) = (fract(u / s), fract(v / s));
+            let (fu, fv) = (fract(u), fract(v));
             let x = ((fu * *width as f32) as usize).min(*width as usize - 1);
             let y = (((1.0 - fv) * *height as f32) as usize).min(*height as usize - 1);
             let p = pixels[y * *width as usize + x];

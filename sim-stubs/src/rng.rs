@@ -1,6 +1,6 @@
 //! Seeded randomness for the plants: every run with the same seed is bit-identical.
 
-use rand::{Rng, SeedableRng};
+use rand::{Rng, RngCore, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 /// A seeded generator with the few distributions the plants need.
@@ -16,6 +16,11 @@ impl SimRng {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         rng.set_stream(stream);
         SimRng { rng, spare: None }
+    }
+
+    /// 64 uniform random bits.
+    pub fn next_u64(&mut self) -> u64 {
+        self.rng.next_u64()
     }
 
     /// Uniform in [0, 1).
