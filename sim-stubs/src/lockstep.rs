@@ -12,7 +12,7 @@ use std::sync::Arc;
 use nalgebra::Isometry3;
 
 use crate::body::RobotBody;
-use crate::scene::Scene;
+use crate::scene::{Scene, SceneError};
 use ferrobot_firmware::time::Instant;
 use ferrobot_firmware::{config, Firmware, Link};
 use ferrobot_protocol::session::{Answer, HostSession, Request, SessionError};
@@ -81,7 +81,8 @@ pub struct Truth {
     pub joints: Vec<f64>,
     /// Pose of every URDF link in the world ([`ferrobot_kinematics::LinkTree::links`] order).
     pub links: Vec<Isometry3<f64>>,
-    /// Pose of every scene body in the world ([`Scene::bodies`] order).
+    /// Pose of every scene body in the world now ([`Scene::bodies`] order): the physics
+    /// world's live poses.
     pub bodies: Vec<Isometry3<f64>>,
 }
 
@@ -97,21 +98,33 @@ impl LockstepSim {
 
     /// A simulator for an explicit description and firmware profile.
     pub fn with(desc: robots::SimRobot, profile: config::RobotProfile, seed: u64) -> Self {
-        Self::with_scene(desc, profile, seed, Arc::new(Scene::empty()))
+        Self::assemble(
+            Hardware::new(&desc, seed),
+            desc,
+            profile,
+            Arc::new(Scene::empty()),
+        )
     }
 
     /// A simulator for an explicit description and firmware profile in `scene`, the robot at
-    /// the scene's start pose.
+    /// the scene's start pose, the scene's bodies in the physics world ([`crate::world`]).
+    /// Fails with [`SceneError::Overlap`] when a scene body overlaps the robot at the start.
     pub fn with_scene(
         desc: robots::SimRobot,
         profile: config::RobotProfile,
         seed: u64,
         scene: Arc<Scene>,
+    ) -> Result<Self, SceneError> {
+        let hw = Hardware::in_scene(&desc, seed, &scene)?;
+        Ok(Self::assemble(hw, desc, profile, scene))
+    }
+
+    fn assemble(
+        hw: Hardware,
+        desc: robots::SimRobot,
+        profile: config::RobotProfile,
+        scene: Arc<Scene>,
     ) -> Self {
-        let mut hw = Hardware::new(&desc, seed);
-        if let Some(b) = hw.base.as_mut() {
-            b.drive.truth = scene.robot_pose;
-        }
         Self {
             now: 0,
             fw: Firmware::new(profile, "sim", Instant::ZERO),
@@ -137,7 +150,7 @@ impl LockstepSim {
     /// The world's ground truth now: the robot's root, joints and links, and the scene's
     /// bodies.
     pub fn truth(&self) -> Truth {
-        let base = self.hw.base_truth().unwrap_or(self.scene.robot_pose);
+        let base = self.hw.robot_pose();
         let root = RobotBody::root_pose(base, self.scene.robot_height);
         let theta: Vec<f64> = self.hw.chain.servos.iter().map(|s| s.theta).collect();
         let (joints, links) = match &self.body {
@@ -153,7 +166,10 @@ impl LockstepSim {
             root,
             joints,
             links,
-            bodies: self.scene.bodies.iter().map(|b| b.pose).collect(),
+            bodies: self
+                .hw
+                .body_poses()
+                .unwrap_or_else(|| self.scene.bodies.iter().map(|b| b.pose).collect()),
         }
     }
 
