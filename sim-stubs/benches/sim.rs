@@ -8,6 +8,9 @@
 //!   cost from above). Plant physics excluded.
 //! * `lockstep 1 s`: one simulated second of the LoCoBot with the arm and the base moving, 1 kHz
 //!   servo loop, everything (firmware, servo physics at 4 kHz, base physics at 1 kHz, wires).
+//! * `physics step`: one 1 ms step of the physics world (rapier3d) with the LoCoBot's links in
+//!   the tabletop and apartment scenes: idle (the objects asleep, the links still), and with
+//!   the base turning in place at 1 rad/s (every link moving each step).
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use ferrobot_firmware::time;
@@ -84,6 +87,33 @@ fn bench(c: &mut Criterion) {
             })
         },
     );
+    group.finish();
+    let mut group = c.benchmark_group("physics step");
+    for scene in ["tabletop", "apartment"] {
+        for turning in [false, true] {
+            let desc = ferrobot_sim::robots::by_name("locobot").expect("robot");
+            let sc = ferrobot_sim::scene::Scene::bundled(scene).expect("scene");
+            let mut chain = ferrobot_sim::chain::ServoChain::new(&desc.servos, &desc.arm, 1);
+            let theta: Vec<f64> = chain.servos.iter().map(|s| s.theta).collect();
+            let mut w =
+                ferrobot_sim::world::World::new(&sc, desc.body.as_ref(), sc.robot_pose, &theta)
+                    .expect("world");
+            let mut pose = sc.robot_pose;
+            // Let the objects come to rest.
+            for _ in 0..2000 {
+                w.step(pose, &mut chain);
+            }
+            let what = if turning { "base turning" } else { "idle" };
+            group.bench_function(format!("{scene}, LoCoBot {what}"), |b| {
+                b.iter(|| {
+                    if turning {
+                        pose[2] += 0.001;
+                    }
+                    w.step(black_box(pose), &mut chain);
+                })
+            });
+        }
+    }
     group.finish();
     // The real-time factor, measured the same way, printed for BENCHMARKS.md.
     let mut s = locobot_busy(5).expect("sim");

@@ -432,3 +432,72 @@ colour = [1, 1, 1]
         assert!(p.translation.vector.iter().all(|v| v.is_finite()), "{p}");
     }
 }
+
+#[test]
+fn the_kobuki_bumps_into_a_movable_box_and_pushes_it_until_it_stops() {
+    // A 1 kg box (friction 0.6) whose near face is at x = 0.45 m, 8 cm tall: below the
+    // LoCoBot's plates (10 cm up, 25 cm ahead of the centre), which would meet a taller one
+    // before the bumper does.
+    let text = r#"
+name = "box"
+[floor]
+size = [4.0, 4.0]
+[[object]]
+id = "box"
+shape = "box"
+size = [0.3, 0.3, 0.08]
+position = [0.6, 0.0, 0.04]
+mass = 1.0
+colour = [0.6, 0.5, 0.3]
+"#;
+    let mut s = session("locobot", parse(text), 4);
+    let b0 = body(&s, "box");
+    s.command(&HostMsg::BaseVelocity {
+        v: 0.2,
+        w: 0.0,
+        duration_ms: 10_000,
+    })
+    .expect("accepted");
+    let t = s
+        .wait_telemetry(5_000_000, |t| t.base_flags & base_flags::ANY_BUMPER != 0)
+        .expect("bumper seen");
+    assert!(t.base_flags & base_flags::BUMPER_CENTER != 0);
+    s.run_for(1_000_000);
+    let pushed = body(&s, "box") - b0;
+    let x = s.sim.base_truth().unwrap()[0];
+    println!("box pushed {pushed:?}, base at x = {x} m");
+    assert!(s.take_faults().iter().any(|f| f.kind == FaultKind::Bumper));
+    assert_eq!(s.sim.hw.wheel_command(), (0.0, 0.0));
+    // The base pushed the box while the firmware stopped it: forward by a few millimetres,
+    // straight, and the box stays in front of the bumper (not entered by more than 1 mm).
+    assert!(
+        pushed.x > 0.0005 && pushed.x < 0.03,
+        "box pushed {pushed:?}"
+    );
+    assert!(pushed.y.abs() < 0.001, "box pushed {pushed:?}");
+    assert!(
+        x + 0.177 < 0.45 + pushed.x + 0.001,
+        "base at {x}, box pushed {pushed:?}"
+    );
+}
+
+#[test]
+fn every_bundled_scene_fits_its_robots() {
+    for (robot, scene) in [
+        ("locobot", "tabletop"),
+        ("locobot", "apartment"),
+        ("locobot_lite", "tabletop"),
+        ("locobot_lite", "apartment"),
+        ("sawyer", "shelf"),
+    ] {
+        let mut s = sim(robot, Scene::bundled(scene).unwrap(), 1)
+            .unwrap_or_else(|e| panic!("{robot} in {scene}: {e}"));
+        let before = s.truth().bodies;
+        s.run_for(300_000);
+        // Nothing is thrown about at the start (the objects rest where the scene puts them).
+        for ((b, p0), p1) in s.scene().bodies.iter().zip(&before).zip(&s.truth().bodies) {
+            let d = (p1.translation.vector - p0.translation.vector).norm();
+            assert!(d < 0.002, "{robot} in {scene}: {} moved {d} m", b.id);
+        }
+    }
+}
