@@ -60,9 +60,11 @@ pub const TOUCH: f64 = 0.0005;
 pub const RELEASE: f64 = 0.02;
 /// A scene body reaching this far into a robot link at the start is an overlap, m.
 pub const OVERLAP: f64 = 0.001;
-/// Length scale of the world, m: rapier's tolerances (allowed penetration 0.25 mm, contact
-/// prediction 1 mm) are fractions of it; the graspable objects are 2-8 cm.
-pub const LENGTH_UNIT: f32 = 0.05;
+/// Length scale of the world, m: rapier's tolerances (allowed penetration 0.1 mm, contact
+/// prediction 0.4 mm, sleep thresholds) are fractions of it. The graspable objects are 2-8 cm;
+/// at 0.05 m and above a mug's convex hull (a many-sided base) rocks and walks on the table
+/// (2 mm/s at 0.05, 10 mm/s at 1), at 0.02 m everything in the bundled scenes comes to rest.
+pub const LENGTH_UNIT: f32 = 0.02;
 /// Lowest and highest point of the bases' bumper ring above the floor, m.
 pub const BUMPER_BAND: (f64, f64) = (0.015, 0.105);
 /// Standard gravity, m/s².
@@ -262,6 +264,14 @@ impl World {
         // queries see the scene.
         w.pw.detect_collisions(&(), &());
         w.check_overlap(scene)?;
+        // Every movable body starts awake (rapier may sleep it once it rests).
+        for h in &w.bodies {
+            if let Some(b) = w.pw.bodies.get_mut(*h) {
+                if b.is_dynamic() {
+                    b.wake_up(true);
+                }
+            }
+        }
         Ok(w)
     }
 
