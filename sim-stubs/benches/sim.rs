@@ -8,6 +8,8 @@
 //!   cost from above). Plant physics excluded.
 //! * `lockstep 1 s`: one simulated second of the LoCoBot with the arm and the base moving, 1 kHz
 //!   servo loop, everything (firmware, servo physics at 4 kHz, base physics at 1 kHz, wires).
+//! * `lockstep 1 s in the tabletop`: as `lockstep 1 s`, in the tabletop scene with the physics
+//!   world stepped at 1 kHz, the arm on a slow move and the base still.
 //! * `physics step`: one 1 ms step of the physics world (rapier3d) with the LoCoBot's links in
 //!   the tabletop and apartment scenes: idle (the objects asleep, the links still), and with
 //!   the base turning in place at 1 rad/s (every link moving each step).
@@ -42,6 +44,34 @@ fn recorded_bytes() -> (Vec<u8>, Vec<u8>) {
     base.advance_to(now + 40_000);
     let fb = base.take_output();
     (replies, fb)
+}
+
+/// The LoCoBot in the tabletop scene, configured, its arm on a slow move above the table.
+fn tabletop_busy() -> ferrobot_sim::SimHost {
+    let scene =
+        std::sync::Arc::new(ferrobot_sim::scene::Scene::bundled("tabletop").expect("scene"));
+    let sim = LockstepSim::with_scene(
+        ferrobot_sim::robots::by_name("locobot").expect("robot"),
+        config::locobot(),
+        5,
+        scene,
+    )
+    .expect("fits");
+    let mut s = ferrobot_sim::SimHost::new(sim);
+    s.handshake().expect("hello");
+    s.wait_telemetry(2_000_000, |t| t.faults & fault_flags::CONFIGURING == 0)
+        .expect("configured");
+    let points = [0.6f32, -0.3, 0.3, 0.0, 0.5]
+        .iter()
+        .map(|&p| JointPoint::at_rest(p))
+        .collect();
+    s.command(&HostMsg::Waypoint {
+        joints: 0b1_1111,
+        duration_us: 30_000_000,
+        points,
+    })
+    .expect("waypoint");
+    s
 }
 
 fn bench(c: &mut Criterion) {
@@ -87,6 +117,19 @@ fn bench(c: &mut Criterion) {
             })
         },
     );
+    group.bench_function("1 s simulated in the tabletop (LoCoBot arm moving)", |b| {
+        b.iter_custom(|iters| {
+            let mut total = std::time::Duration::ZERO;
+            for _ in 0..iters {
+                let mut s = tabletop_busy();
+                let t = Instant::now();
+                s.run_for(1_000_000);
+                total += t.elapsed();
+                black_box(&s.telemetry);
+            }
+            total
+        })
+    });
     group.finish();
     let mut group = c.benchmark_group("physics step");
     for scene in ["tabletop", "apartment"] {

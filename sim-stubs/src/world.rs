@@ -146,6 +146,8 @@ pub struct World {
     robot: Option<Robot>,
     /// Physics steps taken.
     steps: u64,
+    /// Steps in which rapier ran (the others found the world at rest).
+    active_steps: u64,
 }
 
 fn collider(b: &Body) -> Option<ColliderBuilder> {
@@ -258,6 +260,7 @@ impl World {
             bodies,
             robot,
             steps: 0,
+            active_steps: 0,
         };
         w.place_robot(base, theta, true);
         // Place the colliders with their bodies and fill the broad phase, so that the first
@@ -276,9 +279,9 @@ impl World {
     }
 
     /// Move the robot's link bodies to the poses of the plants' state (`teleport`: now, else
-    /// at the end of the next step).
-    fn place_robot(&mut self, base: BasePose, theta: &[f64], teleport: bool) {
-        let Some(r) = &self.robot else { return };
+    /// at the end of the next step); whether any link moves.
+    fn place_robot(&mut self, base: BasePose, theta: &[f64], teleport: bool) -> bool {
+        let Some(r) = &self.robot else { return false };
         let mut theta = theta.to_vec();
         if let (Some(g), Some(hand)) = (&r.grasp, r.body.hand()) {
             // The fingers stay at the contact angle while the object is held.
@@ -311,7 +314,7 @@ impl World {
         // rapier does not wake a sleeping body that a kinematic one runs into: a moving link
         // wakes what it touches.
         let mut wake = Vec::new();
-        for c in moving {
+        for &c in &moving {
             for pair in self.pw.narrow_phase.contact_pairs_with(c) {
                 let other = if pair.collider1 == c {
                     pair.collider2
@@ -323,6 +326,7 @@ impl World {
                 }
             }
         }
+        let moved = !moving.is_empty();
         for b in wake {
             if let Some(rb) = self.pw.bodies.get_mut(b) {
                 if rb.is_dynamic() && rb.is_sleeping() {
@@ -330,6 +334,7 @@ impl World {
                 }
             }
         }
+        moved
     }
 
     fn check_overlap(&self, scene: &Scene) -> Result<(), SceneError> {
@@ -396,14 +401,29 @@ impl World {
         self.steps
     }
 
+    /// Steps in which the physics engine ran (the others found the world at rest).
+    pub fn active_steps(&self) -> u64 {
+        self.active_steps
+    }
+
     /// Take the step that ends at [`World::next_step`]: move the robot's links to the plants'
     /// state there (`base`: the base's true pose; the chain: the servos' true angles), step
     /// the physics, and let the gripper grasp or release (which sets or clears the gripper
-    /// servo's obstacle in `chain`).
+    /// servo's obstacle in `chain`). A world at rest (every movable body asleep, no link
+    /// moving) is not stepped: nothing in it would change.
     pub fn step(&mut self, base: BasePose, chain: &mut ServoChain) {
         let theta: Vec<f64> = chain.servos.iter().map(|s| s.theta).collect();
-        self.place_robot(base, &theta, false);
-        self.pw.step();
+        let moved = self.place_robot(base, &theta, false);
+        let bodies = &self.pw.bodies;
+        let awake = self.bodies.iter().any(|h| {
+            bodies
+                .get(*h)
+                .is_some_and(|b| b.is_dynamic() && !b.is_sleeping())
+        });
+        if moved || awake {
+            self.pw.step();
+            self.active_steps += 1;
+        }
         self.time_us += STEP_US;
         self.steps += 1;
         self.grip(&theta, chain);

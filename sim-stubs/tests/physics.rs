@@ -388,6 +388,11 @@ fn hostile_scenes_do_not_panic() {
             "flat.obj" => b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n".to_vec(),
             // Three points on a line: no triangle, no hull.
             "line.obj" => b"v 0 0 0\nv 0.5 0 0\nv 1 0 0\nf 1 2 3\n".to_vec(),
+            // A closed tetrahedron 1 nm thick: a volume, barely; its hull may not exist.
+            "sliver.obj" => {
+                b"v 0 0 0\nv 0.1 0 0\nv 0 0.1 0\nv 0 0 1e-9\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n"
+                    .to_vec()
+            }
             _ => return Err(format!("no {p}")),
         })
     };
@@ -408,6 +413,13 @@ shape = "mesh"
 mesh = "line.obj"
 position = [-1.0, 1.0, 0.5]
 static = true
+colour = [1, 1, 1]
+[[object]]
+id = "sliver"
+shape = "mesh"
+mesh = "sliver.obj"
+position = [0.0, -1.0, 0.5]
+mass = 1.0
 colour = [1, 1, 1]
 [[object]]
 id = "anvil"
