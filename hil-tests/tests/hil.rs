@@ -771,3 +771,104 @@ fn the_emergency_stop_works_in_every_session_state() {
     assert!(refused(&st.ask(&mut hil, &mut raw, &drive())));
     hil.board.server.release();
 }
+
+/// QEMU killed when the test ends, however it ends.
+struct Qemu(std::process::Child);
+
+impl Drop for Qemu {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// The Kobuki driving into a wall (the scene's physics, served by the plants of the board on
+/// the conductor's clock) presses its bumper: the firmware in QEMU reports the bumper fault
+/// and stops the base, which rests against the wall without entering it.
+#[test]
+fn the_base_driving_into_a_wall_raises_the_bumper_fault_and_stops() {
+    let _g = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let elf = ferrobot_hil::firmware_elf().unwrap_or_else(|e| panic!("{e}"));
+    // A wall whose face is at x = 0.55 m, 0.373 m ahead of the Kobuki's bumper.
+    let scene = ferrobot_sim::scene::Scene::parse(
+        "name = \"wall\"\n[floor]\nsize = [4.0, 4.0]\n[[wall]]\nfrom = [0.6, -1.5]\nto = [0.6, 1.5]\n",
+        std::path::Path::new("wall.toml"),
+        &|p, _| Err(format!("no {p}")),
+    )
+    .expect("scene");
+    let server = ferrobot_sim::board::BoardServer::start_in(
+        "locobot",
+        ferrobot_sim::board::BoardOptions {
+            seed: ferrobot_hil::SEED,
+            ..Default::default()
+        },
+        &scene,
+    )
+    .expect("plants");
+    let log = std::env::temp_dir().join(format!("ferrobot-hil-wall-{}.defmt", std::process::id()));
+    let (qemu, _err) =
+        ferrobot::backend::emulated::start_qemu(&elf, &server.board, &log).expect("qemu");
+    let _qemu = Qemu(qemu);
+    server
+        .wait_for_board(Duration::from_secs(20))
+        .expect("the board reports");
+    let mut raw = ferrobot_hil::RawClient::open(&server.host).expect("port");
+    let hello = (0..20).find_map(|_| {
+        raw.send(&HostMsg::Hello {
+            protocol_version: PROTOCOL_VERSION,
+            schema_hash: SCHEMA_HASH,
+        });
+        raw.wait(
+            Duration::from_millis(500),
+            |m| matches!(m, DeviceMsg::Hello(i) if i.accepted),
+        )
+    });
+    assert!(hello.is_some(), "no handshake; {}", server.report());
+    // The servos are configured before the base answers commands.
+    let accepted = (0..40).any(|_| {
+        raw.command(&HostMsg::BaseVelocity {
+            v: 0.2,
+            w: 0.0,
+            duration_ms: 10_000,
+        }) == Some(true)
+            || {
+                std::thread::sleep(Duration::from_millis(250));
+                false
+            }
+    });
+    assert!(accepted, "drive refused; {}", server.report());
+    let t0 = server.now_us();
+    // 0.373 m at 0.2 m/s: about 2 s of simulated time; heartbeats keep the watchdog fed.
+    let mut fault = None;
+    let wall = Instant::now();
+    while fault.is_none() && wall.elapsed() < Duration::from_secs(30) {
+        raw.send(&HostMsg::Heartbeat);
+        fault = raw.wait(
+            Duration::from_millis(100),
+            |m| matches!(m, DeviceMsg::Fault(f) if f.kind == FaultKind::Bumper),
+        );
+        assert!(
+            server.now_us() < t0 + 6_000_000,
+            "no bumper fault in 6 s of simulated time; {}",
+            server.report()
+        );
+    }
+    assert!(fault.is_some(), "no bumper fault; {}", server.report());
+    // Let the stop reach the base (one feedback cycle and the line), then look at the truth.
+    let t1 = server.now_us();
+    while server.now_us() < t1 + 500_000 && wall.elapsed() < Duration::from_secs(40) {
+        raw.send(&HostMsg::Heartbeat);
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let (pose, command, radius) = server.with_hardware(|hw, _| {
+        let b = hw.base.as_ref().expect("base");
+        (b.drive.truth, b.drive.target, b.drive.p.body_radius)
+    });
+    let _ = std::fs::remove_file(&log);
+    println!(
+        "stopped at x = {:.4} m (wall face 0.55 m, radius {radius} m)",
+        pose[0]
+    );
+    assert!((pose[0] + radius - 0.55).abs() < 0.001, "base at {pose:?}");
+    assert_eq!(command, (0.0, 0.0));
+}

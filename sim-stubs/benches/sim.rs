@@ -8,6 +8,11 @@
 //!   cost from above). Plant physics excluded.
 //! * `lockstep 1 s`: one simulated second of the LoCoBot with the arm and the base moving, 1 kHz
 //!   servo loop, everything (firmware, servo physics at 4 kHz, base physics at 1 kHz, wires).
+//! * `lockstep 1 s in the tabletop`: as `lockstep 1 s`, in the tabletop scene with the physics
+//!   world stepped at 1 kHz, the arm on a slow move and the base still.
+//! * `physics step`: one 1 ms step of the physics world (rapier3d) with the LoCoBot's links in
+//!   the tabletop and apartment scenes: idle (the objects asleep, the links still), and with
+//!   the base turning in place at 1 rad/s (every link moving each step).
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use ferrobot_firmware::time;
@@ -39,6 +44,34 @@ fn recorded_bytes() -> (Vec<u8>, Vec<u8>) {
     base.advance_to(now + 40_000);
     let fb = base.take_output();
     (replies, fb)
+}
+
+/// The LoCoBot in the tabletop scene, configured, its arm on a slow move above the table.
+fn tabletop_busy() -> ferrobot_sim::SimHost {
+    let scene =
+        std::sync::Arc::new(ferrobot_sim::scene::Scene::bundled("tabletop").expect("scene"));
+    let sim = LockstepSim::with_scene(
+        ferrobot_sim::robots::by_name("locobot").expect("robot"),
+        config::locobot(),
+        5,
+        scene,
+    )
+    .expect("fits");
+    let mut s = ferrobot_sim::SimHost::new(sim);
+    s.handshake().expect("hello");
+    s.wait_telemetry(2_000_000, |t| t.faults & fault_flags::CONFIGURING == 0)
+        .expect("configured");
+    let points = [0.6f32, -0.3, 0.3, 0.0, 0.5]
+        .iter()
+        .map(|&p| JointPoint::at_rest(p))
+        .collect();
+    s.command(&HostMsg::Waypoint {
+        joints: 0b1_1111,
+        duration_us: 30_000_000,
+        points,
+    })
+    .expect("waypoint");
+    s
 }
 
 fn bench(c: &mut Criterion) {
@@ -84,6 +117,46 @@ fn bench(c: &mut Criterion) {
             })
         },
     );
+    group.bench_function("1 s simulated in the tabletop (LoCoBot arm moving)", |b| {
+        b.iter_custom(|iters| {
+            let mut total = std::time::Duration::ZERO;
+            for _ in 0..iters {
+                let mut s = tabletop_busy();
+                let t = Instant::now();
+                s.run_for(1_000_000);
+                total += t.elapsed();
+                black_box(&s.telemetry);
+            }
+            total
+        })
+    });
+    group.finish();
+    let mut group = c.benchmark_group("physics step");
+    for scene in ["tabletop", "apartment"] {
+        for turning in [false, true] {
+            let desc = ferrobot_sim::robots::by_name("locobot").expect("robot");
+            let sc = ferrobot_sim::scene::Scene::bundled(scene).expect("scene");
+            let mut chain = ferrobot_sim::chain::ServoChain::new(&desc.servos, &desc.arm, 1);
+            let theta: Vec<f64> = chain.servos.iter().map(|s| s.theta).collect();
+            let mut w =
+                ferrobot_sim::world::World::new(&sc, desc.body.as_ref(), sc.robot_pose, &theta)
+                    .expect("world");
+            let mut pose = sc.robot_pose;
+            // Let the objects come to rest.
+            for _ in 0..2000 {
+                w.step(pose, &mut chain);
+            }
+            let what = if turning { "base turning" } else { "idle" };
+            group.bench_function(format!("{scene}, LoCoBot {what}"), |b| {
+                b.iter(|| {
+                    if turning {
+                        pose[2] += 0.001;
+                    }
+                    w.step(black_box(pose), &mut chain);
+                })
+            });
+        }
+    }
     group.finish();
     // The real-time factor, measured the same way, printed for BENCHMARKS.md.
     let mut s = locobot_busy(5).expect("sim");

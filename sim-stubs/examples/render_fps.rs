@@ -53,7 +53,8 @@ fn main() {
             cfg.firmware_profile(),
             1,
             scene.clone(),
-        );
+        )
+        .expect("the robot fits the scene");
         let mut truth = sim.truth();
         let body = desc.body.as_ref().expect("body");
         let ti = body.tree.joint_index("head_tilt_joint").expect("tilt");

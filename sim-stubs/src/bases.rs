@@ -3,7 +3,7 @@
 
 use ferrobot_protocol::{create2, kobuki};
 
-use crate::diff_drive::{DiffDrive, DiffDriveParams};
+use crate::diff_drive::{DiffDrive, DiffDriveParams, Surroundings};
 use crate::rng::SimRng;
 
 /// Physics substep of the bases, µs.
@@ -160,10 +160,16 @@ impl BasePlant {
     /// Advance the physics to `t_us`, emitting feedback packets that fall due (taken with
     /// [`BasePlant::take_output`]).
     pub fn advance_to(&mut self, t_us: u64) {
+        self.advance_among(t_us, None);
+    }
+
+    /// [`BasePlant::advance_to`] with the body among `world`'s colliders (see
+    /// [`DiffDrive::step_among`]).
+    pub fn advance_among(&mut self, t_us: u64, world: Option<&dyn Surroundings>) {
         while self.time_us + BASE_STEP_US <= t_us {
             self.time_us += BASE_STEP_US;
             self.safety_reflexes();
-            self.drive.step(BASE_STEP_US as f64 * 1e-6);
+            self.drive.step_among(BASE_STEP_US as f64 * 1e-6, world);
             if self.time_us >= self.next_feedback {
                 self.next_feedback += self.period_us;
                 self.emit_feedback();

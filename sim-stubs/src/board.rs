@@ -31,6 +31,7 @@ use crate::conductor::{Conductor, LINES};
 use crate::hardware::Hardware;
 use crate::lockstep::SimError;
 use crate::robots;
+use crate::scene::Scene;
 use crate::serve::ServeError;
 
 /// Entries kept per link and direction in the trace.
@@ -246,23 +247,22 @@ pub struct BoardServer {
 impl BoardServer {
     /// Make the ports and start serving the plants of `robot` in an empty world.
     pub fn start(robot: &str, opts: BoardOptions) -> Result<BoardServer, ServeError> {
-        Self::start_in(robot, opts, Arc::new(crate::scene::Scene::empty()))
+        Self::start_in(robot, opts, &Scene::empty())
     }
 
-    /// Make the ports and start serving the plants of `robot` in `scene`, the base at the
-    /// scene's start pose.
+    /// [`BoardServer::start`] in `scene`: the robot at the scene's start pose, the scene's
+    /// bodies in the physics world on the conductor's clock. Fails when a scene body overlaps
+    /// the robot at the start.
     pub fn start_in(
         robot: &str,
         opts: BoardOptions,
-        scene: Arc<crate::scene::Scene>,
+        scene: &Scene,
     ) -> Result<BoardServer, ServeError> {
         let desc = robots::by_name(robot)
             .ok_or_else(|| ServeError::Sim(SimError::UnknownRobot(robot.into())))?;
-        let mut hw = Hardware::new(&desc, opts.seed);
-        if let Some(b) = hw.base.as_mut() {
-            b.drive.truth = scene.robot_pose;
-        }
+        let hw = Hardware::in_scene(&desc, opts.seed, scene).map_err(ServeError::Scene)?;
         let body = desc.body.clone();
+        let scene = Arc::new(scene.clone());
         let has_base = hw.base.is_some();
         let board_host = pty(true)?;
         let servo = pty(true)?;

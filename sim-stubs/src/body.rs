@@ -46,6 +46,23 @@ pub struct RobotBody {
     pub shapes: Vec<Vec<LinkShape>>,
     drives: Vec<Option<Drive>>,
     gripper: Option<GripperSection>,
+    hand: Option<Hand>,
+}
+
+/// The gripper in the body: its servo, its fingers' links and the link they ride on, and the
+/// servo angles of its mechanical stops.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Hand {
+    /// Index of the gripper's servo in the chain.
+    pub servo: usize,
+    /// The fingers' links ([`LinkTree::links`] indices).
+    pub fingers: Vec<usize>,
+    /// The link the fingers ride on (the palm, [`LinkTree::links`] index).
+    pub palm: usize,
+    /// Servo angle at the closed stop, rad.
+    pub closed: f64,
+    /// Servo angle at the open stop, rad.
+    pub open: f64,
 }
 
 /// A servo that drives a joint of the description: its index in the chain, sign and offset.
@@ -141,11 +158,29 @@ impl RobotBody {
                 })
             })
             .collect();
+        let hand = cfg.gripper.as_ref().and_then(|g| {
+            let joint = |name: &str| cfg.urdf.joints.iter().find(|j| j.name == name);
+            let fingers: Vec<usize> = g
+                .fingers
+                .iter()
+                .filter_map(|f| tree.link_index(&joint(&f.joint)?.child.link))
+                .collect();
+            let first = joint(&g.fingers.first()?.joint)?;
+            let tick = |t: i32| f64::from(units::tick_to_rad(t));
+            (fingers.len() == g.fingers.len()).then_some(Hand {
+                servo: gripper_servo?,
+                palm: tree.link_index(&first.parent.link)?,
+                fingers,
+                closed: tick(g.stops[0]),
+                open: tick(g.stops[1]),
+            })
+        });
         Some(Arc::new(RobotBody {
             tree,
             shapes,
             drives,
             gripper: cfg.gripper.clone(),
+            hand,
         }))
     }
 
@@ -171,6 +206,11 @@ impl RobotBody {
                 None => 0.0,
             })
             .collect()
+    }
+
+    /// The gripper's servo, finger links and palm, when the robot has a gripper with fingers.
+    pub fn hand(&self) -> Option<&Hand> {
+        self.hand.as_ref()
     }
 
     /// Pose of the tree's root in the world for a base pose on the floor and a pedestal

@@ -1,7 +1,9 @@
 //! A differential-drive base: wheel actuators with lag, acceleration limit and deadband;
 //! wheels whose true radius and track differ from the nominal ones; seeded wheel slip;
-//! quantised encoders; a world of round obstacles the bumper meets. The ground-truth pose
-//! (the simulator's motion capture) is kept in `f64` beside everything the robot measures.
+//! quantised encoders; round obstacles and the physics world's colliders ([`Surroundings`])
+//! that the bumper meets and the body cannot enter (the wheels stall against them). The
+//! ground-truth pose (the simulator's motion capture) is kept in `f64` beside everything the
+//! robot measures.
 
 use crate::rng::SimRng;
 use ferrobot_protocol::geometry::wrap;
@@ -57,6 +59,44 @@ pub struct Contact {
 
 /// Ground-truth pose, world frame: x, y (m), θ (rad).
 pub type Pose = [f64; 3];
+
+/// The base's body touching something of the world around it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Touch {
+    /// Which thing is touched (stable for the life of the world).
+    pub id: u64,
+    /// Direction from the base's centre to the touching point, world frame (rad, from +x).
+    pub bearing: f64,
+    /// How far the body reaches into it, m (negative: a gap of that size).
+    pub depth: f64,
+    /// Fixed in the world (walls, furniture): the base cannot push it.
+    pub fixed: bool,
+}
+
+/// What the base's body can touch besides its round obstacles: the physics world.
+pub trait Surroundings {
+    /// Everything within `gap` (m) of the base's bumper body, an upright cylinder of
+    /// `radius` (m) centred at `(x, y)` (world frame, m) at bumper height.
+    fn touches(&self, x: f64, y: f64, radius: f64, gap: f64) -> Vec<Touch>;
+}
+
+/// Largest gap at which the bumper reports a touch (its travel), m.
+pub const BUMPER_GAP: f64 = 0.001;
+
+/// The bumper segment a contact at `bearing` (rad, world) presses on a base heading `theta`,
+/// if any (only the front half has a bumper).
+fn press(contact: &mut Contact, bearing: f64, theta: f64) {
+    let b = wrap(bearing - theta);
+    if b.abs() <= std::f64::consts::FRAC_PI_2 {
+        if b > 0.35 {
+            contact.left = true;
+        } else if b < -0.35 {
+            contact.right = true;
+        } else {
+            contact.center = true;
+        }
+    }
+}
 
 /// The base plant.
 #[derive(Debug, Clone)]
@@ -116,9 +156,18 @@ impl DiffDrive {
         )
     }
 
-    /// Advance by `dt` seconds.
+    /// Advance by `dt` seconds (round obstacles only).
     pub fn step(&mut self, dt: f64) {
+        self.step_among(dt, None);
+    }
+
+    /// Advance by `dt` seconds among round obstacles and `world`'s colliders: the bumper
+    /// reports what the body touches; the body does not move deeper into a fixed collider
+    /// (the wheels stall: neither the pose nor the encoders move that step) and pushes movable
+    /// ones (the world moves them).
+    pub fn step_among(&mut self, dt: f64, world: Option<&dyn Surroundings>) {
         let p = self.p;
+        let before = (self.speed, self.ticks);
         let mut next = [0.0; 2];
         let mut accel = [0.0; 2];
         for (k, (v, t)) in [(self.speed.0, self.target.0), (self.speed.1, self.target.1)]
@@ -159,16 +208,7 @@ impl DiffDrive {
             let (ddx, ddy) = (o.x - nx, o.y - ny);
             let dist = (ddx * ddx + ddy * ddy).sqrt();
             if dist < o.r + p.body_radius {
-                let bearing = wrap(ddy.atan2(ddx) - nth);
-                if bearing.abs() <= std::f64::consts::FRAC_PI_2 {
-                    if bearing > 0.35 {
-                        contact.left = true;
-                    } else if bearing < -0.35 {
-                        contact.right = true;
-                    } else {
-                        contact.center = true;
-                    }
-                }
+                press(&mut contact, ddy.atan2(ddx), nth);
                 let (odx, ody) = (o.x - x, o.y - y);
                 let old = (odx * odx + ody * ody).sqrt();
                 if dist < old {
@@ -176,8 +216,30 @@ impl DiffDrive {
                 }
             }
         }
+        let mut stalled = false;
+        if let Some(w) = world {
+            let now = w.touches(nx, ny, p.body_radius, BUMPER_GAP);
+            let mut was: Option<Vec<Touch>> = None;
+            for t in &now {
+                press(&mut contact, t.bearing, nth);
+                // Deeper into something fixed than before the step: the wheels stall.
+                if t.fixed && t.depth > 0.0 && (nx, ny) != (x, y) {
+                    let was = was.get_or_insert_with(|| w.touches(x, y, p.body_radius, 0.0));
+                    let old = was
+                        .iter()
+                        .find(|o| o.id == t.id)
+                        .map_or(f64::NEG_INFINITY, |o| o.depth);
+                    if t.depth > old + 1e-7 {
+                        stalled = true;
+                    }
+                }
+            }
+        }
         self.contact = contact;
-        if blocked {
+        if stalled {
+            (self.speed, self.ticks) = before;
+            self.speed = (0.0, 0.0);
+        } else if blocked {
             self.truth = [x, y, nth];
         } else {
             self.truth = [nx, ny, nth];

@@ -6,6 +6,12 @@
 //! Two callers drive it: [`crate::LockstepSim`] with the firmware core in-process, and the
 //! [`crate::conductor`] with the real firmware in QEMU behind pseudo-terminals. Both see the
 //! same plants on the same wires.
+//!
+//! In a scene with bodies the hardware also owns the physics [`World`], stepped every
+//! [`crate::world::STEP_US`] as one of the plants' events, on the base's 1 ms grid: at each
+//! step the servo chain and the base are advanced to it (the base's bumper and wheels meeting
+//! the world's colliders), then the world moves the robot's links to their state and steps.
+//! Without bodies (the empty scene) there is no world and nothing more to do.
 
 use ferrobot_firmware::Link;
 
@@ -14,6 +20,8 @@ use crate::chain::ServoChain;
 use crate::diff_drive::Pose;
 use crate::pipe::Pipe;
 use crate::robots::{BaseModel, SimRobot};
+use crate::scene::{Scene, SceneError};
+use crate::world::World;
 
 /// Base serial line rate, bit/s.
 pub const BASE_BAUD: u32 = ferrobot_protocol::kobuki::BAUD;
@@ -28,6 +36,9 @@ pub struct Hardware {
     from_servo: Pipe,
     to_base: Pipe,
     from_base: Pipe,
+    world: Option<World>,
+    /// The base's pose when there is no base (a pedestal): x, y (m), heading (rad).
+    fixed_pose: Pose,
 }
 
 impl Hardware {
@@ -54,6 +65,57 @@ impl Hardware {
             from_servo: Pipe::new(desc.bus_baud),
             to_base: Pipe::new(BASE_BAUD),
             from_base: Pipe::new(BASE_BAUD),
+            world: None,
+            fixed_pose: [0.0; 3],
+        }
+    }
+
+    /// The plants of `desc`, seeded by `seed`, in `scene`: the base (or the robot's root) at
+    /// the scene's start pose, and the physics world when the scene has bodies. Fails when a
+    /// scene body overlaps the robot at the start, naming both.
+    pub fn in_scene(desc: &SimRobot, seed: u64, scene: &Scene) -> Result<Self, SceneError> {
+        let mut hw = Self::new(desc, seed);
+        hw.fixed_pose = scene.robot_pose;
+        if let Some(b) = hw.base.as_mut() {
+            b.drive.truth = scene.robot_pose;
+        }
+        if !scene.bodies.is_empty() {
+            let theta: Vec<f64> = hw.chain.servos.iter().map(|s| s.theta).collect();
+            hw.world = Some(World::new(
+                scene,
+                desc.body.as_ref(),
+                scene.robot_pose,
+                &theta,
+            )?);
+        }
+        Ok(hw)
+    }
+
+    /// The physics world, if the scene has bodies.
+    pub fn world(&self) -> Option<&World> {
+        self.world.as_ref()
+    }
+
+    /// Pose of every scene body now ([`Scene::bodies`] order): the world's, or `None` without
+    /// one.
+    pub fn body_poses(&self) -> Option<Vec<nalgebra::Isometry3<f64>>> {
+        self.world.as_ref().map(World::body_poses)
+    }
+
+    /// Step the world (with the chain and the base advanced in step with it) through `now`.
+    fn run_world(&mut self, now: u64) {
+        let Some(w) = self.world.as_mut() else { return };
+        while w.next_step() <= now {
+            let t = w.next_step();
+            self.chain.advance_to(t);
+            let pose = match self.base.as_mut() {
+                Some(b) => {
+                    b.advance_among(t, Some(&*w));
+                    b.drive.truth
+                }
+                None => self.fixed_pose,
+            };
+            w.step(pose, &mut self.chain);
         }
     }
 
@@ -92,6 +154,7 @@ impl Hardware {
     /// the base's physics and feedback. Call at every event time in order (see
     /// [`Hardware::next_event`]).
     pub fn step(&mut self, now: u64) {
+        self.run_world(now);
         if let Some(b) = self.to_servo.take_arrived(now) {
             for r in self.chain.on_bytes(now, &b) {
                 self.from_servo.send(now + r.delay_us, r.bytes);
@@ -126,6 +189,7 @@ impl Hardware {
             self.to_base.next_arrival(),
             self.from_base.next_arrival(),
             self.base.as_ref().map(|b| b.next_event()),
+            self.world.as_ref().map(World::next_step),
         ]
         .into_iter()
         .flatten()
@@ -145,5 +209,11 @@ impl Hardware {
     /// Ground-truth pose of the base (world frame), if there is a base.
     pub fn base_truth(&self) -> Option<Pose> {
         self.base.as_ref().map(|b| b.drive.truth)
+    }
+
+    /// Pose of the robot on the floor: the base's ground truth, or the scene's start pose for
+    /// a robot without a base.
+    pub fn robot_pose(&self) -> Pose {
+        self.base_truth().unwrap_or(self.fixed_pose)
     }
 }

@@ -10,6 +10,8 @@
 //!   actuator lag, acceleration limits, seeded slip, encoder quantisation and ground truth;
 //! * [`lockstep`]: the firmware core and the plants on one virtual clock, with a frame-level
 //!   host session;
+//! * [`world`]: the scene's rigid bodies and the robot's links in rapier3d, in lockstep with
+//!   the plants (contacts drive the bumpers and the gripper's load);
 //! * [`serve`]: the plants on pseudo-terminals in real time (`ferrobot-sim serve`).
 //!
 //! Every plant is deterministic for a seed.
@@ -36,5 +38,6 @@ pub mod robots;
 pub mod scene;
 pub mod serve;
 pub mod servo;
+pub mod world;
 
 pub use lockstep::{LockstepSim, SimError, SimHost};

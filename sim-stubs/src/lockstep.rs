@@ -12,7 +12,7 @@ use std::sync::Arc;
 use nalgebra::Isometry3;
 
 use crate::body::RobotBody;
-use crate::scene::Scene;
+use crate::scene::{Scene, SceneError};
 use ferrobot_firmware::time::Instant;
 use ferrobot_firmware::{config, Firmware, Link};
 use ferrobot_protocol::session::{Answer, HostSession, Request, SessionError};
@@ -81,7 +81,8 @@ pub struct Truth {
     pub joints: Vec<f64>,
     /// Pose of every URDF link in the world ([`ferrobot_kinematics::LinkTree::links`] order).
     pub links: Vec<Isometry3<f64>>,
-    /// Pose of every scene body in the world ([`Scene::bodies`] order).
+    /// Pose of every scene body in the world now ([`Scene::bodies`] order): the physics
+    /// world's live poses.
     pub bodies: Vec<Isometry3<f64>>,
 }
 
@@ -89,7 +90,7 @@ pub struct Truth {
 /// root from the base's true pose (or the scene's start pose without a base), the joints from
 /// the servos' true angles.
 pub fn truth_of(hw: &Hardware, now_us: u64, scene: &Scene, body: Option<&RobotBody>) -> Truth {
-    let base = hw.base_truth().unwrap_or(scene.robot_pose);
+    let base = hw.robot_pose();
     let root = RobotBody::root_pose(base, scene.robot_height);
     let theta: Vec<f64> = hw.chain.servos.iter().map(|s| s.theta).collect();
     let (joints, links) = match body {
@@ -105,7 +106,9 @@ pub fn truth_of(hw: &Hardware, now_us: u64, scene: &Scene, body: Option<&RobotBo
         root,
         joints,
         links,
-        bodies: scene.bodies.iter().map(|b| b.pose).collect(),
+        bodies: hw
+            .body_poses()
+            .unwrap_or_else(|| scene.bodies.iter().map(|b| b.pose).collect()),
     }
 }
 
@@ -121,21 +124,33 @@ impl LockstepSim {
 
     /// A simulator for an explicit description and firmware profile.
     pub fn with(desc: robots::SimRobot, profile: config::RobotProfile, seed: u64) -> Self {
-        Self::with_scene(desc, profile, seed, Arc::new(Scene::empty()))
+        Self::assemble(
+            Hardware::new(&desc, seed),
+            desc,
+            profile,
+            Arc::new(Scene::empty()),
+        )
     }
 
     /// A simulator for an explicit description and firmware profile in `scene`, the robot at
-    /// the scene's start pose.
+    /// the scene's start pose, the scene's bodies in the physics world ([`crate::world`]).
+    /// Fails with [`SceneError::Overlap`] when a scene body overlaps the robot at the start.
     pub fn with_scene(
         desc: robots::SimRobot,
         profile: config::RobotProfile,
         seed: u64,
         scene: Arc<Scene>,
+    ) -> Result<Self, SceneError> {
+        let hw = Hardware::in_scene(&desc, seed, &scene)?;
+        Ok(Self::assemble(hw, desc, profile, scene))
+    }
+
+    fn assemble(
+        hw: Hardware,
+        desc: robots::SimRobot,
+        profile: config::RobotProfile,
+        scene: Arc<Scene>,
     ) -> Self {
-        let mut hw = Hardware::new(&desc, seed);
-        if let Some(b) = hw.base.as_mut() {
-            b.drive.truth = scene.robot_pose;
-        }
         Self {
             now: 0,
             fw: Firmware::new(profile, "sim", Instant::ZERO),

@@ -97,6 +97,14 @@ pub enum SceneError {
         /// What is wrong.
         problem: String,
     },
+    /// A scene body overlaps the robot's body at the start.
+    #[error("object {object:?} overlaps the robot's link {link:?} at the start pose")]
+    Overlap {
+        /// The scene body's id.
+        object: String,
+        /// The robot link's name (URDF).
+        link: String,
+    },
 }
 
 /// Result of scene loading.

@@ -1,6 +1,8 @@
 //! Real-time plant servers on pseudo-terminals: the servo chain and the base each get a PTY,
 //! for the firmware in QEMU and for outside tools (the ROBOTIS SDK). Physics follows the wall
-//! clock; replies go out as soon as they are computed (after the servo's return delay).
+//! clock; replies go out as soon as they are computed (after the servo's return delay). In a
+//! scene with bodies ([`serve_in`]) a third thread steps the physics world every millisecond
+//! of wall time (the base's bumper and the gripper meet the scene's objects).
 
 use std::io::{self, Read, Write};
 use std::thread;
@@ -12,6 +14,8 @@ use crate::bases::BasePlant;
 use crate::chain::ServoChain;
 use crate::lockstep::SimError;
 use crate::robots::{self, BaseModel};
+use crate::scene::{Scene, SceneError};
+use crate::world::World;
 
 /// Paths of the served ports.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -31,6 +35,8 @@ pub enum ServeError {
     Io(io::Error),
     /// Something already exists at the link path: it is never removed or replaced.
     LinkExists(std::path::PathBuf),
+    /// The scene does not fit the robot (an object overlaps it at the start).
+    Scene(SceneError),
 }
 
 impl std::fmt::Display for ServeError {
@@ -38,6 +44,7 @@ impl std::fmt::Display for ServeError {
         match self {
             ServeError::Sim(e) => write!(f, "{e}"),
             ServeError::Io(e) => write!(f, "cannot create a pseudo-terminal: {e}"),
+            ServeError::Scene(e) => write!(f, "{e}"),
             ServeError::LinkExists(p) => write!(
                 f,
                 "{} already exists; refusing to replace it (remove it or choose another --link)",
@@ -72,14 +79,30 @@ pub struct Plants {
     pub base: Option<std::sync::Arc<std::sync::Mutex<BasePlant>>>,
     /// Bytes to put on the servo bus towards the firmware (line noise).
     pub servo_noise: std::sync::Arc<std::sync::Mutex<Vec<u8>>>,
+    /// The physics world, when the scene has bodies (locked after the chain and the base).
+    pub world: Option<std::sync::Arc<std::sync::Mutex<World>>>,
 }
 
 /// Start serving `robot` (plants seeded by `seed`) on fresh PTYs; the threads run for the life
 /// of the process.
 pub fn serve(robot: &str, seed: u64) -> Result<(Served, Plants), ServeError> {
+    serve_in(robot, seed, &Scene::empty())
+}
+
+/// [`serve`] in `scene`: the base at the scene's start pose, and the scene's bodies in a
+/// physics world stepped in real time. Fails when a scene body overlaps the robot.
+pub fn serve_in(robot: &str, seed: u64, scene: &Scene) -> Result<(Served, Plants), ServeError> {
     use std::sync::{Arc, Mutex};
     let desc = robots::by_name(robot)
         .ok_or_else(|| ServeError::Sim(SimError::UnknownRobot(robot.into())))?;
+    let world = if scene.bodies.is_empty() {
+        None
+    } else {
+        let theta: Vec<f64> = desc.servos.iter().map(|m| m.initial).collect();
+        let w = World::new(scene, desc.body.as_ref(), scene.robot_pose, &theta)
+            .map_err(ServeError::Scene)?;
+        Some(Arc::new(Mutex::new(w)))
+    };
     let start = Instant::now();
     let (mut master, slave, servo_path) = pty()?;
     let chain = Arc::new(Mutex::new(ServoChain::new(&desc.servos, &desc.arm, seed)));
@@ -129,12 +152,15 @@ pub fn serve(robot: &str, seed: u64) -> Result<(Served, Plants), ServeError> {
         BaseModel::None => (None, None),
         kind => {
             let (mut master, slave, path) = pty()?;
-            let plant = Arc::new(Mutex::new(if kind == BaseModel::Kobuki {
+            let mut b = if kind == BaseModel::Kobuki {
                 BasePlant::kobuki(seed)
             } else {
                 BasePlant::create2(seed)
-            }));
+            };
+            b.drive.truth = scene.robot_pose;
+            let plant = Arc::new(Mutex::new(b));
             let p = plant.clone();
+            let w = world.clone();
             thread::spawn(move || {
                 let _keep_open = slave;
                 let mut buf = [0u8; 512];
@@ -143,7 +169,9 @@ pub fn serve(robot: &str, seed: u64) -> Result<(Served, Plants), ServeError> {
                     let out = p
                         .lock()
                         .map(|mut b| {
-                            b.advance_to(now);
+                            // Lock order: chain, base, world.
+                            let world = w.as_ref().and_then(|w| w.lock().ok());
+                            b.advance_among(now, world.as_deref().map(|w| w as _));
                             b.take_output()
                         })
                         .unwrap_or_default();
@@ -167,6 +195,32 @@ pub fn serve(robot: &str, seed: u64) -> Result<(Served, Plants), ServeError> {
             (Some(path), Some(plant))
         }
     };
+    if let Some(w) = world.clone() {
+        let (chain, base) = (chain.clone(), base_plant.clone());
+        let fixed = scene.robot_pose;
+        thread::spawn(move || loop {
+            let now = micros(start);
+            // Lock order: chain, base, world.
+            if let Ok(mut c) = chain.lock() {
+                let mut b = base.as_ref().and_then(|b| b.lock().ok());
+                if let Ok(mut w) = w.lock() {
+                    while w.next_step() <= now {
+                        let t = w.next_step();
+                        c.advance_to(t);
+                        let pose = match b.as_deref_mut() {
+                            Some(b) => {
+                                b.advance_among(t, Some(&*w));
+                                b.drive.truth
+                            }
+                            None => fixed,
+                        };
+                        w.step(pose, &mut c);
+                    }
+                }
+            }
+            thread::sleep(Duration::from_millis(1));
+        });
+    }
     Ok((
         Served {
             servo_bus: servo_path,
@@ -176,6 +230,7 @@ pub fn serve(robot: &str, seed: u64) -> Result<(Served, Plants), ServeError> {
             chain,
             base: base_plant,
             servo_noise: noise,
+            world,
         },
     ))
 }

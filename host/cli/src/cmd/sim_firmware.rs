@@ -25,7 +25,7 @@ pub fn run(
         cfg.firmware_profile(),
         seed,
         scene,
-    );
+    )?;
     let camera = cfg
         .camera
         .clone()

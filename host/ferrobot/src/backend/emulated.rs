@@ -138,8 +138,10 @@ impl EmulatedBoard {
         log: PathBuf,
         scene: std::sync::Arc<ferrobot_sim::scene::Scene>,
     ) -> Result<EmulatedBoard> {
-        let server = BoardServer::start_in(robot, opts, scene)
-            .map_err(|e| Error::Link(format!("plants: {e}")))?;
+        let server = BoardServer::start_in(robot, opts, &scene).map_err(|e| match e {
+            ferrobot_sim::serve::ServeError::Scene(e) => Error::Scene(e),
+            e => Error::Link(format!("plants: {e}")),
+        })?;
         let (qemu, qemu_stderr) = start_qemu(firmware, &server.board, &log)?;
         let mut board = EmulatedBoard {
             qemu,

@@ -1,0 +1,648 @@
+//! The physics world: the scene's bodies as rigid bodies in rapier3d, stepped in lockstep
+//! with the plants, and the robot's links as colliders the plants drive.
+//!
+//! * Static scene bodies ([`Body::fixed`]: the floor, walls, furniture) are fixed rigid
+//!   bodies; movable ones are dynamic rigid bodies with their mass (inertia from the shape at
+//!   uniform density) and friction. Primitives map to rapier's shapes (cylinders and capsules
+//!   along z as in the scene); a movable mesh is its convex hull (rapier's dynamic bodies
+//!   need convex or decomposed shapes; the bundled objects are convex or nearly so), a static
+//!   mesh its exact triangle mesh. A mesh rapier cannot build (degenerate: no hull, no
+//!   triangles) gets no collider: it is seen by the camera but not touched.
+//! * The robot's links with collision shapes are kinematic (position-based) bodies, moved at
+//!   every step to the poses the plants give: the base's ground truth and the servos' true
+//!   angles through [`RobotBody::link_poses`]. They push movable objects and are never pushed.
+//!   Kinematic bodies do not collide with fixed ones in rapier; the base's contact with fixed
+//!   geometry is the base plant's ([`Surroundings`]: it stalls against walls and furniture,
+//!   and its bumper reports contacts with anything, fixed or movable, by bearing).
+//! * The gripper: when both fingers touch the same movable object (within [`TOUCH`]), the
+//!   gripper servo is blocked at its angle of that instant (the servo's obstacle), so its
+//!   position stops and its current rises as a real Dynamixel's do on an object, and the
+//!   firmware's gripper state machine reports holding; the fingers' colliders stay at the
+//!   contact angle meanwhile (the object is rigid: the servo's contact spring is the
+//!   compliance). The object is carried by a **grasp constraint**: a fixed joint between the
+//!   palm and the object, made at that instant and released when the servo opens
+//!   [`RELEASE`] beyond the contact angle. Why not friction: two kinematic fingers squeezing
+//!   a body are an over-constrained, infinitely stiff vice in rapier; the normal force (and so
+//!   the friction that would carry the object) is set by the solver's penetration correction,
+//!   not by the servo's torque, and depends on step size and iteration count. The constraint
+//!   is exact and deterministic; what it does not model is an object slipping out of a weak
+//!   grasp.
+//!
+//! Time: a fixed step of [`STEP_US`] (1 ms), on the base plant's 1 ms grid: the base and the
+//! world see each other every base step, a finger closing at 40 mm/s moves 0.04 mm per step
+//! (well inside the touch and contact tolerances), and 3 cm objects stay stable with rapier's
+//! default four solver iterations. An empty scene has no world at all: nothing is stepped.
+//!
+//! Determinism: rapier is deterministic for the same inputs on one platform and build
+//! (single-threaded, no `parallel` feature), so a run is bit-identical for the same seed;
+//! `enhanced-determinism` (cross-platform identity, at a cost) is not needed.
+//!
+//! Units SI, world frame right-handed with z up; quaternions `[x, y, z, w]`. rapier works in
+//! `f32` with glam math; [`convert`] is the one place where nalgebra's `f64` types meet it.
+
+use std::sync::Arc;
+
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use rapier3d::parry::bounding_volume::BoundingVolume;
+use rapier3d::prelude::*;
+
+use crate::body::RobotBody;
+use crate::chain::ServoChain;
+use crate::diff_drive::{Pose as BasePose, Surroundings, Touch};
+use crate::scene::{Body, Scene, SceneError, Shape};
+
+/// The world's fixed step, µs.
+pub const STEP_US: u64 = 1000;
+/// A finger touches an object at this distance or closer, m.
+pub const TOUCH: f64 = 0.0005;
+/// The grasp is released when the gripper servo has opened this far beyond the angle at which
+/// it closed on the object, rad (0.3 mm of finger travel on the LoCoBot).
+pub const RELEASE: f64 = 0.02;
+/// A scene body reaching this far into a robot link at the start is an overlap, m.
+pub const OVERLAP: f64 = 0.001;
+/// Length scale of the world, m: rapier's tolerances (allowed penetration 0.1 mm, contact
+/// prediction 0.4 mm, sleep thresholds) are fractions of it. The graspable objects are 2-8 cm;
+/// at 0.05 m and above a mug's convex hull (a many-sided base) rocks and walks on the table
+/// (2 mm/s at 0.05, 10 mm/s at 1), at 0.02 m everything in the bundled scenes comes to rest.
+pub const LENGTH_UNIT: f32 = 0.02;
+/// Lowest and highest point of the bases' bumper ring above the floor, m.
+pub const BUMPER_BAND: (f64, f64) = (0.015, 0.105);
+/// Standard gravity, m/s².
+pub const GRAVITY: f64 = 9.81;
+
+/// The one place where nalgebra's `f64` types and rapier's `f32` glam types meet.
+pub mod convert {
+    use nalgebra::{Isometry3, Point3, Quaternion, Translation3, UnitQuaternion, Vector3};
+    use rapier3d::math::{Pose, Rotation, Vector};
+
+    /// A vector (m) for rapier.
+    pub fn vector(v: &Vector3<f64>) -> Vector {
+        Vector::new(v.x as f32, v.y as f32, v.z as f32)
+    }
+
+    /// A point (m) for rapier.
+    pub fn point(p: &Point3<f64>) -> Vector {
+        vector(&p.coords)
+    }
+
+    /// A rapier vector as nalgebra's, m.
+    pub fn from_vector(v: Vector) -> Vector3<f64> {
+        Vector3::new(f64::from(v.x), f64::from(v.y), f64::from(v.z))
+    }
+
+    /// A pose for rapier.
+    pub fn pose(p: &Isometry3<f64>) -> Pose {
+        let q = p.rotation.quaternion();
+        Pose::from_parts(
+            vector(&p.translation.vector),
+            Rotation::from_xyzw(q.i as f32, q.j as f32, q.k as f32, q.w as f32).normalize(),
+        )
+    }
+
+    /// A rapier pose as nalgebra's.
+    pub fn from_pose(p: &Pose) -> Isometry3<f64> {
+        let r = p.rotation;
+        Isometry3::from_parts(
+            Translation3::from(from_vector(p.translation)),
+            UnitQuaternion::new_normalize(Quaternion::new(
+                f64::from(r.w),
+                f64::from(r.x),
+                f64::from(r.y),
+                f64::from(r.z),
+            )),
+        )
+    }
+}
+
+/// The robot's links in the world.
+struct Robot {
+    body: Arc<RobotBody>,
+    /// Height of the root above the floor (a pedestal), m.
+    height: f64,
+    /// The kinematic body of each link that has shapes ([`ferrobot_kinematics::LinkTree::links`]
+    /// order).
+    links: Vec<Option<RigidBodyHandle>>,
+    grasp: Option<Grasp>,
+}
+
+/// An object held by the gripper.
+#[derive(Debug, Clone, Copy)]
+struct Grasp {
+    /// Scene index of the object.
+    object: usize,
+    joint: ImpulseJointHandle,
+    /// Gripper servo angle at the contact, rad.
+    at: f64,
+    /// The obstacle this grasp put on the servo.
+    obstacle: (f64, bool),
+}
+
+/// The physics world (see the module documentation).
+pub struct World {
+    pw: PhysicsWorld,
+    time_us: u64,
+    /// The rigid body of every scene body ([`Scene::bodies`] order).
+    bodies: Vec<RigidBodyHandle>,
+    robot: Option<Robot>,
+    /// Physics steps taken.
+    steps: u64,
+    /// Steps in which rapier ran (the others found the world at rest).
+    active_steps: u64,
+}
+
+fn collider(b: &Body) -> Option<ColliderBuilder> {
+    let f = |v: f64| v as f32;
+    let upright = |c: ColliderBuilder| {
+        // rapier's cylinders stand along y; the scene's along z.
+        c.position(Pose::from_rotation(
+            rapier3d::math::Rotation::from_rotation_x(std::f32::consts::FRAC_PI_2),
+        ))
+    };
+    let c = match &b.shape {
+        Shape::Box(s) => ColliderBuilder::cuboid(f(s[0] / 2.0), f(s[1] / 2.0), f(s[2] / 2.0)),
+        Shape::Cylinder { radius, length } => {
+            upright(ColliderBuilder::cylinder(f(length / 2.0), f(*radius)))
+        }
+        Shape::Capsule { radius, length } => {
+            ColliderBuilder::capsule_z(f(length / 2.0), f(*radius))
+        }
+        Shape::Sphere(r) => ColliderBuilder::ball(f(*r)),
+        Shape::Mesh { mesh, .. } => {
+            let v: Vec<Vector> = mesh.vertices.iter().map(convert::point).collect();
+            if b.fixed {
+                ColliderBuilder::trimesh(v, mesh.triangles.clone()).ok()?
+            } else {
+                ColliderBuilder::convex_hull(&v)?
+            }
+        }
+    };
+    Some(c)
+}
+
+fn link_collider(s: &crate::body::LinkShape) -> Option<ColliderBuilder> {
+    let body = Body {
+        id: String::new(),
+        shape: s.shape.clone(),
+        pose: Isometry3::identity(),
+        mass: 0.0,
+        friction: 0.8,
+        colour: [0.0; 3],
+        texture: None,
+        fixed: false,
+    };
+    let c = collider(&body)?;
+    // The shape's own orientation (cylinders upright) after the link's origin.
+    let own = c.position;
+    Some(c.position(convert::pose(&s.origin) * own).friction(0.8))
+}
+
+impl World {
+    /// The world of `scene` with `robot`'s links (`None`: no robot body) at the base pose
+    /// `base` (x, y in m, heading in rad) and the servos' angles `theta` (rad, chain order).
+    /// Fails when a scene body overlaps a robot link at the start, naming both.
+    pub fn new(
+        scene: &Scene,
+        robot: Option<&Arc<RobotBody>>,
+        base: BasePose,
+        theta: &[f64],
+    ) -> Result<World, SceneError> {
+        let mut pw = PhysicsWorld::new();
+        pw.gravity = Vector::new(0.0, 0.0, -GRAVITY as f32);
+        pw.integration_parameters.dt = STEP_US as f32 * 1e-6;
+        pw.integration_parameters.length_unit = LENGTH_UNIT;
+        let mut bodies = Vec::with_capacity(scene.bodies.len());
+        for (i, b) in scene.bodies.iter().enumerate() {
+            let rb = if b.fixed {
+                RigidBodyBuilder::fixed()
+            } else {
+                RigidBodyBuilder::dynamic()
+            }
+            .pose(convert::pose(&b.pose))
+            .user_data(i as u128);
+            let h = pw.insert_body(rb);
+            if let Some(c) = collider(b) {
+                let mut c = c.friction(b.friction as f32).restitution(0.0);
+                if !b.fixed {
+                    c = c.mass(b.mass as f32);
+                }
+                pw.insert_collider(c.user_data(i as u128), Some(h));
+            }
+            bodies.push(h);
+        }
+        let robot = match robot {
+            Some(body) => {
+                let mut links = Vec::new();
+                for shapes in &body.shapes {
+                    let colliders: Vec<ColliderBuilder> =
+                        shapes.iter().filter_map(link_collider).collect();
+                    if colliders.is_empty() {
+                        links.push(None);
+                        continue;
+                    }
+                    let h = pw.insert_body(RigidBodyBuilder::kinematic_position_based());
+                    for c in colliders {
+                        pw.insert_collider(c.user_data(u128::MAX), Some(h));
+                    }
+                    links.push(Some(h));
+                }
+                Some(Robot {
+                    body: body.clone(),
+                    height: scene.robot_height,
+                    links,
+                    grasp: None,
+                })
+            }
+            None => None,
+        };
+        let mut w = World {
+            pw,
+            time_us: 0,
+            bodies,
+            robot,
+            steps: 0,
+            active_steps: 0,
+        };
+        w.place_robot(base, theta, true);
+        // Place the colliders with their bodies and fill the broad phase, so that the first
+        // queries see the scene.
+        w.pw.detect_collisions(&(), &());
+        w.check_overlap(scene)?;
+        // Every movable body starts awake (rapier may sleep it once it rests).
+        for h in &w.bodies {
+            if let Some(b) = w.pw.bodies.get_mut(*h) {
+                if b.is_dynamic() {
+                    b.wake_up(true);
+                }
+            }
+        }
+        Ok(w)
+    }
+
+    /// Move the robot's link bodies to the poses of the plants' state (`teleport`: now, else
+    /// at the end of the next step); whether any link moves.
+    fn place_robot(&mut self, base: BasePose, theta: &[f64], teleport: bool) -> bool {
+        let Some(r) = &self.robot else { return false };
+        let mut theta = theta.to_vec();
+        if let (Some(g), Some(hand)) = (&r.grasp, r.body.hand()) {
+            // The fingers stay at the contact angle while the object is held.
+            if let Some(t) = theta.get_mut(hand.servo) {
+                *t = if hand.closed < hand.open {
+                    t.max(g.at)
+                } else {
+                    t.min(g.at)
+                };
+            }
+        }
+        let root = RobotBody::root_pose(base, r.height);
+        let q = r.body.joint_values(&theta);
+        let poses = r.body.link_poses(&root, &q);
+        let mut moving = Vec::new();
+        for (h, p) in r.links.iter().zip(&poses) {
+            let Some(h) = h else { continue };
+            if let Some(rb) = self.pw.bodies.get_mut(*h) {
+                let p = convert::pose(p);
+                if teleport {
+                    rb.set_position(p, true);
+                } else {
+                    if *rb.position() != p {
+                        moving.extend(rb.colliders().iter().copied());
+                    }
+                    rb.set_next_kinematic_position(p);
+                }
+            }
+        }
+        // rapier does not wake a sleeping body that a kinematic one runs into: a moving link
+        // wakes what it touches.
+        let mut wake = Vec::new();
+        for &c in &moving {
+            for pair in self.pw.narrow_phase.contact_pairs_with(c) {
+                let other = if pair.collider1 == c {
+                    pair.collider2
+                } else {
+                    pair.collider1
+                };
+                if let Some(b) = self.pw.colliders.get(other).and_then(|o| o.parent()) {
+                    wake.push(b);
+                }
+            }
+        }
+        let moved = !moving.is_empty();
+        for b in wake {
+            if let Some(rb) = self.pw.bodies.get_mut(b) {
+                if rb.is_dynamic() && rb.is_sleeping() {
+                    rb.wake_up(true);
+                }
+            }
+        }
+        moved
+    }
+
+    fn check_overlap(&self, scene: &Scene) -> Result<(), SceneError> {
+        let Some(r) = &self.robot else { return Ok(()) };
+        let names: Vec<&str> = r.body.tree.links().collect();
+        for (i, h) in self.bodies.iter().enumerate() {
+            let Some(rb) = self.pw.bodies.get(*h) else {
+                continue;
+            };
+            for ch in rb.colliders() {
+                let Some(c) = self.pw.colliders.get(*ch) else {
+                    continue;
+                };
+                let aabb = c.compute_aabb();
+                for (li, lh) in r.links.iter().enumerate() {
+                    let Some(lb) = lh.and_then(|h| self.pw.bodies.get(h)) else {
+                        continue;
+                    };
+                    for lch in lb.colliders() {
+                        let Some(lc) = self.pw.colliders.get(*lch) else {
+                            continue;
+                        };
+                        if !aabb.intersects(&lc.compute_aabb()) {
+                            continue;
+                        }
+                        let hit = rapier3d::parry::query::contact(
+                            c.position(),
+                            c.shape(),
+                            lc.position(),
+                            lc.shape(),
+                            0.0,
+                        );
+                        if let Ok(Some(k)) = hit {
+                            if f64::from(k.dist) < -OVERLAP {
+                                return Err(SceneError::Overlap {
+                                    object: scene
+                                        .bodies
+                                        .get(i)
+                                        .map(|b| b.id.clone())
+                                        .unwrap_or_default(),
+                                    link: names.get(li).copied().unwrap_or("?").to_string(),
+                                });
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Simulated time of the world, µs.
+    pub fn time_us(&self) -> u64 {
+        self.time_us
+    }
+
+    /// When the next step is due, µs.
+    pub fn next_step(&self) -> u64 {
+        self.time_us + STEP_US
+    }
+
+    /// Physics steps taken.
+    pub fn steps(&self) -> u64 {
+        self.steps
+    }
+
+    /// Steps in which the physics engine ran (the others found the world at rest).
+    pub fn active_steps(&self) -> u64 {
+        self.active_steps
+    }
+
+    /// Take the step that ends at [`World::next_step`]: move the robot's links to the plants'
+    /// state there (`base`: the base's true pose; the chain: the servos' true angles), step
+    /// the physics, and let the gripper grasp or release (which sets or clears the gripper
+    /// servo's obstacle in `chain`). A world at rest (every movable body asleep, no link
+    /// moving) is not stepped: nothing in it would change.
+    pub fn step(&mut self, base: BasePose, chain: &mut ServoChain) {
+        let theta: Vec<f64> = chain.servos.iter().map(|s| s.theta).collect();
+        let moved = self.place_robot(base, &theta, false);
+        let bodies = &self.pw.bodies;
+        let awake = self.bodies.iter().any(|h| {
+            bodies
+                .get(*h)
+                .is_some_and(|b| b.is_dynamic() && !b.is_sleeping())
+        });
+        if moved || awake {
+            self.pw.step();
+            self.active_steps += 1;
+        }
+        self.time_us += STEP_US;
+        self.steps += 1;
+        self.grip(&theta, chain);
+    }
+
+    /// Grasp when both fingers touch one movable object; release when the servo has opened.
+    fn grip(&mut self, theta: &[f64], chain: &mut ServoChain) {
+        let Some(r) = &self.robot else { return };
+        let Some(hand) = r.body.hand().cloned() else {
+            return;
+        };
+        let Some(&angle) = theta.get(hand.servo) else {
+            return;
+        };
+        // Closing moves the servo angle towards the closed stop.
+        let closing_down = hand.closed < hand.open;
+        if let Some(g) = r.grasp {
+            let opened = if closing_down {
+                angle - g.at
+            } else {
+                g.at - angle
+            };
+            if opened > RELEASE {
+                self.pw.remove_impulse_joint(g.joint);
+                if let Some(s) = chain.servos.get_mut(hand.servo) {
+                    if s.obstacle == Some(g.obstacle) {
+                        s.obstacle = None;
+                    }
+                }
+                if let Some(rb) = self
+                    .bodies
+                    .get(g.object)
+                    .and_then(|h| self.pw.bodies.get_mut(*h))
+                {
+                    rb.wake_up(true);
+                }
+                if let Some(r) = &mut self.robot {
+                    r.grasp = None;
+                }
+            }
+            return;
+        }
+        let finger_colliders: Vec<Vec<ColliderHandle>> = hand
+            .fingers
+            .iter()
+            .map(|&f| {
+                r.links
+                    .get(f)
+                    .copied()
+                    .flatten()
+                    .and_then(|h| self.pw.bodies.get(h))
+                    .map(|b| b.colliders().to_vec())
+                    .unwrap_or_default()
+            })
+            .collect();
+        if finger_colliders.len() < 2 || finger_colliders.iter().any(Vec::is_empty) {
+            return;
+        }
+        // Movable objects near the first finger, then whether every finger touches one.
+        let Some(first) = finger_colliders
+            .first()
+            .and_then(|c| c.first())
+            .and_then(|h| self.pw.colliders.get(*h))
+        else {
+            return;
+        };
+        let near = first.compute_aabb().loosened(0.1);
+        let candidates: Vec<ColliderHandle> = self
+            .pw
+            .intersect_aabb_conservative(near, QueryFilter::only_dynamic())
+            .map(|(h, _)| h)
+            .collect();
+        // An object is grasped only from both sides: its centre lies between the first two
+        // fingers along the line joining them (not beside a closed pair that pushes it).
+        let centre = |f: &Vec<ColliderHandle>| {
+            f.first()
+                .and_then(|h| self.pw.colliders.get(*h))
+                .map(|c| c.position().translation)
+        };
+        let (Some(a), Some(b)) = (
+            finger_colliders.first().and_then(centre),
+            finger_colliders.get(1).and_then(centre),
+        ) else {
+            return;
+        };
+        let between = |o: Vector| {
+            let ab = b - a;
+            let t = (o - a).dot(ab);
+            t > 0.0 && t < ab.length_squared()
+        };
+        for ch in candidates {
+            let Some(c) = self.pw.colliders.get(ch) else {
+                continue;
+            };
+            let object = c.user_data as usize;
+            if object >= self.bodies.len() {
+                continue;
+            }
+            let touches = |fc: &Vec<ColliderHandle>| {
+                fc.iter().any(|h| {
+                    self.pw.colliders.get(*h).is_some_and(|f| {
+                        rapier3d::parry::query::distance(
+                            f.position(),
+                            f.shape(),
+                            c.position(),
+                            c.shape(),
+                        )
+                        .is_ok_and(|d| f64::from(d.distance) <= TOUCH)
+                    })
+                })
+            };
+            if !finger_colliders.iter().all(touches) || !between(c.position().translation) {
+                continue;
+            }
+            let (Some(palm), Some(oh)) = (
+                r.links.get(hand.palm).copied().flatten(),
+                self.bodies.get(object).copied(),
+            ) else {
+                continue;
+            };
+            let (Some(pb), Some(ob)) = (self.pw.bodies.get(palm), self.pw.bodies.get(oh)) else {
+                continue;
+            };
+            let frame1 = pb.position().inv_mul(ob.position());
+            let joint = FixedJointBuilder::new()
+                .local_frame1(frame1)
+                .local_frame2(Pose::IDENTITY)
+                .contacts_enabled(false);
+            let joint = self.pw.insert_impulse_joint(palm, oh, joint);
+            if let Some(ob) = self.pw.bodies.get_mut(oh) {
+                ob.wake_up(true);
+            }
+            let obstacle = (angle, closing_down);
+            if let Some(s) = chain.servos.get_mut(hand.servo) {
+                s.obstacle = Some(obstacle);
+            }
+            if let Some(r) = &mut self.robot {
+                r.grasp = Some(Grasp {
+                    object,
+                    joint,
+                    at: angle,
+                    obstacle,
+                });
+            }
+            return;
+        }
+    }
+
+    /// Pose of the colliders of robot link `link` ([`ferrobot_kinematics::LinkTree::links`]
+    /// index) in the world now.
+    pub fn link_collider_poses(&self, link: usize) -> Vec<Isometry3<f64>> {
+        let Some(h) = self
+            .robot
+            .as_ref()
+            .and_then(|r| r.links.get(link).copied().flatten())
+        else {
+            return Vec::new();
+        };
+        self.pw.bodies.get(h).map_or(Vec::new(), |b| {
+            b.colliders()
+                .iter()
+                .filter_map(|c| self.pw.colliders.get(*c))
+                .map(|c| convert::from_pose(c.position()))
+                .collect()
+        })
+    }
+
+    /// The scene body the gripper holds ([`Scene::bodies`] index), if any.
+    pub fn held(&self) -> Option<usize> {
+        self.robot.as_ref()?.grasp.map(|g| g.object)
+    }
+
+    /// Pose of every scene body now ([`Scene::bodies`] order).
+    pub fn body_poses(&self) -> Vec<Isometry3<f64>> {
+        self.bodies
+            .iter()
+            .map(|h| {
+                self.pw
+                    .bodies
+                    .get(*h)
+                    .map_or(Isometry3::identity(), |b| convert::from_pose(b.position()))
+            })
+            .collect()
+    }
+}
+
+impl Surroundings for World {
+    fn touches(&self, x: f64, y: f64, radius: f64, gap: f64) -> Vec<Touch> {
+        let (lo, hi) = BUMPER_BAND;
+        let ring = rapier3d::parry::shape::Cylinder::new(((hi - lo) / 2.0) as f32, radius as f32);
+        let at = Isometry3::from_parts(
+            Translation3::new(x, y, (lo + hi) / 2.0),
+            UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::FRAC_PI_2),
+        );
+        let pose = convert::pose(&at);
+        let aabb = rapier3d::parry::shape::Shape::compute_aabb(&ring, &pose).loosened(gap as f32);
+        let mut out = Vec::new();
+        for (h, c) in self
+            .pw
+            .intersect_aabb_conservative(aabb, QueryFilter::exclude_kinematic())
+        {
+            let Ok(Some(k)) =
+                rapier3d::parry::query::contact(&pose, &ring, c.position(), c.shape(), gap as f32)
+            else {
+                continue;
+            };
+            let n = convert::from_vector(k.normal1);
+            let fixed = c
+                .parent()
+                .and_then(|b| self.pw.bodies.get(b))
+                .is_none_or(|b| b.is_fixed());
+            let (i, g) = h.into_raw_parts();
+            out.push(Touch {
+                id: (u64::from(g) << 32) | u64::from(i),
+                bearing: n.y.atan2(n.x),
+                depth: -f64::from(k.dist),
+                fixed,
+            });
+        }
+        out
+    }
+}

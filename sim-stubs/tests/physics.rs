@@ -1,0 +1,554 @@
+//! The physics world in lockstep with the firmware core and the plants: resting objects stay
+//! put, the gripper pushes, grasps, carries and drops objects through the firmware, the bases'
+//! bumpers meet walls, runs are bit-identical for a seed, and bad scenes are typed errors.
+
+use std::path::Path;
+use std::sync::Arc;
+
+use ferrobot_firmware::config;
+use ferrobot_kinematics::locobot_ik::LocobotIk;
+use ferrobot_kinematics::Chain;
+use ferrobot_protocol::dxl::units;
+use ferrobot_protocol::*;
+use ferrobot_sim::scene::{Scene, SceneError};
+use ferrobot_sim::{robots, LockstepSim, SimHost};
+use nalgebra::Vector3;
+
+fn parse(text: &str) -> Scene {
+    Scene::parse(text, Path::new("test.toml"), &|p, _| Err(format!("no {p}"))).unwrap()
+}
+
+fn sim(robot: &str, scene: Scene, seed: u64) -> Result<LockstepSim, SceneError> {
+    LockstepSim::with_scene(
+        robots::by_name(robot).unwrap(),
+        config::by_name(robot).unwrap(),
+        seed,
+        Arc::new(scene),
+    )
+}
+
+/// A session in `scene`, configured, telemetry at 100 Hz.
+fn session(robot: &str, scene: Scene, seed: u64) -> SimHost {
+    let mut s = SimHost::new(sim(robot, scene, seed).expect("scene fits"));
+    s.handshake().expect("hello");
+    s.command(&HostMsg::SetTelemetry { period_ms: 10 })
+        .expect("telemetry");
+    s.wait_telemetry(1_000_000, |t| t.faults & fault_flags::CONFIGURING == 0)
+        .expect("configured");
+    s
+}
+
+fn body(s: &SimHost, id: &str) -> Vector3<f64> {
+    let i = s
+        .sim
+        .scene()
+        .bodies
+        .iter()
+        .position(|b| b.id == id)
+        .unwrap();
+    s.sim.truth().bodies[i].translation.vector
+}
+
+/// The LoCoBot's arm IK: joint angles putting the gripper link's origin at `p` (world, m; the
+/// base at the origin) pointing straight down.
+struct Arm {
+    chain: Chain,
+    ik: LocobotIk,
+}
+
+impl Arm {
+    fn new() -> Self {
+        let cfg = ferrobot_description::RobotConfig::bundled("locobot").unwrap();
+        let chain = Chain::from_urdf(&cfg.urdf, "base_link", "gripper_link").unwrap();
+        let ik = LocobotIk::from_chain(&chain).unwrap();
+        Arm { chain, ik }
+    }
+
+    /// Pointing down, the fingers closing along world y whatever the arm's yaw (the roll,
+    /// about the vertical gripper axis, undoes the yaw).
+    fn down(&self, p: [f64; 3]) -> Vec<f32> {
+        // base_link is 10.2 mm above the floor.
+        let t = Vector3::new(p[0], p[1], p[2] - 0.0102);
+        let solve = |roll: f64| {
+            self.ik
+                .solve_pitch_roll(&self.chain, &t, std::f64::consts::FRAC_PI_2, roll, None)
+                .unwrap_or_else(|e| panic!("IK {p:?}: {e}"))
+        };
+        let yaw = solve(0.0)[0];
+        solve(yaw).iter().map(|&q| q as f32).collect()
+    }
+
+    /// Where the gripper link is (world), from the truth.
+    fn gripper(s: &SimHost) -> Vector3<f64> {
+        let b = s.sim.body().unwrap();
+        let i = b.tree.link_index("gripper_link").unwrap();
+        s.sim.truth().links[i].translation.vector
+    }
+}
+
+/// Move the arm through `points` (world, gripper pointing down), `dt_us` apart, and wait
+/// until the last is reached.
+fn move_down(s: &mut SimHost, arm: &Arm, points: &[[f64; 3]], dt_us: u32) {
+    for p in points {
+        let q = arm.down(*p);
+        s.command(&HostMsg::Waypoint {
+            joints: 0b1_1111,
+            duration_us: dt_us,
+            points: q.iter().map(|&v| JointPoint::at_rest(v)).collect(),
+        })
+        .expect("waypoint");
+    }
+    s.run_for(dt_us as u64 * points.len() as u64 + 500_000);
+}
+
+fn gripper_ticks(s: &SimHost) -> i32 {
+    units::rad_to_tick(s.sim.hw.chain.servo(7).unwrap().theta as f32)
+}
+
+/// The red cube of the tabletop scene (3 cm, 30 g) pushed 10 cm along the table in -y by the
+/// closed fingers, the arm driven through the firmware; the truth at the end.
+fn push(seed: u64) -> (SimHost, Vector3<f64>) {
+    let mut s = session("locobot", Scene::bundled("tabletop").unwrap(), seed);
+    let arm = Arm::new();
+    let c0 = body(&s, "red_cube");
+    s.command(&HostMsg::Gripper(GripperCommand::Close)).unwrap();
+    s.wait_telemetry(3_000_000, |t| t.gripper == GripperState::Closed)
+        .expect("closes");
+    // The fingers (2 cm along x, 5 mm beyond the gripper link) centred on the cube's x, 1 cm
+    // clear of its +y face, their tips 1.5 cm above the table; the palm clears the cube's top.
+    let x = c0.x - 0.005;
+    move_down(&mut s, &arm, &[[x, 0.035, 0.30]], 2_000_000);
+    move_down(&mut s, &arm, &[[x, 0.035, 0.218]], 1_000_000);
+    let path: Vec<[f64; 3]> = (1..=11)
+        .map(|k| [x, 0.035 - 0.01 * k as f64, 0.218])
+        .collect();
+    move_down(&mut s, &arm, &path, 300_000);
+    let c1 = body(&s, "red_cube");
+    (s, c1 - c0)
+}
+
+#[test]
+fn the_gripper_pushes_a_cube_10_cm_along_the_table() {
+    let (s, d) = push(3);
+    let i = s
+        .sim
+        .scene()
+        .bodies
+        .iter()
+        .position(|b| b.id == "red_cube")
+        .unwrap();
+    println!(
+        "cube moved {d:?}, rotation {:?}",
+        s.sim.truth().bodies[i].rotation.euler_angles()
+    );
+    // The fingers' face travels 10 cm past the cube's face; the cube follows it to within
+    // 5 mm along the push and 5 mm across it, and stays on the table.
+    assert!((d.y + 0.10).abs() < 0.005, "pushed {d:?}");
+    assert!(d.x.abs() < 0.005, "pushed {d:?}");
+    assert!(d.z.abs() < 0.001, "pushed {d:?}");
+    // Nothing else on the table was disturbed by more than 1 mm.
+    let t = s.sim.truth();
+    for (b, p) in s.sim.scene().bodies.iter().zip(&t.bodies) {
+        if b.id != "red_cube" {
+            let m = (p.translation.vector - b.pose.translation.vector).norm();
+            assert!(m < 0.001, "{} moved {m} m", b.id);
+        }
+    }
+}
+
+#[test]
+fn the_same_seed_gives_bit_identical_bodies() {
+    let (a, _) = push(5);
+    let (b, _) = push(5);
+    let (ta, tb) = (a.sim.truth(), b.sim.truth());
+    let bits = |t: &ferrobot_sim::lockstep::Truth| -> Vec<u64> {
+        t.bodies
+            .iter()
+            .flat_map(|p| {
+                let q = p.rotation.coords;
+                [
+                    p.translation.x,
+                    p.translation.y,
+                    p.translation.z,
+                    q.x,
+                    q.y,
+                    q.z,
+                    q.w,
+                ]
+            })
+            .map(f64::to_bits)
+            .collect()
+    };
+    assert_eq!(bits(&ta), bits(&tb));
+    assert_eq!(ta, tb);
+}
+
+#[test]
+fn closing_on_a_3_cm_cube_holds_it_lifting_carries_it_and_opening_drops_it() {
+    let mut s = session("locobot", Scene::bundled("tabletop").unwrap(), 3);
+    let arm = Arm::new();
+    let c0 = body(&s, "red_cube");
+    s.command(&HostMsg::Gripper(GripperCommand::Open)).unwrap();
+    s.wait_telemetry(2_000_000, |t| t.gripper == GripperState::Open)
+        .expect("opens");
+    // Above the cube, then down until the fingers' tips are 1.5 cm above the table.
+    let x = c0.x - 0.005;
+    move_down(&mut s, &arm, &[[x, 0.0, 0.32]], 2_000_000);
+    move_down(&mut s, &arm, &[[x, 0.0, 0.27], [x, 0.0, 0.22]], 800_000);
+    s.command(&HostMsg::Gripper(GripperCommand::Close)).unwrap();
+    let t = s
+        .wait_telemetry(3_000_000, |t| {
+            matches!(t.gripper, GripperState::Closed | GripperState::Holding)
+        })
+        .expect("closes");
+    // The firmware sees the object through the servo's position and current: the fingers
+    // stop 30 mm apart, at 2350 ticks (finger travel 30 mm over the 1400 ticks of the stops).
+    assert_eq!(t.gripper, GripperState::Holding);
+    let g = gripper_ticks(&s);
+    assert!((2320..=2380).contains(&g), "fingers at {g} ticks");
+    let held = s.sim.hw.world().unwrap().held();
+    let i = s.sim.scene().bodies.iter().position(|b| b.id == "red_cube");
+    assert_eq!(held, i);
+    // Lift 10 cm: the cube's height follows the gripper's within 5 mm.
+    let (g0, c1) = (Arm::gripper(&s), body(&s, "red_cube"));
+    move_down(&mut s, &arm, &[[x, 0.0, 0.27], [x, 0.0, 0.32]], 800_000);
+    let (g1, c2) = (Arm::gripper(&s), body(&s, "red_cube"));
+    println!("lift: gripper {:?}, cube {:?}", g1 - g0, c2 - c1);
+    assert!((g1.z - g0.z - 0.10).abs() < 0.002, "lifted {}", g1.z - g0.z);
+    assert!(
+        ((c2.z - c1.z) - (g1.z - g0.z)).abs() < 0.005,
+        "cube rose {} m, gripper {} m",
+        c2.z - c1.z,
+        g1.z - g0.z
+    );
+    assert_eq!(s.telemetry.as_ref().unwrap().gripper, GripperState::Holding);
+    // Open: the cube falls back onto the table (top 0.10 m; the cube's centre 15 mm above).
+    s.command(&HostMsg::Gripper(GripperCommand::Open)).unwrap();
+    s.wait_telemetry(2_000_000, |t| t.gripper == GripperState::Open)
+        .expect("opens");
+    s.run_for(1_000_000);
+    assert_eq!(s.sim.hw.world().unwrap().held(), None);
+    let c3 = body(&s, "red_cube");
+    println!("dropped: cube at {c3:?}");
+    assert!((c3.z - 0.115).abs() < 0.001, "cube at {c3:?}");
+    assert!((c3.xy() - c0.xy()).norm() < 0.01, "cube at {c3:?}");
+}
+
+#[test]
+fn resting_objects_stay_put() {
+    // The tabletop with the robot idle: after the first 0.5 s (the objects settle into the
+    // table by rapier's allowed penetration), 5 s of simulated time move nothing by more than
+    // 0.1 mm (60 s measured once: see BENCHMARKS.md).
+    let secs: u64 = std::env::var("FERROBOT_DRIFT_SECONDS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(5);
+    for scene in ["tabletop", "apartment"] {
+        let mut s = sim("locobot", Scene::bundled(scene).unwrap(), 1).unwrap();
+        let start = s.truth().bodies;
+        s.run_for(500_000);
+        let settled = s.truth().bodies;
+        s.run_for(secs * 1_000_000);
+        let end = s.truth().bodies;
+        let mut worst = (0.0, 0.0, String::new());
+        for ((b, (p0, p1)), p2) in s
+            .scene()
+            .bodies
+            .iter()
+            .zip(start.iter().zip(&settled))
+            .zip(&end)
+        {
+            let sink = (p1.translation.vector - p0.translation.vector).norm();
+            let drift = (p2.translation.vector - p1.translation.vector).norm();
+            if drift >= worst.1 {
+                worst = (sink, drift, b.id.clone());
+            }
+            assert!(sink < 0.0005, "{scene}: {} settled by {sink} m", b.id);
+            assert!(
+                drift < 0.0001,
+                "{scene}: {} drifted {drift} m in {secs} s",
+                b.id
+            );
+        }
+        println!(
+            "{scene}: worst drift in {secs} s: {:.2e} m ({}, settled {:.2e} m in the first 0.5 s)",
+            worst.1, worst.2, worst.0
+        );
+    }
+}
+
+/// A floor and a wall whose face is at x = 0.55 m.
+const WALL: &str = r#"
+name = "wall"
+[floor]
+size = [4.0, 4.0]
+[[wall]]
+from = [0.6, -1.5]
+to = [0.6, 1.5]
+"#;
+
+fn drive_into_the_wall(robot: &str) -> (SimHost, Telemetry) {
+    let mut s = session(robot, parse(WALL), 2);
+    s.command(&HostMsg::BaseVelocity {
+        v: 0.2,
+        w: 0.0,
+        duration_ms: 10_000,
+    })
+    .expect("accepted");
+    let t = s
+        .wait_telemetry(5_000_000, |t| t.base_flags & base_flags::ANY_BUMPER != 0)
+        .expect("bumper seen");
+    (s, t)
+}
+
+#[test]
+fn the_kobuki_driving_into_a_wall_raises_the_bumper_fault_and_stops() {
+    let (mut s, t) = drive_into_the_wall("locobot");
+    assert!(
+        t.base_flags & base_flags::BUMPER_CENTER != 0,
+        "{:#x}",
+        t.base_flags
+    );
+    let radius = s.sim.hw.base.as_ref().unwrap().drive.p.body_radius;
+    s.run_for(200_000);
+    let x = s.sim.base_truth().unwrap()[0];
+    s.run_for(1_000_000);
+    let x2 = s.sim.base_truth().unwrap()[0];
+    println!("kobuki stopped at x = {x} m (wall face 0.55 m, radius {radius} m)");
+    // The body touches the wall and does not enter it (within 1 mm), and stays there.
+    assert!((x + radius - 0.55).abs() < 0.001, "stopped at {x}");
+    assert_eq!(x, x2);
+    assert_eq!(s.sim.hw.wheel_command(), (0.0, 0.0));
+    assert!(s.take_faults().iter().any(|f| f.kind == FaultKind::Bumper));
+    // Forward is refused while pressed; backing off works.
+    assert_eq!(
+        s.command(&HostMsg::BaseVelocity {
+            v: 0.1,
+            w: 0.0,
+            duration_ms: 500
+        }),
+        Err(ferrobot_sim::SimError::Rejected(RejectReason::BaseSafety))
+    );
+    s.command(&HostMsg::BaseVelocity {
+        v: -0.1,
+        w: 0.0,
+        duration_ms: 500,
+    })
+    .expect("backing off");
+    s.run_for(1_000_000);
+    assert!(s.sim.base_truth().unwrap()[0] < x - 0.03);
+}
+
+#[test]
+fn the_create2_driving_into_a_wall_sets_its_bump_bits_and_stops() {
+    let (mut s, _) = drive_into_the_wall("locobot_lite");
+    let radius = s.sim.hw.base.as_ref().unwrap().drive.p.body_radius;
+    s.run_for(300_000);
+    let x = s.sim.base_truth().unwrap()[0];
+    println!("create 2 stopped at x = {x} m (wall face 0.55 m, radius {radius} m)");
+    assert!((x + radius - 0.55).abs() < 0.001, "stopped at {x}");
+    assert_eq!(s.sim.hw.wheel_command(), (0.0, 0.0));
+    assert!(s.take_faults().iter().any(|f| f.kind == FaultKind::Bumper));
+}
+
+#[test]
+fn an_object_overlapping_the_robot_is_a_typed_error_naming_both() {
+    let text = r#"
+name = "crowded"
+[floor]
+size = [4.0, 4.0]
+[[object]]
+id = "crate"
+shape = "box"
+size = [0.3, 0.3, 0.3]
+position = [0.1, 0.0, 0.15]
+static = true
+colour = [0.5, 0.4, 0.3]
+"#;
+    match sim("locobot", parse(text), 1) {
+        Err(SceneError::Overlap { object, link }) => {
+            assert_eq!(object, "crate");
+            assert!(link.contains("base") || link.contains("wheel"), "{link}");
+            let msg = SceneError::Overlap { object, link }.to_string();
+            assert!(msg.contains("crate"), "{msg}");
+        }
+        Ok(_) => panic!("accepted an overlap"),
+        Err(e) => panic!("{e}"),
+    }
+    // The same crate 1 m ahead is fine.
+    let ahead = text.replace("[0.1, 0.0, 0.15]", "[1.0, 0.0, 0.15]");
+    assert!(sim("locobot", parse(&ahead), 1).is_ok());
+}
+
+#[test]
+fn hostile_scenes_do_not_panic() {
+    let read = |p: &str, _| -> Result<Vec<u8>, String> {
+        Ok(match p {
+            // One triangle, flat: fine as static geometry.
+            "flat.obj" => b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n".to_vec(),
+            // Three points on a line: no triangle, no hull.
+            "line.obj" => b"v 0 0 0\nv 0.5 0 0\nv 1 0 0\nf 1 2 3\n".to_vec(),
+            // A closed tetrahedron 1 nm thick: a volume, barely; its hull may not exist.
+            "sliver.obj" => {
+                b"v 0 0 0\nv 0.1 0 0\nv 0 0.1 0\nv 0 0 1e-9\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n"
+                    .to_vec()
+            }
+            _ => return Err(format!("no {p}")),
+        })
+    };
+    let text = r#"
+name = "hostile"
+[floor]
+size = [0.05, 0.05]
+[[object]]
+id = "flat"
+shape = "mesh"
+mesh = "flat.obj"
+position = [1.0, 1.0, 0.5]
+static = true
+colour = [1, 1, 1]
+[[object]]
+id = "line"
+shape = "mesh"
+mesh = "line.obj"
+position = [-1.0, 1.0, 0.5]
+static = true
+colour = [1, 1, 1]
+[[object]]
+id = "sliver"
+shape = "mesh"
+mesh = "sliver.obj"
+position = [0.0, -1.0, 0.5]
+mass = 1.0
+colour = [1, 1, 1]
+[[object]]
+id = "anvil"
+shape = "box"
+size = [0.001, 0.001, 0.001]
+position = [1.0, -1.0, 0.3]
+mass = 1000.0
+colour = [1, 1, 1]
+[[object]]
+id = "needle"
+shape = "capsule"
+size = [0.0001, 10.0]
+position = [-1.0, -1.0, 6.0]
+mass = 0.0001
+colour = [1, 1, 1]
+[[object]]
+id = "far"
+shape = "sphere"
+size = [100.0]
+position = [900.0, 900.0, 900.0]
+mass = 1000.0
+colour = [1, 1, 1]
+"#;
+    let scene = Scene::parse(text, Path::new("hostile.toml"), &read).unwrap();
+    let mut s = sim("locobot", scene, 1).unwrap();
+    s.run_for(1_000_000);
+    for p in s.truth().bodies {
+        assert!(p.translation.vector.iter().all(|v| v.is_finite()), "{p}");
+    }
+}
+
+#[test]
+fn the_kobuki_bumps_into_a_movable_box_and_pushes_it_until_it_stops() {
+    // A 1 kg box (friction 0.6) whose near face is at x = 0.45 m, 8 cm tall: below the
+    // LoCoBot's plates (10 cm up, 25 cm ahead of the centre), which would meet a taller one
+    // before the bumper does.
+    let text = r#"
+name = "box"
+[floor]
+size = [4.0, 4.0]
+[[object]]
+id = "box"
+shape = "box"
+size = [0.3, 0.3, 0.08]
+position = [0.6, 0.0, 0.04]
+mass = 1.0
+colour = [0.6, 0.5, 0.3]
+"#;
+    let mut s = session("locobot", parse(text), 4);
+    let b0 = body(&s, "box");
+    s.command(&HostMsg::BaseVelocity {
+        v: 0.2,
+        w: 0.0,
+        duration_ms: 10_000,
+    })
+    .expect("accepted");
+    let t = s
+        .wait_telemetry(5_000_000, |t| t.base_flags & base_flags::ANY_BUMPER != 0)
+        .expect("bumper seen");
+    assert!(t.base_flags & base_flags::BUMPER_CENTER != 0);
+    s.run_for(1_000_000);
+    let pushed = body(&s, "box") - b0;
+    let x = s.sim.base_truth().unwrap()[0];
+    println!("box pushed {pushed:?}, base at x = {x} m");
+    assert!(s.take_faults().iter().any(|f| f.kind == FaultKind::Bumper));
+    assert_eq!(s.sim.hw.wheel_command(), (0.0, 0.0));
+    // The base pushed the box while the firmware stopped it: forward by a few millimetres,
+    // straight, and the box stays in front of the bumper (not entered by more than 1 mm).
+    assert!(
+        pushed.x > 0.0005 && pushed.x < 0.03,
+        "box pushed {pushed:?}"
+    );
+    assert!(pushed.y.abs() < 0.001, "box pushed {pushed:?}");
+    assert!(
+        x + 0.177 < 0.45 + pushed.x + 0.001,
+        "base at {x}, box pushed {pushed:?}"
+    );
+}
+
+#[test]
+fn every_bundled_scene_fits_its_robots() {
+    for (robot, scene) in [
+        ("locobot", "tabletop"),
+        ("locobot", "apartment"),
+        ("locobot_lite", "tabletop"),
+        ("locobot_lite", "apartment"),
+        ("sawyer", "shelf"),
+    ] {
+        let mut s = sim(robot, Scene::bundled(scene).unwrap(), 1)
+            .unwrap_or_else(|e| panic!("{robot} in {scene}: {e}"));
+        let before = s.truth().bodies;
+        s.run_for(300_000);
+        // Nothing is thrown about at the start (the objects rest where the scene puts them).
+        for ((b, p0), p1) in s.scene().bodies.iter().zip(&before).zip(&s.truth().bodies) {
+            let d = (p1.translation.vector - p0.translation.vector).norm();
+            assert!(d < 0.002, "{robot} in {scene}: {} moved {d} m", b.id);
+        }
+    }
+}
+
+#[test]
+fn a_dropped_ball_falls_with_g_and_comes_to_rest_on_the_floor() {
+    let text = r#"
+name = "drop"
+[floor]
+size = [4.0, 4.0]
+[[object]]
+id = "ball"
+shape = "sphere"
+size = [0.05]
+position = [1.0, 0.0, 0.55]
+mass = 0.2
+colour = [0.9, 0.2, 0.2]
+"#;
+    let mut s = sim("locobot", parse(text), 1).unwrap();
+    s.run_for(100_000);
+    let i = s
+        .scene()
+        .bodies
+        .iter()
+        .position(|b| b.id == "ball")
+        .unwrap();
+    let z = s.truth().bodies[i].translation.z;
+    // 0.1 s of free fall: g t² / 2 = 49 mm (1 ms steps: within 1 mm).
+    let fallen = 0.55 - z;
+    println!("fell {fallen} m in 0.1 s");
+    assert!((fallen - 0.5 * 9.81 * 0.01).abs() < 0.001, "fell {fallen}");
+    s.run_for(2_000_000);
+    let p = s.truth().bodies[i].translation.vector;
+    println!("ball at rest at {p:?}");
+    assert!((p.z - 0.05).abs() < 0.001, "ball at {p:?}");
+}
