@@ -210,7 +210,8 @@ fn bench(c: &mut Criterion) {
     compare_with_pybullet(cpu);
 }
 
-/// Pin this process (and the children it starts) to the one CPU it runs on now.
+/// Pin this process (and the children it starts) to one CPU: the highest-numbered one it may
+/// run on.
 fn pin_to_one_cpu() -> Option<usize> {
     use nix::sched::{sched_getaffinity, sched_setaffinity, CpuSet};
     use nix::unistd::Pid;

@@ -541,8 +541,11 @@ fn raster_clipped(
             n += 1;
         }
         if ia != ib {
-            let t = (NEAR - a.z) / (b.z - a.z);
-            let mut p = a + (b - a) * t;
+            // From the nearer end, so that the triangle on the other side of a shared edge
+            // (which runs it the other way) gets the same point.
+            let (p0, p1) = if a.z < b.z { (a, b) } else { (b, a) };
+            let t = (NEAR - p0.z) / (p1.z - p0.z);
+            let mut p = p0 + (p1 - p0) * t;
             p.z = NEAR;
             poly[n] = p;
             n += 1;
