@@ -618,11 +618,12 @@ fn raster(
         for &(ex, ey, e0, tl) in &es {
             let c = ey * fy + e0;
             if ex > 0.0 {
-                let t = -c / ex;
+                // Clamped far beyond any image, so that the integer steps cannot overflow.
+                let t = (-c / ex).clamp(-1e9, 1e9);
                 let xs = if tl { ceil_i64(t) } else { floor_i64(t) + 1 };
                 lo = lo.max(xs);
             } else if ex < 0.0 {
-                let t = -c / ex;
+                let t = (-c / ex).clamp(-1e9, 1e9);
                 let xe = if tl { floor_i64(t) } else { ceil_i64(t) - 1 };
                 hi = hi.min(xe);
             } else if c < 0.0 || (c == 0.0 && !tl) {
