@@ -34,6 +34,16 @@ fn looking_along_x(eye: [f64; 3]) -> Isometry3<f64> {
     )
 }
 
+/// An optical frame at `eye` looking in a random direction, turned at random about it.
+fn looking_anywhere(eye: [f64; 3], rng: &mut SimRng) -> Isometry3<f64> {
+    let rot = UnitQuaternion::from_euler_angles(
+        (rng.uniform() - 0.5) * 6.0,
+        (rng.uniform() - 0.5) * 3.0,
+        (rng.uniform() - 0.5) * 6.0,
+    );
+    Isometry3::from_parts(Translation3::new(eye[0], eye[1], eye[2]), rot)
+}
+
 fn wall_scene(distance: f64) -> Scene {
     scene(&format!(
         "name = \"wall\"\n[[object]]\nid = \"wall\"\nshape = \"box\"\nsize = [0.2, 20.0, 20.0]\n\
@@ -259,12 +269,7 @@ fn a_surface_filling_the_view_has_no_holes_from_any_angle() {
     let mut rng = SimRng::new(11, 2);
     for _ in 0..200 {
         let eye = [0, 1, 2].map(|_| (rng.uniform() - 0.5) * 4.0);
-        let rot = UnitQuaternion::from_euler_angles(
-            (rng.uniform() - 0.5) * 6.0,
-            (rng.uniform() - 0.5) * 3.0,
-            (rng.uniform() - 0.5) * 6.0,
-        );
-        let pose = Isometry3::from_parts(Translation3::new(eye[0], eye[1], eye[2]), rot);
+        let pose = looking_anywhere(eye, &mut rng);
         r.render(&camera(pose), &poses, &[], &mut img);
         let holes = img.depth.iter().filter(|&&d| d <= 0.0).count();
         let first = img
@@ -299,12 +304,7 @@ fn any_camera_pose_renders_without_panic() {
         ];
         eyes.extend((0..30).map(|_| [0, 1, 2].map(|_| (rng.uniform() - 0.5) * 8.0)));
         for eye in eyes {
-            let rot = UnitQuaternion::from_euler_angles(
-                (rng.uniform() - 0.5) * 6.0,
-                (rng.uniform() - 0.5) * 3.0,
-                (rng.uniform() - 0.5) * 6.0,
-            );
-            let pose = Isometry3::from_parts(Translation3::new(eye[0], eye[1], eye[2]), rot);
+            let pose = looking_anywhere(eye, &mut rng);
             r.render(&camera(pose), &poses, &[], &mut img);
             assert!(img.depth.iter().all(|d| d.is_finite() && *d >= 0.0));
             assert!(img.labels.iter().all(|&l| r.label_name(l).is_some()));
