@@ -358,7 +358,11 @@ impl Renderer {
             }
         }
         let bg = self.background.map(to_u8);
-        let mut scratch = vec![0u32; w];
+        let mut scratch = Scratch {
+            indices: vec![0; w],
+            palette_of: vec![u32::MAX; shades.len()],
+            palettes: Vec::new(),
+        };
         for r in 0..h {
             let row = r * w;
             let ry = (r as f32 - k.cy) / k.fy;
@@ -386,8 +390,7 @@ impl Renderer {
                         for d in depth.iter_mut() {
                             *d = 1.0 / *d;
                         }
-                        let scratch = &mut scratch[..end - x];
-                        self.shade_run(sh, &k, x, ry, depth, rgb, scratch);
+                        self.shade_run(sh, id, &k, x, ry, depth, rgb, &mut scratch);
                     }
                 }
                 x = end;
@@ -401,12 +404,13 @@ impl Renderer {
     fn shade_run(
         &self,
         sh: &Shade,
+        id: u32,
         k: &Intr,
         x0: usize,
         ry: f32,
         depth: &[f32],
         rgb: &mut [u8],
-        scratch: &mut [u32],
+        scratch: &mut Scratch,
     ) {
         let mat = &self.materials[sh.material as usize];
         let Some(tex) = &mat.texture else {
@@ -426,23 +430,17 @@ impl Renderer {
         match tex {
             Texture::Noise { .. } => {
                 let t = noise_table();
-                // Colour in 1/256 steps: c1 + dc n for the table's value n, from end colours
-                // within 0-255 (and dc rounded towards zero), so that it needs no clamp.
-                let c2 = [0, 1, 2].map(|c| (sh.c1[c] + 255.0 * sh.dc[c]).clamp(0.0, 255.0));
-                let c1 = sh.c1.map(|c| c.clamp(0.0, 255.0));
-                let dc = [0, 1, 2].map(|c| ((c2[c] - c1[c]) * 256.0 / 255.0) as i32);
-                let c1 = c1.map(|c| (c * 256.0) as i32 + 128);
+                let palette = scratch.palette(id, sh);
                 // First the table's indices (a loop that vectorises), then the look-ups.
+                let indices = &mut scratch.indices[..depth.len()];
                 let mask = NOISE_SIZE as u32 - 1;
-                for (i, (ix, &z)) in scratch.iter_mut().zip(depth).enumerate() {
+                for (i, (ix, &z)) in indices.iter_mut().zip(depth).enumerate() {
                     let (u, v) = uv(i, z);
                     *ix = (floor_bits(v) & mask) * NOISE_SIZE as u32 + (floor_bits(u) & mask);
                 }
-                for (p, &ix) in rgb.chunks_exact_mut(3).zip(scratch.iter()) {
-                    let n = i32::from(t[ix as usize]);
-                    for c in 0..3 {
-                        p[c] = ((c1[c] + dc[c] * n) >> 8) as u8;
-                    }
+                let palette = &scratch.palettes[palette];
+                for (p, &ix) in rgb.chunks_exact_mut(3).zip(indices.iter()) {
+                    p.copy_from_slice(&palette[usize::from(t[ix as usize])]);
                 }
             }
             Texture::Checker { .. } => {
@@ -464,6 +462,30 @@ impl Renderer {
                 }
             }
         }
+    }
+}
+
+/// The shading pass's scratch: a row of noise-table indices, and the noise texture's colours
+/// per shading record, made when the record is first shaded.
+struct Scratch {
+    indices: Vec<u32>,
+    /// Index into `palettes` per shading record (`u32::MAX`: none yet).
+    palette_of: Vec<u32>,
+    /// Entry n: the colour at the noise table's value n.
+    palettes: Vec<[[u8; 3]; 256]>,
+}
+
+impl Scratch {
+    /// The palette of shading record `id`, made now if it has none yet.
+    fn palette(&mut self, id: u32, sh: &Shade) -> usize {
+        let slot = &mut self.palette_of[id as usize];
+        if *slot == u32::MAX {
+            *slot = self.palettes.len() as u32;
+            self.palettes.push(std::array::from_fn(|n| {
+                [0, 1, 2].map(|c| to_u8_255(sh.c1[c] + sh.dc[c] * n as f32))
+            }));
+        }
+        *slot as usize
     }
 }
 
