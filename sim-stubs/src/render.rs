@@ -371,7 +371,7 @@ impl Renderer {
             while x < w {
                 // One run of pixels showing the same triangle is shaded at a time.
                 let id = ids[x];
-                let end = ids[x..].iter().position(|&i| i != id).map_or(w, |n| x + n);
+                let end = run_end(ids, x);
                 let span = row + x..row + end;
                 let depth = &mut out.depth[span.clone()];
                 let labels = &mut out.labels[span.clone()];
@@ -423,7 +423,8 @@ impl Renderer {
         // rx = (x - cx) / fx: u = z (ua x + ub) + a0, v likewise.
         let coeffs = |a: &[f32; 3]| (a[0] / k.fx, a[1] * ry + a[2] - a[0] * k.cx / k.fx);
         let ((ua, ub), (va, vb)) = (coeffs(&sh.a), coeffs(&sh.b));
-        let uv = |i: usize, z: f32| {
+        let x0 = x0 as i32;
+        let uv = |i: i32, z: f32| {
             let x = (x0 + i) as f32;
             (z * (ua * x + ub) + sh.a0, z * (va * x + vb) + sh.b0)
         };
@@ -434,7 +435,7 @@ impl Renderer {
                 // First the table's indices (a loop that vectorises), then the look-ups.
                 let indices = &mut scratch.indices[..depth.len()];
                 let mask = NOISE_SIZE as u32 - 1;
-                for (i, (ix, &z)) in indices.iter_mut().zip(depth).enumerate() {
+                for (i, (ix, &z)) in (0..).zip(indices.iter_mut().zip(depth)) {
                     let (u, v) = uv(i, z);
                     *ix = (floor_bits(v) & mask) * NOISE_SIZE as u32 + (floor_bits(u) & mask);
                 }
@@ -446,14 +447,14 @@ impl Renderer {
             Texture::Checker { .. } => {
                 let (c1, c2) = (sh.c1.map(to_u8_255), (sh.c1, sh.dc));
                 let c2 = [0, 1, 2].map(|c| to_u8_255(c2.0[c] + c2.1[c] * 255.0));
-                for (i, (p, &z)) in rgb.chunks_exact_mut(3).zip(depth).enumerate() {
+                for (i, (p, &z)) in (0..).zip(rgb.chunks_exact_mut(3).zip(depth)) {
                     let (u, v) = uv(i, z);
                     let odd = floor_bits(u).wrapping_add(floor_bits(v)) & 1 != 0;
                     p.copy_from_slice(if odd { &c2 } else { &c1 });
                 }
             }
             _ => {
-                for (i, (p, &z)) in rgb.chunks_exact_mut(3).zip(depth).enumerate() {
+                for (i, (p, &z)) in (0..).zip(rgb.chunks_exact_mut(3).zip(depth)) {
                     let (u, v) = uv(i, z);
                     let c = texture_colour(tex, mat.colour, u, v);
                     for ch in 0..3 {
@@ -463,6 +464,23 @@ impl Renderer {
             }
         }
     }
+}
+
+/// Where the run of equal ids starting at `x` ends (exclusive).
+fn run_end(ids: &[u32], x: usize) -> usize {
+    let id = ids[x];
+    let mut end = x + 1;
+    // Eight at a time first (a comparison that vectorises).
+    while let Some(chunk) = ids.get(end..end + 8) {
+        if !chunk.iter().fold(true, |same, &i| same & (i == id)) {
+            break;
+        }
+        end += 8;
+    }
+    while end < ids.len() && ids[end] == id {
+        end += 1;
+    }
+    end
 }
 
 /// The shading pass's scratch: a row of noise-table indices, and the noise texture's colours
@@ -663,7 +681,7 @@ fn raster(
         let mut wrote = 0u32;
         // Branch-free, so that it vectorises: 1/z at the span's i-th pixel from its start; the
         // id and 1/z go in through a mask (a select would be turned back into a branch).
-        for (i, (zb, ib)) in zs.iter_mut().zip(is.iter_mut()).enumerate() {
+        for (i, (zb, ib)) in (0i32..).zip(zs.iter_mut().zip(is.iter_mut())) {
             let iz = iz0 + zx * i as f32;
             let mask = 0u32.wrapping_sub(u32::from(iz > *zb));
             *zb = f32::from_bits(zb.to_bits() ^ ((zb.to_bits() ^ iz.to_bits()) & mask));
