@@ -358,7 +358,11 @@ impl Renderer {
             }
         }
         let bg = self.background.map(to_u8);
-        let mut scratch = vec![0u32; w];
+        let mut scratch = Scratch {
+            indices: vec![0; w],
+            palette_of: vec![u32::MAX; shades.len()],
+            palettes: Vec::new(),
+        };
         for r in 0..h {
             let row = r * w;
             let ry = (r as f32 - k.cy) / k.fy;
@@ -367,7 +371,7 @@ impl Renderer {
             while x < w {
                 // One run of pixels showing the same triangle is shaded at a time.
                 let id = ids[x];
-                let end = ids[x..].iter().position(|&i| i != id).map_or(w, |n| x + n);
+                let end = run_end(ids, x);
                 let span = row + x..row + end;
                 let depth = &mut out.depth[span.clone()];
                 let labels = &mut out.labels[span.clone()];
@@ -386,8 +390,7 @@ impl Renderer {
                         for d in depth.iter_mut() {
                             *d = 1.0 / *d;
                         }
-                        let scratch = &mut scratch[..end - x];
-                        self.shade_run(sh, &k, x, ry, depth, rgb, scratch);
+                        self.shade_run(sh, id, &k, x, ry, depth, rgb, &mut scratch);
                     }
                 }
                 x = end;
@@ -401,12 +404,13 @@ impl Renderer {
     fn shade_run(
         &self,
         sh: &Shade,
+        id: u32,
         k: &Intr,
         x0: usize,
         ry: f32,
         depth: &[f32],
         rgb: &mut [u8],
-        scratch: &mut [u32],
+        scratch: &mut Scratch,
     ) {
         let mat = &self.materials[sh.material as usize];
         let Some(tex) = &mat.texture else {
@@ -419,43 +423,38 @@ impl Renderer {
         // rx = (x - cx) / fx: u = z (ua x + ub) + a0, v likewise.
         let coeffs = |a: &[f32; 3]| (a[0] / k.fx, a[1] * ry + a[2] - a[0] * k.cx / k.fx);
         let ((ua, ub), (va, vb)) = (coeffs(&sh.a), coeffs(&sh.b));
-        let uv = |i: usize, z: f32| {
+        let x0 = x0 as i32;
+        let uv = |i: i32, z: f32| {
             let x = (x0 + i) as f32;
             (z * (ua * x + ub) + sh.a0, z * (va * x + vb) + sh.b0)
         };
         match tex {
             Texture::Noise { .. } => {
                 let t = noise_table();
-                // Colour in 1/256 steps: c1 + dc n for the table's value n, from end colours
-                // within 0-255 (and dc rounded towards zero), so that it needs no clamp.
-                let c2 = [0, 1, 2].map(|c| (sh.c1[c] + 255.0 * sh.dc[c]).clamp(0.0, 255.0));
-                let c1 = sh.c1.map(|c| c.clamp(0.0, 255.0));
-                let dc = [0, 1, 2].map(|c| ((c2[c] - c1[c]) * 256.0 / 255.0) as i32);
-                let c1 = c1.map(|c| (c * 256.0) as i32 + 128);
+                let palette = scratch.palette(id, sh);
                 // First the table's indices (a loop that vectorises), then the look-ups.
+                let indices = &mut scratch.indices[..depth.len()];
                 let mask = NOISE_SIZE as u32 - 1;
-                for (i, (ix, &z)) in scratch.iter_mut().zip(depth).enumerate() {
+                for (i, (ix, &z)) in (0..).zip(indices.iter_mut().zip(depth)) {
                     let (u, v) = uv(i, z);
                     *ix = (floor_bits(v) & mask) * NOISE_SIZE as u32 + (floor_bits(u) & mask);
                 }
-                for (p, &ix) in rgb.chunks_exact_mut(3).zip(scratch.iter()) {
-                    let n = i32::from(t[ix as usize]);
-                    for c in 0..3 {
-                        p[c] = ((c1[c] + dc[c] * n) >> 8) as u8;
-                    }
+                let palette = &scratch.palettes[palette];
+                for (p, &ix) in rgb.chunks_exact_mut(3).zip(indices.iter()) {
+                    p.copy_from_slice(&palette[usize::from(t[ix as usize])]);
                 }
             }
             Texture::Checker { .. } => {
                 let (c1, c2) = (sh.c1.map(to_u8_255), (sh.c1, sh.dc));
                 let c2 = [0, 1, 2].map(|c| to_u8_255(c2.0[c] + c2.1[c] * 255.0));
-                for (i, (p, &z)) in rgb.chunks_exact_mut(3).zip(depth).enumerate() {
+                for (i, (p, &z)) in (0..).zip(rgb.chunks_exact_mut(3).zip(depth)) {
                     let (u, v) = uv(i, z);
                     let odd = floor_bits(u).wrapping_add(floor_bits(v)) & 1 != 0;
                     p.copy_from_slice(if odd { &c2 } else { &c1 });
                 }
             }
             _ => {
-                for (i, (p, &z)) in rgb.chunks_exact_mut(3).zip(depth).enumerate() {
+                for (i, (p, &z)) in (0..).zip(rgb.chunks_exact_mut(3).zip(depth)) {
                     let (u, v) = uv(i, z);
                     let c = texture_colour(tex, mat.colour, u, v);
                     for ch in 0..3 {
@@ -464,6 +463,47 @@ impl Renderer {
                 }
             }
         }
+    }
+}
+
+/// Where the run of equal ids starting at `x` ends (exclusive).
+fn run_end(ids: &[u32], x: usize) -> usize {
+    let id = ids[x];
+    let mut end = x + 1;
+    // Eight at a time first (a comparison that vectorises).
+    while let Some(chunk) = ids.get(end..end + 8) {
+        if !chunk.iter().fold(true, |same, &i| same & (i == id)) {
+            break;
+        }
+        end += 8;
+    }
+    while end < ids.len() && ids[end] == id {
+        end += 1;
+    }
+    end
+}
+
+/// The shading pass's scratch: a row of noise-table indices, and the noise texture's colours
+/// per shading record, made when the record is first shaded.
+struct Scratch {
+    indices: Vec<u32>,
+    /// Index into `palettes` per shading record (`u32::MAX`: none yet).
+    palette_of: Vec<u32>,
+    /// Entry n: the colour at the noise table's value n.
+    palettes: Vec<[[u8; 3]; 256]>,
+}
+
+impl Scratch {
+    /// The palette of shading record `id`, made now if it has none yet.
+    fn palette(&mut self, id: u32, sh: &Shade) -> usize {
+        let slot = &mut self.palette_of[id as usize];
+        if *slot == u32::MAX {
+            *slot = self.palettes.len() as u32;
+            self.palettes.push(std::array::from_fn(|n| {
+                [0, 1, 2].map(|c| to_u8_255(sh.c1[c] + sh.dc[c] * n as f32))
+            }));
+        }
+        *slot as usize
     }
 }
 
@@ -541,8 +581,11 @@ fn raster_clipped(
             n += 1;
         }
         if ia != ib {
-            let t = (NEAR - a.z) / (b.z - a.z);
-            let mut p = a + (b - a) * t;
+            // From the nearer end, so that the triangle on the other side of a shared edge
+            // (which runs it the other way) gets the same point.
+            let (p0, p1) = if a.z < b.z { (a, b) } else { (b, a) };
+            let t = (NEAR - p0.z) / (p1.z - p0.z);
+            let mut p = p0 + (p1 - p0) * t;
             p.z = NEAR;
             poly[n] = p;
             n += 1;
@@ -615,11 +658,12 @@ fn raster(
         for &(ex, ey, e0, tl) in &es {
             let c = ey * fy + e0;
             if ex > 0.0 {
-                let t = -c / ex;
+                // Clamped far beyond any image, so that the integer steps cannot overflow.
+                let t = (-c / ex).clamp(-1e9, 1e9);
                 let xs = if tl { ceil_i64(t) } else { floor_i64(t) + 1 };
                 lo = lo.max(xs);
             } else if ex < 0.0 {
-                let t = -c / ex;
+                let t = (-c / ex).clamp(-1e9, 1e9);
                 let xe = if tl { floor_i64(t) } else { ceil_i64(t) - 1 };
                 hi = hi.min(xe);
             } else if c < 0.0 || (c == 0.0 && !tl) {
@@ -637,7 +681,7 @@ fn raster(
         let mut wrote = 0u32;
         // Branch-free, so that it vectorises: 1/z at the span's i-th pixel from its start; the
         // id and 1/z go in through a mask (a select would be turned back into a branch).
-        for (i, (zb, ib)) in zs.iter_mut().zip(is.iter_mut()).enumerate() {
+        for (i, (zb, ib)) in (0i32..).zip(zs.iter_mut().zip(is.iter_mut())) {
             let iz = iz0 + zx * i as f32;
             let mask = 0u32.wrapping_sub(u32::from(iz > *zb));
             *zb = f32::from_bits(zb.to_bits() ^ ((zb.to_bits() ^ iz.to_bits()) & mask));
