@@ -143,6 +143,8 @@ pub struct World {
     time_us: u64,
     /// The rigid body of every scene body ([`Scene::bodies`] order).
     bodies: Vec<RigidBodyHandle>,
+    /// Their ids.
+    ids: Vec<String>,
     robot: Option<Robot>,
     /// Physics steps taken.
     steps: u64,
@@ -258,6 +260,7 @@ impl World {
             pw,
             time_us: 0,
             bodies,
+            ids: scene.bodies.iter().map(|b| b.id.clone()).collect(),
             robot,
             steps: 0,
             active_steps: 0,
@@ -594,6 +597,11 @@ impl World {
     /// The scene body the gripper holds ([`Scene::bodies`] index), if any.
     pub fn held(&self) -> Option<usize> {
         self.robot.as_ref()?.grasp.map(|g| g.object)
+    }
+
+    /// The scene bodies' ids ([`Scene::bodies`] order).
+    pub fn body_ids(&self) -> &[String] {
+        &self.ids
     }
 
     /// Pose of every scene body now ([`Scene::bodies`] order).

@@ -551,4 +551,14 @@ colour = [0.9, 0.2, 0.2]
     let p = s.truth().bodies[i].translation.vector;
     println!("ball at rest at {p:?}");
     assert!((p.z - 0.05).abs() < 0.001, "ball at {p:?}");
+    // The plant servers' `bodies` line says the same.
+    let j = ferrobot_sim::control::bodies(s.hw.world());
+    let ball = j["bodies"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|b| b["id"] == "ball")
+        .unwrap()
+        .clone();
+    assert_eq!(ball["position"][2].as_f64(), Some(p.z), "{j}");
 }
