@@ -10,12 +10,16 @@
 //!   triangles) gets no collider: it is seen by the camera but not touched.
 //! * The robot's links with collision shapes are kinematic (position-based) bodies, moved at
 //!   every step to the poses the plants give: the base's ground truth and the servos' true
-//!   angles through [`RobotBody::link_poses`]. They push movable objects and are never pushed.
-//!   Kinematic bodies do not collide with fixed ones in rapier; the base's contact with fixed
-//!   geometry is the base plant's ([`Surroundings`]: it stalls against walls and furniture,
-//!   and its bumper reports contacts with anything, fixed or movable, by bearing).
-//! * The gripper: when both fingers touch the same movable object (within [`TOUCH`]), the
-//!   gripper servo is blocked at its angle of that instant (the servo's obstacle), so its
+//!   angles through [`RobotBody::link_poses`]. They push movable objects and are never pushed
+//!   (rapier does not wake a sleeping body that a kinematic one runs into: the world wakes
+//!   what a moving link touches). Kinematic bodies do not collide with fixed ones in rapier;
+//!   the base's contact with fixed geometry is the base plant's ([`Surroundings`]: it stalls
+//!   against walls and furniture, and its bumper reports contacts with anything, fixed or
+//!   movable, by bearing). Not modelled: the arm meeting fixed geometry (it passes through a
+//!   table; no servo is blocked by it) and the robot's links meeting each other.
+//! * The gripper: when both fingers touch the same movable object (within [`TOUCH`]) from
+//!   either side (its centre between them: a closed pair pushing an object with one finger's
+//!   outer face does not grasp it), the gripper servo is blocked at its angle of that instant (the servo's obstacle), so its
 //!   position stops and its current rises as a real Dynamixel's do on an object, and the
 //!   firmware's gripper state machine reports holding; the fingers' colliders stay at the
 //!   contact angle meanwhile (the object is rigid: the servo's contact spring is the
@@ -29,9 +33,11 @@
 //!   grasp.
 //!
 //! Time: a fixed step of [`STEP_US`] (1 ms), on the base plant's 1 ms grid: the base and the
-//! world see each other every base step, a finger closing at 40 mm/s moves 0.04 mm per step
-//! (well inside the touch and contact tolerances), and 3 cm objects stay stable with rapier's
-//! default four solver iterations. An empty scene has no world at all: nothing is stepped.
+//! world see each other every base step, the base at its top speed (0.7 m/s) moves 0.7 mm and
+//! a closing finger a few hundredths of a millimetre per step (inside the touch tolerance),
+//! and 2-8 cm objects stay stable with rapier's default four solver iterations. An empty
+//! scene has no world at all; a world at rest (every movable body asleep, no link moving) is
+//! not stepped, as nothing in it would change.
 //!
 //! Determinism: rapier is deterministic for the same inputs on one platform and build
 //! (single-threaded, no `parallel` feature), so a run is bit-identical for the same seed;
@@ -485,7 +491,8 @@ impl World {
         if finger_colliders.len() < 2 || finger_colliders.iter().any(Vec::is_empty) {
             return;
         }
-        // Movable objects near the first finger, then whether every finger touches one.
+        // Movable objects touching the first finger (by their boxes), then whether every
+        // finger touches one.
         let Some(first) = finger_colliders
             .first()
             .and_then(|c| c.first())
@@ -493,7 +500,7 @@ impl World {
         else {
             return;
         };
-        let near = first.compute_aabb().loosened(0.1);
+        let near = first.compute_aabb().loosened(2.0 * TOUCH as f32);
         let candidates: Vec<ColliderHandle> = self
             .pw
             .intersect_aabb_conservative(near, QueryFilter::only_dynamic())
