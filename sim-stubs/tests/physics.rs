@@ -319,6 +319,12 @@ fn the_kobuki_driving_into_a_wall_raises_the_bumper_fault_and_stops() {
     assert!((x + radius - 0.55).abs() < 0.001, "stopped at {x}");
     assert_eq!(x, x2);
     assert_eq!(s.sim.hw.wheel_command(), (0.0, 0.0));
+    // The wheels stalled against the wall rather than spinning in place: the odometry (from
+    // the encoders) agrees with the truth as on open floor (the true wheels are 0.85 % larger
+    // than the nominal ones: 3 mm over 0.37 m), not a wheel-spin beyond it.
+    let odom = s.telemetry.as_ref().unwrap().odometry.x as f64;
+    println!("odometry {odom} m, truth {x2} m");
+    assert!((x2 - odom).abs() < 0.005, "odometry {odom}, truth {x2}");
     assert!(s.take_faults().iter().any(|f| f.kind == FaultKind::Bumper));
     // Forward is refused while pressed; backing off works.
     assert_eq!(
