@@ -545,8 +545,8 @@ impl World {
         if finger_colliders.len() < 2 || finger_colliders.iter().any(Vec::is_empty) {
             return;
         }
-        // Movable objects touching the first finger (by their boxes), then whether every
-        // finger touches one.
+        // Movable objects near the first finger (by the broad phase's boxes, with a margin for
+        // their motion in the last step), then whether every finger touches one.
         let Some(first) = finger_colliders
             .first()
             .and_then(|c| c.first())
@@ -554,7 +554,7 @@ impl World {
         else {
             return;
         };
-        let near = first.compute_aabb().loosened(2.0 * TOUCH as f32);
+        let near = first.compute_aabb().loosened(0.01);
         let candidates: Vec<ColliderHandle> = self
             .pw
             .intersect_aabb_conservative(near, QueryFilter::only_dynamic())
