@@ -9,7 +9,7 @@
 //! * `lockstep 1 s`: one simulated second of the LoCoBot with the arm and the base moving, 1 kHz
 //!   servo loop, everything (firmware, servo physics at 4 kHz, base physics at 1 kHz, wires).
 //! * `lockstep 1 s in the tabletop`: as `lockstep 1 s`, in the tabletop scene with the physics
-//!   world stepped at 1 kHz, the arm on a slow move and the base still.
+//!   world at 1 kHz, the objects at rest, the arm on a slow move and the base still.
 //! * `physics step`: one 1 ms step of the physics world (rapier3d) with the LoCoBot's links in
 //!   the tabletop and apartment scenes: idle (the objects asleep, the links still), and with
 //!   the base turning in place at 1 rad/s (every link moving each step).
@@ -46,7 +46,8 @@ fn recorded_bytes() -> (Vec<u8>, Vec<u8>) {
     (replies, fb)
 }
 
-/// The LoCoBot in the tabletop scene, configured, its arm on a slow move above the table.
+/// The LoCoBot in the tabletop scene, configured, the objects at rest (rapier puts them to
+/// sleep about 2 s after the start), its arm on a slow move.
 fn tabletop_busy() -> ferrobot_sim::SimHost {
     let scene =
         std::sync::Arc::new(ferrobot_sim::scene::Scene::bundled("tabletop").expect("scene"));
@@ -61,6 +62,7 @@ fn tabletop_busy() -> ferrobot_sim::SimHost {
     s.handshake().expect("hello");
     s.wait_telemetry(2_000_000, |t| t.faults & fault_flags::CONFIGURING == 0)
         .expect("configured");
+    s.run_for(3_000_000);
     let points = [0.6f32, -0.3, 0.3, 0.0, 0.5]
         .iter()
         .map(|&p| JointPoint::at_rest(p))

@@ -4,6 +4,8 @@
 //!
 //! * `time`: `{"time_us"}`, the plants' simulated time;
 //! * `truth`: `{"truth": [x, y, θ], "wheel_speed": [l, r], "target": [l, r]}` of the base;
+//! * `bodies`: `{"bodies": [{"id", "position": [x, y, z], "quaternion": [x, y, z, w]}]}`, the
+//!   scene's bodies now (world frame, m; empty without a physics world; [`bodies`]);
 //! * `servo ID`: `{"id", "angle", "torque_enabled", "hardware_error"}`;
 //! * `object ID TICK` / `object ID none`: an object the servo closes on (below TICK);
 //! * `block ID RAD` / `block ID none`: the servo's joint is blocked above RAD;
@@ -82,6 +84,25 @@ pub fn command(
         }
         _ => json!({"error": format!("unknown command {line:?}")}),
     }
+}
+
+/// The answer to `bodies`: every scene body's id and live pose (world frame, m, quaternion
+/// `[x, y, z, w]`), none without a physics world.
+pub fn bodies(world: Option<&crate::world::World>) -> Value {
+    let list: Vec<Value> = world
+        .map(|w| {
+            w.body_ids()
+                .iter()
+                .zip(w.body_poses())
+                .map(|(id, p)| {
+                    let q = p.rotation.coords;
+                    json!({"id": id, "position": [p.translation.x, p.translation.y, p.translation.z],
+                           "quaternion": [q.x, q.y, q.z, q.w]})
+                })
+                .collect()
+        })
+        .unwrap_or_default();
+    json!({ "bodies": list })
 }
 
 /// About `n` bytes of servo-bus noise (random bytes, then a status packet whose CRC the noise

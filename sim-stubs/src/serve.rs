@@ -239,6 +239,10 @@ impl Plants {
     /// Carry out one line of the control protocol ([`crate::control`]); returns the JSON
     /// answer.
     pub fn command(&self, line: &str) -> serde_json::Value {
+        if line.trim() == "bodies" {
+            let w = self.world.as_ref().and_then(|w| w.lock().ok());
+            return crate::control::bodies(w.as_deref());
+        }
         let (Ok(mut chain), Ok(mut noise)) = (self.chain.lock(), self.servo_noise.lock()) else {
             return serde_json::json!({"error": "plants lock"});
         };

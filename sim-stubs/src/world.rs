@@ -10,12 +10,16 @@
 //!   triangles) gets no collider: it is seen by the camera but not touched.
 //! * The robot's links with collision shapes are kinematic (position-based) bodies, moved at
 //!   every step to the poses the plants give: the base's ground truth and the servos' true
-//!   angles through [`RobotBody::link_poses`]. They push movable objects and are never pushed.
-//!   Kinematic bodies do not collide with fixed ones in rapier; the base's contact with fixed
-//!   geometry is the base plant's ([`Surroundings`]: it stalls against walls and furniture,
-//!   and its bumper reports contacts with anything, fixed or movable, by bearing).
-//! * The gripper: when both fingers touch the same movable object (within [`TOUCH`]), the
-//!   gripper servo is blocked at its angle of that instant (the servo's obstacle), so its
+//!   angles through [`RobotBody::link_poses`]. They push movable objects and are never pushed
+//!   (rapier does not wake a sleeping body that a kinematic one runs into: the world wakes
+//!   what a moving link touches). Kinematic bodies do not collide with fixed ones in rapier;
+//!   the base's contact with fixed geometry is the base plant's ([`Surroundings`]: it stalls
+//!   against walls and furniture, and its bumper reports contacts with anything, fixed or
+//!   movable, by bearing). Not modelled: the arm meeting fixed geometry (it passes through a
+//!   table; no servo is blocked by it) and the robot's links meeting each other.
+//! * The gripper: when both fingers touch the same movable object (within [`TOUCH`]) from
+//!   either side (its centre between them: a closed pair pushing an object with one finger's
+//!   outer face does not grasp it), the gripper servo is blocked at its angle of that instant (the servo's obstacle), so its
 //!   position stops and its current rises as a real Dynamixel's do on an object, and the
 //!   firmware's gripper state machine reports holding; the fingers' colliders stay at the
 //!   contact angle meanwhile (the object is rigid: the servo's contact spring is the
@@ -29,9 +33,11 @@
 //!   grasp.
 //!
 //! Time: a fixed step of [`STEP_US`] (1 ms), on the base plant's 1 ms grid: the base and the
-//! world see each other every base step, a finger closing at 40 mm/s moves 0.04 mm per step
-//! (well inside the touch and contact tolerances), and 3 cm objects stay stable with rapier's
-//! default four solver iterations. An empty scene has no world at all: nothing is stepped.
+//! world see each other every base step, the base at its top speed (0.7 m/s) moves 0.7 mm and
+//! a closing finger a few hundredths of a millimetre per step (inside the touch tolerance),
+//! and 2-8 cm objects stay stable with rapier's default four solver iterations. An empty
+//! scene has no world at all; a world at rest (every movable body asleep, no link within
+//! [`NEAR`] of one) is not stepped: the links are put in place, nothing else would change.
 //!
 //! Determinism: rapier is deterministic for the same inputs on one platform and build
 //! (single-threaded, no `parallel` feature), so a run is bit-identical for the same seed;
@@ -58,6 +64,9 @@ pub const TOUCH: f64 = 0.0005;
 /// The grasp is released when the gripper servo has opened this far beyond the angle at which
 /// it closed on the object, rad (0.3 mm of finger travel on the LoCoBot).
 pub const RELEASE: f64 = 0.02;
+/// A moving link closer than this to a movable body (by their bounding boxes) makes the
+/// world step even when every movable body is asleep, m.
+pub const NEAR: f64 = 0.02;
 /// A scene body reaching this far into a robot link at the start is an overlap, m.
 pub const OVERLAP: f64 = 0.001;
 /// Length scale of the world, m: rapier's tolerances (allowed penetration 0.1 mm, contact
@@ -143,6 +152,8 @@ pub struct World {
     time_us: u64,
     /// The rigid body of every scene body ([`Scene::bodies`] order).
     bodies: Vec<RigidBodyHandle>,
+    /// Their ids.
+    ids: Vec<String>,
     robot: Option<Robot>,
     /// Physics steps taken.
     steps: u64,
@@ -258,11 +269,13 @@ impl World {
             pw,
             time_us: 0,
             bodies,
+            ids: scene.bodies.iter().map(|b| b.id.clone()).collect(),
             robot,
             steps: 0,
             active_steps: 0,
         };
-        w.place_robot(base, theta, true);
+        let targets = w.link_targets(base, theta);
+        w.teleport(&targets);
         // Place the colliders with their bodies and fill the broad phase, so that the first
         // queries see the scene.
         w.pw.detect_collisions(&(), &());
@@ -278,13 +291,14 @@ impl World {
         Ok(w)
     }
 
-    /// Move the robot's link bodies to the poses of the plants' state (`teleport`: now, else
-    /// at the end of the next step); whether any link moves.
-    fn place_robot(&mut self, base: BasePose, theta: &[f64], teleport: bool) -> bool {
-        let Some(r) = &self.robot else { return false };
+    /// Where the robot's link bodies belong for the plants' state: each link body with its
+    /// pose (the fingers held at the contact angle while the gripper holds an object).
+    fn link_targets(&self, base: BasePose, theta: &[f64]) -> Vec<(RigidBodyHandle, Pose)> {
+        let Some(r) = &self.robot else {
+            return Vec::new();
+        };
         let mut theta = theta.to_vec();
         if let (Some(g), Some(hand)) = (&r.grasp, r.body.hand()) {
-            // The fingers stay at the contact angle while the object is held.
             if let Some(t) = theta.get_mut(hand.servo) {
                 *t = if hand.closed < hand.open {
                     t.max(g.at)
@@ -296,23 +310,34 @@ impl World {
         let root = RobotBody::root_pose(base, r.height);
         let q = r.body.joint_values(&theta);
         let poses = r.body.link_poses(&root, &q);
-        let mut moving = Vec::new();
-        for (h, p) in r.links.iter().zip(&poses) {
-            let Some(h) = h else { continue };
+        r.links
+            .iter()
+            .zip(&poses)
+            .filter_map(|(h, p)| h.map(|h| (h, convert::pose(p))))
+            .collect()
+    }
+
+    /// Put the link bodies at `targets` now, outside a step.
+    fn teleport(&mut self, targets: &[(RigidBodyHandle, Pose)]) {
+        for (h, p) in targets {
             if let Some(rb) = self.pw.bodies.get_mut(*h) {
-                let p = convert::pose(p);
-                if teleport {
-                    rb.set_position(p, true);
-                } else {
-                    if *rb.position() != p {
-                        moving.extend(rb.colliders().iter().copied());
-                    }
-                    rb.set_next_kinematic_position(p);
-                }
+                rb.set_position(*p, false);
             }
         }
-        // rapier does not wake a sleeping body that a kinematic one runs into: a moving link
-        // wakes what it touches.
+    }
+
+    /// Send the link bodies to `targets` in the next step, waking what the moving ones touch
+    /// (rapier does not wake a sleeping body that a kinematic one runs into).
+    fn drive(&mut self, targets: &[(RigidBodyHandle, Pose)]) {
+        let mut moving = Vec::new();
+        for (h, p) in targets {
+            if let Some(rb) = self.pw.bodies.get_mut(*h) {
+                if rb.position() != p {
+                    moving.extend(rb.colliders().iter().copied());
+                }
+                rb.set_next_kinematic_position(*p);
+            }
+        }
         let mut wake = Vec::new();
         for &c in &moving {
             for pair in self.pw.narrow_phase.contact_pairs_with(c) {
@@ -326,7 +351,6 @@ impl World {
                 }
             }
         }
-        let moved = !moving.is_empty();
         for b in wake {
             if let Some(rb) = self.pw.bodies.get_mut(b) {
                 if rb.is_dynamic() && rb.is_sleeping() {
@@ -334,7 +358,47 @@ impl World {
                 }
             }
         }
-        moved
+    }
+
+    /// Whether a link moving to `targets` comes within [`NEAR`] of a movable body, or any
+    /// movable body is awake: the engine has something to do.
+    fn busy(&self, targets: &[(RigidBodyHandle, Pose)]) -> bool {
+        let bodies = &self.pw.bodies;
+        let movable: Vec<&RigidBody> = self
+            .bodies
+            .iter()
+            .filter_map(|h| bodies.get(*h))
+            .filter(|b| b.is_dynamic())
+            .collect();
+        if movable.iter().any(|b| !b.is_sleeping()) {
+            return true;
+        }
+        let mut swept = Vec::new();
+        for (h, p) in targets {
+            let Some(rb) = bodies.get(*h) else { continue };
+            if rb.position() == p {
+                continue;
+            }
+            for ch in rb.colliders() {
+                let Some(c) = self.pw.colliders.get(*ch) else {
+                    continue;
+                };
+                let local = c.position_wrt_parent().copied().unwrap_or(Pose::IDENTITY);
+                let to = c.shape().compute_aabb(&(*p * local));
+                swept.push(c.compute_aabb().merged(&to).loosened(NEAR as f32));
+            }
+        }
+        if swept.is_empty() {
+            return false;
+        }
+        movable.iter().any(|b| {
+            b.colliders().iter().any(|ch| {
+                self.pw.colliders.get(*ch).is_some_and(|c| {
+                    let a = c.compute_aabb();
+                    swept.iter().any(|s| s.intersects(&a))
+                })
+            })
+        })
     }
 
     fn check_overlap(&self, scene: &Scene) -> Result<(), SceneError> {
@@ -410,19 +474,18 @@ impl World {
     /// state there (`base`: the base's true pose; the chain: the servos' true angles), step
     /// the physics, and let the gripper grasp or release (which sets or clears the gripper
     /// servo's obstacle in `chain`). A world at rest (every movable body asleep, no link
-    /// moving) is not stepped: nothing in it would change.
+    /// within [`NEAR`] of one) is not stepped: only the links move, and they are put in place.
     pub fn step(&mut self, base: BasePose, chain: &mut ServoChain) {
         let theta: Vec<f64> = chain.servos.iter().map(|s| s.theta).collect();
-        let moved = self.place_robot(base, &theta, false);
-        let bodies = &self.pw.bodies;
-        let awake = self.bodies.iter().any(|h| {
-            bodies
-                .get(*h)
-                .is_some_and(|b| b.is_dynamic() && !b.is_sleeping())
-        });
-        if moved || awake {
+        let targets = self.link_targets(base, &theta);
+        if self.busy(&targets) {
+            self.drive(&targets);
             self.pw.step();
             self.active_steps += 1;
+        } else {
+            // Every movable body asleep and no link near one: stepping would only move the
+            // links.
+            self.teleport(&targets);
         }
         self.time_us += STEP_US;
         self.steps += 1;
@@ -482,7 +545,8 @@ impl World {
         if finger_colliders.len() < 2 || finger_colliders.iter().any(Vec::is_empty) {
             return;
         }
-        // Movable objects near the first finger, then whether every finger touches one.
+        // Movable objects near the first finger (by the broad phase's boxes, with a margin for
+        // their motion in the last step), then whether every finger touches one.
         let Some(first) = finger_colliders
             .first()
             .and_then(|c| c.first())
@@ -490,7 +554,7 @@ impl World {
         else {
             return;
         };
-        let near = first.compute_aabb().loosened(0.1);
+        let near = first.compute_aabb().loosened(0.01);
         let candidates: Vec<ColliderHandle> = self
             .pw
             .intersect_aabb_conservative(near, QueryFilter::only_dynamic())
@@ -594,6 +658,11 @@ impl World {
     /// The scene body the gripper holds ([`Scene::bodies`] index), if any.
     pub fn held(&self) -> Option<usize> {
         self.robot.as_ref()?.grasp.map(|g| g.object)
+    }
+
+    /// The scene bodies' ids ([`Scene::bodies`] order).
+    pub fn body_ids(&self) -> &[String] {
+        &self.ids
     }
 
     /// Pose of every scene body now ([`Scene::bodies`] order).

@@ -319,6 +319,12 @@ fn the_kobuki_driving_into_a_wall_raises_the_bumper_fault_and_stops() {
     assert!((x + radius - 0.55).abs() < 0.001, "stopped at {x}");
     assert_eq!(x, x2);
     assert_eq!(s.sim.hw.wheel_command(), (0.0, 0.0));
+    // The wheels stalled against the wall rather than spinning in place: the odometry (from
+    // the encoders) agrees with the truth as on open floor (the true wheels are 0.85 % larger
+    // than the nominal ones: 3 mm over 0.37 m), not a wheel-spin beyond it.
+    let odom = s.telemetry.as_ref().unwrap().odometry.x as f64;
+    println!("odometry {odom} m, truth {x2} m");
+    assert!((x2 - odom).abs() < 0.005, "odometry {odom}, truth {x2}");
     assert!(s.take_faults().iter().any(|f| f.kind == FaultKind::Bumper));
     // Forward is refused while pressed; backing off works.
     assert_eq!(
@@ -551,4 +557,14 @@ colour = [0.9, 0.2, 0.2]
     let p = s.truth().bodies[i].translation.vector;
     println!("ball at rest at {p:?}");
     assert!((p.z - 0.05).abs() < 0.001, "ball at {p:?}");
+    // The plant servers' `bodies` line says the same.
+    let j = ferrobot_sim::control::bodies(s.hw.world());
+    let ball = j["bodies"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|b| b["id"] == "ball")
+        .unwrap()
+        .clone();
+    assert_eq!(ball["position"][2].as_f64(), Some(p.z), "{j}");
 }

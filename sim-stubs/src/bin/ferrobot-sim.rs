@@ -27,7 +27,7 @@ use ferrobot_sim::serve::serve_in;
 
 /// The lines a plant server reads on standard input, for the help.
 const CONTROL_LINES: &str = "Lines on standard input query and disturb the plants, each \
-answered by one JSON line: `time`, `truth`, `servo ID`, `object ID TICK|none`, \
+answered by one JSON line: `time`, `truth`, `bodies`, `servo ID`, `object ID TICK|none`, \
 `block ID RAD|none`, `silent ID on|off`, `noise N`. Standard input closing ends the server.";
 
 #[derive(Parser)]
