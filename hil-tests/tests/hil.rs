@@ -284,20 +284,25 @@ fn an_emulated_robot_is_one_call() {
 }
 
 /// The same program sees the same scene through the real firmware in QEMU as in the simulator:
-/// the emulated board's world (`tabletop`) serves the camera; with exact depth, at least 99 %
-/// of the depths agree within 5 mm once arm and head have settled.
+/// the emulated board's world (`tabletop`) serves the camera; with exact depth, at least 99.5 %
+/// of the depths agree within 5 mm and a pixel once arm and head have settled. The robots start
+/// 0.4 m back from the table: the emulated board's servos stay unpowered for the seconds QEMU
+/// takes to boot and the host to connect, and the arm, falling forward meanwhile, would sweep
+/// the table's near objects off (the simulator's firmware powers them within 0.1 s).
 #[test]
 fn an_emulated_robot_sees_the_same_scene_as_the_simulator() {
     let _g = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     let firmware = ferrobot_hil::firmware_elf().unwrap_or_else(|e| panic!("{e}"));
     let emulated = Robot::builder("locobot")
         .scene("tabletop")
+        .start_pose([-0.4, 0.0, 0.0])
         .depth_noise(false)
         .backend(Backend::Emulated { firmware })
         .build()
         .expect("emulated robot");
     let sim = Robot::builder("locobot")
         .scene("tabletop")
+        .start_pose([-0.4, 0.0, 0.0])
         .depth_noise(false)
         .build()
         .expect("simulated robot");
@@ -309,24 +314,23 @@ fn an_emulated_robot_sees_the_same_scene_as_the_simulator() {
             .expect("arm aside");
         bot.head()
             .expect("head")
-            .set_pan_tilt(0.0, 0.8)
+            .set_pan_tilt(0.0, 0.6)
             .expect("head");
         bot.wait(0.5).expect("settles");
         frames.push(bot.camera().expect("camera").get_frame().expect("frame"));
     }
     let (a, b) = (&frames[0], &frames[1]);
     assert_eq!(a.intrinsics, b.intrinsics);
-    let close = a
-        .depth
-        .data
-        .iter()
-        .zip(&b.depth.data)
-        .filter(|(x, y)| (*x - *y).abs() < 5e-3)
-        .count();
-    let share = close as f64 / a.depth.data.len() as f64;
+    // The two runs' joints may settle an encoder tick (1.5 mrad) apart, which moves a
+    // silhouette by a pixel: every depth must be seen within 5 mm at most a pixel away.
+    let share = a.depth.agreement(&b.depth, 5e-3, 1);
+    println!(
+        "{:.3} % of the depths within 5 mm and a pixel",
+        100.0 * share
+    );
     assert!(
-        share > 0.99,
-        "{:.2} % of the depths within 5 mm",
+        share > 0.995,
+        "{:.3} % of the depths within 5 mm and a pixel",
         100.0 * share
     );
     let angle = a.camera_pose.rotation.angle_to(&b.camera_pose.rotation);

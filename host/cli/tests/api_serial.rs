@@ -274,8 +274,8 @@ fn a_protocol_mismatch_is_refused_at_the_handshake() {
 
 /// The same program in the same scene gets the same images from the simulator backend and over
 /// a serial port from `ferrobot sim-firmware`'s world (its camera on the socket beside the
-/// port): same size, intrinsics and content (exact depth: at least 99 % of the pixels within
-/// 5 mm of each other; the two runs' joints settle to within a few encoder ticks).
+/// port): same size, intrinsics and content (exact depth: at least 99.5 % of the pixels within
+/// 5 mm and a pixel of each other; the two runs' joints settle to within an encoder tick).
 #[test]
 fn the_camera_sees_the_same_scene_over_serial() {
     let fw = Firmware::start_with("locobot", "camera", &["--scene", "tabletop", "--no-noise"]);
@@ -306,18 +306,18 @@ fn the_camera_sees_the_same_scene_over_serial() {
     let (a, b) = (&frames[0], &frames[1]);
     assert_eq!(a.intrinsics, b.intrinsics);
     assert_eq!((b.rgb.width, b.rgb.height), (640, 480));
-    let close = a
-        .depth
-        .data
-        .iter()
-        .zip(&b.depth.data)
-        .filter(|(x, y)| (*x - *y).abs() < 5e-3)
-        .count();
-    let share = close as f64 / a.depth.data.len() as f64;
-    println!("{:.2} % of the depths within 5 mm", 100.0 * share);
-    assert!(share > 0.99, "{share}");
-    // Stamped on the firmware's clock, which had run through the motions above.
-    assert!(b.time > Duration::from_secs(1), "{:?}", b.time);
+    // The two runs' joints may settle an encoder tick (1.5 mrad) apart, which moves a
+    // silhouette by a pixel: every depth must be seen within 5 mm at most a pixel away.
+    let share = a.depth.agreement(&b.depth, 5e-3, 1);
+    println!(
+        "{:.3} % of the depths within 5 mm and a pixel",
+        100.0 * share
+    );
+    assert!(
+        share > 0.995,
+        "{:.3} % of the depths within 5 mm and a pixel",
+        100.0 * share
+    );
     let angle = a.camera_pose.rotation.angle_to(&b.camera_pose.rotation);
     assert!(angle < 0.01, "camera poses differ by {angle} rad");
 }

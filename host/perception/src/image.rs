@@ -83,6 +83,34 @@ impl DepthImage {
         Some(self.data[row * self.width as usize + col])
     }
 
+    /// Fraction (0-1) of this image's pixels whose depth `other` (same size) shows within
+    /// `tolerance` (m) at the same pixel or at one within `radius` px: how alike two images of
+    /// one scene are when their cameras differ by a pixel's worth of pose (silhouettes move by
+    /// a pixel, surfaces do not). Invalid (0) matches only invalid. 0 for images of different
+    /// sizes.
+    pub fn agreement(&self, other: &DepthImage, tolerance: f32, radius: usize) -> f64 {
+        if (self.width, self.height) != (other.width, other.height) || self.data.is_empty() {
+            return 0.0;
+        }
+        let (w, h) = (self.width as usize, self.height as usize);
+        let mut agree = 0usize;
+        for r in 0..h {
+            for c in 0..w {
+                let d = self.data[r * w + c];
+                let rows = r.saturating_sub(radius)..(r + radius + 1).min(h);
+                let hit = rows.into_iter().any(|rr| {
+                    let cols = c.saturating_sub(radius)..(c + radius + 1).min(w);
+                    cols.into_iter().any(|cc| {
+                        let e = other.data[rr * w + cc];
+                        (d == 0.0 && e == 0.0) || (d > 0.0 && e > 0.0 && (d - e).abs() <= tolerance)
+                    })
+                });
+                agree += usize::from(hit);
+            }
+        }
+        agree as f64 / self.data.len() as f64
+    }
+
     /// Fraction of pixels with a valid depth, 0-1.
     pub fn valid_fraction(&self) -> f64 {
         if self.data.is_empty() {
@@ -105,5 +133,25 @@ mod tests {
         assert_eq!(d.get(0, 0), Some(1.0));
         assert_eq!(d.get(2, 0), None);
         assert_eq!(d.valid_fraction(), 0.25);
+    }
+
+    #[test]
+    fn agreement_forgives_a_pixel_of_silhouette_shift() {
+        // A step edge at column 2 in one image, at column 3 in the other.
+        let step = |at: usize| {
+            let data = (0..24)
+                .map(|i| if i % 6 < at { 1.0 } else { 2.0 })
+                .collect();
+            DepthImage::new(6, 4, data).unwrap()
+        };
+        let (a, b) = (step(2), step(3));
+        assert!((a.agreement(&b, 0.005, 0) - 20.0 / 24.0).abs() < 1e-12);
+        assert_eq!(a.agreement(&b, 0.005, 1), 1.0);
+        let far = DepthImage::new(6, 4, vec![1.5; 24]).unwrap();
+        assert_eq!(a.agreement(&far, 0.005, 1), 0.0);
+        assert_eq!(
+            a.agreement(&DepthImage::new(2, 2, vec![1.0; 4]).unwrap(), 0.1, 1),
+            0.0
+        );
     }
 }
