@@ -343,17 +343,19 @@ impl BoardServer {
                 "the robot has no body to mount a camera on",
             ))
         })?;
-        let mut cam =
-            crate::camera::SimCamera::new(&self.scene, &body, &camera.section, camera.seed)
-                .ok_or_else(|| {
-                    ServeError::Io(std::io::Error::other(format!(
-                        "the URDF has no camera frame {:?}",
-                        camera.section.frame
-                    )))
-                })?;
-        if !camera.noise {
-            cam.noise = None;
-        }
+        let cam = crate::camera::BandedCamera::new(
+            &self.scene,
+            &body,
+            &camera.section,
+            camera.seed,
+            camera.noise,
+        )
+        .ok_or_else(|| {
+            ServeError::Io(std::io::Error::other(format!(
+                "the URDF has no camera frame {:?}",
+                camera.section.frame
+            )))
+        })?;
         let (inner, scene) = (self.inner.clone(), self.scene.clone());
         let truth = move || {
             let mut i = inner.lock().ok()?;

@@ -305,3 +305,134 @@ mod tests {
         assert!(t.windows(2).all(|w| w[0] < w[1]));
     }
 }
+
+/// One band of rows of a [`BandedCamera`].
+#[derive(Debug, Clone)]
+struct Band {
+    camera: SimCamera,
+    image: RenderedImage,
+    /// The full image's row of the band's first row.
+    first: usize,
+    /// The full image's rows this band provides.
+    keep: std::ops::Range<usize>,
+}
+
+/// A [`SimCamera`] rendered as two bands of rows on two threads: the top and bottom halves,
+/// each with one extra row across the seam so that the depth noise's edge test sees the same
+/// neighbours as in one image. Always two bands, whatever the machine, so a seed gives the same
+/// frames everywhere; each band's noise has its own seeded stream.
+#[derive(Debug, Clone)]
+pub struct BandedCamera {
+    bands: [Band; 2],
+    width: usize,
+    height: usize,
+    section: CameraSection,
+}
+
+impl BandedCamera {
+    /// The camera of `section` on `body` in `scene`, with the D435's depth noise (`noise`)
+    /// seeded by `seed`; `None` if the URDF has no such optical frame or the image is under 4
+    /// rows.
+    pub fn new(
+        scene: &Scene,
+        body: &RobotBody,
+        section: &CameraSection,
+        seed: u64,
+        noise: bool,
+    ) -> Option<Self> {
+        let (w, h) = (section.width as usize, section.height as usize);
+        if h < 4 {
+            return None;
+        }
+        let mid = h / 2;
+        // Band rows: [0, mid + 1) and [mid - 1, h), keeping [0, mid) and [mid, h).
+        let band = |first: usize, rows: usize, keep: std::ops::Range<usize>, salt: u64| {
+            let mut s = section.clone();
+            s.height = rows as u32;
+            s.cy = section.cy - first as f64;
+            let mut camera = SimCamera::new(scene, body, &s, seed ^ salt)?;
+            if !noise {
+                camera.noise = None;
+            }
+            Some(Band {
+                camera,
+                image: RenderedImage::new(s.width, s.height),
+                first,
+                keep,
+            })
+        };
+        Some(BandedCamera {
+            bands: [
+                band(0, mid + 1, 0..mid, 0)?,
+                band(mid - 1, h - mid + 1, mid..h, 0x0bad_5eed)?,
+            ],
+            width: w,
+            height: h,
+            section: section.clone(),
+        })
+    }
+
+    /// The camera's description (the whole image's intrinsics and rate).
+    pub fn section(&self) -> &CameraSection {
+        &self.section
+    }
+
+    /// What a label of a captured image shows ([`Renderer::label_name`]; both bands share
+    /// one label table).
+    pub fn label_name(&self, label: u32) -> Option<&str> {
+        self.bands[0].camera.renderer().label_name(label)
+    }
+
+    /// The whole image's width and height, px.
+    pub fn width_height(&self) -> (u32, u32) {
+        (self.width as u32, self.height as u32)
+    }
+
+    /// Render both bands of the world of `truth`, at once.
+    fn render(&mut self, truth: &Truth) {
+        let [top, bottom] = &mut self.bands;
+        std::thread::scope(|s| {
+            let worker = s.spawn(|| {
+                bottom.camera.capture_into(truth, &mut bottom.image);
+            });
+            top.camera.capture_into(truth, &mut top.image);
+            // A panic in the worker is a bug of the renderer: carry it over.
+            if let Err(p) = worker.join() {
+                std::panic::resume_unwind(p);
+            }
+        });
+    }
+
+    /// The colour (RGB, row-major) and depth (m, 0 = invalid) of the world of `truth`, in new
+    /// buffers of the whole image's size.
+    pub fn capture(&mut self, truth: &Truth) -> (Vec<u8>, Vec<f32>) {
+        self.render(truth);
+        let w = self.width;
+        let mut rgb = Vec::with_capacity(3 * w * self.height);
+        let mut depth = Vec::with_capacity(w * self.height);
+        for b in &self.bands {
+            let (from, to) = (b.keep.start - b.first, b.keep.end - b.first);
+            rgb.extend_from_slice(&b.image.rgb[3 * from * w..3 * to * w]);
+            depth.extend_from_slice(&b.image.depth[from * w..to * w]);
+        }
+        (rgb, depth)
+    }
+
+    /// Render the world of `truth` into `out` (the whole image: colour, depth and labels; its
+    /// buffers reused).
+    pub fn capture_into(&mut self, truth: &Truth, out: &mut RenderedImage) {
+        if out.width as usize != self.width || out.height as usize != self.height {
+            *out = RenderedImage::new(self.width as u32, self.height as u32);
+        }
+        self.render(truth);
+        let w = self.width;
+        for b in &self.bands {
+            let (from, to) = (b.keep.start - b.first, b.keep.end - b.first);
+            let dst = b.keep.start * w..b.keep.end * w;
+            out.rgb[3 * dst.start..3 * dst.end]
+                .copy_from_slice(&b.image.rgb[3 * from * w..3 * to * w]);
+            out.depth[dst.clone()].copy_from_slice(&b.image.depth[from * w..to * w]);
+            out.labels[dst].copy_from_slice(&b.image.labels[from * w..to * w]);
+        }
+    }
+}

@@ -22,7 +22,7 @@ use std::sync::mpsc;
 use std::sync::Arc;
 use std::time::Duration;
 
-use crate::camera::SimCamera;
+use crate::camera::BandedCamera;
 use crate::lockstep::Truth;
 use crate::render::RenderedImage;
 use crate::serve::ServeError;
@@ -81,11 +81,11 @@ pub fn socket_beside(link: &Path) -> PathBuf {
 /// stopped). One client at a time.
 pub fn serve_camera(
     path: &Path,
-    camera: SimCamera,
+    camera: BandedCamera,
     rate: f64,
     truth: impl FnMut() -> Option<Truth> + Send + 'static,
 ) -> Result<CameraServer, ServeError> {
-    let (width, height) = (camera.section().width, camera.section().height);
+    let (width, height) = camera.width_height();
     if path.symlink_metadata().is_ok() {
         return Err(ServeError::LinkExists(path.to_path_buf()));
     }
@@ -117,7 +117,7 @@ pub fn serve_camera(
 }
 
 struct Served {
-    camera: SimCamera,
+    camera: BandedCamera,
     image: RenderedImage,
     period_us: u64,
     last: Option<u64>,

@@ -339,17 +339,14 @@ pub fn serve_firmware(
     let (tap, truth_rx) = std::sync::mpsc::channel();
     let camera = match (camera, sim.body()) {
         (Some(c), Some(body)) => {
-            let Some(mut cam) =
-                crate::camera::SimCamera::new(sim.scene(), body, &c.section, c.seed)
+            let Some(cam) =
+                crate::camera::BandedCamera::new(sim.scene(), body, &c.section, c.seed, c.noise)
             else {
                 return Err(ServeError::Io(io::Error::other(format!(
                     "the URDF has no camera frame {:?}",
                     c.section.frame
                 ))));
             };
-            if !c.noise {
-                cam.noise = None;
-            }
             Some(crate::camera_server::serve_camera(
                 &crate::camera_server::socket_beside(&link),
                 cam,

@@ -5,7 +5,7 @@
 
 use ferrobot::perception::Intrinsics;
 use ferrobot::{Error, Robot};
-use ferrobot_sim::camera::SimCamera;
+use ferrobot_sim::camera::BandedCamera;
 use ferrobot_sim::render::RenderedImage;
 use nalgebra::{Isometry3, Point3, Vector3};
 
@@ -41,17 +41,17 @@ fn box_surface_distance(p: &Point3<f64>, h: &Vector3<f64>) -> f64 {
 }
 
 /// The pixels the renderer labels `label`, rendered without noise from the simulator's ground
-/// truth now, and that render's depth.
+/// truth now by the camera the simulator backend uses (two bands of rows), and that render's
+/// depth.
 fn labelled_pixels(bot: &Robot, label: &str) -> (Vec<(usize, usize)>, Vec<f32>) {
     let sim = bot.simulator().expect("simulator");
     let cfg = bot.config().camera.clone().unwrap();
-    let mut cam = SimCamera::new(sim.scene(), sim.body().unwrap(), &cfg, 1).unwrap();
-    cam.noise = None;
+    let mut cam = BandedCamera::new(sim.scene(), sim.body().unwrap(), &cfg, 1, false).unwrap();
     let mut img = RenderedImage::new(cfg.width, cfg.height);
     cam.capture_into(&sim.truth(), &mut img);
     let w = cfg.width as usize;
     let px = (0..img.labels.len())
-        .filter(|&i| cam.renderer().label_name(img.labels[i]) == Some(label))
+        .filter(|&i| cam.label_name(img.labels[i]) == Some(label))
         .map(|i| (i / w, i % w))
         .collect();
     (px, img.depth)

@@ -118,13 +118,12 @@ impl Link for SimLink {
     }
 }
 
-/// The simulated world's RGB-D camera ([`ferrobot_sim::camera::SimCamera`]) as a
-/// [`CameraDevice`]: frames come at the description's rate, on the simulator's clock; a
-/// capture lets simulated time reach the next frame instant and renders the world's ground
-/// truth there (the true joint angles and base pose, the scene's bodies).
+/// The simulated world's RGB-D camera ([`ferrobot_sim::camera::BandedCamera`]: two bands of
+/// rows on two threads) as a [`CameraDevice`]: frames come at the description's rate, on the
+/// simulator's clock; a capture lets simulated time reach the next frame instant and renders
+/// the world's ground truth there (the true joint angles and base pose, the scene's bodies).
 pub struct SimCameraDevice {
-    camera: ferrobot_sim::camera::SimCamera,
-    image: ferrobot_sim::render::RenderedImage,
+    camera: ferrobot_sim::camera::BandedCamera,
     intrinsics: ferrobot_perception::Intrinsics,
     period_us: u64,
     /// The frame index of the last capture.
@@ -157,17 +156,19 @@ impl SimCameraDevice {
         let body = sim
             .body()
             .ok_or_else(|| bad("the simulated robot has no body to mount a camera on".into()))?;
-        let mut camera = ferrobot_sim::camera::SimCamera::new(sim.scene(), body, section, seed)
-            .ok_or_else(|| bad(format!("the URDF has no optical frame {:?}", section.frame)))?;
-        if !noise {
-            camera.noise = None;
-        }
+        let camera =
+            ferrobot_sim::camera::BandedCamera::new(sim.scene(), body, section, seed, noise)
+                .ok_or_else(|| {
+                    bad(format!(
+                        "the URDF has no optical frame {:?}, or the image is under 4 rows",
+                        section.frame
+                    ))
+                })?;
         if !(section.rate.is_finite() && section.rate > 0.0 && section.rate <= 1000.0) {
             return Err(bad(format!("rate {} Hz (need (0, 1000])", section.rate)));
         }
         Ok(SimCameraDevice {
             camera,
-            image: ferrobot_sim::render::RenderedImage::new(section.width, section.height),
             intrinsics,
             period_us: (1e6 / section.rate).round() as u64,
             last: None,
@@ -200,11 +201,11 @@ impl crate::camera::CameraDevice for SimCameraDevice {
             Error::Link("the simulated camera needs the simulator backend".into())
         })?;
         let truth = sim.truth();
-        self.camera.capture_into(&truth, &mut self.image);
-        let (w, h) = (self.image.width, self.image.height);
+        let (rgb, depth) = self.camera.capture(&truth);
+        let (w, h) = self.camera.width_height();
         Ok(crate::camera::RawFrame {
-            rgb: ferrobot_perception::RgbImage::new(w, h, self.image.rgb.clone())?,
-            depth: ferrobot_perception::DepthImage::new(w, h, self.image.depth.clone())?,
+            rgb: ferrobot_perception::RgbImage::new(w, h, rgb)?,
+            depth: ferrobot_perception::DepthImage::new(w, h, depth)?,
             time: Duration::from_micros(truth.time_us),
         })
     }
