@@ -684,7 +684,7 @@ impl Scene {
                 })
             }
             SceneSource::File(path) => {
-                let text = read_limited(path, MAX_SCENE_BYTES).map_err(|e| {
+                let text = ferrobot_description::read_text(path, MAX_SCENE_BYTES).map_err(|e| {
                     if e.kind() == std::io::ErrorKind::NotFound {
                         SceneError::Unknown {
                             name: path.display().to_string(),
@@ -698,15 +698,10 @@ impl Scene {
                         }
                     }
                 })?;
-                let text = String::from_utf8(text).map_err(|_| SceneError::Invalid {
-                    file: path.clone(),
-                    key: "-".into(),
-                    problem: "not UTF-8 text".into(),
-                })?;
                 let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
                 Scene::parse(&text, path, &|p, max| {
                     let full = dir.join(p);
-                    read_limited(&full, max)
+                    ferrobot_description::read_bytes(&full, max)
                         .map_err(|e| format!("cannot read {}: {e}", full.display()))
                 })
             }
@@ -949,28 +944,5 @@ fn wall_bodies(cx: &Ctx<'_>, i: usize, w: &WallFile) -> Result<Vec<Body>> {
         s = d1;
     }
     piece(s, len, 0.0, height);
-    Ok(out)
-}
-
-/// The bytes of a regular file of at most `max` bytes.
-fn read_limited(path: &Path, max: u64) -> std::io::Result<Vec<u8>> {
-    use std::io::Read;
-    let meta = std::fs::metadata(path)?;
-    if !meta.is_file() {
-        return Err(std::io::Error::other("not a regular file"));
-    }
-    if meta.len() > max {
-        return Err(std::io::Error::other(format!(
-            "{} bytes is more than {max}",
-            meta.len()
-        )));
-    }
-    let mut out = Vec::new();
-    std::fs::File::open(path)?
-        .take(max + 1)
-        .read_to_end(&mut out)?;
-    if out.len() as u64 > max {
-        return Err(std::io::Error::other(format!("more than {max} bytes")));
-    }
     Ok(out)
 }

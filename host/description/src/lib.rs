@@ -510,9 +510,9 @@ pub const MAX_CONFIG_BYTES: u64 = 1 << 20;
 /// Largest URDF file read, bytes.
 pub const MAX_URDF_BYTES: u64 = 16 << 20;
 
-/// The text of a regular file of at most `max` bytes: a directory, a device (`/dev/zero`), a
-/// FIFO, a larger file or one that is not UTF-8 is an error, read no further than `max` bytes.
-pub fn read_text(path: &Path, max: u64) -> std::io::Result<String> {
+/// The bytes of a regular file of at most `max` bytes: a directory, a device (`/dev/zero`), a
+/// FIFO or a larger file is an error, read no further than `max` bytes.
+pub fn read_bytes(path: &Path, max: u64) -> std::io::Result<Vec<u8>> {
     use std::io::Read;
     let meta = std::fs::metadata(path)?;
     if !meta.is_file() {
@@ -533,7 +533,13 @@ pub fn read_text(path: &Path, max: u64) -> std::io::Result<String> {
             "larger than the {max} bytes accepted"
         )));
     }
-    String::from_utf8(bytes).map_err(|_| std::io::Error::other("not UTF-8 text"))
+    Ok(bytes)
+}
+
+/// The text of a regular file of at most `max` bytes ([`read_bytes`]); text that is not UTF-8
+/// is an error too.
+pub fn read_text(path: &Path, max: u64) -> std::io::Result<String> {
+    String::from_utf8(read_bytes(path, max)?).map_err(|_| std::io::Error::other("not UTF-8 text"))
 }
 
 /// `value` finite and within `[lo, hi]`, or an error naming the file and the key.
