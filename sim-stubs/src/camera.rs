@@ -306,6 +306,40 @@ mod tests {
     }
 }
 
+/// When a camera's frames are taken: at whole multiples of its period on the simulated clock,
+/// each instant once.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FrameClock {
+    period_us: u64,
+    /// The index of the last frame taken.
+    last: Option<u64>,
+}
+
+impl FrameClock {
+    /// Frames at `rate` Hz; `None` unless the rate is finite and in (0, 1000].
+    pub fn new(rate: f64) -> Option<Self> {
+        (rate.is_finite() && rate > 0.0 && rate <= 1000.0).then(|| FrameClock {
+            period_us: (1e6 / rate).round() as u64,
+            last: None,
+        })
+    }
+
+    /// Frames per second.
+    pub fn rate(&self) -> f64 {
+        1e6 / self.period_us as f64
+    }
+
+    /// The instant (µs) of the first frame at or after `now_us` not taken yet; it is taken.
+    pub fn next(&mut self, now_us: u64) -> u64 {
+        let mut index = now_us.div_ceil(self.period_us);
+        if let Some(last) = self.last {
+            index = index.max(last + 1);
+        }
+        self.last = Some(index);
+        index * self.period_us
+    }
+}
+
 /// One band of rows of a [`BandedCamera`].
 #[derive(Debug, Clone)]
 struct Band {

@@ -22,7 +22,7 @@ use std::sync::mpsc;
 use std::sync::Arc;
 use std::time::Duration;
 
-use crate::camera::BandedCamera;
+use crate::camera::{BandedCamera, FrameClock};
 use crate::lockstep::Truth;
 use crate::render::RenderedImage;
 use crate::serve::ServeError;
@@ -91,15 +91,18 @@ pub fn serve_camera(
     }
     let listener = UnixListener::bind(path).map_err(ServeError::Io)?;
     listener.set_nonblocking(true).map_err(ServeError::Io)?;
+    let clock = FrameClock::new(rate).ok_or_else(|| {
+        ServeError::Io(std::io::Error::other(format!(
+            "a camera rate of {rate} Hz (need (0, 1000])"
+        )))
+    })?;
     let stop = Arc::new(AtomicBool::new(false));
     let flag = stop.clone();
-    let period_us = (1e6 / rate).round().max(1.0) as u64;
     let thread = std::thread::spawn(move || {
         let mut state = Served {
             camera,
             image: RenderedImage::new(width, height),
-            period_us,
-            last: None,
+            clock,
             truth: Box::new(truth),
         };
         while !flag.load(Ordering::Relaxed) {
@@ -119,8 +122,7 @@ pub fn serve_camera(
 struct Served {
     camera: BandedCamera,
     image: RenderedImage,
-    period_us: u64,
-    last: Option<u64>,
+    clock: FrameClock,
     truth: Box<dyn FnMut() -> Option<Truth> + Send>,
 }
 
@@ -174,7 +176,7 @@ impl Served {
             out,
             "{}",
             serde_json::json!({"width": k.width, "height": k.height, "fx": k.fx, "fy": k.fy,
-                "cx": k.cx, "cy": k.cy, "rate": 1e6 / self.period_us as f64})
+                "cx": k.cx, "cy": k.cy, "rate": self.clock.rate()})
         )
     }
 
@@ -186,13 +188,8 @@ impl Served {
                 serde_json::json!({"error": "the simulation has stopped"})
             );
         };
-        let mut index = now.time_us.div_ceil(self.period_us);
-        if let Some(last) = self.last {
-            index = index.max(last + 1);
-        }
-        self.last = Some(index);
         // The simulation runs at the wall clock's pace: wait for the frame's instant.
-        let due = index * self.period_us;
+        let due = self.clock.next(now.time_us);
         if due > now.time_us {
             std::thread::sleep(Duration::from_micros(due - now.time_us));
         }

@@ -125,9 +125,7 @@ impl Link for SimLink {
 pub struct SimCameraDevice {
     camera: ferrobot_sim::camera::BandedCamera,
     intrinsics: ferrobot_perception::Intrinsics,
-    period_us: u64,
-    /// The frame index of the last capture.
-    last: Option<u64>,
+    clock: ferrobot_sim::camera::FrameClock,
 }
 
 impl SimCameraDevice {
@@ -164,14 +162,12 @@ impl SimCameraDevice {
                         section.frame
                     ))
                 })?;
-        if !(section.rate.is_finite() && section.rate > 0.0 && section.rate <= 1000.0) {
-            return Err(bad(format!("rate {} Hz (need (0, 1000])", section.rate)));
-        }
+        let clock = ferrobot_sim::camera::FrameClock::new(section.rate)
+            .ok_or_else(|| bad(format!("rate {} Hz (need (0, 1000])", section.rate)))?;
         Ok(SimCameraDevice {
             camera,
             intrinsics,
-            period_us: (1e6 / section.rate).round() as u64,
-            last: None,
+            clock,
         })
     }
 }
@@ -182,18 +178,13 @@ impl crate::camera::CameraDevice for SimCameraDevice {
     }
 
     fn rate(&self) -> f64 {
-        1e6 / self.period_us as f64
+        self.clock.rate()
     }
 
     fn capture(&mut self, link: &mut dyn Link) -> Result<crate::camera::RawFrame> {
         // The next frame instant not yet captured.
         let now = link.now().as_micros() as u64;
-        let mut index = now.div_ceil(self.period_us);
-        if let Some(last) = self.last {
-            index = index.max(last + 1);
-        }
-        self.last = Some(index);
-        let next = index * self.period_us;
+        let next = self.clock.next(now);
         if next > now {
             link.wait(Duration::from_micros(next - now));
         }
