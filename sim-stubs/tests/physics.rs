@@ -287,17 +287,21 @@ from = [0.6, -1.5]
 to = [0.6, 1.5]
 "#;
 
-fn drive_into_the_wall(robot: &str) -> (SimHost, Telemetry) {
-    let mut s = session(robot, parse(WALL), 2);
+/// Drive forward at 0.2 m/s until the firmware reports a bumper (within 5 s); that telemetry.
+fn drive_until_bumper(s: &mut SimHost) -> Telemetry {
     s.command(&HostMsg::BaseVelocity {
         v: 0.2,
         w: 0.0,
         duration_ms: 10_000,
     })
     .expect("accepted");
-    let t = s
-        .wait_telemetry(5_000_000, |t| t.base_flags & base_flags::ANY_BUMPER != 0)
-        .expect("bumper seen");
+    s.wait_telemetry(5_000_000, |t| t.base_flags & base_flags::ANY_BUMPER != 0)
+        .expect("bumper seen")
+}
+
+fn drive_into_the_wall(robot: &str) -> (SimHost, Telemetry) {
+    let mut s = session(robot, parse(WALL), 2);
+    let t = drive_until_bumper(&mut s);
     (s, t)
 }
 
@@ -476,15 +480,7 @@ colour = [0.6, 0.5, 0.3]
 "#;
     let mut s = session("locobot", parse(text), 4);
     let b0 = body(&s, "box");
-    s.command(&HostMsg::BaseVelocity {
-        v: 0.2,
-        w: 0.0,
-        duration_ms: 10_000,
-    })
-    .expect("accepted");
-    let t = s
-        .wait_telemetry(5_000_000, |t| t.base_flags & base_flags::ANY_BUMPER != 0)
-        .expect("bumper seen");
+    let t = drive_until_bumper(&mut s);
     assert!(t.base_flags & base_flags::BUMPER_CENTER != 0);
     s.run_for(1_000_000);
     let pushed = body(&s, "box") - b0;
