@@ -137,11 +137,7 @@ pub fn run(a: &SnapshotArgs) -> ferrobot::Result<()> {
         let i = optical
             .as_deref()
             .and_then(|f| body.tree.link_index(f))
-            .ok_or_else(|| {
-                bot.camera()
-                    .err()
-                    .unwrap_or(ferrobot::Error::Usage("no optical frame".into()))
-            })?;
+            .ok_or_else(|| ferrobot::Error::Usage("the URDF has no optical frame".into()))?;
         sim.truth().links[i]
     };
     std::fs::create_dir_all(a.out)?;
