@@ -117,6 +117,10 @@ pub struct ArmConfig {
     /// Default timeout of a blocking arm motion, s.
     #[serde(default = "default_timeout")]
     pub timeout: f64,
+    /// Acceleration limit of each arm joint, rad/s², base to tip: what planned trajectories
+    /// respect. When absent, each joint's speed limit per 0.5 s (full speed in half a second).
+    #[serde(default)]
+    pub acceleration: Vec<f64>,
 }
 
 fn default_ik_tol() -> f64 {
@@ -658,7 +662,7 @@ impl RobotConfig {
         Self::validate(raw, urdf, file)
     }
 
-    fn validate(raw: ConfigFile, urdf: urdf_rs::Robot, file: &Path) -> Result<Self> {
+    fn validate(mut raw: ConfigFile, urdf: urdf_rs::Robot, file: &Path) -> Result<Self> {
         let urdf_joint = |name: &str| urdf.joints.iter().find(|j| j.name == name);
         // The joint table.
         let mut ids = BTreeSet::new();
@@ -828,7 +832,7 @@ impl RobotConfig {
         let in_table = |n: &str| joints.iter().any(|j| j.name.as_str() == n);
         // The arm.
         let mut arm_chain = None;
-        if let Some(arm) = &raw.arm {
+        if let Some(arm) = &mut raw.arm {
             if arm.joints.is_empty() {
                 return Err(cfg_err(
                     file,
@@ -886,6 +890,32 @@ impl RobotConfig {
                 0.5,
             )?;
             num(file, "arm.joint_tolerance", arm.joint_tolerance, 1e-4, 0.5)?;
+            if arm.acceleration.is_empty() {
+                arm.acceleration = arm
+                    .joints
+                    .iter()
+                    .map(|n| {
+                        joints
+                            .iter()
+                            .find(|j| j.name.as_str() == n.as_str())
+                            .map_or(1.0, |j| j.limits.velocity as f64)
+                            / 0.5
+                    })
+                    .collect();
+            } else if arm.acceleration.len() != arm.joints.len() {
+                return Err(cfg_err(
+                    file,
+                    "arm.acceleration",
+                    format!(
+                        "has {} values for {} arm joints",
+                        arm.acceleration.len(),
+                        arm.joints.len()
+                    ),
+                ));
+            }
+            for (i, &a) in arm.acceleration.iter().enumerate() {
+                num(file, format!("arm.acceleration[{i}]"), a, 0.01, 1000.0)?;
+            }
             num(
                 file,
                 "arm.timeout",

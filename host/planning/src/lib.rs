@@ -1,0 +1,19 @@
+//! Arm motion planning for Ferrobot.
+//!
+//! - [`model`]: the robot's collision model from its description: each link's collision
+//!   shapes, a conservative sphere set per link for the broad check, and the self-collision
+//!   matrix computed by sampling ([`acm`]).
+//! - [`scene`]: the planning scene: world objects, objects attached to the gripper, voxels
+//!   from a point cloud.
+//! - [`checker`]: state and motion (edge) validity against the scene and the robot itself.
+//! - [`planner`]: planners behind one trait (RRT-Connect with shortcutting, an informed
+//!   asymptotically optimal planner).
+//! - [`timing`]: time-optimal parameterisation of a path under velocity and acceleration
+//!   limits.
+//!
+//! Units are SI (m, rad, s); poses are in the frame of the robot description's root link
+//! unless said otherwise. Algorithms here know nothing of wires, backends or the CLI.
+
+pub mod error;
+
+pub use error::{Error, Result};
