@@ -469,6 +469,18 @@ struct ConfigFile {
     #[serde(rename = "joint", default)]
     joints: Vec<JointSection>,
     sim: Option<SimSection>,
+    collision: Option<CollisionSection>,
+}
+
+/// `[collision]`: the self-collision matrix, as `ferrobot collision-matrix` computes it by
+/// sampling (MoveIt's setup assistant's method).
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CollisionSection {
+    /// Link pairs never checked against each other, with the reason: `adjacent`, `default`
+    /// (touching in the home pose), `always` or `never` (in every or no sample).
+    #[serde(default)]
+    pub disabled: Vec<(String, String, String)>,
 }
 
 /// A loaded, validated robot configuration.
@@ -485,6 +497,10 @@ pub struct RobotConfig {
     pub bus: BusSection,
     /// The parsed URDF.
     pub urdf: urdf_rs::Robot,
+    /// The URDF's file name as the configuration gives it (relative to the configuration).
+    pub urdf_file: String,
+    /// `[collision]`.
+    pub collision: Option<CollisionSection>,
     /// `[arm]`.
     pub arm: Option<ArmConfig>,
     /// `[gripper]`.
@@ -1096,11 +1112,33 @@ impl RobotConfig {
             ranges::LOOP_PERIOD_MIN_US as f64,
             ranges::LOOP_PERIOD_MAX_US as f64,
         )?;
+        if let Some(c) = &raw.collision {
+            for (i, (a, b, why)) in c.disabled.iter().enumerate() {
+                for l in [a, b] {
+                    if !urdf.links.iter().any(|k| &k.name == l) {
+                        return Err(cfg_err(
+                            file,
+                            format!("collision.disabled[{i}]"),
+                            format!("{l:?} is no link of the URDF"),
+                        ));
+                    }
+                }
+                if !["adjacent", "default", "always", "never"].contains(&why.as_str()) {
+                    return Err(cfg_err(
+                        file,
+                        format!("collision.disabled[{i}]"),
+                        format!("reason {why:?} is not adjacent, default, always or never"),
+                    ));
+                }
+            }
+        }
         Ok(RobotConfig {
             name: raw.name,
             file: file.to_path_buf(),
             board_profile: raw.board_profile,
             bus,
+            urdf_file: raw.urdf,
+            collision: raw.collision,
             urdf,
             arm: raw.arm,
             gripper: raw.gripper,

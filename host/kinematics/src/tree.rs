@@ -147,7 +147,14 @@ impl LinkTree {
     /// Pose of every link in the root frame, in [`LinkTree::links`] order, for joint values
     /// `q` (rad or m, in [`LinkTree::joints`] order; missing values count as 0).
     pub fn poses(&self, q: &[f64]) -> Vec<Isometry3<f64>> {
-        let mut out: Vec<Isometry3<f64>> = Vec::with_capacity(self.nodes.len());
+        let mut out = Vec::with_capacity(self.nodes.len());
+        self.poses_into(q, &mut out);
+        out
+    }
+
+    /// [`LinkTree::poses`] into `out` (cleared first), without allocating once `out` has room.
+    pub fn poses_into(&self, q: &[f64], out: &mut Vec<Isometry3<f64>>) {
+        out.clear();
         for n in &self.nodes {
             let parent = n.parent.map_or(Isometry3::identity(), |p| out[p]);
             let motion = n.joint.map_or(Isometry3::identity(), |j| {
@@ -166,7 +173,22 @@ impl LinkTree {
             });
             out.push(parent * n.origin * motion);
         }
-        out
+    }
+
+    /// The parent of link `link` ([`LinkTree::links`] indices); `None` for the root.
+    pub fn parent(&self, link: usize) -> Option<usize> {
+        self.nodes.get(link).and_then(|n| n.parent)
+    }
+
+    /// The movable joint ([`LinkTree::joints`] index) between link `link` and its parent;
+    /// `None` for the root and for links on fixed joints.
+    pub fn link_joint(&self, link: usize) -> Option<usize> {
+        self.nodes.get(link).and_then(|n| n.joint)
+    }
+
+    /// Pose of link `link`'s joint frame in its parent link's frame (the URDF joint origin).
+    pub fn link_origin(&self, link: usize) -> Option<Isometry3<f64>> {
+        self.nodes.get(link).map(|n| n.origin)
     }
 
     /// Pose of frame `src` in frame `dst` (`T_dst_src`) given the link poses of

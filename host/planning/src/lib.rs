@@ -14,6 +14,20 @@
 //! Units are SI (m, rad, s); poses are in the frame of the robot description's root link
 //! unless said otherwise. Algorithms here know nothing of wires, backends or the CLI.
 
+pub mod acm;
+pub mod checker;
+mod convert;
 pub mod error;
+pub mod model;
+pub mod planner;
+pub mod scene;
+pub mod shape;
+pub mod spheres;
 
+pub use acm::SelfCollisionMatrix;
+pub use checker::{CheckOptions, Checker, Contact};
 pub use error::{Error, Result};
+pub use model::CollisionModel;
+pub use planner::{InformedRrtStar, Plan, PlanOptions, Planner, RrtConnect};
+pub use scene::{AttachedObject, PlanningScene, Voxels, WorldObject};
+pub use shape::Shape;

@@ -1,0 +1,173 @@
+//! The self-collision matrix: link pairs never checked against each other, found by sampling
+//! as MoveIt's setup assistant does: adjacent links (joined by a joint, through links without
+//! geometry), pairs touching in the default pose, pairs touching in (nearly) every random
+//! configuration, and pairs touching in none of them.
+
+use std::collections::BTreeMap;
+
+use rand::{Rng, SeedableRng};
+
+use crate::model::CollisionModel;
+
+/// Random configurations sampled by default (MoveIt's setup assistant's default).
+pub const DEFAULT_SAMPLES: usize = 10_000;
+/// A pair touching in at least this fraction of the samples is "always" touching.
+pub const ALWAYS_FRACTION: f64 = 0.95;
+
+/// Why a pair is not checked.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Reason {
+    /// Joined by a joint.
+    Adjacent,
+    /// Touching in the default pose (every joint at 0, or within its limits nearest 0).
+    Default,
+    /// Touching in nearly every sample.
+    Always,
+    /// Touching in no sample.
+    Never,
+}
+
+impl Reason {
+    /// Its name in the configuration file.
+    pub fn name(self) -> &'static str {
+        match self {
+            Reason::Adjacent => "adjacent",
+            Reason::Default => "default",
+            Reason::Always => "always",
+            Reason::Never => "never",
+        }
+    }
+
+    fn parse(s: &str) -> Option<Reason> {
+        Some(match s {
+            "adjacent" => Reason::Adjacent,
+            "default" => Reason::Default,
+            "always" => Reason::Always,
+            "never" => Reason::Never,
+            _ => return None,
+        })
+    }
+}
+
+/// Link pairs (by name, each pair in name order) that are not checked.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct SelfCollisionMatrix {
+    disabled: BTreeMap<(String, String), Reason>,
+}
+
+fn key(a: &str, b: &str) -> (String, String) {
+    if a <= b {
+        (a.to_string(), b.to_string())
+    } else {
+        (b.to_string(), a.to_string())
+    }
+}
+
+impl SelfCollisionMatrix {
+    /// The matrix of a configuration's `[collision] disabled` entries (unknown reasons are
+    /// read as `never`; the description has refused them already).
+    pub fn from_entries(entries: &[(String, String, String)]) -> Self {
+        SelfCollisionMatrix {
+            disabled: entries
+                .iter()
+                .map(|(a, b, r)| (key(a, b), Reason::parse(r).unwrap_or(Reason::Never)))
+                .collect(),
+        }
+    }
+
+    /// The disabled pairs with their reasons, in name order.
+    pub fn entries(&self) -> Vec<(String, String, Reason)> {
+        self.disabled
+            .iter()
+            .map(|((a, b), r)| (a.clone(), b.clone(), *r))
+            .collect()
+    }
+
+    /// Whether links `a` and `b` are not checked against each other.
+    pub fn is_disabled(&self, a: &str, b: &str) -> bool {
+        a == b || self.disabled.contains_key(&key(a, b))
+    }
+
+    /// The `[collision]` section of a robot configuration holding this matrix.
+    pub fn to_toml(&self, comment: &str) -> String {
+        let mut s = String::new();
+        for line in comment.lines() {
+            s.push_str(&format!("# {line}\n"));
+        }
+        s.push_str("[collision]\ndisabled = [\n");
+        for ((a, b), r) in &self.disabled {
+            s.push_str(&format!("    [{a:?}, {b:?}, {:?}],\n", r.name()));
+        }
+        s.push_str("]\n");
+        s
+    }
+
+    /// Computes the matrix of `model` from `samples` random configurations of every movable
+    /// joint (seeded with `seed`).
+    pub fn compute(model: &CollisionModel, samples: usize, seed: u64) -> Self {
+        let tree = model.tree();
+        let links = model.links();
+        let n = links.len();
+        let mut disabled = BTreeMap::new();
+        // Adjacent: each link with geometry and its nearest ancestor with geometry.
+        for l in 0..n {
+            if links[l].is_empty() {
+                continue;
+            }
+            let mut at = tree.parent(l);
+            while let Some(p) = at {
+                if !links[p].is_empty() {
+                    disabled.insert(key(&links[l].name, &links[p].name), Reason::Adjacent);
+                    break;
+                }
+                at = tree.parent(p);
+            }
+        }
+        let pairs: Vec<(usize, usize)> = (0..n)
+            .flat_map(|a| (a + 1..n).map(move |b| (a, b)))
+            .filter(|&(a, b)| {
+                !links[a].is_empty()
+                    && !links[b].is_empty()
+                    && !disabled.contains_key(&key(&links[a].name, &links[b].name))
+            })
+            .collect();
+        let ranges = model.all_limits();
+        let default: Vec<f64> = ranges.iter().map(|&(lo, hi)| 0.0f64.clamp(lo, hi)).collect();
+        let poses = tree.poses(&default);
+        for &(a, b) in &pairs {
+            if crate::checker::links_touch(model, a, &poses[a], b, &poses[b]) {
+                disabled.insert(key(&links[a].name, &links[b].name), Reason::Default);
+            }
+        }
+        let pairs: Vec<(usize, usize)> = pairs
+            .into_iter()
+            .filter(|&(a, b)| !disabled.contains_key(&key(&links[a].name, &links[b].name)))
+            .collect();
+        let mut hits = vec![0usize; pairs.len()];
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        let mut q = vec![0.0; ranges.len()];
+        let mut poses = Vec::new();
+        for _ in 0..samples {
+            for (v, &(lo, hi)) in q.iter_mut().zip(&ranges) {
+                *v = if hi > lo { rng.random_range(lo..=hi) } else { lo };
+            }
+            tree.poses_into(&q, &mut poses);
+            for (h, &(a, b)) in hits.iter_mut().zip(&pairs) {
+                if crate::checker::links_touch(model, a, &poses[a], b, &poses[b]) {
+                    *h += 1;
+                }
+            }
+        }
+        for (&h, &(a, b)) in hits.iter().zip(&pairs) {
+            let reason = if h == 0 {
+                Reason::Never
+            } else if h as f64 >= ALWAYS_FRACTION * samples as f64 {
+                Reason::Always
+            } else {
+                continue;
+            };
+            disabled.insert(key(&links[a].name, &links[b].name), reason);
+        }
+        SelfCollisionMatrix { disabled }
+    }
+}

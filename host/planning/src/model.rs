@@ -1,0 +1,505 @@
+//! The robot's collision model: each link's collision shapes from the URDF (primitives; meshes
+//! as the convex hull of their vertices), a conservative sphere set per link, which links move
+//! with the planned joints, and how far any of their points can move for a joint step.
+
+use std::path::{Path, PathBuf};
+
+use ferrobot_description::RobotConfig;
+use ferrobot_kinematics::{pose_from_urdf, JointType, LinkTree};
+use nalgebra::{Isometry3, Point3};
+
+use crate::acm::SelfCollisionMatrix;
+use crate::convert::{self, Exact};
+use crate::shape::Shape;
+use crate::spheres::{self, Sphere};
+use crate::{Error, Result};
+
+/// Largest mesh file read, bytes.
+pub const MAX_MESH_BYTES: u64 = 64 << 20;
+
+/// One link's geometry.
+#[derive(Debug, Clone)]
+pub struct LinkGeometry {
+    /// URDF name.
+    pub name: String,
+    /// Collision shapes and their poses in the link frame.
+    pub shapes: Vec<(Isometry3<f64>, Shape)>,
+    /// Spheres (link frame) whose union holds every shape.
+    pub spheres: Vec<Sphere>,
+    /// A sphere (link frame) that holds every sphere of the set.
+    pub bound: Sphere,
+    /// The exact shapes: parry's shape frame in the link frame, and the shape.
+    pub(crate) exact: Vec<(Isometry3<f64>, Exact)>,
+}
+
+impl LinkGeometry {
+    /// The geometry of `shapes` (poses in the link frame).
+    pub fn new(name: &str, shapes: Vec<(Isometry3<f64>, Shape)>) -> Result<Self> {
+        let mut exact = Vec::with_capacity(shapes.len());
+        let mut spheres = Vec::new();
+        for (origin, shape) in &shapes {
+            shape.validate(&format!("collision shape of {name}"))?;
+            let e = shape.to_parry()?;
+            exact.push((origin * e.correction, e));
+            spheres.extend(spheres::cover(shape, origin));
+        }
+        let bound = bounding_sphere(&spheres);
+        Ok(LinkGeometry {
+            name: name.to_string(),
+            shapes,
+            spheres,
+            bound,
+            exact,
+        })
+    }
+
+    /// Whether the link has any collision shape.
+    pub fn is_empty(&self) -> bool {
+        self.shapes.is_empty()
+    }
+}
+
+/// A sphere that holds `spheres` (about their centroid; radius 0 at the origin when empty).
+pub(crate) fn bounding_sphere(spheres: &[Sphere]) -> Sphere {
+    if spheres.is_empty() {
+        return Sphere {
+            centre: Point3::origin(),
+            radius: 0.0,
+        };
+    }
+    let c = spheres
+        .iter()
+        .fold(nalgebra::Vector3::zeros(), |a, s| a + s.centre.coords)
+        / spheres.len() as f64;
+    let c = Point3::from(c);
+    let radius = spheres
+        .iter()
+        .map(|s| (s.centre - c).norm() + s.radius)
+        .fold(0.0, f64::max);
+    Sphere { centre: c, radius }
+}
+
+/// The robot's collision model for planning some of its joints.
+#[derive(Debug, Clone)]
+pub struct CollisionModel {
+    name: String,
+    tree: LinkTree,
+    links: Vec<LinkGeometry>,
+    /// [`LinkTree::joints`] index of each planned joint.
+    planned: Vec<usize>,
+    joint_names: Vec<String>,
+    limits: Vec<(f64, f64)>,
+    /// Every tree joint's range (URDF limits; ±π for continuous joints; planned joints' given
+    /// limits).
+    all_limits: Vec<(f64, f64)>,
+    /// Every tree joint's value while planning (planned ones overwritten per state).
+    values: Vec<f64>,
+    moving: Vec<bool>,
+    acm: SelfCollisionMatrix,
+    urdf_file: Option<PathBuf>,
+}
+
+fn invalid(what: impl Into<String>, why: impl Into<String>) -> Error {
+    Error::Invalid {
+        what: what.into(),
+        why: why.into(),
+    }
+}
+
+/// The vertices of a mesh file (OBJ or STL), scaled, m.
+fn mesh_points(path: &Path, scale: [f64; 3]) -> Result<Vec<Point3<f64>>> {
+    let what = format!("mesh {}", path.display());
+    let bytes = ferrobot_description::read_bytes(path, MAX_MESH_BYTES)
+        .map_err(|e| invalid(&what, e.to_string()))?;
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    let raw: Vec<[f64; 3]> = match ext.as_deref() {
+        Some("obj") => {
+            let (models, _) = tobj::load_obj_buf(
+                &mut std::io::Cursor::new(&bytes),
+                &tobj::LoadOptions::default(),
+                |_| Err(tobj::LoadError::OpenFileFailed),
+            )
+            .map_err(|e| invalid(&what, e.to_string()))?;
+            models
+                .iter()
+                .flat_map(|m| {
+                    m.mesh
+                        .positions
+                        .chunks_exact(3)
+                        .map(|p| [f64::from(p[0]), f64::from(p[1]), f64::from(p[2])])
+                })
+                .collect()
+        }
+        Some("stl") => {
+            let mesh = stl_io::read_stl(&mut std::io::Cursor::new(&bytes))
+                .map_err(|e| invalid(&what, e.to_string()))?;
+            mesh.vertices
+                .iter()
+                .map(|v| [f64::from(v[0]), f64::from(v[1]), f64::from(v[2])])
+                .collect()
+        }
+        _ => return Err(invalid(&what, "only .obj and .stl meshes are read")),
+    };
+    Ok(raw
+        .into_iter()
+        .map(|p| Point3::new(p[0] * scale[0], p[1] * scale[1], p[2] * scale[2]))
+        .collect())
+}
+
+/// A mesh's file: `package://NAME/rest` and `file://` prefixes dropped, relative to `dir`.
+fn mesh_path(filename: &str, dir: Option<&Path>) -> PathBuf {
+    let rest = if let Some(r) = filename.strip_prefix("package://") {
+        r.split_once('/').map_or(r, |(_, rest)| rest)
+    } else {
+        filename.strip_prefix("file://").unwrap_or(filename)
+    };
+    let p = PathBuf::from(rest);
+    match dir {
+        Some(d) if p.is_relative() => d.join(p),
+        _ => p,
+    }
+}
+
+/// Each link's shapes from a URDF's `<collision>` elements; meshes are read relative to `dir`.
+pub fn urdf_geometry(urdf: &urdf_rs::Robot, dir: Option<&Path>) -> Result<Vec<LinkGeometry>> {
+    let tree = LinkTree::from_urdf(urdf).map_err(|e| invalid("URDF", e.to_string()))?;
+    tree.links()
+        .map(|name| {
+            let link = urdf.links.iter().find(|l| l.name == name);
+            let mut shapes = Vec::new();
+            for c in link.map(|l| l.collision.as_slice()).unwrap_or_default() {
+                let shape = match &c.geometry {
+                    urdf_rs::Geometry::Box { size } => Shape::Box([size[0], size[1], size[2]]),
+                    urdf_rs::Geometry::Cylinder { radius, length } => Shape::Cylinder {
+                        radius: *radius,
+                        length: *length,
+                    },
+                    urdf_rs::Geometry::Capsule { radius, length } => Shape::Capsule {
+                        radius: *radius,
+                        length: *length,
+                    },
+                    urdf_rs::Geometry::Sphere { radius } => Shape::Sphere(*radius),
+                    urdf_rs::Geometry::Mesh { filename, scale } => {
+                        let s = scale.map_or([1.0; 3], |s| [s[0], s[1], s[2]]);
+                        Shape::Hull(mesh_points(&mesh_path(filename, dir), s)?)
+                    }
+                };
+                shapes.push((pose_from_urdf(&c.origin), shape));
+            }
+            LinkGeometry::new(name, shapes)
+        })
+        .collect()
+}
+
+impl CollisionModel {
+    /// The model of `urdf` for planning `joints` (URDF names, in path order) within `limits`
+    /// (rad or m, one `(min, max)` per joint); meshes are read relative to `dir`. The
+    /// self-collision matrix is `acm`, or computed by sampling when `None`.
+    pub fn new(
+        name: &str,
+        urdf: &urdf_rs::Robot,
+        joints: &[String],
+        limits: &[(f64, f64)],
+        dir: Option<&Path>,
+        acm: Option<SelfCollisionMatrix>,
+    ) -> Result<Self> {
+        let tree = LinkTree::from_urdf(urdf).map_err(|e| invalid("URDF", e.to_string()))?;
+        if joints.is_empty() || joints.len() != limits.len() {
+            return Err(invalid(
+                "planned joints",
+                format!("{} joints and {} limits", joints.len(), limits.len()),
+            ));
+        }
+        let mut planned = Vec::with_capacity(joints.len());
+        for (j, &(lo, hi)) in joints.iter().zip(limits) {
+            let i = tree
+                .joint_index(j)
+                .ok_or_else(|| invalid("planned joints", format!("{j:?} is no movable joint")))?;
+            if planned.contains(&i) {
+                return Err(invalid("planned joints", format!("{j:?} twice")));
+            }
+            if !(lo.is_finite() && hi.is_finite() && lo < hi && hi - lo <= 4.0 * std::f64::consts::PI)
+            {
+                return Err(invalid(
+                    format!("limits of {j}"),
+                    format!("[{lo}, {hi}] is not a finite range of at most 4π"),
+                ));
+            }
+            planned.push(i);
+        }
+        let links = urdf_geometry(urdf, dir)?;
+        let n = links.len();
+        let mut moving = vec![false; n];
+        for (l, m) in moving.iter_mut().enumerate() {
+            let mut at = Some(l);
+            while let Some(i) = at {
+                if tree.link_joint(i).is_some_and(|j| planned.contains(&j)) {
+                    *m = true;
+                    break;
+                }
+                at = tree.parent(i);
+            }
+        }
+        let all_limits = tree
+            .joints()
+            .iter()
+            .enumerate()
+            .map(|(i, j)| {
+                if let Some(k) = planned.iter().position(|&p| p == i) {
+                    return limits[k];
+                }
+                let u = urdf.joints.iter().find(|u| u.name == j.name);
+                match u {
+                    Some(u) if matches!(u.joint_type, urdf_rs::JointType::Continuous) => {
+                        (-std::f64::consts::PI, std::f64::consts::PI)
+                    }
+                    Some(u) if u.limit.lower.is_finite()
+                        && u.limit.upper.is_finite()
+                        && u.limit.lower <= u.limit.upper =>
+                    {
+                        (u.limit.lower, u.limit.upper)
+                    }
+                    _ => (0.0, 0.0),
+                }
+            })
+            .collect();
+        let mut model = CollisionModel {
+            all_limits,
+            name: name.to_string(),
+            values: vec![0.0; tree.joints().len()],
+            tree,
+            links,
+            planned,
+            joint_names: joints.to_vec(),
+            limits: limits.to_vec(),
+            moving,
+            acm: SelfCollisionMatrix::default(),
+            urdf_file: None,
+        };
+        model.acm = match acm {
+            Some(a) => a,
+            None => SelfCollisionMatrix::compute(&model, crate::acm::DEFAULT_SAMPLES, 1),
+        };
+        Ok(model)
+    }
+
+    /// The model of a robot's arm: its arm joints within their limits, the fingers and other
+    /// joints at 0 until [`CollisionModel::set_value`], the stored self-collision matrix
+    /// (`[collision]` of its configuration) or one computed by sampling.
+    pub fn from_config(cfg: &RobotConfig) -> Result<Self> {
+        let arm = cfg
+            .arm
+            .as_ref()
+            .ok_or_else(|| invalid("robot", format!("{} has no arm", cfg.name)))?;
+        let limits = arm
+            .joints
+            .iter()
+            .map(|n| {
+                cfg.joint_index(n)
+                    .map(|i| {
+                        let l = cfg.joints[i].limits;
+                        (f64::from(l.min), f64::from(l.max))
+                    })
+                    .ok_or_else(|| invalid("arm joints", format!("{n:?} not in the joint table")))
+            })
+            .collect::<Result<Vec<_>>>()?;
+        let dir = cfg.file.parent().filter(|_| !cfg.file.starts_with("<bundled>"));
+        let acm = cfg
+            .collision
+            .as_ref()
+            .map(|c| SelfCollisionMatrix::from_entries(&c.disabled));
+        let mut m = CollisionModel::new(&cfg.name, &cfg.urdf, &arm.joints, &limits, dir, acm)?;
+        m.urdf_file = dir.map(|d| d.join(&cfg.urdf_file));
+        Ok(m)
+    }
+
+    /// Robot name.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// The URDF file the model came from, when it came from a file (not a bundled robot).
+    pub fn urdf_file(&self) -> Option<&Path> {
+        self.urdf_file.as_deref()
+    }
+
+    /// The link tree.
+    pub fn tree(&self) -> &LinkTree {
+        &self.tree
+    }
+
+    /// Every link's geometry, in [`LinkTree::links`] order.
+    pub fn links(&self) -> &[LinkGeometry] {
+        &self.links
+    }
+
+    /// Index of a link by name.
+    pub fn link_index(&self, name: &str) -> Option<usize> {
+        self.tree.link_index(name)
+    }
+
+    /// Number of planned joints.
+    pub fn dof(&self) -> usize {
+        self.planned.len()
+    }
+
+    /// Planned joint names, in path order.
+    pub fn joint_names(&self) -> &[String] {
+        &self.joint_names
+    }
+
+    /// Limits of the planned joints, rad or m.
+    pub fn limits(&self) -> &[(f64, f64)] {
+        &self.limits
+    }
+
+    /// Every movable joint's range ([`LinkTree::joints`] order): planned joints' limits, the
+    /// URDF's for the others (±π for continuous joints).
+    pub fn all_limits(&self) -> Vec<(f64, f64)> {
+        self.all_limits.clone()
+    }
+
+    /// Whether link `i` moves with the planned joints.
+    pub fn is_moving(&self, i: usize) -> bool {
+        self.moving.get(i).copied().unwrap_or(false)
+    }
+
+    /// The self-collision matrix.
+    pub fn acm(&self) -> &SelfCollisionMatrix {
+        &self.acm
+    }
+
+    /// Sets the value (rad or m) a joint that is not planned keeps while planning (a finger,
+    /// the head); unknown names and planned joints are errors, as are non-finite values.
+    pub fn set_value(&mut self, joint: &str, value: f64) -> Result<()> {
+        let i = self
+            .tree
+            .joint_index(joint)
+            .ok_or_else(|| invalid("joint", format!("{joint:?} is no movable joint")))?;
+        if self.planned.contains(&i) {
+            return Err(invalid("joint", format!("{joint:?} is planned")));
+        }
+        if !value.is_finite() || value.abs() > 4.0 * std::f64::consts::PI {
+            return Err(invalid(format!("value of {joint}"), format!("{value}")));
+        }
+        self.values[i] = value;
+        Ok(())
+    }
+
+    /// The values of the joints that are not planned, by name.
+    pub fn fixed_values(&self) -> Vec<(String, f64)> {
+        self.tree
+            .joints()
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| !self.planned.contains(i))
+            .map(|(i, j)| (j.name.clone(), self.values[i]))
+            .collect()
+    }
+
+    /// Every tree joint's value for planned joint values `q`.
+    pub fn tree_values(&self, q: &[f64]) -> Vec<f64> {
+        let mut v = self.values.clone();
+        for (&i, &x) in self.planned.iter().zip(q) {
+            v[i] = x;
+        }
+        v
+    }
+
+    /// Every tree joint's value for planned values `q`, into `out`.
+    pub(crate) fn tree_values_into(&self, q: &[f64], out: &mut Vec<f64>) {
+        out.clear();
+        out.extend_from_slice(&self.values);
+        for (&i, &x) in self.planned.iter().zip(q) {
+            out[i] = x;
+        }
+    }
+
+    /// Pose of every link in the root frame for planned joint values `q`.
+    pub fn link_poses(&self, q: &[f64]) -> Vec<Isometry3<f64>> {
+        self.tree.poses(&self.tree_values(q))
+    }
+
+    /// For each planned joint, a bound on the distance (m) from the joint's origin of any point
+    /// of the links it carries and of `extra` spheres (link index, spheres in that link's
+    /// frame): a step Δq moves no point more than Σ |Δqᵢ|·reachᵢ (revolute) + |Δqᵢ|
+    /// (prismatic).
+    pub fn reach(&self, extra: &[(usize, Vec<Sphere>)]) -> Vec<f64> {
+        self.planned
+            .iter()
+            .map(|&j| {
+                if self.tree.joints()[j].kind == JointType::Prismatic {
+                    return 1.0;
+                }
+                let Some(carrier) =
+                    (0..self.links.len()).find(|&l| self.tree.link_joint(l) == Some(j))
+                else {
+                    return 0.0;
+                };
+                let mut reach = 0.0f64;
+                let spheres_of = |l: usize| {
+                    self.links[l]
+                        .spheres
+                        .iter()
+                        .copied()
+                        .chain(
+                            extra
+                                .iter()
+                                .filter(move |(el, _)| *el == l)
+                                .flat_map(|(_, s)| s.iter().copied()),
+                        )
+                        .map(|s| s.centre.coords.norm() + s.radius)
+                        .fold(0.0, f64::max)
+                };
+                for l in 0..self.links.len() {
+                    // The path from `l` up to the carrier: its joint offsets (and prismatic
+                    // travel) bound how far `l`'s frame is from the joint's origin.
+                    let mut at = l;
+                    let mut offset = 0.0;
+                    let mut below = false;
+                    loop {
+                        if at == carrier {
+                            below = true;
+                            break;
+                        }
+                        offset += self
+                            .tree
+                            .link_origin(at)
+                            .map_or(0.0, |o| o.translation.vector.norm());
+                        if let Some(jj) = self.tree.link_joint(at) {
+                            if self.tree.joints()[jj].kind == JointType::Prismatic {
+                                offset += match self.planned.iter().position(|&p| p == jj) {
+                                    Some(k) => self.limits[k].0.abs().max(self.limits[k].1.abs()),
+                                    None => self.values[jj].abs(),
+                                };
+                            }
+                        }
+                        match self.tree.parent(at) {
+                            Some(p) => at = p,
+                            None => break,
+                        }
+                    }
+                    if below {
+                        reach = reach.max(offset + spheres_of(l));
+                    }
+                }
+                reach
+            })
+            .collect()
+    }
+
+    /// The exact shapes of link `l` placed at `pose`: parry pose and shape.
+    pub(crate) fn exact_at<'a>(
+        &'a self,
+        l: usize,
+        pose: &'a Isometry3<f64>,
+    ) -> impl Iterator<Item = (parry3d::math::Pose, &'a Exact)> + 'a {
+        self.links[l]
+            .exact
+            .iter()
+            .map(move |(o, e)| (convert::pose(&(pose * o)), e))
+    }
+}

@@ -1,0 +1,578 @@
+//! Joint-space planners behind one trait: RRT-Connect (Kuffner & LaValle 2000) with
+//! shortcutting, the default; and Informed RRT* (Gammell et al. 2014), which keeps improving
+//! the path RRT-Connect first found for as long as it is given.
+
+use std::time::{Duration, Instant};
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+use crate::checker::Checker;
+use crate::{Error, Result};
+
+/// Longest time limit of one plan, s.
+pub const MAX_TIME_LIMIT: f64 = 600.0;
+
+/// Options of one plan.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlanOptions {
+    /// Give up after this long (shortcutting included).
+    pub time_limit: Duration,
+    /// Seed of the sampler: the same seed, problem and scene give the same path.
+    pub seed: u64,
+    /// Longest joint-space step of a tree extension, rad.
+    pub range: f64,
+    /// Shortcut attempts after a path is found (0: none).
+    pub shortcuts: usize,
+    /// Informed RRT*: time spent improving the first path (within the time limit).
+    pub improve_for: Duration,
+}
+
+impl Default for PlanOptions {
+    fn default() -> Self {
+        PlanOptions {
+            time_limit: Duration::from_secs(1),
+            seed: 1,
+            range: 0.6,
+            shortcuts: 60,
+            improve_for: Duration::from_millis(100),
+        }
+    }
+}
+
+impl PlanOptions {
+    fn validate(&self) -> Result<()> {
+        let t = self.time_limit.as_secs_f64();
+        if !(t > 0.0 && t <= MAX_TIME_LIMIT) || !(self.range > 1e-3 && self.range <= 10.0) {
+            return Err(Error::Invalid {
+                what: "plan options".into(),
+                why: format!(
+                    "time limit {t} s must be in (0, {MAX_TIME_LIMIT}] and range {} rad in (0.001, 10]",
+                    self.range
+                ),
+            });
+        }
+        if self.shortcuts > 100_000 {
+            return Err(Error::Invalid {
+                what: "plan options".into(),
+                why: format!("{} shortcut attempts, more than 100000", self.shortcuts),
+            });
+        }
+        Ok(())
+    }
+}
+
+/// A collision-free joint-space path.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Plan {
+    /// Waypoints from start to goal, rad; consecutive ones joined by free straight edges.
+    pub path: Vec<Vec<f64>>,
+    /// Time spent, planning and shortcutting.
+    pub time: Duration,
+    /// Waypoints before shortcutting.
+    pub raw_waypoints: usize,
+}
+
+impl Plan {
+    /// Joint-space length (sum of Euclidean edge lengths), rad.
+    pub fn length(&self) -> f64 {
+        path_length(&self.path)
+    }
+}
+
+/// Sum of Euclidean edge lengths of a joint-space path, rad.
+pub fn path_length(path: &[Vec<f64>]) -> f64 {
+    path.windows(2).map(|w| dist(&w[0], &w[1])).sum()
+}
+
+fn dist(a: &[f64], b: &[f64]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y) * (x - y))
+        .sum::<f64>()
+        .sqrt()
+}
+
+/// A joint-space planner.
+pub trait Planner: Send + Sync {
+    /// Its name, as `--planner` takes it.
+    fn name(&self) -> &'static str;
+
+    /// A free path from `start` to `goal` (rad) for `checker`'s model in its scene.
+    fn plan(&self, checker: &Checker, start: &[f64], goal: &[f64], opts: &PlanOptions)
+        -> Result<Plan>;
+}
+
+/// The planners by name.
+pub const PLANNERS: [&str; 2] = ["rrt-connect", "informed-rrt-star"];
+
+/// A planner by name ([`PLANNERS`]).
+pub fn by_name(name: &str) -> Option<Box<dyn Planner>> {
+    match name {
+        "rrt-connect" => Some(Box::new(RrtConnect)),
+        "informed-rrt-star" => Some(Box::new(InformedRrtStar)),
+        _ => None,
+    }
+}
+
+/// Checks start and goal: joint counts, limits, collisions.
+fn check_ends(checker: &Checker, start: &[f64], goal: &[f64]) -> Result<()> {
+    let dof = checker.model().dof();
+    for (what, q) in [("start", start), ("goal", goal)] {
+        if q.len() != dof {
+            return Err(Error::Invalid {
+                what: what.into(),
+                why: format!("{} joint values for {dof} joints", q.len()),
+            });
+        }
+        if !checker.within_limits(q) {
+            return Err(Error::Invalid {
+                what: what.into(),
+                why: format!("{q:?} is not finite or not within the joint limits"),
+            });
+        }
+    }
+    if let Some(c) = checker.contact(start) {
+        return Err(Error::StartInCollision { a: c.a, b: c.b });
+    }
+    if let Some(c) = checker.contact(goal) {
+        return Err(Error::GoalInCollision { a: c.a, b: c.b });
+    }
+    Ok(())
+}
+
+/// A tree of configurations.
+struct Tree {
+    q: Vec<Vec<f64>>,
+    parent: Vec<usize>,
+}
+
+impl Tree {
+    fn new(root: &[f64]) -> Self {
+        Tree {
+            q: vec![root.to_vec()],
+            parent: vec![usize::MAX],
+        }
+    }
+
+    fn nearest(&self, q: &[f64]) -> usize {
+        let mut best = (f64::INFINITY, 0);
+        for (i, n) in self.q.iter().enumerate() {
+            let d: f64 = n.iter().zip(q).map(|(a, b)| (a - b) * (a - b)).sum();
+            if d < best.0 {
+                best = (d, i);
+            }
+        }
+        best.1
+    }
+
+    fn add(&mut self, q: Vec<f64>, parent: usize) -> usize {
+        self.q.push(q);
+        self.parent.push(parent);
+        self.q.len() - 1
+    }
+
+    /// Configurations from the root to node `i`.
+    fn branch(&self, mut i: usize) -> Vec<Vec<f64>> {
+        let mut out = Vec::new();
+        while i != usize::MAX {
+            out.push(self.q[i].clone());
+            i = self.parent[i];
+        }
+        out.reverse();
+        out
+    }
+}
+
+/// Outcome of growing a tree toward a configuration.
+enum Grow {
+    Reached(usize),
+    Advanced(usize),
+    Trapped,
+}
+
+/// One step of at most `range` from the nearest node toward `target`.
+fn extend(checker: &Checker, tree: &mut Tree, target: &[f64], range: f64) -> Grow {
+    let near = tree.nearest(target);
+    let from = &tree.q[near];
+    let d = dist(from, target);
+    let (q, reached) = if d <= range {
+        (target.to_vec(), true)
+    } else {
+        let s = range / d;
+        (
+            from.iter().zip(target).map(|(a, b)| a + (b - a) * s).collect(),
+            false,
+        )
+    };
+    if !checker.motion_free(from, &q) {
+        return Grow::Trapped;
+    }
+    let i = tree.add(q, near);
+    if reached {
+        Grow::Reached(i)
+    } else {
+        Grow::Advanced(i)
+    }
+}
+
+fn sample(rng: &mut ChaCha8Rng, limits: &[(f64, f64)]) -> Vec<f64> {
+    limits
+        .iter()
+        .map(|&(lo, hi)| rng.random_range(lo..=hi))
+        .collect()
+}
+
+/// RRT-Connect: two trees, one from each end, grown toward random samples and toward each
+/// other; then shortcutting.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct RrtConnect;
+
+impl RrtConnect {
+    /// The raw path (not shortcut) and the sampler, or a timeout.
+    fn search(
+        checker: &Checker,
+        start: &[f64],
+        goal: &[f64],
+        opts: &PlanOptions,
+        rng: &mut ChaCha8Rng,
+        t0: Instant,
+    ) -> Result<Vec<Vec<f64>>> {
+        if checker.motion_free(start, goal) {
+            return Ok(vec![start.to_vec(), goal.to_vec()]);
+        }
+        let limits = checker.model().limits().to_vec();
+        let mut a = Tree::new(start);
+        let mut b = Tree::new(goal);
+        let mut a_is_start = true;
+        loop {
+            if t0.elapsed() > opts.time_limit {
+                return Err(Error::Timeout {
+                    seconds: opts.time_limit.as_secs_f64(),
+                });
+            }
+            let target = sample(rng, &limits);
+            let new = match extend(checker, &mut a, &target, opts.range) {
+                Grow::Trapped => {
+                    std::mem::swap(&mut a, &mut b);
+                    a_is_start = !a_is_start;
+                    continue;
+                }
+                Grow::Reached(i) | Grow::Advanced(i) => i,
+            };
+            let q = a.q[new].clone();
+            // Connect the other tree to the new node, step after step.
+            loop {
+                match extend(checker, &mut b, &q, opts.range) {
+                    Grow::Reached(j) => {
+                        let (mut from_a, from_b) = (a.branch(new), b.branch(j));
+                        let mut path = Vec::with_capacity(from_a.len() + from_b.len());
+                        // The meeting configuration is in both branches: keep one.
+                        from_a.pop();
+                        if a_is_start {
+                            path.extend(from_a);
+                            path.extend(from_b.into_iter().rev());
+                        } else {
+                            path.extend(from_b);
+                            path.extend(from_a.into_iter().rev());
+                        }
+                        return Ok(path);
+                    }
+                    Grow::Advanced(_) => {
+                        if t0.elapsed() > opts.time_limit {
+                            break;
+                        }
+                    }
+                    Grow::Trapped => break,
+                }
+            }
+            std::mem::swap(&mut a, &mut b);
+            a_is_start = !a_is_start;
+        }
+    }
+}
+
+impl Planner for RrtConnect {
+    fn name(&self) -> &'static str {
+        "rrt-connect"
+    }
+
+    fn plan(
+        &self,
+        checker: &Checker,
+        start: &[f64],
+        goal: &[f64],
+        opts: &PlanOptions,
+    ) -> Result<Plan> {
+        let t0 = Instant::now();
+        opts.validate()?;
+        check_ends(checker, start, goal)?;
+        let mut rng = ChaCha8Rng::seed_from_u64(opts.seed);
+        let raw = Self::search(checker, start, goal, opts, &mut rng, t0)?;
+        let raw_waypoints = raw.len();
+        let path = shortcut(checker, raw, opts.shortcuts, &mut rng, t0, opts.time_limit);
+        Ok(Plan {
+            path,
+            time: t0.elapsed(),
+            raw_waypoints,
+        })
+    }
+}
+
+/// The configuration at arc length `s` (rad) along `path`, and the edge it is on.
+fn at_length(path: &[Vec<f64>], mut s: f64) -> (Vec<f64>, usize) {
+    for i in 0..path.len().saturating_sub(1) {
+        let l = dist(&path[i], &path[i + 1]);
+        if s <= l || i + 2 == path.len() {
+            let f = if l > 0.0 { (s / l).clamp(0.0, 1.0) } else { 0.0 };
+            let q = path[i]
+                .iter()
+                .zip(&path[i + 1])
+                .map(|(a, b)| a + (b - a) * f)
+                .collect();
+            return (q, i);
+        }
+        s -= l;
+    }
+    (path[0].clone(), 0)
+}
+
+/// Shortcutting: `attempts` times, join two random points of the path by a straight edge when
+/// it is free; then drop waypoints whose neighbours see each other. Stops at the time limit.
+pub fn shortcut(
+    checker: &Checker,
+    mut path: Vec<Vec<f64>>,
+    attempts: usize,
+    rng: &mut ChaCha8Rng,
+    t0: Instant,
+    limit: Duration,
+) -> Vec<Vec<f64>> {
+    for _ in 0..attempts {
+        if path.len() < 3 || t0.elapsed() > limit {
+            break;
+        }
+        let total = path_length(&path);
+        let mut s1 = rng.random_range(0.0..total);
+        let mut s2 = rng.random_range(0.0..total);
+        if s1 > s2 {
+            std::mem::swap(&mut s1, &mut s2);
+        }
+        let (p1, i1) = at_length(&path, s1);
+        let (p2, i2) = at_length(&path, s2);
+        if i1 == i2 {
+            continue;
+        }
+        if !checker.motion_free(&p1, &p2) {
+            continue;
+        }
+        let mut next = Vec::with_capacity(path.len());
+        next.extend_from_slice(&path[..=i1]);
+        next.push(p1);
+        next.push(p2);
+        next.extend_from_slice(&path[i2 + 1..]);
+        next.dedup_by(|a, b| dist(a, b) < 1e-9);
+        if path_length(&next) < total - 1e-9 {
+            path = next;
+        }
+    }
+    // Drop waypoints whose neighbours see each other.
+    let mut i = 0;
+    while i + 2 < path.len() {
+        if t0.elapsed() > limit {
+            break;
+        }
+        if checker.motion_free(&path[i], &path[i + 2]) {
+            path.remove(i + 1);
+        } else {
+            i += 1;
+        }
+    }
+    path
+}
+
+/// Informed RRT*: RRT-Connect's path first, then a single tree from the start grown with
+/// rewiring, sampling only where a shorter path can pass (the prolate hyperspheroid whose
+/// foci are start and goal), for [`PlanOptions::improve_for`]; then shortcutting.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct InformedRrtStar;
+
+impl Planner for InformedRrtStar {
+    fn name(&self) -> &'static str {
+        "informed-rrt-star"
+    }
+
+    fn plan(
+        &self,
+        checker: &Checker,
+        start: &[f64],
+        goal: &[f64],
+        opts: &PlanOptions,
+    ) -> Result<Plan> {
+        let t0 = Instant::now();
+        opts.validate()?;
+        check_ends(checker, start, goal)?;
+        let mut rng = ChaCha8Rng::seed_from_u64(opts.seed);
+        let first = RrtConnect::search(checker, start, goal, opts, &mut rng, t0)?;
+        let raw_waypoints = first.len();
+        let first = shortcut(checker, first, opts.shortcuts, &mut rng, t0, opts.time_limit);
+        let deadline = (t0.elapsed() + opts.improve_for).min(opts.time_limit);
+        let best = improve(checker, start, goal, first, opts, &mut rng, t0, deadline);
+        let path = shortcut(checker, best, opts.shortcuts, &mut rng, t0, opts.time_limit);
+        Ok(Plan {
+            path,
+            time: t0.elapsed(),
+            raw_waypoints,
+        })
+    }
+}
+
+/// A sample of the prolate hyperspheroid of points `x` with |x − a| + |x − b| ≤ `c`.
+fn informed_sample(rng: &mut ChaCha8Rng, a: &[f64], b: &[f64], c: f64) -> Vec<f64> {
+    let n = a.len();
+    let cmin = dist(a, b);
+    // A uniform point of the unit ball.
+    let mut x: Vec<f64> = loop {
+        let v: Vec<f64> = (0..n).map(|_| rng.random_range(-1.0..=1.0)).collect();
+        if v.iter().map(|x| x * x).sum::<f64>() <= 1.0 {
+            break v;
+        }
+    };
+    let r1 = c / 2.0;
+    let r2 = ((c * c - cmin * cmin).max(0.0)).sqrt() / 2.0;
+    x[0] *= r1;
+    for v in &mut x[1..] {
+        *v *= r2;
+    }
+    // Householder reflection taking e1 onto the direction a → b.
+    let mut u: Vec<f64> = a
+        .iter()
+        .zip(b)
+        .map(|(p, q)| if cmin > 0.0 { (q - p) / cmin } else { 0.0 })
+        .collect();
+    if cmin > 0.0 {
+        u[0] -= 1.0;
+        let un: f64 = u.iter().map(|v| v * v).sum();
+        if un > 1e-18 {
+            let d: f64 = u.iter().zip(&x).map(|(p, q)| p * q).sum();
+            for (xi, ui) in x.iter_mut().zip(&u) {
+                *xi -= 2.0 * d / un * ui;
+            }
+        }
+    }
+    x.iter()
+        .zip(a.iter().zip(b))
+        .map(|(v, (p, q))| v + (p + q) / 2.0)
+        .collect()
+}
+
+#[allow(clippy::too_many_arguments)]
+fn improve(
+    checker: &Checker,
+    start: &[f64],
+    goal: &[f64],
+    first: Vec<Vec<f64>>,
+    opts: &PlanOptions,
+    rng: &mut ChaCha8Rng,
+    t0: Instant,
+    deadline: Duration,
+) -> Vec<Vec<f64>> {
+    let limits = checker.model().limits().to_vec();
+    let dof = start.len() as f64;
+    let mut best_cost = path_length(&first);
+    let mut best = first.clone();
+    // The tree starts as the first path (a chain), so it only gets better.
+    let mut tree = Tree::new(start);
+    let mut cost = vec![0.0];
+    let mut goal_node = None;
+    for q in first.iter().skip(1) {
+        let p = tree.q.len() - 1;
+        let c = cost[p] + dist(&tree.q[p], q);
+        let i = tree.add(q.clone(), p);
+        cost.push(c);
+        goal_node = Some(i);
+    }
+    while t0.elapsed() < deadline {
+        let target = loop {
+            let s = informed_sample(rng, start, goal, best_cost);
+            if s
+                .iter()
+                .zip(&limits)
+                .all(|(v, (lo, hi))| v >= lo && v <= hi)
+            {
+                break s;
+            }
+            if t0.elapsed() >= deadline {
+                return best;
+            }
+        };
+        let near = tree.nearest(&target);
+        let d = dist(&tree.q[near], &target);
+        let q: Vec<f64> = if d <= opts.range {
+            target
+        } else {
+            let s = opts.range / d;
+            tree.q[near]
+                .iter()
+                .zip(&target)
+                .map(|(a, b)| a + (b - a) * s)
+                .collect()
+        };
+        // Neighbours within the RRT* radius.
+        let n = tree.q.len() as f64;
+        let radius = (opts.range * 2.0 * ((n.ln() / n).powf(1.0 / dof))).max(opts.range * 0.5);
+        let neighbours: Vec<usize> = (0..tree.q.len())
+            .filter(|&i| dist(&tree.q[i], &q) <= radius)
+            .collect();
+        // Cheapest free parent.
+        let mut parent = None;
+        let mut c_new = f64::INFINITY;
+        let mut order: Vec<(f64, usize)> = neighbours
+            .iter()
+            .map(|&i| (cost[i] + dist(&tree.q[i], &q), i))
+            .collect();
+        order.sort_by(|x, y| x.0.total_cmp(&y.0));
+        for (c, i) in order {
+            if c + dist(&q, goal) >= best_cost {
+                break;
+            }
+            if checker.motion_free(&tree.q[i], &q) {
+                parent = Some(i);
+                c_new = c;
+                break;
+            }
+        }
+        let Some(parent) = parent else {
+            continue;
+        };
+        let new = tree.add(q.clone(), parent);
+        cost.push(c_new);
+        // Rewire neighbours through the new node.
+        for &i in &neighbours {
+            let c = c_new + dist(&q, &tree.q[i]);
+            if c + 1e-12 < cost[i] && checker.motion_free(&q, &tree.q[i]) {
+                let delta = cost[i] - c;
+                tree.parent[i] = new;
+                // Lower the cost of the subtree.
+                let mut stack = vec![i];
+                while let Some(k) = stack.pop() {
+                    cost[k] -= delta;
+                    stack.extend((0..tree.q.len()).filter(|&m| tree.parent[m] == k));
+                }
+            }
+        }
+        // Reach the goal from the new node.
+        let to_goal = c_new + dist(&q, goal);
+        if to_goal + 1e-9 < best_cost && checker.motion_free(&q, goal) {
+            let g = tree.add(goal.to_vec(), new);
+            cost.push(to_goal);
+            goal_node = Some(g);
+        }
+        if let Some(g) = goal_node {
+            if cost[g] + 1e-9 < best_cost {
+                best_cost = cost[g];
+                best = tree.branch(g);
+            }
+        }
+    }
+    best
+}
