@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # Creates target/py-venv with the Python packages the conformance tests need (ROBOTIS'
 # official Dynamixel SDK); with `bench`, also those the benchmarks compare against (PyBullet,
-# sim-stubs/benches/requirements.txt). Idempotent: does nothing when they are already there.
+# sim-stubs/benches/requirements.txt); with `plan`, also those of the planning benchmark's peer
+# (OMPL and FCL, host/planning/peer/requirements.txt). Idempotent: does nothing when they are
+# already there.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 venv=target/py-venv
@@ -24,5 +26,6 @@ install sim-stubs/tests/conformance/requirements.txt .installed-requirements dyn
 case "${1:-}" in
     "") ;;
     bench) install sim-stubs/benches/requirements.txt .installed-bench-requirements pybullet ;;
-    *) echo "usage: $0 [bench]" >&2; exit 2 ;;
+    plan) install host/planning/peer/requirements.txt .installed-plan-requirements "ompl.geometric, fcl, scipy.spatial" ;;
+    *) echo "usage: $0 [bench|plan]" >&2; exit 2 ;;
 esac
