@@ -132,7 +132,10 @@ impl SelfCollisionMatrix {
             })
             .collect();
         let ranges = model.all_limits();
-        let default: Vec<f64> = ranges.iter().map(|&(lo, hi)| 0.0f64.clamp(lo, hi)).collect();
+        let default: Vec<f64> = ranges
+            .iter()
+            .map(|&(lo, hi)| 0.0f64.clamp(lo, hi))
+            .collect();
         let poses = tree.poses(&default);
         for &(a, b) in &pairs {
             if crate::checker::links_touch(model, a, &poses[a], b, &poses[b]) {
@@ -149,7 +152,11 @@ impl SelfCollisionMatrix {
         let mut poses = Vec::new();
         for _ in 0..samples {
             for (v, &(lo, hi)) in q.iter_mut().zip(&ranges) {
-                *v = if hi > lo { rng.random_range(lo..=hi) } else { lo };
+                *v = if hi > lo {
+                    rng.random_range(lo..=hi)
+                } else {
+                    lo
+                };
             }
             tree.poses_into(&q, &mut poses);
             for (h, &(a, b)) in hits.iter_mut().zip(&pairs) {

@@ -6,13 +6,14 @@
 //! vectorises); spheres found clear prove their body clear. Only where a sphere is not clear
 //! does the exact stage run parry3d on the body's real shapes.
 //!
-//! A motion (a straight joint-space edge) is proven free, not sampled: a joint step Δq moves
-//! no point of the robot more than `Σ |Δqᵢ|·reachᵢ` ([`CollisionModel::reach`]). States are
-//! placed so that no point moves more than `resolution` between neighbours, and each must be
-//! clear of the world by `resolution / 2` and of the robot's other links by `resolution`:
-//! then every state between them is free. Where a state is free but closer than that, its
-//! neighbourhood is proven again with a quarter of the resolution, down to
-//! `min_resolution`, where states that far apart are checked for contact alone.
+//! A motion (a straight joint-space edge) is proven free by conservative advancement, not
+//! sampled: a joint step Δq moves no point of the robot more than `Σ |Δqᵢ|·reachᵢ`
+//! ([`CollisionModel::reach`]). At each state the checker finds a lower bound of the robot's
+//! clearance (from the spheres where they are far, exact distances where they are near), and
+//! advances along the edge by as much motion as that clearance allows (half of it against the
+//! robot's other moving links, which move too), capped at `max_step`. Only where the clearance
+//! is below `min_step` does it advance by `min_step` with a contact check alone: that is the
+//! one place a sliver thinner than `min_step` could hide.
 
 use std::cell::RefCell;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -31,17 +32,22 @@ use crate::{Error, Result};
 /// Options of the checker.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CheckOptions {
-    /// Largest motion of any robot point between two checked states of an edge, m.
+    /// Fast edge checks (while searching): largest motion of any robot point between two
+    /// states checked for contact, m.
     pub resolution: f64,
-    /// Finest resolution of the refinement near obstacles, m.
-    pub min_resolution: f64,
+    /// Proven edge checks: largest advance of conservative advancement, m.
+    pub max_step: f64,
+    /// Proven edge checks: smallest advance; where the clearance is below it, states this far
+    /// apart (in robot-point motion) are checked for contact alone, m.
+    pub min_step: f64,
 }
 
 impl Default for CheckOptions {
     fn default() -> Self {
         CheckOptions {
             resolution: 0.01,
-            min_resolution: 0.001,
+            max_step: 0.05,
+            min_step: 0.001,
         }
     }
 }
@@ -137,12 +143,12 @@ struct Grid {
 impl Grid {
     fn occupied(&self, c: [i32; 3]) -> bool {
         let mut idx = 0usize;
-        for a in 0..3 {
-            let d = c[a] - self.lo[a];
-            if d < 0 || d as usize >= self.dims[a] {
+        for ((&v, &lo), &dim) in c.iter().zip(&self.lo).zip(&self.dims) {
+            let d = v - lo;
+            if d < 0 || d as usize >= dim {
                 return false;
             }
-            idx = idx * self.dims[a] + d as usize;
+            idx = idx * dim + d as usize;
         }
         self.bits[idx / 64] >> (idx % 64) & 1 == 1
     }
@@ -169,12 +175,17 @@ pub struct Checker {
     bodies: Vec<Body>,
     obstacles: Vec<Obstacle>,
     grid: Option<Grid>,
-    /// Body pairs checked against each other.
+    /// Moving body pairs checked against each other.
     pairs: Vec<(usize, usize)>,
+    /// The shapes of bodies that do not move, at their fixed poses.
+    robot_obstacles: Vec<Obstacle>,
+    /// For each body, the robot obstacles it is checked against.
+    fixed_of: Vec<Vec<usize>>,
     reach: Vec<f64>,
     opts: CheckOptions,
     scratch: RefCell<Scratch>,
     counters: Counters,
+    proven: std::cell::Cell<bool>,
 }
 
 /// Whether links `a` and `b` of `model` at `pa`, `pb` (root frame) touch (exact shapes).
@@ -200,31 +211,28 @@ pub(crate) fn links_touch(
     })
 }
 
-/// Whether the exact shapes `a` (at their poses) come within `margin` (m) of `b`.
-fn exact_near(
+/// The smallest distance (m; 0 when touching) between the exact shapes `a` (on their link at
+/// `pose_a`) and `b`.
+fn exact_gap(
     a: &[(Isometry3<f64>, Exact)],
     pose_a: &Isometry3<f64>,
     b: &[(parry3d::math::Pose, &Exact)],
-    margin: f64,
     counters: &Counters,
-) -> bool {
+) -> f64 {
+    let mut gap = f64::INFINITY;
     for (o, ea) in a {
         let pa = convert::pose(&(pose_a * o));
         for (pb, eb) in b {
             counters.exact_checks.fetch_add(1, Ordering::Relaxed);
-            let hit = if margin <= 0.0 {
-                query::intersection_test(&pa, ea.shape.as_ref(), pb, eb.shape.as_ref())
-                    .map_or(true, |i| i.intersecting)
-            } else {
-                query::distance(&pa, ea.shape.as_ref(), pb, eb.shape.as_ref())
-                    .map_or(true, |d| f64::from(d.distance) <= margin)
-            };
-            if hit {
-                return true;
+            let d = query::distance(&pa, ea.shape.as_ref(), pb, eb.shape.as_ref())
+                .map_or(0.0, |d| f64::from(d.distance));
+            gap = gap.min(d);
+            if gap <= 0.0 {
+                return 0.0;
             }
         }
     }
-    false
+    gap
 }
 
 impl Checker {
@@ -235,17 +243,19 @@ impl Checker {
         scene: &PlanningScene,
         opts: CheckOptions,
     ) -> Result<Self> {
-        if !(opts.resolution.is_finite()
-            && opts.min_resolution.is_finite()
-            && opts.min_resolution >= 1e-4
-            && opts.resolution >= opts.min_resolution
-            && opts.resolution <= 0.5)
+        if !(opts.max_step.is_finite()
+            && opts.min_step.is_finite()
+            && opts.resolution.is_finite()
+            && opts.min_step >= 1e-4
+            && opts.max_step >= opts.min_step
+            && opts.max_step <= 0.5
+            && (opts.min_step..=opts.max_step).contains(&opts.resolution))
         {
             return Err(Error::Invalid {
                 what: "check options".into(),
                 why: format!(
-                    "resolution {} m and min_resolution {} m must satisfy 1e-4 ≤ min ≤ resolution ≤ 0.5",
-                    opts.resolution, opts.min_resolution
+                    "min_step {} m, resolution {} m and max_step {} m must satisfy 1e-4 ≤ min_step ≤ resolution ≤ max_step ≤ 0.5",
+                    opts.min_step, opts.resolution, opts.max_step
                 ),
             });
         }
@@ -294,21 +304,60 @@ impl Checker {
             });
             touch.push(allowed);
         }
+        // Bodies that do not move are obstacles to the ones that do, in their fixed poses.
+        let fixed = model.link_poses(&vec![0.0; model.dof()]);
+        let mut robot_obstacles = Vec::new();
+        let mut fixed_of: Vec<Vec<usize>> = vec![Vec::new(); bodies.len()];
         let mut pairs = Vec::new();
         for i in 0..bodies.len() {
-            for j in i + 1..bodies.len() {
-                let (a, b) = (&bodies[i], &bodies[j]);
-                if !a.moving && !b.moving {
+            for j in 0..bodies.len() {
+                if i == j || !bodies[i].moving || (bodies[j].moving && j < i) {
                     continue;
                 }
+                let (a, b) = (&bodies[i], &bodies[j]);
                 let allowed = match (i >= links, j >= links) {
                     (false, false) => model.acm().is_disabled(&a.name, &b.name),
                     (true, false) => touch[i - links].contains(&b.link),
                     (false, true) => touch[j - links].contains(&a.link),
                     (true, true) => a.link == b.link,
                 };
-                if !allowed {
+                if allowed {
+                    continue;
+                }
+                if b.moving {
                     pairs.push((i, j));
+                } else {
+                    let pose = fixed[b.link];
+                    let shapes: Vec<&Shape> = if j < links {
+                        model.links()[b.link]
+                            .shapes
+                            .iter()
+                            .map(|(_, s)| s)
+                            .collect()
+                    } else {
+                        scene
+                            .attached()
+                            .nth(j - links)
+                            .map(|a| vec![&a.shape])
+                            .unwrap_or_default()
+                    };
+                    let origins: Vec<Isometry3<f64>> = if j < links {
+                        model.links()[b.link]
+                            .shapes
+                            .iter()
+                            .map(|(o, _)| *o)
+                            .collect()
+                    } else {
+                        scene
+                            .attached()
+                            .nth(j - links)
+                            .map(|a| vec![a.pose])
+                            .unwrap_or_default()
+                    };
+                    for (shape, o) in shapes.into_iter().zip(origins) {
+                        fixed_of[i].push(robot_obstacles.len());
+                        robot_obstacles.push(Obstacle::new(&b.name, shape, &(pose * o))?);
+                    }
                 }
             }
         }
@@ -331,7 +380,9 @@ impl Checker {
                 lo,
                 dims,
                 bits: vec![0; (dims[0] * dims[1] * dims[2]).div_ceil(64)],
-                cube: Shape::Box([v.size; 3]).to_parry().expect("a cube has a hull"),
+                cube: Shape::Box([v.size; 3])
+                    .to_parry()
+                    .expect("a cube has a hull"),
             };
             for c in &v.cells {
                 let mut idx = 0usize;
@@ -351,12 +402,15 @@ impl Checker {
             model,
             bodies,
             obstacles,
+            robot_obstacles,
+            fixed_of,
             grid,
             pairs,
             reach,
             opts,
             scratch: RefCell::new(Scratch::default()),
             counters: Counters::default(),
+            proven: std::cell::Cell::new(false),
         })
     }
 
@@ -375,12 +429,25 @@ impl Checker {
         &self.counters
     }
 
-    /// The body pairs checked for self-collision, by name.
+    /// The link pairs (and attached objects) checked against each other, by name.
     pub fn self_pairs(&self) -> Vec<(String, String)> {
-        self.pairs
+        let mut out: Vec<(String, String)> = self
+            .pairs
             .iter()
             .map(|&(a, b)| (self.bodies[a].name.clone(), self.bodies[b].name.clone()))
-            .collect()
+            .collect();
+        for (i, list) in self.fixed_of.iter().enumerate() {
+            for &o in list {
+                let pair = (
+                    self.bodies[i].name.clone(),
+                    self.robot_obstacles[o].id.clone(),
+                );
+                if !out.contains(&pair) {
+                    out.push(pair);
+                }
+            }
+        }
+        out
     }
 
     /// Names of the links that move with the planned joints.
@@ -409,8 +476,9 @@ impl Checker {
                 .all(|(v, (lo, hi))| v.is_finite() && *v >= lo - 1e-9 && *v <= hi + 1e-9)
     }
 
-    /// The first contact of the robot at `q` (exact shapes), or `None` when free. `q` must
-    /// have the model's joint count (a wrong count counts as a contact of "limits").
+    /// The first contact of the robot at `q` (exact shapes), or `None` when free. A `q`
+    /// outside the limits (or of the wrong length) is reported as a contact with "joint
+    /// limits".
     pub fn contact(&self, q: &[f64]) -> Option<Contact> {
         if !self.within_limits(q) {
             return Some(Contact {
@@ -418,7 +486,12 @@ impl Checker {
                 b: format!("{q:?}"),
             });
         }
-        self.check(q, 0.0, 0.0)
+        self.measure(q, 0.0).err()
+    }
+
+    /// Whether some link at `q` comes within `distance` (m) of the scene or the robot.
+    pub fn near_world(&self, q: &[f64], distance: f64) -> bool {
+        self.within_limits(q) && self.measure(q, distance).map_or(true, |c| c < distance)
     }
 
     /// Whether `q` is within limits and free of collision.
@@ -426,9 +499,10 @@ impl Checker {
         self.contact(q).is_none()
     }
 
-    /// The contact at `q` closer than `world` (m) to the scene or `own` (m) to the robot's
-    /// other links.
-    fn check(&self, q: &[f64], world: f64, own: f64) -> Option<Contact> {
+    /// A lower bound (m, at most `cap`) of how far every robot point at `q` may move while
+    /// no contact can occur: the clearance to the scene and to links that do not move, and
+    /// half the clearance between moving links. A contact is an error naming the bodies.
+    fn measure(&self, q: &[f64], cap: f64) -> std::result::Result<f64, Contact> {
         self.counters.states.fetch_add(1, Ordering::Relaxed);
         let mut s = self.scratch.borrow_mut();
         let s = &mut *s;
@@ -441,69 +515,83 @@ impl Checker {
         s.ranges.clear();
         s.bounds.clear();
         for b in &self.bodies {
-            let p = &s.poses[b.link];
             let start = s.x.len();
-            let m = p.rotation.to_rotation_matrix();
-            let m = m.matrix();
-            let t = p.translation.vector;
-            for sp in &b.spheres {
-                let c = m * sp.centre.coords + t;
-                s.x.push(c.x as f32);
-                s.y.push(c.y as f32);
-                s.z.push(c.z as f32);
-                s.r.push(sp.radius as f32);
+            if b.moving {
+                let p = &s.poses[b.link];
+                let m = p.rotation.to_rotation_matrix();
+                let m = m.matrix();
+                let t = p.translation.vector;
+                for sp in &b.spheres {
+                    let c = m * sp.centre.coords + t;
+                    s.x.push(c.x as f32);
+                    s.y.push(c.y as f32);
+                    s.z.push(c.z as f32);
+                    s.r.push(sp.radius as f32);
+                }
             }
             s.ranges.push((start, s.x.len()));
             s.bounds.push(Sphere {
-                centre: p * b.bound.centre,
+                centre: s.poses[b.link] * b.bound.centre,
                 radius: b.bound.radius,
             });
         }
-        // The world.
+        let mut clear = cap;
+        // Exact distances are worth their cost only below this; above it the spheres' bound
+        // is used as it is.
+        let exact_below = (cap * 0.5).max(self.opts.min_step);
         for (bi, b) in self.bodies.iter().enumerate() {
             if !b.moving {
                 continue;
             }
             let bound = s.bounds[bi];
             let (lo, hi) = s.ranges[bi];
-            for o in &self.obstacles {
-                if (bound.centre.coords - o.centre).norm() > bound.radius + o.radius + world {
+            let fixed = self.fixed_of[bi].iter().map(|&o| &self.robot_obstacles[o]);
+            for o in self.obstacles.iter().chain(fixed) {
+                let gap = (bound.centre.coords - o.centre).norm() - bound.radius - o.radius;
+                if gap >= clear {
                     continue;
                 }
                 self.counters
                     .sphere_checks
                     .fetch_add((hi - lo) as u64, Ordering::Relaxed);
-                if spheres_near(
+                let lb = f64::from(spheres_gap(
                     &o.sdf,
                     &o.inv,
                     &s.x[lo..hi],
                     &s.y[lo..hi],
                     &s.z[lo..hi],
                     &s.r[lo..hi],
-                    world as f32,
-                ) && exact_near(
+                ));
+                if lb >= clear {
+                    continue;
+                }
+                if lb >= exact_below {
+                    clear = lb;
+                    continue;
+                }
+                let d = exact_gap(
                     &b.exact,
                     &s.poses[b.link],
                     &[(o.pose, &o.exact)],
-                    world,
                     &self.counters,
-                ) {
-                    return Some(Contact {
+                );
+                if d <= 0.0 {
+                    return Err(Contact {
                         a: b.name.clone(),
                         b: o.id.clone(),
                     });
                 }
+                clear = clear.min(d);
             }
             if let Some(g) = &self.grid {
-                if let Some(c) = self.grid_contact(g, b, bi, s, world) {
-                    return Some(c);
-                }
+                clear = clear.min(self.grid_gap(g, b, bi, s, clear)?);
             }
         }
-        // The robot itself.
+        // Moving bodies against each other: both move, so half the gap.
         for &(i, j) in &self.pairs {
             let (bi, bj) = (&s.bounds[i], &s.bounds[j]);
-            if (bi.centre - bj.centre).norm() > bi.radius + bj.radius + own {
+            let gap = (bi.centre - bj.centre).norm() - bi.radius - bj.radius;
+            if gap >= 2.0 * clear {
                 continue;
             }
             let (li, hi_) = s.ranges[i];
@@ -511,24 +599,30 @@ impl Checker {
             self.counters
                 .sphere_checks
                 .fetch_add(((hi_ - li) * (hj - lj)) as u64, Ordering::Relaxed);
-            let own32 = own as f32;
-            let mut near = false;
+            let mut lb = f32::INFINITY;
+            let (cx, cy, cz) = (bj.centre.x as f32, bj.centre.y as f32, bj.centre.z as f32);
+            let rj = bj.radius as f32;
             for k in li..hi_ {
-                let (x, y, z, r) = (s.x[k], s.y[k], s.z[k], s.r[k] + own32);
-                let mut any = false;
+                let (x, y, z, r) = (s.x[k], s.y[k], s.z[k], s.r[k]);
+                // This sphere against the other body's bound first.
+                let far = ((cx - x).powi(2) + (cy - y).powi(2) + (cz - z).powi(2)).sqrt() - rj - r;
+                if f64::from(far) >= 2.0 * clear {
+                    lb = lb.min(far);
+                    continue;
+                }
                 for m in lj..hj {
                     let dx = s.x[m] - x;
                     let dy = s.y[m] - y;
                     let dz = s.z[m] - z;
-                    let rr = s.r[m] + r;
-                    any |= dx * dx + dy * dy + dz * dz <= rr * rr;
-                }
-                if any {
-                    near = true;
-                    break;
+                    lb = lb.min((dx * dx + dy * dy + dz * dz).sqrt() - s.r[m] - r);
                 }
             }
-            if !near {
+            let lb = f64::from(lb);
+            if lb >= 2.0 * clear {
+                continue;
+            }
+            if lb >= 2.0 * exact_below {
+                clear = lb / 2.0;
                 continue;
             }
             let (a, b) = (&self.bodies[i], &self.bodies[j]);
@@ -538,31 +632,34 @@ impl Checker {
                 .iter()
                 .map(|(o, e)| (convert::pose(&(pb * o)), e))
                 .collect();
-            if exact_near(&a.exact, &s.poses[a.link], &other, own, &self.counters) {
-                return Some(Contact {
+            let d = exact_gap(&a.exact, &s.poses[a.link], &other, &self.counters);
+            if d <= 0.0 {
+                return Err(Contact {
                     a: a.name.clone(),
                     b: b.name.clone(),
                 });
             }
+            clear = clear.min(d / 2.0);
         }
-        None
+        Ok(clear.max(0.0))
     }
 
-    /// A contact of body `b` with the voxels within `margin`.
-    fn grid_contact(
+    /// A lower bound of body `b`'s gap to the voxels (at most `cap`), or the contact.
+    fn grid_gap(
         &self,
         g: &Grid,
         b: &Body,
         bi: usize,
         s: &Scratch,
-        margin: f64,
-    ) -> Option<Contact> {
+        cap: f64,
+    ) -> std::result::Result<f64, Contact> {
         let (lo, hi) = s.ranges[bi];
         let size = g.size as f32;
         let half = size / 2.0;
+        let mut clear = cap;
         for k in lo..hi {
             let (x, y, z) = (s.x[k], s.y[k], s.z[k]);
-            let reach = s.r[k] + margin as f32;
+            let reach = s.r[k] + clear as f32;
             let cell = |v: f32| (v / size).floor() as i32;
             for i in cell(x - reach)..=cell(x + reach) {
                 for j in cell(y - reach)..=cell(y + reach) {
@@ -580,7 +677,8 @@ impl Checker {
                             centre: c,
                             half: [half; 3],
                         };
-                        if sdf.distance(x, y, z) > reach {
+                        let lb = f64::from(sdf.distance(x, y, z) - s.r[k]);
+                        if lb >= clear {
                             continue;
                         }
                         let pose = convert::pose(&Isometry3::translation(
@@ -588,79 +686,87 @@ impl Checker {
                             f64::from(c[1]),
                             f64::from(c[2]),
                         ));
-                        if exact_near(
+                        let d = exact_gap(
                             &b.exact,
                             &s.poses[b.link],
                             &[(pose, &g.cube)],
-                            margin,
                             &self.counters,
-                        ) {
-                            return Some(Contact {
+                        );
+                        if d <= 0.0 {
+                            return Err(Contact {
                                 a: b.name.clone(),
                                 b: format!("voxel [{i}, {j}, {kk}]"),
                             });
                         }
+                        clear = clear.min(d);
                     }
                 }
             }
         }
-        None
+        Ok(clear)
     }
 
-    /// Whether every state on the straight joint-space edge from `a` to `b` is free. The end
-    /// states themselves are checked too.
+    /// Whether the straight joint-space edge from `a` to `b` is free: proven
+    /// ([`Checker::motion_proven`]) when [`Checker::set_proven`] asked for it, else checked
+    /// at states at most `resolution` of robot-point motion apart (the planners' search).
     pub fn motion_free(&self, a: &[f64], b: &[f64]) -> bool {
+        if self.proven.get() {
+            return self.motion_proven(a, b);
+        }
         if !self.within_limits(a) || !self.within_limits(b) {
             return false;
         }
-        self.prove(a, b, 0.0, 1.0, self.opts.resolution)
-    }
-
-    /// Proves the edge's states for `t` in `[t0, t1]` free at resolution `res`.
-    fn prove(&self, a: &[f64], b: &[f64], t0: f64, t1: f64, res: f64) -> bool {
-        let span = self.motion_bound(a, b) * (t1 - t0);
-        let finest = res <= self.opts.min_resolution * (1.0 + 1e-9);
-        let n = ((span / res).ceil() as usize).max(1);
-        let mut q = vec![0.0; a.len()];
-        // Cell centres, in van der Corput order: a collision in the middle shows early.
-        for k in van_der_corput(n) {
-            let t = t0 + (t1 - t0) * (k as f64 + 0.5) / n as f64;
+        let n = (self.motion_bound(a, b) / self.opts.resolution).ceil() as usize;
+        let mut q = a.to_vec();
+        // States 1..=n in an order that halves the gaps: a collision in the middle shows
+        // early.
+        for k in van_der_corput(n + 1) {
+            if k == 0 {
+                continue;
+            }
+            let t = k as f64 / n as f64;
             for ((v, x), y) in q.iter_mut().zip(a).zip(b) {
                 *v = x + (y - x) * t;
             }
-            if finest {
-                // At the finest level, cell ends (at most `res` of motion apart) are checked
-                // for contact alone.
-                for e in [t0 + (t1 - t0) * k as f64 / n as f64, t] {
-                    for ((v, x), y) in q.iter_mut().zip(a).zip(b) {
-                        *v = x + (y - x) * e;
-                    }
-                    if self.check(&q, 0.0, 0.0).is_some() {
-                        return false;
-                    }
-                }
-                continue;
-            }
-            if self.check(&q, res / 2.0, res).is_none() {
-                continue;
-            }
-            if self.check(&q, 0.0, 0.0).is_some() {
-                return false;
-            }
-            let c0 = t0 + (t1 - t0) * k as f64 / n as f64;
-            let c1 = t0 + (t1 - t0) * (k + 1) as f64 / n as f64;
-            if !self.prove(a, b, c0, c1, (res / 4.0).max(self.opts.min_resolution)) {
+            if self.measure(&q, 0.0).is_err() {
                 return false;
             }
         }
-        if finest {
-            let mut q = b.to_vec();
+        n > 0 || self.measure(b, 0.0).is_ok()
+    }
+
+    /// Makes [`Checker::motion_free`] prove edges (true) or check them at the resolution.
+    pub fn set_proven(&self, proven: bool) {
+        self.proven.set(proven);
+    }
+
+    /// Whether every state on the straight joint-space edge from `a` to `b` is free (the ends
+    /// included), by conservative advancement from `a`.
+    pub fn motion_proven(&self, a: &[f64], b: &[f64]) -> bool {
+        if !self.within_limits(a) || !self.within_limits(b) {
+            return false;
+        }
+        let total = self.motion_bound(a, b);
+        let mut q = a.to_vec();
+        let mut t = 0.0f64;
+        loop {
             for ((v, x), y) in q.iter_mut().zip(a).zip(b) {
-                *v = x + (y - x) * t1;
+                *v = x + (y - x) * t;
             }
-            return self.check(&q, 0.0, 0.0).is_none();
+            let Ok(clear) = self.measure(&q, self.opts.max_step) else {
+                return false;
+            };
+            if t >= 1.0 || total <= 0.0 {
+                return true;
+            }
+            t = (t + clear.max(self.opts.min_step) / total).min(1.0);
         }
-        true
+    }
+
+    /// Whether every edge of `path` is proven free.
+    pub fn path_proven(&self, path: &[Vec<f64>]) -> bool {
+        path.len() == 1 && self.is_free(&path[0])
+            || path.windows(2).all(|w| self.motion_proven(&w[0], &w[1])) && !path.is_empty()
     }
 }
 
@@ -677,24 +783,17 @@ fn van_der_corput(n: usize) -> Vec<usize> {
         .collect()
 }
 
-/// Whether any sphere (world `x, y, z`, radius `r`) comes within `margin` of the obstacle.
+/// The smallest gap (m, negative inside) between any sphere (world `x, y, z`, radius `r`)
+/// and the obstacle.
 #[inline]
-fn spheres_near(
-    sdf: &Sdf,
-    inv: &[f32; 12],
-    x: &[f32],
-    y: &[f32],
-    z: &[f32],
-    r: &[f32],
-    margin: f32,
-) -> bool {
-    let mut any = false;
+fn spheres_gap(sdf: &Sdf, inv: &[f32; 12], x: &[f32], y: &[f32], z: &[f32], r: &[f32]) -> f32 {
+    let mut gap = f32::INFINITY;
     for k in 0..x.len() {
         let (wx, wy, wz) = (x[k], y[k], z[k]);
         let lx = inv[0] * wx + inv[1] * wy + inv[2] * wz + inv[9];
         let ly = inv[3] * wx + inv[4] * wy + inv[5] * wz + inv[10];
         let lz = inv[6] * wx + inv[7] * wy + inv[8] * wz + inv[11];
-        any |= sdf.distance(lx, ly, lz) <= r[k] + margin;
+        gap = gap.min(sdf.distance(lx, ly, lz) - r[k]);
     }
-    any
+    gap
 }

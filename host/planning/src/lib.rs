@@ -15,6 +15,7 @@
 //! unless said otherwise. Algorithms here know nothing of wires, backends or the CLI.
 
 pub mod acm;
+pub mod bench;
 pub mod checker;
 mod convert;
 pub mod error;

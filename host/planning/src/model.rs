@@ -221,7 +221,10 @@ impl CollisionModel {
             if planned.contains(&i) {
                 return Err(invalid("planned joints", format!("{j:?} twice")));
             }
-            if !(lo.is_finite() && hi.is_finite() && lo < hi && hi - lo <= 4.0 * std::f64::consts::PI)
+            if !(lo.is_finite()
+                && hi.is_finite()
+                && lo < hi
+                && hi - lo <= 4.0 * std::f64::consts::PI)
             {
                 return Err(invalid(
                     format!("limits of {j}"),
@@ -256,9 +259,10 @@ impl CollisionModel {
                     Some(u) if matches!(u.joint_type, urdf_rs::JointType::Continuous) => {
                         (-std::f64::consts::PI, std::f64::consts::PI)
                     }
-                    Some(u) if u.limit.lower.is_finite()
-                        && u.limit.upper.is_finite()
-                        && u.limit.lower <= u.limit.upper =>
+                    Some(u)
+                        if u.limit.lower.is_finite()
+                            && u.limit.upper.is_finite()
+                            && u.limit.lower <= u.limit.upper =>
                     {
                         (u.limit.lower, u.limit.upper)
                     }
@@ -306,7 +310,10 @@ impl CollisionModel {
                     .ok_or_else(|| invalid("arm joints", format!("{n:?} not in the joint table")))
             })
             .collect::<Result<Vec<_>>>()?;
-        let dir = cfg.file.parent().filter(|_| !cfg.file.starts_with("<bundled>"));
+        let dir = cfg
+            .file
+            .parent()
+            .filter(|_| !cfg.file.starts_with("<bundled>"));
         let acm = cfg
             .collision
             .as_ref()

@@ -62,12 +62,18 @@ impl Voxels {
         if !size.is_finite() || !(VOXEL_RANGE.0..=VOXEL_RANGE.1).contains(&size) {
             return Err(Error::Invalid {
                 what: "voxel size".into(),
-                why: format!("{size} m is not within [{}, {}] m", VOXEL_RANGE.0, VOXEL_RANGE.1),
+                why: format!(
+                    "{size} m is not within [{}, {}] m",
+                    VOXEL_RANGE.0, VOXEL_RANGE.1
+                ),
             });
         }
         let mut cells = Vec::with_capacity(points.len().min(MAX_VOXELS));
         for (i, p) in points.iter().enumerate() {
-            if p.coords.iter().any(|v| !v.is_finite() || v.abs() > MAX_DISTANCE) {
+            if p.coords
+                .iter()
+                .any(|v| !v.is_finite() || v.abs() > MAX_DISTANCE)
+            {
                 return Err(Error::Invalid {
                     what: format!("point {i} of the cloud"),
                     why: format!("{p} is not finite or beyond {MAX_DISTANCE} m"),
@@ -99,7 +105,9 @@ fn check_id(id: &str) -> Result<()> {
     if id.is_empty() || id.len() > MAX_ID_LEN || id.chars().any(char::is_control) {
         return Err(Error::Invalid {
             what: "object id".into(),
-            why: format!("{id:?} is empty, longer than {MAX_ID_LEN} bytes or has control characters"),
+            why: format!(
+                "{id:?} is empty, longer than {MAX_ID_LEN} bytes or has control characters"
+            ),
         });
     }
     Ok(())

@@ -2,9 +2,9 @@
 //! with the two things the checker needs of each: a signed distance from a point (the broad
 //! check, `f32`) and the exact shape for parry3d (through [`crate::convert`]).
 
-use nalgebra::{Point3, Vector3};
 use crate::convert;
 use crate::{Error, Result};
+use nalgebra::{Point3, Vector3};
 
 /// Largest size of any shape or object, m: anything larger is a typing error.
 pub const MAX_SIZE: f64 = 100.0;
@@ -75,10 +75,11 @@ impl Shape {
             }
             Shape::Sphere(r) => size(what, "radius", *r)?,
             Shape::Hull(points) => {
-                if points
-                    .iter()
-                    .any(|p| p.coords.iter().any(|v| !v.is_finite() || v.abs() > MAX_SIZE))
-                {
+                if points.iter().any(|p| {
+                    p.coords
+                        .iter()
+                        .any(|v| !v.is_finite() || v.abs() > MAX_SIZE)
+                }) {
                     return Err(Error::Invalid {
                         what: what.to_string(),
                         why: format!("a hull point is not finite or beyond {MAX_SIZE} m"),

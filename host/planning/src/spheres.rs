@@ -36,11 +36,7 @@ pub fn cover(shape: &Shape, origin: &Isometry3<f64>) -> Vec<Sphere> {
     let ext = hi - lo;
     let cell = ext.min().clamp(MIN_CELL, MAX_CELL);
     let n = ext.map(|e| ((e / cell).ceil() as usize).clamp(1, MAX_CELLS));
-    let step = Vector3::new(
-        ext.x / n.x as f64,
-        ext.y / n.y as f64,
-        ext.z / n.z as f64,
-    );
+    let step = Vector3::new(ext.x / n.x as f64, ext.y / n.y as f64, ext.z / n.z as f64);
     let radius = step.norm() / 2.0;
     let sdf = shape.sdf();
     let mut out = Vec::new();
@@ -82,7 +78,8 @@ mod tests {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
         let mut inside = 0;
         for _ in 0..20_000 {
-            let p = Point3::from(lo + (hi - lo).component_mul(&Vector3::from_fn(|_, _| rng.random())));
+            let p =
+                Point3::from(lo + (hi - lo).component_mul(&Vector3::from_fn(|_, _| rng.random())));
             if sdf.distance(p.x as f32, p.y as f32, p.z as f32) > 0.0 {
                 continue;
             }

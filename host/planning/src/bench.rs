@@ -1,0 +1,191 @@
+//! Planning benchmarks: seeded sets of start/goal pairs that must go around things, and a
+//! runner that plans each and summarises success, time and path length.
+
+use std::time::Instant;
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+use crate::checker::Checker;
+use crate::planner::{path_length, PlanOptions, Planner};
+use crate::{Error, Result};
+
+/// Most problems in one set.
+pub const MAX_PROBLEMS: usize = 100_000;
+
+/// A start and a goal, rad.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Problem {
+    /// Start configuration.
+    pub start: Vec<f64>,
+    /// Goal configuration.
+    pub goal: Vec<f64>,
+}
+
+/// `n` problems for `checker`'s robot in its scene, seeded with `seed`: both ends free, the
+/// straight joint-space line between them not, and each end's links near the scene (within
+/// `near` m of some object) so that problems are about getting around things. Gives up with
+/// an error after `n × 20000` samples.
+pub fn generate(checker: &Checker, n: usize, seed: u64, near: f64) -> Result<Vec<Problem>> {
+    if n > MAX_PROBLEMS {
+        return Err(Error::Invalid {
+            what: "problem count".into(),
+            why: format!("{n} is more than {MAX_PROBLEMS}"),
+        });
+    }
+    let limits = checker.model().limits().to_vec();
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let sample_free = |rng: &mut ChaCha8Rng| -> Option<Vec<f64>> {
+        for _ in 0..20_000 {
+            let q: Vec<f64> = limits
+                .iter()
+                .map(|&(lo, hi)| rng.random_range(lo..=hi))
+                .collect();
+            if checker.is_free(&q) && (near <= 0.0 || checker.near_world(&q, near)) {
+                return Some(q);
+            }
+        }
+        None
+    };
+    let mut out = Vec::with_capacity(n);
+    let mut tries = 0usize;
+    while out.len() < n {
+        tries += 1;
+        if tries > n.max(1) * 200 {
+            return Err(Error::Invalid {
+                what: "problem set".into(),
+                why: format!(
+                    "found only {} of {n} problems whose straight line collides",
+                    out.len()
+                ),
+            });
+        }
+        let (Some(start), Some(goal)) = (sample_free(&mut rng), sample_free(&mut rng)) else {
+            return Err(Error::Invalid {
+                what: "problem set".into(),
+                why: "no free configuration near the scene in 20000 samples".into(),
+            });
+        };
+        if checker.motion_free(&start, &goal) {
+            continue;
+        }
+        out.push(Problem { start, goal });
+    }
+    Ok(out)
+}
+
+/// One problem's outcome.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Outcome {
+    /// Whether a path was found.
+    pub success: bool,
+    /// Time spent, ms.
+    pub time_ms: f64,
+    /// The path (empty on failure), rad.
+    pub path: Vec<Vec<f64>>,
+    /// Why it failed, if it did.
+    pub error: Option<String>,
+}
+
+/// Summary of a run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Summary {
+    /// Problems.
+    pub problems: usize,
+    /// Fraction solved.
+    pub success_rate: f64,
+    /// Median, 95th percentile (nearest rank) and largest time, ms (failures at their full
+    /// time).
+    pub time_ms: [f64; 3],
+    /// Median joint-space path length of the solved problems, rad.
+    pub path_length_median: f64,
+    /// Sphere-level checks per second of planning time.
+    pub sphere_checks_per_s: f64,
+}
+
+fn quantile(sorted: &[f64], q: f64) -> f64 {
+    if sorted.is_empty() {
+        return f64::NAN;
+    }
+    let k = ((q * sorted.len() as f64).ceil() as usize).clamp(1, sorted.len());
+    sorted[k - 1]
+}
+
+/// Median of `v` (NaN when empty).
+pub fn median(v: &[f64]) -> f64 {
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    if s.is_empty() {
+        return f64::NAN;
+    }
+    let n = s.len();
+    if n % 2 == 1 {
+        s[n / 2]
+    } else {
+        (s[n / 2 - 1] + s[n / 2]) / 2.0
+    }
+}
+
+/// Plans every problem with `planner` (each seeded with `opts.seed` plus its index).
+pub fn run(
+    checker: &Checker,
+    planner: &dyn Planner,
+    problems: &[Problem],
+    opts: &PlanOptions,
+) -> (Vec<Outcome>, Summary) {
+    use std::sync::atomic::Ordering;
+    let checks0 = checker.counters().sphere_checks.load(Ordering::Relaxed);
+    let t0 = Instant::now();
+    let outcomes: Vec<Outcome> = problems
+        .iter()
+        .enumerate()
+        .map(|(i, p)| {
+            let o = PlanOptions {
+                seed: opts.seed.wrapping_add(i as u64),
+                ..opts.clone()
+            };
+            let t = Instant::now();
+            let r = planner.plan(checker, &p.start, &p.goal, &o);
+            let time_ms = t.elapsed().as_secs_f64() * 1e3;
+            match r {
+                Ok(plan) => Outcome {
+                    success: true,
+                    time_ms,
+                    path: plan.path,
+                    error: None,
+                },
+                Err(e) => Outcome {
+                    success: false,
+                    time_ms,
+                    path: Vec::new(),
+                    error: Some(e.to_string()),
+                },
+            }
+        })
+        .collect();
+    let elapsed = t0.elapsed().as_secs_f64();
+    let checks = checker.counters().sphere_checks.load(Ordering::Relaxed) - checks0;
+    let mut times: Vec<f64> = outcomes.iter().map(|o| o.time_ms).collect();
+    times.sort_by(f64::total_cmp);
+    let lengths: Vec<f64> = outcomes
+        .iter()
+        .filter(|o| o.success)
+        .map(|o| path_length(&o.path))
+        .collect();
+    let summary = Summary {
+        problems: problems.len(),
+        success_rate: if problems.is_empty() {
+            1.0
+        } else {
+            outcomes.iter().filter(|o| o.success).count() as f64 / problems.len() as f64
+        },
+        time_ms: [
+            median(&times),
+            quantile(&times, 0.95),
+            times.last().copied().unwrap_or(f64::NAN),
+        ],
+        path_length_median: median(&lengths),
+        sphere_checks_per_s: checks as f64 / elapsed.max(1e-9),
+    };
+    (outcomes, summary)
+}
