@@ -25,6 +25,7 @@ mod frames;
 pub mod gripper;
 pub mod head;
 pub mod motion;
+pub mod planning;
 pub mod robot;
 
 pub use ferrobot_control::odometry_calibration;

@@ -85,10 +85,16 @@ impl Shape {
                         why: format!("a hull point is not finite or beyond {MAX_SIZE} m"),
                     });
                 }
-                self.to_parry().map(|_| ()).map_err(|_| Error::Invalid {
-                    what: what.to_string(),
-                    why: "the points have no convex hull with volume".into(),
-                })?;
+                let (lo, hi) = self.bounds();
+                let e = self.to_parry().ok();
+                let volume = e.map_or(0.0, |e| e.shape.mass_properties(1.0).mass());
+                (volume > 1e-12 && (hi - lo).min() >= MIN_SIZE)
+                    .then_some(())
+                    .ok_or(())
+                    .map_err(|_| Error::Invalid {
+                        what: what.to_string(),
+                        why: "the points have no convex hull with volume".into(),
+                    })?;
             }
         }
         Ok(())
