@@ -520,6 +520,7 @@ fn every_bundled_scene_fits_its_robots() {
         ("locobot_lite", "tabletop"),
         ("locobot_lite", "apartment"),
         ("sawyer", "shelf"),
+        ("sawyer", "clutter"),
     ] {
         let mut s = sim(robot, Scene::bundled(scene).unwrap(), 1)
             .unwrap_or_else(|e| panic!("{robot} in {scene}: {e}"));
