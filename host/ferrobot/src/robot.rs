@@ -50,7 +50,7 @@ impl RobotBuilder {
         self
     }
     /// The simulated world the robot lives in: a bundled scene (`empty`, `tabletop`,
-    /// `apartment`, `shelf`) or the path of a scene file (default `empty`: an empty world, as
+    /// `apartment`, `shelf`, `clutter`) or the path of a scene file (default `empty`: an empty world, as
     /// before scenes existed). The simulator backend renders its camera from this world.
     pub fn scene(mut self, scene: &str) -> Self {
         self.scene = SceneSource::from_arg(scene);
