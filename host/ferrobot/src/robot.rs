@@ -143,6 +143,8 @@ struct Inner {
     frames: Result<Frames, String>,
     /// The URDF frame of the camera's images (absent without a camera).
     optical: Option<String>,
+    /// The simulated world the robot started in (the empty one on hardware).
+    scene: Arc<Scene>,
     io: Mutex<Io>,
 }
 
@@ -298,6 +300,7 @@ impl Robot {
                 arm,
                 frames,
                 optical,
+                scene: scene.clone(),
             }),
         };
         robot.check_joint_table()?;
@@ -312,6 +315,12 @@ impl Robot {
             robot.base()?.set_odometry_geometry(g)?;
         }
         Ok(robot)
+    }
+
+    /// The world the robot was built in (a bundled or file scene; `empty` unless
+    /// [`RobotBuilder::scene`] named one), with its start pose.
+    pub fn scene(&self) -> Arc<Scene> {
+        self.inner.scene.clone()
     }
 
     /// The configuration (immutable once connected).
