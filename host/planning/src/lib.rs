@@ -15,5 +15,7 @@
 //! unless said otherwise. Algorithms here know nothing of wires, backends or the CLI.
 
 pub mod error;
+pub mod timing;
 
 pub use error::{Error, Result};
+pub use timing::{time_optimal, Limits, TimingOptions, Trajectory, TrajectoryPoint};
