@@ -76,9 +76,8 @@ const MAX_TURN: f64 = 0.005;
 const SCAN_TURN: f64 = 0.01;
 /// Most samples of one arc in that search.
 const MAX_SCAN: usize = 100_000;
-/// Step lengths tried (each a quarter of the last) along the velocity limit curve before
-/// letting the chord rise above it, just after a velocity switching point.
-const FOLLOW_TRIES: usize = 9;
+/// Step lengths tried (each a quarter of the last) along the velocity limit curve.
+const FOLLOW_TRIES: usize = 12;
 
 /// Per-joint limits, one entry per joint, in the order of the waypoints' joints.
 #[derive(Debug, Clone, PartialEq)]
@@ -161,7 +160,8 @@ pub fn time_optimal(
 ) -> Result<Trajectory> {
     let dof = validate(path, limits, opts)?;
     let points = clean_waypoints(path);
-    let path = Path::build(&points, opts.max_deviation, dof);
+    let mut path = Path::build(&points, opts.max_deviation, dof);
+    path.add_speed_breaks(&limits.velocity);
     // The arcs are integrated step by step, and no faster than the norm of the speed limits:
     // refuse at once what cannot fit the step budget.
     let speed = norm(&limits.velocity);
@@ -550,8 +550,9 @@ struct Piece {
 struct Path {
     segs: Vec<Segment>,
     pieces: Vec<Piece>,
-    /// Sorted arc lengths where the integration must put a knot: the ends of the segments and
-    /// the points of the arcs where a joint's tangent component vanishes.
+    /// Sorted arc lengths where the integration must put a knot: the ends of the segments, the
+    /// points of the arcs where a joint's tangent component vanishes, and those where the
+    /// joint that bounds the speed changes.
     breaks: Vec<f64>,
     /// Those points of the arcs, with their segment.
     kinks: Vec<(f64, usize)>,
@@ -715,6 +716,41 @@ impl Path {
         self.breaks.sort_by(f64::total_cmp);
         self.breaks.dedup();
         self.kinks.sort_by(|a, b| a.0.total_cmp(&b.0));
+    }
+
+    /// Adds to the breaks the points of the arcs where the joint that bounds the speed
+    /// changes, `|t_i| / v_i = |t_j| / v_j` (`vmax`, rad/s): between them the velocity limit
+    /// curve is one joint's, convex along the arc.
+    fn add_speed_breaks(&mut self, vmax: &[f64]) {
+        let mut more = Vec::new();
+        for seg in &self.segs {
+            let Shape::Arc { u, n, r, .. } = &seg.shape else {
+                continue;
+            };
+            for i in 0..u.len() {
+                for j in i + 1..u.len() {
+                    for sign in [1.0, -1.0] {
+                        // (u_i / v_i − ± u_j / v_j) cos φ + (n_i / v_i − ± n_j / v_j) sin φ = 0.
+                        let a = u[i] / vmax[i] - sign * u[j] / vmax[j];
+                        let b = n[i] / vmax[i] - sign * n[j] / vmax[j];
+                        if a.abs() + b.abs() < MIN_LEN {
+                            continue;
+                        }
+                        let mut phi = (-a).atan2(b);
+                        if phi < 0.0 {
+                            phi += PI;
+                        }
+                        let l = phi * r;
+                        if l > MIN_LEN && l < seg.len - MIN_LEN {
+                            more.push(seg.start + l);
+                        }
+                    }
+                }
+            }
+        }
+        self.breaks.extend(more);
+        self.breaks.sort_by(f64::total_cmp);
+        self.breaks.dedup();
     }
 
     /// Index of the segment at arc length `s`: the one starting there when `s` is a boundary.
@@ -1167,15 +1203,30 @@ impl Phase<'_> {
             }
             let reach = nb.min(s + self.max_ds(k));
             let (u, s1, x1) = self.step(k, s, x, (lo, hi), reach, true)?;
-            // Under both limit curves at the end and halfway (the velocity limit curve is
-            // convex on an arc and may sag under the step's chord).
+            // Under both limit curves at the end and halfway, and under the velocity limit
+            // curve in between: it is convex along the step (one joint bounds the speed
+            // between breaks), about `xv + slope δ + κ δ² / 2`, and may sag under the
+            // straight `x + 2 u δ` where the two start close.
             let sm = 0.5 * (s + s1);
             self.load(k, s1);
             let over_end = self.above(x1);
+            let (xv1, _) = self.vel_curve();
+            let (ds, g0, g1) = (s1 - s, xv - x, xv1 - x1);
+            let dg = slope - 2.0 * u;
+            let kappa = 2.0 * (g1 - g0 - dg * ds) / (ds * ds);
+            let dip = -dg / kappa;
+            let sags =
+                dg < 0.0 && kappa > 0.0 && dip < ds && g0 - dg * dg / (2.0 * kappa) < -1e-9 * xv;
             self.load(k, sm);
             let over_mid = self.above(x + 2.0 * u * (sm - s));
-            if over_mid || over_end {
-                let top = if over_mid { sm } else { s1 };
+            if over_mid || over_end || sags {
+                let top = if sags {
+                    s + dip
+                } else if over_mid {
+                    sm
+                } else {
+                    s1
+                };
                 let (sc, _) = self.bisect(s, top, |me, q| {
                     me.load(k, q);
                     me.above(x + 2.0 * u * (q - s))
@@ -1221,7 +1272,7 @@ impl Phase<'_> {
             return Err(failed("the forward integration stalled"));
         }
         let mut ds = full;
-        for attempt in 0..FOLLOW_TRIES {
+        for _ in 0..FOLLOW_TRIES {
             let s1 = if s + ds >= nb { nb } else { s + ds };
             let ds1 = s1 - s;
             self.load(k, s1);
@@ -1259,29 +1310,41 @@ impl Phase<'_> {
             if u >= lo1 - tol(lo1) {
                 return Ok(Some(Follow::To(Pt { s: s1, x: x1 })));
             }
-            if attempt + 1 < FOLLOW_TRIES {
-                ds *= 0.25;
-                continue;
-            }
             // Just after a velocity switching point the curve is followable but a chord
-            // under it is not, by a little: allow the chord above the curve (by about the
-            // curve's curvature times the short step squared), not more than to the curve at
-            // the knot.
+            // under it is not, by a little (a constant acceleration cannot both stay under
+            // the convex curve and decelerate no more than the limit allows at the knot):
+            // let the chord rise above the curve (by 1e-7 of it at most), not above the curve
+            // at the knot, if that keeps the deceleration within 1e-6 of the limit; else
+            // shorten the step.
+            // The curve is about `xv + slope δ + κ δ² / 2` along the step: a chord from `x`
+            // of slope `slope + e` rises above it by at most `e² / (2 κ) − (xv − x)`, which
+            // is kept under 1e-7 of the curve.
+            let kappa = 2.0 * (xv1 - xv - slope * ds1) / (ds1 * ds1);
+            let room = (xv - x).max(0.0) + 1e-7 * xv;
+            let rise = if kappa > 0.0 {
+                (2.0 * kappa * room).sqrt()
+            } else {
+                room / ds1
+            };
             let mut lo1 = lo1;
             for _ in 0..3 {
-                x1 = xv1.min(x + 2.0 * (lo1 + 1e-9 * (1.0 + lo1.abs())) * ds1);
+                x1 = xv1.min(x + 2.0 * (lo1 + tol(lo1)) * ds1);
                 u = (x1 - x) / (2.0 * ds1);
                 self.load(k, s1);
                 match self.accel_range(x1) {
                     Some((l, h)) if u <= h + tol(h) => {
                         if u >= l - 1e-6 * (1.0 + l.abs()) {
-                            return Ok(Some(Follow::To(Pt { s: s1, x: x1 })));
+                            if 2.0 * u <= slope + rise {
+                                return Ok(Some(Follow::To(Pt { s: s1, x: x1 })));
+                            }
+                            break;
                         }
                         lo1 = l;
                     }
                     _ => break,
                 }
             }
+            ds *= 0.25;
         }
         Ok(Some(Follow::Unfollowable))
     }
