@@ -1208,6 +1208,9 @@ impl Phase<'_> {
             // between breaks), about `xv + slope δ + κ δ² / 2`, and may sag under the
             // straight `x + 2 u δ` where the two start close.
             let sm = 0.5 * (s + s1);
+            self.load(k, sm);
+            let over_mid = self.above(x + 2.0 * u * (sm - s));
+            // The end last: it is where the next step starts.
             self.load(k, s1);
             let over_end = self.above(x1);
             let (xv1, _) = self.vel_curve();
@@ -1217,8 +1220,6 @@ impl Phase<'_> {
             let dip = -dg / kappa;
             let sags =
                 dg < 0.0 && kappa > 0.0 && dip < ds && g0 - dg * dg / (2.0 * kappa) < -1e-9 * xv;
-            self.load(k, sm);
-            let over_mid = self.above(x + 2.0 * u * (sm - s));
             if over_mid || over_end || sags {
                 let top = if sags {
                     s + dip
