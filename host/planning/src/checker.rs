@@ -70,6 +70,8 @@ pub struct Counters {
     pub sphere_checks: AtomicU64,
     /// Exact (parry3d) shape-pair queries.
     pub exact_checks: AtomicU64,
+    /// Edges checked.
+    pub edges: AtomicU64,
 }
 
 /// A body of the robot: a link's geometry or an attached object, in its link's frame.
@@ -182,6 +184,8 @@ pub struct Checker {
     /// For each body, the robot obstacles it is checked against.
     fixed_of: Vec<Vec<usize>>,
     reach: Vec<f64>,
+    /// Each body's reach per planned joint ([`CollisionModel::link_reach`]); 0 when fixed.
+    body_reach: Vec<Vec<f64>>,
     opts: CheckOptions,
     scratch: RefCell<Scratch>,
     counters: Counters,
@@ -398,7 +402,18 @@ impl Checker {
             .map(|b| (b.link, b.spheres.clone()))
             .collect();
         let reach = model.reach(&extra);
+        let body_reach = bodies
+            .iter()
+            .map(|b| {
+                if b.moving {
+                    model.link_reach(b.link, &b.spheres)
+                } else {
+                    vec![0.0; model.dof()]
+                }
+            })
+            .collect();
         Ok(Checker {
+            body_reach,
             model,
             bodies,
             obstacles,
@@ -503,6 +518,22 @@ impl Checker {
     /// no contact can occur: the clearance to the scene and to links that do not move, and
     /// half the clearance between moving links. A contact is an error naming the bodies.
     fn measure(&self, q: &[f64], cap: f64) -> std::result::Result<f64, Contact> {
+        self.measure_with(q, None, cap, (cap * 0.5).max(self.opts.min_step))
+    }
+
+    /// How far (in units of `speed`) the robot may go from `q` with no contact possible: each
+    /// body's gap divided by its `speed` (m of point motion per unit; a pair's by the sum of
+    /// both), at most `cap`. Without `speed`, every body moves at 1 (the result is
+    /// [`Checker::measure`]'s clearance). Exact distances are computed only where the spheres'
+    /// bound is below `exact_below` (m; 0: only where spheres overlap, to tell contact from
+    /// none).
+    fn measure_with(
+        &self,
+        q: &[f64],
+        speed: Option<&[f64]>,
+        cap: f64,
+        exact_below: f64,
+    ) -> std::result::Result<f64, Contact> {
         self.counters.states.fetch_add(1, Ordering::Relaxed);
         let mut s = self.scratch.borrow_mut();
         let s = &mut *s;
@@ -536,19 +567,18 @@ impl Checker {
             });
         }
         let mut clear = cap;
-        // Exact distances are worth their cost only below this; above it the spheres' bound
-        // is used as it is.
-        let exact_below = (cap * 0.5).max(self.opts.min_step);
+        let speed_of = |b: usize| speed.map_or(1.0, |v| v[b]).max(1e-9);
         for (bi, b) in self.bodies.iter().enumerate() {
             if !b.moving {
                 continue;
             }
+            let m = speed_of(bi);
             let bound = s.bounds[bi];
             let (lo, hi) = s.ranges[bi];
             let fixed = self.fixed_of[bi].iter().map(|&o| &self.robot_obstacles[o]);
             for o in self.obstacles.iter().chain(fixed) {
                 let gap = (bound.centre.coords - o.centre).norm() - bound.radius - o.radius;
-                if gap >= clear {
+                if gap >= clear * m {
                     continue;
                 }
                 self.counters
@@ -562,11 +592,11 @@ impl Checker {
                     &s.z[lo..hi],
                     &s.r[lo..hi],
                 ));
-                if lb >= clear {
+                if lb >= clear * m {
                     continue;
                 }
                 if lb >= exact_below {
-                    clear = lb;
+                    clear = lb / m;
                     continue;
                 }
                 let d = exact_gap(
@@ -581,17 +611,22 @@ impl Checker {
                         b: o.id.clone(),
                     });
                 }
-                clear = clear.min(d);
+                clear = clear.min(d / m);
             }
             if let Some(g) = &self.grid {
-                clear = clear.min(self.grid_gap(g, b, bi, s, clear)?);
+                clear = clear.min(self.grid_gap(g, b, bi, s, clear * m)? / m);
             }
         }
-        // Moving bodies against each other: both move, so half the gap.
+        // Moving bodies against each other: both move, so the sum of their speeds.
         for &(i, j) in &self.pairs {
             let (bi, bj) = (&s.bounds[i], &s.bounds[j]);
+            let m = if speed.is_some() {
+                speed_of(i) + speed_of(j)
+            } else {
+                2.0
+            };
             let gap = (bi.centre - bj.centre).norm() - bi.radius - bj.radius;
-            if gap >= 2.0 * clear {
+            if gap >= m * clear {
                 continue;
             }
             let (li, hi_) = s.ranges[i];
@@ -606,7 +641,7 @@ impl Checker {
                 let (x, y, z, r) = (s.x[k], s.y[k], s.z[k], s.r[k]);
                 // This sphere against the other body's bound first.
                 let far = ((cx - x).powi(2) + (cy - y).powi(2) + (cz - z).powi(2)).sqrt() - rj - r;
-                if f64::from(far) >= 2.0 * clear {
+                if f64::from(far) >= m * clear {
                     lb = lb.min(far);
                     continue;
                 }
@@ -618,11 +653,11 @@ impl Checker {
                 }
             }
             let lb = f64::from(lb);
-            if lb >= 2.0 * clear {
+            if lb >= m * clear {
                 continue;
             }
             if lb >= 2.0 * exact_below {
-                clear = lb / 2.0;
+                clear = lb / m;
                 continue;
             }
             let (a, b) = (&self.bodies[i], &self.bodies[j]);
@@ -639,7 +674,7 @@ impl Checker {
                     b: b.name.clone(),
                 });
             }
-            clear = clear.min(d / 2.0);
+            clear = clear.min(d / m);
         }
         Ok(clear.max(0.0))
     }
@@ -716,23 +751,47 @@ impl Checker {
         if !self.within_limits(a) || !self.within_limits(b) {
             return false;
         }
-        let n = (self.motion_bound(a, b) / self.opts.resolution).ceil() as usize;
+        // Advance by the spheres' clearance where it is large (proven free), by the resolution
+        // where it is not (checked for contact alone).
+        self.advance(a, b, self.opts.resolution, 0.0)
+    }
+
+    /// Conservative advancement along the edge from `a` to `b`: from each state, as far as
+    /// every body's gap over its speed along the edge allows (at most `max_step` of the
+    /// fastest point), and at least `floor` (m of the fastest point). Exact distances where
+    /// the spheres' bound is below `exact_below` (m).
+    fn advance(&self, a: &[f64], b: &[f64], floor: f64, exact_below: f64) -> bool {
+        self.counters.edges.fetch_add(1, Ordering::Relaxed);
+        let total = self.motion_bound(a, b);
+        let speed: Vec<f64> = self
+            .body_reach
+            .iter()
+            .map(|r| {
+                r.iter()
+                    .zip(a.iter().zip(b))
+                    .map(|(r, (x, y))| r * (x - y).abs())
+                    .sum()
+            })
+            .collect();
         let mut q = a.to_vec();
-        // States 1..=n in an order that halves the gaps: a collision in the middle shows
-        // early.
-        for k in van_der_corput(n + 1) {
-            if k == 0 {
-                continue;
-            }
-            let t = k as f64 / n as f64;
+        let mut t = 0.0f64;
+        let (cap, floor) = if total > 0.0 {
+            (self.opts.max_step / total, floor / total)
+        } else {
+            (1.0, 1.0)
+        };
+        loop {
             for ((v, x), y) in q.iter_mut().zip(a).zip(b) {
                 *v = x + (y - x) * t;
             }
-            if self.measure(&q, 0.0).is_err() {
+            let Ok(dt) = self.measure_with(&q, Some(&speed), cap, exact_below) else {
                 return false;
+            };
+            if t >= 1.0 {
+                return true;
             }
+            t = (t + dt.max(floor)).min(1.0);
         }
-        n > 0 || self.measure(b, 0.0).is_ok()
     }
 
     /// Makes [`Checker::motion_free`] prove edges (true) or check them at the resolution.
@@ -746,21 +805,12 @@ impl Checker {
         if !self.within_limits(a) || !self.within_limits(b) {
             return false;
         }
-        let total = self.motion_bound(a, b);
-        let mut q = a.to_vec();
-        let mut t = 0.0f64;
-        loop {
-            for ((v, x), y) in q.iter_mut().zip(a).zip(b) {
-                *v = x + (y - x) * t;
-            }
-            let Ok(clear) = self.measure(&q, self.opts.max_step) else {
-                return false;
-            };
-            if t >= 1.0 || total <= 0.0 {
-                return true;
-            }
-            t = (t + clear.max(self.opts.min_step) / total).min(1.0);
-        }
+        self.advance(
+            a,
+            b,
+            self.opts.min_step,
+            (self.opts.max_step * 0.5).max(self.opts.min_step),
+        )
     }
 
     /// Whether every edge of `path` is proven free.
@@ -768,19 +818,6 @@ impl Checker {
         path.len() == 1 && self.is_free(&path[0])
             || path.windows(2).all(|w| self.motion_proven(&w[0], &w[1])) && !path.is_empty()
     }
-}
-
-/// `0..n` in an order that halves the gaps (bit-reversal over the next power of two,
-/// skipping values ≥ n).
-fn van_der_corput(n: usize) -> Vec<usize> {
-    if n <= 2 {
-        return (0..n).collect();
-    }
-    let bits = usize::BITS - (n - 1).leading_zeros();
-    (0..(1usize << bits))
-        .map(|k| k.reverse_bits() >> (usize::BITS - bits))
-        .filter(|&r| r < n)
-        .collect()
 }
 
 /// The smallest gap (m, negative inside) between any sphere (world `x, y, z`, radius `r`)
