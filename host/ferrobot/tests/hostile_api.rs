@@ -124,7 +124,7 @@ fn the_planning_scene_refuses_hostile_values() {
     runner(7)
         .run(&strategy, |(q, p, size, quat, (a, cloud))| {
             let bad_pose = absurd(&p) || absurd(&quat) || quat.iter().all(|v| *v == 0.0);
-            let bad_size = absurd(&size) || size.iter().any(|v| !(*v > 0.0));
+            let bad_size = absurd(&size) || size.iter().any(|v| v.is_nan() || *v <= 0.0);
             let r = arm.add_world_object("hostile", p, Orientation::Quaternion(quat), size);
             judge("add_world_object", bad_pose || bad_size, &r)?;
             let r = arm.add_world_shape(
