@@ -135,7 +135,7 @@ fn the_planning_scene_refuses_hostile_values() {
             );
             judge(
                 "add_world_shape",
-                absurd(&p) || absurd(&[a]) || !(a > 0.0),
+                absurd(&p) || absurd(&[a]) || a.is_nan() || a <= 0.0,
                 &r,
             )?;
             let r = arm.attach_arm_object("held", p, Orientation::Quaternion(quat), size);
@@ -144,7 +144,7 @@ fn the_planning_scene_refuses_hostile_values() {
             let r = arm.set_point_cloud(Some(&cloud), a);
             judge(
                 "set_point_cloud",
-                absurd(&flat) || absurd(&[a]) || !(a > 0.0),
+                absurd(&flat) || absurd(&[a]) || a.is_nan() || a <= 0.0,
                 &r,
             )?;
             let r = arm.make_plan_joint_positions(&q);
