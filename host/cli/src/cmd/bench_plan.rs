@@ -408,11 +408,17 @@ fn read_problems_file(file: &Path, model: &mut CollisionModel) -> ferrobot::Resu
             mesh,
         });
     }
-    validate::count(
-        "problems in the file",
-        f.problems.len(),
-        1..=bench::MAX_PROBLEMS,
-    )?;
+    if !(1..=bench::MAX_PROBLEMS).contains(&f.problems.len()) {
+        return Err(file_error(
+            file,
+            "problems",
+            format!(
+                "{} problems; between 1 and {} are planned",
+                f.problems.len(),
+                bench::MAX_PROBLEMS
+            ),
+        ));
+    }
     let dof = model.dof();
     let limits = model.limits().to_vec();
     let mut problems = Vec::with_capacity(f.problems.len());
