@@ -21,7 +21,7 @@ use crate::diff_drive::Pose;
 use crate::pipe::Pipe;
 use crate::robots::{BaseModel, SimRobot};
 use crate::scene::{Scene, SceneError};
-use crate::world::World;
+use crate::world::{ContactError, RobotContact, RobotContactRecord, World};
 
 /// Base serial line rate, bit/s.
 pub const BASE_BAUD: u32 = ferrobot_protocol::kobuki::BAUD;
@@ -100,6 +100,44 @@ impl Hardware {
     /// one.
     pub fn body_poses(&self) -> Option<Vec<nalgebra::Isometry3<f64>>> {
         self.world.as_ref().map(World::body_poses)
+    }
+
+    /// Every (robot link, scene body) pair in contact now ([`World::robot_contacts`]); empty
+    /// without a world (a scene with no bodies has nothing to touch).
+    pub fn robot_contacts(&self) -> Vec<RobotContact> {
+        self.world
+            .as_ref()
+            .map_or_else(Vec::new, World::robot_contacts)
+    }
+
+    /// Record the contacts of the robot's `links` (URDF names) from now on, at every world
+    /// step ([`World::watch_robot_contacts`]). Without a world nothing is recorded (and the
+    /// names are not checked).
+    ///
+    /// # Errors
+    ///
+    /// [`ContactError::UnknownLink`] when the robot has no link of a given name.
+    pub fn watch_robot_contacts<S: AsRef<str>>(&mut self, links: &[S]) -> Result<(), ContactError> {
+        match self.world.as_mut() {
+            Some(w) => w.watch_robot_contacts(links),
+            None => Ok(()),
+        }
+    }
+
+    /// What the contact watch recorded since it started or was last taken, forgotten then
+    /// ([`World::take_robot_contacts`]); empty without a world or a watch.
+    pub fn take_robot_contacts(&mut self) -> Vec<RobotContactRecord> {
+        self.world
+            .as_mut()
+            .map_or_else(Vec::new, World::take_robot_contacts)
+    }
+
+    /// Stop the contact watch; what it recorded and was not yet taken
+    /// ([`World::unwatch_robot_contacts`]).
+    pub fn unwatch_robot_contacts(&mut self) -> Vec<RobotContactRecord> {
+        self.world
+            .as_mut()
+            .map_or_else(Vec::new, World::unwatch_robot_contacts)
     }
 
     /// Step the world (with the chain and the base advanced in step with it) through `now`.

@@ -42,7 +42,7 @@ use serde::Deserialize;
 use crate::mesh::{self, TriMesh};
 
 /// Names of the bundled scenes.
-pub const BUNDLED: [&str; 4] = ["empty", "tabletop", "apartment", "shelf"];
+pub const BUNDLED: [&str; 5] = ["empty", "tabletop", "apartment", "shelf", "clutter"];
 
 /// Largest scene file read, bytes.
 pub const MAX_SCENE_BYTES: u64 = 1 << 20;
@@ -62,6 +62,7 @@ fn bundled_text(name: &str) -> Option<&'static str> {
         "tabletop" => include_str!("../scenes/tabletop.toml"),
         "apartment" => include_str!("../scenes/apartment.toml"),
         "shelf" => include_str!("../scenes/shelf.toml"),
+        "clutter" => include_str!("../scenes/clutter.toml"),
         _ => return None,
     })
 }

@@ -108,7 +108,18 @@ fn gripper_ticks(s: &SimHost) -> i32 {
 /// The red cube of the tabletop scene (3 cm, 30 g) pushed 10 cm along the table in -y by the
 /// closed fingers, the arm driven through the firmware; the truth at the end.
 fn push(seed: u64) -> (SimHost, Vector3<f64>) {
+    push_watching(seed, &[])
+}
+
+/// [`push`] with the contacts of `links` watched from the start.
+fn push_watching(seed: u64, links: &[&str]) -> (SimHost, Vector3<f64>) {
     let mut s = session("locobot", Scene::bundled("tabletop").unwrap(), seed);
+    if !links.is_empty() {
+        s.sim
+            .hw
+            .watch_robot_contacts(links)
+            .expect("the LoCoBot's links");
+    }
     let arm = Arm::new();
     let c0 = body(&s, "red_cube");
     s.command(&HostMsg::Gripper(GripperCommand::Close)).unwrap();
@@ -509,6 +520,7 @@ fn every_bundled_scene_fits_its_robots() {
         ("locobot_lite", "tabletop"),
         ("locobot_lite", "apartment"),
         ("sawyer", "shelf"),
+        ("sawyer", "clutter"),
     ] {
         let mut s = sim(robot, Scene::bundled(scene).unwrap(), 1)
             .unwrap_or_else(|e| panic!("{robot} in {scene}: {e}"));
@@ -563,4 +575,128 @@ colour = [0.9, 0.2, 0.2]
         .unwrap()
         .clone();
     assert_eq!(ball["position"][2].as_f64(), Some(p.z), "{j}");
+}
+
+/// The LoCoBot's arm links (the arm's base, fixed on the plates, included).
+const ARM_LINKS: [&str; 9] = [
+    "arm_base_link",
+    "shoulder_link",
+    "elbow_link",
+    "forearm_link",
+    "wrist_link",
+    "gripper_link",
+    "finger_r",
+    "finger_l",
+    "ar_tag",
+];
+
+#[test]
+fn in_the_start_pose_no_arm_link_touches_anything() {
+    let mut s = session("locobot", Scene::bundled("tabletop").unwrap(), 1);
+    // Every link against every body, the floor and walls included: nothing at all (the
+    // wheels stand 0.2 mm above the floor, beyond the contact distance).
+    let now = s.sim.hw.robot_contacts();
+    assert_eq!(now, Vec::new());
+    s.sim.hw.watch_robot_contacts(&ARM_LINKS).unwrap();
+    s.run_for(500_000);
+    assert_eq!(s.sim.hw.take_robot_contacts(), Vec::new());
+    // A link the robot does not have is a typed error naming it.
+    let e = s.sim.hw.watch_robot_contacts(&["tentacle"]).unwrap_err();
+    assert!(e.to_string().contains("tentacle"), "{e}");
+    // The Sawyer's arm base stands on its pedestal (the contact a watch leaves out).
+    let sawyer = sim("sawyer", Scene::bundled("shelf").unwrap(), 1).unwrap();
+    let c = sawyer.hw.robot_contacts();
+    println!("sawyer at the start: {c:?}");
+    assert_eq!(c.len(), 1, "{c:?}");
+    assert_eq!(
+        (c[0].link.as_str(), c[0].body.as_str()),
+        ("right_arm_base_link", "pedestal")
+    );
+    assert!(c[0].depth < 1e-5, "{c:?}");
+}
+
+#[test]
+fn the_gripper_pressed_into_the_table_top_touches_the_table() {
+    let mut s = session("locobot", Scene::bundled("tabletop").unwrap(), 2);
+    let arm = Arm::new();
+    s.command(&HostMsg::Gripper(GripperCommand::Close)).unwrap();
+    s.wait_telemetry(3_000_000, |t| t.gripper == GripperState::Closed)
+        .expect("closes");
+    // A free spot on the table: the gripper's 7 × 5 cm outline 2 cm or more from every
+    // object.
+    let (x, y) = (0.40, 0.075);
+    move_down(&mut s, &arm, &[[x, y, 0.30]], 2_000_000);
+    s.sim.hw.watch_robot_contacts(&ARM_LINKS).unwrap();
+    // Fingertips 4 cm above the table top (0.10 m; the tips 10.3 cm below the gripper link
+    // when pointing down), then 1.3 cm into it.
+    move_down(&mut s, &arm, &[[x, y, 0.24]], 1_000_000);
+    assert_eq!(s.sim.hw.take_robot_contacts(), Vec::new());
+    let t0 = s.sim.now_us();
+    move_down(&mut s, &arm, &[[x, y, 0.19]], 1_000_000);
+    let g = Arm::gripper(&s);
+    let now = s.sim.hw.robot_contacts();
+    let rec = s.sim.hw.take_robot_contacts();
+    println!("gripper link at {g:?}\nnow: {now:?}\nrecorded: {rec:#?}");
+    // Only the table, and by the fingers (and perhaps the gripper's body): the deepest
+    // finger as deep as the tips are below the top, within 0.5 mm.
+    let expected = 0.10 - (g.z - 0.10285);
+    assert!(!rec.is_empty());
+    for r in &rec {
+        assert_eq!(r.body, "table", "{r:?}");
+        assert!(
+            ["finger_l", "finger_r", "gripper_link"].contains(&r.link.as_str()),
+            "{r:?}"
+        );
+        assert!(r.first_us > t0 && r.first_us <= r.last_us, "{r:?}");
+    }
+    let fingers: Vec<_> = rec
+        .iter()
+        .filter(|r| r.link.starts_with("finger"))
+        .collect();
+    assert_eq!(fingers.len(), 2, "{rec:?}");
+    for f in &fingers {
+        assert!(
+            (f.max_depth - expected).abs() < 0.0005,
+            "{f:?}, expected {expected} m"
+        );
+        assert_eq!(f.last_us, s.sim.hw.world().unwrap().time_us(), "{f:?}");
+    }
+    // The query now says the same.
+    for f in fingers {
+        let c = now
+            .iter()
+            .find(|c| c.link == f.link && c.body == "table")
+            .expect("touching now");
+        assert!((c.depth - f.max_depth).abs() < 0.001, "{c:?} {f:?}");
+    }
+    // Back up: nothing touches, and the watch records nothing more.
+    move_down(&mut s, &arm, &[[x, y, 0.30]], 1_000_000);
+    let arm_now: Vec<_> = s
+        .sim
+        .hw
+        .robot_contacts()
+        .into_iter()
+        .filter(|c| ARM_LINKS.contains(&c.link.as_str()))
+        .collect();
+    assert_eq!(arm_now, Vec::new());
+    let after = s.sim.hw.take_robot_contacts();
+    assert!(
+        after.iter().all(|r| r.last_us < s.sim.now_us() - 500_000),
+        "{after:?}"
+    );
+}
+
+#[test]
+fn pushing_the_red_cube_is_a_contact_with_it_and_watching_changes_nothing() {
+    let (mut s, d) = push_watching(3, &ARM_LINKS);
+    let rec = s.sim.hw.take_robot_contacts();
+    println!("pushed {d:?}; recorded: {rec:#?}");
+    // The fingers touched the cube and nothing else (their tips 1.5 cm above the table).
+    assert!(!rec.is_empty());
+    assert!(rec.iter().all(|r| r.body == "red_cube"), "{rec:?}");
+    assert!(rec.iter().any(|r| r.link.starts_with("finger")), "{rec:?}");
+    // The watch is an observer: the same run without it ends bit-identical.
+    let (plain, d2) = push(3);
+    assert_eq!(d, d2);
+    assert_eq!(s.sim.truth(), plain.sim.truth());
 }

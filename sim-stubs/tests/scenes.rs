@@ -1,6 +1,7 @@
 //! Scene files: the bundled scenes say what the issue asks of them, and hostile files are
 //! typed errors that name the file, the key and the problem.
 
+use std::collections::BTreeSet;
 use std::path::Path;
 
 use ferrobot_sim::scene::{Scene, SceneError, SceneSource, Shape, BUNDLED};
@@ -108,6 +109,51 @@ fn the_apartment_has_three_rooms_and_forty_square_metres() {
     // Textured floor and walls (features for SLAM).
     assert!(s.body("floor").unwrap().texture.is_some());
     assert!(walls.iter().all(|w| w.texture.is_some()));
+}
+
+#[test]
+fn the_clutter_scene_has_posts_bars_at_several_heights_and_objects_on_its_table() {
+    let s = Scene::bundled("clutter").unwrap();
+    assert_eq!(s.robot_height, 0.9);
+    let (lo, hi) = s.body("table").unwrap().world_bounds();
+    let on_table = |b: &&ferrobot_sim::scene::Body| {
+        let c = b.pose.translation.vector;
+        c.x > lo.x && c.x < hi.x && c.y > lo.y && c.y < hi.y && b.world_bounds().0.z >= hi.z - 1e-9
+    };
+    // Thin vertical posts standing on the table top.
+    let posts: Vec<_> = s
+        .bodies
+        .iter()
+        .filter(|b| b.fixed && matches!(b.shape, Shape::Cylinder { radius, .. } if radius <= 0.02))
+        .collect();
+    assert!(posts.len() >= 6, "{} posts", posts.len());
+    for p in &posts {
+        assert!(on_table(p), "{} stands on the table", p.id);
+        assert!(
+            (p.world_bounds().0.z - hi.z).abs() < 1e-9,
+            "{} on the top",
+            p.id
+        );
+    }
+    // Horizontal bars (long thin boxes) over the table at three or more heights.
+    let mut heights = BTreeSet::new();
+    for b in s.bodies.iter().filter(|b| b.fixed && b.id != "table") {
+        if let Shape::Box(sz) = b.shape {
+            let mut e = sz;
+            e.sort_by(f64::total_cmp);
+            if e[1] <= 0.05 && e[2] >= 0.2 && on_table(&b) {
+                heights.insert((b.pose.translation.z * 100.0).round() as i64);
+            }
+        }
+    }
+    assert!(heights.len() >= 3, "bars at {heights:?} cm");
+    // Movable boxes and spheres resting on the top (within 1 mm).
+    let objects: Vec<_> = s.bodies.iter().filter(|b| !b.fixed).collect();
+    assert!(objects.len() >= 3, "{} objects", objects.len());
+    for b in objects {
+        assert!(on_table(&b), "{} on the table", b.id);
+        assert!((b.world_bounds().0.z - hi.z).abs() < 1e-3, "{} rests", b.id);
+    }
 }
 
 #[test]

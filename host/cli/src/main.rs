@@ -165,7 +165,7 @@ enum Cmd {
     /// What a scene holds (bundled name or scene file): its bodies in the world frame (z up,
     /// metres) and the robot's start pose.
     Scene {
-        /// `empty`, `tabletop`, `apartment`, `shelf`, or a scene file's path.
+        /// `empty`, `tabletop`, `apartment`, `shelf`, `clutter`, or a scene file's path.
         name: String,
         /// Print one JSON object.
         #[arg(long)]

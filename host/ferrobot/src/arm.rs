@@ -92,8 +92,10 @@ impl Orientation {
 /// Options of a joint-space move.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct MoveOptions {
-    /// Plan a smooth trajectory under the joints' speed limits (true), or send the target at
-    /// once and let the firmware's rate limiter take the joints there (false).
+    /// Plan (true, PyRobot's default): a collision-free path around the planning scene and
+    /// the arm itself, timed optimally under the joints' speed and acceleration limits; or
+    /// send the target at once and let the firmware's rate limiter take the joints there
+    /// (false).
     pub plan: bool,
     /// Arrival tolerance per joint, rad, in `[1e-4, 0.5]`; the configuration's when `None`.
     pub tolerance: Option<f64>,
@@ -123,6 +125,8 @@ pub(crate) struct ArmParts {
     locobot_ik: Option<LocobotIk>,
     /// Chains from the arm's base frame to other frames, built when first asked for.
     chains: Mutex<HashMap<String, Arc<Chain>>>,
+    /// The planning scene and collision model.
+    pub(crate) planning: Mutex<crate::arm_plan::ArmPlanning>,
 }
 
 impl ArmParts {
@@ -143,6 +147,7 @@ impl ArmParts {
             ik,
             locobot_ik,
             chains: Mutex::new(HashMap::new()),
+            planning: Mutex::new(Default::default()),
         }))
     }
 
@@ -164,7 +169,7 @@ pub(crate) struct ArmState {
 /// components move.
 #[derive(Clone, Debug)]
 pub struct Arm {
-    robot: Robot,
+    pub(crate) robot: Robot,
 }
 
 impl Arm {
@@ -172,7 +177,7 @@ impl Arm {
         Arm { robot }
     }
 
-    fn parts(&self) -> &ArmParts {
+    pub(crate) fn parts(&self) -> &ArmParts {
         // Present: `Robot::arm` checks it.
         self.robot.arm_parts().expect("arm parts")
     }
@@ -186,6 +191,26 @@ impl Arm {
             .ok_or_else(|| Error::Unreachable {
                 why: "no arm chain".into(),
             })
+    }
+
+    pub(crate) fn cfg_arm(&self) -> &crate::config::ArmConfig {
+        self.cfg()
+    }
+
+    /// Firmware indices of the arm's joints, base to tip.
+    pub(crate) fn parts_joints(&self) -> &[usize] {
+        &self.parts().joints
+    }
+
+    /// Joint count, finiteness and limits of a goal.
+    pub(crate) fn check_goal(&self, q: &[f64]) -> Result<()> {
+        self.check_angles("joint positions", q)?;
+        self.check_limits(q)
+    }
+
+    /// Switch the arm's joints to position mode unless they are in it.
+    pub(crate) fn ensure_position_mode(&self, io: &mut Io) -> Result<()> {
+        self.ensure_mode(io, JointMode::Position)
     }
 
     fn cfg(&self) -> &crate::config::ArmConfig {
@@ -287,6 +312,10 @@ impl Arm {
             None => Duration::from_secs_f64(self.cfg().timeout),
         };
         let tolerance = opts.tolerance.unwrap_or(self.cfg().joint_tolerance);
+        if opts.plan {
+            let traj = self.plan_to(q, &crate::arm_plan::PlanningOptions::default())?;
+            return self.execute_with(&traj, tolerance, opts.timeout.map(|_| timeout));
+        }
         let parts = self.parts();
         let claim = Claim {
             joints: parts.mask(),
@@ -549,8 +578,10 @@ impl Arm {
     }
 
     /// Move the end effector to a pose (through IK and a planned joint move).
+    /// The IK solution is the collision-free one nearest the current joints, from several
+    /// seeds.
     pub fn set_ee_pose(&self, position: [f64; 3], orientation: Orientation) -> Result<()> {
-        let q = self.compute_ik(position, orientation, None)?;
+        let q = self.free_ik(position, orientation)?;
         self.set_joint_positions(&q)
     }
 
@@ -603,7 +634,16 @@ impl Arm {
     /// `step` is at least [`validate::MIN_CARTESIAN_STEP`], and the line has at most
     /// [`validate::MAX_CARTESIAN_WAYPOINTS`] steps. Waypoints are streamed as the firmware's
     /// queue makes room, so lines of any number of steps run.
+    ///
+    /// The line is checked first (PyRobot's `plan=True`): every step free of collision with
+    /// the planning scene and the arm itself, and no joint jumping between steps; see
+    /// [`Arm::move_ee_xyz_with`] to skip the check.
     pub fn move_ee_xyz(&self, displacement: [f64; 3], step: f64) -> Result<()> {
+        self.move_ee_xyz_with(displacement, step, true)
+    }
+
+    /// [`Arm::move_ee_xyz`], the line checked for collisions and joint jumps when `plan`.
+    pub fn move_ee_xyz_with(&self, displacement: [f64; 3], step: f64, plan: bool) -> Result<()> {
         let d = validate::arm_point("displacement", displacement)?;
         validate::in_range(
             "Cartesian step",
@@ -647,6 +687,9 @@ impl Arm {
             };
             path.push(q.clone());
             seed = q;
+        }
+        if plan {
+            self.check_cartesian(&q0, &path, step)?;
         }
         // Stream the path as knots, each timed by the joints' speed limits. The motion is under
         // way from the first knot, so that other motions see (and preempt) it.

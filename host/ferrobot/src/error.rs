@@ -197,6 +197,11 @@ pub enum Error {
     /// A bad image, pixel, depth range, cloud or file in perception.
     #[error("camera: {0}")]
     Perception(ferrobot_perception::PerceptionError),
+    /// Arm planning refused or failed: a malformed scene object, a start or goal in
+    /// collision (naming the two bodies), no collision-free IK solution, no path within the
+    /// time limit, a straight line that cannot be followed.
+    #[error("planning: {0}")]
+    Planning(#[from] ferrobot_planning::Error),
     /// An I/O error.
     #[error("I/O error: {0}")]
     Io(#[from] std::io::Error),
@@ -224,6 +229,7 @@ impl Error {
                 | Error::Usage(_)
                 | Error::Scene(_)
                 | Error::Perception(_)
+                | Error::Planning(ferrobot_planning::Error::Invalid { .. })
         )
     }
 }

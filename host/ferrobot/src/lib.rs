@@ -17,6 +17,7 @@
 #![warn(missing_docs)]
 
 pub mod arm;
+pub mod arm_plan;
 pub mod backend;
 pub mod base;
 pub mod camera;

@@ -50,7 +50,7 @@ impl RobotBuilder {
         self
     }
     /// The simulated world the robot lives in: a bundled scene (`empty`, `tabletop`,
-    /// `apartment`, `shelf`) or the path of a scene file (default `empty`: an empty world, as
+    /// `apartment`, `shelf`, `clutter`) or the path of a scene file (default `empty`: an empty world, as
     /// before scenes existed). The simulator backend renders its camera from this world.
     pub fn scene(mut self, scene: &str) -> Self {
         self.scene = SceneSource::from_arg(scene);
@@ -143,6 +143,8 @@ struct Inner {
     frames: Result<Frames, String>,
     /// The URDF frame of the camera's images (absent without a camera).
     optical: Option<String>,
+    /// The simulated world the robot started in (the empty one on hardware).
+    scene: Arc<Scene>,
     io: Mutex<Io>,
 }
 
@@ -298,6 +300,7 @@ impl Robot {
                 arm,
                 frames,
                 optical,
+                scene: scene.clone(),
             }),
         };
         robot.check_joint_table()?;
@@ -312,6 +315,12 @@ impl Robot {
             robot.base()?.set_odometry_geometry(g)?;
         }
         Ok(robot)
+    }
+
+    /// The world the robot was built in (a bundled or file scene; `empty` unless
+    /// [`RobotBuilder::scene`] named one), with its start pose.
+    pub fn scene(&self) -> Arc<Scene> {
+        self.inner.scene.clone()
     }
 
     /// The configuration (immutable once connected).

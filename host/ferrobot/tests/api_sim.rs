@@ -120,7 +120,11 @@ fn locobot_end_effector_poses_ik_and_cartesian_lines() {
         pos_err(&got.position, &pose.position) < EE_POS_TOL,
         "{got:?}"
     );
-    assert!(rot_err(&got.rotation, &pose.rotation) < EE_ROT_TOL);
+    assert!(
+        rot_err(&got.rotation, &pose.rotation) < EE_ROT_TOL,
+        "{got:?} {pose:?} {:?}",
+        arm.get_joint_angles()
+    );
     // Top-down grasp pose by pitch and roll.
     arm.set_ee_pose_pitch_roll([0.35, 0.0, 0.15], std::f64::consts::FRAC_PI_2, Some(0.0))
         .expect("pitch-roll");
@@ -463,7 +467,11 @@ fn sawyer_joint_control_and_ik() {
         pos_err(&got.position, &pose.position) < EE_POS_TOL,
         "{got:?}"
     );
-    assert!(rot_err(&got.rotation, &pose.rotation) < EE_ROT_TOL);
+    assert!(
+        rot_err(&got.rotation, &pose.rotation) < EE_ROT_TOL,
+        "{got:?} {pose:?} {:?}",
+        arm.get_joint_angles()
+    );
     arm.move_ee_xyz([0.0, 0.0, -0.1], 0.02).expect("line down");
     let after = arm.get_ee_pose().expect("pose");
     assert!(

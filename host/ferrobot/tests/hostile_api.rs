@@ -373,7 +373,7 @@ fn the_camera_refuses_hostile_values() {
                 &r,
             )?;
             let r = ferrobot::scene::Scene::load(&ferrobot::scene::SceneSource::from_arg(&name));
-            let bundled = ["empty", "tabletop", "apartment", "shelf"].contains(&name.as_str());
+            let bundled = ferrobot::scene::BUNDLED.contains(&name.as_str());
             judge("Scene::load", !bundled, &r)?;
             if calls.get() < 60 {
                 let r = cam.pix_to_3dpt(&rows, &cols, in_cam);

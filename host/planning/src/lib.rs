@@ -24,6 +24,7 @@ pub mod planner;
 pub mod scene;
 pub mod shape;
 pub mod spheres;
+pub mod timing;
 
 pub use acm::SelfCollisionMatrix;
 pub use checker::{CheckOptions, Checker, Contact};

@@ -81,8 +81,8 @@ struct Opts {
 struct PlantOpts {
     #[command(flatten)]
     opts: Opts,
-    /// The world the plants live in: a bundled scene (empty, tabletop, apartment, shelf) or
-    /// the path of a scene file.
+    /// The world the plants live in: a bundled scene (empty, tabletop, apartment, shelf,
+    /// clutter) or the path of a scene file.
     #[arg(long, value_name = "NAME|PATH", default_value = "empty")]
     scene: String,
 }

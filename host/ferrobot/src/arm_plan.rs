@@ -1,0 +1,552 @@
+//! The arm's planning: its planning scene (PyRobot's MoveIt object API), collision-aware
+//! joint, pose and Cartesian goals, and time-optimal trajectories streamed to the firmware.
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use ferrobot_planning::timing::{self, Limits, TimingOptions, Trajectory};
+use ferrobot_planning::{
+    CheckOptions, Checker, CollisionModel, Contact, PlanOptions, Planner, PlanningScene,
+    RrtConnect, Shape, Voxels,
+};
+use ferrobot_protocol::JointPoint;
+use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion};
+use parking_lot::Mutex;
+
+use crate::arm::{Arm, Orientation};
+use crate::error::Result;
+use crate::motion::{Claim, JointsGoal, Motion};
+use crate::robot::Io;
+
+/// Knots of a planned trajectory sent to the firmware at once (its queue holds 16 per joint).
+const MAX_KNOTS: usize = 14;
+/// Time the servos are given after the trajectory's end before arrival is judged, s.
+const SETTLE_S: f64 = 0.25;
+/// Shortest time between knots, s.
+const MIN_KNOT_DT: f64 = 0.05;
+/// Joint-space step of the blended path's collision check, rad.
+const BLEND_CHECK_STEP: f64 = 0.01;
+
+/// The arm's planning state: the collision model (built when first needed) and the scene.
+#[derive(Default)]
+pub(crate) struct ArmPlanning {
+    model: Option<Arc<CollisionModel>>,
+    scene: PlanningScene,
+}
+
+/// A planned arm motion: the collision-free path and its time-optimal trajectory.
+#[derive(Debug, Clone)]
+pub struct ArmTrajectory {
+    /// Joint names, in the order of every configuration below.
+    pub joints: Vec<String>,
+    /// The path's waypoints, rad; consecutive ones joined by collision-free straight edges.
+    pub path: Vec<Vec<f64>>,
+    /// The trajectory along the path (blended at the waypoints within a checked deviation).
+    pub trajectory: Trajectory,
+    /// Time spent planning.
+    pub planning_time: Duration,
+}
+
+impl ArmTrajectory {
+    /// Duration of the motion, s.
+    pub fn duration(&self) -> f64 {
+        self.trajectory.duration()
+    }
+}
+
+/// Options of a planned motion.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlanningOptions {
+    /// Planner options (time limit, seed, range, shortcutting).
+    pub plan: PlanOptions,
+    /// Use Informed RRT* (path quality) instead of RRT-Connect.
+    pub optimise: bool,
+    /// Largest deviation of the blended trajectory from the path's corners, rad (blends are
+    /// checked for collision and shrunk when they touch).
+    pub max_deviation: f64,
+}
+
+impl Default for PlanningOptions {
+    fn default() -> Self {
+        PlanningOptions {
+            plan: PlanOptions::default(),
+            optimise: false,
+            max_deviation: 0.05,
+        }
+    }
+}
+
+fn pose_of(position: [f64; 3], q: UnitQuaternion<f64>) -> Isometry3<f64> {
+    Isometry3::from_parts(Translation3::new(position[0], position[1], position[2]), q)
+}
+
+impl Arm {
+    fn planning(&self) -> parking_lot::MutexGuard<'_, ArmPlanning> {
+        self.parts_planning().lock()
+    }
+
+    fn parts_planning(&self) -> &Mutex<ArmPlanning> {
+        &self.parts().planning
+    }
+
+    /// The collision model, built on first use.
+    fn model(&self) -> Result<Arc<CollisionModel>> {
+        let mut p = self.planning();
+        if let Some(m) = &p.model {
+            return Ok(m.clone());
+        }
+        let m = Arc::new(CollisionModel::from_config(self.robot.cfg())?);
+        p.model = Some(m.clone());
+        Ok(m)
+    }
+
+    /// A checker of the scene as it is now, with the fingers and the head where they are.
+    fn checker(&self) -> Result<Checker> {
+        let mut model = (*self.model()?).clone();
+        let cfg = self.robot.cfg();
+        let t = self.robot.telemetry()?;
+        let fixed: Vec<String> = model.fixed_values().into_iter().map(|(n, _)| n).collect();
+        for name in fixed {
+            if let Some(i) = cfg.joint_index(&name) {
+                if let Some(s) = t.joints.get(i) {
+                    model.set_value(&name, f64::from(s.position))?;
+                }
+            }
+        }
+        if let Some(g) = &cfg.gripper {
+            if let Some(i) = cfg.joint_index(&g.joint) {
+                if let Some(s) = t.joints.get(i) {
+                    let ticks = f64::from(s.position)
+                        / f64::from(ferrobot_protocol::dxl::units::RAD_PER_TICK)
+                        + f64::from(ferrobot_protocol::dxl::units::CENTER_TICK);
+                    for (joint, v) in g.finger_positions(ticks) {
+                        model.set_value(&joint, v)?;
+                    }
+                }
+            }
+        }
+        let scene = self.planning().scene.clone();
+        Ok(Checker::new(
+            Arc::new(model),
+            &scene,
+            CheckOptions::default(),
+        )?)
+    }
+
+    /// Adds (or replaces) a box `id` of full extents `size` (m) at `position` (m) with
+    /// `orientation` in the arm's base frame (PyRobot's `add_world_object`).
+    pub fn add_world_object(
+        &self,
+        id: &str,
+        position: [f64; 3],
+        orientation: Orientation,
+        size: [f64; 3],
+    ) -> Result<()> {
+        self.add_world_shape(id, Shape::Box(size), position, orientation)
+    }
+
+    /// Adds (or replaces) an object `id` of any shape at `position` (m) with `orientation` in
+    /// the arm's base frame.
+    pub fn add_world_shape(
+        &self,
+        id: &str,
+        shape: Shape,
+        position: [f64; 3],
+        orientation: Orientation,
+    ) -> Result<()> {
+        let q = orientation.to_quaternion()?;
+        let base = self.base_frame_in_root()?;
+        self.planning()
+            .scene
+            .add_object(id, shape, base * pose_of(position, q))?;
+        Ok(())
+    }
+
+    /// A table: a box of full extents `size` (m) whose top centre is at `top` (m, base frame),
+    /// named `table` (PyRobot's `add_table`).
+    pub fn add_table(&self, top: [f64; 3], size: [f64; 3]) -> Result<()> {
+        let centre = [top[0], top[1], top[2] - size[2] / 2.0];
+        self.add_world_object(
+            "table",
+            centre,
+            Orientation::Quaternion([0.0, 0.0, 0.0, 1.0]),
+            size,
+        )
+    }
+
+    /// Removes object `id` (in the world or attached); an unknown id is an error.
+    pub fn remove_world_object(&self, id: &str) -> Result<()> {
+        self.planning().scene.remove_object(id)?;
+        Ok(())
+    }
+
+    /// Attaches a box `id` of full extents `size` (m) at `position` with `orientation` in the
+    /// end-effector frame: it moves with the gripper and is checked against the world and the
+    /// arm; the gripper and its fingers may touch it (PyRobot's `attach_arm_object`).
+    pub fn attach_arm_object(
+        &self,
+        id: &str,
+        position: [f64; 3],
+        orientation: Orientation,
+        size: [f64; 3],
+    ) -> Result<()> {
+        let q = orientation.to_quaternion()?;
+        let cfg = self.robot.cfg();
+        let ee = self.cfg_arm().ee_frame.clone();
+        let mut touch: Vec<String> = cfg
+            .gripper
+            .iter()
+            .flat_map(|g| g.fingers.iter())
+            .filter_map(|f| cfg.urdf.joints.iter().find(|j| j.name == f.joint))
+            .map(|j| j.child.link.clone())
+            .collect();
+        // The links the end effector is fixed to touch it too (a frame link without geometry
+        // sits on the wrist).
+        touch.extend(
+            cfg.urdf
+                .joints
+                .iter()
+                .filter(|j| j.child.link == ee && matches!(j.joint_type, urdf_rs::JointType::Fixed))
+                .map(|j| j.parent.link.clone()),
+        );
+        self.planning()
+            .scene
+            .attach(id, &ee, Shape::Box(size), pose_of(position, q), touch)?;
+        Ok(())
+    }
+
+    /// Detaches (and forgets) object `id`; an id not attached is an error.
+    pub fn detach_arm_object(&self, id: &str) -> Result<()> {
+        self.planning().scene.detach(id, None)?;
+        Ok(())
+    }
+
+    /// Removes every object, attached or not, and the point-cloud voxels.
+    pub fn remove_all_objects(&self) -> Result<()> {
+        self.planning().scene.clear();
+        Ok(())
+    }
+
+    /// Adds the bodies of the world the robot was built in ([`crate::Robot::scene`]), posed
+    /// for the robot at the scene's start pose (objects moved since, or a base that drove
+    /// away, are not followed). Returns how many.
+    pub fn add_scene_objects(&self) -> Result<usize> {
+        let scene = self.robot.scene();
+        let root = crate::planning::root_in_world(&scene);
+        let objects = crate::planning::scene_objects(&scene, &root);
+        let n = objects.len();
+        let mut p = self.planning();
+        for o in objects {
+            p.scene.add_object(&o.id, o.shape, o.pose)?;
+        }
+        Ok(n)
+    }
+
+    /// Replaces the voxels from a point cloud (m, in the arm's base frame) with cubes of
+    /// `voxel` m; `None` removes them.
+    pub fn set_point_cloud(&self, points: Option<&[[f64; 3]]>, voxel: f64) -> Result<()> {
+        let v = match points {
+            Some(p) => {
+                let base = self.base_frame_in_root()?;
+                let pts: Vec<Point3<f64>> = p.iter().map(|&x| base * Point3::from(x)).collect();
+                Some(Voxels::from_points(&pts, voxel)?)
+            }
+            None => None,
+        };
+        self.planning().scene.set_voxels(v);
+        Ok(())
+    }
+
+    /// The arm's base frame in the URDF root's frame (the planner's frame is the root's).
+    fn base_frame_in_root(&self) -> Result<Isometry3<f64>> {
+        let tree = ferrobot_kinematics::LinkTree::from_urdf(&self.robot.cfg().urdf)?;
+        let poses = tree.poses(&[]);
+        Ok(tree.transform(&poses, &self.cfg_arm().base_frame, tree.root())?)
+    }
+
+    /// The first contact of the arm in its current configuration (links by URDF name, objects
+    /// by id), or `None` when free (PyRobot's `get_collision_state`).
+    pub fn get_collision_state(&self) -> Result<Option<Contact>> {
+        let q = self.get_joint_angles()?;
+        let c = self.checker()?;
+        // The measured angles may sit a hair past a limit: clamp for the check.
+        let q: Vec<f64> = q
+            .iter()
+            .zip(c.model().limits())
+            .map(|(v, (lo, hi))| v.clamp(*lo, *hi))
+            .collect();
+        Ok(c.contact(&q))
+    }
+
+    /// Plans a collision-free, time-optimal motion from the current joints to `q` (rad)
+    /// without moving.
+    pub fn make_plan_joint_positions(&self, q: &[f64]) -> Result<ArmTrajectory> {
+        self.plan_to(q, &PlanningOptions::default())
+    }
+
+    /// Plans to a pose (`position` m, `orientation`, base frame) without moving: IK from
+    /// several seeds, the collision-free solution nearest the current joints.
+    pub fn make_plan_pose(
+        &self,
+        position: [f64; 3],
+        orientation: Orientation,
+    ) -> Result<ArmTrajectory> {
+        let q = self.free_ik(position, orientation)?;
+        self.plan_to(&q, &PlanningOptions::default())
+    }
+
+    /// A collision-free IK solution of the pose, nearest the current joints.
+    pub(crate) fn free_ik(&self, position: [f64; 3], orientation: Orientation) -> Result<Vec<f64>> {
+        let now = self.get_joint_angles()?;
+        let checker = self.checker()?;
+        let mut seeds = vec![now.clone(), self.cfg_arm().home.clone()];
+        let limits = checker.model().limits().to_vec();
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        for _ in 0..8 {
+            seeds.push(
+                limits
+                    .iter()
+                    .map(|&(lo, hi)| rng.random_range(lo..=hi))
+                    .collect(),
+            );
+        }
+        let mut best: Option<(f64, Vec<f64>)> = None;
+        let mut first_err = None;
+        let mut hit = None;
+        for seed in &seeds {
+            match self.compute_ik(position, orientation, Some(seed)) {
+                Ok(q) => {
+                    if let Some(c) = checker.contact(&q) {
+                        hit.get_or_insert(c);
+                        continue;
+                    }
+                    let d: f64 = q.iter().zip(&now).map(|(a, b)| (a - b).abs()).sum();
+                    if best.as_ref().is_none_or(|(bd, _)| d < *bd) {
+                        best = Some((d, q));
+                    }
+                }
+                Err(e) => {
+                    first_err.get_or_insert(e);
+                }
+            }
+        }
+        match (best, hit, first_err) {
+            (Some((_, q)), _, _) => Ok(q),
+            (None, Some(c), _) => Err(ferrobot_planning::Error::NoFreeIk {
+                why: format!(
+                    "every solution from {} seeds is in collision ({} touches {})",
+                    seeds.len(),
+                    c.a,
+                    c.b
+                ),
+            }
+            .into()),
+            (None, None, Some(e)) => Err(e),
+            (None, None, None) => Err(ferrobot_planning::Error::NoFreeIk {
+                why: "no solution".into(),
+            }
+            .into()),
+        }
+    }
+
+    /// Plans from the current joints to `goal`.
+    pub fn plan_to(&self, goal: &[f64], opts: &PlanningOptions) -> Result<ArmTrajectory> {
+        self.check_planned_goal(goal)?;
+        let start = self.get_joint_angles()?;
+        let checker = self.checker()?;
+        // Measured angles may sit a hair outside a limit.
+        let start: Vec<f64> = start
+            .iter()
+            .zip(checker.model().limits())
+            .map(|(v, (lo, hi))| v.clamp(*lo, *hi))
+            .collect();
+        let plan = if opts.optimise {
+            ferrobot_planning::InformedRrtStar.plan(&checker, &start, goal, &opts.plan)?
+        } else {
+            RrtConnect.plan(&checker, &start, goal, &opts.plan)?
+        };
+        let trajectory = self.time_path(&checker, &plan.path, opts.max_deviation)?;
+        Ok(ArmTrajectory {
+            joints: self.joint_names(),
+            path: plan.path,
+            trajectory,
+            planning_time: plan.time,
+        })
+    }
+
+    /// The joints' speed and acceleration limits.
+    fn limits(&self) -> Limits {
+        let cfg = self.robot.cfg();
+        Limits {
+            velocity: self
+                .parts_joints()
+                .iter()
+                .map(|&j| f64::from(cfg.joints[j].limits.velocity) * 0.9)
+                .collect(),
+            acceleration: self.cfg_arm().acceleration.clone(),
+        }
+    }
+
+    /// The time-optimal trajectory along `path`, its blends checked for collision (shrunk,
+    /// and at last dropped, when they touch).
+    fn time_path(
+        &self,
+        checker: &Checker,
+        path: &[Vec<f64>],
+        deviation: f64,
+    ) -> Result<Trajectory> {
+        let limits = self.limits();
+        let mut dev = deviation;
+        loop {
+            let t = timing::time_optimal(
+                path,
+                &limits,
+                &TimingOptions {
+                    max_deviation: dev,
+                    ..TimingOptions::default()
+                },
+            )?;
+            if dev == 0.0 || blends_free(checker, &t) {
+                return Ok(t);
+            }
+            dev = if dev > 0.002 { dev / 4.0 } else { 0.0 };
+        }
+    }
+
+    /// Starts executing a planned trajectory: knots (position and velocity) sent at once.
+    pub fn execute(&self, traj: &ArmTrajectory) -> Result<Motion> {
+        self.execute_with(traj, self.cfg_arm().joint_tolerance, None)
+    }
+
+    /// [`Arm::execute`] with an arrival tolerance (rad) and a timeout (the configuration's
+    /// or the motion's duration and 5 s, whichever is longer, when `None`).
+    pub(crate) fn execute_with(
+        &self,
+        traj: &ArmTrajectory,
+        tolerance: f64,
+        timeout: Option<Duration>,
+    ) -> Result<Motion> {
+        let total = traj.trajectory.duration();
+        let n = ((total / MIN_KNOT_DT).ceil() as usize).clamp(1, MAX_KNOTS);
+        let dt = total / n as f64;
+        let idx = self.parts_joints().to_vec();
+        let mask = crate::motion::joint_mask(idx.iter().copied());
+        let target = traj.path.last().cloned().unwrap_or_default();
+        let timeout = timeout
+            .unwrap_or_else(|| Duration::from_secs_f64(self.cfg_arm().timeout.max(total + 5.0)));
+        let claim = Claim {
+            joints: mask,
+            ..Claim::default()
+        };
+        self.robot
+            .start_motion(claim, "planned arm motion", |io: &mut Io| {
+                self.ensure_position_mode(io)?;
+                for k in 1..=n {
+                    let p = traj.trajectory.sample(dt * k as f64);
+                    let points = p
+                        .position
+                        .iter()
+                        .zip(&p.velocity)
+                        .map(|(&x, &v)| JointPoint {
+                            position: x as f32,
+                            velocity: if k == n { 0.0 } else { v as f32 },
+                            effort: 0.0,
+                        })
+                        .collect();
+                    io.link.command(
+                        &ferrobot_protocol::HostMsg::Waypoint {
+                            joints: mask,
+                            duration_us: (dt * 1e6) as u32,
+                            points,
+                        },
+                        "planned trajectory knot",
+                    )?;
+                }
+                let started = io.link.now();
+                let goal = JointsGoal {
+                    idx,
+                    target,
+                    tolerance,
+                    // The servos lag the reference: give them time to settle at the end.
+                    due: started + Duration::from_secs_f64(total + SETTLE_S),
+                    started,
+                    stall_since: None,
+                };
+                Ok((Box::new(goal) as Box<dyn crate::motion::Goal>, timeout))
+            })
+    }
+
+    /// Checks a planned goal's count, finiteness and limits.
+    fn check_planned_goal(&self, q: &[f64]) -> Result<()> {
+        self.check_goal(q)
+    }
+
+    /// Joint positions along a straight line of the end effector, checked: each step free of
+    /// collision (proven at the checker's resolution) and without joint jumps.
+    pub(crate) fn check_cartesian(
+        &self,
+        start: &[f64],
+        path: &[Vec<f64>],
+        step: f64,
+    ) -> Result<()> {
+        let checker = self.checker()?;
+        let mut prev = start.to_vec();
+        // A joint moving more than this for one step is a jump (a branch switch of the IK):
+        // far more than any joint needs for a step of `step` m at the arm's reach.
+        let jump = (step * 40.0).max(0.2);
+        for (i, q) in path.iter().enumerate() {
+            if let Some((j, d)) = q
+                .iter()
+                .zip(&prev)
+                .map(|(a, b)| (a - b).abs())
+                .enumerate()
+                .find(|(_, d)| *d > jump)
+            {
+                return Err(ferrobot_planning::Error::Cartesian {
+                    why: format!(
+                        "joint {} jumps {d:.3} rad at step {} of {} (more than {jump:.3} rad)",
+                        self.joint_names()[j],
+                        i + 1,
+                        path.len()
+                    ),
+                }
+                .into());
+            }
+            if let Some(c) = checker.contact(q) {
+                return Err(ferrobot_planning::Error::Cartesian {
+                    why: format!("step {} of {}: {} touches {}", i + 1, path.len(), c.a, c.b),
+                }
+                .into());
+            }
+            if !checker.motion_proven(&prev, q) {
+                return Err(ferrobot_planning::Error::Cartesian {
+                    why: format!(
+                        "the motion to step {} of {} touches something",
+                        i + 1,
+                        path.len()
+                    ),
+                }
+                .into());
+            }
+            prev = q.clone();
+        }
+        Ok(())
+    }
+}
+
+/// Whether the blended path of `t` is free: chords of at most [`BLEND_CHECK_STEP`] rad
+/// proven free.
+fn blends_free(checker: &Checker, t: &Trajectory) -> bool {
+    let len = t.path_length();
+    let n = ((len / BLEND_CHECK_STEP).ceil() as usize).max(1);
+    let mut prev = t.path_position(0.0);
+    for k in 1..=n {
+        let q = t.path_position(len * k as f64 / n as f64);
+        if !checker.motion_proven(&prev, &q) {
+            return false;
+        }
+        prev = q;
+    }
+    true
+}

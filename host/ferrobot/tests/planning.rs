@@ -1,0 +1,239 @@
+//! Arm planning through the API, in the simulator: motions around objects of the planning
+//! scene, trajectories within the joints' limits, the executed motion on the planned path,
+//! PyRobot's MoveIt examples, and the typed failures.
+
+use ferrobot::arm_plan::ArmTrajectory;
+use ferrobot::planning::{self as planning, CheckOptions, Checker, CollisionModel};
+use ferrobot::{Error, Orientation, Robot};
+use std::sync::Arc;
+
+const IDENTITY: Orientation = Orientation::Quaternion([0.0, 0.0, 0.0, 1.0]);
+/// The gripper pointing down.
+const DOWN: Orientation = Orientation::YawPitchRoll([0.0, std::f64::consts::FRAC_PI_2, 0.0]);
+
+/// Every edge of the path re-checked at 1 mm of link motion against the exact geometry, in a
+/// checker built independently of the robot's.
+fn assert_path_free(bot: &Robot, scene: &planning::PlanningScene, traj: &ArmTrajectory) {
+    let model = Arc::new(CollisionModel::from_config(bot.config()).expect("model"));
+    let fine = Checker::new(
+        model,
+        scene,
+        CheckOptions {
+            resolution: 0.001,
+            max_step: 0.001,
+            min_step: 0.001,
+        },
+    )
+    .expect("checker");
+    for w in traj.path.windows(2) {
+        assert!(fine.motion_free(&w[0], &w[1]), "edge {w:?} collides");
+    }
+}
+
+#[allow(clippy::needless_range_loop)]
+/// Velocity and acceleration limits at every 1 ms sample, 1 % of slack for the sampling.
+fn assert_within_limits(bot: &Robot, traj: &ArmTrajectory) {
+    let cfg = bot.config();
+    let arm = cfg.arm.as_ref().expect("arm");
+    let vmax: Vec<f64> = arm
+        .joints
+        .iter()
+        .map(|n| {
+            f64::from(
+                cfg.joints[cfg.joint_index(n).expect("joint")]
+                    .limits
+                    .velocity,
+            )
+        })
+        .collect();
+    let mut t = 0.0;
+    while t <= traj.duration() {
+        let p = traj.trajectory.sample(t);
+        for j in 0..vmax.len() {
+            assert!(
+                p.velocity[j].abs() <= vmax[j] * 1.01,
+                "t {t}: joint {j} speed {}",
+                p.velocity[j]
+            );
+            assert!(
+                p.acceleration[j].abs() <= arm.acceleration[j] * 1.01,
+                "t {t}: joint {j} acceleration {}",
+                p.acceleration[j]
+            );
+        }
+        t += 0.001;
+    }
+}
+
+#[test]
+fn the_arm_plans_around_a_post_within_its_limits_and_follows_the_plan() {
+    let bot = Robot::new("locobot").expect("robot");
+    let arm = bot.arm().expect("arm");
+    // A post in front of the arm, between a left and a right reach.
+    arm.add_world_object("post", [0.3, 0.0, 0.15], IDENTITY, [0.04, 0.04, 0.3])
+        .expect("post");
+    let left = [0.9, 0.6, 0.3, 0.4, 0.0];
+    let right = [-0.9, 0.6, 0.3, 0.4, 0.0];
+    arm.set_joint_positions(&left).expect("to the left");
+    let traj = arm.make_plan_joint_positions(&right).expect("plan");
+    assert!(
+        traj.path.len() >= 3,
+        "the plan goes around: {:?}",
+        traj.path
+    );
+    let mut scene = planning::PlanningScene::new();
+    scene
+        .add_object(
+            "post",
+            planning::Shape::Box([0.04, 0.04, 0.3]),
+            bot.link_transform("base_link", "base_footprint")
+                .expect("base")
+                * nalgebra::Isometry3::translation(0.3, 0.0, 0.15),
+        )
+        .expect("post");
+    assert_within_limits(&bot, &traj);
+    // Executing it: the measured joints stay within 1 cm (mapped to the end effector) of the
+    // planned trajectory at the time (allowing the servos' lag of one knot period).
+    let motion = arm.execute(&traj).expect("execute");
+    let chain = bot.config().arm_chain.clone().expect("chain");
+    let t0 = bot.time();
+    let mut worst = 0.0f64;
+    while !motion.is_finished() {
+        bot.wait(0.02).expect("wait");
+        let q = arm.get_joint_angles().expect("joints");
+        let t = bot.time() - t0;
+        let here = chain.fk(&q).translation.vector;
+        // Nearest point of the planned motion within ±0.1 s.
+        let mut best = f64::INFINITY;
+        let mut s = (t - 0.1).max(0.0);
+        while s <= t + 0.1 {
+            let p = chain
+                .fk(&traj.trajectory.sample(s).position)
+                .translation
+                .vector;
+            best = best.min((p - here).norm());
+            s += 0.005;
+        }
+        worst = worst.max(best);
+    }
+    motion.wait().expect("arrives");
+    eprintln!(
+        "executed motion: worst distance from the plan {:.4} m",
+        worst
+    );
+    assert!(worst < 0.01, "{worst} m from the plan");
+    let q = arm.get_joint_angles().expect("joints");
+    for (a, b) in q.iter().zip(&right) {
+        assert!((a - b).abs() < 0.02, "{q:?}");
+    }
+    assert_path_free(&bot, &scene, &traj);
+}
+
+#[test]
+fn move_ee_xyz_down_from_home_as_pyrobots_moveit_example() {
+    let bot = Robot::new("locobot").expect("robot");
+    let arm = bot.arm().expect("arm");
+    arm.go_home().expect("home");
+    let before = arm.get_ee_pose().expect("pose");
+    arm.move_ee_xyz([0.0, 0.0, -0.15], 0.01).expect("down");
+    let after = arm.get_ee_pose().expect("pose");
+    let want = [
+        before.position[0],
+        before.position[1],
+        before.position[2] - 0.15,
+    ];
+    let err: f64 = (0..3)
+        .map(|i| (after.position[i] - want[i]).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    assert!(err < 0.02, "{err} m");
+    // Orientation similarity (|⟨q1, q2⟩|) above 0.98, as PyRobot's test asks.
+    let dot: f64 = (0..4)
+        .map(|i| before.quaternion[i] * after.quaternion[i])
+        .sum::<f64>()
+        .abs();
+    assert!(dot > 0.98, "{dot}");
+}
+
+#[test]
+fn set_ee_pose_around_a_table_and_an_attached_object() {
+    let bot = Robot::new("locobot").expect("robot");
+    let arm = bot.arm().expect("arm");
+    arm.add_table([0.45, 0.0, 0.1], [0.3, 0.8, 0.1])
+        .expect("table");
+    arm.set_ee_pose_pitch_roll([0.4, 0.0, 0.3], std::f64::consts::FRAC_PI_2, Some(0.0))
+        .expect("above the table");
+    assert!(arm.get_collision_state().expect("state").is_none());
+    arm.attach_arm_object("held", [0.12, 0.0, 0.0], IDENTITY, [0.04, 0.04, 0.04])
+        .expect("attach");
+    // The held box (12 cm below the gripper's frame) may not go into the table; the gripper
+    // alone, 12 cm above the table top, may.
+    let low = arm.compute_ik([0.4, 0.0, 0.22], DOWN, None).expect("ik");
+    match arm.make_plan_joint_positions(&low) {
+        Err(Error::Planning(planning::Error::GoalInCollision { a, b })) => {
+            assert!(a == "held" || b == "held", "{a} {b}");
+        }
+        other => panic!("expected the held box in collision, got {other:?}"),
+    }
+    arm.detach_arm_object("held").expect("detach");
+    arm.make_plan_joint_positions(&low)
+        .expect("free without the box");
+}
+
+#[test]
+fn planning_failures_are_typed() {
+    let bot = Robot::new("locobot").expect("robot");
+    let arm = bot.arm().expect("arm");
+    for (size, pos) in [
+        ([-0.1, 0.1, 0.1], [0.3, 0.0, 0.1]),
+        ([0.1, f64::NAN, 0.1], [0.3, 0.0, 0.1]),
+        ([0.1, 0.1, 0.1], [f64::INFINITY, 0.0, 0.1]),
+        ([1e9, 0.1, 0.1], [0.3, 0.0, 0.1]),
+    ] {
+        let e = arm
+            .add_world_object("bad", pos, IDENTITY, size)
+            .unwrap_err();
+        assert!(e.is_input(), "{e}");
+    }
+    assert!(arm
+        .add_world_object("", [0.3, 0.0, 0.1], IDENTITY, [0.1; 3])
+        .is_err());
+    assert!(arm.remove_world_object("nothing").unwrap_err().is_input());
+    assert!(arm.detach_arm_object("nothing").is_err());
+    // A goal inside an object.
+    arm.add_world_object("block", [0.3, 0.0, 0.1], IDENTITY, [0.1, 0.2, 0.2])
+        .expect("block");
+    let goal = arm.compute_ik([0.3, 0.0, 0.15], DOWN, None).expect("ik");
+    match arm.make_plan_joint_positions(&goal) {
+        Err(Error::Planning(planning::Error::GoalInCollision { b, .. })) => assert_eq!(b, "block"),
+        other => panic!("{other:?}"),
+    }
+    // A pose inside the block: no collision-free IK solution.
+    match arm.make_plan_pose([0.3, 0.0, 0.15], DOWN) {
+        Err(Error::Planning(planning::Error::NoFreeIk { .. })) | Err(Error::Unreachable { .. }) => {
+        }
+        other => panic!("{other:?}"),
+    }
+    // An unreachable pose.
+    assert!(arm.make_plan_pose([2.0, 0.0, 0.2], IDENTITY).is_err());
+    // The start in collision: the arm moved into the block without planning.
+    arm.remove_all_objects().expect("clear");
+    let q = arm.get_joint_angles().expect("q");
+    let here = arm.compute_fk_position(&q, "gripper_link").expect("fk");
+    arm.add_world_object("around", here.position, IDENTITY, [0.05; 3])
+        .expect("around");
+    let c = arm
+        .get_collision_state()
+        .expect("state")
+        .expect("a contact");
+    assert_eq!(c.b, "around");
+    match arm.make_plan_joint_positions(&[0.5, 0.0, 0.0, 0.0, 0.0]) {
+        Err(Error::Planning(planning::Error::StartInCollision { b, .. })) => {
+            assert_eq!(b, "around")
+        }
+        other => panic!("{other:?}"),
+    }
+    assert!(arm.make_plan_joint_positions(&[0.0; 4]).is_err());
+    assert!(arm.make_plan_joint_positions(&[f64::NAN; 5]).is_err());
+    assert!(arm.make_plan_joint_positions(&[9.0; 5]).is_err());
+}
