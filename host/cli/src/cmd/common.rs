@@ -81,8 +81,6 @@ pub fn planning_error(file: &std::path::Path, e: ferrobot::planning::Error) -> f
             key: what,
             problem: why,
         },
-        other => ferrobot::Error::Unreachable {
-            why: other.to_string(),
-        },
+        other => ferrobot::Error::Planning(other),
     }
 }
