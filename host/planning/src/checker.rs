@@ -211,6 +211,26 @@ pub(crate) fn links_touch(
     })
 }
 
+/// The distance (m; 0 when touching) between shapes `a` at `pa` and `b` at `pb`. Convex
+/// (support-mapped) pairs go to GJK directly: parry's own cuboid–cuboid distance (separating
+/// axes, then a projection heuristic) may return more than the true distance when faces are
+/// nearly parallel (3.9 cm for boxes 0.05 mm apart), and conservative advancement needs a
+/// distance that is never too large.
+fn shape_distance(
+    pa: &parry3d::math::Pose,
+    a: &dyn parry3d::shape::Shape,
+    pb: &parry3d::math::Pose,
+    b: &dyn parry3d::shape::Shape,
+) -> f64 {
+    if let (Some(sa), Some(sb)) = (a.as_support_map(), b.as_support_map()) {
+        let pos12 = pa.inv_mul(pb);
+        return f64::from(query::details::distance_support_map_support_map(
+            &pos12, sa, sb,
+        ));
+    }
+    query::distance(pa, a, pb, b).map_or(0.0, |d| f64::from(d.distance))
+}
+
 /// The smallest distance (m; 0 when touching) between the exact shapes `a` (on their link at
 /// `pose_a`) and `b`.
 fn exact_gap(
@@ -224,8 +244,7 @@ fn exact_gap(
         let pa = convert::pose(&(pose_a * o));
         for (pb, eb) in b {
             counters.exact_checks.fetch_add(1, Ordering::Relaxed);
-            let d = query::distance(&pa, ea.shape.as_ref(), pb, eb.shape.as_ref())
-                .map_or(0.0, |d| f64::from(d.distance));
+            let d = shape_distance(&pa, ea.shape.as_ref(), pb, eb.shape.as_ref());
             gap = gap.min(d);
             if gap <= 0.0 {
                 return 0.0;
