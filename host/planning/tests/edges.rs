@@ -27,3 +27,33 @@ fn an_edge_grazing_a_fixed_link_is_not_proven() {
     // 0.2 mm from the mast: not 2 cm clear.
     assert!(c.near_world(&at(0.205), 0.001));
 }
+
+/// A LoCoBot edge on which the elbow touches the camera mast 1.5 µm deep, for 0.05 mm of its
+/// 0.72 m of motion: shorter than `min_step`, so stepping `min_step` with contact checks alone
+/// (as the checker did below `min_step` of clearance) stepped over it; FCL found it in an
+/// exported path. Steps near contact now need the clearances at both ends to cover them.
+#[test]
+fn a_contact_shorter_than_min_step_is_not_stepped_over() {
+    let cfg = RobotConfig::bundled("locobot").expect("locobot");
+    let model = Arc::new(CollisionModel::from_config(&cfg).expect("model"));
+    let c = Checker::new(model, &PlanningScene::new(), CheckOptions::default()).expect("checker");
+    let a = [
+        -0.9596562766769012,
+        -0.9364069903152136,
+        1.2529021401964529,
+        -1.1660013381586636,
+        -1.256280984874232,
+    ];
+    let b = [
+        -0.4462602862963767,
+        -0.5214767713804918,
+        0.9718089959412842,
+        -1.0422980335527063,
+        -0.893607127945518,
+    ];
+    assert!(c.is_free(&a) && c.is_free(&b));
+    assert!(!c.motion_proven(&a, &b));
+    // The same edge shortened so that it ends before the contact is proven.
+    let short: Vec<f64> = a.iter().zip(&b).map(|(x, y)| x + (y - x) * 0.99).collect();
+    assert!(c.motion_proven(&a, &short));
+}
