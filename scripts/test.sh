@@ -1,9 +1,9 @@
 #!/usr/bin/env bash
 # The project's one test command: formatting, clippy, both board builds, every test of the
 # workspace (unit, property, lockstep acceptance and fault tests, the API on the simulator and
-# over serial ports, the Dynamixel conformance test against ROBOTIS' official SDK, and the
-# hardware-in-the-loop tests with the firmware in QEMU). Installs what it needs by itself,
-# idempotently.
+# over serial ports, the Dynamixel conformance test against ROBOTIS' official SDK, the
+# planning benchmark's exports re-checked by FCL, and the hardware-in-the-loop tests with the
+# firmware in QEMU). Installs what it needs by itself, idempotently.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 start=$(date +%s)
@@ -21,6 +21,9 @@ rustup component add rustfmt clippy >/dev/null 2>&1 || true
 step "python: ROBOTIS dynamixel-sdk in target/py-venv"
 scripts/python-env.sh
 export FERROBOT_PYTHON="$PWD/target/py-venv/bin/python"
+
+step "python: OMPL and FCL for the planning benchmark's peer (host/planning/peer) in target/py-venv"
+scripts/python-env.sh plan
 
 step "cross toolchain for the boards (Debian's rustc-web, lld, QEMU)"
 scripts/setup-cross.sh

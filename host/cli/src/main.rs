@@ -13,6 +13,8 @@
 //! ferrobot base-move locobot --relative 1 1 1.5708 --controller lqr --smooth --json
 //! ferrobot bench base --robot locobot --trials 5 --seed 1
 //! ferrobot bench camera --scene apartment --seconds 10
+//! ferrobot bench plan --robot locobot --scene tabletop --problems 100 --seed 1 --ompl
+//! ferrobot collision-matrix sawyer --samples 10000 --seed 1
 //! ```
 
 use std::process::ExitCode;
@@ -147,6 +149,19 @@ enum Cmd {
         #[command(subcommand)]
         which: BenchCmd,
     },
+    /// The self-collision matrix of a robot's arm by sampling (link pairs adjacent, touching
+    /// at the default pose, in nearly every or in no random configuration), printed as the
+    /// `[collision]` section of its configuration.
+    CollisionMatrix {
+        /// Robot name or configuration path.
+        robot: String,
+        /// Random configurations of every movable joint.
+        #[arg(long, default_value_t = ferrobot::planning::acm::DEFAULT_SAMPLES)]
+        samples: usize,
+        /// Seed of the sampler.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+    },
     /// What a scene holds (bundled name or scene file): its bodies in the world frame (z up,
     /// metres) and the robot's start pose.
     Scene {
@@ -205,6 +220,60 @@ enum BenchCmd {
         #[arg(long)]
         json: bool,
     },
+    /// Arm planning on a fixed, seeded set of problems in a scene (or a problems file):
+    /// success rate, time, path length, collision checks per second; with --ompl, OMPL's
+    /// RRTConnect on the same problems in the same run.
+    Plan(BenchPlanCli),
+}
+
+#[derive(Args)]
+struct BenchPlanCli {
+    /// Robot name or configuration path.
+    #[arg(long, required_unless_present = "config", conflicts_with = "config")]
+    robot: Option<String>,
+    /// Robot configuration file (the same as --robot PATH).
+    #[arg(long)]
+    config: Option<String>,
+    /// Scene name or path: generated problems (collision-free starts and goals whose
+    /// straight line collides, both near an object when the scene has any besides floor
+    /// and walls).
+    #[arg(
+        long,
+        required_unless_present = "problems_file",
+        conflicts_with = "problems_file"
+    )]
+    scene: Option<String>,
+    /// Problems file (JSON: joints, objects, problems with start and goal; an export is
+    /// one) instead of generated problems.
+    #[arg(long)]
+    problems_file: Option<std::path::PathBuf>,
+    /// Generated problems.
+    #[arg(long, default_value_t = 100)]
+    problems: usize,
+    /// Seed of the problem set and of the planner (problem k: SEED + k).
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// rrt-connect or informed-rrt-star.
+    #[arg(long, default_value = "rrt-connect")]
+    planner: String,
+    /// Time limit per problem, s (OMPL's too).
+    #[arg(long, default_value_t = 1.0)]
+    time_limit: f64,
+    /// Print one JSON object.
+    #[arg(long)]
+    json: bool,
+    /// Write robot, scene, problems and paths here (JSON, as host/planning/peer/plan_peer.py
+    /// reads it; a bundled robot's URDF and the scene's meshes go beside it).
+    #[arg(long)]
+    export: Option<std::path::PathBuf>,
+    /// Also plan the problems with OMPL's RRTConnect (simplified) through the Python peer
+    /// and compare (needs `scripts/python-env.sh plan`).
+    #[arg(long)]
+    ompl: bool,
+    /// OMPL's time limit per problem, s (default: --time-limit; its Python state checks are
+    /// about 0.25 ms each).
+    #[arg(long, requires = "ompl")]
+    ompl_time_limit: Option<f64>,
 }
 
 #[derive(Args)]
@@ -350,6 +419,36 @@ fn run(cli: Cli) -> Result<(), (ferrobot::Error, bool)> {
             };
             (cmd::bench_camera::run(&scenes, seconds, json), json)
         }
+        Cmd::Bench {
+            which: BenchCmd::Plan(a),
+        } => {
+            let robot = a
+                .robot
+                .as_deref()
+                .or(a.config.as_deref())
+                .unwrap_or_default();
+            (
+                cmd::bench_plan::run(&cmd::bench_plan::PlanArgs {
+                    robot,
+                    scene: a.scene.as_deref(),
+                    problems_file: a.problems_file.as_deref(),
+                    problems: a.problems,
+                    seed: a.seed,
+                    planner: &a.planner,
+                    time_limit: a.time_limit,
+                    json: a.json,
+                    export: a.export.as_deref(),
+                    ompl: a.ompl,
+                    ompl_time_limit: a.ompl_time_limit.unwrap_or(a.time_limit),
+                }),
+                a.json,
+            )
+        }
+        Cmd::CollisionMatrix {
+            robot,
+            samples,
+            seed,
+        } => (cmd::collision_matrix::run(&robot, samples, seed), false),
         Cmd::CalibrateOdometry { robot, seed, json } => {
             (cmd::calibrate_odometry::run(&robot, seed, json), json)
         }

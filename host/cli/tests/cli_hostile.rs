@@ -185,6 +185,24 @@ fn scratch() -> PathBuf {
     std::fs::write(dir.join("binary.toml"), binary).expect("binary");
     std::fs::write(dir.join("huge.toml"), vec![b'#'; 2 << 20]).expect("huge");
     std::fs::write(dir.join("empty.toml"), "").expect("empty");
+    // Planning problems files: a malformed object, a start of the wrong length.
+    let joints = r#"["joint_1", "joint_2", "joint_3", "joint_4", "joint_5"]"#;
+    std::fs::write(
+        dir.join("bad-object.json"),
+        format!(
+            r#"{{"joints": {joints}, "objects": [{{"id": "x", "shape": "box", "size": [-1, 1, 1]}}],
+                "problems": [{{"start": [0, 0, 0, 0, 0], "goal": [0.1, 0, 0, 0, 0]}}]}}"#
+        ),
+    )
+    .expect("problems");
+    std::fs::write(
+        dir.join("bad-start.json"),
+        format!(
+            r#"{{"joints": {joints}, "objects": [],
+                "problems": [{{"start": [0, 0], "goal": [0.1, 0, 0, 0, 0]}}]}}"#
+        ),
+    )
+    .expect("problems");
     dir
 }
 
@@ -635,6 +653,135 @@ fn cases() -> Vec<Case> {
         Input,
     ));
     c.push(case(&["bench", "warp"], Input));
+    // bench plan: unknown robots, scenes and planners, absurd counts and limits, malformed
+    // problems files; an export path is never written when the input is refused.
+    fn plan<'a>(extra: &[&'a str]) -> Vec<&'a str> {
+        let mut a = vec!["bench", "plan"];
+        a.extend_from_slice(extra);
+        a
+    }
+    for robot in ["wall-e", "", "./binary.toml", "./empty.toml", "/dev/zero"] {
+        c.push(case(
+            &plan(&["--robot", robot, "--scene", "tabletop", "--json"]),
+            Input,
+        ));
+    }
+    for scene in ["kitchen", "", "./binary.toml", "/dev/zero", "./notes.txt"] {
+        c.push(case(
+            &plan(&["--robot", "locobot", "--scene", scene, "--json"]),
+            Input,
+        ));
+    }
+    for n in [
+        "0",
+        "-1",
+        "1e9",
+        "1000000000",
+        "18446744073709551616",
+        "nan",
+        "",
+    ] {
+        c.push(case(
+            &plan(&[
+                "--robot",
+                "locobot",
+                "--scene",
+                "tabletop",
+                "--problems",
+                n,
+                "--json",
+            ]),
+            Input,
+        ));
+    }
+    for v in HOSTILE {
+        c.push(case(
+            &plan(&[
+                "--robot",
+                "locobot",
+                "--scene",
+                "tabletop",
+                "--time-limit",
+                v,
+                "--json",
+            ]),
+            Input,
+        ));
+    }
+    c.push(case(
+        &plan(&[
+            "--robot",
+            "locobot",
+            "--scene",
+            "tabletop",
+            "--planner",
+            "warp",
+            "--json",
+        ]),
+        Input,
+    ));
+    c.push(case(&plan(&["--robot", "locobot", "--json"]), Input));
+    c.push(case(
+        &plan(&[
+            "--robot",
+            "locobot",
+            "--scene",
+            "tabletop",
+            "--problems-file",
+            "./bad-start.json",
+        ]),
+        Input,
+    ));
+    c.push(case(
+        &plan(&["--robot", "sawyer", "--problems-file", "./bad-start.json"]),
+        Input,
+    ));
+    for file in [
+        "./bad-object.json",
+        "./bad-start.json",
+        "./notes.txt",
+        "./binary.toml",
+        "./huge.toml",
+        "./empty.toml",
+        "./subdir",
+        "/dev/zero",
+        "./nonexistent.json",
+    ] {
+        c.push(case(
+            &plan(&[
+                "--config",
+                "locobot",
+                "--problems-file",
+                file,
+                "--export",
+                "./notes.txt",
+                "--json",
+            ]),
+            Input,
+        ));
+    }
+    c.push(case(
+        &plan(&[
+            "--robot",
+            "wall-e",
+            "--scene",
+            "tabletop",
+            "--export",
+            "./notes.txt",
+            "--ompl",
+        ]),
+        Input,
+    ));
+    // collision-matrix: unknown robots, absurd sample counts.
+    for robot in ["wall-e", "", "./binary.toml", "./huge.toml", "/dev/zero"] {
+        c.push(case(&["collision-matrix", robot], Input));
+    }
+    for n in ["0", "-1", "1e9", "1000000000", "nan"] {
+        c.push(case(
+            &["collision-matrix", "locobot", "--samples", n],
+            Input,
+        ));
+    }
     c.push(case(&["demo", "--robot", "wall-e"], Input));
     c.push(case(&["demo", "--robot", ""], Input));
     // sim-firmware: never replace what exists at the link path.

@@ -70,3 +70,17 @@ pub fn to_json<T: Serialize>(value: &T) -> String {
     // Plain structs of numbers, strings and sequences: serialising them cannot fail.
     serde_json::to_string(value).expect("a plain struct serialises")
 }
+
+/// A planning error as the API's: a refused description, object or value is the input's
+/// fault (a configuration error naming `file` and what was refused); anything else (a start
+/// in collision, no path in time) is the world's.
+pub fn planning_error(file: &std::path::Path, e: ferrobot::planning::Error) -> ferrobot::Error {
+    match e {
+        ferrobot::planning::Error::Invalid { what, why } => ferrobot::Error::Config {
+            file: file.to_path_buf(),
+            key: what,
+            problem: why,
+        },
+        other => ferrobot::Error::Planning(other),
+    }
+}

@@ -4,7 +4,9 @@
 pub mod base_move;
 pub mod bench_base;
 pub mod bench_camera;
+pub mod bench_plan;
 pub mod calibrate_odometry;
+pub mod collision_matrix;
 pub mod common;
 pub mod demo;
 pub mod fk;

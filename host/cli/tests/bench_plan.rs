@@ -1,0 +1,394 @@
+//! `ferrobot bench plan` and `ferrobot collision-matrix`: the JSON summary's shape, an export
+//! that FCL (the Python peer's `check`) finds free of collision at 1 mm, the export read back
+//! as a problems file, and OMPL in the same run.
+//!
+//! The peer's tests need a Python with OMPL and FCL: `FERROBOT_PYTHON` (scripts/test.sh
+//! installs them with `scripts/python-env.sh plan` and sets it; then they must be there), or
+//! else the workspace's `target/py-venv`; without either they are skipped, saying so.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn ferrobot(args: &[&str]) -> (bool, serde_json::Value, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_ferrobot"))
+        .args(args)
+        .output()
+        .expect("runs");
+    let v = serde_json::from_slice(&out.stdout).unwrap_or(serde_json::Value::Null);
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    (out.status.success(), v, text)
+}
+
+/// A fresh scratch directory for one test.
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!(
+        "ferrobot-cli-bench-plan-{name}-{}",
+        std::process::id()
+    ));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("scratch");
+    dir
+}
+
+fn peer_script() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../planning/peer/plan_peer.py")
+}
+
+/// The peer's Python, or `None` (skip) when none has OMPL and FCL and `FERROBOT_PYTHON` is
+/// not set; with it set, a Python without them fails the test.
+fn peer_python() -> Option<String> {
+    let has = |py: &str| {
+        Command::new(py)
+            .args(["-c", "import ompl.geometric, fcl, numpy"])
+            .status()
+            .map(|s| s.success())
+            .unwrap_or(false)
+    };
+    if let Ok(py) = std::env::var("FERROBOT_PYTHON") {
+        assert!(
+            has(&py),
+            "FERROBOT_PYTHON={py:?} cannot import OMPL and FCL; run `scripts/python-env.sh plan` \
+             (scripts/test.sh does)"
+        );
+        return Some(py);
+    }
+    let venv = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../target/py-venv/bin/python");
+    let venv = venv.to_string_lossy().into_owned();
+    if has(&venv) {
+        return Some(venv);
+    }
+    eprintln!("skipped: no Python with OMPL and FCL (run `scripts/python-env.sh plan`)");
+    None
+}
+
+fn keys(v: &serde_json::Value) -> Vec<String> {
+    let mut k: Vec<String> = v
+        .as_object()
+        .map(|o| o.keys().cloned().collect())
+        .unwrap_or_default();
+    k.sort();
+    k
+}
+
+fn successes(export: &Path) -> Vec<bool> {
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(export).expect("export")).expect("JSON");
+    v["problems"]
+        .as_array()
+        .expect("problems")
+        .iter()
+        .map(|p| p["success"].as_bool().expect("success"))
+        .collect()
+}
+
+#[test]
+fn the_summary_has_its_keys_and_every_tabletop_problem_is_solved() {
+    let (ok, v, text) = ferrobot(&[
+        "bench",
+        "plan",
+        "--robot",
+        "locobot",
+        "--scene",
+        "tabletop",
+        "--problems",
+        "5",
+        "--seed",
+        "1",
+        "--json",
+    ]);
+    assert!(ok, "{text}");
+    assert_eq!(
+        keys(&v),
+        [
+            "collision_checks_per_s",
+            "path_length_rad",
+            "planner",
+            "problems",
+            "robot",
+            "scene",
+            "success_rate",
+            "time_ms"
+        ]
+    );
+    assert_eq!(keys(&v["time_ms"]), ["max", "median", "p95"]);
+    assert_eq!(keys(&v["path_length_rad"]), ["median"]);
+    assert_eq!(v["success_rate"], 1.0, "{v}");
+    assert_eq!(v["problems"], 5);
+    assert_eq!(v["robot"], "locobot");
+    assert_eq!(v["scene"], "tabletop");
+    assert_eq!(v["planner"], "rrt-connect");
+    let t = &v["time_ms"];
+    let (median, p95, max) = (
+        t["median"].as_f64().expect("median"),
+        t["p95"].as_f64().expect("p95"),
+        t["max"].as_f64().expect("max"),
+    );
+    assert!(0.0 < median && median <= p95 && p95 <= max, "{t}");
+    assert!(v["path_length_rad"]["median"].as_f64().expect("length") > 0.0);
+    assert!(v["collision_checks_per_s"].as_f64().expect("rate") > 0.0);
+}
+
+#[test]
+fn an_export_is_free_under_fcl_and_plans_again_as_a_problems_file() {
+    let dir = scratch("export");
+    let export = dir.join("tabletop.json");
+    let ex = export.to_str().expect("utf-8");
+    let (ok, v, text) = ferrobot(&[
+        "bench",
+        "plan",
+        "--robot",
+        "locobot",
+        "--scene",
+        "tabletop",
+        "--problems",
+        "5",
+        "--seed",
+        "2",
+        "--export",
+        ex,
+        "--json",
+    ]);
+    assert!(ok, "{text}");
+    // The bundled URDF and the scene's two meshes are written beside the export.
+    let e: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&export).expect("export")).expect("JSON");
+    assert_eq!(e["urdf"], "tabletop.urdf");
+    assert!(dir.join("tabletop.urdf").is_file());
+    let meshes: Vec<&str> = e["objects"]
+        .as_array()
+        .expect("objects")
+        .iter()
+        .filter_map(|o| o["mesh"].as_str())
+        .collect();
+    assert_eq!(meshes.len(), 2, "{meshes:?}");
+    assert!(meshes.iter().all(|m| dir.join(m).is_file()));
+    assert_eq!(e["root_link"], "base_footprint");
+    assert!(e["objects"]
+        .as_array()
+        .expect("objects")
+        .iter()
+        .any(|o| o["id"] == "floor"));
+    assert_eq!(successes(&export), vec![true; 5]);
+
+    // The export as a problems file: the same problems, solved again.
+    let again = dir.join("again.json");
+    let (ok, w, text) = ferrobot(&[
+        "bench",
+        "plan",
+        "--config",
+        "locobot",
+        "--problems-file",
+        ex,
+        "--export",
+        again.to_str().expect("utf-8"),
+        "--json",
+    ]);
+    assert!(ok, "{text}");
+    assert_eq!(w["success_rate"], v["success_rate"]);
+    assert_eq!(w["problems"], 5);
+    assert_eq!(successes(&again), successes(&export));
+
+    if let Some(py) = peer_python() {
+        for file in [&export, &again] {
+            let out = Command::new(&py)
+                .arg(peer_script())
+                .arg("check")
+                .arg(file)
+                .output()
+                .expect("peer runs");
+            let report: serde_json::Value =
+                serde_json::from_slice(&out.stdout).unwrap_or(serde_json::Value::Null);
+            assert!(
+                out.status.success() && report["ok"] == true,
+                "FCL finds collisions on {}: {report} {}",
+                file.display(),
+                String::from_utf8_lossy(&out.stderr)
+            );
+            assert_eq!(report["paths"], 5, "{report}");
+        }
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn ompl_runs_in_the_same_run() {
+    if peer_python().is_none() {
+        return;
+    }
+    let (ok, v, text) = ferrobot(&[
+        "bench",
+        "plan",
+        "--robot",
+        "locobot",
+        "--scene",
+        "tabletop",
+        "--problems",
+        "2",
+        "--ompl",
+        "--ompl-time-limit",
+        "0.5",
+        "--json",
+    ]);
+    assert!(ok, "{text}");
+    let peer = &v["peer"];
+    assert_eq!(peer["planner"], "ompl-RRTConnect", "{v}");
+    assert_eq!(peer["problems"], 2);
+    assert!(
+        peer["ratio_median"].as_f64().expect("ratio") > 0.0,
+        "{peer}"
+    );
+}
+
+#[test]
+fn problems_files_written_by_anyone_are_checked() {
+    let dir = scratch("files");
+    let joints = r#"["joint_1", "joint_2", "joint_3", "joint_4", "joint_5"]"#;
+    let problem = r#"[{"start": [0, 0, 0, 0, 0], "goal": [0.5, 0, 0, 0, 0]}]"#;
+    let file = |name: &str, joints: &str, objects: &str, problems: &str| {
+        let p = dir.join(name);
+        std::fs::write(
+            &p,
+            format!(r#"{{"joints": {joints}, "objects": {objects}, "problems": {problems}}}"#),
+        )
+        .expect("write");
+        p
+    };
+    std::fs::write(
+        dir.join("tetra.obj"),
+        "v 0 0 0\nv 0.1 0 0\nv 0 0.1 0\nv 0 0 0.1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n",
+    )
+    .expect("mesh");
+    // Every shape, a mesh relative to the file, a quaternion a little off unit length.
+    let good = file(
+        "good.json",
+        joints,
+        r#"[{"id": "b", "shape": "box", "size": [0.1, 0.1, 0.1], "position": [-0.6, 0, 0.3]},
+            {"id": "c", "shape": "cylinder", "size": [0.05, 0.2], "position": [-0.6, 0.3, 0.3]},
+            {"id": "s", "shape": "sphere", "size": [0.05], "position": [-0.6, -0.3, 0.3]},
+            {"id": "k", "shape": "capsule", "size": [0.03, 0.1], "position": [-0.6, 0.5, 0.3],
+             "quaternion": [0, 0, 0.70711, 0.70711]},
+            {"id": "m", "shape": "mesh", "mesh": "tetra.obj", "position": [-0.6, -0.5, 0.3]}]"#,
+        problem,
+    );
+    let (ok, v, text) = ferrobot(&[
+        "bench",
+        "plan",
+        "--robot",
+        "locobot",
+        "--problems-file",
+        good.to_str().expect("utf-8"),
+        "--json",
+    ]);
+    assert!(ok, "{text}");
+    assert_eq!(v["success_rate"], 1.0, "{v}");
+    let bad = [
+        (
+            "negative.json",
+            joints,
+            r#"[{"id": "neg", "shape": "box", "size": [0.1, -0.1, 0.1]}]"#,
+            problem,
+            "neg",
+        ),
+        (
+            "cone.json",
+            joints,
+            r#"[{"id": "cone", "shape": "cone", "size": [0.1, 0.1]}]"#,
+            problem,
+            "cone",
+        ),
+        (
+            "count.json",
+            joints,
+            r#"[{"id": "short", "shape": "box", "size": [0.1, 0.1]}]"#,
+            problem,
+            "short",
+        ),
+        (
+            "pose.json",
+            joints,
+            r#"[{"id": "far", "shape": "sphere", "size": [0.1], "position": [1e300, 0, 0]}]"#,
+            problem,
+            "far",
+        ),
+        (
+            "quaternion.json",
+            joints,
+            r#"[{"id": "spin", "shape": "sphere", "size": [0.1], "quaternion": [0, 0, 0, 0]}]"#,
+            problem,
+            "spin",
+        ),
+        (
+            "nomesh.json",
+            joints,
+            r#"[{"id": "ghost", "shape": "mesh", "mesh": "missing.obj"}]"#,
+            problem,
+            "ghost",
+        ),
+        (
+            "twice.json",
+            joints,
+            r#"[{"id": "dup", "shape": "sphere", "size": [0.1]},
+                {"id": "dup", "shape": "sphere", "size": [0.1]}]"#,
+            problem,
+            "dup",
+        ),
+        (
+            "joints.json",
+            r#"["joint_1", "joint_2"]"#,
+            "[]",
+            problem,
+            "joints",
+        ),
+        (
+            "length.json",
+            joints,
+            "[]",
+            r#"[{"start": [0, 0, 0, 0], "goal": [0, 0, 0, 0, 0]}]"#,
+            "problems[0].start",
+        ),
+        (
+            "limits.json",
+            joints,
+            "[]",
+            r#"[{"start": [0, 0, 0, 0, 0], "goal": [0, 0, 0, 0, 1e300]}]"#,
+            "problems[0].goal",
+        ),
+        ("none.json", joints, "[]", "[]", "problems"),
+    ];
+    for (name, j, objects, problems, named) in bad {
+        let p = file(name, j, objects, problems);
+        let (ok, v, text) = ferrobot(&[
+            "bench",
+            "plan",
+            "--robot",
+            "locobot",
+            "--problems-file",
+            p.to_str().expect("utf-8"),
+            "--json",
+        ]);
+        assert!(!ok, "{name}: {text}");
+        let error = v["error"].as_str().unwrap_or_default();
+        assert!(
+            error.contains(named) && v["input_error"] == true,
+            "{name}: the error does not name {named:?}: {text}"
+        );
+        assert!(!text.contains("panicked"), "{name}: {text}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn collision_matrix_prints_the_stored_section() {
+    let (ok, _, text) = ferrobot(&["collision-matrix", "sawyer", "--samples", "10000"]);
+    assert!(ok, "{text}");
+    assert!(text.contains("[collision]\ndisabled = ["), "{text}");
+    let stored = include_str!("../../description/robots/sawyer.toml");
+    assert!(
+        stored.ends_with(&text),
+        "sawyer.toml does not end with the section computed now:\n{text}"
+    );
+}
