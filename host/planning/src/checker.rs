@@ -80,6 +80,9 @@ pub struct Counters {
     pub exact_checks: AtomicU64,
     /// Edges checked.
     pub edges: AtomicU64,
+    /// Paths the planners had to search again with proven edges (their search's edges
+    /// missed a contact).
+    pub replans: AtomicU64,
 }
 
 /// A body of the robot: a link's geometry or an attached object, in its link's frame.

@@ -360,6 +360,10 @@ fn proven(
     if checker.path_proven(&path) {
         return Ok(path);
     }
+    checker
+        .counters()
+        .replans
+        .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     checker.set_proven(true);
     let mut rng = ChaCha8Rng::seed_from_u64(opts.seed ^ 0x5eed);
     let r = again(checker, &mut rng, t0);
