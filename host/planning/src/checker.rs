@@ -597,6 +597,13 @@ impl Checker {
             });
         }
         let mut clear = cap;
+        // Counted here and added once: an atomic add per obstacle costs more than the test.
+        let mut checks = 0u64;
+        let flush = |checks: u64| {
+            self.counters
+                .sphere_checks
+                .fetch_add(checks, Ordering::Relaxed)
+        };
         let speed_of = |b: usize| speed.map_or(1.0, |v| v[b]).max(1e-9);
         for (bi, b) in self.bodies.iter().enumerate() {
             if !b.moving {
@@ -611,9 +618,19 @@ impl Checker {
                 if gap >= clear * m {
                     continue;
                 }
-                self.counters
-                    .sphere_checks
-                    .fetch_add((hi - lo) as u64, Ordering::Relaxed);
+                checks += (hi - lo) as u64;
+                // Most obstacles are far from most bodies: a test that vectorises first.
+                if !spheres_near(
+                    &o.sdf,
+                    &o.inv,
+                    &s.x[lo..hi],
+                    &s.y[lo..hi],
+                    &s.z[lo..hi],
+                    &s.r[lo..hi],
+                    (clear * m) as f32,
+                ) {
+                    continue;
+                }
                 let lb = f64::from(spheres_gap(
                     &o.sdf,
                     &o.inv,
@@ -636,6 +653,7 @@ impl Checker {
                     &self.counters,
                 );
                 if d <= 0.0 {
+                    flush(checks);
                     return Err(Contact {
                         a: b.name.clone(),
                         b: o.id.clone(),
@@ -644,7 +662,13 @@ impl Checker {
                 clear = clear.min(d / m);
             }
             if let Some(g) = &self.grid {
-                clear = clear.min(self.grid_gap(g, b, bi, s, clear * m)? / m);
+                match self.grid_gap(g, b, bi, s, clear * m) {
+                    Ok(gap) => clear = clear.min(gap / m),
+                    Err(c) => {
+                        flush(checks);
+                        return Err(c);
+                    }
+                }
             }
         }
         // Moving bodies against each other: both move, so the sum of their speeds.
@@ -661,9 +685,15 @@ impl Checker {
             }
             let (li, hi_) = s.ranges[i];
             let (lj, hj) = s.ranges[j];
-            self.counters
-                .sphere_checks
-                .fetch_add(((hi_ - li) * (hj - lj)) as u64, Ordering::Relaxed);
+            checks += ((hi_ - li) * (hj - lj)) as u64;
+            let reach = (m * clear) as f32;
+            if !pairs_near(
+                (&s.x[li..hi_], &s.y[li..hi_], &s.z[li..hi_], &s.r[li..hi_]),
+                (&s.x[lj..hj], &s.y[lj..hj], &s.z[lj..hj], &s.r[lj..hj]),
+                reach,
+            ) {
+                continue;
+            }
             let mut lb = f32::INFINITY;
             let (cx, cy, cz) = (bj.centre.x as f32, bj.centre.y as f32, bj.centre.z as f32);
             let rj = bj.radius as f32;
@@ -699,6 +729,7 @@ impl Checker {
                 .collect();
             let d = exact_gap(&a.exact, &s.poses[a.link], &other, &self.counters);
             if d <= 0.0 {
+                flush(checks);
                 return Err(Contact {
                     a: a.name.clone(),
                     b: b.name.clone(),
@@ -706,6 +737,7 @@ impl Checker {
             }
             clear = clear.min(d / m);
         }
+        flush(checks);
         Ok(clear.max(0.0))
     }
 
@@ -903,6 +935,53 @@ impl Checker {
         path.len() == 1 && self.is_free(&path[0])
             || path.windows(2).all(|w| self.motion_proven(&w[0], &w[1])) && !path.is_empty()
     }
+}
+
+/// Whether any sphere (world `x, y, z`, radius `r`) comes within `reach` (m) of the obstacle.
+#[inline]
+fn spheres_near(
+    sdf: &Sdf,
+    inv: &[f32; 12],
+    x: &[f32],
+    y: &[f32],
+    z: &[f32],
+    r: &[f32],
+    reach: f32,
+) -> bool {
+    let mut any = false;
+    for k in 0..x.len() {
+        let (wx, wy, wz) = (x[k], y[k], z[k]);
+        let lx = inv[0] * wx + inv[1] * wy + inv[2] * wz + inv[9];
+        let ly = inv[3] * wx + inv[4] * wy + inv[5] * wz + inv[10];
+        let lz = inv[6] * wx + inv[7] * wy + inv[8] * wz + inv[11];
+        any |= sdf.distance(lx, ly, lz) < r[k] + reach;
+    }
+    any
+}
+
+/// A body's spheres: x, y, z, radius (m).
+type SphereSlices<'a> = (&'a [f32], &'a [f32], &'a [f32], &'a [f32]);
+
+/// Whether any sphere of `a` comes within `reach` (m) of any sphere of `b` (squared
+/// distances, no roots: the loop vectorises).
+#[inline]
+fn pairs_near(a: SphereSlices<'_>, b: SphereSlices<'_>, reach: f32) -> bool {
+    let (bx, by, bz, br) = b;
+    for k in 0..a.0.len() {
+        let (x, y, z, r) = (a.0[k], a.1[k], a.2[k], a.3[k] + reach);
+        let mut any = false;
+        for m in 0..bx.len() {
+            let dx = bx[m] - x;
+            let dy = by[m] - y;
+            let dz = bz[m] - z;
+            let rr = br[m] + r;
+            any |= dx * dx + dy * dy + dz * dz < rr * rr;
+        }
+        if any {
+            return true;
+        }
+    }
+    false
 }
 
 /// The smallest gap (m, negative inside) between any sphere (world `x, y, z`, radius `r`)
