@@ -107,6 +107,61 @@ fn the_arm_refuses_hostile_values() {
         .expect("moves");
 }
 
+/// The planning scene and the planner: objects with hostile poses and sizes, point clouds
+/// with hostile points and voxels, hostile joint and pose goals.
+#[test]
+fn the_planning_scene_refuses_hostile_values() {
+    let bot = Robot::new("locobot").expect("robot");
+    let arm = bot.arm().expect("arm");
+    let calls = std::cell::Cell::new(0usize);
+    let strategy = (
+        vector(3..8),
+        triple(),
+        triple(),
+        [value(), value(), value(), value()],
+        (value(), prop::collection::vec(triple(), 0..4)),
+    );
+    runner(7)
+        .run(&strategy, |(q, p, size, quat, (a, cloud))| {
+            let bad_pose = absurd(&p) || absurd(&quat) || quat.iter().all(|v| *v == 0.0);
+            let bad_size = absurd(&size) || size.iter().any(|v| v.is_nan() || *v <= 0.0);
+            let r = arm.add_world_object("hostile", p, Orientation::Quaternion(quat), size);
+            judge("add_world_object", bad_pose || bad_size, &r)?;
+            let r = arm.add_world_shape(
+                "ball",
+                ferrobot::planning::Shape::Sphere(a),
+                p,
+                Orientation::YawPitchRoll([a, a, a]),
+            );
+            judge(
+                "add_world_shape",
+                absurd(&p) || absurd(&[a]) || a.is_nan() || a <= 0.0,
+                &r,
+            )?;
+            let r = arm.attach_arm_object("held", p, Orientation::Quaternion(quat), size);
+            judge("attach_arm_object", bad_pose || bad_size, &r)?;
+            let flat: Vec<f64> = cloud.iter().flatten().copied().collect();
+            let r = arm.set_point_cloud(Some(&cloud), a);
+            judge(
+                "set_point_cloud",
+                absurd(&flat) || absurd(&[a]) || a.is_nan() || a <= 0.0,
+                &r,
+            )?;
+            let r = arm.make_plan_joint_positions(&q);
+            judge("make_plan_joint_positions", q.len() != 5 || absurd(&q), &r)?;
+            let r = arm.make_plan_pose(p, Orientation::Quaternion(quat));
+            judge("make_plan_pose", bad_pose, &r)?;
+            let _ = arm.get_collision_state();
+            arm.remove_all_objects().expect("clear");
+            calls.set(calls.get() + 7);
+            Ok(())
+        })
+        .expect("the planning scene refuses hostile values");
+    report("planning", calls.get());
+    arm.set_joint_positions(&[0.2, 0.0, 0.0, 0.0, 0.0])
+        .expect("still plans and moves");
+}
+
 #[test]
 fn the_base_refuses_hostile_values() {
     let cell = std::cell::RefCell::new(

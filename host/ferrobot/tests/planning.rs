@@ -237,3 +237,56 @@ fn planning_failures_are_typed() {
     assert!(arm.make_plan_joint_positions(&[f64::NAN; 5]).is_err());
     assert!(arm.make_plan_joint_positions(&[9.0; 5]).is_err());
 }
+
+/// Executing planned motions among the tabletop's objects (imported from the simulated world)
+/// makes no contact between the arm and anything in the physics engine.
+#[test]
+fn planned_motions_in_the_tabletop_touch_nothing_in_the_physics_engine() {
+    let bot = Robot::builder("locobot")
+        .scene("tabletop")
+        .build()
+        .expect("robot");
+    let arm = bot.arm().expect("arm");
+    assert!(arm.add_scene_objects().expect("objects") > 5);
+    let links = [
+        "shoulder_link",
+        "elbow_link",
+        "forearm_link",
+        "wrist_link",
+        "gripper_link",
+        "finger_r",
+        "finger_l",
+        "ar_tag",
+    ];
+    bot.simulator()
+        .expect("simulator")
+        .hw
+        .watch_robot_contacts(&links)
+        .expect("watch");
+    let down = std::f64::consts::FRAC_PI_2;
+    // Above the objects, from one side of the table to the other, and back home.
+    let mut moves = 0;
+    for target in [
+        [0.36, 0.0, 0.26],
+        [0.34, 0.15, 0.26],
+        [0.34, -0.15, 0.26],
+        [0.4, 0.08, 0.24],
+        [0.4, -0.08, 0.24],
+    ] {
+        arm.set_ee_pose_pitch_roll(target, down, Some(0.0))
+            .unwrap_or_else(|e| panic!("to {target:?}: {e}"));
+        moves += 1;
+    }
+    // Joint targets low over the table's sides.
+    for q in [[0.9, 0.1, 0.3, 0.6, 0.0], [-0.9, 0.1, 0.3, 0.6, 0.0]] {
+        arm.set_joint_positions(&q).expect("joint target");
+        moves += 1;
+    }
+    arm.go_home().expect("home");
+    let contacts = bot.simulator().expect("simulator").hw.take_robot_contacts();
+    eprintln!(
+        "{moves} planned motions and home: {} contacts",
+        contacts.len()
+    );
+    assert!(contacts.is_empty(), "{contacts:?}");
+}

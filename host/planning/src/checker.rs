@@ -1,17 +1,22 @@
 //! State and motion validity: the robot (its moving links and what they carry) against the
 //! planning scene and against itself.
 //!
+//! The planners' search checks edges faster: it advances by the same bound where the spheres
+//! show room, and by `resolution` with a contact check where they do not; paths are then
+//! proven edge by edge before they are returned.
+//!
 //! A state is checked in two stages. The broad stage tests each body's conservative spheres
 //! against each obstacle's signed distance (in `f32`, structure-of-arrays loops the compiler
 //! vectorises); spheres found clear prove their body clear. Only where a sphere is not clear
 //! does the exact stage run parry3d on the body's real shapes.
 //!
 //! A motion (a straight joint-space edge) is proven free by conservative advancement, not
-//! sampled: a joint step Δq moves no point of the robot more than `Σ |Δqᵢ|·reachᵢ`
-//! ([`CollisionModel::reach`]). At each state the checker finds a lower bound of the robot's
-//! clearance (from the spheres where they are far, exact distances where they are near), and
-//! advances along the edge by as much motion as that clearance allows (half of it against the
-//! robot's other moving links, which move too), capped at `max_step`. Where the clearance is
+//! sampled: a joint step Δq moves no point of a body more than `Σ |Δqᵢ|·reachᵢ` with the
+//! body's own reach ([`CollisionModel::link_reach`]; links near the base move slowly). At each
+//! state the checker finds a lower bound of each body's clearance (from the spheres where they
+//! are far, exact distances where they are near), and advances along the edge as far as every
+//! body's clearance over its speed allows (a pair of moving bodies: over the sum of their
+//! speeds), capped at `max_step` of the fastest point. Where the clearance is
 //! below `min_step` it takes a step of `min_step` only when the clearances at the step's two
 //! ends add up to more than the step (no point of the robot can then reach an obstacle from
 //! either end), halving the step until they do; an edge that would need a step below
@@ -73,6 +78,11 @@ pub struct Counters {
     pub sphere_checks: AtomicU64,
     /// Exact (parry3d) shape-pair queries.
     pub exact_checks: AtomicU64,
+    /// Edges checked.
+    pub edges: AtomicU64,
+    /// Paths the planners had to search again with proven edges (their search's edges
+    /// missed a contact).
+    pub replans: AtomicU64,
 }
 
 /// A body of the robot: a link's geometry or an attached object, in its link's frame.
@@ -185,6 +195,8 @@ pub struct Checker {
     /// For each body, the robot obstacles it is checked against.
     fixed_of: Vec<Vec<usize>>,
     reach: Vec<f64>,
+    /// Each body's reach per planned joint ([`CollisionModel::link_reach`]); 0 when fixed.
+    body_reach: Vec<Vec<f64>>,
     opts: CheckOptions,
     scratch: RefCell<Scratch>,
     counters: Counters,
@@ -420,7 +432,18 @@ impl Checker {
             .map(|b| (b.link, b.spheres.clone()))
             .collect();
         let reach = model.reach(&extra);
+        let body_reach = bodies
+            .iter()
+            .map(|b| {
+                if b.moving {
+                    model.link_reach(b.link, &b.spheres)
+                } else {
+                    vec![0.0; model.dof()]
+                }
+            })
+            .collect();
         Ok(Checker {
+            body_reach,
             model,
             bodies,
             obstacles,
@@ -525,6 +548,22 @@ impl Checker {
     /// no contact can occur: the clearance to the scene and to links that do not move, and
     /// half the clearance between moving links. A contact is an error naming the bodies.
     fn measure(&self, q: &[f64], cap: f64) -> std::result::Result<f64, Contact> {
+        self.measure_with(q, None, cap, (cap * 0.5).max(self.opts.min_step))
+    }
+
+    /// How far (in units of `speed`) the robot may go from `q` with no contact possible: each
+    /// body's gap divided by its `speed` (m of point motion per unit; a pair's by the sum of
+    /// both), at most `cap`. Without `speed`, every body moves at 1 (the result is
+    /// [`Checker::measure`]'s clearance). Exact distances are computed only where the spheres'
+    /// bound is below `exact_below` (m; 0: only where spheres overlap, to tell contact from
+    /// none).
+    fn measure_with(
+        &self,
+        q: &[f64],
+        speed: Option<&[f64]>,
+        cap: f64,
+        exact_below: f64,
+    ) -> std::result::Result<f64, Contact> {
         self.counters.states.fetch_add(1, Ordering::Relaxed);
         let mut s = self.scratch.borrow_mut();
         let s = &mut *s;
@@ -558,19 +597,18 @@ impl Checker {
             });
         }
         let mut clear = cap;
-        // Exact distances are worth their cost only below this; above it the spheres' bound
-        // is used as it is.
-        let exact_below = (cap * 0.5).max(self.opts.min_step);
+        let speed_of = |b: usize| speed.map_or(1.0, |v| v[b]).max(1e-9);
         for (bi, b) in self.bodies.iter().enumerate() {
             if !b.moving {
                 continue;
             }
+            let m = speed_of(bi);
             let bound = s.bounds[bi];
             let (lo, hi) = s.ranges[bi];
             let fixed = self.fixed_of[bi].iter().map(|&o| &self.robot_obstacles[o]);
             for o in self.obstacles.iter().chain(fixed) {
                 let gap = (bound.centre.coords - o.centre).norm() - bound.radius - o.radius;
-                if gap >= clear {
+                if gap >= clear * m {
                     continue;
                 }
                 self.counters
@@ -584,11 +622,11 @@ impl Checker {
                     &s.z[lo..hi],
                     &s.r[lo..hi],
                 ));
-                if lb >= clear {
+                if lb >= clear * m {
                     continue;
                 }
                 if lb >= exact_below {
-                    clear = lb;
+                    clear = lb / m;
                     continue;
                 }
                 let d = exact_gap(
@@ -603,17 +641,22 @@ impl Checker {
                         b: o.id.clone(),
                     });
                 }
-                clear = clear.min(d);
+                clear = clear.min(d / m);
             }
             if let Some(g) = &self.grid {
-                clear = clear.min(self.grid_gap(g, b, bi, s, clear)?);
+                clear = clear.min(self.grid_gap(g, b, bi, s, clear * m)? / m);
             }
         }
-        // Moving bodies against each other: both move, so half the gap.
+        // Moving bodies against each other: both move, so the sum of their speeds.
         for &(i, j) in &self.pairs {
             let (bi, bj) = (&s.bounds[i], &s.bounds[j]);
+            let m = if speed.is_some() {
+                speed_of(i) + speed_of(j)
+            } else {
+                2.0
+            };
             let gap = (bi.centre - bj.centre).norm() - bi.radius - bj.radius;
-            if gap >= 2.0 * clear {
+            if gap >= m * clear {
                 continue;
             }
             let (li, hi_) = s.ranges[i];
@@ -628,7 +671,7 @@ impl Checker {
                 let (x, y, z, r) = (s.x[k], s.y[k], s.z[k], s.r[k]);
                 // This sphere against the other body's bound first.
                 let far = ((cx - x).powi(2) + (cy - y).powi(2) + (cz - z).powi(2)).sqrt() - rj - r;
-                if f64::from(far) >= 2.0 * clear {
+                if f64::from(far) >= m * clear {
                     lb = lb.min(far);
                     continue;
                 }
@@ -640,11 +683,11 @@ impl Checker {
                 }
             }
             let lb = f64::from(lb);
-            if lb >= 2.0 * clear {
+            if lb >= m * clear {
                 continue;
             }
             if lb >= 2.0 * exact_below {
-                clear = lb / 2.0;
+                clear = lb / m;
                 continue;
             }
             let (a, b) = (&self.bodies[i], &self.bodies[j]);
@@ -661,7 +704,7 @@ impl Checker {
                     b: b.name.clone(),
                 });
             }
-            clear = clear.min(d / 2.0);
+            clear = clear.min(d / m);
         }
         Ok(clear.max(0.0))
     }
@@ -738,23 +781,51 @@ impl Checker {
         if !self.within_limits(a) || !self.within_limits(b) {
             return false;
         }
-        let n = (self.motion_bound(a, b) / self.opts.resolution).ceil() as usize;
+        // Advance by the spheres' clearance where it is large (proven free), by the resolution
+        // where it is not (checked for contact alone).
+        self.advance(a, b, self.opts.resolution, 0.0)
+    }
+
+    /// Each body's largest point motion (m) over the edge from `a` to `b`.
+    fn speeds(&self, a: &[f64], b: &[f64]) -> Vec<f64> {
+        self.body_reach
+            .iter()
+            .map(|r| {
+                r.iter()
+                    .zip(a.iter().zip(b))
+                    .map(|(r, (x, y))| r * (x - y).abs())
+                    .sum()
+            })
+            .collect()
+    }
+
+    /// The search's edge check: from each state, as far as every body's gap over its speed
+    /// along the edge allows (at most `max_step` of the fastest point), and at least `floor`
+    /// (m of the fastest point, where states are checked for contact alone). Exact distances
+    /// where the spheres' bound is below `exact_below` (m).
+    fn advance(&self, a: &[f64], b: &[f64], floor: f64, exact_below: f64) -> bool {
+        self.counters.edges.fetch_add(1, Ordering::Relaxed);
+        let total = self.motion_bound(a, b);
+        let speed = self.speeds(a, b);
         let mut q = a.to_vec();
-        // States 1..=n in an order that halves the gaps: a collision in the middle shows
-        // early.
-        for k in van_der_corput(n + 1) {
-            if k == 0 {
-                continue;
-            }
-            let t = k as f64 / n as f64;
+        let mut t = 0.0f64;
+        let (cap, floor) = if total > 0.0 {
+            (self.opts.max_step / total, floor / total)
+        } else {
+            (1.0, 1.0)
+        };
+        loop {
             for ((v, x), y) in q.iter_mut().zip(a).zip(b) {
                 *v = x + (y - x) * t;
             }
-            if self.measure(&q, 0.0).is_err() {
+            let Ok(dt) = self.measure_with(&q, Some(&speed), cap, exact_below) else {
                 return false;
+            };
+            if t >= 1.0 {
+                return true;
             }
+            t = (t + dt.max(floor)).min(1.0);
         }
-        n > 0 || self.measure(b, 0.0).is_ok()
     }
 
     /// Makes [`Checker::motion_free`] prove edges (true) or check them at the resolution.
@@ -768,14 +839,23 @@ impl Checker {
         if !self.within_limits(a) || !self.within_limits(b) {
             return false;
         }
+        self.counters.edges.fetch_add(1, Ordering::Relaxed);
         let total = self.motion_bound(a, b);
+        let speed = self.speeds(a, b);
+        let exact_below = (self.opts.max_step * 0.5).max(self.opts.min_step);
         let mut q = a.to_vec();
-        // The clearance at `t`, as robot-point motion (m), or `None` at a contact.
+        let (cap, min_dt) = if total > 0.0 {
+            (self.opts.max_step / total, self.opts.min_step / total)
+        } else {
+            (1.0, 1.0)
+        };
+        // How far along the edge (in t) nothing can be reached from `t`, or `None` at a
+        // contact.
         let mut clearance = |t: f64| {
             for ((v, x), y) in q.iter_mut().zip(a).zip(b) {
                 *v = x + (y - x) * t;
             }
-            self.measure(&q, self.opts.max_step).ok()
+            self.measure_with(&q, Some(&speed), cap, exact_below).ok()
         };
         let Some(mut clear) = clearance(0.0) else {
             return false;
@@ -783,12 +863,12 @@ impl Checker {
         if total <= 0.0 {
             return true;
         }
-        let smallest = self.opts.min_step / 128.0;
+        let smallest = min_dt / 128.0;
         let mut t = 0.0f64;
         while t < 1.0 {
-            if clear >= self.opts.min_step {
-                // No point can reach anything within `clear` of motion.
-                t = (t + clear / total).min(1.0);
+            if clear >= min_dt {
+                // No point can reach anything within `clear`.
+                t = (t + clear).min(1.0);
                 let Some(c) = clearance(t) else {
                     return false;
                 };
@@ -796,15 +876,15 @@ impl Checker {
                 continue;
             }
             // Near contact: a step of h is free when the clearances at its ends add up to more
-            // than h (a point x into it is at least max(c0 - x, c1 - (h - x)) > 0 from
-            // anything).
-            let mut h = self.opts.min_step;
+            // than h (a point x into it is at least max(c0 − x, c1 − (h − x)) > 0 from
+            // anything; for each body, as each clearance is the smallest over bodies).
+            let mut h = min_dt;
             loop {
-                let next = (t + h / total).min(1.0);
+                let next = (t + h).min(1.0);
                 let Some(c) = clearance(next) else {
                     return false;
                 };
-                if clear + c > (next - t) * total {
+                if clear + c > next - t {
                     t = next;
                     clear = c;
                     break;
@@ -823,19 +903,6 @@ impl Checker {
         path.len() == 1 && self.is_free(&path[0])
             || path.windows(2).all(|w| self.motion_proven(&w[0], &w[1])) && !path.is_empty()
     }
-}
-
-/// `0..n` in an order that halves the gaps (bit-reversal over the next power of two,
-/// skipping values ≥ n).
-fn van_der_corput(n: usize) -> Vec<usize> {
-    if n <= 2 {
-        return (0..n).collect();
-    }
-    let bits = usize::BITS - (n - 1).leading_zeros();
-    (0..(1usize << bits))
-        .map(|k| k.reverse_bits() >> (usize::BITS - bits))
-        .filter(|&r| r < n)
-        .collect()
 }
 
 /// The smallest gap (m, negative inside) between any sphere (world `x, y, z`, radius `r`)

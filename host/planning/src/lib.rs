@@ -33,3 +33,4 @@ pub use model::CollisionModel;
 pub use planner::{InformedRrtStar, Plan, PlanOptions, Planner, RrtConnect};
 pub use scene::{AttachedObject, PlanningScene, Voxels, WorldObject};
 pub use shape::Shape;
+pub use timing::{time_optimal, Limits, TimingOptions, Trajectory, TrajectoryPoint};

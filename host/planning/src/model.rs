@@ -435,65 +435,66 @@ impl CollisionModel {
     /// frame): a step Δq moves no point more than Σ |Δqᵢ|·reachᵢ (revolute) + |Δqᵢ|
     /// (prismatic).
     pub fn reach(&self, extra: &[(usize, Vec<Sphere>)]) -> Vec<f64> {
+        let mut out = vec![0.0f64; self.planned.len()];
+        for l in 0..self.links.len() {
+            let spheres: Vec<Sphere> = self.links[l]
+                .spheres
+                .iter()
+                .copied()
+                .chain(
+                    extra
+                        .iter()
+                        .filter(|(el, _)| *el == l)
+                        .flat_map(|(_, s)| s.iter().copied()),
+                )
+                .collect();
+            for (o, r) in out.iter_mut().zip(self.link_reach(l, &spheres)) {
+                *o = o.max(r);
+            }
+        }
+        out
+    }
+
+    /// For each planned joint, a bound on the distance (m) from the joint's origin of any of
+    /// `spheres` (in link `link`'s frame) when the joint carries the link, else 0: a step Δq
+    /// moves no point of them more than Σ |Δqᵢ|·reachᵢ (revolute) + |Δqᵢ| (prismatic).
+    pub fn link_reach(&self, link: usize, spheres: &[Sphere]) -> Vec<f64> {
+        let extent = spheres
+            .iter()
+            .map(|s| s.centre.coords.norm() + s.radius)
+            .fold(0.0, f64::max);
         self.planned
             .iter()
             .map(|&j| {
-                if self.tree.joints()[j].kind == JointType::Prismatic {
-                    return 1.0;
-                }
-                let Some(carrier) =
-                    (0..self.links.len()).find(|&l| self.tree.link_joint(l) == Some(j))
-                else {
-                    return 0.0;
-                };
-                let mut reach = 0.0f64;
-                let spheres_of = |l: usize| {
-                    self.links[l]
-                        .spheres
-                        .iter()
-                        .copied()
-                        .chain(
-                            extra
-                                .iter()
-                                .filter(move |(el, _)| *el == l)
-                                .flat_map(|(_, s)| s.iter().copied()),
-                        )
-                        .map(|s| s.centre.coords.norm() + s.radius)
-                        .fold(0.0, f64::max)
-                };
-                for l in 0..self.links.len() {
-                    // The path from `l` up to the carrier: its joint offsets (and prismatic
-                    // travel) bound how far `l`'s frame is from the joint's origin.
-                    let mut at = l;
-                    let mut offset = 0.0;
-                    let mut below = false;
-                    loop {
-                        if at == carrier {
-                            below = true;
-                            break;
-                        }
-                        offset += self
-                            .tree
-                            .link_origin(at)
-                            .map_or(0.0, |o| o.translation.vector.norm());
-                        if let Some(jj) = self.tree.link_joint(at) {
-                            if self.tree.joints()[jj].kind == JointType::Prismatic {
-                                offset += match self.planned.iter().position(|&p| p == jj) {
-                                    Some(k) => self.limits[k].0.abs().max(self.limits[k].1.abs()),
-                                    None => self.values[jj].abs(),
-                                };
-                            }
-                        }
-                        match self.tree.parent(at) {
-                            Some(p) => at = p,
-                            None => break,
+                // The path from `link` up to the joint's link: its joint offsets (and
+                // prismatic travel) bound how far `link`'s frame is from the joint's origin.
+                let mut at = link;
+                let mut offset = 0.0;
+                loop {
+                    if self.tree.link_joint(at) == Some(j) {
+                        return if self.tree.joints()[j].kind == JointType::Prismatic {
+                            1.0
+                        } else {
+                            offset + extent
+                        };
+                    }
+                    offset += self
+                        .tree
+                        .link_origin(at)
+                        .map_or(0.0, |o| o.translation.vector.norm());
+                    if let Some(jj) = self.tree.link_joint(at) {
+                        if self.tree.joints()[jj].kind == JointType::Prismatic {
+                            offset += match self.planned.iter().position(|&p| p == jj) {
+                                Some(k) => self.limits[k].0.abs().max(self.limits[k].1.abs()),
+                                None => self.values[jj].abs(),
+                            };
                         }
                     }
-                    if below {
-                        reach = reach.max(offset + spheres_of(l));
+                    match self.tree.parent(at) {
+                        Some(p) => at = p,
+                        None => return 0.0,
                     }
                 }
-                reach
             })
             .collect()
     }

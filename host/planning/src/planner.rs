@@ -20,8 +20,9 @@ pub struct PlanOptions {
     pub time_limit: Duration,
     /// Seed of the sampler: the same seed, problem and scene give the same path.
     pub seed: u64,
-    /// Longest joint-space step of a tree extension, rad.
-    pub range: f64,
+    /// Longest joint-space step of a tree extension, rad; `None`: a fifth of the diagonal of
+    /// the joint limits' box (OMPL's default).
+    pub range: Option<f64>,
     /// Shortcut attempts after a path is found (0: none).
     pub shortcuts: usize,
     /// Informed RRT*: time spent improving the first path (within the time limit).
@@ -33,7 +34,7 @@ impl Default for PlanOptions {
         PlanOptions {
             time_limit: Duration::from_secs(1),
             seed: 1,
-            range: 0.6,
+            range: None,
             shortcuts: 60,
             improve_for: Duration::from_millis(100),
         }
@@ -41,14 +42,28 @@ impl Default for PlanOptions {
 }
 
 impl PlanOptions {
+    /// The extension step for `checker`'s joint limits, rad.
+    fn range_for(&self, checker: &Checker) -> f64 {
+        self.range.unwrap_or_else(|| {
+            0.2 * checker
+                .model()
+                .limits()
+                .iter()
+                .map(|(lo, hi)| (hi - lo).powi(2))
+                .sum::<f64>()
+                .sqrt()
+        })
+    }
+
     fn validate(&self) -> Result<()> {
         let t = self.time_limit.as_secs_f64();
-        if !(t > 0.0 && t <= MAX_TIME_LIMIT && self.range > 1e-3 && self.range <= 10.0) {
+        let range = self.range.unwrap_or(1.0);
+        if !(t > 0.0 && t <= MAX_TIME_LIMIT && range > 1e-3 && range <= 10.0) {
             return Err(Error::Invalid {
                 what: "plan options".into(),
                 why: format!(
                     "time limit {t} s must be in (0, {MAX_TIME_LIMIT}] and range {} rad in (0.001, 10]",
-                    self.range
+                    range
                 ),
             });
         }
@@ -250,6 +265,7 @@ impl RrtConnect {
             return Ok(vec![start.to_vec(), goal.to_vec()]);
         }
         let limits = checker.model().limits().to_vec();
+        let range = opts.range_for(checker);
         let mut a = Tree::new(start);
         let mut b = Tree::new(goal);
         let mut a_is_start = true;
@@ -260,7 +276,7 @@ impl RrtConnect {
                 });
             }
             let target = sample(rng, &limits);
-            let new = match extend(checker, &mut a, &target, opts.range) {
+            let new = match extend(checker, &mut a, &target, range) {
                 Grow::Trapped => {
                     std::mem::swap(&mut a, &mut b);
                     a_is_start = !a_is_start;
@@ -271,7 +287,7 @@ impl RrtConnect {
             let q = a.q[new].clone();
             // Connect the other tree to the new node, step after step.
             loop {
-                match extend(checker, &mut b, &q, opts.range) {
+                match extend(checker, &mut b, &q, range) {
                     Grow::Reached(j) => {
                         let (mut from_a, from_b) = (a.branch(new), b.branch(j));
                         let mut path = Vec::with_capacity(from_a.len() + from_b.len());
@@ -344,6 +360,10 @@ fn proven(
     if checker.path_proven(&path) {
         return Ok(path);
     }
+    checker
+        .counters()
+        .replans
+        .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     checker.set_proven(true);
     let mut rng = ChaCha8Rng::seed_from_u64(opts.seed ^ 0x5eed);
     let r = again(checker, &mut rng, t0);
@@ -524,6 +544,7 @@ fn improve(
     deadline: Duration,
 ) -> Vec<Vec<f64>> {
     let limits = checker.model().limits().to_vec();
+    let range = opts.range_for(checker);
     let dof = start.len() as f64;
     let mut best_cost = path_length(&first);
     let mut best = first.clone();
@@ -553,10 +574,10 @@ fn improve(
         };
         let near = tree.nearest(&target);
         let d = dist(&tree.q[near], &target);
-        let q: Vec<f64> = if d <= opts.range {
+        let q: Vec<f64> = if d <= range {
             target
         } else {
-            let s = opts.range / d;
+            let s = range / d;
             tree.q[near]
                 .iter()
                 .zip(&target)
@@ -565,7 +586,7 @@ fn improve(
         };
         // Neighbours within the RRT* radius.
         let n = tree.q.len() as f64;
-        let radius = (opts.range * 2.0 * ((n.ln() / n).powf(1.0 / dof))).max(opts.range * 0.5);
+        let radius = (range * 2.0 * ((n.ln() / n).powf(1.0 / dof))).max(range * 0.5);
         let neighbours: Vec<usize> = (0..tree.q.len())
             .filter(|&i| dist(&tree.q[i], &q) <= radius)
             .collect();

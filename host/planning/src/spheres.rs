@@ -18,7 +18,7 @@ pub struct Sphere {
 /// Smallest cell edge of the covering grid, m.
 pub const MIN_CELL: f64 = 0.02;
 /// Largest cell edge of the covering grid, m.
-pub const MAX_CELL: f64 = 0.06;
+pub const MAX_CELL: f64 = 0.15;
 /// Most cells along one axis (a 100 m shape is still covered, coarsely).
 const MAX_CELLS: usize = 24;
 

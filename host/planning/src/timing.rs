@@ -16,12 +16,20 @@
 //!    `ṡ(s)` is integrated forward at the largest `s̈` until it reaches a limit curve (following
 //!    the velocity limit curve while that is possible), then backward at the smallest `s̈` from
 //!    the next *switching point* until it meets the forward profile, then forward again from
-//!    the switching point, and so on; the end is reached backward from rest. Switching points are
-//!    the curvature discontinuities (ends of the arcs) and the points where a joint's tangent
-//!    vanishes on an arc (where the acceleration limit curve has a kink), when the profile can
-//!    pass through them, and the tangent points of the velocity limit curve, where it becomes
-//!    followable again. Integration uses steps of [`TimingOptions::time_step`] on the arcs and
-//!    is exact (constant `s̈`) on the lines.
+//!    the switching point, and so on; the end is reached backward from rest. Switching points
+//!    are where the profile can touch the lower limit curve without crossing it: the curvature
+//!    discontinuities (ends of the arcs) and the points where a joint's tangent vanishes on an
+//!    arc (kinks of the acceleration limit curve), when the profile can pass there; the tangent
+//!    points of the acceleration limit curve; the ends of the stretches where the velocity limit
+//!    curve falls faster than the profile may decelerate; and the points where the lower curve
+//!    changes from one to the other. The last three are found by sampling the arcs (every
+//!    0.01 rad of turn) and bisection.
+//!
+//!    Integration on the arcs uses steps of [`TimingOptions::time_step`], shortened so that the
+//!    tangent turns by at most 0.005 rad, with the extreme acceleration allowed at both ends of
+//!    the step (the range moves fast near a kink); it is exact (constant `s̈`) on the lines.
+//!    The profile is kept under the velocity limit curve along the chords between knots, not
+//!    only at them.
 //! 3. **Sampling.** Between the knots of the profile `s̈` is constant; a sample at time `t` is
 //!    `q = c(s)`, `q̇ = c'(s) ṡ`, `q̈ = c'(s) s̈ + c''(s) ṡ²`.
 //!
@@ -30,9 +38,6 @@
 //!
 //! Units: joint positions in rad (or m for a prismatic joint; everything below says rad),
 //! velocities rad/s, accelerations rad/s², times s.
-
-// Negated comparisons are meant: they are true for NaN, which must take the safe branch.
-#![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 use std::f64::consts::PI;
 
@@ -46,6 +51,8 @@ pub const MIN_LIMIT: f64 = 1e-6;
 pub const MAX_LIMIT: f64 = 1e6;
 /// Consecutive waypoints closer than this (Euclidean, rad) are one waypoint.
 pub const SAME_WAYPOINT: f64 = 1e-9;
+/// Most samples [`Trajectory::samples`] makes before the end.
+pub const MAX_SAMPLES: usize = 1_000_000;
 /// Most integration steps (forward, backward, scanning) one call may take; a path that needs
 /// more (very slow limits with a fine time step) is refused with an error.
 pub const MAX_STEPS: usize = 2_000_000;
@@ -63,10 +70,14 @@ const REVERSAL: f64 = 1e-6;
 const TINY_TANGENT: f64 = 1e-12;
 /// Relative tolerance of the phase-plane comparisons.
 const REL: f64 = 1e-9;
-/// Sampling step (rad of path) of the search for velocity switching points on arcs.
-const SCAN_STEP: f64 = 1e-3;
+/// Largest turn of the tangent (rad) within one integration step on an arc.
+const MAX_TURN: f64 = 0.005;
+/// Turn of the tangent (rad) between samples of the search for switching points on arcs.
+const SCAN_TURN: f64 = 0.01;
 /// Most samples of one arc in that search.
 const MAX_SCAN: usize = 100_000;
+/// Step lengths tried (each a quarter of the last) along the velocity limit curve.
+const FOLLOW_TRIES: usize = 12;
 
 /// Per-joint limits, one entry per joint, in the order of the waypoints' joints.
 #[derive(Debug, Clone, PartialEq)]
@@ -131,9 +142,10 @@ pub struct Trajectory {
 /// Time-optimal trajectory through `path` (waypoints, rad, each with one position per joint),
 /// starting and ending at rest, within `limits`, blending the corners as `opts` says.
 ///
-/// Consecutive waypoints within [`SAME_WAYPOINT`] of each other are taken as one (the first
-/// and last waypoints are kept exactly); a path of one point gives a trajectory of zero
-/// duration. Waypoints on the straight line between their neighbours are passed without
+/// Consecutive waypoints within [`SAME_WAYPOINT`] of each other are taken as one, keeping
+/// the first and the last waypoints exactly (unless the whole path is within that distance of
+/// its first waypoint: then the trajectory is that point); a path of one point gives a
+/// trajectory of zero duration. Waypoints on the straight line between their neighbours are passed without
 /// stopping. The trajectory starts exactly at the first waypoint and ends exactly at the last.
 ///
 /// Errors: [`Error::Invalid`] for an empty path, waypoints of different lengths, a position
@@ -148,7 +160,20 @@ pub fn time_optimal(
 ) -> Result<Trajectory> {
     let dof = validate(path, limits, opts)?;
     let points = clean_waypoints(path);
-    let path = Path::build(&points, opts.max_deviation, dof);
+    let mut path = Path::build(&points, opts.max_deviation, dof);
+    path.add_speed_breaks(&limits.velocity);
+    // The arcs are integrated step by step, and no faster than the norm of the speed limits:
+    // refuse at once what cannot fit the step budget.
+    let speed = norm(&limits.velocity);
+    let on_arcs: f64 = path
+        .segs
+        .iter()
+        .filter(|g| !g.is_line())
+        .map(|g| g.len)
+        .sum();
+    if on_arcs / speed / opts.time_step > MAX_STEPS as f64 {
+        return Err(too_many_steps());
+    }
     let mut budget = MAX_STEPS;
     let mut profile: Vec<Pt> = Vec::new();
     for piece in &path.pieces {
@@ -160,6 +185,7 @@ pub fn time_optimal(
             dt: opts.time_step,
             t: vec![0.0; dof],
             c: vec![0.0; dof],
+            loaded: None,
             budget: &mut budget,
         };
         profile.extend(phase.run()?);
@@ -230,12 +256,13 @@ impl Trajectory {
         let v = (a.v + a.u * tau).clamp(0.0, a.v.max(b.v));
         let s = (a.s + a.v * tau + 0.5 * a.u * tau * tau).clamp(a.s, b.s);
         let seg = &self.path.segs[a.seg];
-        let (mut tan, mut curv) = (vec![0.0; n], vec![0.0; n]);
-        seg.derivatives(s, &mut tan, &mut curv);
+        // Tangent into the velocity, curvature into the acceleration, then scaled.
+        seg.derivatives(s, &mut point.velocity, &mut point.acceleration);
         seg.position(s, &mut point.position);
-        for i in 0..n {
-            point.velocity[i] = tan[i] * v;
-            point.acceleration[i] = tan[i] * a.u + curv[i] * v * v;
+        for (qd, qdd) in point.velocity.iter_mut().zip(&mut point.acceleration) {
+            let (t, c) = (*qd, *qdd);
+            *qd = t * v;
+            *qdd = t * a.u + c * v * v;
         }
         if t >= self.duration {
             point.position.copy_from_slice(&self.path.last);
@@ -244,23 +271,24 @@ impl Trajectory {
         point
     }
 
-    /// Samples every `dt` (s) from 0, and the end. A `dt` that is not a positive number gives
-    /// the two ends only; at most 10 000 001 samples are made (a smaller `dt` is widened).
+    /// Samples at 0, `dt`, 2 `dt`, … (s) before the end, then at the end: a single sample for
+    /// a trajectory of zero duration. A `dt` that is not a positive finite number gives the
+    /// start and the end only; at most [`MAX_SAMPLES`] samples are made before the end (a
+    /// smaller `dt` is widened to fit).
     pub fn samples(&self, dt: f64) -> Vec<TrajectoryPoint> {
-        const MOST: f64 = 1e7;
         let mut out = Vec::new();
         if dt > 0.0 && dt.is_finite() {
-            let dt = dt.max(self.duration / MOST);
-            let mut k = 0u64;
-            loop {
+            let dt = dt.max(self.duration / MAX_SAMPLES as f64);
+            let n = ((self.duration / dt).ceil() as usize).min(MAX_SAMPLES);
+            out.reserve(n + 1);
+            for k in 0..n {
                 let t = k as f64 * dt;
                 if t >= self.duration {
                     break;
                 }
                 out.push(self.sample(t));
-                k += 1;
             }
-        } else {
+        } else if self.duration > 0.0 {
             out.push(self.sample(0.0));
         }
         out.push(self.sample(self.duration));
@@ -276,6 +304,13 @@ fn invalid(what: &str, why: impl Into<String>) -> Error {
         what: what.into(),
         why: why.into(),
     }
+}
+
+fn too_many_steps() -> Error {
+    invalid(
+        "path",
+        format!("timing it would take more than {MAX_STEPS} integration steps (limits too slow for the time step?)"),
+    )
 }
 
 fn failed(why: &str) -> Error {
@@ -515,8 +550,9 @@ struct Piece {
 struct Path {
     segs: Vec<Segment>,
     pieces: Vec<Piece>,
-    /// Sorted arc lengths where the integration must put a knot: the ends of the segments and
-    /// the points of the arcs where a joint's tangent component vanishes.
+    /// Sorted arc lengths where the integration must put a knot: the ends of the segments, the
+    /// points of the arcs where a joint's tangent component vanishes, and those where the
+    /// joint that bounds the speed changes.
     breaks: Vec<f64>,
     /// Those points of the arcs, with their segment.
     kinks: Vec<(f64, usize)>,
@@ -549,7 +585,7 @@ fn corner(prev: &[f64], p: &[f64], next: &[f64], max_dev: f64) -> Corner {
     let diff: f64 = u.iter().zip(&v).map(|(a, b)| (b - a) * (b - a)).sum();
     let sum: f64 = u.iter().zip(&v).map(|(a, b)| (b + a) * (b + a)).sum();
     let angle = 2.0 * diff.sqrt().atan2(sum.sqrt());
-    if !(angle > 0.0) {
+    if angle.is_nan() || angle <= 0.0 {
         return Corner::Straight;
     }
     if angle >= PI - REVERSAL {
@@ -682,6 +718,41 @@ impl Path {
         self.kinks.sort_by(|a, b| a.0.total_cmp(&b.0));
     }
 
+    /// Adds to the breaks the points of the arcs where the joint that bounds the speed
+    /// changes, `|t_i| / v_i = |t_j| / v_j` (`vmax`, rad/s): between them the velocity limit
+    /// curve is one joint's, convex along the arc.
+    fn add_speed_breaks(&mut self, vmax: &[f64]) {
+        let mut more = Vec::new();
+        for seg in &self.segs {
+            let Shape::Arc { u, n, r, .. } = &seg.shape else {
+                continue;
+            };
+            for i in 0..u.len() {
+                for j in i + 1..u.len() {
+                    for sign in [1.0, -1.0] {
+                        // (u_i / v_i − ± u_j / v_j) cos φ + (n_i / v_i − ± n_j / v_j) sin φ = 0.
+                        let a = u[i] / vmax[i] - sign * u[j] / vmax[j];
+                        let b = n[i] / vmax[i] - sign * n[j] / vmax[j];
+                        if a.abs() + b.abs() < MIN_LEN {
+                            continue;
+                        }
+                        let mut phi = (-a).atan2(b);
+                        if phi < 0.0 {
+                            phi += PI;
+                        }
+                        let l = phi * r;
+                        if l > MIN_LEN && l < seg.len - MIN_LEN {
+                            more.push(seg.start + l);
+                        }
+                    }
+                }
+            }
+        }
+        self.breaks.extend(more);
+        self.breaks.sort_by(f64::total_cmp);
+        self.breaks.dedup();
+    }
+
     /// Index of the segment at arc length `s`: the one starting there when `s` is a boundary.
     fn segment_at(&self, s: f64) -> usize {
         self.segs
@@ -690,7 +761,7 @@ impl Path {
     }
 
     fn position(&self, s: f64, out: &mut [f64]) {
-        if self.segs.is_empty() || !(s > 0.0) {
+        if self.segs.is_empty() || s.is_nan() || s <= 0.0 {
             out.copy_from_slice(&self.first);
         } else if s >= self.length {
             out.copy_from_slice(&self.last);
@@ -717,6 +788,22 @@ struct Switch {
     x: f64,
 }
 
+/// Outcome of a step along the velocity limit curve.
+#[derive(Debug, Clone, Copy)]
+enum Follow {
+    /// The next knot.
+    To(Pt),
+    /// The curve falls faster than the profile may: stop before here.
+    Unfollowable,
+    /// The acceleration limit curve comes under the velocity one at this knot.
+    AccelLimit(Pt),
+}
+
+/// How far the acceleration range at the end of a trial step misses the trial acceleration
+/// (on the side the extreme pushes against, and on the other; `None` above the acceleration
+/// limit curve), and the step's end `(s, x)`.
+type Miss = (Option<(f64, f64)>, f64, f64);
+
 /// Why a forward integration stopped before the end.
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Stop {
@@ -737,11 +824,9 @@ struct Phase<'a> {
     /// Tangent and curvature at the point last loaded.
     t: Vec<f64>,
     c: Vec<f64>,
+    /// Segment and arc length of the point loaded in `t`, `c`.
+    loaded: Option<(usize, f64)>,
     budget: &'a mut usize,
-}
-
-fn dbg_on() -> bool {
-    std::env::var_os("TIMING_DEBUG").is_some()
 }
 
 fn tol(a: f64) -> f64 {
@@ -751,10 +836,7 @@ fn tol(a: f64) -> f64 {
 impl Phase<'_> {
     fn spend(&mut self) -> Result<()> {
         if *self.budget == 0 {
-            return Err(invalid(
-                "path",
-                format!("timing it would take more than {MAX_STEPS} integration steps (limits too slow for the time step?)"),
-            ));
+            return Err(too_many_steps());
         }
         *self.budget -= 1;
         Ok(())
@@ -793,8 +875,17 @@ impl Phase<'_> {
     }
 
     fn load(&mut self, k: usize, s: f64) {
+        if self.loaded == Some((k, s)) {
+            return;
+        }
         let path = self.path;
         path.segs[k].derivatives(s, &mut self.t, &mut self.c);
+        self.loaded = Some((k, s));
+    }
+
+    /// Is squared speed `x` above a limit curve at the loaded point?
+    fn above(&self, x: f64) -> bool {
+        x > self.vel_curve().0 || self.accel_range(x).is_none()
     }
 
     /// Range of path accelerations (rad/s²) at squared speed `x` at the loaded point; `None`
@@ -843,7 +934,15 @@ impl Phase<'_> {
     /// Acceleration limit curve at the loaded point: the largest squared speed (rad²/s²) at
     /// which some path acceleration keeps every joint within its limit.
     fn acc_curve(&self) -> f64 {
-        let mut best = f64::INFINITY;
+        self.acc_curve_slope().0
+    }
+
+    /// The acceleration limit curve at the loaded point (rad²/s²) and its slope `dx/ds`
+    /// (rad/s²) on an arc. Each pair of joints `(i, j)` bounds it by
+    /// `(a_i |t_j| + a_j |t_i|) / |c_i t_j − c_j t_i|`, whose denominator is constant along a
+    /// circle (`t' = c`, `c' = −t / r²`).
+    fn acc_curve_slope(&self) -> (f64, f64) {
+        let (mut best, mut slope) = (f64::INFINITY, 0.0);
         let n = self.t.len();
         for i in 0..n {
             let (ti, ci, ai) = (self.t[i], self.c[i], self.amax[i]);
@@ -854,11 +953,15 @@ impl Phase<'_> {
                 let (tj, cj, aj) = (self.t[j], self.c[j], self.amax[j]);
                 let den = (ci * tj - cj * ti).abs();
                 if den > 0.0 {
-                    best = best.min((ai * tj.abs() + aj * ti.abs()) / den);
+                    let x = (ai * tj.abs() + aj * ti.abs()) / den;
+                    if x < best {
+                        best = x;
+                        slope = (ai * tj.signum() * cj + aj * ti.signum() * ci) / den;
+                    }
                 }
             }
         }
-        best
+        (best, slope)
     }
 
     fn limit_at(&mut self, k: usize, s: f64) -> (f64, f64) {
@@ -866,35 +969,127 @@ impl Phase<'_> {
         (self.vel_curve().0, self.acc_curve())
     }
 
-    /// One forward step of `dt` (shorter if decelerating hard) at path acceleration `u`,
+    /// One forward step of `tau` (s; shorter if decelerating hard) at path acceleration `u`,
     /// ending at `s_max` at the latest.
-    fn step_fwd(&self, s: f64, x: f64, u: f64, s_max: f64) -> Result<(f64, f64)> {
+    fn step_fwd(&self, s: f64, x: f64, u: f64, s_max: f64, tau: f64) -> Result<(f64, f64)> {
         let v = x.max(0.0).sqrt();
-        let tau = if u < 0.0 {
-            self.dt.min(0.5 * v / -u)
-        } else {
-            self.dt
-        };
+        let tau = if u < 0.0 { tau.min(0.5 * v / -u) } else { tau };
         let s1 = (s + 0.5 * tau * (2.0 * v + u * tau)).min(s_max);
-        if !(s1 > s) {
+        if s1.is_nan() || s1 <= s {
             return Err(failed("the forward integration stalled"));
         }
         Ok((s1, (x + 2.0 * u * (s1 - s)).max(0.0)))
     }
 
     /// One backward step, the mirror of [`Self::step_fwd`], ending at `s_min` at the earliest.
-    fn step_bwd(&self, s: f64, x: f64, u: f64, s_min: f64) -> Result<(f64, f64)> {
+    fn step_bwd(&self, s: f64, x: f64, u: f64, s_min: f64, tau: f64) -> Result<(f64, f64)> {
         let v = x.max(0.0).sqrt();
-        let tau = if u > 0.0 {
-            self.dt.min(0.5 * v / u)
-        } else {
-            self.dt
-        };
+        let tau = if u > 0.0 { tau.min(0.5 * v / u) } else { tau };
         let s0 = (s - 0.5 * tau * (2.0 * v - u * tau)).max(s_min);
-        if !(s0 < s) {
+        if s0.is_nan() || s0 >= s {
             return Err(failed("the backward integration stalled"));
         }
         Ok((s0, (x - 2.0 * u * (s - s0)).max(0.0)))
+    }
+
+    /// One step on arc segment `k` from `(s, x)` toward `bound` at the extreme path
+    /// acceleration that the limits allow at both ends of the step: the largest `u ≤ hi`
+    /// forward (`fwd`), the smallest `u ≥ lo` backward, `(lo, hi)` being the range at the
+    /// start. This keeps the integration stable where the range changes fast (near a kink).
+    /// Where the range at the end no longer contains that `u` (near the acceleration limit
+    /// curve, where the range is narrow and moves), the time step is shortened. When no `u`
+    /// in the range keeps the end under the acceleration limit curve, the step at the
+    /// extreme is returned (it reaches the curve). Returns `(u, s1, x1)`.
+    fn step(
+        &mut self,
+        k: usize,
+        s: f64,
+        x: f64,
+        range: (f64, f64),
+        bound: f64,
+        fwd: bool,
+    ) -> Result<(f64, f64, f64)> {
+        // No longer than it takes to reach `bound` at the current speed.
+        let v = x.max(0.0).sqrt();
+        let reach = (bound - s).abs() / v;
+        let mut tau = if reach < self.dt { reach } else { self.dt };
+        for _ in 0..6 {
+            let (u, s1, x1, ok) = self.step_tau(k, s, x, range, bound, fwd, tau)?;
+            if ok {
+                return Ok((u, s1, x1));
+            }
+            tau *= 0.25;
+        }
+        let (u, s1, x1, _) = self.step_tau(k, s, x, range, bound, fwd, tau)?;
+        Ok((u, s1, x1))
+    }
+
+    /// [`Self::step`] with time step `tau`; the last value says whether the range at the end
+    /// contains `u` (or the end is above the acceleration limit curve for every `u`).
+    #[allow(clippy::too_many_arguments)]
+    fn step_tau(
+        &mut self,
+        k: usize,
+        s: f64,
+        x: f64,
+        (lo, hi): (f64, f64),
+        bound: f64,
+        fwd: bool,
+        tau: f64,
+    ) -> Result<(f64, f64, f64, bool)> {
+        // By how much the range at the end misses `u` on the side that the extreme pushes
+        // against, and on the other side (`None`: the end is above the curve).
+        let miss = |me: &mut Self, u: f64| -> Result<Miss> {
+            let (s1, x1) = if fwd {
+                me.step_fwd(s, x, u, bound, tau)?
+            } else {
+                me.step_bwd(s, x, u, bound, tau)?
+            };
+            me.load(k, s1);
+            let m = me
+                .accel_range(x1)
+                .map(|(l, h)| if fwd { (u - h, l - u) } else { (l - u, u - h) });
+            Ok((m, s1, x1))
+        };
+        let small = |u: f64| 1e-6 * (1.0 + u.abs());
+        let fits = |m: Option<(f64, f64)>, u: f64| m.is_some_and(|m| m.0 <= small(u));
+        let done = |m: Option<(f64, f64)>, u: f64| m.is_some_and(|m| m.1 <= small(u));
+        let (first, other) = if fwd { (hi, lo) } else { (lo, hi) };
+        let (m, s1, x1) = miss(self, first)?;
+        if fits(m, first) {
+            return Ok((first, s1, x1, done(m, first)));
+        }
+        if let Some((m, _)) = m {
+            // The extreme at the end.
+            let u = if fwd {
+                (first - m).max(lo)
+            } else {
+                (first + m).min(hi)
+            };
+            let (m2, s2, x2) = miss(self, u)?;
+            if fits(m2, u) {
+                return Ok((u, s2, x2, done(m2, u)));
+            }
+        }
+        let (mo, _, _) = miss(self, other)?;
+        if !fits(mo, other) {
+            return Ok((first, s1, x1, mo.is_none()));
+        }
+        let (mut good, mut bad) = (other, first);
+        for _ in 0..60 {
+            if (bad - good).abs() <= 1e-12 * (1.0 + good.abs()) {
+                break;
+            }
+            let mid = 0.5 * (good + bad);
+            let (mm, _, _) = miss(self, mid)?;
+            if fits(mm, mid) {
+                good = mid;
+            } else {
+                bad = mid;
+            }
+        }
+        let (m, s1, x1) = miss(self, good)?;
+        Ok((good, s1, x1, done(m, good)))
     }
 
     /// Bisection for where `past(σ)` starts to hold in `(lo, hi]`, given that it does not at
@@ -939,6 +1134,8 @@ impl Phase<'_> {
     /// following the velocity limit curve where possible, until the end or a limit curve.
     fn forward(&mut self, prof: &mut Vec<Pt>) -> Result<Stop> {
         let end = self.piece.s1;
+        // Whether the last knot was put on (or just under) the velocity limit curve.
+        let mut following = false;
         loop {
             self.spend()?;
             let Some(&Pt { s, x }) = prof.last() else {
@@ -955,54 +1152,47 @@ impl Phase<'_> {
             let (xv, _) = self.vel_curve();
             self.load(k, se);
             let (_, slope) = self.vel_curve();
-            if x > self.acc_curve() * (1.0 + REL) {
-                return Ok(Stop::AccelLimit);
-            }
             let Some((lo, hi)) = self.accel_range(x) else {
                 return Ok(Stop::AccelLimit);
             };
-            if x >= xv * (1.0 - REL) {
+            if following || x >= xv * (1.0 - REL) {
                 // On the velocity limit curve: follow it while the limits allow.
                 let want = 0.5 * slope;
                 if want < lo - tol(lo) {
                     return Ok(Stop::VelocityLimit);
                 }
-                if want <= hi {
-                    if line {
+                if line {
+                    if want <= hi {
                         prof.push(Pt { s: nb, x: xv });
+                        following = true;
                         continue;
                     }
-                    let s1 = (s + xv.sqrt() * self.dt).min(nb);
-                    let (xv1, xa1) = self.limit_at(k, s1);
-                    if xv1 > xa1 {
-                        // The acceleration limit curve comes under the velocity one.
-                        let (sc, _) = self.bisect(s, s1, |me, q| {
-                            let (v, a) = me.limit_at(k, q);
-                            v > a
-                        });
-                        let (xvc, _) = self.limit_at(k, sc);
-                        prof.push(Pt { s: sc, x: xvc });
-                        return Ok(Stop::AccelLimit);
-                    }
-                    let u = (xv1 - x) / (2.0 * (s1 - s));
-                    self.load(k, s1);
-                    match self.accel_range(xv1) {
-                        Some((lo1, _)) if u < lo1 - tol(lo1) => return Ok(Stop::VelocityLimit),
-                        Some((_, hi1)) if u <= hi1 + tol(hi1) => {
-                            prof.push(Pt { s: s1, x: xv1 });
+                } else if let Some(p) = self.follow_step(k, s, x, (xv, slope), (lo, hi), nb)? {
+                    match p {
+                        Follow::To(p) => {
+                            prof.push(p);
+                            following = true;
                             continue;
                         }
-                        // Rising faster than the profile may: accelerate below it instead.
-                        _ => {}
+                        Follow::Unfollowable => {
+                            return Ok(Stop::VelocityLimit);
+                        }
+                        Follow::AccelLimit(p) => {
+                            prof.push(p);
+                            return Ok(Stop::AccelLimit);
+                        }
                     }
                 }
+                // Rising faster than the profile may: accelerate below it instead.
             }
+            following = false;
             if line {
                 // No curvature: the acceleration range is the same all along the line.
                 let x_end = x + 2.0 * hi * (nb - s);
                 if x_end > xv && hi > 0.0 {
                     let sh = (s + (xv - x) / (2.0 * hi)).clamp(s, nb);
                     prof.push(Pt { s: sh, x: xv });
+                    following = true;
                 } else {
                     prof.push(Pt {
                         s: nb,
@@ -1011,35 +1201,153 @@ impl Phase<'_> {
                 }
                 continue;
             }
-            let mut u = hi;
-            let (mut s1, mut x1) = self.step_fwd(s, x, u, nb)?;
+            let reach = nb.min(s + self.max_ds(k));
+            let (u, s1, x1) = self.step(k, s, x, (lo, hi), reach, true)?;
+            // Under both limit curves at the end and halfway, and under the velocity limit
+            // curve in between: it is convex along the step (one joint bounds the speed
+            // between breaks), about `xv + slope δ + κ δ² / 2`, and may sag under the
+            // straight `x + 2 u δ` where the two start close.
+            let sm = 0.5 * (s + s1);
+            self.load(k, sm);
+            let over_mid = self.above(x + 2.0 * u * (sm - s));
+            // The end last: it is where the next step starts.
             self.load(k, s1);
-            if let Some((_, hi1)) = self.accel_range(x1) {
-                if hi1 < u {
-                    u = hi1.max(lo);
-                    (s1, x1) = self.step_fwd(s, x, u, nb)?;
-                }
-            }
-            let (xv1, xa1) = self.limit_at(k, s1);
-            if x1 > xv1.min(xa1) {
-                let (sc, _) = self.bisect(s, s1, |me, q| {
-                    let (v, a) = me.limit_at(k, q);
-                    x + 2.0 * u * (q - s) > v.min(a)
+            let over_end = self.above(x1);
+            let (xv1, _) = self.vel_curve();
+            let (ds, g0, g1) = (s1 - s, xv - x, xv1 - x1);
+            let dg = slope - 2.0 * u;
+            let kappa = 2.0 * (g1 - g0 - dg * ds) / (ds * ds);
+            let dip = -dg / kappa;
+            let sags =
+                dg < 0.0 && kappa > 0.0 && dip < ds && g0 - dg * dg / (2.0 * kappa) < -1e-9 * xv;
+            if over_mid || over_end || sags {
+                let top = if sags {
+                    s + dip
+                } else if over_mid {
+                    sm
+                } else {
+                    s1
+                };
+                let (sc, _) = self.bisect(s, top, |me, q| {
+                    me.load(k, q);
+                    me.above(x + 2.0 * u * (q - s))
                 });
-                let (xvc, xac) = self.limit_at(k, sc);
-                if xvc <= xac {
-                    // On the velocity limit curve: whether it can be followed is seen next.
-                    prof.push(Pt { s: sc, x: xvc });
+                self.load(k, sc);
+                let (xvc, _) = self.vel_curve();
+                let xc = x + 2.0 * u * (sc - s);
+                if self.accel_range(xvc).is_some() {
+                    // At the velocity limit curve: whether it can be followed is seen next.
+                    prof.push(Pt {
+                        s: sc,
+                        x: xc.min(xvc),
+                    });
+                    following = true;
                     continue;
                 }
-                prof.push(Pt {
-                    s: sc,
-                    x: x + 2.0 * u * (sc - s),
-                });
+                prof.push(Pt { s: sc, x: xc });
                 return Ok(Stop::AccelLimit);
             }
             prof.push(Pt { s: s1, x: x1 });
         }
+    }
+
+    /// One step along the velocity limit curve on arc segment `k` from `(s, x)`, `x` on or
+    /// just under the curve (`xv` and its slope at `s`), `(lo, hi)` the acceleration range
+    /// there. The knot is put on the curve's tangent at `s` (the curve of each joint is convex
+    /// on an arc, so the chord to the knot stays under it), and not above the curve at the
+    /// knot or halfway. Where that would decelerate more than the limits allow at the knot
+    /// (just after a velocity switching point), the step is shortened, and at last the knot
+    /// raised toward the curve. `None` when the curve rises faster than the profile may (the
+    /// caller accelerates under it instead).
+    fn follow_step(
+        &mut self,
+        k: usize,
+        s: f64,
+        x: f64,
+        (xv, slope): (f64, f64),
+        (lo, hi): (f64, f64),
+        nb: f64,
+    ) -> Result<Option<Follow>> {
+        let full = (xv.sqrt() * self.dt).min(self.max_ds(k));
+        if full.is_nan() || s + full <= s {
+            return Err(failed("the forward integration stalled"));
+        }
+        let mut ds = full;
+        for _ in 0..FOLLOW_TRIES {
+            let s1 = if s + ds >= nb { nb } else { s + ds };
+            let ds1 = s1 - s;
+            self.load(k, s1);
+            let (xv1, _) = self.vel_curve();
+            if self.accel_range(xv1).is_none() {
+                // The acceleration limit curve comes under the velocity one.
+                let (sc, _) = self.bisect(s, s1, |me, q| {
+                    me.load(k, q);
+                    me.accel_range(me.vel_curve().0).is_none()
+                });
+                self.load(k, sc);
+                let (xvc, _) = self.vel_curve();
+                let u = (xvc - x) / (2.0 * (sc - s));
+                return Ok(if sc > s && u <= hi + tol(hi) && u >= lo - tol(lo) {
+                    Some(Follow::AccelLimit(Pt { s: sc, x: xvc }))
+                } else {
+                    None
+                });
+            }
+            self.load(k, 0.5 * (s + s1));
+            let (xvm, _) = self.vel_curve();
+            let cap = xv1.min(2.0 * xvm - x);
+            let mut x1 = cap.min(xv + slope * ds1);
+            let mut u = (x1 - x) / (2.0 * ds1);
+            if u > hi + tol(hi) {
+                return Ok(None);
+            }
+            self.load(k, s1);
+            let Some((lo1, hi1)) = self.accel_range(x1) else {
+                return Ok(None);
+            };
+            if u > hi1 + tol(hi1) {
+                return Ok(None);
+            }
+            if u >= lo1 - tol(lo1) {
+                return Ok(Some(Follow::To(Pt { s: s1, x: x1 })));
+            }
+            // Just after a velocity switching point the curve is followable but a chord
+            // under it is not, by a little (a constant acceleration cannot both stay under
+            // the convex curve and decelerate no more than the limit allows at the knot):
+            // let the chord rise above the curve (by 1e-7 of it at most), not above the curve
+            // at the knot, if that keeps the deceleration within 1e-6 of the limit; else
+            // shorten the step.
+            // The curve is about `xv + slope δ + κ δ² / 2` along the step: a chord from `x`
+            // of slope `slope + e` rises above it by at most `e² / (2 κ) − (xv − x)`, which
+            // is kept under 1e-7 of the curve.
+            let kappa = 2.0 * (xv1 - xv - slope * ds1) / (ds1 * ds1);
+            let room = (xv - x).max(0.0) + 1e-7 * xv;
+            let rise = if kappa > 0.0 {
+                (2.0 * kappa * room).sqrt()
+            } else {
+                room / ds1
+            };
+            let mut lo1 = lo1;
+            for _ in 0..3 {
+                x1 = xv1.min(x + 2.0 * (lo1 + tol(lo1)) * ds1);
+                u = (x1 - x) / (2.0 * ds1);
+                self.load(k, s1);
+                match self.accel_range(x1) {
+                    Some((l, h)) if u <= h + tol(h) => {
+                        if u >= l - 1e-6 * (1.0 + l.abs()) {
+                            if 2.0 * u <= slope + rise {
+                                return Ok(Some(Follow::To(Pt { s: s1, x: x1 })));
+                            }
+                            break;
+                        }
+                        lo1 = l;
+                    }
+                    _ => break,
+                }
+            }
+            ds *= 0.25;
+        }
+        Ok(Some(Follow::Unfollowable))
     }
 
     /// Integrates backward at the smallest acceleration from `start` until the curve meets
@@ -1078,9 +1386,6 @@ impl Phase<'_> {
             let se = self.inside(k, cur.s, pb);
             self.load(k, se);
             let Some((lo, hi)) = self.accel_range(cur.x) else {
-                if dbg_on() {
-                    eprintln!("backward from {start:?} above the curve at {cur:?}");
-                }
                 return Err(failed(
                     "the backward integration went above the acceleration limit curve",
                 ));
@@ -1091,15 +1396,8 @@ impl Phase<'_> {
                     x: cur.x - 2.0 * lo * (cur.s - pb),
                 }
             } else {
-                let mut u = lo;
-                let (mut s0, mut x0) = self.step_bwd(cur.s, cur.x, u, pb)?;
-                self.load(k, s0);
-                if let Some((lo0, _)) = self.accel_range(x0) {
-                    if lo0 > u {
-                        u = lo0.min(hi);
-                        (s0, x0) = self.step_bwd(cur.s, cur.x, u, pb)?;
-                    }
-                }
+                let reach = pb.max(cur.s - self.max_ds(k));
+                let (_, s0, x0) = self.step(k, cur.s, cur.x, (lo, hi), reach, false)?;
                 Pt { s: s0, x: x0 }
             };
             if let Some(p) = meet(prof, cur, next, &mut prev) {
@@ -1107,11 +1405,8 @@ impl Phase<'_> {
                 return Ok(());
             }
             if next.s > last.s {
-                let (xv, xa) = self.limit_at(k, next.s);
-                if next.x > xv.min(xa) * (1.0 + 1e-6) + 1e-12 {
-                    if dbg_on() {
-                        eprintln!("backward from {start:?} crossed at {next:?} xv {xv} xa {xa}, forward ends {last:?}");
-                    }
+                self.load(k, next.s);
+                if self.above((next.x - 1e-12) / (1.0 + 1e-6)) {
                     return Err(failed(
                         "the backward integration crossed a limit curve before meeting the forward profile",
                     ));
@@ -1161,9 +1456,6 @@ impl Phase<'_> {
             self.accel_range(xs)
                 .is_some_and(|(_, hi)| 2.0 * hi <= (xp - xa_a) / ha)
         };
-        if dbg_on() {
-            eprintln!("switch_at {kb} {ka} {s}: xa {xa_b} {xa_a} xv {xv_b} {xv_a} ok {before_ok} {after_ok}");
-        }
         (before_ok && after_ok).then_some(Switch { s, x: xs })
     }
 
@@ -1179,83 +1471,27 @@ impl Phase<'_> {
         self.probe(k).min(0.25 * gap)
     }
 
-    /// Tangent switching points of the acceleration limit curve on the piece's arcs, between
-    /// their kinks: where the curve's slope, from below the profile's on the curve, rises
-    /// above it (going backward from there and forward from there both stay under the curve).
-    fn accel_tangents(&mut self) -> Result<Vec<Switch>> {
-        let path = self.path;
-        let mut out = Vec::new();
-        for k in self.piece.segs.clone() {
-            let seg = &path.segs[k];
-            if seg.is_line() {
-                continue;
-            }
-            let first = path.breaks.partition_point(|&b| b <= seg.start);
-            let mut edges = vec![seg.start];
-            edges.extend(
-                path.breaks[first..]
-                    .iter()
-                    .take_while(|&&b| b < seg.end())
-                    .copied(),
-            );
-            edges.push(seg.end());
-            for w in edges.windows(2) {
-                let (a, b) = (w[0], w[1]);
-                let d = self.probe(k).min(0.25 * (b - a));
-                let n = (((b - a) / SCAN_STEP).ceil() as usize).clamp(8, MAX_SCAN);
-                let mut prev: Option<(f64, f64)> = None;
-                for j in 0..=n {
-                    self.spend()?;
-                    let q = a + d + (b - a - 2.0 * d) * j as f64 / n as f64;
-                    let gap = self.tangent_gap(k, q, d);
-                    if dbg_on()
-                        && std::env::var("DBG_SEG")
-                            .ok()
-                            .and_then(|v| v.parse::<usize>().ok())
-                            == Some(k)
-                    {
-                        let (xv, xa) = self.limit_at(k, q);
-                        self.load(k, q);
-                        eprintln!(
-                            "  scan s={q:.9} xa={xa:.9} xv={xv:.5} gap={gap:?} range={:?} t={:?}",
-                            self.accel_range(xa * (1.0 - REL)),
-                            self.t
-                        );
-                    }
-                    if let (Some((pq, pg)), Some(g)) = (prev, gap) {
-                        if pg < 0.0 && g >= 0.0 {
-                            let (_, at) = self.bisect(pq, q, |me, z| {
-                                me.tangent_gap(k, z, d).is_some_and(|g| g >= 0.0)
-                            });
-                            let (xv, xa) = self.limit_at(k, at);
-                            if xa <= xv {
-                                out.push(Switch {
-                                    s: at,
-                                    x: xa * (1.0 - REL),
-                                });
-                            }
-                        }
-                    }
-                    prev = gap.map(|g| (q, g));
-                }
-            }
+    /// Number of samples of the search for switching points over `len` (rad) of arc `k`.
+    fn scan_count(&self, k: usize, len: f64) -> usize {
+        let r = match &self.path.segs[k].shape {
+            Shape::Arc { r, .. } => *r,
+            Shape::Line { .. } => return 1,
+        };
+        let n = (len / (SCAN_TURN * r)).ceil();
+        if n.is_finite() {
+            (n as usize).clamp(8, MAX_SCAN)
+        } else {
+            MAX_SCAN
         }
-        Ok(out)
     }
 
-    /// Slope of the acceleration limit curve at `s` on segment `k` minus the profile's slope
-    /// `2 s̈` on the curve there, rad/s²; `None` where the curve is above the velocity limit
-    /// curve. `room` bounds the finite-difference step.
-    fn tangent_gap(&mut self, k: usize, s: f64, room: f64) -> Option<f64> {
-        let (xv, xa) = self.limit_at(k, s);
-        if !(xa <= xv) {
-            return None;
+    /// Longest integration step on segment `k`, rad: on an arc, [`MAX_TURN`] of its radius,
+    /// so that the limits, checked at the ends of a step, change little within it.
+    fn max_ds(&self, k: usize) -> f64 {
+        match &self.path.segs[k].shape {
+            Shape::Arc { r, .. } => MAX_TURN * r,
+            Shape::Line { .. } => f64::INFINITY,
         }
-        let (lo, hi) = self.accel_range(xa * (1.0 - REL))?;
-        let h = self.probe(k).min(room);
-        let (_, xm) = self.limit_at(k, s - h);
-        let (_, xp) = self.limit_at(k, s + h);
-        Some((xp - xm) / (2.0 * h) - (lo + hi))
     }
 
     /// A small arc-length step for finite differences on segment `k`, rad.
@@ -1270,107 +1506,116 @@ impl Phase<'_> {
             .min(0.25 * seg.len)
     }
 
-    /// Is the velocity limit curve at `s` on segment `k` binding and falling faster than the
-    /// profile may decelerate?
-    fn unfollowable(&mut self, k: usize, s: f64) -> bool {
+    /// Is the limit curve at `s` on arc `k` one along which the profile can only arrive
+    /// (backward), not leave (forward)? For the velocity limit curve where it is the lower
+    /// one: it falls faster than the profile may decelerate. For the acceleration limit
+    /// curve: its slope is below the profile's `2 s̈` on it.
+    fn backward_only(&mut self, k: usize, s: f64) -> bool {
         self.load(k, s);
-        let (xv, slope) = self.vel_curve();
-        if xv > self.acc_curve() {
-            return false;
+        let (xv, slope_v) = self.vel_curve();
+        let (xa, slope_a) = self.acc_curve_slope();
+        if xv <= xa {
+            self.accel_range(xv)
+                .is_some_and(|(lo, _)| 0.5 * slope_v < lo - tol(lo))
+        } else {
+            self.accel_range(xa * (1.0 - REL))
+                .is_some_and(|(lo, hi)| slope_a < lo + hi)
         }
-        self.accel_range(xv)
-            .is_some_and(|(lo, _)| 0.5 * slope < lo - tol(lo))
     }
 
-    /// Velocity switching points in `[from, until]`, where the velocity limit curve becomes
-    /// followable again; the first one only when `first`.
-    fn velocity_switches(&mut self, from: f64, until: f64, first: bool) -> Result<Vec<Switch>> {
-        let mut out = Vec::new();
+    /// Switching points in `[from, until]` found by sampling the arcs: where the lower limit
+    /// curve turns from backward-only to leavable forward ([`Self::backward_only`]). These
+    /// are the tangent points of the acceleration limit curve, the ends of the stretches
+    /// where the velocity limit curve falls too fast (also at the end of an arc), and the
+    /// points where the lower curve changes from one to the other. The first one only when
+    /// `first`.
+    fn scan_switches(&mut self, from: f64, until: f64, first: bool) -> Result<Vec<Switch>> {
         let path = self.path;
+        let mut out = Vec::new();
+        // Last sample: arc length, backward-only, segment.
         let mut prev: Option<(f64, bool, usize)> = None;
         for k in self.seg_fwd(from)..self.piece.segs.end {
             let seg = &path.segs[k];
             if seg.start > until {
                 break;
             }
-            let a = from.max(seg.start);
-            let b = until.min(seg.end());
-            let n = if seg.is_line() {
-                0
-            } else {
-                (((b - a) / SCAN_STEP).ceil() as usize).clamp(8, MAX_SCAN)
-            };
-            for j in 0..=n {
-                self.spend()?;
-                let s = if j == n {
-                    b
-                } else {
-                    a + (b - a) * j as f64 / n as f64
-                };
-                // Lines: the curve is flat, always followable.
-                let bad = !seg.is_line() && self.unfollowable(k, s);
-                if let Some((ps, true, pk)) = prev {
-                    if !bad {
-                        let at = if pk == k {
-                            // The followable end of the bracket.
-                            self.bisect(ps, s, |me, q| !me.unfollowable(k, q)).1
-                        } else {
-                            seg.start
-                        };
-                        if let Some(sw) = self.velocity_switch(k, at) {
-                            out.push(sw);
-                            if first {
+            let (a, b) = (from.max(seg.start), until.min(seg.end()));
+            if seg.is_line() {
+                // Flat velocity limit curve, no acceleration one: leavable all along.
+                if let Some((_, true, _)) = prev {
+                    out.extend(self.switch_on_curve(k, seg.start));
+                    if first && !out.is_empty() {
+                        return Ok(out);
+                    }
+                }
+                prev = Some((b, false, k));
+                continue;
+            }
+            // Between the breaks of the arc (its kinks), not at them.
+            let lo_b = path.breaks.partition_point(|&x| x <= a);
+            let mut edges = vec![a];
+            edges.extend(path.breaks[lo_b..].iter().take_while(|&&x| x < b).copied());
+            edges.push(b);
+            for w in edges.windows(2) {
+                let (p, q) = (w[0], w[1]);
+                if q <= p {
+                    continue;
+                }
+                let d = self.probe(k).min(0.25 * (q - p));
+                let n = self.scan_count(k, q - p);
+                for j in 0..=n {
+                    self.spend()?;
+                    let z = p + d + (q - p - 2.0 * d) * j as f64 / n as f64;
+                    let back = self.backward_only(k, z);
+                    if let Some((pz, true, pk)) = prev {
+                        if !back {
+                            let at = if pk == k {
+                                self.bisect(pz, z, |me, y| !me.backward_only(k, y)).1
+                            } else {
+                                seg.start
+                            };
+                            out.extend(self.switch_on_curve(k, at));
+                            if first && !out.is_empty() {
                                 return Ok(out);
                             }
                         }
                     }
+                    prev = Some((z, back, k));
                 }
-                prev = Some((s, bad, k));
             }
         }
         Ok(out)
     }
 
-    /// The velocity switching point at `s` on segment `k`, unless the acceleration limit
-    /// curve is below the velocity one there.
-    fn velocity_switch(&mut self, k: usize, s: f64) -> Option<Switch> {
+    /// The switching point on the lower limit curve at `s` on segment `k` (just under the
+    /// acceleration limit curve, or on the velocity one when the acceleration limit curve is
+    /// not under it nearby).
+    fn switch_on_curve(&mut self, k: usize, s: f64) -> Option<Switch> {
         let h = self.probe(k);
         let seg = &self.path.segs[k];
         let (xv, xa) = self.limit_at(k, s);
+        if xa < xv {
+            return Some(Switch {
+                s,
+                x: xa * (1.0 - REL),
+            });
+        }
         let (_, xa_m) = self.limit_at(k, (s - h).max(seg.start));
         let (_, xa_p) = self.limit_at(k, (s + h).min(seg.end()));
-        (xv <= xa.min(xa_m).min(xa_p)).then_some(Switch { s, x: xv })
+        (xv <= xa_m.min(xa_p)).then_some(Switch { s, x: xv })
     }
 
     /// The profile of the piece, from rest at its start to rest at its end.
     fn run(&mut self) -> Result<Vec<Pt>> {
         let (s0, s1) = (self.piece.s0, self.piece.s1);
         let mut switches = self.accel_switches();
-        switches.extend(self.accel_tangents()?);
-        switches.extend(self.velocity_switches(s0, s1, false)?);
-        switches.sort_by(|a, b| a.s.total_cmp(&b.s));
-        if dbg_on() {
-            eprintln!(
-                "segments: {:?}",
-                self.path.segs[self.piece.segs.clone()]
-                    .iter()
-                    .map(|g| (g.start, g.end(), g.is_line()))
-                    .collect::<Vec<_>>()
-            );
-            eprintln!("switches: {switches:?}");
-        }
+        switches.extend(self.scan_switches(s0, s1, false)?);
+        switches.sort_by(|a, b| a.s.total_cmp(&b.s).then(a.x.total_cmp(&b.x)));
         let mut prof = vec![Pt { s: s0, x: 0.0 }];
         let mut last_switch = f64::NEG_INFINITY;
         let most_rounds = 2 * switches.len() + 1000;
         for _ in 0..most_rounds {
             let stop = self.forward(&mut prof)?;
-            if dbg_on() {
-                let l = prof.last().unwrap();
-                eprintln!(
-                    "forward stop {stop:?} at s={} x={} (piece {}..{})",
-                    l.s, l.x, s0, s1
-                );
-            }
             if stop == Stop::End {
                 self.backward(&mut prof, Pt { s: s1, x: 0.0 })?;
                 return Ok(prof);
@@ -1383,7 +1628,7 @@ impl Phase<'_> {
             if stop == Stop::VelocityLimit {
                 // Where exactly the curve becomes followable again, from here.
                 let until = next.map_or(s1, |p| p.s);
-                let found = self.velocity_switches(s_last, until, true)?;
+                let found = self.scan_switches(s_last.max(last_switch), until, true)?;
                 if let Some(sw) = found.first().filter(|p| p.s > last_switch) {
                     if next.is_none_or(|n| sw.s < n.s) {
                         next = Some(*sw);
@@ -1395,9 +1640,6 @@ impl Phase<'_> {
                 return Ok(prof);
             };
             last_switch = sw.s;
-            if dbg_on() {
-                eprintln!("switch {sw:?}");
-            }
             self.backward(&mut prof, Pt { s: sw.s, x: sw.x })?;
         }
         Err(failed("too many switching points"))
