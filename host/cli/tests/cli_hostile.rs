@@ -772,6 +772,14 @@ fn cases() -> Vec<Case> {
         ]),
         Input,
     ));
+    for export in ["./subdir", "./no/such/dir/out.json", "/"] {
+        c.push(case(
+            &plan(&[
+                "--robot", "locobot", "--scene", "tabletop", "--export", export, "--json",
+            ]),
+            Input,
+        ));
+    }
     // collision-matrix: unknown robots, absurd sample counts.
     for robot in ["wall-e", "", "./binary.toml", "./huge.toml", "/dev/zero"] {
         c.push(case(&["collision-matrix", robot], Input));

@@ -704,6 +704,16 @@ pub fn run(a: &PlanArgs) -> ferrobot::Result<()> {
         1e-3,
         planning::planner::MAX_TIME_LIMIT,
     )?;
+    if let Some(p) = a.export {
+        // Refused before planning, not after.
+        let dir = p.parent().filter(|d| !d.as_os_str().is_empty());
+        if p.is_dir() || dir.is_some_and(|d| !d.is_dir()) || p.file_stem().is_none() {
+            return Err(Error::Usage(format!(
+                "--export {}: not a file in an existing directory",
+                p.display()
+            )));
+        }
+    }
     let cfg = load(a.robot)?;
     if a.ompl {
         peer_preflight()?;
