@@ -178,6 +178,51 @@ fn set_ee_pose_around_a_table_and_an_attached_object() {
     arm.detach_arm_object("held").expect("detach");
     arm.make_plan_joint_positions(&low)
         .expect("free without the box");
+    // PyRobot's set_ee_pose with a full orientation, over the table.
+    let want = [0.38, 0.05, 0.25];
+    arm.set_ee_pose(want, DOWN).expect("set_ee_pose");
+    let got = arm.get_ee_pose().expect("pose");
+    let err: f64 = (0..3)
+        .map(|i| (got.position[i] - want[i]).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    assert!(err < 0.01, "{err} m");
+    assert!(arm.get_collision_state().expect("state").is_none());
+}
+
+/// A point cloud's voxels are obstacles like any other: a goal among them is refused, naming
+/// the voxel, and the goal is free again when they are gone.
+#[test]
+fn point_cloud_voxels_are_obstacles() {
+    let bot = Robot::new("locobot").expect("robot");
+    let arm = bot.arm().expect("arm");
+    let goal = arm.compute_ik([0.3, 0.0, 0.15], DOWN, None).expect("ik");
+    let here = arm
+        .compute_fk_position(&goal, "gripper_link")
+        .expect("fk")
+        .position;
+    // A 10 cm cube of points around the goal's gripper, 1 cm apart.
+    let mut cloud = Vec::new();
+    for i in 0..10 {
+        for j in 0..10 {
+            for k in 0..10 {
+                cloud.push([
+                    here[0] - 0.05 + 0.01 * f64::from(i),
+                    here[1] - 0.05 + 0.01 * f64::from(j),
+                    here[2] - 0.05 + 0.01 * f64::from(k),
+                ]);
+            }
+        }
+    }
+    arm.set_point_cloud(Some(&cloud), 0.02).expect("voxels");
+    match arm.make_plan_joint_positions(&goal) {
+        Err(Error::Planning(planning::Error::GoalInCollision { b, .. })) => {
+            assert!(b.starts_with("voxel"), "{b}")
+        }
+        other => panic!("{other:?}"),
+    }
+    arm.set_point_cloud(None, 0.02).expect("no voxels");
+    arm.make_plan_joint_positions(&goal).expect("free again");
 }
 
 #[test]

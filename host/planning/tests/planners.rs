@@ -1,0 +1,79 @@
+//! The planners on a LoCoBot behind a post and a table: every returned path is free when
+//! re-checked by a separate checker stepping 1 mm of link motion, and Informed RRT* never
+//! returns a longer path than RRT-Connect's first one (it starts from it).
+
+use std::sync::Arc;
+
+use ferrobot_description::RobotConfig;
+use ferrobot_planning::{
+    bench, CheckOptions, Checker, CollisionModel, InformedRrtStar, PlanOptions, Planner,
+    PlanningScene, RrtConnect, Shape,
+};
+use nalgebra::Isometry3;
+
+fn scene() -> PlanningScene {
+    let mut s = PlanningScene::new();
+    s.add_object(
+        "table",
+        Shape::Box([0.45, 0.8, 0.1]),
+        Isometry3::translation(0.5, 0.0, 0.05),
+    )
+    .expect("table");
+    s.add_object(
+        "post",
+        Shape::Cylinder {
+            radius: 0.02,
+            length: 0.3,
+        },
+        Isometry3::translation(0.35, 0.0, 0.25),
+    )
+    .expect("post");
+    s
+}
+
+#[test]
+fn paths_are_free_at_1_mm_and_informed_is_no_longer() {
+    let cfg = RobotConfig::bundled("locobot").expect("robot");
+    let model = Arc::new(CollisionModel::from_config(&cfg).expect("model"));
+    let scene = scene();
+    let checker = Checker::new(model.clone(), &scene, CheckOptions::default()).expect("checker");
+    let fine = Checker::new(
+        model,
+        &scene,
+        CheckOptions {
+            resolution: 0.001,
+            max_step: 0.001,
+            min_step: 0.001,
+        },
+    )
+    .expect("fine checker");
+    let problems = bench::generate(&checker, 4, 3, 0.05).expect("problems");
+    let opts = PlanOptions {
+        improve_for: std::time::Duration::from_millis(50),
+        ..PlanOptions::default()
+    };
+    for (i, p) in problems.iter().enumerate() {
+        let fast = RrtConnect
+            .plan(&checker, &p.start, &p.goal, &opts)
+            .unwrap_or_else(|e| panic!("problem {i}: {e}"));
+        let better = InformedRrtStar
+            .plan(&checker, &p.start, &p.goal, &opts)
+            .unwrap_or_else(|e| panic!("problem {i}: {e}"));
+        for plan in [&fast, &better] {
+            assert_eq!(plan.path.first(), Some(&p.start));
+            assert_eq!(plan.path.last(), Some(&p.goal));
+            for w in plan.path.windows(2) {
+                assert!(
+                    fine.motion_free(&w[0], &w[1]),
+                    "problem {i}: an edge collides at 1 mm"
+                );
+            }
+        }
+        assert!(
+            better.length() <= fast.length() + 1e-9,
+            "problem {i}: informed {} rad, RRT-Connect {} rad",
+            better.length(),
+            fast.length()
+        );
+    }
+}
