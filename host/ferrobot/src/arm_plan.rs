@@ -102,7 +102,15 @@ impl Arm {
 
     /// A checker of the scene as it is now, with the fingers and the head where they are.
     fn checker(&self) -> Result<Checker> {
+        self.checker_allowing(&[])
+    }
+
+    /// [`Arm::checker`] with link pairs `allowed` to touch besides the matrix's.
+    fn checker_allowing(&self, allowed: &[(String, String)]) -> Result<Checker> {
         let mut model = (*self.model()?).clone();
+        for (a, b) in allowed {
+            model.allow_pair(a, b);
+        }
         let cfg = self.robot.cfg();
         let t = self.robot.telemetry()?;
         let fixed: Vec<String> = model.fixed_values().into_iter().map(|(n, _)| n).collect();
@@ -354,13 +362,27 @@ impl Arm {
     pub fn plan_to(&self, goal: &[f64], opts: &PlanningOptions) -> Result<ArmTrajectory> {
         self.check_planned_goal(goal)?;
         let start = self.get_joint_angles()?;
-        let checker = self.checker()?;
+        let mut checker = self.checker()?;
         // Measured angles may sit a hair outside a limit.
         let start: Vec<f64> = start
             .iter()
             .zip(checker.model().limits())
             .map(|(v, (lo, hi))| v.clamp(*lo, *hi))
             .collect();
+        // A start where two of the robot's own links already touch (an arm that sagged while
+        // its servos were off) could never be left: those pairs go unchecked for this plan,
+        // as MoveIt's start-state fixing would move out of them. Contacts with objects stay
+        // errors.
+        let mut allowed: Vec<(String, String)> = Vec::new();
+        let model = self.model()?;
+        while let Some(c) = checker.contact(&start) {
+            let own = model.link_index(&c.a).is_some() && model.link_index(&c.b).is_some();
+            if !own || allowed.len() >= 8 || allowed.contains(&(c.a.clone(), c.b.clone())) {
+                break;
+            }
+            allowed.push((c.a, c.b));
+            checker = self.checker_allowing(&allowed)?;
+        }
         let plan = if opts.optimise {
             ferrobot_planning::InformedRrtStar.plan(&checker, &start, goal, &opts.plan)?
         } else {

@@ -83,6 +83,11 @@ impl SelfCollisionMatrix {
             .collect()
     }
 
+    /// Stops checking links `a` and `b` against each other (as touching by default).
+    pub fn allow(&mut self, a: &str, b: &str) {
+        self.disabled.entry(key(a, b)).or_insert(Reason::Default);
+    }
+
     /// Whether links `a` and `b` are not checked against each other.
     pub fn is_disabled(&self, a: &str, b: &str) -> bool {
         a == b || self.disabled.contains_key(&key(a, b))

@@ -374,6 +374,12 @@ impl CollisionModel {
         self.moving.get(i).copied().unwrap_or(false)
     }
 
+    /// Lets links `a` and `b` touch (adds the pair to the self-collision matrix as touching by
+    /// default).
+    pub fn allow_pair(&mut self, a: &str, b: &str) {
+        self.acm.allow(a, b);
+    }
+
     /// The self-collision matrix.
     pub fn acm(&self) -> &SelfCollisionMatrix {
         &self.acm
