@@ -267,7 +267,9 @@ impl Arm {
 
     /// The arm's base frame in the URDF root's frame (the planner's frame is the root's).
     fn base_frame_in_root(&self) -> Result<Isometry3<f64>> {
-        let tree = ferrobot_kinematics::LinkTree::from_urdf(&self.robot.cfg().urdf)?;
+        // The collision model's tree, built once, rather than the URDF parsed again.
+        let model = self.model()?;
+        let tree = model.tree();
         let poses = tree.poses(&[]);
         Ok(tree.transform(&poses, &self.cfg_arm().base_frame, tree.root())?)
     }
@@ -360,7 +362,7 @@ impl Arm {
 
     /// Plans from the current joints to `goal`.
     pub fn plan_to(&self, goal: &[f64], opts: &PlanningOptions) -> Result<ArmTrajectory> {
-        self.check_planned_goal(goal)?;
+        self.check_goal(goal)?;
         let start = self.get_joint_angles()?;
         let mut checker = self.checker()?;
         // Measured angles may sit a hair outside a limit.
@@ -497,11 +499,6 @@ impl Arm {
                 };
                 Ok((Box::new(goal) as Box<dyn crate::motion::Goal>, timeout))
             })
-    }
-
-    /// Checks a planned goal's count, finiteness and limits.
-    fn check_planned_goal(&self, q: &[f64]) -> Result<()> {
-        self.check_goal(q)
     }
 
     /// Joint positions along a straight line of the end effector, checked: each step free of

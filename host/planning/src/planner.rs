@@ -335,10 +335,7 @@ impl Planner for RrtConnect {
         let raw = Self::search(checker, start, goal, opts, &mut rng, t0)?;
         let raw_waypoints = raw.len();
         let path = shortcut(checker, raw, opts.shortcuts, &mut rng, t0, opts.time_limit);
-        let path = proven(checker, path, opts, t0, |c, rng, t0| {
-            let raw = Self::search(c, start, goal, opts, rng, t0)?;
-            Ok(shortcut(c, raw, opts.shortcuts, rng, t0, opts.time_limit))
-        })?;
+        let path = proven(checker, path, start, goal, opts, t0)?;
         Ok(Plan {
             path,
             time: t0.elapsed(),
@@ -347,15 +344,16 @@ impl Planner for RrtConnect {
     }
 }
 
-/// `path` when every edge of it is proven free; else the path `again` finds with every edge
-/// proven while searching (slower, and rarely needed: the search's checks at the resolution
-/// missed a sliver of contact).
+/// `path` when every edge of it is proven free; else the path RRT-Connect (and shortcutting)
+/// finds from `start` to `goal` with every edge proven while searching (slower, and rarely
+/// needed: the search's checks at the resolution missed a sliver of contact).
 fn proven(
     checker: &Checker,
     path: Vec<Vec<f64>>,
+    start: &[f64],
+    goal: &[f64],
     opts: &PlanOptions,
     t0: Instant,
-    again: impl FnOnce(&Checker, &mut ChaCha8Rng, Instant) -> Result<Vec<Vec<f64>>>,
 ) -> Result<Vec<Vec<f64>>> {
     if checker.path_proven(&path) {
         return Ok(path);
@@ -366,7 +364,8 @@ fn proven(
         .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     checker.set_proven(true);
     let mut rng = ChaCha8Rng::seed_from_u64(opts.seed ^ 0x5eed);
-    let r = again(checker, &mut rng, t0);
+    let r = RrtConnect::search(checker, start, goal, opts, &mut rng, t0)
+        .map(|raw| shortcut(checker, raw, opts.shortcuts, &mut rng, t0, opts.time_limit));
     checker.set_proven(false);
     r
 }
@@ -481,10 +480,7 @@ impl Planner for InformedRrtStar {
         let deadline = (t0.elapsed() + opts.improve_for).min(opts.time_limit);
         let best = improve(checker, start, goal, first, opts, &mut rng, t0, deadline);
         let path = shortcut(checker, best, opts.shortcuts, &mut rng, t0, opts.time_limit);
-        let path = proven(checker, path, opts, t0, |c, rng, t0| {
-            let raw = RrtConnect::search(c, start, goal, opts, rng, t0)?;
-            Ok(shortcut(c, raw, opts.shortcuts, rng, t0, opts.time_limit))
-        })?;
+        let path = proven(checker, path, start, goal, opts, t0)?;
         Ok(Plan {
             path,
             time: t0.elapsed(),
