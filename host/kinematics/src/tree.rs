@@ -155,24 +155,55 @@ impl LinkTree {
     /// [`LinkTree::poses`] into `out` (cleared first), without allocating once `out` has room.
     pub fn poses_into(&self, q: &[f64], out: &mut Vec<Isometry3<f64>>) {
         out.clear();
-        for n in &self.nodes {
-            let parent = n.parent.map_or(Isometry3::identity(), |p| out[p]);
-            let motion = n.joint.map_or(Isometry3::identity(), |j| {
-                let v = q.get(j).copied().unwrap_or(0.0);
-                let joint = &self.joints[j];
-                match joint.kind {
-                    JointType::Revolute => Isometry3::from_parts(
-                        Translation3::identity(),
-                        UnitQuaternion::from_scaled_axis(joint.axis * v),
-                    ),
-                    JointType::Prismatic => Isometry3::from_parts(
-                        Translation3::from(joint.axis * v),
-                        UnitQuaternion::identity(),
-                    ),
-                }
-            });
-            out.push(parent * n.origin * motion);
+        for i in 0..self.nodes.len() {
+            let pose = self.pose_of(i, q, out);
+            out.push(pose);
         }
+    }
+
+    /// The links (indices of [`LinkTree::links`]) whose poses depend on any of the movable
+    /// `joints` (indices of [`LinkTree::joints`]), parents before children.
+    pub fn links_moved_by(&self, joints: &[usize]) -> Vec<usize> {
+        let mut moved = vec![false; self.nodes.len()];
+        for (i, n) in self.nodes.iter().enumerate() {
+            moved[i] =
+                n.joint.is_some_and(|j| joints.contains(&j)) || n.parent.is_some_and(|p| moved[p]);
+        }
+        (0..self.nodes.len()).filter(|&i| moved[i]).collect()
+    }
+
+    /// Recomputes in `poses` (from [`LinkTree::poses_into`] with the same values of every
+    /// other joint) the poses of `links` ([`LinkTree::links_moved_by`] of the joints whose
+    /// values in `q` changed); the other links keep theirs.
+    ///
+    /// # Panics
+    /// If `poses` holds fewer poses than the tree has links.
+    pub fn update_poses(&self, q: &[f64], links: &[usize], poses: &mut [Isometry3<f64>]) {
+        for &i in links {
+            poses[i] = self.pose_of(i, q, poses);
+        }
+    }
+
+    /// Pose of link `i` for joint values `q`, its parent's pose read from `poses`.
+    #[inline]
+    fn pose_of(&self, i: usize, q: &[f64], poses: &[Isometry3<f64>]) -> Isometry3<f64> {
+        let n = &self.nodes[i];
+        let parent = n.parent.map_or(Isometry3::identity(), |p| poses[p]);
+        let motion = n.joint.map_or(Isometry3::identity(), |j| {
+            let v = q.get(j).copied().unwrap_or(0.0);
+            let joint = &self.joints[j];
+            match joint.kind {
+                JointType::Revolute => Isometry3::from_parts(
+                    Translation3::identity(),
+                    UnitQuaternion::from_scaled_axis(joint.axis * v),
+                ),
+                JointType::Prismatic => Isometry3::from_parts(
+                    Translation3::from(joint.axis * v),
+                    UnitQuaternion::identity(),
+                ),
+            }
+        });
+        parent * n.origin * motion
     }
 
     /// The parent of link `link` ([`LinkTree::links`] indices); `None` for the root.
@@ -236,5 +267,30 @@ mod tests {
         assert!((t.translation.vector - f.translation.vector).norm() < 1e-12);
         assert!(t.rotation.angle_to(&f.rotation) < 1e-12);
         assert!(tree.transform(&poses, "nope", "base_link").is_err());
+    }
+
+    #[test]
+    fn updating_the_moved_links_equals_computing_all() {
+        let urdf = urdf_rs::read_from_string(URDF).unwrap();
+        let tree = LinkTree::from_urdf(&urdf).unwrap();
+        let arm: Vec<usize> = ["joint_1", "joint_2", "joint_3"]
+            .iter()
+            .map(|j| tree.joint_index(j).unwrap())
+            .collect();
+        let moved = tree.links_moved_by(&arm);
+        // The arm's links move, the base and the camera do not.
+        let link = |n: &str| tree.links().position(|l| l == n).unwrap();
+        assert!(moved.contains(&link("gripper_link")));
+        assert!(!moved.contains(&link("base_link")) && !moved.contains(&link("camera_link")));
+        let mut q = vec![0.1; tree.joints().len()];
+        let mut poses = tree.poses(&q);
+        for (k, &j) in arm.iter().enumerate() {
+            q[j] = 0.4 - 0.3 * k as f64;
+        }
+        tree.update_poses(&q, &moved, &mut poses);
+        for (a, b) in poses.iter().zip(tree.poses(&q)) {
+            assert!((a.translation.vector - b.translation.vector).norm() < 1e-15);
+            assert!(a.rotation.angle_to(&b.rotation) < 1e-12);
+        }
     }
 }

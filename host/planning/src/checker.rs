@@ -1,14 +1,12 @@
 //! State and motion validity: the robot (its moving links and what they carry) against the
 //! planning scene and against itself.
 //!
-//! The planners' search checks edges faster: it advances by the same bound where the spheres
-//! show room, and by `resolution` with a contact check where they do not; paths are then
-//! proven edge by edge before they are returned.
-//!
-//! A state is checked in two stages. The broad stage tests each body's conservative spheres
-//! against each obstacle's signed distance (in `f32`, structure-of-arrays loops the compiler
-//! vectorises); spheres found clear prove their body clear. Only where a sphere is not clear
-//! does the exact stage run parry3d on the body's real shapes.
+//! A state is checked in stages. A coarse stage measures each body's bounding sphere against
+//! each obstacle's bounding box. The broad stage tests the body's conservative spheres against
+//! the obstacle's signed distance (in `f32`, padded structure-of-arrays loops the compiler
+//! vectorises); spheres found clear prove their body clear. Only where the spheres are not
+//! conclusive does the exact stage run on the body's real shapes: a separating-axis test for
+//! two boxes ([`crate::boxes`]), GJK (parry3d) for other convex pairs.
 //!
 //! A motion (a straight joint-space edge) is proven free by conservative advancement, not
 //! sampled: a joint step Δq moves no point of a body more than `Σ |Δqᵢ|·reachᵢ` with the
@@ -16,20 +14,26 @@
 //! state the checker finds a lower bound of each body's clearance (from the spheres where they
 //! are far, exact distances where they are near), and advances along the edge as far as every
 //! body's clearance over its speed allows (a pair of moving bodies: over the sum of their
-//! speeds), capped at `max_step` of the fastest point. Where the clearance is
-//! below `min_step` it takes a step of `min_step` only when the clearances at the step's two
-//! ends add up to more than the step (no point of the robot can then reach an obstacle from
-//! either end), halving the step until they do; an edge that would need a step below
-//! `min_step / 128` (about 8 µm by default) is not proven. Nothing can hide between two
-//! checked states, however thin or short the contact.
+//! speeds), capped at `max_step` of the fastest point. Where the clearance is below a step `h`
+//! (`resolution` for the planners' edges, `min_step` for [`Checker::motion_proven`]) it takes
+//! a step of `h` only when the clearances at the step's two ends add up to more than the step
+//! (no point of the robot can then reach an obstacle from either end), halving the step until
+//! they do; an edge that would need a step below `min_step / 128` (about 8 µm by default) is
+//! not proven. Nothing can hide between two checked states, however thin or short the contact,
+//! so every edge a planner returns is free.
+//!
+//! Along one edge, what was far at one state stays far for a while: each body's candidates
+//! are those that may come near it anywhere on the edge, and each keeps the interval of the
+//! edge over which its last gap proves it cannot limit a step ([`Near`]).
 
 use std::cell::RefCell;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 
-use nalgebra::{Isometry3, Point3, Vector3};
+use nalgebra::Isometry3;
 use parry3d::query;
 
+use crate::boxes;
 use crate::convert::{self, Exact};
 use crate::model::{bounding_sphere, CollisionModel};
 use crate::scene::PlanningScene;
@@ -40,13 +44,13 @@ use crate::{Error, Result};
 /// Options of the checker.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CheckOptions {
-    /// Fast edge checks (while searching): largest motion of any robot point between two
-    /// states checked for contact, m.
+    /// The planners' edge checks ([`Checker::motion_free`]): the step (in robot-point
+    /// motion) where the clearance is below it, halved near contact, m.
     pub resolution: f64,
-    /// Proven edge checks: largest advance of conservative advancement, m.
+    /// Largest advance of conservative advancement (of the fastest robot point), m.
     pub max_step: f64,
-    /// Proven edge checks: the step (in robot-point motion) where the clearance is below it,
-    /// halved near contact (down to `min_step / 128`), m.
+    /// [`Checker::motion_proven`]'s step where the clearance is below it, halved near contact
+    /// (down to `min_step / 128` in both checks), m.
     pub min_step: f64,
 }
 
@@ -80,9 +84,6 @@ pub struct Counters {
     pub exact_checks: AtomicU64,
     /// Edges checked.
     pub edges: AtomicU64,
-    /// Paths the planners had to search again with proven edges (their search's edges
-    /// missed a contact).
-    pub replans: AtomicU64,
 }
 
 /// A body of the robot: a link's geometry or an attached object, in its link's frame.
@@ -103,21 +104,34 @@ struct Obstacle {
     sdf: Sdf,
     /// World to object frame: rotation rows and translation, `f32`.
     inv: [f32; 12],
-    centre: Vector3<f64>,
-    radius: f64,
-    pose: parry3d::math::Pose,
+    /// Pose of the exact shape's frame.
+    pose: Isometry3<f64>,
     exact: Exact,
+    /// Bounding box in the object frame: centre and half-extents, m.
+    bbox: ([f32; 3], [f32; 3]),
 }
 
 impl Obstacle {
+    /// A lower bound (m) of the gap between the obstacle and the sphere at `c` (world) of
+    /// radius `r`: the signed distance of the obstacle's bounding box.
+    fn coarse_gap(&self, c: &nalgebra::Point3<f64>, r: f64) -> f64 {
+        let (wx, wy, wz) = (c.x as f32, c.y as f32, c.z as f32);
+        let m = &self.inv;
+        let (lx, ly, lz) = (
+            m[0] * wx + m[1] * wy + m[2] * wz + m[9],
+            m[3] * wx + m[4] * wy + m[5] * wz + m[10],
+            m[6] * wx + m[7] * wy + m[8] * wz + m[11],
+        );
+        let (centre, half) = self.bbox;
+        f64::from(Sdf::Box { centre, half }.distance(lx, ly, lz)) - r
+    }
+
     fn new(id: &str, shape: &Shape, pose: &Isometry3<f64>) -> Result<Self> {
         let exact = shape.to_parry()?;
         let inv = pose.inverse();
         let r = inv.rotation.to_rotation_matrix();
         let m = r.matrix();
         let t = inv.translation.vector;
-        let (lo, hi) = shape.bounds();
-        let centre = pose * Point3::from((lo + hi) / 2.0);
         Ok(Obstacle {
             id: id.to_string(),
             sdf: shape.sdf(),
@@ -135,10 +149,16 @@ impl Obstacle {
                 t.y as f32,
                 t.z as f32,
             ],
-            centre: centre.coords,
-            radius: ((hi - lo) / 2.0).norm(),
-            pose: convert::pose(&(pose * exact.correction)),
+            pose: pose * exact.correction,
             exact,
+            bbox: {
+                let (lo, hi) = shape.bounds();
+                let (c, h) = ((lo + hi) / 2.0, (hi - lo) / 2.0);
+                (
+                    [c.x as f32, c.y as f32, c.z as f32],
+                    [h.x as f32, h.y as f32, h.z as f32],
+                )
+            },
         })
     }
 }
@@ -172,13 +192,96 @@ impl Grid {
 struct Scratch {
     values: Vec<f64>,
     poses: Vec<Isometry3<f64>>,
-    /// World spheres of every body: x, y, z, radius (`f32`), body ranges.
+    /// World spheres of the bodies placed so far at this state.
+    spheres: Placed,
+    bounds: Vec<Sphere>,
+    /// While an edge is checked: what may come near anything on it.
+    near: Near,
+}
+
+/// World spheres of every body: x, y, z, radius (`f32`), at the checker's layout (each
+/// body's spheres padded to [`LANES`] with far spheres of no radius, whose gaps are huge and
+/// never the smallest); a body's are placed the first time a state needs them.
+#[derive(Debug, Default)]
+struct Placed {
     x: Vec<f32>,
     y: Vec<f32>,
     z: Vec<f32>,
     r: Vec<f32>,
-    ranges: Vec<(usize, usize)>,
-    bounds: Vec<Sphere>,
+    ready: Vec<bool>,
+}
+
+impl Placed {
+    /// Forgets every placement: a new state.
+    fn reset(&mut self, layout: &[(usize, usize, usize)]) {
+        let n = layout.last().map_or(0, |l| l.2);
+        if self.x.len() != n {
+            for v in [&mut self.x, &mut self.y, &mut self.z] {
+                v.clear();
+                v.resize(n, FAR);
+            }
+            self.r.clear();
+            self.r.resize(n, 0.0);
+        }
+        self.ready.clear();
+        self.ready.resize(layout.len(), false);
+    }
+
+    /// Places body `bi`'s spheres (`spheres` in its link's frame, the link at `pose`) at
+    /// `range`, unless they are already.
+    fn place(
+        &mut self,
+        bi: usize,
+        spheres: &[Sphere],
+        pose: &Isometry3<f64>,
+        range: (usize, usize, usize),
+    ) {
+        if self.ready[bi] {
+            return;
+        }
+        self.ready[bi] = true;
+        let m = pose.rotation.to_rotation_matrix();
+        let m = m.matrix();
+        let t = pose.translation.vector;
+        for (k, sp) in (range.0..range.1).zip(spheres) {
+            let c = m * sp.centre.coords + t;
+            self.x[k] = c.x as f32;
+            self.y[k] = c.y as f32;
+            self.z[k] = c.z as f32;
+            self.r[k] = sp.radius as f32;
+        }
+    }
+}
+
+/// What may come within reach on one edge: for each body, the obstacles (numbered as
+/// `Checker::all_of`) and the moving pairs (indices into `Checker::pairs`). Everything else is
+/// farther from the body at the edge's start than the body moves along the whole edge plus
+/// the largest step, so it can never limit a step.
+///
+/// Along the edge, a body's points move at most its speed times the change of the edge
+/// parameter `t`, so a gap measured at `t₀` holds (shrunk by that motion) at every `t` nearby:
+/// each candidate keeps the interval `|t − t₀| ≤ δ` over which it cannot limit a step and is
+/// not measured again there.
+#[derive(Debug, Default)]
+struct Near {
+    on: bool,
+    /// The edge parameter of the state being checked.
+    t: f64,
+    obstacles: Vec<Vec<usize>>,
+    /// For each body's candidate obstacle: `(t₀, δ)`.
+    obstacle_far: Vec<Vec<(f64, f64)>>,
+    pairs: Vec<usize>,
+    /// For each candidate pair: `(t₀, δ)`.
+    pair_far: Vec<(f64, f64)>,
+}
+
+/// Ends an edge's [`Near`] limits when dropped.
+struct EdgeGuard<'a>(&'a Checker);
+
+impl Drop for EdgeGuard<'_> {
+    fn drop(&mut self) {
+        self.0.scratch.borrow_mut().near.on = false;
+    }
 }
 
 /// Checks states and motions of one model in one scene.
@@ -194,13 +297,19 @@ pub struct Checker {
     robot_obstacles: Vec<Obstacle>,
     /// For each body, the robot obstacles it is checked against.
     fixed_of: Vec<Vec<usize>>,
+    /// For each body, every obstacle it is checked against: world obstacles by index, then
+    /// robot obstacles after them.
+    all_of: Vec<Vec<usize>>,
+    /// All moving pairs, by index into `pairs`.
+    all_pairs: Vec<usize>,
+    /// Where each body's world spheres go in [`Placed`]: `lo..hi`, padded to `lo..end`.
+    layout: Vec<(usize, usize, usize)>,
     reach: Vec<f64>,
     /// Each body's reach per planned joint ([`CollisionModel::link_reach`]); 0 when fixed.
     body_reach: Vec<Vec<f64>>,
     opts: CheckOptions,
     scratch: RefCell<Scratch>,
     counters: Counters,
-    proven: std::cell::Cell<bool>,
 }
 
 /// Whether links `a` and `b` of `model` at `pa`, `pb` (root frame) touch (exact shapes).
@@ -247,19 +356,28 @@ fn shape_distance(
 }
 
 /// The smallest distance (m; 0 when touching) between the exact shapes `a` (on their link at
-/// `pose_a`) and `b`.
+/// `pose_a`) and `b` (at their poses; a lower bound of it where both are boxes).
 fn exact_gap(
     a: &[(Isometry3<f64>, Exact)],
     pose_a: &Isometry3<f64>,
-    b: &[(parry3d::math::Pose, &Exact)],
+    b: &[(Isometry3<f64>, &Exact)],
     counters: &Counters,
 ) -> f64 {
     let mut gap = f64::INFINITY;
     for (o, ea) in a {
-        let pa = convert::pose(&(pose_a * o));
+        let pa = pose_a * o;
         for (pb, eb) in b {
             counters.exact_checks.fetch_add(1, Ordering::Relaxed);
-            let d = shape_distance(&pa, ea.shape.as_ref(), pb, eb.shape.as_ref());
+            let d = match (&ea.half, &eb.half) {
+                // Two boxes: the separating-axis bound, a tenth of GJK's cost.
+                (Some(ha), Some(hb)) => boxes::gap(&pa, ha, pb, hb),
+                _ => shape_distance(
+                    &convert::pose(&pa),
+                    ea.shape.as_ref(),
+                    &convert::pose(pb),
+                    eb.shape.as_ref(),
+                ),
+            };
             gap = gap.min(d);
             if gap <= 0.0 {
                 return 0.0;
@@ -442,7 +560,32 @@ impl Checker {
                 }
             })
             .collect();
+        let all_of = bodies
+            .iter()
+            .zip(&fixed_of)
+            .map(|(b, fixed)| {
+                if b.moving {
+                    (0..obstacles.len())
+                        .chain(fixed.iter().map(|&o| obstacles.len() + o))
+                        .collect()
+                } else {
+                    Vec::new()
+                }
+            })
+            .collect();
+        let all_pairs = (0..pairs.len()).collect();
+        let mut layout = Vec::with_capacity(bodies.len());
+        let mut at = 0;
+        for b in &bodies {
+            let n = if b.moving { b.spheres.len() } else { 0 };
+            let end = at + n.div_ceil(LANES) * LANES;
+            layout.push((at, at + n, end));
+            at = end;
+        }
         Ok(Checker {
+            layout,
+            all_of,
+            all_pairs,
             body_reach,
             model,
             bodies,
@@ -455,7 +598,6 @@ impl Checker {
             opts,
             scratch: RefCell::new(Scratch::default()),
             counters: Counters::default(),
-            proven: std::cell::Cell::new(false),
         })
     }
 
@@ -567,35 +709,13 @@ impl Checker {
         self.counters.states.fetch_add(1, Ordering::Relaxed);
         let mut s = self.scratch.borrow_mut();
         let s = &mut *s;
-        self.model.tree_values_into(q, &mut s.values);
-        self.model.tree().poses_into(&s.values, &mut s.poses);
-        s.x.clear();
-        s.y.clear();
-        s.z.clear();
-        s.r.clear();
-        s.ranges.clear();
+        self.model.link_poses_into(q, &mut s.values, &mut s.poses);
+        s.spheres.reset(&self.layout);
         s.bounds.clear();
-        for b in &self.bodies {
-            let start = s.x.len();
-            if b.moving {
-                let p = &s.poses[b.link];
-                let m = p.rotation.to_rotation_matrix();
-                let m = m.matrix();
-                let t = p.translation.vector;
-                for sp in &b.spheres {
-                    let c = m * sp.centre.coords + t;
-                    s.x.push(c.x as f32);
-                    s.y.push(c.y as f32);
-                    s.z.push(c.z as f32);
-                    s.r.push(sp.radius as f32);
-                }
-            }
-            s.ranges.push((start, s.x.len()));
-            s.bounds.push(Sphere {
-                centre: s.poses[b.link] * b.bound.centre,
-                radius: b.bound.radius,
-            });
-        }
+        s.bounds.extend(self.bodies.iter().map(|b| Sphere {
+            centre: s.poses[b.link] * b.bound.centre,
+            radius: b.bound.radius,
+        }));
         let mut clear = cap;
         // Counted here and added once: an atomic add per obstacle costs more than the test.
         let mut checks = 0u64;
@@ -611,35 +731,54 @@ impl Checker {
             }
             let m = speed_of(bi);
             let bound = s.bounds[bi];
-            let (lo, hi) = s.ranges[bi];
-            let fixed = self.fixed_of[bi].iter().map(|&o| &self.robot_obstacles[o]);
-            for o in self.obstacles.iter().chain(fixed) {
-                let gap = (bound.centre.coords - o.centre).norm() - bound.radius - o.radius;
-                if gap >= clear * m {
+            let (lo, hi, end) = self.layout[bi];
+            let world = self.obstacles.len();
+            let t = s.near.t;
+            let (list, mut far) = if s.near.on {
+                (
+                    &s.near.obstacles[bi][..],
+                    Some(&mut s.near.obstacle_far[bi][..]),
+                )
+            } else {
+                (&self.all_of[bi][..], None)
+            };
+            for (n, &k) in list.iter().enumerate() {
+                // Far enough at a nearby state to be far here ([`Near`]).
+                if let Some(f) = far.as_deref_mut() {
+                    let (t0, d) = f[n];
+                    if (t - t0).abs() <= d {
+                        continue;
+                    }
+                }
+                // Remember a gap that no step of this edge from within δ of here can close.
+                let mut keep = |gap: f64| {
+                    if let Some(f) = far.as_deref_mut() {
+                        f[n] = (t, (gap - cap * m) / m);
+                    }
+                };
+                let o = if k < world {
+                    &self.obstacles[k]
+                } else {
+                    &self.robot_obstacles[k - world]
+                };
+                let coarse = o.coarse_gap(&bound.centre, bound.radius);
+                if coarse >= clear * m {
+                    keep(coarse);
                     continue;
                 }
                 checks += (hi - lo) as u64;
-                // Most obstacles are far from most bodies: a test that vectorises first.
-                if !spheres_near(
-                    &o.sdf,
-                    &o.inv,
-                    &s.x[lo..hi],
-                    &s.y[lo..hi],
-                    &s.z[lo..hi],
-                    &s.r[lo..hi],
-                    (clear * m) as f32,
-                ) {
-                    continue;
-                }
+                let w = &mut s.spheres;
+                w.place(bi, &b.spheres, &s.poses[b.link], self.layout[bi]);
                 let lb = f64::from(spheres_gap(
                     &o.sdf,
                     &o.inv,
-                    &s.x[lo..hi],
-                    &s.y[lo..hi],
-                    &s.z[lo..hi],
-                    &s.r[lo..hi],
+                    &w.x[lo..end],
+                    &w.y[lo..end],
+                    &w.z[lo..end],
+                    &w.r[lo..end],
                 ));
                 if lb >= clear * m {
+                    keep(lb);
                     continue;
                 }
                 if lb >= exact_below {
@@ -662,6 +801,8 @@ impl Checker {
                 clear = clear.min(d / m);
             }
             if let Some(g) = &self.grid {
+                s.spheres
+                    .place(bi, &b.spheres, &s.poses[b.link], self.layout[bi]);
                 match self.grid_gap(g, b, bi, s, clear * m) {
                     Ok(gap) => clear = clear.min(gap / m),
                     Err(c) => {
@@ -672,48 +813,72 @@ impl Checker {
             }
         }
         // Moving bodies against each other: both move, so the sum of their speeds.
-        for &(i, j) in &self.pairs {
+        let t = s.near.t;
+        let (pairs, mut far) = if s.near.on {
+            (&s.near.pairs[..], Some(&mut s.near.pair_far[..]))
+        } else {
+            (&self.all_pairs[..], None)
+        };
+        for (n, &(i, j)) in pairs.iter().map(|&p| &self.pairs[p]).enumerate() {
+            if let Some(f) = far.as_deref_mut() {
+                let (t0, d) = f[n];
+                if (t - t0).abs() <= d {
+                    continue;
+                }
+            }
             let (bi, bj) = (&s.bounds[i], &s.bounds[j]);
             let m = if speed.is_some() {
                 speed_of(i) + speed_of(j)
             } else {
                 2.0
             };
+            let mut keep = |gap: f64| {
+                if let Some(f) = far.as_deref_mut() {
+                    f[n] = (t, (gap - cap * m) / m);
+                }
+            };
             let gap = (bi.centre - bj.centre).norm() - bi.radius - bj.radius;
             if gap >= m * clear {
+                keep(gap);
                 continue;
             }
-            let (li, hi_) = s.ranges[i];
-            let (lj, hj) = s.ranges[j];
+            let (li, hi_, _) = self.layout[i];
+            let (lj, hj, ej) = self.layout[j];
+            let w = &mut s.spheres;
+            w.place(
+                i,
+                &self.bodies[i].spheres,
+                &s.poses[self.bodies[i].link],
+                self.layout[i],
+            );
+            w.place(
+                j,
+                &self.bodies[j].spheres,
+                &s.poses[self.bodies[j].link],
+                self.layout[j],
+            );
             checks += ((hi_ - li) * (hj - lj)) as u64;
             let reach = (m * clear) as f32;
-            if !pairs_near(
-                (&s.x[li..hi_], &s.y[li..hi_], &s.z[li..hi_], &s.r[li..hi_]),
-                (&s.x[lj..hj], &s.y[lj..hj], &s.z[lj..hj], &s.r[lj..hj]),
-                reach,
-            ) {
-                continue;
-            }
-            let mut lb = f32::INFINITY;
             let (cx, cy, cz) = (bj.centre.x as f32, bj.centre.y as f32, bj.centre.z as f32);
             let rj = bj.radius as f32;
+            let mut lb = f32::INFINITY;
             for k in li..hi_ {
-                let (x, y, z, r) = (s.x[k], s.y[k], s.z[k], s.r[k]);
+                let (x, y, z, r) = (w.x[k], w.y[k], w.z[k], w.r[k]);
                 // This sphere against the other body's bound first.
                 let far = ((cx - x).powi(2) + (cy - y).powi(2) + (cz - z).powi(2)).sqrt() - rj - r;
-                if f64::from(far) >= m * clear {
+                if far >= reach {
                     lb = lb.min(far);
                     continue;
                 }
-                for m in lj..hj {
-                    let dx = s.x[m] - x;
-                    let dy = s.y[m] - y;
-                    let dz = s.z[m] - z;
-                    lb = lb.min((dx * dx + dy * dy + dz * dz).sqrt() - s.r[m] - r);
-                }
+                let g = sphere_spheres_gap(
+                    (x, y, z, r),
+                    (&w.x[lj..ej], &w.y[lj..ej], &w.z[lj..ej], &w.r[lj..ej]),
+                );
+                lb = lb.min(g);
             }
             let lb = f64::from(lb);
             if lb >= m * clear {
+                keep(lb);
                 continue;
             }
             if lb >= 2.0 * exact_below {
@@ -722,11 +887,8 @@ impl Checker {
             }
             let (a, b) = (&self.bodies[i], &self.bodies[j]);
             let pb = &s.poses[b.link];
-            let other: Vec<(parry3d::math::Pose, &Exact)> = b
-                .exact
-                .iter()
-                .map(|(o, e)| (convert::pose(&(pb * o)), e))
-                .collect();
+            let other: Vec<(Isometry3<f64>, &Exact)> =
+                b.exact.iter().map(|(o, e)| (pb * o, e)).collect();
             let d = exact_gap(&a.exact, &s.poses[a.link], &other, &self.counters);
             if d <= 0.0 {
                 flush(checks);
@@ -750,13 +912,14 @@ impl Checker {
         s: &Scratch,
         cap: f64,
     ) -> std::result::Result<f64, Contact> {
-        let (lo, hi) = s.ranges[bi];
+        let (lo, hi, _) = self.layout[bi];
+        let w = &s.spheres;
         let size = g.size as f32;
         let half = size / 2.0;
         let mut clear = cap;
         for k in lo..hi {
-            let (x, y, z) = (s.x[k], s.y[k], s.z[k]);
-            let reach = s.r[k] + clear as f32;
+            let (x, y, z) = (w.x[k], w.y[k], w.z[k]);
+            let reach = w.r[k] + clear as f32;
             let cell = |v: f32| (v / size).floor() as i32;
             for i in cell(x - reach)..=cell(x + reach) {
                 for j in cell(y - reach)..=cell(y + reach) {
@@ -774,15 +937,15 @@ impl Checker {
                             centre: c,
                             half: [half; 3],
                         };
-                        let lb = f64::from(sdf.distance(x, y, z) - s.r[k]);
+                        let lb = f64::from(sdf.distance(x, y, z) - w.r[k]);
                         if lb >= clear {
                             continue;
                         }
-                        let pose = convert::pose(&Isometry3::translation(
+                        let pose = Isometry3::translation(
                             f64::from(c[0]),
                             f64::from(c[1]),
                             f64::from(c[2]),
-                        ));
+                        );
                         let d = exact_gap(
                             &b.exact,
                             &s.poses[b.link],
@@ -803,19 +966,104 @@ impl Checker {
         Ok(clear)
     }
 
-    /// Whether the straight joint-space edge from `a` to `b` is free: proven
-    /// ([`Checker::motion_proven`]) when [`Checker::set_proven`] asked for it, else checked
-    /// at states at most `resolution` of robot-point motion apart (the planners' search).
+    /// Whether the straight joint-space edge from `a` to `b` is free, proven by conservative
+    /// advancement (see the module's documentation) with steps of `resolution` of robot-point
+    /// motion where the clearance is smaller: the planners' edge check. Every edge a planner
+    /// returns passed it, so no contact hides anywhere on a returned path.
     pub fn motion_free(&self, a: &[f64], b: &[f64]) -> bool {
-        if self.proven.get() {
-            return self.motion_proven(a, b);
-        }
-        if !self.within_limits(a) || !self.within_limits(b) {
+        self.prove(a, b, self.opts.resolution, self.opts.resolution * 0.5)
+    }
+
+    /// Whether the straight joint-space edge from `a` to `b` is free, proven as
+    /// [`Checker::motion_free`] is but with steps of `min_step` near contact and exact
+    /// distances wherever the spheres are within `max_step / 2` (tighter, slower).
+    pub fn motion_proven(&self, a: &[f64], b: &[f64]) -> bool {
+        self.prove(
+            a,
+            b,
+            self.opts.min_step,
+            (self.opts.max_step * 0.5).max(self.opts.min_step),
+        )
+    }
+
+    /// Whether no state on the edge from `a` to `b` is in contact, sampled: states at most
+    /// `step` (m) of robot-point motion apart are tested for contact alone (states are skipped
+    /// only where the spheres prove room). Not a proof between samples: an independent
+    /// re-check of paths (at 1 mm, say), not an edge check for planning.
+    pub fn motion_sampled(&self, a: &[f64], b: &[f64], step: f64) -> bool {
+        if !self.within_limits(a) || !self.within_limits(b) || step.is_nan() || step <= 0.0 {
             return false;
         }
-        // Advance by the spheres' clearance where it is large (proven free), by the resolution
-        // where it is not (checked for contact alone).
-        self.advance(a, b, self.opts.resolution, 0.0)
+        self.counters.edges.fetch_add(1, Ordering::Relaxed);
+        let total = self.motion_bound(a, b);
+        let speed = self.speeds(a, b);
+        let _near = self.begin_edge(a, &speed);
+        let mut q = a.to_vec();
+        let mut t = 0.0f64;
+        let (cap, floor) = if total > 0.0 {
+            (self.opts.max_step / total, step / total)
+        } else {
+            (1.0, 1.0)
+        };
+        loop {
+            for ((v, x), y) in q.iter_mut().zip(a).zip(b) {
+                *v = x + (y - x) * t;
+            }
+            self.scratch.borrow_mut().near.t = t;
+            let Ok(dt) = self.measure_with(&q, Some(&speed), cap, 0.0) else {
+                return false;
+            };
+            if t >= 1.0 {
+                return true;
+            }
+            t = (t + dt.max(floor)).min(1.0);
+        }
+    }
+
+    /// Limits the checks of the states that follow, until the guard drops, to what may come
+    /// near some body on the edge that starts at `a` and moves each body's points at most
+    /// `speed` (m) along it ([`Near`]).
+    fn begin_edge(&self, a: &[f64], speed: &[f64]) -> EdgeGuard<'_> {
+        let mut s = self.scratch.borrow_mut();
+        let s = &mut *s;
+        self.model.link_poses_into(a, &mut s.values, &mut s.poses);
+        let world = self.obstacles.len();
+        let step = self.opts.max_step;
+        s.bounds.clear();
+        s.bounds.extend(self.bodies.iter().map(|b| Sphere {
+            centre: s.poses[b.link] * b.bound.centre,
+            radius: b.bound.radius,
+        }));
+        s.near.obstacles.resize_with(self.bodies.len(), Vec::new);
+        for (bi, list) in s.near.obstacles.iter_mut().enumerate() {
+            list.clear();
+            let bound = &s.bounds[bi];
+            list.extend(self.all_of[bi].iter().copied().filter(|&k| {
+                let o = if k < world {
+                    &self.obstacles[k]
+                } else {
+                    &self.robot_obstacles[k - world]
+                };
+                o.coarse_gap(&bound.centre, bound.radius) < speed[bi] + step + 1e-6
+            }));
+        }
+        s.near.pairs.clear();
+        s.near.pairs.extend((0..self.pairs.len()).filter(|&p| {
+            let (i, j) = self.pairs[p];
+            let (bi, bj) = (&s.bounds[i], &s.bounds[j]);
+            let gap = (bi.centre - bj.centre).norm() - bi.radius - bj.radius;
+            gap < speed[i] + speed[j] + 2.0 * step + 1e-6
+        }));
+        s.near.obstacle_far.resize_with(self.bodies.len(), Vec::new);
+        for (far, list) in s.near.obstacle_far.iter_mut().zip(&s.near.obstacles) {
+            far.clear();
+            far.resize(list.len(), (0.0, -1.0));
+        }
+        s.near.pair_far.clear();
+        s.near.pair_far.resize(s.near.pairs.len(), (0.0, -1.0));
+        s.near.t = 0.0;
+        s.near.on = true;
+        EdgeGuard(self)
     }
 
     /// Each body's largest point motion (m) over the edge from `a` to `b`.
@@ -831,53 +1079,20 @@ impl Checker {
             .collect()
     }
 
-    /// The search's edge check: from each state, as far as every body's gap over its speed
-    /// along the edge allows (at most `max_step` of the fastest point), and at least `floor`
-    /// (m of the fastest point, where states are checked for contact alone). Exact distances
-    /// where the spheres' bound is below `exact_below` (m).
-    fn advance(&self, a: &[f64], b: &[f64], floor: f64, exact_below: f64) -> bool {
-        self.counters.edges.fetch_add(1, Ordering::Relaxed);
-        let total = self.motion_bound(a, b);
-        let speed = self.speeds(a, b);
-        let mut q = a.to_vec();
-        let mut t = 0.0f64;
-        let (cap, floor) = if total > 0.0 {
-            (self.opts.max_step / total, floor / total)
-        } else {
-            (1.0, 1.0)
-        };
-        loop {
-            for ((v, x), y) in q.iter_mut().zip(a).zip(b) {
-                *v = x + (y - x) * t;
-            }
-            let Ok(dt) = self.measure_with(&q, Some(&speed), cap, exact_below) else {
-                return false;
-            };
-            if t >= 1.0 {
-                return true;
-            }
-            t = (t + dt.max(floor)).min(1.0);
-        }
-    }
-
-    /// Makes [`Checker::motion_free`] prove edges (true) or check them at the resolution.
-    pub fn set_proven(&self, proven: bool) {
-        self.proven.set(proven);
-    }
-
-    /// Whether every state on the straight joint-space edge from `a` to `b` is free (the ends
-    /// included), by conservative advancement from `a` (see the module's documentation).
-    pub fn motion_proven(&self, a: &[f64], b: &[f64]) -> bool {
+    /// Conservative advancement from `a` to `b`: steps of the clearance where it is at least
+    /// `min_step` (m of the fastest point), else the near-contact rule from `min_step` down;
+    /// exact distances where the spheres' bound is below `exact_below` (m).
+    fn prove(&self, a: &[f64], b: &[f64], min_step: f64, exact_below: f64) -> bool {
         if !self.within_limits(a) || !self.within_limits(b) {
             return false;
         }
         self.counters.edges.fetch_add(1, Ordering::Relaxed);
         let total = self.motion_bound(a, b);
         let speed = self.speeds(a, b);
-        let exact_below = (self.opts.max_step * 0.5).max(self.opts.min_step);
+        let _near = self.begin_edge(a, &speed);
         let mut q = a.to_vec();
         let (cap, min_dt) = if total > 0.0 {
-            (self.opts.max_step / total, self.opts.min_step / total)
+            (self.opts.max_step / total, min_step / total)
         } else {
             (1.0, 1.0)
         };
@@ -887,6 +1102,7 @@ impl Checker {
             for ((v, x), y) in q.iter_mut().zip(a).zip(b) {
                 *v = x + (y - x) * t;
             }
+            self.scratch.borrow_mut().near.t = t;
             self.measure_with(&q, Some(&speed), cap, exact_below).ok()
         };
         let Some(mut clear) = clearance(0.0) else {
@@ -895,7 +1111,8 @@ impl Checker {
         if total <= 0.0 {
             return true;
         }
-        let smallest = min_dt / 128.0;
+        // About 8 µm of point motion with the default `min_step`.
+        let smallest = self.opts.min_step / total / 128.0;
         let mut t = 0.0f64;
         while t < 1.0 {
             if clear >= min_dt {
@@ -937,64 +1154,117 @@ impl Checker {
     }
 }
 
-/// Whether any sphere (world `x, y, z`, radius `r`) comes within `reach` (m) of the obstacle.
-#[inline]
-fn spheres_near(
-    sdf: &Sdf,
+/// Lanes of the sphere loops: each body's spheres are padded to a multiple of it, so the
+/// loops run whole chunks the compiler turns into vector instructions.
+const LANES: usize = 8;
+/// Coordinate of the padding spheres, m: far from everything, small enough that squares of
+/// differences stay finite in `f32`.
+const FAR: f32 = 1.0e15;
+
+/// The smallest of `LANES` running minima (a select, not `f32::min`, so the lanes vectorise).
+#[inline(always)]
+fn lanes_min(m: [f32; LANES]) -> f32 {
+    m.iter()
+        .fold(f32::INFINITY, |a, &b| if b < a { b } else { a })
+}
+
+#[inline(always)]
+fn max0(v: f32) -> f32 {
+    if v > 0.0 {
+        v
+    } else {
+        0.0
+    }
+}
+
+/// The smallest of `d(local point) − r` over spheres in chunks of [`LANES`]; `d` is the
+/// obstacle's signed distance in its frame, reached through `inv` (world to object).
+#[inline(always)]
+fn lanes_gap<F: Fn(f32, f32, f32) -> f32>(
     inv: &[f32; 12],
     x: &[f32],
     y: &[f32],
     z: &[f32],
     r: &[f32],
-    reach: f32,
-) -> bool {
-    let mut any = false;
-    for k in 0..x.len() {
-        let (wx, wy, wz) = (x[k], y[k], z[k]);
-        let lx = inv[0] * wx + inv[1] * wy + inv[2] * wz + inv[9];
-        let ly = inv[3] * wx + inv[4] * wy + inv[5] * wz + inv[10];
-        let lz = inv[6] * wx + inv[7] * wy + inv[8] * wz + inv[11];
-        any |= sdf.distance(lx, ly, lz) < r[k] + reach;
+    d: F,
+) -> f32 {
+    let mut m = [f32::INFINITY; LANES];
+    for (((x, y), z), r) in x
+        .chunks_exact(LANES)
+        .zip(y.chunks_exact(LANES))
+        .zip(z.chunks_exact(LANES))
+        .zip(r.chunks_exact(LANES))
+    {
+        for l in 0..LANES {
+            let (wx, wy, wz) = (x[l], y[l], z[l]);
+            let lx = inv[0] * wx + inv[1] * wy + inv[2] * wz + inv[9];
+            let ly = inv[3] * wx + inv[4] * wy + inv[5] * wz + inv[10];
+            let lz = inv[6] * wx + inv[7] * wy + inv[8] * wz + inv[11];
+            let g = d(lx, ly, lz) - r[l];
+            m[l] = if g < m[l] { g } else { m[l] };
+        }
     }
-    any
+    lanes_min(m)
+}
+
+/// The smallest gap (m, negative inside) between any sphere (world `x, y, z`, radius `r`,
+/// padded to [`LANES`]) and the obstacle: one loop per kind of shape, so each vectorises.
+#[inline]
+fn spheres_gap(sdf: &Sdf, inv: &[f32; 12], x: &[f32], y: &[f32], z: &[f32], r: &[f32]) -> f32 {
+    match *sdf {
+        Sdf::Box { centre, half } => lanes_gap(inv, x, y, z, r, |lx, ly, lz| {
+            let qx = (lx - centre[0]).abs() - half[0];
+            let qy = (ly - centre[1]).abs() - half[1];
+            let qz = (lz - centre[2]).abs() - half[2];
+            let (ox, oy, oz) = (max0(qx), max0(qy), max0(qz));
+            let inside = if qx > qy { qx } else { qy };
+            let inside = if qz > inside { qz } else { inside };
+            let inside = if inside < 0.0 { inside } else { 0.0 };
+            (ox * ox + oy * oy + oz * oz).sqrt() + inside
+        }),
+        Sdf::Cylinder { radius, half } => lanes_gap(inv, x, y, z, r, |lx, ly, lz| {
+            let dr = (lx * lx + ly * ly).sqrt() - radius;
+            let dz = lz.abs() - half;
+            let (or, oz) = (max0(dr), max0(dz));
+            let inside = if dr > dz { dr } else { dz };
+            let inside = if inside < 0.0 { inside } else { 0.0 };
+            (or * or + oz * oz).sqrt() + inside
+        }),
+        Sdf::Capsule { radius, half } => lanes_gap(inv, x, y, z, r, |lx, ly, lz| {
+            let cz = if lz > half {
+                half
+            } else if lz < -half {
+                -half
+            } else {
+                lz
+            };
+            let dz = lz - cz;
+            (lx * lx + ly * ly + dz * dz).sqrt() - radius
+        }),
+    }
 }
 
 /// A body's spheres: x, y, z, radius (m).
 type SphereSlices<'a> = (&'a [f32], &'a [f32], &'a [f32], &'a [f32]);
 
-/// Whether any sphere of `a` comes within `reach` (m) of any sphere of `b` (squared
-/// distances, no roots: the loop vectorises).
+/// The smallest gap (m) between sphere `a` and the spheres `b` (padded to [`LANES`]).
 #[inline]
-fn pairs_near(a: SphereSlices<'_>, b: SphereSlices<'_>, reach: f32) -> bool {
-    let (bx, by, bz, br) = b;
-    for k in 0..a.0.len() {
-        let (x, y, z, r) = (a.0[k], a.1[k], a.2[k], a.3[k] + reach);
-        let mut any = false;
-        for m in 0..bx.len() {
-            let dx = bx[m] - x;
-            let dy = by[m] - y;
-            let dz = bz[m] - z;
-            let rr = br[m] + r;
-            any |= dx * dx + dy * dy + dz * dz < rr * rr;
-        }
-        if any {
-            return true;
+fn sphere_spheres_gap(a: (f32, f32, f32, f32), b: SphereSlices<'_>) -> f32 {
+    let (x, y, z, r) = a;
+    let mut m = [f32::INFINITY; LANES];
+    for (((bx, by), bz), br) in
+        b.0.chunks_exact(LANES)
+            .zip(b.1.chunks_exact(LANES))
+            .zip(b.2.chunks_exact(LANES))
+            .zip(b.3.chunks_exact(LANES))
+    {
+        for l in 0..LANES {
+            let dx = bx[l] - x;
+            let dy = by[l] - y;
+            let dz = bz[l] - z;
+            let g = (dx * dx + dy * dy + dz * dz).sqrt() - br[l] - r;
+            m[l] = if g < m[l] { g } else { m[l] };
         }
     }
-    false
-}
-
-/// The smallest gap (m, negative inside) between any sphere (world `x, y, z`, radius `r`)
-/// and the obstacle.
-#[inline]
-fn spheres_gap(sdf: &Sdf, inv: &[f32; 12], x: &[f32], y: &[f32], z: &[f32], r: &[f32]) -> f32 {
-    let mut gap = f32::INFINITY;
-    for k in 0..x.len() {
-        let (wx, wy, wz) = (x[k], y[k], z[k]);
-        let lx = inv[0] * wx + inv[1] * wy + inv[2] * wz + inv[9];
-        let ly = inv[3] * wx + inv[4] * wy + inv[5] * wz + inv[10];
-        let lz = inv[6] * wx + inv[7] * wy + inv[8] * wz + inv[11];
-        gap = gap.min(sdf.distance(lx, ly, lz) - r[k]);
-    }
-    gap
+    lanes_min(m)
 }

@@ -14,6 +14,8 @@ pub(crate) struct Exact {
     pub shape: SharedShape,
     /// Parry's shape frame in our shape frame.
     pub correction: Isometry3<f64>,
+    /// Half-extents of a box, m (the checker's separating-axis test takes them).
+    pub half: Option<Vector3<f64>>,
 }
 
 impl std::fmt::Debug for Exact {
@@ -64,5 +66,13 @@ pub(crate) fn shape(s: &Shape) -> Option<Exact> {
             (SharedShape::convex_hull(&pts)?, none)
         }
     };
-    Some(Exact { shape, correction })
+    let half = match s {
+        Shape::Box(e) => Some(Vector3::new(e[0], e[1], e[2]) / 2.0),
+        _ => None,
+    };
+    Some(Exact {
+        shape,
+        correction,
+        half,
+    })
 }

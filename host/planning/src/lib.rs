@@ -16,6 +16,7 @@
 
 pub mod acm;
 pub mod bench;
+mod boxes;
 pub mod checker;
 mod convert;
 pub mod error;

@@ -95,6 +95,8 @@ pub struct CollisionModel {
     /// Every tree joint's value while planning (planned ones overwritten per state).
     values: Vec<f64>,
     moving: Vec<bool>,
+    /// The links the planned joints move, parents first.
+    moved: Vec<usize>,
     acm: SelfCollisionMatrix,
     urdf_file: Option<PathBuf>,
 }
@@ -235,16 +237,10 @@ impl CollisionModel {
         }
         let links = urdf_geometry(urdf, dir)?;
         let n = links.len();
+        let moved = tree.links_moved_by(&planned);
         let mut moving = vec![false; n];
-        for (l, m) in moving.iter_mut().enumerate() {
-            let mut at = Some(l);
-            while let Some(i) = at {
-                if tree.link_joint(i).is_some_and(|j| planned.contains(&j)) {
-                    *m = true;
-                    break;
-                }
-                at = tree.parent(i);
-            }
+        for &l in &moved {
+            moving[l] = true;
         }
         let all_limits = tree
             .joints()
@@ -280,6 +276,7 @@ impl CollisionModel {
             joint_names: joints.to_vec(),
             limits: limits.to_vec(),
             moving,
+            moved,
             acm: SelfCollisionMatrix::default(),
             urdf_file: None,
         };
@@ -428,6 +425,23 @@ impl CollisionModel {
         out.extend_from_slice(&self.values);
         for (&i, &x) in self.planned.iter().zip(q) {
             out[i] = x;
+        }
+    }
+
+    /// Pose of every link in the root frame for planned joint values `q`, into `poses`:
+    /// only the links the planned joints move are computed when `poses` already holds every
+    /// link's pose from an earlier call (the other links never move). `values` is scratch.
+    pub(crate) fn link_poses_into(
+        &self,
+        q: &[f64],
+        values: &mut Vec<f64>,
+        poses: &mut Vec<Isometry3<f64>>,
+    ) {
+        self.tree_values_into(q, values);
+        if poses.len() == self.links.len() {
+            self.tree.update_poses(values, &self.moved, poses);
+        } else {
+            self.tree.poses_into(values, poses);
         }
     }
 

@@ -335,39 +335,12 @@ impl Planner for RrtConnect {
         let raw = Self::search(checker, start, goal, opts, &mut rng, t0)?;
         let raw_waypoints = raw.len();
         let path = shortcut(checker, raw, opts.shortcuts, &mut rng, t0, opts.time_limit);
-        let path = proven(checker, path, start, goal, opts, t0)?;
         Ok(Plan {
             path,
             time: t0.elapsed(),
             raw_waypoints,
         })
     }
-}
-
-/// `path` when every edge of it is proven free; else the path RRT-Connect (and shortcutting)
-/// finds from `start` to `goal` with every edge proven while searching (slower, and rarely
-/// needed: the search's checks at the resolution missed a sliver of contact).
-fn proven(
-    checker: &Checker,
-    path: Vec<Vec<f64>>,
-    start: &[f64],
-    goal: &[f64],
-    opts: &PlanOptions,
-    t0: Instant,
-) -> Result<Vec<Vec<f64>>> {
-    if checker.path_proven(&path) {
-        return Ok(path);
-    }
-    checker
-        .counters()
-        .replans
-        .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-    checker.set_proven(true);
-    let mut rng = ChaCha8Rng::seed_from_u64(opts.seed ^ 0x5eed);
-    let r = RrtConnect::search(checker, start, goal, opts, &mut rng, t0)
-        .map(|raw| shortcut(checker, raw, opts.shortcuts, &mut rng, t0, opts.time_limit));
-    checker.set_proven(false);
-    r
 }
 
 /// The configuration at arc length `s` (rad) along `path`, and the edge it is on.
@@ -480,7 +453,6 @@ impl Planner for InformedRrtStar {
         let deadline = (t0.elapsed() + opts.improve_for).min(opts.time_limit);
         let best = improve(checker, start, goal, first, opts, &mut rng, t0, deadline);
         let path = shortcut(checker, best, opts.shortcuts, &mut rng, t0, opts.time_limit);
-        let path = proven(checker, path, start, goal, opts, t0)?;
         Ok(Plan {
             path,
             time: t0.elapsed(),

@@ -1,5 +1,5 @@
 //! The planners on a LoCoBot behind a post and a table: every returned path is free when
-//! re-checked by a separate checker stepping 1 mm of link motion, and Informed RRT* never
+//! re-checked at states 1 mm of link motion apart, and Informed RRT* never
 //! returns a longer path than RRT-Connect's first one (it starts from it).
 
 use std::sync::Arc;
@@ -36,17 +36,7 @@ fn paths_are_free_at_1_mm_and_informed_is_no_longer() {
     let cfg = RobotConfig::bundled("locobot").expect("robot");
     let model = Arc::new(CollisionModel::from_config(&cfg).expect("model"));
     let scene = scene();
-    let checker = Checker::new(model.clone(), &scene, CheckOptions::default()).expect("checker");
-    let fine = Checker::new(
-        model,
-        &scene,
-        CheckOptions {
-            resolution: 0.001,
-            max_step: 0.001,
-            min_step: 0.001,
-        },
-    )
-    .expect("fine checker");
+    let checker = Checker::new(model, &scene, CheckOptions::default()).expect("checker");
     let problems = bench::generate(&checker, 4, 3, 0.05).expect("problems");
     let opts = PlanOptions {
         improve_for: std::time::Duration::from_millis(50),
@@ -64,7 +54,7 @@ fn paths_are_free_at_1_mm_and_informed_is_no_longer() {
             assert_eq!(plan.path.last(), Some(&p.goal));
             for w in plan.path.windows(2) {
                 assert!(
-                    fine.motion_free(&w[0], &w[1]),
+                    checker.motion_sampled(&w[0], &w[1], 0.001),
                     "problem {i}: an edge collides at 1 mm"
                 );
             }
