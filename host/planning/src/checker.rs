@@ -5,16 +5,17 @@
 //! each obstacle's bounding box. The broad stage tests the body's conservative spheres against
 //! the obstacle's signed distance (in `f32`, padded structure-of-arrays loops the compiler
 //! vectorises); spheres found clear prove their body clear. Only where the spheres are not
-//! conclusive does the exact stage run on the body's real shapes: a separating-axis test for
-//! two boxes ([`crate::boxes`]), GJK (parry3d) for other convex pairs.
+//! conclusive (they would limit a step, or they touch) does the exact stage run on the body's
+//! real shapes: the separating-axis bound of their bounding boxes ([`crate::boxes`]), exact
+//! for two boxes and often enough for others, then GJK (parry3d) where it is not.
 //!
 //! A motion (a straight joint-space edge) is proven free by conservative advancement, not
 //! sampled: a joint step Δq moves no point of a body more than `Σ |Δqᵢ|·reachᵢ` with the
 //! body's own reach ([`CollisionModel::link_reach`]; links near the base move slowly). At each
 //! state the checker finds a lower bound of each body's clearance (from the spheres where they
 //! are far, exact distances where they are near), and advances along the edge as far as every
-//! body's clearance over its speed allows (a pair of moving bodies: over the sum of their
-//! speeds), capped at `max_step` of the fastest point. Where the clearance is below a step `h`
+//! body's clearance over its speed allows (a pair of moving bodies: over their relative speed,
+//! from the joints that move one of them and not the other), capped at `max_step` of the fastest point. Where the clearance is below a step `h`
 //! (`resolution` for the planners' edges, `min_step` for [`Checker::motion_proven`]) it takes
 //! a step of `h` only when the clearances at the step's two ends add up to more than the step
 //! (no point of the robot can then reach an obstacle from either end), halving the step until
@@ -104,9 +105,8 @@ struct Obstacle {
     sdf: Sdf,
     /// World to object frame: rotation rows and translation, `f32`.
     inv: [f32; 12],
-    /// Pose of the exact shape's frame.
-    pose: Isometry3<f64>,
-    exact: Exact,
+    /// The exact shape and the pose of its frame.
+    placed: [(Isometry3<f64>, Exact); 1],
     /// Bounding box in the object frame: centre and half-extents, m.
     bbox: ([f32; 3], [f32; 3]),
 }
@@ -149,8 +149,7 @@ impl Obstacle {
                 t.y as f32,
                 t.z as f32,
             ],
-            pose: pose * exact.correction,
-            exact,
+            placed: [(pose * exact.correction, exact)],
             bbox: {
                 let (lo, hi) = shape.bounds();
                 let (c, h) = ((lo + hi) / 2.0, (hi - lo) / 2.0);
@@ -170,7 +169,8 @@ struct Grid {
     lo: [i32; 3],
     dims: [usize; 3],
     bits: Vec<u64>,
-    cube: Exact,
+    /// A voxel, at the origin.
+    cube: [(Isometry3<f64>, Exact); 1],
 }
 
 impl Grid {
@@ -275,6 +275,14 @@ struct Near {
     pair_far: Vec<(f64, f64)>,
 }
 
+/// How far (m) each body's points, and each moving pair's points relative to each other, move
+/// at most along one edge.
+#[derive(Debug)]
+struct Speeds {
+    body: Vec<f64>,
+    pair: Vec<f64>,
+}
+
 /// Ends an edge's [`Near`] limits when dropped.
 struct EdgeGuard<'a>(&'a Checker);
 
@@ -307,6 +315,9 @@ pub struct Checker {
     reach: Vec<f64>,
     /// Each body's reach per planned joint ([`CollisionModel::link_reach`]); 0 when fixed.
     body_reach: Vec<Vec<f64>>,
+    /// Each moving pair's reach per planned joint: a joint that moves both moves them
+    /// together, so it counts 0; one that moves one of them, that one's reach.
+    pair_reach: Vec<Vec<f64>>,
     opts: CheckOptions,
     scratch: RefCell<Scratch>,
     counters: Counters,
@@ -335,48 +346,95 @@ pub(crate) fn links_touch(
     })
 }
 
-/// The distance (m; 0 when touching) between shapes `a` at `pa` and `b` at `pb`. Convex
-/// (support-mapped) pairs go to GJK directly: parry's own cuboid–cuboid distance (separating
-/// axes, then a projection heuristic) may return more than the true distance when faces are
-/// nearly parallel (3.9 cm for boxes 0.05 mm apart), and conservative advancement needs a
-/// distance that is never too large.
+/// A lower bound (m; 0 when they may touch) of the distance between convex shapes `a` at `pa`
+/// and `b` at `pb`. GJK (parry3d) only proposes directions: the distance it returns is that
+/// of the closest points it found, too large when it stalls (3.8 mm for two of Sawyer's link
+/// cylinders 0.7 mm apart) and 0 when it does not converge, and parry's own cuboid–cuboid
+/// distance can be centimetres too large for nearly parallel faces. Conservative advancement
+/// needs a distance that is never too large, so the bound is the gap between the two shapes'
+/// projections on the best of those directions (from their support points), which no
+/// direction can overstate, less a micrometre for `f32` rounding; 0 when none separates them.
 fn shape_distance(
     pa: &parry3d::math::Pose,
     a: &dyn parry3d::shape::Shape,
     pb: &parry3d::math::Pose,
     b: &dyn parry3d::shape::Shape,
 ) -> f64 {
-    if let (Some(sa), Some(sb)) = (a.as_support_map(), b.as_support_map()) {
-        let pos12 = pa.inv_mul(pb);
-        return f64::from(query::details::distance_support_map_support_map(
-            &pos12, sa, sb,
-        ));
+    use parry3d::math::Vector;
+    use parry3d::query::gjk::{self, CsoPoint, GJKResult, VoronoiSimplex};
+    let (Some(sa), Some(sb)) = (a.as_support_map(), b.as_support_map()) else {
+        // Every shape of ours is convex; a non-convex one would get parry's distance.
+        return query::distance(pa, a, pb, b).map_or(0.0, |d| f64::from(d.distance));
+    };
+    // In `a`'s frame.
+    let pos12 = pa.inv_mul(pb);
+    let centres = pos12.translation;
+    let start = if centres.length_squared() > 1e-12 {
+        -centres.normalize()
+    } else {
+        Vector::X
+    };
+    let mut simplex = VoronoiSimplex::new();
+    simplex.reset(CsoPoint::from_shapes(&pos12, sa, sb, start));
+    let mut dirs = [centres, Vector::ZERO, Vector::ZERO];
+    match gjk::closest_points(&pos12, sa, sb, f32::MAX, true, &mut simplex) {
+        GJKResult::Intersection => return 0.0,
+        GJKResult::ClosestPoints(p1, p2, n) => {
+            dirs[1] = n;
+            dirs[2] = p2 - p1;
+        }
+        GJKResult::Proximity(n) | GJKResult::NoIntersection(n) => dirs[1] = n,
     }
-    query::distance(pa, a, pb, b).map_or(0.0, |d| f64::from(d.distance))
+    let mut best = f32::NEG_INFINITY;
+    for n in dirs {
+        if !(n.length_squared() > 1e-20 && n.is_finite()) {
+            continue;
+        }
+        let n = n.normalize();
+        // `b` beyond `a` along n, and the other way round.
+        let a_hi = sa.local_support_point(n).dot(n);
+        let b_lo = sb.support_point(&pos12, -n).dot(n);
+        let a_lo = sa.local_support_point(-n).dot(n);
+        let b_hi = sb.support_point(&pos12, n).dot(n);
+        best = best.max(b_lo - a_hi).max(a_lo - b_hi);
+    }
+    (f64::from(best) - 1e-6).max(0.0)
 }
 
-/// The smallest distance (m; 0 when touching) between the exact shapes `a` (on their link at
-/// `pose_a`) and `b` (at their poses; a lower bound of it where both are boxes).
+/// A lower bound (m; 0 when touching) of the distance between the exact shapes `a` (on
+/// their link at `pose_a`) and `b` (on theirs at `pose_b`). Each pair is first bounded by the
+/// separating-axis test of the shapes' bounding boxes (exact when both are boxes); GJK runs
+/// only where that bound is below `exact_below` (m) or not positive, so contacts are always
+/// decided on the real shapes.
 fn exact_gap(
     a: &[(Isometry3<f64>, Exact)],
     pose_a: &Isometry3<f64>,
-    b: &[(Isometry3<f64>, &Exact)],
+    b: &[(Isometry3<f64>, Exact)],
+    pose_b: &Isometry3<f64>,
+    exact_below: f64,
     counters: &Counters,
 ) -> f64 {
     let mut gap = f64::INFINITY;
     for (o, ea) in a {
         let pa = pose_a * o;
-        for (pb, eb) in b {
+        for (ob, eb) in b {
+            let pb = &(pose_b * ob);
             counters.exact_checks.fetch_add(1, Ordering::Relaxed);
-            let d = match (&ea.half, &eb.half) {
-                // Two boxes: the separating-axis bound, a tenth of GJK's cost.
-                (Some(ha), Some(hb)) => boxes::gap(&pa, ha, pb, hb),
-                _ => shape_distance(
+            let bound = boxes::gap(
+                &(pa * nalgebra::Translation3::from(ea.bbox.0)),
+                &ea.bbox.1,
+                &(pb * nalgebra::Translation3::from(eb.bbox.0)),
+                &eb.bbox.1,
+            );
+            let d = if ea.is_box && eb.is_box || bound > 0.0 && bound >= exact_below {
+                bound
+            } else {
+                shape_distance(
                     &convert::pose(&pa),
                     ea.shape.as_ref(),
                     &convert::pose(pb),
                     eb.shape.as_ref(),
-                ),
+                )
             };
             gap = gap.min(d);
             if gap <= 0.0 {
@@ -532,9 +590,12 @@ impl Checker {
                 lo,
                 dims,
                 bits: vec![0; (dims[0] * dims[1] * dims[2]).div_ceil(64)],
-                cube: Shape::Box([v.size; 3])
-                    .to_parry()
-                    .expect("a cube has a hull"),
+                cube: [(
+                    Isometry3::identity(),
+                    Shape::Box([v.size; 3])
+                        .to_parry()
+                        .expect("a cube has a hull"),
+                )],
             };
             for c in &v.cells {
                 let mut idx = 0usize;
@@ -558,6 +619,16 @@ impl Checker {
                 } else {
                     vec![0.0; model.dof()]
                 }
+            })
+            .collect::<Vec<Vec<f64>>>();
+        let pair_reach = pairs
+            .iter()
+            .map(|&(i, j)| {
+                body_reach[i]
+                    .iter()
+                    .zip(&body_reach[j])
+                    .map(|(&a, &b)| if a > 0.0 && b > 0.0 { 0.0 } else { a + b })
+                    .collect()
             })
             .collect();
         let all_of = bodies
@@ -583,6 +654,7 @@ impl Checker {
             at = end;
         }
         Ok(Checker {
+            pair_reach,
             layout,
             all_of,
             all_pairs,
@@ -702,7 +774,7 @@ impl Checker {
     fn measure_with(
         &self,
         q: &[f64],
-        speed: Option<&[f64]>,
+        speed: Option<&Speeds>,
         cap: f64,
         exact_below: f64,
     ) -> std::result::Result<f64, Contact> {
@@ -724,7 +796,7 @@ impl Checker {
                 .sphere_checks
                 .fetch_add(checks, Ordering::Relaxed)
         };
-        let speed_of = |b: usize| speed.map_or(1.0, |v| v[b]).max(1e-9);
+        let speed_of = |b: usize| speed.map_or(1.0, |v| v.body[b]).max(1e-9);
         for (bi, b) in self.bodies.iter().enumerate() {
             if !b.moving {
                 continue;
@@ -781,14 +853,13 @@ impl Checker {
                     keep(lb);
                     continue;
                 }
-                if lb >= exact_below {
-                    clear = lb / m;
-                    continue;
-                }
+                // The spheres limit the step: the shapes' own bound, tighter.
                 let d = exact_gap(
                     &b.exact,
                     &s.poses[b.link],
-                    &[(o.pose, &o.exact)],
+                    &o.placed,
+                    &Isometry3::identity(),
+                    exact_below,
                     &self.counters,
                 );
                 if d <= 0.0 {
@@ -798,6 +869,8 @@ impl Checker {
                         b: o.id.clone(),
                     });
                 }
+                let d = d.max(lb);
+                keep(d);
                 clear = clear.min(d / m);
             }
             if let Some(g) = &self.grid {
@@ -812,14 +885,15 @@ impl Checker {
                 }
             }
         }
-        // Moving bodies against each other: both move, so the sum of their speeds.
+        // Moving bodies against each other: their relative speed.
         let t = s.near.t;
         let (pairs, mut far) = if s.near.on {
             (&s.near.pairs[..], Some(&mut s.near.pair_far[..]))
         } else {
             (&self.all_pairs[..], None)
         };
-        for (n, &(i, j)) in pairs.iter().map(|&p| &self.pairs[p]).enumerate() {
+        for (n, &p) in pairs.iter().enumerate() {
+            let (i, j) = self.pairs[p];
             if let Some(f) = far.as_deref_mut() {
                 let (t0, d) = f[n];
                 if (t - t0).abs() <= d {
@@ -827,11 +901,7 @@ impl Checker {
                 }
             }
             let (bi, bj) = (&s.bounds[i], &s.bounds[j]);
-            let m = if speed.is_some() {
-                speed_of(i) + speed_of(j)
-            } else {
-                2.0
-            };
+            let m = speed.map_or(2.0, |v| v.pair[p].max(1e-9));
             let mut keep = |gap: f64| {
                 if let Some(f) = far.as_deref_mut() {
                     f[n] = (t, (gap - cap * m) / m);
@@ -881,15 +951,16 @@ impl Checker {
                 keep(lb);
                 continue;
             }
-            if lb >= 2.0 * exact_below {
-                clear = lb / m;
-                continue;
-            }
+            // The spheres limit the step: the shapes' own bound, tighter.
             let (a, b) = (&self.bodies[i], &self.bodies[j]);
-            let pb = &s.poses[b.link];
-            let other: Vec<(Isometry3<f64>, &Exact)> =
-                b.exact.iter().map(|(o, e)| (pb * o, e)).collect();
-            let d = exact_gap(&a.exact, &s.poses[a.link], &other, &self.counters);
+            let d = exact_gap(
+                &a.exact,
+                &s.poses[a.link],
+                &b.exact,
+                &s.poses[b.link],
+                2.0 * exact_below,
+                &self.counters,
+            );
             if d <= 0.0 {
                 flush(checks);
                 return Err(Contact {
@@ -897,6 +968,8 @@ impl Checker {
                     b: b.name.clone(),
                 });
             }
+            let d = d.max(lb);
+            keep(d);
             clear = clear.min(d / m);
         }
         flush(checks);
@@ -949,7 +1022,9 @@ impl Checker {
                         let d = exact_gap(
                             &b.exact,
                             &s.poses[b.link],
-                            &[(pose, &g.cube)],
+                            &g.cube,
+                            &pose,
+                            0.0,
                             &self.counters,
                         );
                         if d <= 0.0 {
@@ -1023,7 +1098,7 @@ impl Checker {
     /// Limits the checks of the states that follow, until the guard drops, to what may come
     /// near some body on the edge that starts at `a` and moves each body's points at most
     /// `speed` (m) along it ([`Near`]).
-    fn begin_edge(&self, a: &[f64], speed: &[f64]) -> EdgeGuard<'_> {
+    fn begin_edge(&self, a: &[f64], speed: &Speeds) -> EdgeGuard<'_> {
         let mut s = self.scratch.borrow_mut();
         let s = &mut *s;
         self.model.link_poses_into(a, &mut s.values, &mut s.poses);
@@ -1044,7 +1119,7 @@ impl Checker {
                 } else {
                     &self.robot_obstacles[k - world]
                 };
-                o.coarse_gap(&bound.centre, bound.radius) < speed[bi] + step + 1e-6
+                o.coarse_gap(&bound.centre, bound.radius) < speed.body[bi] + step + 1e-6
             }));
         }
         s.near.pairs.clear();
@@ -1052,7 +1127,7 @@ impl Checker {
             let (i, j) = self.pairs[p];
             let (bi, bj) = (&s.bounds[i], &s.bounds[j]);
             let gap = (bi.centre - bj.centre).norm() - bi.radius - bj.radius;
-            gap < speed[i] + speed[j] + 2.0 * step + 1e-6
+            gap < speed.pair[p] + 2.0 * step + 1e-6
         }));
         s.near.obstacle_far.resize_with(self.bodies.len(), Vec::new);
         for (far, list) in s.near.obstacle_far.iter_mut().zip(&s.near.obstacles) {
@@ -1066,17 +1141,19 @@ impl Checker {
         EdgeGuard(self)
     }
 
-    /// Each body's largest point motion (m) over the edge from `a` to `b`.
-    fn speeds(&self, a: &[f64], b: &[f64]) -> Vec<f64> {
-        self.body_reach
-            .iter()
-            .map(|r| {
-                r.iter()
-                    .zip(a.iter().zip(b))
-                    .map(|(r, (x, y))| r * (x - y).abs())
-                    .sum()
-            })
-            .collect()
+    /// Each body's largest point motion (m) over the edge from `a` to `b`, and each moving
+    /// pair's largest relative motion.
+    fn speeds(&self, a: &[f64], b: &[f64]) -> Speeds {
+        let along = |r: &Vec<f64>| -> f64 {
+            r.iter()
+                .zip(a.iter().zip(b))
+                .map(|(r, (x, y))| r * (x - y).abs())
+                .sum()
+        };
+        Speeds {
+            body: self.body_reach.iter().map(along).collect(),
+            pair: self.pair_reach.iter().map(along).collect(),
+        }
     }
 
     /// Conservative advancement from `a` to `b`: steps of the clearance where it is at least
@@ -1267,4 +1344,71 @@ fn sphere_spheres_gap(a: (f32, f32, f32, f32), b: SphereSlices<'_>) -> f32 {
         }
     }
     lanes_min(m)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ferrobot_description::RobotConfig;
+    use rand::{Rng, SeedableRng};
+
+    /// Over random edges of Sawyer (seven links that fold onto each other), no sphere centre
+    /// of a body moves farther than the body's speed, nor, seen from the other body of a
+    /// moving pair, farther than the pair's relative speed: the bounds every step relies on.
+    #[test]
+    fn speeds_bound_every_point_motion() {
+        let cfg = RobotConfig::bundled("sawyer").expect("sawyer");
+        let model = Arc::new(CollisionModel::from_config(&cfg).expect("model"));
+        let c = Checker::new(
+            model.clone(),
+            &PlanningScene::new(),
+            CheckOptions::default(),
+        )
+        .expect("checker");
+        assert!(c.pairs.len() > 5);
+        let limits = model.limits().to_vec();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let sample = |rng: &mut rand_chacha::ChaCha8Rng| -> Vec<f64> {
+            limits
+                .iter()
+                .map(|&(lo, hi)| rng.random_range(lo..=hi))
+                .collect()
+        };
+        let (mut tight_pair, mut tight_body) = (0.0f64, 0.0f64);
+        for _ in 0..300 {
+            let (a, b) = (sample(&mut rng), sample(&mut rng));
+            let speed = c.speeds(&a, &b);
+            let t = rng.random_range(0.0..1.0);
+            let q: Vec<f64> = a.iter().zip(&b).map(|(x, y)| x + (y - x) * t).collect();
+            let (pa, pq) = (model.link_poses(&a), model.link_poses(&q));
+            for (bi, body) in c.bodies.iter().enumerate() {
+                for s in &body.spheres {
+                    let moved = (pq[body.link] * s.centre - pa[body.link] * s.centre).norm();
+                    assert!(moved <= t * speed.body[bi] + 1e-9, "{}", body.name);
+                    tight_body = tight_body.max(moved / (t * speed.body[bi]).max(1e-12));
+                }
+            }
+            for (p, &(i, j)) in c.pairs.iter().enumerate() {
+                let (li, lj) = (c.bodies[i].link, c.bodies[j].link);
+                for s in &c.bodies[j].spheres {
+                    let seen =
+                        |poses: &[Isometry3<f64>]| poses[li].inverse() * (poses[lj] * s.centre);
+                    let moved = (seen(&pq) - seen(&pa)).norm();
+                    assert!(
+                        moved <= t * speed.pair[p] + 1e-9,
+                        "{} seen from {}: {moved} m, bound {}",
+                        c.bodies[j].name,
+                        c.bodies[i].name,
+                        t * speed.pair[p]
+                    );
+                    tight_pair = tight_pair.max(moved / (t * speed.pair[p]).max(1e-12));
+                }
+            }
+        }
+        // Not vacuous: somewhere the motion comes within a factor of three of each bound.
+        assert!(
+            tight_body > 0.33 && tight_pair > 0.33,
+            "{tight_body} {tight_pair}"
+        );
+    }
 }

@@ -14,8 +14,11 @@ pub(crate) struct Exact {
     pub shape: SharedShape,
     /// Parry's shape frame in our shape frame.
     pub correction: Isometry3<f64>,
-    /// Half-extents of a box, m (the checker's separating-axis test takes them).
-    pub half: Option<Vector3<f64>>,
+    /// The shape's bounding box in parry's shape frame: centre and half-extents, m (the
+    /// checker's separating-axis bound takes it).
+    pub bbox: (Vector3<f64>, Vector3<f64>),
+    /// Whether the shape is its bounding box (a box): the separating-axis test is then exact.
+    pub is_box: bool,
 }
 
 impl std::fmt::Debug for Exact {
@@ -66,13 +69,27 @@ pub(crate) fn shape(s: &Shape) -> Option<Exact> {
             (SharedShape::convex_hull(&pts)?, none)
         }
     };
-    let half = match s {
-        Shape::Box(e) => Some(Vector3::new(e[0], e[1], e[2]) / 2.0),
-        _ => None,
+    let bbox = match s {
+        Shape::Box(e) => (Vector3::zeros(), Vector3::new(e[0], e[1], e[2]) / 2.0),
+        Shape::Sphere(r) => (Vector3::zeros(), Vector3::repeat(*r)),
+        Shape::Capsule { radius, length } => (
+            Vector3::zeros(),
+            Vector3::new(*radius, *radius, length / 2.0 + radius),
+        ),
+        // Along parry's y.
+        Shape::Cylinder { radius, length } => (
+            Vector3::zeros(),
+            Vector3::new(*radius, length / 2.0, *radius),
+        ),
+        Shape::Hull(_) => {
+            let (lo, hi) = s.bounds();
+            ((lo + hi) / 2.0, (hi - lo) / 2.0)
+        }
     };
     Some(Exact {
         shape,
         correction,
-        half,
+        bbox,
+        is_box: matches!(s, Shape::Box(_)),
     })
 }
