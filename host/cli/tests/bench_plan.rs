@@ -111,10 +111,13 @@ fn the_summary_has_its_keys_and_every_tabletop_problem_is_solved() {
             "robot",
             "scene",
             "success_rate",
-            "time_ms"
+            "time_ms",
+            "unreached"
         ]
     );
     assert_eq!(keys(&v["time_ms"]), ["max", "median", "p95"]);
+    // No tabletop problem is cut off from the arm's home.
+    assert_eq!(v["unreached"], 0, "{v}");
     assert_eq!(keys(&v["path_length_rad"]), ["median"]);
     assert_eq!(v["success_rate"], 1.0, "{v}");
     assert_eq!(v["problems"], 5);

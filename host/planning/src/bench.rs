@@ -22,16 +22,52 @@ pub struct Problem {
     pub goal: Vec<f64>,
 }
 
+/// How [`generate`] makes sure a problem can be solved.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Reach {
+    /// A free configuration both ends must reach (the robot's home, rad).
+    pub hub: Vec<f64>,
+    /// RRT-Connect's time for each end to reach the hub (seeds apart from the benchmark's).
+    pub within: std::time::Duration,
+}
+
+/// A generated problem set.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ProblemSet {
+    /// The problems.
+    pub problems: Vec<Problem>,
+    /// Candidates dropped because an end did not reach the hub ([`Reach`]) in time: in a
+    /// cage or a shelf some free configurations are cut off from the rest (a link threaded
+    /// between bars), and no planner can solve a problem that starts there.
+    pub unreached: usize,
+}
+
 /// `n` problems for `checker`'s robot in its scene, seeded with `seed`: both ends free, the
 /// straight joint-space line between them not, and each end's links near the scene (within
-/// `near` m of some object) so that problems are about getting around things. Gives up with
-/// an error after `n × 20000` samples.
-pub fn generate(checker: &Checker, n: usize, seed: u64, near: f64) -> Result<Vec<Problem>> {
+/// `near` m of some object) so that problems are about getting around things; with `reach`,
+/// both ends also connected to its hub (a problem whose ends both reach the hub can be
+/// solved through it). Gives up with an error after `n × 200` candidates of `20000` samples
+/// each.
+pub fn generate(
+    checker: &Checker,
+    n: usize,
+    seed: u64,
+    near: f64,
+    reach: Option<&Reach>,
+) -> Result<ProblemSet> {
     if n > MAX_PROBLEMS {
         return Err(Error::Invalid {
             what: "problem count".into(),
             why: format!("{n} is more than {MAX_PROBLEMS}"),
         });
+    }
+    if let Some(r) = reach {
+        if !checker.is_free(&r.hub) {
+            return Err(Error::Invalid {
+                what: "hub".into(),
+                why: format!("{:?} is not free in the scene", r.hub),
+            });
+        }
     }
     let limits = checker.model().limits().to_vec();
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
@@ -47,16 +83,38 @@ pub fn generate(checker: &Checker, n: usize, seed: u64, near: f64) -> Result<Vec
         }
         None
     };
-    let mut out = Vec::with_capacity(n);
-    let mut tries = 0usize;
-    while out.len() < n {
+    let reaches = |q: &[f64], k: u64| -> bool {
+        reach.is_none_or(|r| {
+            let opts = PlanOptions {
+                time_limit: r.within,
+                // Apart from the benchmark's seeds (`seed` plus the problem's index).
+                seed: seed ^ 0x68_75_62 ^ k.rotate_left(32),
+                shortcuts: 0,
+                ..PlanOptions::default()
+            };
+            crate::planner::RrtConnect
+                .plan(checker, &r.hub, q, &opts)
+                .is_ok()
+        })
+    };
+    let mut set = ProblemSet {
+        problems: Vec::with_capacity(n),
+        unreached: 0,
+    };
+    let mut tries = 0u64;
+    while set.problems.len() < n {
         tries += 1;
-        if tries > n.max(1) * 200 {
+        if tries > n.max(1) as u64 * 200 {
             return Err(Error::Invalid {
                 what: "problem set".into(),
                 why: format!(
-                    "found only {} of {n} problems whose straight line collides",
-                    out.len()
+                    "found only {} of {n} problems whose straight line collides{}",
+                    set.problems.len(),
+                    if set.unreached > 0 {
+                        format!(" and whose ends reach the hub ({} did not)", set.unreached)
+                    } else {
+                        String::new()
+                    }
                 ),
             });
         }
@@ -69,9 +127,13 @@ pub fn generate(checker: &Checker, n: usize, seed: u64, near: f64) -> Result<Vec
         if checker.motion_free(&start, &goal) {
             continue;
         }
-        out.push(Problem { start, goal });
+        if !(reaches(&start, 2 * tries) && reaches(&goal, 2 * tries + 1)) {
+            set.unreached += 1;
+            continue;
+        }
+        set.problems.push(Problem { start, goal });
     }
-    Ok(out)
+    Ok(set)
 }
 
 /// One problem's outcome.

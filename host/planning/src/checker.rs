@@ -38,6 +38,7 @@ use crate::boxes;
 use crate::convert::{self, Exact};
 use crate::model::{bounding_sphere, CollisionModel};
 use crate::scene::PlanningScene;
+use crate::segments;
 use crate::shape::{Sdf, Shape};
 use crate::spheres::{self, Sphere};
 use crate::{Error, Result};
@@ -420,13 +421,30 @@ fn exact_gap(
         for (ob, eb) in b {
             let pb = &(pose_b * ob);
             counters.exact_checks.fetch_add(1, Ordering::Relaxed);
-            let bound = boxes::gap(
+            let mut bound = boxes::gap(
                 &(pa * nalgebra::Translation3::from(ea.bbox.0)),
                 &ea.bbox.1,
                 &(pb * nalgebra::Translation3::from(eb.bbox.0)),
                 &eb.bbox.1,
             );
-            let d = if ea.is_box && eb.is_box || bound > 0.0 && bound >= exact_below {
+            let mut exact = ea.is_box && eb.is_box;
+            if let (Some((ha, ra, ca)), Some((hb, rb, cb))) = (&ea.capsule, &eb.capsule) {
+                // The capsules that hold them: exact for capsules and spheres.
+                let ends = |p: &Isometry3<f64>, h: &nalgebra::Vector3<f64>| {
+                    (
+                        p * nalgebra::Point3::from(*h),
+                        p * nalgebra::Point3::from(-h),
+                    )
+                };
+                let ((a0, a1), (b0, b1)) = (ends(&pa, ha), ends(pb, hb));
+                let d = segments::distance(&a0, &a1, &b0, &b1) - ra - rb;
+                bound = bound.max(d.max(0.0));
+                exact = *ca && *cb;
+                if exact {
+                    bound = d.max(0.0);
+                }
+            }
+            let d = if exact || bound > 0.0 && bound >= exact_below {
                 bound
             } else {
                 shape_distance(

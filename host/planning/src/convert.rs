@@ -19,6 +19,9 @@ pub(crate) struct Exact {
     pub bbox: (Vector3<f64>, Vector3<f64>),
     /// Whether the shape is its bounding box (a box): the separating-axis test is then exact.
     pub is_box: bool,
+    /// For spheres, capsules and cylinders: the half-axis (m, in parry's shape frame) and the
+    /// radius of the capsule that holds the shape, and whether the shape is that capsule.
+    pub capsule: Option<(Vector3<f64>, f64, bool)>,
 }
 
 impl std::fmt::Debug for Exact {
@@ -91,5 +94,16 @@ pub(crate) fn shape(s: &Shape) -> Option<Exact> {
         correction,
         bbox,
         is_box: matches!(s, Shape::Box(_)),
+        capsule: match s {
+            Shape::Sphere(r) => Some((Vector3::zeros(), *r, true)),
+            Shape::Capsule { radius, length } => {
+                Some((Vector3::new(0.0, 0.0, length / 2.0), *radius, true))
+            }
+            // Along parry's y.
+            Shape::Cylinder { radius, length } => {
+                Some((Vector3::new(0.0, length / 2.0, 0.0), *radius, false))
+            }
+            _ => None,
+        },
     })
 }

@@ -23,6 +23,7 @@ pub mod error;
 pub mod model;
 pub mod planner;
 pub mod scene;
+mod segments;
 pub mod shape;
 pub mod spheres;
 pub mod timing;

@@ -37,7 +37,9 @@ fn paths_are_free_at_1_mm_and_informed_is_no_longer() {
     let model = Arc::new(CollisionModel::from_config(&cfg).expect("model"));
     let scene = scene();
     let checker = Checker::new(model, &scene, CheckOptions::default()).expect("checker");
-    let problems = bench::generate(&checker, 4, 3, 0.05).expect("problems");
+    let problems = bench::generate(&checker, 4, 3, 0.05, None)
+        .expect("problems")
+        .problems;
     let opts = PlanOptions {
         improve_for: std::time::Duration::from_millis(50),
         ..PlanOptions::default()
@@ -66,4 +68,46 @@ fn paths_are_free_at_1_mm_and_informed_is_no_longer() {
             fast.length()
         );
     }
+}
+
+/// Generated problems can be required to reach a hub: with time to do so every candidate is
+/// kept (the table and post cut nothing off), with no time only ends the hub sees straight
+/// are kept, and a hub
+/// in collision (home, in the post) is refused.
+#[test]
+fn problems_reach_the_hub() {
+    let cfg = RobotConfig::bundled("locobot").expect("robot");
+    let model = Arc::new(CollisionModel::from_config(&cfg).expect("model"));
+    let checker = Checker::new(model, &scene(), CheckOptions::default()).expect("checker");
+    // Home reaches into the post; a free configuration instead.
+    let home = cfg.arm.as_ref().expect("arm").home.clone();
+    assert!(!checker.is_free(&home));
+    let home = {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
+        let limits = checker.model().limits().to_vec();
+        std::iter::repeat_with(|| {
+            limits
+                .iter()
+                .map(|&(lo, hi)| rng.random_range(lo..=hi))
+                .collect::<Vec<f64>>()
+        })
+        .find(|q| checker.is_free(q))
+        .expect("a free configuration")
+    };
+    let reach = |s: f64| bench::Reach {
+        hub: home.clone(),
+        within: std::time::Duration::from_secs_f64(s),
+    };
+    let set = bench::generate(&checker, 3, 5, 0.05, Some(&reach(2.0))).expect("problems");
+    assert_eq!((set.problems.len(), set.unreached), (3, 0));
+    // No time to search: only ends the hub sees straight are kept.
+    let hasty = bench::generate(&checker, 2, 5, 0.05, Some(&reach(1e-9))).expect("problems");
+    assert!(hasty.unreached > 0);
+    for p in &hasty.problems {
+        assert!(checker.motion_free(&home, &p.start) && checker.motion_free(&home, &p.goal));
+    }
+    let mut inside = reach(2.0);
+    inside.hub = cfg.arm.as_ref().expect("arm").home.clone();
+    assert!(bench::generate(&checker, 1, 5, 0.05, Some(&inside)).is_err());
 }

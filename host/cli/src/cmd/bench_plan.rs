@@ -40,6 +40,9 @@ use super::common::{load, planning_error, print_json};
 /// Distance within which both ends of a generated problem have some link of an object, when
 /// the scene has objects (besides the floor and walls), m.
 pub const NEAR: f64 = 0.05;
+/// Generated problems' ends must reach the arm's home within this many times the planning
+/// time limit (RRT-Connect, other seeds), or the candidate is dropped as unsolvable.
+pub const REACH_FACTOR: f64 = 3.0;
 /// Largest problems file read, bytes.
 pub const MAX_PROBLEMS_FILE_BYTES: u64 = 256 << 20;
 /// How far a problems file's quaternion may be from unit length (it is normalised).
@@ -93,6 +96,11 @@ struct SummaryJson {
     success_rate: f64,
     /// Time per problem (failures at their full time), ms.
     time_ms: TimeJson,
+    /// Generated candidates dropped because an end did not reach the arm's home within
+    /// `REACH_FACTOR` times the time limit (absent for problems files and when home is not
+    /// free).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    unreached: Option<usize>,
 }
 
 /// Path length statistics.
@@ -748,20 +756,31 @@ pub fn run(a: &PlanArgs) -> ferrobot::Result<()> {
     let scene = planning_scene(&source, &work.objects)?;
     let checker = Checker::new(Arc::new(model), &scene, CheckOptions::default())
         .map_err(|e| planning_error(&source, e))?;
-    let problems = if a.problems_file.is_some() {
-        work.problems
+    let (problems, unreached) = if a.problems_file.is_some() {
+        (work.problems, None)
     } else {
         let near = if work.objects.iter().any(|o| !is_floor_or_wall(&o.id)) {
             NEAR
         } else {
             0.0
         };
-        bench::generate(&checker, a.problems, a.seed, near).map_err(|e| {
-            Error::Usage(format!(
-                "cannot make {} problems for {} in {}: {e}",
-                a.problems, cfg.name, work.label
-            ))
-        })?
+        // Solvable problems only: both ends reach the arm's home, when it is free.
+        let reach = cfg
+            .arm
+            .as_ref()
+            .map(|arm| bench::Reach {
+                hub: arm.home.clone(),
+                within: Duration::from_secs_f64(REACH_FACTOR * a.time_limit),
+            })
+            .filter(|r| checker.is_free(&r.hub));
+        let set =
+            bench::generate(&checker, a.problems, a.seed, near, reach.as_ref()).map_err(|e| {
+                Error::Usage(format!(
+                    "cannot make {} problems for {} in {}: {e}",
+                    a.problems, cfg.name, work.label
+                ))
+            })?;
+        (set.problems, reach.map(|_| set.unreached))
     };
     let opts = PlanOptions {
         time_limit: Duration::from_secs_f64(a.time_limit),
@@ -813,6 +832,7 @@ pub fn run(a: &PlanArgs) -> ferrobot::Result<()> {
                 median: summary.time_ms[0],
                 p95: summary.time_ms[1],
             },
+            unreached,
         });
         return Ok(());
     }
@@ -828,6 +848,12 @@ pub fn run(a: &PlanArgs) -> ferrobot::Result<()> {
             String::new()
         }
     );
+    if let Some(k) = unreached {
+        say!(
+            "({k} candidates dropped: an end did not reach the arm's home within {} s)",
+            REACH_FACTOR * a.time_limit
+        );
+    }
     say!("");
     say!("| planner | success | median ms | p95 ms | max ms | median path rad | sphere checks/s |");
     say!("|---|---|---|---|---|---|---|");
