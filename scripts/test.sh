@@ -4,6 +4,12 @@
 # over serial ports, the Dynamixel conformance test against ROBOTIS' official SDK, the
 # planning benchmark's exports re-checked by FCL, and the hardware-in-the-loop tests with the
 # firmware in QEMU). Installs what it needs by itself, idempotently.
+#
+# Work that does not need all of the machine runs beside the rest: the Python setup and the
+# board builds while the workspace's tests compile, and the HIL tests (QEMU paced at real
+# time, about half a core) while the rest of the build and clippy run.
+# A background job's output is printed, whole, when it is waited for; every check runs even
+# when an earlier one failed, and the script fails at the end naming what failed.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 start=$(date +%s)
@@ -15,38 +21,102 @@ step() {
     last=$now
 }
 
+failed=()
+# check NAME COMMAND...: run a check; a failure is recorded and reported at the end.
+check() {
+    local name=$1
+    shift
+    "$@" || failed+=("$name")
+}
+
+# Background jobs, each in its own session (so that it can be stopped whole: cargo, rustc,
+# QEMU), with its output in target/ci-logs/NAME.log.
+logs=target/ci-logs
+mkdir -p "$logs"
+declare -A bg_pids=()
+background() { # NAME SHELL-COMMAND
+    setsid -w bash -c "$2" >"$logs/$1.log" 2>&1 </dev/null &
+    bg_pids[$1]=$!
+}
+# join NAME: wait for a background job, print its output, record its failure.
+join() {
+    local rc=0
+    wait "${bg_pids[$1]}" || rc=$?
+    unset "bg_pids[$1]"
+    cat "$logs/$1.log"
+    [ "$rc" -eq 0 ] || failed+=("$1")
+    return 0
+}
+stop_background() {
+    for pid in "${bg_pids[@]}"; do
+        kill -- "-$pid" "$pid" 2>/dev/null || true
+    done
+}
+trap stop_background EXIT
+
 step "toolchain: rustfmt and clippy"
 rustup component add rustfmt clippy >/dev/null 2>&1 || true
 
-step "python: ROBOTIS dynamixel-sdk in target/py-venv"
-scripts/python-env.sh
-export FERROBOT_PYTHON="$PWD/target/py-venv/bin/python"
-
-step "python: OMPL and FCL for the planning benchmark's peer (host/planning/peer) in target/py-venv"
-scripts/python-env.sh plan
-
+# Before the Python setup: both may need apt, which takes one install at a time.
 step "cross toolchain for the boards (Debian's rustc-web, lld, QEMU)"
 scripts/setup-cross.sh
 
-step "board builds: mps2-an386 (QEMU) and opencr (OpenCR 1.0)"
-scripts/build-boards.sh
+step "started: Python (dynamixel-sdk; OMPL and FCL for the planning peer) in target/py-venv, and the board builds (mps2-an386 for QEMU, opencr for OpenCR 1.0)"
+background python 'scripts/python-env.sh && scripts/python-env.sh plan'
+background boards 'scripts/build-boards.sh'
 
 step "cargo fmt --check"
-cargo fmt --all -- --check
+check fmt cargo fmt --all -- --check
 
-step "cargo clippy --all-targets -D warnings (workspace, fuzz targets, both boards)"
-cargo clippy --workspace --all-targets -- -D warnings
+# Every cargo command below selects the whole workspace (--workspace), as the full build does,
+# so that nothing is built twice: a narrower selection (-p) would unify other features.
+step "cargo test --no-run: what the HIL tests need"
+cargo test --workspace --no-run --test hil --bin firmware-process
+
+step "waited for: the board builds"
+join boards
+step "waited for: Python"
+join python
+export FERROBOT_PYTHON="$PWD/target/py-venv/bin/python"
+
+# While the HIL tests run (they keep simulated time with the firmware, so a busy machine only
+# makes them take longer), the rest is built and linted; the other tests, some of which run
+# on wall-clock budgets (the planners, serial timeouts), run after them, alone. ferrobot-hil's
+# library and its firmware-process binary are the harness and hold no tests of their own (the
+# binary's empty test harness still runs, here).
+step "started: the HIL tests (hil-tests/tests/hil.rs: the firmware in QEMU, real-time paced)"
+background hil 'cargo test --workspace --no-fail-fast --test hil --bin firmware-process'
+
+step "cargo test --no-run: every other test"
+cargo test --workspace --no-run
+
+step "cargo clippy --all-targets -D warnings (workspace)"
+check clippy cargo clippy --workspace --all-targets -- -D warnings
+
 # The fuzz targets share the workspace's target directory and dev profile, so only they and
 # the fuzzing crates are checked again; clippy does not link, so libFuzzer's C++ need not be
 # compiled (libfuzzer-sys then only names a library to link).
-(cd fuzz && CARGO_TARGET_DIR=../target CUSTOM_LIBFUZZER_PATH="$PWD/../target/no-libfuzzer/libfuzzer.a" \
-    cargo clippy --all-targets -- -D warnings)
+step "cargo clippy --all-targets -D warnings (fuzz targets)"
+check "clippy (fuzz)" bash -c 'cd fuzz && CARGO_TARGET_DIR=../target CUSTOM_LIBFUZZER_PATH="$PWD/../target/no-libfuzzer/libfuzzer.a" \
+    cargo clippy --all-targets -- -D warnings'
+rc=0
+git diff --quiet -- fuzz/Cargo.lock 2>/dev/null || rc=$?
+[ "$rc" -ne 1 ] || echo "note: fuzz/Cargo.lock was out of step with Cargo.lock (its clippy re-resolved and re-checked dependencies): commit the updated one" >&2
+
+step "cargo clippy -D warnings (both boards, Debian's clippy)"
 for board in mps2-an386 opencr; do
-    (cd "boards/$board" && env -u RUSTUP_TOOLCHAIN -u CARGO -u RUSTC -u RUSTC_WRAPPER -u CARGO_TARGET_DIR \
-        cargo clippy --release --quiet -- -D warnings)
+    check "clippy ($board)" bash -c "cd boards/$board && env -u RUSTUP_TOOLCHAIN -u CARGO -u RUSTC -u RUSTC_WRAPPER -u CARGO_TARGET_DIR \
+        cargo clippy --release --quiet -- -D warnings"
 done
 
-step "cargo test"
-cargo test --workspace --no-fail-fast
+step "waited for: the HIL tests"
+join hil
 
+step "cargo test: every other test"
+check "cargo test" cargo test --workspace --no-fail-fast --exclude ferrobot-hil
+
+if [ ${#failed[@]} -gt 0 ]; then
+    step "FAILED: ${failed[*]}"
+    exit 1
+fi
 step "done in $(( $(date +%s) - start )) s"
