@@ -90,6 +90,9 @@ fn the_summary_has_its_keys_and_every_tabletop_problem_is_solved() {
     let (ok, v, text) = ferrobot(&[
         "bench",
         "plan",
+        // Generous: the test checks outcomes, not speed, on a busy machine too.
+        "--time-limit",
+        "30",
         "--robot",
         "locobot",
         "--scene",
@@ -143,6 +146,9 @@ fn an_export_is_free_under_fcl_and_plans_again_as_a_problems_file() {
     let (ok, v, text) = ferrobot(&[
         "bench",
         "plan",
+        // Generous: the test checks outcomes, not speed, on a busy machine too.
+        "--time-limit",
+        "30",
         "--robot",
         "locobot",
         "--scene",
@@ -182,6 +188,9 @@ fn an_export_is_free_under_fcl_and_plans_again_as_a_problems_file() {
     let (ok, w, text) = ferrobot(&[
         "bench",
         "plan",
+        // Generous: the test checks outcomes, not speed, on a busy machine too.
+        "--time-limit",
+        "30",
         "--config",
         "locobot",
         "--problems-file",
@@ -280,6 +289,9 @@ fn problems_files_written_by_anyone_are_checked() {
     let (ok, v, text) = ferrobot(&[
         "bench",
         "plan",
+        // Generous: the test checks outcomes, not speed, on a busy machine too.
+        "--time-limit",
+        "30",
         "--robot",
         "locobot",
         "--problems-file",
