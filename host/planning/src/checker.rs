@@ -444,6 +444,21 @@ fn exact_gap(
                     bound = d.max(0.0);
                 }
             }
+            // A box and a capsule (or what one holds): the capsule's axis against the box.
+            for ((pbox, ebox), (pcap, ecap)) in [((&pa, ea), (pb, eb)), ((pb, eb), (&pa, ea))] {
+                if let (true, Some((h, r, is_capsule))) = (ebox.is_box, &ecap.capsule) {
+                    let (p, q) = (
+                        pcap * nalgebra::Point3::from(*h),
+                        pcap * nalgebra::Point3::from(-h),
+                    );
+                    let d = segments::box_distance(&p, &q, pbox, &ebox.bbox.1) - r;
+                    bound = bound.max(d.max(0.0));
+                    exact = *is_capsule;
+                    if exact {
+                        bound = d.max(0.0);
+                    }
+                }
+            }
             let d = if exact || bound > 0.0 && bound >= exact_below {
                 bound
             } else {

@@ -115,7 +115,8 @@ fn random_edges(robot: &str, scene: &PlanningScene, span: f64, min_self: usize, 
     let c = Checker::new(model, scene, CheckOptions::default()).expect("checker");
     let limits = c.model().limits().to_vec();
     let links = c.moving_links();
-    // Bodies that are boxes only.
+    // Bodies whose contacts with each other are decided exactly: box links, and objects that
+    // are boxes, spheres or capsules (objects never touch each other here).
     let boxes: Vec<String> = c
         .model()
         .links()
@@ -127,7 +128,13 @@ fn random_edges(robot: &str, scene: &PlanningScene, span: f64, min_self: usize, 
         .chain(
             scene
                 .objects()
-                .filter(|o| matches!(o.shape, Shape::Box(_)))
+                // Against box links, spheres and capsules are decided exactly too.
+                .filter(|o| {
+                    matches!(
+                        o.shape,
+                        Shape::Box(_) | Shape::Sphere(_) | Shape::Capsule { .. }
+                    )
+                })
                 .map(|o| o.id.clone()),
         )
         .collect();
@@ -172,9 +179,9 @@ fn random_edges(robot: &str, scene: &PlanningScene, span: f64, min_self: usize, 
             self_touching += usize::from(own);
             // Grazing edges, where a check that steps too far misses the contact: bend the
             // edge's end away until it is just free, and keep an end that touches. Only
-            // between boxes, whose contacts the separating-axis test decides exactly (GJK
-            // may call shapes a fraction of a millimetre apart touching, on the safe side,
-            // which would make a graze that is not one).
+            // where contacts are decided exactly (box links against boxes, spheres and
+            // capsules): GJK may call shapes a fraction of a millimetre apart touching, on
+            // the safe side, which would make a graze that is not one.
             let exact = first
                 .as_ref()
                 .is_some_and(|ct| boxes.contains(&ct.a) && boxes.contains(&ct.b));
