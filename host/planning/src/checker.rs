@@ -39,7 +39,7 @@ use crate::convert::{self, Exact};
 use crate::model::{bounding_sphere, CollisionModel};
 use crate::scene::PlanningScene;
 use crate::segments;
-use crate::shape::{Sdf, Shape};
+use crate::shape::{self, Sdf, Shape};
 use crate::spheres::{self, Sphere};
 use crate::{Error, Result};
 
@@ -116,15 +116,9 @@ impl Obstacle {
     /// A lower bound (m) of the gap between the obstacle and the sphere at `c` (world) of
     /// radius `r`: the signed distance of the obstacle's bounding box.
     fn coarse_gap(&self, c: &nalgebra::Point3<f64>, r: f64) -> f64 {
-        let (wx, wy, wz) = (c.x as f32, c.y as f32, c.z as f32);
-        let m = &self.inv;
-        let (lx, ly, lz) = (
-            m[0] * wx + m[1] * wy + m[2] * wz + m[9],
-            m[3] * wx + m[4] * wy + m[5] * wz + m[10],
-            m[6] * wx + m[7] * wy + m[8] * wz + m[11],
-        );
+        let (lx, ly, lz) = shape::to_local(&self.inv, c.x as f32, c.y as f32, c.z as f32);
         let (centre, half) = self.bbox;
-        f64::from(Sdf::Box { centre, half }.distance(lx, ly, lz)) - r
+        f64::from(shape::box_distance(centre, half, lx, ly, lz)) - r
     }
 
     fn new(id: &str, shape: &Shape, pose: &Isometry3<f64>) -> Result<Self> {
@@ -1278,15 +1272,6 @@ fn lanes_min(m: [f32; LANES]) -> f32 {
         .fold(f32::INFINITY, |a, &b| if b < a { b } else { a })
 }
 
-#[inline(always)]
-fn max0(v: f32) -> f32 {
-    if v > 0.0 {
-        v
-    } else {
-        0.0
-    }
-}
-
 /// The smallest of `d(local point) − r` over spheres in chunks of [`LANES`]; `d` is the
 /// obstacle's signed distance in its frame, reached through `inv` (world to object).
 #[inline(always)]
@@ -1306,10 +1291,7 @@ fn lanes_gap<F: Fn(f32, f32, f32) -> f32>(
         .zip(r.chunks_exact(LANES))
     {
         for l in 0..LANES {
-            let (wx, wy, wz) = (x[l], y[l], z[l]);
-            let lx = inv[0] * wx + inv[1] * wy + inv[2] * wz + inv[9];
-            let ly = inv[3] * wx + inv[4] * wy + inv[5] * wz + inv[10];
-            let lz = inv[6] * wx + inv[7] * wy + inv[8] * wz + inv[11];
+            let (lx, ly, lz) = shape::to_local(inv, x[l], y[l], z[l]);
             let g = d(lx, ly, lz) - r[l];
             m[l] = if g < m[l] { g } else { m[l] };
         }
@@ -1323,33 +1305,13 @@ fn lanes_gap<F: Fn(f32, f32, f32) -> f32>(
 fn spheres_gap(sdf: &Sdf, inv: &[f32; 12], x: &[f32], y: &[f32], z: &[f32], r: &[f32]) -> f32 {
     match *sdf {
         Sdf::Box { centre, half } => lanes_gap(inv, x, y, z, r, |lx, ly, lz| {
-            let qx = (lx - centre[0]).abs() - half[0];
-            let qy = (ly - centre[1]).abs() - half[1];
-            let qz = (lz - centre[2]).abs() - half[2];
-            let (ox, oy, oz) = (max0(qx), max0(qy), max0(qz));
-            let inside = if qx > qy { qx } else { qy };
-            let inside = if qz > inside { qz } else { inside };
-            let inside = if inside < 0.0 { inside } else { 0.0 };
-            (ox * ox + oy * oy + oz * oz).sqrt() + inside
+            shape::box_distance(centre, half, lx, ly, lz)
         }),
         Sdf::Cylinder { radius, half } => lanes_gap(inv, x, y, z, r, |lx, ly, lz| {
-            let dr = (lx * lx + ly * ly).sqrt() - radius;
-            let dz = lz.abs() - half;
-            let (or, oz) = (max0(dr), max0(dz));
-            let inside = if dr > dz { dr } else { dz };
-            let inside = if inside < 0.0 { inside } else { 0.0 };
-            (or * or + oz * oz).sqrt() + inside
+            shape::cylinder_distance(radius, half, lx, ly, lz)
         }),
         Sdf::Capsule { radius, half } => lanes_gap(inv, x, y, z, r, |lx, ly, lz| {
-            let cz = if lz > half {
-                half
-            } else if lz < -half {
-                -half
-            } else {
-                lz
-            };
-            let dz = lz - cz;
-            (lx * lx + ly * ly + dz * dz).sqrt() - radius
+            shape::capsule_distance(radius, half, lx, ly, lz)
         }),
     }
 }

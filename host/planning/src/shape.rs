@@ -198,29 +198,70 @@ impl Sdf {
     #[inline(always)]
     pub(crate) fn distance(&self, x: f32, y: f32, z: f32) -> f32 {
         match *self {
-            Sdf::Box { centre, half } => {
-                let qx = (x - centre[0]).abs() - half[0];
-                let qy = (y - centre[1]).abs() - half[1];
-                let qz = (z - centre[2]).abs() - half[2];
-                let ox = qx.max(0.0);
-                let oy = qy.max(0.0);
-                let oz = qz.max(0.0);
-                (ox * ox + oy * oy + oz * oz).sqrt() + qx.max(qy).max(qz).min(0.0)
-            }
-            Sdf::Cylinder { radius, half } => {
-                let dr = (x * x + y * y).sqrt() - radius;
-                let dz = z.abs() - half;
-                let or = dr.max(0.0);
-                let oz = dz.max(0.0);
-                (or * or + oz * oz).sqrt() + dr.max(dz).min(0.0)
-            }
-            Sdf::Capsule { radius, half } => {
-                let cz = z.clamp(-half, half);
-                let dz = z - cz;
-                (x * x + y * y + dz * dz).sqrt() - radius
-            }
+            Sdf::Box { centre, half } => box_distance(centre, half, x, y, z),
+            Sdf::Cylinder { radius, half } => cylinder_distance(radius, half, x, y, z),
+            Sdf::Capsule { radius, half } => capsule_distance(radius, half, x, y, z),
         }
     }
+}
+
+// Each signed distance is written with selects (`if a > b { a } else { b }`), not
+// `f32::max`/`min`, whose NaN rules keep the checker's loops over spheres from vectorising;
+// for finite values they are the same.
+
+#[inline(always)]
+fn max(a: f32, b: f32) -> f32 {
+    if a > b {
+        a
+    } else {
+        b
+    }
+}
+
+#[inline(always)]
+fn min(a: f32, b: f32) -> f32 {
+    if a < b {
+        a
+    } else {
+        b
+    }
+}
+
+/// [`Sdf::Box`]'s signed distance.
+#[inline(always)]
+pub(crate) fn box_distance(centre: [f32; 3], half: [f32; 3], x: f32, y: f32, z: f32) -> f32 {
+    let qx = (x - centre[0]).abs() - half[0];
+    let qy = (y - centre[1]).abs() - half[1];
+    let qz = (z - centre[2]).abs() - half[2];
+    let (ox, oy, oz) = (max(qx, 0.0), max(qy, 0.0), max(qz, 0.0));
+    (ox * ox + oy * oy + oz * oz).sqrt() + min(max(max(qx, qy), qz), 0.0)
+}
+
+/// [`Sdf::Cylinder`]'s signed distance.
+#[inline(always)]
+pub(crate) fn cylinder_distance(radius: f32, half: f32, x: f32, y: f32, z: f32) -> f32 {
+    let dr = (x * x + y * y).sqrt() - radius;
+    let dz = z.abs() - half;
+    let (or, oz) = (max(dr, 0.0), max(dz, 0.0));
+    (or * or + oz * oz).sqrt() + min(max(dr, dz), 0.0)
+}
+
+/// [`Sdf::Capsule`]'s signed distance.
+#[inline(always)]
+pub(crate) fn capsule_distance(radius: f32, half: f32, x: f32, y: f32, z: f32) -> f32 {
+    let dz = z - min(max(z, -half), half);
+    (x * x + y * y + dz * dz).sqrt() - radius
+}
+
+/// Point `(x, y, z)` (world, m) in the frame whose world-to-frame transform is `inv`
+/// (rotation rows, then translation).
+#[inline(always)]
+pub(crate) fn to_local(inv: &[f32; 12], x: f32, y: f32, z: f32) -> (f32, f32, f32) {
+    (
+        inv[0] * x + inv[1] * y + inv[2] * z + inv[9],
+        inv[3] * x + inv[4] * y + inv[5] * z + inv[10],
+        inv[6] * x + inv[7] * y + inv[8] * z + inv[11],
+    )
 }
 
 #[cfg(test)]
