@@ -15,12 +15,12 @@
 //! state the checker finds a lower bound of each body's clearance (from the spheres where they
 //! are far, exact distances where they are near), and advances along the edge as far as every
 //! body's clearance over its speed allows (a pair of moving bodies: over their relative speed,
-//! from the joints that move one of them and not the other), capped at `max_step` of the fastest point. Where the clearance is below a step `h`
-//! (`resolution` for the planners' edges, `min_step` for [`Checker::motion_proven`]) it takes
-//! a step of `h` only when the clearances at the step's two ends add up to more than the step
-//! (no point of the robot can then reach an obstacle from either end), halving the step until
-//! they do; an edge that would need a step below `min_step / 128` (about 8 µm by default) is
-//! not proven. Nothing can hide between two checked states, however thin or short the contact,
+//! from the joints that move one of them and not the other), capped at `max_step` of the
+//! fastest point. Where the clearance is below a step `h` (`resolution` for the planners'
+//! edges, `min_step` for [`Checker::motion_proven`]) it takes a step of `h` only when the
+//! clearances at the step's two ends add up to more than the step (no point of the robot can
+//! then reach an obstacle from either end), halving the step until they do; an edge that would
+//! need a step below `min_step / 128` (about 8 µm by default) is not proven. Nothing can hide between two checked states, however thin or short the contact,
 //! so every edge a planner returns is free.
 //!
 //! Along one edge, what was far at one state stays far for a while: each body's candidates
@@ -270,6 +270,12 @@ struct Near {
     pair_far: Vec<(f64, f64)>,
 }
 
+/// Whether candidate `n` of an edge's [`Near`] list (its `(t₀, δ)` in `far`) is known far at
+/// edge parameter `t`.
+fn still_far(far: Option<&[(f64, f64)]>, n: usize, t: f64) -> bool {
+    far.is_some_and(|f| (t - f[n].0).abs() <= f[n].1)
+}
+
 /// How far (m) each body's points, and each moving pair's points relative to each other, move
 /// at most along one edge.
 #[derive(Debug)]
@@ -398,9 +404,10 @@ fn shape_distance(
 
 /// A lower bound (m; 0 when touching) of the distance between the exact shapes `a` (on
 /// their link at `pose_a`) and `b` (on theirs at `pose_b`). Each pair is first bounded by the
-/// separating-axis test of the shapes' bounding boxes (exact when both are boxes); GJK runs
-/// only where that bound is below `exact_below` (m) or not positive, so contacts are always
-/// decided on the real shapes.
+/// separating-axis test of the shapes' bounding boxes (exact when both are boxes) and, for
+/// capsules, spheres and cylinders, by the distance of the axes of the capsules that hold them
+/// (exact for capsules and spheres); GJK runs only where no bound is exact and the best is
+/// below `exact_below` (m) or not positive, so contacts are always decided on the real shapes.
 fn exact_gap(
     a: &[(Isometry3<f64>, Exact)],
     pose_a: &Isometry3<f64>,
@@ -422,35 +429,30 @@ fn exact_gap(
                 &eb.bbox.1,
             );
             let mut exact = ea.is_box && eb.is_box;
+            // A tighter bound, `true` when it is the exact distance.
+            let mut take = |d: f64, is_exact: bool| {
+                bound = if is_exact { d } else { bound.max(d) }.max(0.0);
+                exact = is_exact;
+            };
+            let axis = |p: &Isometry3<f64>, h: &nalgebra::Vector3<f64>| {
+                (
+                    p * nalgebra::Point3::from(*h),
+                    p * nalgebra::Point3::from(-h),
+                )
+            };
             if let (Some((ha, ra, ca)), Some((hb, rb, cb))) = (&ea.capsule, &eb.capsule) {
                 // The capsules that hold them: exact for capsules and spheres.
-                let ends = |p: &Isometry3<f64>, h: &nalgebra::Vector3<f64>| {
-                    (
-                        p * nalgebra::Point3::from(*h),
-                        p * nalgebra::Point3::from(-h),
-                    )
-                };
-                let ((a0, a1), (b0, b1)) = (ends(&pa, ha), ends(pb, hb));
-                let d = segments::distance(&a0, &a1, &b0, &b1) - ra - rb;
-                bound = bound.max(d.max(0.0));
-                exact = *ca && *cb;
-                if exact {
-                    bound = d.max(0.0);
-                }
+                let ((a0, a1), (b0, b1)) = (axis(&pa, ha), axis(pb, hb));
+                take(segments::distance(&a0, &a1, &b0, &b1) - ra - rb, *ca && *cb);
             }
             // A box and a capsule (or what one holds): the capsule's axis against the box.
             for ((pbox, ebox), (pcap, ecap)) in [((&pa, ea), (pb, eb)), ((pb, eb), (&pa, ea))] {
                 if let (true, Some((h, r, is_capsule))) = (ebox.is_box, &ecap.capsule) {
-                    let (p, q) = (
-                        pcap * nalgebra::Point3::from(*h),
-                        pcap * nalgebra::Point3::from(-h),
+                    let (p, q) = axis(pcap, h);
+                    take(
+                        segments::box_distance(&p, &q, pbox, &ebox.bbox.1) - r,
+                        *is_capsule,
                     );
-                    let d = segments::box_distance(&p, &q, pbox, &ebox.bbox.1) - r;
-                    bound = bound.max(d.max(0.0));
-                    exact = *is_capsule;
-                    if exact {
-                        bound = d.max(0.0);
-                    }
                 }
             }
             let d = if exact || bound > 0.0 && bound >= exact_below {
@@ -745,6 +747,14 @@ impl Checker {
             .collect()
     }
 
+    /// Obstacle `k` as [`Checker::all_of`] numbers them: the world's, then the robot's.
+    fn obstacle(&self, k: usize) -> &Obstacle {
+        match k.checked_sub(self.obstacles.len()) {
+            None => &self.obstacles[k],
+            Some(r) => &self.robot_obstacles[r],
+        }
+    }
+
     /// A bound on how far any robot point moves from `a` to `b` (rad), m.
     pub fn motion_bound(&self, a: &[f64], b: &[f64]) -> f64 {
         a.iter()
@@ -831,7 +841,6 @@ impl Checker {
             let m = speed_of(bi);
             let bound = s.bounds[bi];
             let (lo, hi, end) = self.layout[bi];
-            let world = self.obstacles.len();
             let t = s.near.t;
             let (list, mut far) = if s.near.on {
                 (
@@ -843,11 +852,8 @@ impl Checker {
             };
             for (n, &k) in list.iter().enumerate() {
                 // Far enough at a nearby state to be far here ([`Near`]).
-                if let Some(f) = far.as_deref_mut() {
-                    let (t0, d) = f[n];
-                    if (t - t0).abs() <= d {
-                        continue;
-                    }
+                if still_far(far.as_deref(), n, t) {
+                    continue;
                 }
                 // Remember a gap that no step of this edge from within δ of here can close.
                 let mut keep = |gap: f64| {
@@ -855,11 +861,7 @@ impl Checker {
                         f[n] = (t, (gap - cap * m) / m);
                     }
                 };
-                let o = if k < world {
-                    &self.obstacles[k]
-                } else {
-                    &self.robot_obstacles[k - world]
-                };
+                let o = self.obstacle(k);
                 let coarse = o.coarse_gap(&bound.centre, bound.radius);
                 if coarse >= clear * m {
                     keep(coarse);
@@ -921,11 +923,8 @@ impl Checker {
         };
         for (n, &p) in pairs.iter().enumerate() {
             let (i, j) = self.pairs[p];
-            if let Some(f) = far.as_deref_mut() {
-                let (t0, d) = f[n];
-                if (t - t0).abs() <= d {
-                    continue;
-                }
+            if still_far(far.as_deref(), n, t) {
+                continue;
             }
             let (bi, bj) = (&s.bounds[i], &s.bounds[j]);
             let m = speed.map_or(2.0, |v| v.pair[p].max(1e-9));
@@ -1129,7 +1128,6 @@ impl Checker {
         let mut s = self.scratch.borrow_mut();
         let s = &mut *s;
         self.model.link_poses_into(a, &mut s.values, &mut s.poses);
-        let world = self.obstacles.len();
         let step = self.opts.max_step;
         s.bounds.clear();
         s.bounds.extend(self.bodies.iter().map(|b| Sphere {
@@ -1141,12 +1139,8 @@ impl Checker {
             list.clear();
             let bound = &s.bounds[bi];
             list.extend(self.all_of[bi].iter().copied().filter(|&k| {
-                let o = if k < world {
-                    &self.obstacles[k]
-                } else {
-                    &self.robot_obstacles[k - world]
-                };
-                o.coarse_gap(&bound.centre, bound.radius) < speed.body[bi] + step + 1e-6
+                self.obstacle(k).coarse_gap(&bound.centre, bound.radius)
+                    < speed.body[bi] + step + 1e-6
             }));
         }
         s.near.pairs.clear();
@@ -1249,12 +1243,6 @@ impl Checker {
             }
         }
         true
-    }
-
-    /// Whether every edge of `path` is proven free.
-    pub fn path_proven(&self, path: &[Vec<f64>]) -> bool {
-        path.len() == 1 && self.is_free(&path[0])
-            || path.windows(2).all(|w| self.motion_proven(&w[0], &w[1])) && !path.is_empty()
     }
 }
 
