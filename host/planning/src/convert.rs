@@ -72,23 +72,14 @@ pub(crate) fn shape(s: &Shape) -> Option<Exact> {
             (SharedShape::convex_hull(&pts)?, none)
         }
     };
-    let bbox = match s {
-        Shape::Box(e) => (Vector3::zeros(), Vector3::new(e[0], e[1], e[2]) / 2.0),
-        Shape::Sphere(r) => (Vector3::zeros(), Vector3::repeat(*r)),
-        Shape::Capsule { radius, length } => (
-            Vector3::zeros(),
-            Vector3::new(*radius, *radius, length / 2.0 + radius),
-        ),
-        // Along parry's y.
-        Shape::Cylinder { radius, length } => (
-            Vector3::zeros(),
-            Vector3::new(*radius, length / 2.0, *radius),
-        ),
-        Shape::Hull(_) => {
-            let (lo, hi) = s.bounds();
-            ((lo + hi) / 2.0, (hi - lo) / 2.0)
-        }
-    };
+    // The shape's own bounds, with parry's cylinder axis (y) for ours (z).
+    let (lo, hi) = s.bounds();
+    let (mut c, mut h) = ((lo + hi) / 2.0, (hi - lo) / 2.0);
+    if matches!(s, Shape::Cylinder { .. }) {
+        c.swap_rows(1, 2);
+        h.swap_rows(1, 2);
+    }
+    let bbox = (c, h);
     Some(Exact {
         shape,
         correction,
