@@ -1162,6 +1162,36 @@ impl Checker {
         EdgeGuard(self)
     }
 
+    /// Whether states spread over the edge from `a` to `b` (`total` m of motion) are free of
+    /// contact: its end, its middle, its quarters and so on while they are more than
+    /// [`RAKE_SPACING`] apart. An edge that collides is mostly refused here after a few
+    /// states rather than after conservative advancement's walk up to its contact (that walk
+    /// took about 70 % of the LoCoBot's states). It refuses only edges with a state in
+    /// contact, so it changes no verdict. It must run outside an edge's [`Near`] limits: its
+    /// checks for contact alone would set far intervals that do not hold for the edge's steps.
+    fn rake(&self, a: &[f64], b: &[f64], total: f64) -> bool {
+        let mut q = a.to_vec();
+        let mut free_at = |t: f64| {
+            for ((v, x), y) in q.iter_mut().zip(a).zip(b) {
+                *v = x + (y - x) * t;
+            }
+            self.measure_with(&q, None, 0.0, 0.0).is_ok()
+        };
+        if !free_at(1.0) {
+            return false;
+        }
+        let mut n = 2u32;
+        while total / f64::from(n) > RAKE_SPACING && n < 1 << 16 {
+            for k in (1..n).step_by(2) {
+                if !free_at(f64::from(k) / f64::from(n)) {
+                    return false;
+                }
+            }
+            n *= 2;
+        }
+        true
+    }
+
     /// Each body's largest point motion (m) over the edge from `a` to `b`, and each moving
     /// pair's largest relative motion.
     fn speeds(&self, a: &[f64], b: &[f64]) -> Speeds {
@@ -1177,15 +1207,22 @@ impl Checker {
         }
     }
 
-    /// Conservative advancement from `a` to `b`: steps of the clearance where it is at least
-    /// `min_step` (m of the fastest point), else the near-contact rule from `min_step` down;
-    /// exact distances where the spheres' bound is below `exact_below` (m).
+    /// Whether the edge from `a` to `b` is free: [`Checker::rake`] first, then
+    /// [`Checker::advance`].
     fn prove(&self, a: &[f64], b: &[f64], min_step: f64, exact_below: f64) -> bool {
         if !self.within_limits(a) || !self.within_limits(b) {
             return false;
         }
         self.counters.edges.fetch_add(1, Ordering::Relaxed);
         let total = self.motion_bound(a, b);
+        self.rake(a, b, total) && self.advance(a, b, total, min_step, exact_below)
+    }
+
+    /// Conservative advancement from `a` to `b` (`total` m of motion, within limits): steps of
+    /// the clearance where it is at least `min_step` (m of the fastest point), else the
+    /// near-contact rule from `min_step` down; exact distances where the spheres' bound is
+    /// below `exact_below` (m).
+    fn advance(&self, a: &[f64], b: &[f64], total: f64, min_step: f64, exact_below: f64) -> bool {
         let speed = self.speeds(a, b);
         let _near = self.begin_edge(a, &speed);
         let mut q = a.to_vec();
@@ -1245,6 +1282,10 @@ impl Checker {
         true
     }
 }
+
+/// Spacing (m of the fastest point's motion) below which [`Checker::rake`] stops adding
+/// states: 0.05 and 0.2 were slower on the LoCoBot's tabletop set.
+const RAKE_SPACING: f64 = 0.1;
 
 /// Lanes of the sphere loops: each body's spheres are padded to a multiple of it, so the
 /// loops run whole chunks the compiler turns into vector instructions.
@@ -1334,6 +1375,60 @@ mod tests {
     use super::*;
     use ferrobot_description::RobotConfig;
     use rand::{Rng, SeedableRng};
+
+    /// The rake refuses only edges that conservative advancement refuses too (a state in
+    /// contact), and it refuses many of them: LoCoBot edges among a table and a post, the
+    /// arm folding onto its own camera mast.
+    #[test]
+    fn the_rake_refuses_only_colliding_edges() {
+        let cfg = RobotConfig::bundled("locobot").expect("locobot");
+        let model = Arc::new(CollisionModel::from_config(&cfg).expect("model"));
+        let mut scene = PlanningScene::new();
+        scene
+            .add_object(
+                "table",
+                Shape::Box([0.45, 0.8, 0.1]),
+                Isometry3::translation(0.5, 0.0, 0.05),
+            )
+            .expect("table");
+        scene
+            .add_object(
+                "post",
+                Shape::Cylinder {
+                    radius: 0.02,
+                    length: 0.3,
+                },
+                Isometry3::translation(0.35, 0.1, 0.25),
+            )
+            .expect("post");
+        let c = Checker::new(model.clone(), &scene, CheckOptions::default()).expect("checker");
+        let limits = model.limits().to_vec();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let (mut refused, mut free) = (0, 0);
+        while refused < 60 || free < 20 {
+            let q: Vec<Vec<f64>> = (0..2)
+                .map(|_| {
+                    limits
+                        .iter()
+                        .map(|&(lo, hi)| rng.random_range(lo..=hi))
+                        .collect()
+                })
+                .collect();
+            let (a, b) = (&q[0], &q[1]);
+            if !c.is_free(a) || !c.is_free(b) {
+                continue;
+            }
+            let total = c.motion_bound(a, b);
+            let advanced = c.advance(a, b, total, 0.01, 0.005);
+            if c.rake(a, b, total) {
+                free += usize::from(advanced);
+            } else {
+                assert!(!advanced, "raked out but advanced: {a:?} -> {b:?}");
+                assert!(!c.motion_sampled(a, b, 0.001));
+                refused += 1;
+            }
+        }
+    }
 
     /// Over random edges of Sawyer (seven links that fold onto each other), no sphere centre
     /// of a body moves farther than the body's speed, nor, seen from the other body of a
