@@ -13,15 +13,17 @@
 //! sampled: a joint step Δq moves no point of a body more than `Σ |Δqᵢ|·reachᵢ` with the
 //! body's own reach ([`CollisionModel::link_reach`]; links near the base move slowly). At each
 //! state the checker finds a lower bound of each body's clearance (from the spheres where they
-//! are far, exact distances where they are near), and advances along the edge as far as every
-//! body's clearance over its speed allows (a pair of moving bodies: over their relative speed,
-//! from the joints that move one of them and not the other), capped at `max_step` of the
-//! fastest point. Where the clearance is below a step `h` (`resolution` for the planners'
-//! edges, `min_step` for [`Checker::motion_proven`]) it takes a step of `h` only when the
-//! clearances at the step's two ends add up to more than the step (no point of the robot can
-//! then reach an obstacle from either end), halving the step until they do; an edge that would
-//! need a step below `min_step / 128` (about 8 µm by default) is not proven. Nothing can hide between two checked states, however thin or short the contact,
-//! so every edge a planner returns is free.
+//! are far, exact distances where they are near) over its speed (a pair of moving bodies: over
+//! their relative speed, from the joints that move one of them and not the other), capped at
+//! `max_step` of the fastest point. A step between two states is free when the clearances at
+//! its two ends add up to more than the step: no point of the robot can then reach an
+//! obstacle from either end. Advancement tries a step of twice the clearance (at least `h`:
+//! `resolution` for the planners' edges, `min_step` for [`Checker::motion_proven`]) and halves
+//! it, keeping the states measured ahead, until the rule holds; an edge that would need a step
+//! below `min_step / 128` (about 8 µm by default) is not proven. Nothing can hide between two
+//! checked states, however thin or short the contact, so every edge a planner returns is
+//! free. Before advancing, a few states spread over the edge are checked for contact alone
+//! ([`Checker::rake`]), which refuses most colliding edges cheaply.
 //!
 //! Along one edge, what was far at one state stays far for a while: each body's candidates
 //! are those that may come near it anywhere on the edge, and each keeps the interval of the
@@ -1218,10 +1220,10 @@ impl Checker {
         self.rake(a, b, total) && self.advance(a, b, total, min_step, exact_below)
     }
 
-    /// Conservative advancement from `a` to `b` (`total` m of motion, within limits): steps of
-    /// the clearance where it is at least `min_step` (m of the fastest point), else the
-    /// near-contact rule from `min_step` down; exact distances where the spheres' bound is
-    /// below `exact_below` (m).
+    /// Conservative advancement from `a` to `b` (`total` m of motion, within limits): steps
+    /// proven by the clearances at both ends, tried at twice the clearance or `min_step` (m of
+    /// the fastest point) and halved; exact distances where the spheres' bound is below
+    /// `exact_below` (m).
     fn advance(&self, a: &[f64], b: &[f64], total: f64, min_step: f64, exact_below: f64) -> bool {
         let speed = self.speeds(a, b);
         let _near = self.begin_edge(a, &speed);
@@ -1248,36 +1250,41 @@ impl Checker {
         }
         // About 8 µm of point motion with the default `min_step`.
         let smallest = self.opts.min_step / total / 128.0;
+        // A step from `t` to `u` is free when the clearances at its ends add up to more than
+        // its length: a point x into it is at least max(c − x, cᵤ − (u − t − x)) > 0 from
+        // anything (for each body, as each clearance is the smallest over bodies). States
+        // measured ahead wait on `ahead`, the nearest on top; a step that is not proven is
+        // halved, keeping its far end.
+        let mut ahead: Vec<(f64, f64)> = Vec::new();
         let mut t = 0.0f64;
         while t < 1.0 {
-            if clear >= min_dt {
-                // No point can reach anything within `clear`.
-                t = (t + clear).min(1.0);
-                let Some(c) = clearance(t) else {
-                    return false;
-                };
-                clear = c;
+            let (u, cu) = match ahead.last() {
+                Some(&p) => p,
+                None => {
+                    // Nothing measured ahead: guess that the clearance holds (a step of twice
+                    // it), and at least `min_step` near contact.
+                    let u = (t + (2.0 * clear).max(min_dt)).min(1.0);
+                    let Some(cu) = clearance(u) else {
+                        return false;
+                    };
+                    ahead.push((u, cu));
+                    (u, cu)
+                }
+            };
+            if clear + cu > u - t {
+                ahead.pop();
+                t = u;
+                clear = cu;
                 continue;
             }
-            // Near contact: a step of h is free when the clearances at its ends add up to more
-            // than h (a point x into it is at least max(c0 − x, c1 − (h − x)) > 0 from
-            // anything; for each body, as each clearance is the smallest over bodies).
-            let mut h = min_dt;
-            loop {
-                let next = (t + h).min(1.0);
-                let Some(c) = clearance(next) else {
-                    return false;
-                };
-                if clear + c > next - t {
-                    t = next;
-                    clear = c;
-                    break;
-                }
-                h /= 2.0;
-                if h < smallest {
-                    return false;
-                }
+            if u - t < 2.0 * smallest {
+                return false;
             }
+            let m = 0.5 * (t + u);
+            let Some(cm) = clearance(m) else {
+                return false;
+            };
+            ahead.push((m, cm));
         }
         true
     }
