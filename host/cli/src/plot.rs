@@ -143,6 +143,21 @@ impl Canvas {
         }
     }
 
+    /// The axis-aligned rectangle between world corners `lo` and `hi` (m) filled; the part off
+    /// the canvas (or a non-finite corner) is skipped.
+    pub fn fill_rect(&mut self, lo: [f64; 2], hi: [f64; 2], colour: [u8; 3]) {
+        let (a, b) = (self.to_px([lo[0], hi[1]]), self.to_px([hi[0], lo[1]]));
+        if ![a.0, a.1, b.0, b.1].iter().all(|v| v.is_finite()) {
+            return;
+        }
+        let clamp = |v: f64| v.clamp(0.0, self.size as f64) as usize;
+        for j in clamp(a.1.floor())..clamp(b.1.ceil()) {
+            for i in clamp(a.0.floor())..clamp(b.0.ceil()) {
+                self.px[j * self.size + i] = colour;
+            }
+        }
+    }
+
     /// A polyline through world points (m).
     pub fn polyline(&mut self, pts: &[[f64; 2]], colour: [u8; 3], width: usize) {
         for w in pts.windows(2) {

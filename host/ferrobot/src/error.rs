@@ -202,6 +202,10 @@ pub enum Error {
     /// time limit, a straight line that cannot be followed.
     #[error("planning: {0}")]
     Planning(#[from] ferrobot_planning::Error),
+    /// Navigation on a map refused or failed: a map file that cannot be read, a path's end
+    /// off the map or too near an obstacle, no path.
+    #[error("navigation: {0}")]
+    Navigation(ferrobot_nav::Error),
     /// An I/O error.
     #[error("I/O error: {0}")]
     Io(#[from] std::io::Error),
@@ -230,7 +234,7 @@ impl Error {
                 | Error::Scene(_)
                 | Error::Perception(_)
                 | Error::Planning(ferrobot_planning::Error::Invalid { .. })
-        )
+        ) || matches!(self, Error::Navigation(e) if e.is_input())
     }
 }
 
@@ -323,9 +327,7 @@ impl From<ferrobot_nav::Error> for Error {
         match e {
             N::Value(v) => v.into(),
             N::InvalidMap { why } => Error::InvalidMap { why },
-            other => Error::InvalidMap {
-                why: other.to_string(),
-            },
+            other => Error::Navigation(other),
         }
     }
 }

@@ -34,6 +34,8 @@ pub use ferrobot_description as config;
 pub use ferrobot_geometry::validate;
 pub use ferrobot_kinematics as kinematics;
 pub use ferrobot_nav as obstacles;
+/// Navigation: maps on disk, the global planner on occupancy grids, obstacles.
+pub use ferrobot_nav as nav;
 
 /// Base control and navigation, as one module of the API: references, LQR and ILQR
 /// (`ferrobot-control`), and the navigation field and dynamic window (`ferrobot-nav`).

@@ -1,12 +1,17 @@
 //! Navigation for mobile bases in the odometry frame (m): obstacles and occupancy grids behind
-//! one clearance query ([`obstacles`]), the navigation field and the dynamic window approach
-//! ([`field`]).
+//! one clearance query ([`obstacles`]), maps on disk in ROS map_server's format ([`map_file`]),
+//! a global planner on the grid ([`global`]), the navigation field and the dynamic window
+//! approach ([`field`]).
 #![warn(missing_docs)]
 
 pub mod error;
 pub mod field;
+pub mod global;
+pub mod map_file;
 pub mod obstacles;
 
 pub use error::{Error, Result};
 pub use field::{Dwa, NavField};
+pub use global::{GlobalPath, GlobalPlanner, GridAStar};
+pub use map_file::{Cell, MapImage};
 pub use obstacles::{Circle, Obstacles, OccupancyGrid};

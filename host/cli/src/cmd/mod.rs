@@ -13,6 +13,7 @@ pub mod fk;
 pub mod ik;
 pub mod info;
 pub mod jacobian;
+pub mod nav_plan;
 pub mod robots;
 pub mod scene;
 pub mod sim_firmware;

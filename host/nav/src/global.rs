@@ -1,0 +1,219 @@
+//! Global path planning on an occupancy grid: A* over the cells a round robot fits in
+//! (8-connected, no corner cutting; the `pathfinding` crate's A*), then the path pulled taut
+//! (each waypoint joined to the farthest later one in free line of sight).
+
+use crate::error::{Error, Result};
+use crate::obstacles::{Obstacles, OccupancyGrid};
+use ferrobot_geometry::validate;
+
+/// A planned path in the map's frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GlobalPath {
+    /// Waypoints from the start to the goal, m; the first is the start, the last the goal.
+    pub points: Vec<[f64; 2]>,
+    /// Length, m.
+    pub length: f64,
+}
+
+/// A planner of collision-free paths for a round robot on an occupancy grid.
+pub trait GlobalPlanner {
+    /// A path from `start` to `goal` (m, map frame) that keeps a robot of `radius` m clear of
+    /// every occupied cell (within the planner's stated tolerance); cells outside the grid
+    /// are not traversable. Typed errors: values not finite or out of range, start or goal
+    /// outside the grid or too near an obstacle, no path.
+    fn plan(
+        &self,
+        map: &OccupancyGrid,
+        start: [f64; 2],
+        goal: [f64; 2],
+        radius: f64,
+    ) -> Result<GlobalPath>;
+}
+
+/// A* on the grid's cells, then the path pulled taut. A cell is open to the robot when its
+/// centre's clearance (exact Euclidean distance transform, to the nearest occupied cell's
+/// boundary) is at least the radius; straight lines of the pulled path are checked every
+/// quarter cell, and a step between neighbouring open cells (kept where no straight line is
+/// free) passes within 0.71 of a cell of their centres. So every point of the path keeps a
+/// clearance of at least `radius − 0.71 · resolution` (the clearance is 1-Lipschitz).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct GridAStar;
+
+/// Rounds of pulling after the first, alternating ends.
+const PULLS: usize = 6;
+
+/// Largest robot radius, m.
+pub const MAX_RADIUS: f64 = 10.0;
+
+impl GlobalPlanner for GridAStar {
+    fn plan(
+        &self,
+        map: &OccupancyGrid,
+        start: [f64; 2],
+        goal: [f64; 2],
+        radius: f64,
+    ) -> Result<GlobalPath> {
+        validate::finite("path start", &start)?;
+        validate::finite("path goal", &goal)?;
+        validate::in_range("robot radius", radius, 0.0, MAX_RADIUS)?;
+        map.check()?;
+        let field = Obstacles::new(Vec::new(), Some(map))?;
+        let (w, h) = (map.width, map.height);
+        let open = |i: usize, j: usize| {
+            let c = centre(map, i, j);
+            field.clearance(c) >= radius
+        };
+        let end = |p: [f64; 2], what: &'static str| -> Result<(usize, usize)> {
+            let (i, j) = map.cell(p).ok_or(Error::OutsideMap { what, at: p })?;
+            let clear = field.clearance(p);
+            if clear < radius || !open(i, j) {
+                return Err(Error::Blocked {
+                    what,
+                    at: p,
+                    clearance: clear.min(field.clearance(centre(map, i, j))),
+                    radius,
+                });
+            }
+            Ok((i, j))
+        };
+        let s = end(start, "start")?;
+        let g = end(goal, "goal")?;
+        // Integer costs (mm-like units of a cell): straight 1000, diagonal 1414.
+        const STRAIGHT: u64 = 1000;
+        const DIAGONAL: u64 = 1414;
+        let mut is_open = vec![false; w * h];
+        for j in 0..h {
+            for i in 0..w {
+                is_open[j * w + i] = open(i, j);
+            }
+        }
+        let free = |i: i64, j: i64| {
+            i >= 0
+                && j >= 0
+                && (i as usize) < w
+                && (j as usize) < h
+                && is_open[j as usize * w + i as usize]
+        };
+        let heuristic = |&(i, j): &(usize, usize)| {
+            let dx = i.abs_diff(g.0) as u64;
+            let dy = j.abs_diff(g.1) as u64;
+            let (lo, hi) = (dx.min(dy), dx.max(dy));
+            STRAIGHT * (hi - lo) + DIAGONAL * lo
+        };
+        let successors = |&(i, j): &(usize, usize)| {
+            let (i, j) = (i as i64, j as i64);
+            let mut next = Vec::with_capacity(8);
+            for (di, dj) in [
+                (1, 0),
+                (-1, 0),
+                (0, 1),
+                (0, -1),
+                (1, 1),
+                (1, -1),
+                (-1, 1),
+                (-1, -1),
+            ] {
+                let (a, b) = (i + di, j + dj);
+                if !free(a, b) {
+                    continue;
+                }
+                let diagonal = di != 0 && dj != 0;
+                // No corner cutting: both cells beside a diagonal step must be open too.
+                if diagonal && !(free(i + di, j) && free(i, j + dj)) {
+                    continue;
+                }
+                next.push((
+                    (a as usize, b as usize),
+                    if diagonal { DIAGONAL } else { STRAIGHT },
+                ));
+            }
+            next
+        };
+        let (cells, _) =
+            pathfinding::directed::astar::astar(&s, successors, heuristic, |c| *c == g).ok_or(
+                Error::NoPath {
+                    from: start,
+                    to: goal,
+                    radius,
+                },
+            )?;
+        // The path: the start, the cells' centres between, the goal.
+        let mut raw = Vec::with_capacity(cells.len() + 2);
+        raw.push(start);
+        raw.extend(
+            cells
+                .iter()
+                .skip(1)
+                .take(cells.len().saturating_sub(2))
+                .map(|&(i, j)| centre(map, i, j)),
+        );
+        raw.push(goal);
+        let visible = |a: [f64; 2], b: [f64; 2]| {
+            let len = (b[0] - a[0]).hypot(b[1] - a[1]);
+            let n = (len / (0.25 * map.resolution)).ceil().max(1.0) as usize;
+            (0..=n).all(|k| {
+                let t = k as f64 / n as f64;
+                field.clearance([a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t]) >= radius
+            })
+        };
+        // Pulling keeps only waypoints of the path it is given, and from one end: a grid
+        // path's stair steps leave kinks where a corner is turned. So the pulled path is cut
+        // into cell-long pieces and pulled again from the other end, in turn.
+        let mut points = pull_taut(&raw, &visible);
+        for _ in 0..PULLS {
+            points.reverse();
+            points = pull_taut(&densify(&points, map.resolution), &visible);
+        }
+        if PULLS % 2 == 1 {
+            points.reverse();
+        }
+        let length = points
+            .windows(2)
+            .map(|p| (p[1][0] - p[0][0]).hypot(p[1][1] - p[0][1]))
+            .sum();
+        Ok(GlobalPath { points, length })
+    }
+}
+
+/// `path` with points added along each segment at most `step` (m) apart.
+fn densify(path: &[[f64; 2]], step: f64) -> Vec<[f64; 2]> {
+    let mut out = vec![path[0]];
+    for w in path.windows(2) {
+        let len = (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]);
+        let n = (len / step).ceil().max(1.0) as usize;
+        for k in 1..=n {
+            let t = k as f64 / n as f64;
+            out.push([
+                w[0][0] + (w[1][0] - w[0][0]) * t,
+                w[0][1] + (w[1][1] - w[0][1]) * t,
+            ]);
+        }
+    }
+    out
+}
+
+/// The centre of cell `(i, j)`, m.
+fn centre(map: &OccupancyGrid, i: usize, j: usize) -> [f64; 2] {
+    [
+        map.origin[0] + i as f64 * map.resolution,
+        map.origin[1] + j as f64 * map.resolution,
+    ]
+}
+
+/// `path` with each kept waypoint joined to the farthest later one it sees (`visible`); the
+/// ends are kept. Consecutive waypoints of `path` must see each other except where a cell
+/// centre neighbours the start or the goal, which are then kept as they are.
+fn pull_taut(path: &[[f64; 2]], visible: &impl Fn([f64; 2], [f64; 2]) -> bool) -> Vec<[f64; 2]> {
+    let mut out = vec![path[0]];
+    let mut i = 0;
+    while i + 1 < path.len() {
+        // The farthest waypoint seen from `path[i]`, searched from the end.
+        let mut j = path.len() - 1;
+        while j > i + 1 && !visible(path[i], path[j]) {
+            j -= 1;
+        }
+        out.push(path[j]);
+        i = j;
+    }
+    out
+}

@@ -1,0 +1,310 @@
+//! Occupancy maps on disk in ROS map_server's format: a YAML file (`image`, `resolution`,
+//! `origin`, `negate`, `occupied_thresh`, `free_thresh`, optional `mode`) beside a PNG whose
+//! first row is the map's top (largest y). Read as map_server reads it; written as
+//! map_saver writes it (occupied 0, free 254, unknown 205, thresholds 0.65 and 0.196), so
+//! maps pass between Ferrobot and ROS tools unchanged.
+
+use std::path::{Path, PathBuf};
+
+use yaml_rust2::{Yaml, YamlLoader};
+
+use crate::error::{Error, Result};
+use crate::obstacles::OccupancyGrid;
+use ferrobot_geometry::validate;
+
+/// One cell of a map read from disk.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Cell {
+    /// Seen free.
+    Free,
+    /// Seen occupied.
+    Occupied,
+    /// Not seen (or, in `scale` mode, between the thresholds).
+    Unknown,
+}
+
+/// A map as map_server holds it: cells of `resolution` m, cell `(i, j)` spanning
+/// `origin + [i, i + 1] · resolution` in x and `origin + [j, j + 1] · resolution` in y of the
+/// map frame (j = 0 is the image's bottom row).
+#[derive(Debug, Clone, PartialEq)]
+pub struct MapImage {
+    /// Lower-left corner of cell (0, 0), m (map_server's `origin`, whose yaw must be 0).
+    pub origin: [f64; 2],
+    /// Cell size, m.
+    pub resolution: f64,
+    /// Cells along x.
+    pub width: usize,
+    /// Cells along y.
+    pub height: usize,
+    /// Cells row by row from the bottom, x fastest: cell `(i, j)` is `cells[j * width + i]`.
+    pub cells: Vec<Cell>,
+}
+
+/// Thresholds map_saver writes and map_server's documentation recommends.
+const OCCUPIED_THRESH: f64 = 0.65;
+const FREE_THRESH: f64 = 0.196;
+
+impl MapImage {
+    /// Reads the map named by the YAML file at `yaml` (its `image` relative to the YAML's
+    /// folder). Errors name the file and what is wrong with it: a missing or mistyped key, a
+    /// resolution outside [0.001, 10] m, an origin that is not finite or has a non-zero yaw
+    /// (rotated maps are not supported), thresholds outside [0, 1] or in the wrong order, the
+    /// `raw` mode, an unreadable or oversized image.
+    pub fn load(yaml: &Path) -> Result<Self> {
+        let bad = |why: String| Error::MapFile {
+            path: yaml.to_path_buf(),
+            why,
+        };
+        let text = read_small(yaml).map_err(bad)?;
+        let docs = YamlLoader::load_from_str(&text).map_err(|e| bad(format!("not YAML: {e}")))?;
+        let doc = docs
+            .first()
+            .filter(|d| d.as_hash().is_some())
+            .ok_or_else(|| bad("not a YAML mapping of map_server's keys".into()))?;
+        let number = |key: &str| -> Result<f64> {
+            match &doc[key] {
+                Yaml::Real(_) | Yaml::Integer(_) => doc[key]
+                    .as_f64()
+                    .or_else(|| doc[key].as_i64().map(|v| v as f64))
+                    .ok_or_else(|| bad(format!("`{key}` is not a number"))),
+                Yaml::BadValue => Err(bad(format!("`{key}` is missing"))),
+                other => Err(bad(format!("`{key}` is not a number: {other:?}"))),
+            }
+        };
+        let image = doc["image"]
+            .as_str()
+            .ok_or_else(|| bad("`image` (the PNG's path) is missing or not a string".into()))?;
+        let resolution = number("resolution")?;
+        if !(1e-3..=10.0).contains(&resolution) {
+            return Err(bad(format!(
+                "`resolution` {resolution} m is not in [0.001, 10]"
+            )));
+        }
+        let origin = match doc["origin"].as_vec() {
+            Some(v) if v.len() == 3 => v
+                .iter()
+                .map(|x| x.as_f64().or_else(|| x.as_i64().map(|i| i as f64)))
+                .collect::<Option<Vec<f64>>>(),
+            _ => None,
+        }
+        .ok_or_else(|| bad("`origin` is not a list of three numbers [x, y, yaw]".into()))?;
+        let lim = validate::MAX_BASE_COORDINATE;
+        if !origin.iter().all(|x| x.is_finite() && x.abs() <= lim) {
+            return Err(bad(format!(
+                "`origin` {origin:?} is not finite within ±{lim}"
+            )));
+        }
+        if origin[2].abs() > 1e-9 {
+            return Err(bad(format!(
+                "`origin` has a yaw of {} rad: rotated maps are not supported",
+                origin[2]
+            )));
+        }
+        let negate = match &doc["negate"] {
+            Yaml::Integer(0) | Yaml::Boolean(false) => false,
+            Yaml::Integer(1) | Yaml::Boolean(true) => true,
+            Yaml::BadValue => return Err(bad("`negate` is missing".into())),
+            other => return Err(bad(format!("`negate` is not 0 or 1: {other:?}"))),
+        };
+        let occupied = number("occupied_thresh")?;
+        let free = number("free_thresh")?;
+        if !((0.0..=1.0).contains(&free) && (0.0..=1.0).contains(&occupied) && free <= occupied) {
+            return Err(bad(format!(
+                "thresholds free {free} and occupied {occupied} must be in [0, 1], free ≤ occupied"
+            )));
+        }
+        // Between the thresholds a cell is unknown in `trinary` mode and a probability in
+        // `scale` mode; both are unknown here.
+        match &doc["mode"] {
+            Yaml::BadValue => {}
+            Yaml::String(m) if m == "trinary" || m == "scale" => {}
+            other => {
+                return Err(bad(format!(
+                    "`mode` {other:?} is not supported (trinary or scale)"
+                )))
+            }
+        }
+        let png_path = yaml.parent().unwrap_or(Path::new(".")).join(image);
+        let (width, height, grey) = read_grey(&png_path).map_err(|why| Error::MapFile {
+            path: png_path.clone(),
+            why,
+        })?;
+        // map_server: occupancy = (255 − colour) / 255, colour negated first when asked.
+        let mut cells = vec![Cell::Unknown; width * height];
+        for (row, line) in grey.chunks_exact(width).enumerate() {
+            let j = height - 1 - row;
+            for (i, &value) in line.iter().enumerate() {
+                let c = if negate { 255.0 - value } else { value };
+                let occ = (255.0 - c) / 255.0;
+                cells[j * width + i] = if occ > occupied {
+                    Cell::Occupied
+                } else if occ < free {
+                    Cell::Free
+                } else {
+                    Cell::Unknown
+                };
+            }
+        }
+        let map = MapImage {
+            origin: [origin[0], origin[1]],
+            resolution,
+            width,
+            height,
+            cells,
+        };
+        map.to_grid(true).map_err(|e| bad(e.to_string()))?;
+        Ok(map)
+    }
+
+    /// Writes the map as map_saver does: `yaml` and a PNG of the same stem beside it
+    /// (occupied 0, free 254, unknown 205; `negate: 0`, thresholds 0.65 and 0.196). Returns
+    /// the PNG's path.
+    pub fn save(&self, yaml: &Path) -> Result<PathBuf> {
+        let bad = |path: &Path, why: String| Error::MapFile {
+            path: path.to_path_buf(),
+            why,
+        };
+        self.to_grid(true)?;
+        let stem = yaml
+            .file_stem()
+            .ok_or_else(|| bad(yaml, "has no file name".into()))?;
+        let png_name = format!("{}.png", stem.to_string_lossy());
+        let png_path = yaml.with_file_name(&png_name);
+        let mut pixels = vec![0u8; self.width * self.height];
+        for j in 0..self.height {
+            let row = self.height - 1 - j;
+            for i in 0..self.width {
+                pixels[row * self.width + i] = match self.cells[j * self.width + i] {
+                    Cell::Occupied => 0,
+                    Cell::Free => 254,
+                    Cell::Unknown => 205,
+                };
+            }
+        }
+        let file = std::fs::File::create(&png_path)
+            .map_err(|e| bad(&png_path, format!("cannot write it: {e}")))?;
+        let mut enc = png::Encoder::new(
+            std::io::BufWriter::new(file),
+            self.width as u32,
+            self.height as u32,
+        );
+        enc.set_color(png::ColorType::Grayscale);
+        enc.set_depth(png::BitDepth::Eight);
+        enc.write_header()
+            .and_then(|mut w| w.write_image_data(&pixels))
+            .map_err(|e| bad(&png_path, format!("cannot write it: {e}")))?;
+        let text = format!(
+            "image: {png_name}\nresolution: {:.6}\norigin: [{:.6}, {:.6}, 0.000000]\nnegate: 0\noccupied_thresh: {OCCUPIED_THRESH}\nfree_thresh: {FREE_THRESH}\n",
+            self.resolution, self.origin[0], self.origin[1]
+        );
+        std::fs::write(yaml, text).map_err(|e| bad(yaml, format!("cannot write it: {e}")))?;
+        Ok(png_path)
+    }
+
+    /// The map as an [`OccupancyGrid`] (cell centres), unknown cells occupied when
+    /// `unknown_is_occupied`, else free.
+    pub fn to_grid(&self, unknown_is_occupied: bool) -> Result<OccupancyGrid> {
+        let half = 0.5 * self.resolution;
+        let mut g = OccupancyGrid::new(
+            [self.origin[0] + half, self.origin[1] + half],
+            self.resolution,
+            self.width,
+            self.height,
+        )?;
+        if self.cells.len() != g.occupied.len() {
+            return Err(Error::InvalidMap {
+                why: format!(
+                    "{} cells for {} × {}",
+                    self.cells.len(),
+                    self.width,
+                    self.height
+                ),
+            });
+        }
+        for (o, c) in g.occupied.iter_mut().zip(&self.cells) {
+            *o = match c {
+                Cell::Occupied => true,
+                Cell::Free => false,
+                Cell::Unknown => unknown_is_occupied,
+            };
+        }
+        Ok(g)
+    }
+
+    /// A map of `grid`'s cells, all seen (occupied or free).
+    pub fn from_grid(grid: &OccupancyGrid) -> Self {
+        let half = 0.5 * grid.resolution;
+        MapImage {
+            origin: [grid.origin[0] - half, grid.origin[1] - half],
+            resolution: grid.resolution,
+            width: grid.width,
+            height: grid.height,
+            cells: grid
+                .occupied
+                .iter()
+                .map(|&o| if o { Cell::Occupied } else { Cell::Free })
+                .collect(),
+        }
+    }
+}
+
+/// Largest map YAML file, bytes.
+const MAX_YAML: u64 = 1 << 20;
+
+/// The text of the regular file at `path`, at most [`MAX_YAML`] bytes.
+fn read_small(path: &Path) -> std::result::Result<String, String> {
+    use std::io::Read;
+    let meta = std::fs::metadata(path).map_err(|e| format!("cannot read it: {e}"))?;
+    if !meta.is_file() {
+        return Err("not a regular file".into());
+    }
+    let mut text = String::new();
+    std::fs::File::open(path)
+        .and_then(|f| f.take(MAX_YAML + 1).read_to_string(&mut text))
+        .map_err(|e| format!("cannot read it: {e}"))?;
+    if text.len() as u64 > MAX_YAML {
+        return Err(format!("larger than {MAX_YAML} bytes: not a map file"));
+    }
+    Ok(text)
+}
+
+/// Width, height and, row by row from the top, each pixel's grey level (the mean of its
+/// colour channels, 0–255, alpha aside) of the PNG at `path`; 16-bit images are scaled to 8
+/// bits and palettes expanded. At most [`validate::MAX_GRID_CELLS`] pixels.
+type Grey = (usize, usize, Vec<f64>);
+
+fn read_grey(path: &Path) -> std::result::Result<Grey, String> {
+    if !std::fs::metadata(path).is_ok_and(|m| m.is_file()) {
+        return Err("cannot read the map image: not a regular file".into());
+    }
+    let file = std::fs::File::open(path).map_err(|e| format!("cannot read the map image: {e}"))?;
+    let mut dec = png::Decoder::new(std::io::BufReader::new(file));
+    dec.set_transformations(png::Transformations::EXPAND | png::Transformations::STRIP_16);
+    let mut reader = dec
+        .read_info()
+        .map_err(|e| format!("not a PNG image: {e}"))?;
+    let (w, h) = (reader.info().width as usize, reader.info().height as usize);
+    if !matches!(w.checked_mul(h), Some(1..=validate::MAX_GRID_CELLS)) {
+        return Err(format!(
+            "{w} × {h} pixels (must be 1 to {})",
+            validate::MAX_GRID_CELLS
+        ));
+    }
+    let mut buf = vec![0u8; reader.output_buffer_size().ok_or("image too large")?];
+    let info = reader
+        .next_frame(&mut buf)
+        .map_err(|e| format!("cannot decode the PNG: {e}"))?;
+    let channels = info.color_type.samples();
+    let colours = match info.color_type {
+        png::ColorType::Grayscale | png::ColorType::GrayscaleAlpha => 1,
+        png::ColorType::Rgb | png::ColorType::Rgba => 3,
+        png::ColorType::Indexed => return Err("an indexed PNG was not expanded".into()),
+    };
+    let mut out = Vec::with_capacity(w * h);
+    for row in buf[..info.buffer_size()].chunks_exact(info.line_size) {
+        for px in row[..w * channels].chunks_exact(channels) {
+            out.push(px[..colours].iter().map(|&v| f64::from(v)).sum::<f64>() / colours as f64);
+        }
+    }
+    Ok((w, h, out))
+}
