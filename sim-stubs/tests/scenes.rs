@@ -449,3 +449,63 @@ fn hostile_numbers_anywhere_are_refused_or_sane() {
     assert!(accepted.get() >= 40, "{}", accepted.get());
     assert!(keys.borrow().len() >= 12, "{:?}", keys.borrow());
 }
+
+/// The apartment's floor plan (PyRobot's 2 cm cells and 0.1–0.8 m band): walls, furniture and
+/// movable objects where the scene puts them, the doors and the robot's start free; the sofa's
+/// back (0.45–0.85 m) counts, the floor does not; bad resolutions and bands are refused.
+#[test]
+fn the_apartment_floor_plan_holds_its_walls_furniture_and_doors() {
+    use ferrobot_sim::floor_plan::OBSTACLE_BAND;
+    let scene = Scene::bundled("apartment").expect("apartment");
+    let plan = scene.floor_plan(0.02, OBSTACLE_BAND, false).expect("plan");
+    assert_eq!((plan.width, plan.height), (420, 320));
+    let at = |plan: &ferrobot_sim::floor_plan::FloorPlan, x: f64, y: f64| {
+        let i = ((x - plan.origin[0]) / plan.resolution).floor() as usize;
+        let j = ((y - plan.origin[1]) / plan.resolution).floor() as usize;
+        plan.occupied[j * plan.width + i]
+    };
+    for (x, y, what) in [
+        (0.0, -2.5, "inner wall"),
+        (-2.2, 2.5, "sofa"),
+        (-2.2, 2.9, "sofa back"),
+        (2.9, 2.15, "bed"),
+        (-0.4, 2.6, "plant pot"),
+        (1.4, 0.6, "laundry basket"),
+        (-3.99, 0.0, "outer wall"),
+    ] {
+        assert!(at(&plan, x, y), "{what} at ({x}, {y}) not occupied");
+    }
+    for (x, y, what) in [
+        (-3.0, -2.0, "robot start"),
+        (0.0, -2.0, "lower door"),
+        (0.0, 1.2, "upper door"),
+        (2.5, 0.0, "bedroom door"),
+        (-1.0, 0.5, "living room floor"),
+    ] {
+        assert!(!at(&plan, x, y), "{what} at ({x}, {y}) occupied");
+    }
+    // The wall is 10 cm thick, x in [−0.05, 0.05]: cell centres at ±0.05, ±0.03, ±0.01 lie in
+    // it (its faces included), six cells across.
+    let across = (0..20)
+        .filter(|k| at(&plan, -0.2 + 0.02 * *k as f64 + 0.01, -2.6))
+        .count();
+    assert_eq!(across, 6);
+    let fixed = scene.floor_plan(0.02, OBSTACLE_BAND, true).expect("plan");
+    assert!(
+        !at(&fixed, 1.4, 0.6),
+        "the basket moves: not in the fixed plan"
+    );
+    // The ball (radius 0.1 m at 0.1 m) reaches 0.2 m: inside the band; above 0.25 m it is not.
+    assert!(at(&plan, -1.0, -1.0));
+    let high = scene.floor_plan(0.02, [0.25, 0.8], false).expect("plan");
+    assert!(!at(&high, -1.0, -1.0));
+    for (r, band) in [
+        (0.0, OBSTACLE_BAND),
+        (f64::NAN, OBSTACLE_BAND),
+        (0.02, [0.8, 0.1]),
+        (0.02, [f64::NAN, 1.0]),
+    ] {
+        let e = scene.floor_plan(r, band, false).expect_err("bad");
+        assert!(e.to_string().contains("floor plan"), "{e}");
+    }
+}

@@ -15,6 +15,7 @@
 //! ferrobot bench camera --scene apartment --seconds 10
 //! ferrobot bench plan --robot locobot --scene tabletop --problems 100 --seed 1 --ompl
 //! ferrobot collision-matrix sawyer --samples 10000 --seed 1
+//! ferrobot nav-plan --map map.yaml --from 1 1 --to 3 2 --radius 0.2 --json
 //! ```
 
 use std::process::ExitCode;
@@ -162,11 +163,46 @@ enum Cmd {
         #[arg(long, default_value_t = 1)]
         seed: u64,
     },
+    /// The global planner alone on a map in ROS map_server's format (YAML + PNG): a
+    /// collision-free path for a round robot, or a typed error.
+    NavPlan {
+        /// The map's YAML file.
+        #[arg(long)]
+        map: std::path::PathBuf,
+        /// Start x y, m (map frame).
+        #[arg(long, num_args = 2, allow_negative_numbers = true, value_names = ["X", "Y"], required = true)]
+        from: Vec<f64>,
+        /// Goal x y, m (map frame).
+        #[arg(long, num_args = 2, allow_negative_numbers = true, value_names = ["X", "Y"], required = true)]
+        to: Vec<f64>,
+        /// Robot radius, m.
+        #[arg(long, allow_negative_numbers = true)]
+        radius: f64,
+        /// Treat unknown cells as free (default: occupied).
+        #[arg(long)]
+        unknown_free: bool,
+        /// Also draw the map and the path into this PNG file.
+        #[arg(long)]
+        plot: Option<std::path::PathBuf>,
+        /// Print one JSON object: `{"length_m", "path": [[x, y], ...]}`.
+        #[arg(long)]
+        json: bool,
+    },
     /// What a scene holds (bundled name or scene file): its bodies in the world frame (z up,
     /// metres) and the robot's start pose.
     Scene {
         /// `empty`, `tabletop`, `apartment`, `shelf`, `clutter`, or a scene file's path.
         name: String,
+        /// Also write the scene's ground-truth floor plan here (map_server's YAML, and a PNG
+        /// of the same name beside it): obstacles 0.1–0.8 m above the floor, as PyRobot maps.
+        #[arg(long)]
+        map: Option<std::path::PathBuf>,
+        /// Cell size of the floor plan, m (PyRobot's 0.02).
+        #[arg(long, default_value_t = 0.02)]
+        resolution: f64,
+        /// Write over an existing map file (and its PNG).
+        #[arg(long)]
+        force: bool,
         /// Print one JSON object.
         #[arg(long)]
         json: bool,
@@ -353,7 +389,16 @@ fn run(cli: Cli) -> Result<(), (ferrobot::Error, bool)> {
         Cmd::Jacobian { robot, q, json } => (cmd::jacobian::run(&robot, &q, json), json),
         Cmd::Ik(a) => (cmd::ik::run(&a), a.json),
         Cmd::Demo { robot } => (cmd::demo::run(&robot), false),
-        Cmd::Scene { name, json } => (cmd::scene::run(&name, json), json),
+        Cmd::Scene {
+            name,
+            map,
+            resolution,
+            force,
+            json,
+        } => (
+            cmd::scene::run(&name, json, map.as_deref(), resolution, force),
+            json,
+        ),
         Cmd::Snapshot(a) => (
             cmd::snapshot::run(&cmd::snapshot::SnapshotArgs {
                 robot: &a.robot,
@@ -449,6 +494,26 @@ fn run(cli: Cli) -> Result<(), (ferrobot::Error, bool)> {
             samples,
             seed,
         } => (cmd::collision_matrix::run(&robot, samples, seed), false),
+        Cmd::NavPlan {
+            map,
+            from,
+            to,
+            radius,
+            unknown_free,
+            plot,
+            json,
+        } => (
+            cmd::nav_plan::run(&cmd::nav_plan::Args {
+                map: &map,
+                from: [from[0], from[1]],
+                to: [to[0], to[1]],
+                radius,
+                unknown_free,
+                plot: plot.as_deref(),
+                json,
+            }),
+            json,
+        ),
         Cmd::CalibrateOdometry { robot, seed, json } => {
             (cmd::calibrate_odometry::run(&robot, seed, json), json)
         }

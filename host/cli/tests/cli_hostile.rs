@@ -185,6 +185,22 @@ fn scratch() -> PathBuf {
     std::fs::write(dir.join("binary.toml"), binary).expect("binary");
     std::fs::write(dir.join("huge.toml"), vec![b'#'; 2 << 20]).expect("huge");
     std::fs::write(dir.join("empty.toml"), "").expect("empty");
+    // A map in map_server's format (a 4 m × 4 m room of 10 cm cells, walled), and a map file
+    // whose image is this test's notes.
+    let mut grid = ferrobot::nav::OccupancyGrid::new([0.05, 0.05], 0.1, 40, 40).expect("grid");
+    for j in 0..40 {
+        for i in 0..40 {
+            grid.occupied[j * 40 + i] = i == 0 || j == 0 || i == 39 || j == 39;
+        }
+    }
+    ferrobot::nav::MapImage::from_grid(&grid)
+        .save(&dir.join("map.yaml"))
+        .expect("map");
+    std::fs::write(
+        dir.join("bad-map.yaml"),
+        "image: notes.txt\nresolution: 0.1\norigin: [0, 0, 0]\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n",
+    )
+    .expect("bad map");
     // Planning problems files: a malformed object, a start of the wrong length.
     let joints = r#"["joint_1", "joint_2", "joint_3", "joint_4", "joint_5"]"#;
     std::fs::write(
@@ -813,6 +829,71 @@ fn cases() -> Vec<Case> {
         &["sim-firmware", "wall-e", "--link", "new-link"],
         Input,
     ));
+    // scene --map, nav-plan: files that are not maps, existing files not to write over,
+    // hostile numbers and resolutions.
+    for map in [
+        "./notes.txt",
+        "./binary.toml",
+        "./empty.toml",
+        "/dev/zero",
+        "./",
+        "",
+        "./nonexistent.yaml",
+        "./bad-map.yaml",
+        "./subdir",
+    ] {
+        c.push(case(
+            &[
+                "nav-plan", "--map", map, "--from", "0.5", "0.5", "--to", "1", "1", "--radius",
+                "0.1", "--json",
+            ],
+            Input,
+        ));
+        if map != "./nonexistent.yaml" {
+            c.push(case(&["scene", "apartment", "--map", map, "--json"], Input));
+        }
+    }
+    c.push(case(
+        &["scene", "apartment", "--map", "./map.yaml", "--json"],
+        Input,
+    ));
+    for v in HOSTILE {
+        c.push(case(
+            &[
+                "scene",
+                "apartment",
+                "--map",
+                "./new.yaml",
+                "--resolution",
+                v,
+                "--json",
+            ],
+            Input,
+        ));
+        for (from, to, r) in [
+            ([v, "0.5"], ["1", "1"], "0.1"),
+            (["0.5", "0.5"], ["1", v], "0.1"),
+            (["0.5", "0.5"], ["1", "1"], v),
+        ] {
+            c.push(case(
+                &[
+                    "nav-plan",
+                    "--map",
+                    "./map.yaml",
+                    "--from",
+                    from[0],
+                    from[1],
+                    "--to",
+                    to[0],
+                    to[1],
+                    "--radius",
+                    r,
+                    "--json",
+                ],
+                Input,
+            ));
+        }
+    }
     c.push(case(&["teleport", "locobot"], Input));
     c
 }

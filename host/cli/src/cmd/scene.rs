@@ -1,6 +1,10 @@
 //! `ferrobot scene`: what a scene holds, in the world frame (z up, metres).
 
+use std::path::Path;
+
+use ferrobot::nav::{Cell, MapImage};
 use ferrobot::scene::{Scene, SceneSource, Shape};
+use ferrobot_sim::floor_plan::OBSTACLE_BAND;
 use serde::Serialize;
 
 use super::common::{print_json, round};
@@ -65,9 +69,61 @@ fn object(b: &ferrobot::scene::Body) -> ObjectJson {
     }
 }
 
-/// Print the scene `name` (a bundled name or a scene file's path).
-pub fn run(name: &str, json: bool) -> ferrobot::Result<()> {
+/// Print the scene `name` (a bundled name or a scene file's path); with `map`, also write
+/// its ground-truth floor plan there in map_server's format (cells of `resolution` m,
+/// obstacles from [`OBSTACLE_BAND`]), refusing to write over existing files unless `force`.
+pub fn run(
+    name: &str,
+    json: bool,
+    map: Option<&Path>,
+    resolution: f64,
+    force: bool,
+) -> ferrobot::Result<()> {
     let scene = Scene::load(&SceneSource::from_arg(name))?;
+    if let Some(yaml) = map {
+        let png = yaml.with_extension("png");
+        if !matches!(
+            yaml.extension().and_then(|e| e.to_str()),
+            Some("yaml" | "yml")
+        ) {
+            return Err(ferrobot::Error::Usage(format!(
+                "--map {}: name the map's YAML file (.yaml or .yml); its PNG goes beside it",
+                yaml.display()
+            )));
+        }
+        for path in [yaml, png.as_path()] {
+            if !force && path.exists() {
+                return Err(ferrobot::Error::PathExists {
+                    path: path.to_path_buf(),
+                });
+            }
+        }
+        let plan = scene.floor_plan(resolution, OBSTACLE_BAND, false)?;
+        let image = MapImage {
+            origin: plan.origin,
+            resolution: plan.resolution,
+            width: plan.width,
+            height: plan.height,
+            cells: plan
+                .occupied
+                .iter()
+                .map(|&o| if o { Cell::Occupied } else { Cell::Free })
+                .collect(),
+        };
+        let png = image.save(yaml)?;
+        if !json {
+            say!(
+                "floor plan ({} × {} cells of {} m, obstacles {}–{} m above the floor): {} and {}",
+                plan.width,
+                plan.height,
+                plan.resolution,
+                OBSTACLE_BAND[0],
+                OBSTACLE_BAND[1],
+                yaml.display(),
+                png.display()
+            );
+        }
+    }
     if json {
         print_json(&SceneJson {
             objects: scene.bodies.iter().map(object).collect(),
