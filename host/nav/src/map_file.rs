@@ -100,11 +100,12 @@ impl MapImage {
                 origin[2]
             )));
         }
+        // map_server reads an integer: any but 0 negates.
         let negate = match &doc["negate"] {
-            Yaml::Integer(0) | Yaml::Boolean(false) => false,
-            Yaml::Integer(1) | Yaml::Boolean(true) => true,
+            Yaml::Integer(v) => *v != 0,
+            Yaml::Boolean(b) => *b,
             Yaml::BadValue => return Err(bad("`negate` is missing".into())),
-            other => return Err(bad(format!("`negate` is not 0 or 1: {other:?}"))),
+            other => return Err(bad(format!("`negate` is not an integer: {other:?}"))),
         };
         let occupied = number("occupied_thresh")?;
         let free = number("free_thresh")?;
@@ -114,18 +115,19 @@ impl MapImage {
             )));
         }
         // Between the thresholds a cell is unknown in `trinary` mode and a probability in
-        // `scale` mode; both are unknown here.
-        match &doc["mode"] {
-            Yaml::BadValue => {}
-            Yaml::String(m) if m == "trinary" || m == "scale" => {}
+        // `scale` mode; both are unknown here. The modes also differ in what they average.
+        let scale = match &doc["mode"] {
+            Yaml::BadValue => false,
+            Yaml::String(m) if m == "trinary" => false,
+            Yaml::String(m) if m == "scale" => true,
             other => {
                 return Err(bad(format!(
                     "`mode` {other:?} is not supported (trinary or scale)"
                 )))
             }
-        }
+        };
         let png_path = yaml.parent().unwrap_or(Path::new(".")).join(image);
-        let (width, height, grey) = read_grey(&png_path).map_err(|why| Error::MapFile {
+        let (width, height, grey) = read_grey(&png_path, !scale).map_err(|why| Error::MapFile {
             path: png_path.clone(),
             why,
         })?;
@@ -268,12 +270,14 @@ fn read_small(path: &Path) -> std::result::Result<String, String> {
     Ok(text)
 }
 
-/// Width, height and, row by row from the top, each pixel's grey level (the mean of its
-/// colour channels, 0–255, alpha aside) of the PNG at `path`; 16-bit images are scaled to 8
-/// bits and palettes expanded. At most [`validate::MAX_GRID_CELLS`] pixels.
+/// Width, height and, row by row from the top, each pixel's grey level (0–255) of the PNG at
+/// `path`, as map_server (SDL_image) computes it: the mean of the colour channels, and of the
+/// alpha channel too when `with_alpha` (map_server's trinary mode; a grey and alpha pixel is
+/// four channels, grey three times); 16-bit images are scaled to 8 bits and palettes
+/// expanded. At most [`validate::MAX_GRID_CELLS`] pixels.
 type Grey = (usize, usize, Vec<f64>);
 
-fn read_grey(path: &Path) -> std::result::Result<Grey, String> {
+fn read_grey(path: &Path, with_alpha: bool) -> std::result::Result<Grey, String> {
     if !std::fs::metadata(path).is_ok_and(|m| m.is_file()) {
         return Err("cannot read the map image: not a regular file".into());
     }
@@ -295,15 +299,25 @@ fn read_grey(path: &Path) -> std::result::Result<Grey, String> {
         .next_frame(&mut buf)
         .map_err(|e| format!("cannot decode the PNG: {e}"))?;
     let channels = info.color_type.samples();
-    let colours = match info.color_type {
-        png::ColorType::Grayscale | png::ColorType::GrayscaleAlpha => 1,
-        png::ColorType::Rgb | png::ColorType::Rgba => 3,
-        png::ColorType::Indexed => return Err("an indexed PNG was not expanded".into()),
+    // Each pixel's channel weights: SDL_image gives grey and alpha as RGBA.
+    let weights: &[f64] = match (info.color_type, with_alpha) {
+        (png::ColorType::Grayscale, _) => &[1.0],
+        (png::ColorType::GrayscaleAlpha, true) => &[0.75, 0.25],
+        (png::ColorType::GrayscaleAlpha, false) => &[1.0, 0.0],
+        (png::ColorType::Rgb, _) => &[1.0 / 3.0; 3],
+        (png::ColorType::Rgba, true) => &[0.25; 4],
+        (png::ColorType::Rgba, false) => &[1.0 / 3.0, 1.0 / 3.0, 1.0 / 3.0, 0.0],
+        (png::ColorType::Indexed, _) => return Err("an indexed PNG was not expanded".into()),
     };
     let mut out = Vec::with_capacity(w * h);
     for row in buf[..info.buffer_size()].chunks_exact(info.line_size) {
         for px in row[..w * channels].chunks_exact(channels) {
-            out.push(px[..colours].iter().map(|&v| f64::from(v)).sum::<f64>() / colours as f64);
+            out.push(
+                px.iter()
+                    .zip(weights)
+                    .map(|(&v, w)| w * f64::from(v))
+                    .sum::<f64>(),
+            );
         }
     }
     Ok((w, h, out))

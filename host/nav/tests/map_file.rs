@@ -107,6 +107,40 @@ fn grey_levels_read_as_map_server_reads_them() {
     std::fs::write(d.join("m.yaml"), yaml(0)).expect("yaml");
     let m = MapImage::load(&d.join("m.yaml")).expect("load");
     assert_eq!(m.cells, vec![O, F]);
+    // Alpha, as map_server reads it: averaged in by the trinary mode (the default), so
+    // (205, 205, 205, 255) → 217.5, free, and (255, 255, 255, 0) → 191.25, unknown; left out
+    // by the scale mode, which gives unknown and free.
+    write_png(
+        &d.join("m.png"),
+        2,
+        1,
+        png::ColorType::Rgba,
+        &[205, 205, 205, 255, 255, 255, 255, 0],
+    );
+    let m = MapImage::load(&d.join("m.yaml")).expect("load");
+    assert_eq!(m.cells, vec![F, U]);
+    std::fs::write(d.join("m.yaml"), yaml(0) + "mode: scale\n").expect("yaml");
+    let m = MapImage::load(&d.join("m.yaml")).expect("load");
+    assert_eq!(m.cells, vec![U, F]);
+    // Grey and alpha: grey counts three times, alpha once (SDL_image's RGBA).
+    write_png(
+        &d.join("m.png"),
+        1,
+        1,
+        png::ColorType::GrayscaleAlpha,
+        &[255, 0],
+    );
+    std::fs::write(d.join("m.yaml"), yaml(0)).expect("yaml");
+    assert_eq!(
+        MapImage::load(&d.join("m.yaml")).expect("load").cells,
+        vec![U]
+    );
+    // Any non-zero `negate` negates, as map_server's integer: 255 − 191.25, occupancy 0.75.
+    std::fs::write(d.join("m.yaml"), yaml(2)).expect("yaml");
+    assert_eq!(
+        MapImage::load(&d.join("m.yaml")).expect("load").cells,
+        vec![O]
+    );
 }
 
 /// Malformed files: each refused with a [`Error::MapFile`] that names the file and the key.
@@ -135,7 +169,7 @@ fn malformed_map_files_are_refused() {
         ("[1.0, -2.0, 0.0]", "[1.0, -2.0, 0.5]", "rotated maps"),
         ("[1.0, -2.0, 0.0]", "[1.0, .nan, 0.0]", "not finite"),
         ("[1.0, -2.0, 0.0]", "[1.0, -2.0]", "three numbers"),
-        ("negate: 0", "negate: 2", "`negate` is not 0 or 1"),
+        ("negate: 0", "negate: yes", "`negate` is not an integer"),
         ("free_thresh: 0.196", "free_thresh: 0.9", "free ≤ occupied"),
         (
             "free_thresh: 0.196",
