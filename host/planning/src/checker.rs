@@ -1069,6 +1069,24 @@ impl Checker {
         Ok(clear)
     }
 
+    /// [`Checker::measure_with`] at the state `t` of the way from `a` to `b` (written into `q`),
+    /// which is also the edge parameter its [`Near`] limits, if any, are read at.
+    fn measure_at(
+        &self,
+        q: &mut [f64],
+        (a, b): (&[f64], &[f64]),
+        t: f64,
+        speed: Option<&Speeds>,
+        cap: f64,
+        exact_below: f64,
+    ) -> std::result::Result<f64, Contact> {
+        for ((v, x), y) in q.iter_mut().zip(a).zip(b) {
+            *v = x + (y - x) * t;
+        }
+        self.scratch.borrow_mut().near.t = t;
+        self.measure_with(q, speed, cap, exact_below)
+    }
+
     /// Whether the straight joint-space edge from `a` to `b` is free, proven by conservative
     /// advancement (see the module's documentation) with steps of `resolution` of robot-point
     /// motion where the clearance is smaller: the planners' edge check. Every edge a planner
@@ -1109,11 +1127,7 @@ impl Checker {
             (1.0, 1.0)
         };
         loop {
-            for ((v, x), y) in q.iter_mut().zip(a).zip(b) {
-                *v = x + (y - x) * t;
-            }
-            self.scratch.borrow_mut().near.t = t;
-            let Ok(dt) = self.measure_with(&q, Some(&speed), cap, 0.0) else {
+            let Ok(dt) = self.measure_at(&mut q, (a, b), t, Some(&speed), cap, 0.0) else {
                 return false;
             };
             if t >= 1.0 {
@@ -1173,12 +1187,7 @@ impl Checker {
     /// checks for contact alone would set far intervals that do not hold for the edge's steps.
     fn rake(&self, a: &[f64], b: &[f64], total: f64) -> bool {
         let mut q = a.to_vec();
-        let mut free_at = |t: f64| {
-            for ((v, x), y) in q.iter_mut().zip(a).zip(b) {
-                *v = x + (y - x) * t;
-            }
-            self.measure_with(&q, None, 0.0, 0.0).is_ok()
-        };
+        let mut free_at = |t: f64| self.measure_at(&mut q, (a, b), t, None, 0.0, 0.0).is_ok();
         if !free_at(1.0) {
             return false;
         }
@@ -1236,11 +1245,8 @@ impl Checker {
         // How far along the edge (in t) nothing can be reached from `t`, or `None` at a
         // contact.
         let mut clearance = |t: f64| {
-            for ((v, x), y) in q.iter_mut().zip(a).zip(b) {
-                *v = x + (y - x) * t;
-            }
-            self.scratch.borrow_mut().near.t = t;
-            self.measure_with(&q, Some(&speed), cap, exact_below).ok()
+            self.measure_at(&mut q, (a, b), t, Some(&speed), cap, exact_below)
+                .ok()
         };
         let Some(mut clear) = clearance(0.0) else {
             return false;
