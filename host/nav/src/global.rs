@@ -1,6 +1,6 @@
 //! Global path planning on an occupancy grid: A* over the cells a round robot fits in
 //! (8-connected, no corner cutting; the `pathfinding` crate's A*), then the path pulled taut
-//! (each waypoint joined to the farthest later one in free line of sight).
+//! (each waypoint joined to a far later one in free line of sight, from alternating ends).
 
 use crate::error::{Error, Result};
 use crate::obstacles::{Obstacles, OccupancyGrid};
@@ -61,18 +61,19 @@ impl GlobalPlanner for GridAStar {
         map.check()?;
         let field = Obstacles::new(Vec::new(), Some(map))?;
         let (w, h) = (map.width, map.height);
-        let open = |i: usize, j: usize| {
-            let c = centre(map, i, j);
-            field.clearance(c) >= radius
-        };
+        // Cells a robot centred on them fits in.
+        let is_open: Vec<bool> = (0..h)
+            .flat_map(|j| (0..w).map(move |i| (i, j)))
+            .map(|(i, j)| field.clearance(map.centre(i, j)) >= radius)
+            .collect();
         let end = |p: [f64; 2], what: &'static str| -> Result<(usize, usize)> {
             let (i, j) = map.cell(p).ok_or(Error::OutsideMap { what, at: p })?;
             let clear = field.clearance(p);
-            if clear < radius || !open(i, j) {
+            if clear < radius || !is_open[j * w + i] {
                 return Err(Error::Blocked {
                     what,
                     at: p,
-                    clearance: clear.min(field.clearance(centre(map, i, j))),
+                    clearance: clear.min(field.clearance(map.centre(i, j))),
                     radius,
                 });
             }
@@ -83,12 +84,6 @@ impl GlobalPlanner for GridAStar {
         // Integer costs (mm-like units of a cell): straight 1000, diagonal 1414.
         const STRAIGHT: u64 = 1000;
         const DIAGONAL: u64 = 1414;
-        let mut is_open = vec![false; w * h];
-        for j in 0..h {
-            for i in 0..w {
-                is_open[j * w + i] = open(i, j);
-            }
-        }
         let free = |i: i64, j: i64| {
             i >= 0
                 && j >= 0
@@ -147,7 +142,7 @@ impl GlobalPlanner for GridAStar {
                 .iter()
                 .skip(1)
                 .take(cells.len().saturating_sub(2))
-                .map(|&(i, j)| centre(map, i, j)),
+                .map(|&(i, j)| map.centre(i, j)),
         );
         raw.push(goal);
         let visible = |a: [f64; 2], b: [f64; 2]| {
@@ -192,14 +187,6 @@ fn densify(path: &[[f64; 2]], step: f64) -> Vec<[f64; 2]> {
         }
     }
     out
-}
-
-/// The centre of cell `(i, j)`, m.
-fn centre(map: &OccupancyGrid, i: usize, j: usize) -> [f64; 2] {
-    [
-        map.origin[0] + i as f64 * map.resolution,
-        map.origin[1] + j as f64 * map.resolution,
-    ]
 }
 
 /// `path` with each kept waypoint joined to a far later one it sees (`visible`), found by

@@ -63,12 +63,9 @@ impl MapImage {
             .ok_or_else(|| bad("not a YAML mapping of map_server's keys".into()))?;
         let number = |key: &str| -> Result<f64> {
             match &doc[key] {
-                Yaml::Real(_) | Yaml::Integer(_) => doc[key]
-                    .as_f64()
-                    .or_else(|| doc[key].as_i64().map(|v| v as f64))
-                    .ok_or_else(|| bad(format!("`{key}` is not a number"))),
                 Yaml::BadValue => Err(bad(format!("`{key}` is missing"))),
-                other => Err(bad(format!("`{key}` is not a number: {other:?}"))),
+                other => as_number(other)
+                    .ok_or_else(|| bad(format!("`{key}` is not a number: {other:?}"))),
             }
         };
         let image = doc["image"]
@@ -81,10 +78,7 @@ impl MapImage {
             )));
         }
         let origin = match doc["origin"].as_vec() {
-            Some(v) if v.len() == 3 => v
-                .iter()
-                .map(|x| x.as_f64().or_else(|| x.as_i64().map(|i| i as f64)))
-                .collect::<Option<Vec<f64>>>(),
+            Some(v) if v.len() == 3 => v.iter().map(as_number).collect::<Option<Vec<f64>>>(),
             _ => None,
         }
         .ok_or_else(|| bad("`origin` is not a list of three numbers [x, y, yaw]".into()))?;
@@ -154,7 +148,7 @@ impl MapImage {
             height,
             cells,
         };
-        map.to_grid(true).map_err(|e| bad(e.to_string()))?;
+        map.check().map_err(|e| bad(e.to_string()))?;
         Ok(map)
     }
 
@@ -166,7 +160,7 @@ impl MapImage {
             path: path.to_path_buf(),
             why,
         };
-        self.to_grid(true)?;
+        self.check()?;
         let stem = yaml
             .file_stem()
             .ok_or_else(|| bad(yaml, "has no file name".into()))?;
@@ -203,17 +197,17 @@ impl MapImage {
         Ok(png_path)
     }
 
-    /// The map as an [`OccupancyGrid`] (cell centres), unknown cells occupied when
-    /// `unknown_is_occupied`, else free.
-    pub fn to_grid(&self, unknown_is_occupied: bool) -> Result<OccupancyGrid> {
+    /// Whether the map is usable: its shape as [`OccupancyGrid::check`] asks (origin and
+    /// extent, resolution, cell count) and one cell per place.
+    pub fn check(&self) -> Result<()> {
         let half = 0.5 * self.resolution;
-        let mut g = OccupancyGrid::new(
+        OccupancyGrid::check_shape(
             [self.origin[0] + half, self.origin[1] + half],
             self.resolution,
             self.width,
             self.height,
         )?;
-        if self.cells.len() != g.occupied.len() {
+        if Some(self.cells.len()) != self.width.checked_mul(self.height) {
             return Err(Error::InvalidMap {
                 why: format!(
                     "{} cells for {} × {}",
@@ -223,6 +217,20 @@ impl MapImage {
                 ),
             });
         }
+        Ok(())
+    }
+
+    /// The map as an [`OccupancyGrid`] (cell centres), unknown cells occupied when
+    /// `unknown_is_occupied`, else free.
+    pub fn to_grid(&self, unknown_is_occupied: bool) -> Result<OccupancyGrid> {
+        self.check()?;
+        let half = 0.5 * self.resolution;
+        let mut g = OccupancyGrid::new(
+            [self.origin[0] + half, self.origin[1] + half],
+            self.resolution,
+            self.width,
+            self.height,
+        )?;
         for (o, c) in g.occupied.iter_mut().zip(&self.cells) {
             *o = match c {
                 Cell::Occupied => true,
@@ -233,21 +241,43 @@ impl MapImage {
         Ok(g)
     }
 
-    /// A map of `grid`'s cells, all seen (occupied or free).
-    pub fn from_grid(grid: &OccupancyGrid) -> Self {
-        let half = 0.5 * grid.resolution;
+    /// A map of seen cells, `occupied` row by row from the bottom (x fastest), cell (0, 0)'s
+    /// lower-left corner at `origin` (m).
+    pub fn from_occupied(
+        origin: [f64; 2],
+        resolution: f64,
+        width: usize,
+        height: usize,
+        occupied: &[bool],
+    ) -> Self {
         MapImage {
-            origin: [grid.origin[0] - half, grid.origin[1] - half],
-            resolution: grid.resolution,
-            width: grid.width,
-            height: grid.height,
-            cells: grid
-                .occupied
+            origin,
+            resolution,
+            width,
+            height,
+            cells: occupied
                 .iter()
                 .map(|&o| if o { Cell::Occupied } else { Cell::Free })
                 .collect(),
         }
     }
+
+    /// A map of `grid`'s cells, all seen (occupied or free).
+    pub fn from_grid(grid: &OccupancyGrid) -> Self {
+        let half = 0.5 * grid.resolution;
+        Self::from_occupied(
+            [grid.origin[0] - half, grid.origin[1] - half],
+            grid.resolution,
+            grid.width,
+            grid.height,
+            &grid.occupied,
+        )
+    }
+}
+
+/// A YAML scalar as a number: a real, or an integer.
+fn as_number(y: &Yaml) -> Option<f64> {
+    y.as_f64().or_else(|| y.as_i64().map(|v| v as f64))
 }
 
 /// Largest map YAML file, bytes.

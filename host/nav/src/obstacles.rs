@@ -40,7 +40,14 @@ impl OccupancyGrid {
         Ok(g)
     }
 
-    fn check_shape(origin: [f64; 2], resolution: f64, width: usize, height: usize) -> Result<()> {
+    /// Whether a grid of this shape is usable (see [`OccupancyGrid::check`]), before its
+    /// cells exist.
+    pub(crate) fn check_shape(
+        origin: [f64; 2],
+        resolution: f64,
+        width: usize,
+        height: usize,
+    ) -> Result<()> {
         let bad = |why: String| Error::InvalidMap { why };
         let lim = validate::MAX_BASE_COORDINATE;
         if !(origin.iter().all(|x| x.is_finite() && x.abs() <= lim)) {
@@ -88,6 +95,14 @@ impl OccupancyGrid {
         Ok(())
     }
 
+    /// The centre of cell `(i, j)`, m.
+    pub fn centre(&self, i: usize, j: usize) -> [f64; 2] {
+        [
+            self.origin[0] + i as f64 * self.resolution,
+            self.origin[1] + j as f64 * self.resolution,
+        ]
+    }
+
     /// The cell holding `p` (m), if inside the grid.
     pub fn cell(&self, p: [f64; 2]) -> Option<(usize, usize)> {
         let i = ((p[0] - self.origin[0]) / self.resolution).round();
@@ -109,8 +124,7 @@ impl OccupancyGrid {
         let hi = self.cell_clamped([c[0] + r, c[1] + r], f64::ceil);
         for j in lo.1..=hi.1 {
             for i in lo.0..=hi.0 {
-                let x = self.origin[0] + i as f64 * self.resolution;
-                let y = self.origin[1] + j as f64 * self.resolution;
+                let [x, y] = self.centre(i, j);
                 if (x - c[0]).hypot(y - c[1]) <= r {
                     self.occupied[j * self.width + i] = true;
                 }

@@ -2,7 +2,7 @@
 
 use std::path::Path;
 
-use ferrobot::nav::{Cell, MapImage};
+use ferrobot::nav::MapImage;
 use ferrobot::scene::{Scene, SceneSource, Shape};
 use ferrobot_sim::floor_plan::OBSTACLE_BAND;
 use serde::Serialize;
@@ -99,17 +99,13 @@ pub fn run(
             }
         }
         let plan = scene.floor_plan(resolution, OBSTACLE_BAND, false)?;
-        let image = MapImage {
-            origin: plan.origin,
-            resolution: plan.resolution,
-            width: plan.width,
-            height: plan.height,
-            cells: plan
-                .occupied
-                .iter()
-                .map(|&o| if o { Cell::Occupied } else { Cell::Free })
-                .collect(),
-        };
+        let image = MapImage::from_occupied(
+            plan.origin,
+            plan.resolution,
+            plan.width,
+            plan.height,
+            &plan.occupied,
+        );
         let png = image.save(yaml)?;
         if !json {
             say!(
