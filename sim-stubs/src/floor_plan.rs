@@ -87,7 +87,13 @@ impl Scene {
                 continue;
             }
             let (blo, bhi) = b.world_bounds();
-            if bhi.z < band[0] || blo.z > band[1] {
+            // The band's heights the body's box reaches, once per body.
+            let zs: Vec<f64> = heights
+                .iter()
+                .copied()
+                .filter(|z| (blo.z..=bhi.z).contains(z))
+                .collect();
+            if zs.is_empty() {
                 continue;
             }
             let cell = |v: f64, o: f64, n: usize| {
@@ -100,10 +106,9 @@ impl Scene {
                         lo.x + (i as f64 + 0.5) * resolution,
                         lo.y + (j as f64 + 0.5) * resolution,
                     );
-                    let hit = heights.iter().any(|&z| {
-                        (blo.z..=bhi.z).contains(&z)
-                            && holds(&b.shape, &(inv * Point3::new(x, y, z)))
-                    });
+                    let hit = zs
+                        .iter()
+                        .any(|&z| holds(&b.shape, &(inv * Point3::new(x, y, z))));
                     if hit {
                         occupied[j * width + i] = true;
                     }
