@@ -329,14 +329,28 @@ impl FrameClock {
         1e6 / self.period_us as f64
     }
 
-    /// The instant (µs) of the first frame at or after `now_us` not taken yet; it is taken.
+    /// The instant (µs) of the first frame not taken yet at or after `now_us`, or up to half
+    /// a period before it (a caller that overshot an instant while it let time pass still
+    /// gets that frame, late, instead of skipping it); it is taken.
     pub fn next(&mut self, now_us: u64) -> u64 {
-        let mut index = now_us.div_ceil(self.period_us);
-        if let Some(last) = self.last {
-            index = index.max(last + 1);
-        }
+        let index = self.next_index(now_us);
         self.last = Some(index);
         index * self.period_us
+    }
+
+    /// The instant (µs) [`FrameClock::next`] would return, without taking it.
+    pub fn peek(&self, now_us: u64) -> u64 {
+        self.next_index(now_us) * self.period_us
+    }
+
+    fn next_index(&self, now_us: u64) -> u64 {
+        let index = now_us
+            .saturating_sub(self.period_us / 2)
+            .div_ceil(self.period_us);
+        match self.last {
+            Some(last) => index.max(last + 1),
+            None => index,
+        }
     }
 }
 

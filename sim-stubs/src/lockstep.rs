@@ -208,6 +208,19 @@ impl LockstepSim {
         self.hw.base_truth()
     }
 
+    /// Fault injection, a kidnapped robot: carries the base to `pose` (`[x, y, θ]` in the
+    /// world, m and rad) without turning its wheels, so its odometry does not see the move.
+    /// False (and nothing moves) without a base or for a pose that is not finite.
+    pub fn carry_base(&mut self, pose: Pose) -> bool {
+        match self.hw.base.as_mut() {
+            Some(b) if pose.iter().all(|x| x.is_finite()) => {
+                b.drive.truth = pose;
+                true
+            }
+            _ => false,
+        }
+    }
+
     fn flush(&mut self) {
         for link in [Link::Servo, Link::Base] {
             let n = self.fw.pending(link).len();

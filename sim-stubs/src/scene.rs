@@ -286,6 +286,39 @@ pub struct Scene {
     /// Every body: static geometry first (floor, walls, then static objects), then movable
     /// objects, in file order.
     pub bodies: Vec<Body>,
+    /// Scripted drives through the scene (for SLAM runs and recordings), in file order.
+    pub routes: Vec<Route>,
+}
+
+/// A scripted drive of a mobile base through a scene: waypoints in the world's floor plane,
+/// each `[x, y]` (drive there), `[x, y, θ]` (drive there, then turn in place to heading θ) or
+/// `[x, y, θ, t]` (and stay there t seconds).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Route {
+    /// Name, unique in the scene.
+    pub name: String,
+    /// Waypoints, in order.
+    pub waypoints: Vec<Waypoint>,
+    /// Head tilt for the drive, rad (positive down).
+    pub head_tilt: f64,
+}
+
+/// One waypoint of a [`Route`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Waypoint {
+    /// Where, m (world).
+    pub xy: [f64; 2],
+    /// Heading to turn to on arrival, rad.
+    pub heading: Option<f64>,
+    /// Time to stay, s.
+    pub wait: f64,
+}
+
+impl Scene {
+    /// A route by name.
+    pub fn route(&self, name: &str) -> Option<&Route> {
+        self.routes.iter().find(|r| r.name == name)
+    }
 }
 
 /// Where a scene comes from.
@@ -324,6 +357,17 @@ struct SceneFile {
     wall: Vec<WallFile>,
     #[serde(default)]
     object: Vec<ObjectFile>,
+    #[serde(default)]
+    route: Vec<RouteFile>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RouteFile {
+    name: String,
+    waypoints: Vec<Vec<f64>>,
+    #[serde(default)]
+    head_tilt: f64,
 }
 
 #[derive(Deserialize)]
@@ -836,12 +880,51 @@ impl Scene {
                 return Err(cx.err("object.id", format!("id {:?} is used twice", b.id)));
             }
         }
+        let mut routes: Vec<Route> = Vec::new();
+        for (i, r) in raw.route.iter().enumerate() {
+            let key = format!("route[{i}]");
+            if r.name.is_empty() || r.name.len() > 64 || routes.iter().any(|o| o.name == r.name) {
+                return Err(cx.err(format!("{key}.name"), "a unique name of 1-64 characters"));
+            }
+            if r.waypoints.is_empty() || r.waypoints.len() > 1000 {
+                return Err(cx.err(format!("{key}.waypoints"), "1-1000 waypoints"));
+            }
+            let mut waypoints = Vec::new();
+            for (k, w) in r.waypoints.iter().enumerate() {
+                let wk = format!("{key}.waypoints[{k}]");
+                if !(2..=4).contains(&w.len()) {
+                    return Err(cx.err(wk, "[x, y], [x, y, heading] or [x, y, heading, wait]"));
+                }
+                let x = cx.finite(&wk, w[0], -MAX_EXTENT, MAX_EXTENT)?;
+                let y = cx.finite(&wk, w[1], -MAX_EXTENT, MAX_EXTENT)?;
+                let th = w
+                    .get(2)
+                    .map(|&t| cx.finite(&wk, t, -100.0, 100.0))
+                    .transpose()?;
+                let wait = w
+                    .get(3)
+                    .map(|&t| cx.finite(&wk, t, 0.0, 600.0))
+                    .transpose()?
+                    .unwrap_or(0.0);
+                waypoints.push(Waypoint {
+                    xy: [x, y],
+                    heading: th,
+                    wait,
+                });
+            }
+            routes.push(Route {
+                name: r.name.clone(),
+                waypoints,
+                head_tilt: cx.finite(&format!("{key}.head_tilt"), r.head_tilt, -1.6, 1.6)?,
+            });
+        }
         Ok(Scene {
             name: raw.name,
             file: file.to_path_buf(),
             robot_pose,
             robot_height,
             bodies,
+            routes,
         })
     }
 
@@ -854,6 +937,7 @@ impl Scene {
             robot_pose: [0.0; 3],
             robot_height: 0.0,
             bodies: Vec::new(),
+            routes: Vec::new(),
         }
     }
 

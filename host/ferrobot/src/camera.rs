@@ -44,6 +44,11 @@ pub trait CameraDevice: Send {
     fn intrinsics(&self) -> Intrinsics;
     /// Frames per second.
     fn rate(&self) -> f64;
+    /// How long after `now` (the link's clock) the next frame is taken, when the device can
+    /// tell (a simulated camera); zero for a device that only knows by capturing.
+    fn until_next(&self, _now: Duration) -> Duration {
+        Duration::ZERO
+    }
     /// The next frame: waits for it (at most one frame period).
     fn capture(&mut self, link: &mut dyn Link) -> Result<RawFrame>;
 }
@@ -99,9 +104,21 @@ impl Camera {
         Camera { robot }
     }
 
-    /// The next frame with its time and the camera's pose at that time.
+    /// The next frame with its time and the camera's pose at that time. The time until the
+    /// frame passes as any wait does: the motions under way go on meanwhile.
     pub fn get_frame(&self) -> Result<Frame> {
         let frame = self.robot.optical_frame()?;
+        let until = {
+            let io = self.robot.lock_io();
+            let device = io
+                .camera
+                .as_ref()
+                .ok_or_else(|| self.robot.missing("camera"))?;
+            device.until_next(io.link.now())
+        };
+        if !until.is_zero() {
+            self.robot.wait_for(until);
+        }
         let (intrinsics, tel, raw) = {
             let mut guard = self.robot.lock_io();
             let io = &mut *guard;

@@ -70,8 +70,14 @@ pub fn write_rgb_png(path: impl AsRef<Path>, img: &RgbImage) -> Result<()> {
 /// Millimetres of a depth (m) as a 16-bit PNG stores it: rounded, 0 for invalid, saturated at
 /// 65.535 m.
 pub fn depth_to_mm(d: f32) -> u16 {
+    depth_to_units(d, 1000.0)
+}
+
+/// A depth (m) in units of `1 / per_metre` m, as a 16-bit PNG stores it: rounded, 0 for
+/// invalid, saturated at 65535 units.
+pub fn depth_to_units(d: f32, per_metre: f64) -> u16 {
     if d.is_finite() && d > 0.0 {
-        (d as f64 * 1000.0).round().clamp(0.0, 65535.0) as u16
+        (d as f64 * per_metre).round().clamp(0.0, 65535.0) as u16
     } else {
         0
     }
@@ -79,11 +85,22 @@ pub fn depth_to_mm(d: f32) -> u16 {
 
 /// Write a depth image as a 16-bit greyscale PNG in millimetres (0 = invalid).
 pub fn write_depth_png(path: impl AsRef<Path>, img: &DepthImage) -> Result<()> {
+    write_depth_png_scaled(path, img, 1000.0)
+}
+
+/// Write a depth image as a 16-bit greyscale PNG of `per_metre` units per metre (0 = invalid):
+/// 1000 for the RealSense's millimetres, 5000 for the TUM RGB-D benchmark.
+pub fn write_depth_png_scaled(
+    path: impl AsRef<Path>,
+    img: &DepthImage,
+    per_metre: f64,
+) -> Result<()> {
     let p = path.as_ref();
+    check_factor(p, per_metre)?;
     let data: Vec<u8> = img
         .data
         .iter()
-        .flat_map(|&d| depth_to_mm(d).to_be_bytes())
+        .flat_map(|&d| depth_to_units(d, per_metre).to_be_bytes())
         .collect();
     write_png(
         p,
@@ -93,6 +110,18 @@ pub fn write_depth_png(path: impl AsRef<Path>, img: &DepthImage) -> Result<()> {
         png::BitDepth::Sixteen,
         &data,
     )
+}
+
+/// A depth factor must be finite and in [1, 1e6] units per metre.
+fn check_factor(p: &Path, per_metre: f64) -> Result<()> {
+    if per_metre.is_finite() && (1.0..=1e6).contains(&per_metre) {
+        Ok(())
+    } else {
+        Err(malformed(
+            p,
+            format!("depth factor {per_metre} is not in [1, 1e6] units per metre"),
+        ))
+    }
 }
 
 fn read_png(path: &Path) -> Result<(png::OutputInfo, Vec<u8>)> {
@@ -135,20 +164,27 @@ pub fn read_rgb_png(path: impl AsRef<Path>) -> Result<RgbImage> {
 /// Read a 16-bit greyscale depth PNG in millimetres (as [`write_depth_png`] writes; the
 /// RealSense's format) into metres (0 = invalid).
 pub fn read_depth_png(path: impl AsRef<Path>) -> Result<DepthImage> {
+    read_depth_png_scaled(path, 1000.0)
+}
+
+/// Read a 16-bit greyscale depth PNG of `per_metre` units per metre (5000 for the TUM RGB-D
+/// benchmark) into metres (0 = invalid).
+pub fn read_depth_png_scaled(path: impl AsRef<Path>, per_metre: f64) -> Result<DepthImage> {
     let p = path.as_ref();
+    check_factor(p, per_metre)?;
     let (info, buf) = read_png(p)?;
     if info.color_type != png::ColorType::Grayscale || info.bit_depth != png::BitDepth::Sixteen {
         return Err(malformed(
             p,
             format!(
-                "{:?} {}-bit PNG; a depth image is 16-bit greyscale millimetres",
+                "{:?} {}-bit PNG; a depth image is 16-bit greyscale",
                 info.color_type, info.bit_depth as u8
             ),
         ));
     }
     let data = buf
         .chunks_exact(2)
-        .map(|b| u16::from_be_bytes([b[0], b[1]]) as f32 / 1000.0)
+        .map(|b| (u16::from_be_bytes([b[0], b[1]]) as f64 / per_metre) as f32)
         .collect();
     DepthImage::new(info.width, info.height, data)
 }

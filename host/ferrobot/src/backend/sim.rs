@@ -181,6 +181,11 @@ impl crate::camera::CameraDevice for SimCameraDevice {
         self.clock.rate()
     }
 
+    fn until_next(&self, now: Duration) -> Duration {
+        let now_us = now.as_micros() as u64;
+        Duration::from_micros(self.clock.peek(now_us).saturating_sub(now_us))
+    }
+
     fn capture(&mut self, link: &mut dyn Link) -> Result<crate::camera::RawFrame> {
         // The next frame instant not yet captured.
         let now = link.now().as_micros() as u64;
