@@ -188,6 +188,59 @@ enum Cmd {
         #[arg(long)]
         json: bool,
     },
+    /// Visual SLAM on a scripted drive or a recorded sequence. A drive: the simulated robot
+    /// follows a route of the scene while SLAM runs on its camera and odometry; writes
+    /// estimate.tum, ground_truth.tum, odometry.tum, map.yaml + map.png, cloud.ply and
+    /// trajectory.png to --out. A sequence (--dataset DIR, the TUM RGB-D layout): writes
+    /// estimate.tum (camera poses) and cloud.ply to --out, if given.
+    Slam {
+        /// Robot name or configuration path (not with --dataset).
+        #[arg(required_unless_present = "dataset", conflicts_with = "dataset")]
+        robot: Option<String>,
+        /// A recorded RGB-D sequence in the TUM RGB-D layout (rgb.txt, depth.txt, PNGs,
+        /// camera.yaml, groundtruth.txt when present).
+        #[arg(long)]
+        dataset: Option<std::path::PathBuf>,
+        /// Scene name or path.
+        #[arg(long, default_value = "apartment", conflicts_with = "dataset")]
+        scene: String,
+        /// Route of the scene to drive.
+        #[arg(long, default_value = "loop", conflicts_with = "dataset")]
+        route: String,
+        /// Seed of the plants' and the camera's noise.
+        #[arg(long, default_value_t = 1, conflicts_with = "dataset")]
+        seed: u64,
+        /// Localise in this saved SLAM map (an earlier drive's map.slam) from a start SLAM is
+        /// not told.
+        #[arg(long, conflicts_with = "dataset")]
+        map: Option<std::path::PathBuf>,
+        /// Output directory (created if missing).
+        #[arg(long)]
+        out: Option<std::path::PathBuf>,
+        /// Print one JSON object: `{"ate_rmse_m", "frames", "ms_per_frame": {"mean", "p95"},
+        /// "occupancy_iou", ...}`.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Record a simulated drive along a scene's route as an RGB-D sequence in the TUM RGB-D
+    /// layout (rgb/, depth/ at 5000 units per metre, rgb.txt, depth.txt, groundtruth.txt of
+    /// the camera, camera.yaml).
+    RecordRgbd {
+        /// Robot name or configuration path.
+        robot: String,
+        /// Scene name or path.
+        #[arg(long, default_value = "apartment")]
+        scene: String,
+        /// Route of the scene to drive.
+        #[arg(long)]
+        route: String,
+        /// Seed of the plants' and the camera's noise.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Output directory (must be missing or empty).
+        #[arg(long)]
+        out: std::path::PathBuf,
+    },
     /// What a scene holds (bundled name or scene file): its bodies in the world frame (z up,
     /// metres) and the robot's start pose.
     Scene {
@@ -513,6 +566,46 @@ fn run(cli: Cli) -> Result<(), (ferrobot::Error, bool)> {
                 json,
             }),
             json,
+        ),
+        Cmd::Slam {
+            robot,
+            dataset,
+            scene,
+            route,
+            seed,
+            map,
+            out,
+            json,
+        } => {
+            let source = match (&robot, &dataset) {
+                (_, Some(d)) => Ok(cmd::slam::Source::Dataset(d)),
+                (Some(r), None) => Ok(cmd::slam::Source::Drive {
+                    robot: r,
+                    scene: &scene,
+                    route: &route,
+                    seed,
+                    map: map.as_deref(),
+                }),
+                (None, None) => Err(ferrobot::Error::Usage("name a ROBOT or a --dataset".into())),
+            };
+            let r = source.and_then(|source| {
+                cmd::slam::run(&cmd::slam::Args {
+                    source,
+                    out: out.as_deref(),
+                    json,
+                })
+            });
+            (r, json)
+        }
+        Cmd::RecordRgbd {
+            robot,
+            scene,
+            route,
+            seed,
+            out,
+        } => (
+            cmd::record_rgbd::run(&robot, &scene, &route, seed, &out),
+            false,
         ),
         Cmd::CalibrateOdometry { robot, seed, json } => {
             (cmd::calibrate_odometry::run(&robot, seed, json), json)

@@ -206,6 +206,9 @@ pub enum Error {
     /// off the map or too near an obstacle, no path.
     #[error("navigation: {0}")]
     Navigation(ferrobot_nav::Error),
+    /// SLAM refused its input: settings, a frame, a trajectory or dataset file.
+    #[error("SLAM: {0}")]
+    Slam(#[from] ferrobot_slam::Error),
     /// An I/O error.
     #[error("I/O error: {0}")]
     Io(#[from] std::io::Error),
@@ -234,6 +237,7 @@ impl Error {
                 | Error::Scene(_)
                 | Error::Perception(_)
                 | Error::Planning(ferrobot_planning::Error::Invalid { .. })
+                | Error::Slam(_)
         ) || matches!(self, Error::Navigation(e) if e.is_input())
     }
 }

@@ -36,6 +36,8 @@ pub use ferrobot_kinematics as kinematics;
 pub use ferrobot_nav as obstacles;
 /// Navigation: maps on disk, the global planner on occupancy grids, obstacles.
 pub use ferrobot_nav as nav;
+/// Visual SLAM: tracking, keyframes, loop closure, the maps, trajectories and their error.
+pub use ferrobot_slam as slam;
 
 /// Base control and navigation, as one module of the API: references, LQR and ILQR
 /// (`ferrobot-control`), and the navigation field and dynamic window (`ferrobot-nav`).

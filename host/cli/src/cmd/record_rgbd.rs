@@ -1,0 +1,43 @@
+//! `ferrobot record-rgbd ROBOT --scene SCENE --route NAME --out DIR`: a simulated drive along
+//! a scene's route written as an RGB-D sequence in the TUM RGB-D benchmark's layout (`rgb/`,
+//! `depth/` with 16-bit depth of 5000 units per metre, `rgb.txt`, `depth.txt`,
+//! `groundtruth.txt` of the camera's optical frame in the world, `camera.yaml`), which
+//! `ferrobot slam --dataset DIR` and other SLAM systems read.
+
+use std::path::Path;
+
+use ferrobot::slam::DatasetWriter;
+
+use super::route::Drive;
+
+/// TUM RGB-D's depth units per metre.
+pub const TUM_DEPTH_FACTOR: f64 = 5000.0;
+
+/// Drive and record; prints how many frames went where.
+pub fn run(robot: &str, scene: &str, route: &str, seed: u64, out: &Path) -> ferrobot::Result<()> {
+    if out.exists() && std::fs::read_dir(out)?.next().is_some() {
+        return Err(ferrobot::Error::PathExists {
+            path: out.to_path_buf(),
+        });
+    }
+    let d = Drive::new(robot, scene, route, seed)?;
+    let k = d.bot.camera()?.intrinsics()?;
+    let mut w = DatasetWriter::create(out, TUM_DEPTH_FACTOR)?;
+    let mut frames = 0;
+    d.run(|s| {
+        frames += 1;
+        w.add(
+            s.frame.time.as_secs_f64(),
+            &s.frame.rgb,
+            &s.frame.depth,
+            Some(s.camera_truth),
+        )?;
+        Ok(())
+    })?;
+    w.finish(&k)?;
+    say!(
+        "{frames} frames of {route} in {scene} written to {}",
+        out.display()
+    );
+    Ok(())
+}

@@ -1,0 +1,253 @@
+//! The dense maps SLAM builds from its keyframes' depth samples at their current poses (so a
+//! loop closure reshapes them): a coloured voxel cloud and a 2-D occupancy grid as PyRobot's
+//! LoCoBot builds it (0.02 m cells, obstacles from points 0.1-0.8 m above the floor).
+
+use std::collections::HashMap;
+
+use ferrobot_nav::{Cell, MapImage};
+use ferrobot_perception::PointCloud;
+use nalgebra::Point3;
+
+use crate::error::{Error, Result};
+use crate::map::Map;
+
+/// Settings of the occupancy grid.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GridSettings {
+    /// Cell size, m (PyRobot: 0.02).
+    pub resolution: f64,
+    /// Heights above the floor (world z = 0) whose points are obstacles, m (PyRobot: 0.1-0.8).
+    pub band: [f64; 2],
+    /// Points lower than this are floor: they clear the cells on their ray, m.
+    pub floor: f64,
+    /// A cell is occupied when at least this many of its rays ended in it ...
+    pub min_hits: u32,
+    /// ... and at least this fraction of the rays that reached it.
+    pub min_ratio: f64,
+}
+
+impl Default for GridSettings {
+    fn default() -> Self {
+        GridSettings {
+            resolution: 0.02,
+            band: [0.1, 0.8],
+            floor: 0.05,
+            min_hits: 2,
+            min_ratio: 0.3,
+        }
+    }
+}
+
+impl Map {
+    /// Every keyframe's depth sample in the world, averaged per voxel of `voxel` m (position
+    /// and colour): the dense coloured map.
+    pub fn cloud(&self, voxel: f64) -> Result<PointCloud> {
+        if !(voxel.is_finite() && (1e-3..=1.0).contains(&voxel)) {
+            return Err(Error::InvalidSettings {
+                why: format!("voxel size {voxel} m is not in [0.001, 1]"),
+            });
+        }
+        let mut cells: HashMap<[i32; 3], ([f64; 3], [u32; 3], u32)> = HashMap::new();
+        let mut order = Vec::new();
+        for kf in &self.keyframes {
+            let t = kf.camera_pose();
+            for (p, c) in &kf.cloud {
+                let w = t * Point3::new(p.x as f64, p.y as f64, p.z as f64);
+                let key = [
+                    (w.x / voxel).floor() as i32,
+                    (w.y / voxel).floor() as i32,
+                    (w.z / voxel).floor() as i32,
+                ];
+                let e = cells.entry(key).or_insert_with(|| {
+                    order.push(key);
+                    ([0.0; 3], [0; 3], 0)
+                });
+                for i in 0..3 {
+                    e.0[i] += w[i];
+                    e.1[i] += c[i] as u32;
+                }
+                e.2 += 1;
+            }
+        }
+        let mut cloud = PointCloud::default();
+        for key in order {
+            let (s, c, n) = cells[&key];
+            let nf = n as f64;
+            cloud
+                .points
+                .push(Point3::new(s[0] / nf, s[1] / nf, s[2] / nf));
+            cloud
+                .colours
+                .push([(c[0] / n) as u8, (c[1] / n) as u8, (c[2] / n) as u8]);
+        }
+        Ok(cloud)
+    }
+
+    /// The occupancy grid of the keyframes' depth samples: rays from the camera (projected on
+    /// the floor) clear the cells they cross; points in the obstacle band mark their cell.
+    /// The grid covers what was seen, with one cell of margin; `None` before any keyframe.
+    pub fn occupancy(&self, s: &GridSettings) -> Result<Option<MapImage>> {
+        if !(s.resolution.is_finite() && (1e-3..=1.0).contains(&s.resolution)) {
+            return Err(Error::InvalidSettings {
+                why: format!("resolution {} m is not in [0.001, 1]", s.resolution),
+            });
+        }
+        if !(s.band[0].is_finite() && s.band[1].is_finite() && s.band[0] < s.band[1]) {
+            return Err(Error::InvalidSettings {
+                why: format!("obstacle band {:?} m is not an interval", s.band),
+            });
+        }
+        // Rays in the world's floor plane: (camera xy, point xy, is obstacle).
+        let mut rays: Vec<([f64; 2], [f64; 2], bool)> = Vec::new();
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for kf in &self.keyframes {
+            let t = kf.camera_pose();
+            let o = [t.translation.x, t.translation.y];
+            for (p, _) in &kf.cloud {
+                let w = t * Point3::new(p.x as f64, p.y as f64, p.z as f64);
+                let obstacle = (s.band[0]..=s.band[1]).contains(&w.z);
+                if !(obstacle || w.z < s.floor) {
+                    continue;
+                }
+                let e = [w.x, w.y];
+                for i in 0..2 {
+                    lo[i] = lo[i].min(e[i]).min(o[i]);
+                    hi[i] = hi[i].max(e[i]).max(o[i]);
+                }
+                rays.push((o, e, obstacle));
+            }
+        }
+        if rays.is_empty() {
+            return Ok(None);
+        }
+        let r = s.resolution;
+        let origin = [(lo[0] / r).floor() * r - r, (lo[1] / r).floor() * r - r];
+        let width = ((hi[0] - origin[0]) / r).ceil() as usize + 2;
+        let height = ((hi[1] - origin[1]) / r).ceil() as usize + 2;
+        if width * height > 50_000_000 {
+            return Err(Error::InvalidSettings {
+                why: format!("a grid of {width} x {height} cells is too large"),
+            });
+        }
+        let mut hits = vec![0u32; width * height];
+        let mut passes = vec![0u32; width * height];
+        let cell = |p: [f64; 2]| -> (i64, i64) {
+            (
+                ((p[0] - origin[0]) / r).floor() as i64,
+                ((p[1] - origin[1]) / r).floor() as i64,
+            )
+        };
+        for (o, e, obstacle) in rays {
+            let (i0, j0) = cell(o);
+            let (i1, j1) = cell(e);
+            // Bresenham from the camera's cell to the point's, its last cell excluded.
+            let (di, dj) = ((i1 - i0).abs(), -(j1 - j0).abs());
+            let (si, sj) = (if i0 < i1 { 1 } else { -1 }, if j0 < j1 { 1 } else { -1 });
+            let (mut i, mut j, mut err) = (i0, j0, di + dj);
+            while (i, j) != (i1, j1) {
+                passes[j as usize * width + i as usize] += 1;
+                let e2 = 2 * err;
+                if e2 >= dj {
+                    err += dj;
+                    i += si;
+                }
+                if e2 <= di {
+                    err += di;
+                    j += sj;
+                }
+            }
+            let k = j1 as usize * width + i1 as usize;
+            if obstacle {
+                hits[k] += 1;
+            } else {
+                passes[k] += 1;
+            }
+        }
+        let cells = hits
+            .iter()
+            .zip(&passes)
+            .map(|(&h, &p)| {
+                if h >= s.min_hits && h as f64 >= s.min_ratio * (h + p) as f64 {
+                    Cell::Occupied
+                } else if p > 0 || h > 0 {
+                    Cell::Free
+                } else {
+                    Cell::Unknown
+                }
+            })
+            .collect();
+        Ok(Some(MapImage {
+            origin,
+            resolution: r,
+            width,
+            height,
+            cells,
+        }))
+    }
+}
+
+/// Agreement of two maps of the same resolution: the intersection over union of their free
+/// cells and of their occupied cells, over the cells of `truth` (cells of `estimate` outside it,
+/// or `Unknown`, count as not free and not occupied). Occupied cells match within `slack`
+/// cells (a wall drawn one cell off still counts).
+pub fn map_iou(estimate: &MapImage, truth: &MapImage, slack: usize) -> Result<MapIou> {
+    if (estimate.resolution - truth.resolution).abs() > 1e-9 {
+        return Err(Error::Trajectory {
+            why: format!(
+                "maps of resolution {} and {} m",
+                estimate.resolution, truth.resolution
+            ),
+        });
+    }
+    let r = truth.resolution;
+    let at = |m: &MapImage, x: f64, y: f64| -> Cell {
+        let i = ((x - m.origin[0]) / r).floor();
+        let j = ((y - m.origin[1]) / r).floor();
+        if i < 0.0 || j < 0.0 || i >= m.width as f64 || j >= m.height as f64 {
+            return Cell::Unknown;
+        }
+        m.cells[j as usize * m.width + i as usize]
+    };
+    let near_occupied = |m: &MapImage, x: f64, y: f64| -> bool {
+        let s = slack as i64;
+        (-s..=s).any(|di| {
+            (-s..=s).any(|dj| at(m, x + di as f64 * r, y + dj as f64 * r) == Cell::Occupied)
+        })
+    };
+    let (mut fi, mut fu, mut oi, mut ou) = (0usize, 0usize, 0usize, 0usize);
+    for j in 0..truth.height {
+        for i in 0..truth.width {
+            let x = truth.origin[0] + (i as f64 + 0.5) * r;
+            let y = truth.origin[1] + (j as f64 + 0.5) * r;
+            let t = truth.cells[j * truth.width + i];
+            let e = at(estimate, x, y);
+            let (tf, ef) = (t == Cell::Free, e == Cell::Free);
+            fi += (tf && ef) as usize;
+            fu += (tf || ef) as usize;
+            let (to, eo) = (t == Cell::Occupied, e == Cell::Occupied);
+            if to || eo {
+                ou += 1;
+                let hit = if to {
+                    near_occupied(estimate, x, y)
+                } else {
+                    near_occupied(truth, x, y)
+                };
+                oi += hit as usize;
+            }
+        }
+    }
+    let ratio = |a: usize, b: usize| if b == 0 { 1.0 } else { a as f64 / b as f64 };
+    Ok(MapIou {
+        free: ratio(fi, fu),
+        occupied: ratio(oi, ou),
+    })
+}
+
+/// The agreement [`map_iou`] measures.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MapIou {
+    /// Intersection over union of the free cells.
+    pub free: f64,
+    /// Intersection over union of the occupied cells, within the slack.
+    pub occupied: f64,
+}

@@ -1,0 +1,156 @@
+//! Trajectories (TUM format, ATE) and RGB-D sequences (the TUM RGB-D layout) on disk: round
+//! trips, the ATE of known errors, and malformed files refused with the file and line named.
+
+use std::path::PathBuf;
+
+use ferrobot_perception::{DepthImage, Intrinsics, RgbImage};
+use ferrobot_slam::optimise::planar;
+use ferrobot_slam::{ate, parse_tum, to_tum, Dataset, DatasetWriter, Error, Stamped};
+use nalgebra::{Isometry3, Translation3, UnitQuaternion};
+
+fn dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("ferrobot-slam-files-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    d
+}
+
+fn circle(n: usize) -> Vec<Stamped> {
+    (0..n)
+        .map(|i| {
+            let a = i as f64 * 0.1;
+            Stamped {
+                time: i as f64 / 30.0,
+                pose: planar([a.cos(), a.sin(), a + 1.5]),
+            }
+        })
+        .collect()
+}
+
+#[test]
+fn tum_text_round_trips_and_the_ate_ignores_a_rigid_offset() {
+    let a = circle(50);
+    let back = parse_tum(&to_tum(&a), std::path::Path::new("t")).expect("parse");
+    assert_eq!(back.len(), a.len());
+    for (x, y) in a.iter().zip(&back) {
+        assert!((x.time - y.time).abs() < 1e-6);
+        assert!((x.pose.translation.vector - y.pose.translation.vector).norm() < 1e-6);
+        assert!(x.pose.rotation.angle_to(&y.pose.rotation) < 1e-6);
+    }
+    // The same trajectory in another frame: no error after alignment.
+    let t = Isometry3::from_parts(
+        Translation3::new(3.0, -1.0, 0.2),
+        UnitQuaternion::from_euler_angles(0.0, 0.0, 0.7),
+    );
+    let moved: Vec<Stamped> = a
+        .iter()
+        .map(|s| Stamped {
+            time: s.time,
+            pose: t * s.pose,
+        })
+        .collect();
+    let e = ate(&moved, &a, 0.001).expect("ate");
+    assert!(e.rmse < 1e-9 && e.pairs == 50, "{e:?}");
+    // Every other position 1 cm up: the RMSE of ±0.5 cm about the best alignment.
+    let bumped: Vec<Stamped> = a
+        .iter()
+        .enumerate()
+        .map(|(i, s)| Stamped {
+            time: s.time,
+            pose: Isometry3::translation(0.0, 0.0, if i % 2 == 0 { 0.01 } else { 0.0 }) * s.pose,
+        })
+        .collect();
+    let e = ate(&bumped, &a, 0.001).expect("ate");
+    assert!((e.rmse - 0.005).abs() < 1e-4, "{e:?}");
+    // Poses far apart in time do not pair.
+    let late: Vec<Stamped> = a
+        .iter()
+        .map(|s| Stamped {
+            time: s.time + 100.0,
+            pose: s.pose,
+        })
+        .collect();
+    assert!(matches!(
+        ate(&late, &a, 0.02),
+        Err(Error::Trajectory { .. })
+    ));
+}
+
+#[test]
+fn malformed_trajectories_name_the_line() {
+    let p = std::path::Path::new("traj.txt");
+    for (text, line) in [
+        ("# c\n0 0 0 0 0 0 0 1\n1 2 3\n", 3),
+        ("0 0 0 0 0 0 0 x\n", 1),
+        ("\n0 0 0 0 0 0 0 0\n", 2),
+        ("0 NaN 0 0 0 0 0 1\n", 1),
+        ("0 inf 0 0 0 0 0 1\n", 1),
+    ] {
+        match parse_tum(text, p) {
+            Err(Error::File { why, .. }) => {
+                assert!(why.starts_with(&format!("line {line}:")), "{text:?}: {why}")
+            }
+            other => panic!("{text:?}: {other:?}"),
+        }
+    }
+}
+
+#[test]
+fn a_written_sequence_reads_back_pairs_its_images_and_keeps_its_depth() {
+    let d = dir("seq");
+    let k = Intrinsics::new(8, 6, 10.0, 10.0, 4.0, 3.0).expect("k");
+    let mut w = DatasetWriter::create(&d, 5000.0).expect("create");
+    for i in 0..5 {
+        let rgb = RgbImage::new(8, 6, vec![i as u8 * 40; 8 * 6 * 3]).expect("rgb");
+        let depth = DepthImage::new(8, 6, (0..48).map(|j| 0.5 + 0.0371 * j as f32).collect())
+            .expect("depth");
+        w.add(
+            i as f64 / 30.0,
+            &rgb,
+            &depth,
+            Some(planar([i as f64, 0.0, 0.0])),
+        )
+        .expect("add");
+    }
+    w.finish(&k).expect("finish");
+    let ds = Dataset::open(&d).expect("open");
+    assert_eq!(ds.intrinsics, k);
+    assert_eq!(ds.frames.len(), 5);
+    assert_eq!(ds.ground_truth.as_ref().map(Vec::len), Some(5));
+    let (t, rgb, depth) = ds.load(3).expect("load");
+    assert!((t - 0.1).abs() < 1e-6);
+    assert_eq!(rgb.data[0], 120);
+    // 1/5000 m steps: within half a step, 0.1 mm (and f32 rounding).
+    for (j, &z) in depth.data.iter().enumerate() {
+        assert!((z - (0.5 + 0.0371 * j as f32)).abs() <= 1.01e-4, "{j}: {z}");
+    }
+    // Colour and depth stamps 10 ms apart still pair; 30 ms apart do not.
+    std::fs::write(
+        d.join("depth.txt"),
+        "0.010 depth/0.000000.png\n0.163333 depth/0.033333.png\n",
+    )
+    .expect("write");
+    let ds = Dataset::open(&d).expect("open");
+    assert_eq!(ds.frames.len(), 1);
+    // A missing image is an error naming it.
+    std::fs::write(d.join("depth.txt"), "0.0 depth/none.png\n").expect("write");
+    let ds = Dataset::open(&d).expect("open");
+    assert!(matches!(ds.load(0), Err(Error::File { path, .. }) if path.ends_with("none.png")));
+    assert!(matches!(ds.load(9), Err(Error::File { .. })));
+}
+
+#[test]
+fn images_of_another_size_than_the_camera_are_refused() {
+    let d = dir("size");
+    let mut w = DatasetWriter::create(&d, 1000.0).expect("create");
+    let rgb = RgbImage::new(8, 6, vec![0; 144]).expect("rgb");
+    let depth = DepthImage::new(8, 6, vec![1.0; 48]).expect("depth");
+    w.add(0.0, &rgb, &depth, None).expect("add");
+    w.finish(&Intrinsics::new(16, 12, 10.0, 10.0, 8.0, 6.0).expect("k"))
+        .expect("finish");
+    let ds = Dataset::open(&d).expect("open");
+    assert!(ds.ground_truth.is_none());
+    match ds.load(0) {
+        Err(Error::File { why, .. }) => assert!(why.contains("8x6"), "{why}"),
+        other => panic!("{other:?}"),
+    }
+}
