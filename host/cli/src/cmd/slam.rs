@@ -271,10 +271,17 @@ fn drive(
     );
     let iou = map_iou(&grid, &truth_map, 1)?;
     ferrobot::perception::io::write_ply(out.join("cloud.ply"), &map.cloud(0.02)?)?;
-    draw(&grid, &est, &gt, &odo, &out.join("trajectory.png"))?;
+    let est_ate = ate(&est, &gt, 0.001)?.rmse;
+    let odo_ate = ate(&odo, &gt, 0.001)?.rmse;
+    let caption = format!(
+        "{robot} in {scene}, route {route}, seed {seed}: ATE {:.2} cm (wheel odometry {:.2} cm)",
+        100.0 * est_ate,
+        100.0 * odo_ate
+    );
+    draw(&grid, &est, &gt, &odo, &caption, &out.join("trajectory.png"))?;
     Ok(SlamJson {
         ate_online_rmse_m: Some(ate(&online, &gt, 0.001)?.rmse),
-        ate_rmse_m: Some(ate(&est, &gt, 0.001)?.rmse),
+        ate_rmse_m: Some(est_ate),
         frames: est.len(),
         keyframes: map.keyframes().len(),
         loops_closed: slam.loops_closed(),
@@ -283,7 +290,7 @@ fn drive(
         ms_per_frame: tally.ms(),
         occupancy_iou: Some(iou.occupied),
         occupancy_iou_free: Some(iou.free),
-        odometry_ate_rmse_m: Some(ate(&odo, &gt, 0.001)?.rmse),
+        odometry_ate_rmse_m: Some(odo_ate),
         relocalised_frames: tally.relocalised,
     })
 }
@@ -352,6 +359,7 @@ fn draw(
     est: &[Stamped],
     gt: &[Stamped],
     odo: &[Stamped],
+    caption: &str,
     out: &Path,
 ) -> ferrobot::Result<()> {
     let r = map.resolution;
@@ -387,6 +395,7 @@ fn draw(
         ([0, 0, 0], "occupied (SLAM map)".into()),
         ([200, 200, 200], "unknown".into()),
     ]);
+    c.caption(caption);
     c.save(out)?;
     Ok(())
 }
