@@ -831,7 +831,7 @@ impl Goal for TrackGoal {
 /// components move.
 #[derive(Clone, Debug)]
 pub struct Base {
-    robot: Robot,
+    pub(crate) robot: Robot,
 }
 
 impl Base {
@@ -1118,6 +1118,15 @@ impl Base {
                             "the base ({radius} m footprint radius) at the goal would overlap an obstacle ({clear:.3} m from the goal)"
                         ),
                     });
+                }
+                // On a map, the global planner first: a goal no path reaches (another room
+                // behind closed doors, an island) is a typed error now, not a timeout later.
+                // Beyond the map's edge is unknown, so free (as move_base's allow_unknown).
+                if let Some(map) = &opts.map {
+                    use ferrobot_nav::GlobalPlanner;
+                    let (a, b) = ([here[0], here[1]], [goal[0], goal[1]]);
+                    let grid = map.grown_to(&[a, b], 1.0)?;
+                    ferrobot_nav::GridAStar.plan(&grid, a, b, radius)?;
                 }
                 let nav = NavField::new(
                     [here[0], here[1]],

@@ -130,7 +130,10 @@ impl Camera {
             // frame period later).
             let tel = io.link.telemetry()?;
             let raw = device.capture(&mut *io.link)?;
-            (device.intrinsics(), tel, raw)
+            let k = device.intrinsics();
+            // SLAM beside the robot sees this frame too.
+            io.feed_frame(&tel, &raw);
+            (k, tel, raw)
         };
         let camera_pose = self
             .robot

@@ -28,6 +28,7 @@ pub mod head;
 pub mod motion;
 pub mod planning;
 pub mod robot;
+pub mod slam;
 
 pub use ferrobot_control::odometry_calibration;
 pub use ferrobot_description as config;
@@ -36,8 +37,6 @@ pub use ferrobot_kinematics as kinematics;
 pub use ferrobot_nav as obstacles;
 /// Navigation: maps on disk, the global planner on occupancy grids, obstacles.
 pub use ferrobot_nav as nav;
-/// Visual SLAM: tracking, keyframes, loop closure, the maps, trajectories and their error.
-pub use ferrobot_slam as slam;
 
 /// Base control and navigation, as one module of the API: references, LQR and ILQR
 /// (`ferrobot-control`), and the navigation field and dynamic window (`ferrobot-nav`).
@@ -57,6 +56,7 @@ pub use ferrobot_protocol::GripperState;
 pub use ferrobot_sim::scene;
 pub use motion::Motion;
 pub use robot::{Robot, RobotBuilder};
+pub use slam::Source;
 
 #[cfg(test)]
 mod tests {

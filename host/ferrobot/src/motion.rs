@@ -278,6 +278,7 @@ impl Io {
     pub(crate) fn pump(&mut self, cfg: &RobotConfig, dt: Duration) {
         self.link.wait(dt);
         self.step(cfg);
+        self.feed_slam();
     }
 
     /// Stop goal `id` where it is, when it is under way; its result is dropped.

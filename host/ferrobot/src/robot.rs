@@ -160,6 +160,8 @@ pub(crate) struct Io {
     pub(crate) base: BaseState,
     /// The RGB-D camera, when the robot has and uses one.
     pub(crate) camera: Option<Box<dyn CameraDevice>>,
+    /// SLAM beside the robot, once started.
+    pub(crate) slam: Option<crate::slam::SlamRunner>,
 }
 
 impl std::fmt::Debug for Robot {
@@ -294,6 +296,7 @@ impl Robot {
                     arm: ArmState::default(),
                     base,
                     camera,
+                    slam: None,
                 }),
                 cfg,
                 uses,

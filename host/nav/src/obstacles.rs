@@ -111,6 +111,42 @@ impl OccupancyGrid {
             .then_some((i as usize, j as usize))
     }
 
+    /// The grid grown with free cells (the same cells, resolution and alignment) until it
+    /// holds every point of `points` (m) with `margin` m to spare; an error when the result
+    /// would be too large (see [`OccupancyGrid::check`]).
+    pub fn grown_to(&self, points: &[[f64; 2]], margin: f64) -> Result<OccupancyGrid> {
+        let r = self.resolution;
+        let (mut lo, mut hi) = ([0i64, 0], [self.width as i64 - 1, self.height as i64 - 1]);
+        for p in points {
+            validate::finite("map point", p)?;
+            for k in 0..2 {
+                let a = ((p[k] - margin - self.origin[k]) / r).floor();
+                let b = ((p[k] + margin - self.origin[k]) / r).ceil();
+                if !(a.abs() < 1e9 && b.abs() < 1e9) {
+                    return Err(Error::InvalidMap {
+                        why: format!("point {p:?} m is too far from the map"),
+                    });
+                }
+                lo[k] = lo[k].min(a as i64);
+                hi[k] = hi[k].max(b as i64);
+            }
+        }
+        let (w, h) = ((hi[0] - lo[0] + 1) as usize, (hi[1] - lo[1] + 1) as usize);
+        let origin = [
+            self.origin[0] + lo[0] as f64 * r,
+            self.origin[1] + lo[1] as f64 * r,
+        ];
+        Self::check_shape(origin, r, w, h)?;
+        let mut g = OccupancyGrid::new(origin, r, w, h)?;
+        for j in 0..self.height {
+            for i in 0..self.width {
+                let (gi, gj) = ((i as i64 - lo[0]) as usize, (j as i64 - lo[1]) as usize);
+                g.occupied[gj * w + gi] = self.occupied[j * self.width + i];
+            }
+        }
+        Ok(g)
+    }
+
     /// Whether the cell holding `p` is occupied (outside the grid: free).
     pub fn is_occupied(&self, p: [f64; 2]) -> bool {
         self.cell(p)

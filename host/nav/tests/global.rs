@@ -160,3 +160,23 @@ proptest! {
         }
     }
 }
+
+#[test]
+fn a_grid_grows_with_free_cells_to_hold_far_points_and_keeps_its_own() {
+    let mut g = OccupancyGrid::new([0.0, 0.0], 0.1, 5, 4).expect("grid");
+    g.occupied[2 * 5 + 3] = true;
+    let grown = g.grown_to(&[[-1.0, 0.2], [0.3, 2.0]], 0.5).expect("grown");
+    // Aligned with the old cells: the occupied one is at the same place.
+    assert!(grown.is_occupied(g.centre(3, 2)));
+    assert_eq!(grown.occupied.iter().filter(|&&o| o).count(), 1);
+    // Holds both points with the margin.
+    for p in [[-1.5, 0.2], [0.3, 2.5], [-1.0, 0.2]] {
+        assert!(grown.cell(p).is_some(), "{p:?}");
+    }
+    // Points already inside change nothing.
+    assert_eq!(g.grown_to(&[[0.1, 0.1]], 0.0).expect("same"), g);
+    // Far or non-finite points are refused.
+    assert!(g.grown_to(&[[1e12, 0.0]], 0.0).is_err());
+    assert!(g.grown_to(&[[f64::NAN, 0.0]], 0.0).is_err());
+    assert!(g.grown_to(&[[1e5, 1e5]], 0.0).is_err());
+}

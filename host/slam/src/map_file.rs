@@ -13,6 +13,8 @@ use crate::map::{Keyframe, Landmark, Map};
 use crate::optimise::Edge;
 
 const MAGIC: &[u8] = b"FERROBOT-SLAM-MAP 1\n";
+/// Farthest a keyframe, landmark or depth point may lie, m.
+const MAX_COORDINATE: f64 = 1e4;
 /// Largest map file read, bytes.
 pub const MAX_MAP_FILE: u64 = 2 << 30;
 
@@ -196,6 +198,11 @@ impl Map {
             let time = r.f64()?;
             let pose = r.pose()?;
             let camera = r.pose()?;
+            if pose.translation.vector.norm() > MAX_COORDINATE
+                || camera.translation.vector.norm() > MAX_COORDINATE
+            {
+                return Err(format!("a keyframe more than {MAX_COORDINATE} m away"));
+            }
             let nf = r.count(36, "features")?;
             let mut descriptors = Vec::with_capacity(nf);
             let mut landmarks = Vec::with_capacity(nf);
@@ -207,6 +214,9 @@ impl Map {
             let mut cloud = Vec::with_capacity(nc);
             for _ in 0..nc {
                 let p = Point3::new(r.f32()?, r.f32()?, r.f32()?);
+                if p.coords.norm() as f64 > MAX_COORDINATE {
+                    return Err(format!("a depth point more than {MAX_COORDINATE} m away"));
+                }
                 let c = r.take(3)?;
                 cloud.push((p, [c[0], c[1], c[2]]));
             }
@@ -229,11 +239,17 @@ impl Map {
             }
             let local = Point3::new(r.f64()?, r.f64()?, r.f64()?);
             let sigma = r.f64()?;
-            if sigma <= 0.0 {
+            if !(crate::slam::MIN_LANDMARK_SIGMA..=100.0).contains(&sigma) {
                 return Err(format!("landmark {i} has a position sigma of {sigma} m"));
+            }
+            if local.coords.norm() > MAX_COORDINATE {
+                return Err(format!("landmark {i} lies {local} m from its keyframe"));
             }
             let descriptor = r.descriptor()?;
             let level = r.take(1)?[0];
+            if level > 11 {
+                return Err(format!("landmark {i} is on pyramid level {level}"));
+            }
             let found = r.u32()? as u32;
             let visible = r.u32()? as u32;
             let world = map.keyframes[keyframe].camera_pose() * local;

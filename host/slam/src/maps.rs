@@ -101,6 +101,12 @@ impl Map {
         let mut rays: Vec<([f64; 2], [f64; 2], bool)> = Vec::new();
         let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
         for kf in &self.keyframes {
+            // The map holds where the robot stood (half a metre about its body).
+            let b = kf.pose.translation;
+            for i in 0..2 {
+                lo[i] = lo[i].min(b.vector[i] - 0.5);
+                hi[i] = hi[i].max(b.vector[i] + 0.5);
+            }
             let t = kf.camera_pose();
             let o = [t.translation.x, t.translation.y];
             for (p, _) in &kf.cloud {
@@ -122,13 +128,18 @@ impl Map {
         }
         let r = s.resolution;
         let origin = [(lo[0] / r).floor() * r - r, (lo[1] / r).floor() * r - r];
-        let width = ((hi[0] - origin[0]) / r).ceil() as usize + 2;
-        let height = ((hi[1] - origin[1]) / r).ceil() as usize + 2;
-        if width * height > 50_000_000 {
+        let (fw, fh) = (
+            ((hi[0] - origin[0]) / r).ceil() + 2.0,
+            ((hi[1] - origin[1]) / r).ceil() + 2.0,
+        );
+        // Checked in floating point, before any cast can saturate or a product wrap.
+        let cells = fw * fh;
+        if cells.is_nan() || cells > 50e6 {
             return Err(Error::InvalidSettings {
-                why: format!("a grid of {width} x {height} cells is too large"),
+                why: format!("a grid of {fw} x {fh} cells is too large"),
             });
         }
+        let (width, height) = (fw as usize, fh as usize);
         let mut hits = vec![0u32; width * height];
         let mut passes = vec![0u32; width * height];
         let cell = |p: [f64; 2]| -> (i64, i64) {

@@ -207,11 +207,11 @@ pub struct Features {
 }
 
 impl OrbExtractor {
-    /// An extractor with `settings` (levels at least 1, scale at least 1, features at least 1,
-    /// cell at least 8 px: out-of-range values are clamped).
+    /// An extractor with `settings` (levels 1-12, scale 1.01-2, features 1-100 000, cell at
+    /// least 8 px: out-of-range values are clamped).
     pub fn new(settings: OrbSettings) -> Self {
         let settings = OrbSettings {
-            features: settings.features.max(1),
+            features: settings.features.clamp(1, 100_000),
             levels: settings.levels.clamp(1, 12),
             scale: if settings.scale.is_finite() {
                 settings.scale.clamp(1.01, 2.0)
@@ -261,9 +261,12 @@ impl OrbExtractor {
     }
 
     /// ORB features of `image`, strongest first within each grid cell, at most
-    /// `settings.features` in all.
+    /// `settings.features` in all; none for an image whose buffer does not match its size.
     pub fn extract(&self, image: &GreyImage) -> Features {
         let s = &self.settings;
+        if image.data.len() != image.width * image.height {
+            return Features::default();
+        }
         // Features per level in geometric proportion to the level's area (as ORB-SLAM2).
         let f = 1.0 / s.scale;
         let total: f32 = (0..s.levels).map(|l| f.powi(2 * l as i32)).sum();

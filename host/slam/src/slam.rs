@@ -24,7 +24,7 @@ use crate::orb::{hamming, OrbExtractor, OrbSettings};
 
 /// A landmark's position is never trusted beyond this, m (its fused measurements' errors are
 /// not all independent).
-const MIN_LANDMARK_SIGMA: f64 = 0.001;
+pub(crate) const MIN_LANDMARK_SIGMA: f64 = 0.001;
 
 /// Settings of [`Slam`].
 #[derive(Debug, Clone, PartialEq)]
@@ -403,11 +403,22 @@ impl Slam {
             }
         }
         // Carried by the odometry into a view the map does not hold (or cannot match): a
-        // keyframe at the odometry's pose starts the map there, so tracking resumes.
-        let restart = state == TrackState::Odometry
+        // keyframe at the odometry's pose starts the map there, so tracking resumes. Not
+        // before this very view failed to match every keyframe (after a kidnap the odometry's
+        // pose is wrong, and a map started there would be tracked against for good).
+        let mut restart = state == TrackState::Odometry
             && !self.localising
             && self.lost >= 2
             && feats.len() >= 2 * self.settings.min_inliers;
+        if restart {
+            if let Some((p, k)) = self.relocalise(&feats, &input.camera) {
+                pose = p;
+                kept = k;
+                state = TrackState::Relocalised;
+                self.lost = 0;
+                restart = false;
+            }
+        }
         // Without a pose from the map, the constant-velocity model is not carried on.
         self.prev_pose = if matches!(state, TrackState::Tracking | TrackState::Odometry) {
             self.pose
@@ -428,7 +439,10 @@ impl Slam {
             let moved = d.translation.vector.norm();
             let turned = d.rotation.angle();
             let old = self.old_anchor_count(&kept);
-            let loop_due = old >= 30 && last + 1 >= self.last_loop + self.settings.loop_age;
+            // A relocalised frame matched old landmarks only: nothing recent to compare with.
+            let loop_due = state == TrackState::Tracking
+                && old >= 30
+                && last + 1 >= self.last_loop + self.settings.loop_age;
             if loop_due
                 || moved > self.settings.keyframe_distance
                 || turned > self.settings.keyframe_angle
@@ -636,9 +650,9 @@ impl Slam {
         let id = self.map.keyframes.len();
         let mut landmarks = vec![None; feats.len()];
         let t_wc = self.pose * input.camera;
+        // (Tracked frames fused their matches already.)
         for &(f, l) in kept {
             landmarks[f] = Some(l);
-            self.fuse(feats, f, l, &t_wc);
         }
         let mut created = 0;
         for (f, slot) in landmarks.iter_mut().enumerate() {
@@ -766,11 +780,14 @@ impl Slam {
             None,
             &mut inl,
         ) >= self.settings.min_inliers;
+        // Too few recent landmarks: the odometry since the previous keyframe, trusted as the
+        // odometry is (five times looser than tracking).
+        let mut looseness = 1.0;
         if !recent_ok {
-            // The odometry since the previous keyframe.
             match (self.kf_odometry[prev], input.odometry) {
                 (Some(a), Some(b)) => {
                     t_new = self.map.keyframes[prev].pose * (planar(a).inverse() * planar(b));
+                    looseness = 5.0;
                 }
                 _ => return false,
             }
@@ -786,8 +803,8 @@ impl Slam {
             a: prev,
             b: n,
             z: z_seq,
-            sigma_t: 0.002 + 0.01 * dist,
-            sigma_r: 0.001 + 0.01 * z_seq.rotation.angle(),
+            sigma_t: looseness * (0.002 + 0.01 * dist),
+            sigma_r: looseness * (0.001 + 0.01 * z_seq.rotation.angle()),
         });
         self.map.edges.push(Edge {
             a: anchor,
@@ -796,13 +813,29 @@ impl Slam {
             sigma_t: 0.002,
             sigma_r: 0.001,
         });
-        let mut nodes: Vec<Isometry3<f64>> = self.map.keyframes.iter().map(|k| k.pose).collect();
+        // The loop's keyframes move, from the anchor (held) to this one: the graph stays the
+        // size of the loop, not of the map.
+        let mut nodes: Vec<Isometry3<f64>> = self.map.keyframes[anchor..]
+            .iter()
+            .map(|k| k.pose)
+            .collect();
         nodes.push(t_new);
-        optimise_graph(&mut nodes, &self.map.edges, dof, 10);
-        for (kf, p) in self.map.keyframes.iter_mut().zip(&nodes) {
+        let edges: Vec<Edge> = self
+            .map
+            .edges
+            .iter()
+            .filter(|e| e.a >= anchor && e.b >= anchor)
+            .map(|e| Edge {
+                a: e.a - anchor,
+                b: e.b - anchor,
+                ..*e
+            })
+            .collect();
+        optimise_graph(&mut nodes, &edges, dof, 10);
+        for (kf, p) in self.map.keyframes[anchor..].iter_mut().zip(&nodes) {
             kf.pose = *p;
         }
-        self.pose = nodes[n];
+        self.pose = nodes[n - anchor];
         self.prev_pose = self.pose;
         self.map.refresh_landmarks();
         self.last_loop = n;

@@ -154,3 +154,64 @@ fn images_of_another_size_than_the_camera_are_refused() {
         other => panic!("{other:?}"),
     }
 }
+
+/// A map file of one keyframe at `t` (camera at the body), no features, the given depth
+/// points, no landmarks or edges, as `Map::save` lays it out.
+fn map_file(name: &str, t: [f64; 3], cloud: &[[f32; 3]]) -> PathBuf {
+    let pose = |b: &mut Vec<u8>, t: [f64; 3]| {
+        for v in [t[0], t[1], t[2], 0.0, 0.0, 0.0, 1.0] {
+            b.extend_from_slice(&v.to_le_bytes());
+        }
+    };
+    let mut b = b"FERROBOT-SLAM-MAP 1\n".to_vec();
+    b.extend_from_slice(&1u32.to_le_bytes());
+    b.extend_from_slice(&0f64.to_le_bytes());
+    pose(&mut b, t);
+    pose(&mut b, [0.0; 3]);
+    b.extend_from_slice(&0u32.to_le_bytes());
+    b.extend_from_slice(&(cloud.len() as u32).to_le_bytes());
+    for p in cloud {
+        for v in p {
+            b.extend_from_slice(&v.to_le_bytes());
+        }
+        b.extend_from_slice(&[1, 2, 3]);
+    }
+    b.extend_from_slice(&0u32.to_le_bytes());
+    b.extend_from_slice(&0u32.to_le_bytes());
+    let d = dir(name);
+    std::fs::create_dir_all(&d).expect("dir");
+    let f = d.join("map.slam");
+    std::fs::write(&f, b).expect("write");
+    f
+}
+
+#[test]
+fn maps_with_points_far_away_are_refused_or_too_large_to_grid_not_a_panic() {
+    // (From review: a finite but huge point loaded, then overflowed the grid's size.)
+    let f = map_file("far", [0.0; 3], &[[3.0e38, 0.0, 0.5]]);
+    assert!(matches!(
+        ferrobot_slam::Map::load(&f),
+        Err(Error::File { .. })
+    ));
+    // Within the file's bounds (10 km) but a grid of 2 cm cells would be too large.
+    let f = map_file(
+        "wide",
+        [0.0; 3],
+        &[[9.0e3, 0.0, 0.5], [0.0, 9.0e3, 0.5], [0.0, 0.0, 0.5]],
+    );
+    let map = ferrobot_slam::Map::load(&f).expect("loads");
+    let e = map.occupancy(&ferrobot_slam::GridSettings::default());
+    assert!(matches!(e, Err(Error::InvalidSettings { .. })), "{e:?}");
+    // A small one grids, and holds its obstacle.
+    let f = map_file("small", [0.0; 3], &[[0.3, 0.0, 0.5]]);
+    let map = ferrobot_slam::Map::load(&f).expect("loads");
+    let grid = map.occupancy(&ferrobot_slam::GridSettings {
+        min_hits: 1,
+        ..Default::default()
+    });
+    assert!(grid
+        .expect("grid")
+        .expect("some")
+        .cells
+        .contains(&ferrobot_nav::Cell::Occupied));
+}

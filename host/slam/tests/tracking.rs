@@ -277,6 +277,39 @@ fn a_kidnapped_robot_relocalises_in_its_map() {
 }
 
 #[test]
+fn a_kidnap_neither_bends_the_map_nor_hides_behind_a_dark_frame() {
+    // (From review: relocalisation once closed a loop on the wrong odometry and moved old
+    // keyframes by metres; a dark first frame after the carry let a new map start at the
+    // odometry's wrong pose, never to relocalise.)
+    let mut world = World::new();
+    let start = [-3.0, -2.0, 0.0];
+    let poses = path(start, 2.0 * PI, 3.0);
+    let odo = odometry(&poses);
+    let mut slam =
+        Slam::new(SlamSettings::ground_robot(0.0), intrinsics(), planar(start)).expect("slam");
+    run(&mut slam, &mut world, &poses, Some(&odo), 0..0);
+    let before: Vec<Isometry3<f64>> = slam.map().keyframes().iter().map(|k| k.pose).collect();
+    let carried = [-2.9, -2.05, 1.2];
+    let kid = vec![carried; 60];
+    let kodo = vec![*odo.last().expect("odo"); 60];
+    // The camera is dark for the first frame after the carry.
+    let r = run(&mut slam, &mut world, &kid, Some(&kodo), 0..1);
+    let moved = before
+        .iter()
+        .zip(slam.map().keyframes())
+        .map(|(a, k)| error(a, &k.pose))
+        .fold(0.0, f64::max);
+    assert!(moved < 0.01, "old keyframes moved {moved} m");
+    assert!(
+        r.states.contains(&TrackState::Relocalised),
+        "{:?}",
+        &r.states[..10]
+    );
+    let end = error(&r.est.last().expect("est").pose, &planar(carried));
+    assert!(end < 0.02, "{end} m at the end");
+}
+
+#[test]
 fn a_saved_map_reloads_and_a_robot_localises_in_it_from_an_unknown_start() {
     let mut world = World::new();
     let start = [-3.0, -2.0, 0.0];

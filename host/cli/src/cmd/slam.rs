@@ -278,7 +278,14 @@ fn drive(
         100.0 * est_ate,
         100.0 * odo_ate
     );
-    draw(&grid, &est, &gt, &odo, &caption, &out.join("trajectory.png"))?;
+    draw(
+        &grid,
+        &est,
+        &gt,
+        &odo,
+        &caption,
+        &out.join("trajectory.png"),
+    )?;
     Ok(SlamJson {
         ate_online_rmse_m: Some(ate(&online, &gt, 0.001)?.rmse),
         ate_rmse_m: Some(est_ate),
