@@ -313,6 +313,26 @@ enum BenchCmd {
     /// success rate, time, path length, collision checks per second; with --ompl, OMPL's
     /// RRTConnect on the same problems in the same run.
     Plan(BenchPlanCli),
+    /// Navigation on the scene's ground-truth floor plan: the simulated robot drives to N
+    /// random reachable goals; success rate, bumper hits, path length against the shortest
+    /// path, time per goal.
+    Nav {
+        /// Robot name or configuration path.
+        robot: String,
+        /// Scene name or path.
+        #[arg(long, default_value = "apartment")]
+        scene: String,
+        /// Goals.
+        #[arg(long, default_value_t = 50)]
+        goals: usize,
+        /// Seed of the goals and the plants' noise.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Print one JSON object: `{"bumper_hits", "goals", "path_length_ratio": {"median"},
+        /// "success_rate", "time_s": {"median"}}`.
+        #[arg(long)]
+        json: bool,
+    },
 }
 
 #[derive(Args)]
@@ -517,6 +537,16 @@ fn run(cli: Cli) -> Result<(), (ferrobot::Error, bool)> {
             };
             (cmd::bench_camera::run(&scenes, seconds, json), json)
         }
+        Cmd::Bench {
+            which:
+                BenchCmd::Nav {
+                    robot,
+                    scene,
+                    goals,
+                    seed,
+                    json,
+                },
+        } => (cmd::bench_nav::run(&robot, &scene, goals, seed, json), json),
         Cmd::Bench {
             which: BenchCmd::Plan(a),
         } => {

@@ -188,3 +188,28 @@ fn bad_requests_are_refused_with_exit_code_2() {
         "{v}"
     );
 }
+
+#[test]
+fn bench_nav_reports_its_fields_and_refuses_no_goals() {
+    let (code, v) = run(&[
+        "bench", "nav", "locobot", "--goals", "2", "--seed", "1", "--json",
+    ]);
+    assert_eq!(code, 0, "{v}");
+    assert_eq!(v["goals"].as_u64(), Some(2));
+    let rate = v["success_rate"].as_f64().expect("rate");
+    assert!((0.0..=1.0).contains(&rate), "{v}");
+    assert!(v["bumper_hits"].as_u64().is_some(), "{v}");
+    // A path to a goal reached is no shorter than the shortest (less the 0.2 m tolerance
+    // over at least 1 m).
+    if rate > 0.0 {
+        assert!(
+            v["path_length_ratio"]["median"].as_f64().expect("ratio") > 0.75,
+            "{v}"
+        );
+        assert!(v["time_s"]["median"].as_f64().expect("time") > 0.0, "{v}");
+    }
+    let (code, _) = run(&["bench", "nav", "locobot", "--goals", "0", "--json"]);
+    assert_eq!(code, 2);
+    let (code, _) = run(&["bench", "nav", "locobot", "--scene", "nowhere", "--json"]);
+    assert_eq!(code, 2);
+}

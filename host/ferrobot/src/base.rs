@@ -1126,7 +1126,11 @@ impl Base {
                     use ferrobot_nav::GlobalPlanner;
                     let (a, b) = ([here[0], here[1]], [goal[0], goal[1]]);
                     let grid = map.grown_to(&[a, b], 1.0)?;
-                    ferrobot_nav::GridAStar.plan(&grid, a, b, radius)?;
+                    // A base pressed against an obstacle still has its way out: the check
+                    // lets the start be as near as it is.
+                    let start_clear = obstacles.clearance(a);
+                    let r = radius.min(start_clear - 0.005).max(0.0);
+                    ferrobot_nav::GridAStar.plan(&grid, a, b, r)?;
                 }
                 let nav = NavField::new(
                     [here[0], here[1]],

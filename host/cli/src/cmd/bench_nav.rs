@@ -1,0 +1,235 @@
+//! `ferrobot bench nav ROBOT --scene SCENE --goals N --seed K`: the simulated robot drives to
+//! N random reachable goals with `go_to_absolute_with` on the scene's ground-truth floor plan
+//! (PyRobot's 2 cm map, obstacles 0.1-0.8 m above the floor). Per goal: success (the base
+//! truly within [`GOAL_TOLERANCE`] of the goal), bumper hits, the true path's length against
+//! the shortest path on the floor plan (A*, the robot's radius), and the time taken.
+//!
+//! A goal counts as missed when its motion fails, ends farther than the tolerance, or bumps;
+//! when no path leaves the robot's place (stuck against an obstacle), the goals left are
+//! missed too.
+//!
+//! The goals are given in the odometry's frame, which starts at the scene's start pose: the
+//! floor plan is resampled into that frame. The odometry's drift is not corrected (SLAM does
+//! not steer the base yet), so a long run on a drifting base misses by its drift.
+
+use ferrobot::nav::{GlobalPlanner, GridAStar, MapImage, Obstacles, OccupancyGrid};
+use ferrobot::slam::optimise::{planar, to_planar};
+use ferrobot::{Backend, GoalOptions, Robot};
+use ferrobot_sim::floor_plan::OBSTACLE_BAND;
+use nalgebra::Point3;
+use serde::Serialize;
+
+use super::common::print_json;
+use super::route::truth;
+
+/// A goal is reached when the base's true position is this near it, m (PyRobot's move_base
+/// tolerance is 0.1-0.2 m).
+pub const GOAL_TOLERANCE: f64 = 0.2;
+/// Goals keep this much clearance beyond the robot's radius, m.
+const GOAL_CLEARANCE: f64 = 0.15;
+/// Goals lie at least this far from where the robot is, m.
+const MIN_GOAL_DISTANCE: f64 = 1.0;
+
+#[derive(Serialize)]
+struct Median {
+    median: f64,
+}
+
+/// `bench nav --json`, fields in alphabetical order (see [`print_json`]).
+#[derive(Serialize)]
+struct NavJson {
+    bumper_hits: usize,
+    goals: usize,
+    path_length_ratio: Median,
+    success_rate: f64,
+    time_s: Median,
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
+/// SplitMix64: the goals' seeded stream.
+struct Rng(u64);
+impl Rng {
+    fn uniform(&mut self) -> f64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
+/// `world` resampled (nearest cell) into the frame whose pose in the world is `frame`
+/// (`[x, y, θ]`): the same resolution, covering the world grid's corners.
+fn resample(world: &OccupancyGrid, frame: [f64; 3]) -> ferrobot::Result<OccupancyGrid> {
+    let to_frame = planar(frame).inverse();
+    let r = world.resolution;
+    let corners = [
+        world.centre(0, 0),
+        world.centre(world.width - 1, 0),
+        world.centre(0, world.height - 1),
+        world.centre(world.width - 1, world.height - 1),
+    ];
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    for c in corners {
+        let p = to_frame * Point3::new(c[0], c[1], 0.0);
+        for (k, v) in [p.x, p.y].into_iter().enumerate() {
+            lo[k] = lo[k].min(v);
+            hi[k] = hi[k].max(v);
+        }
+    }
+    let w = ((hi[0] - lo[0]) / r).ceil() as usize + 1;
+    let h = ((hi[1] - lo[1]) / r).ceil() as usize + 1;
+    let mut g = OccupancyGrid::new(lo, r, w, h)?;
+    let to_world = planar(frame);
+    for j in 0..h {
+        for i in 0..w {
+            let c = g.centre(i, j);
+            let p = to_world * Point3::new(c[0], c[1], 0.0);
+            g.occupied[j * w + i] = world.is_occupied([p.x, p.y]);
+        }
+    }
+    Ok(g)
+}
+
+/// Drive to the goals and print the figures.
+pub fn run(robot: &str, scene: &str, goals: usize, seed: u64, json: bool) -> ferrobot::Result<()> {
+    if !(1..=10_000).contains(&goals) {
+        return Err(ferrobot::Error::Usage(format!(
+            "--goals {goals}: ask for 1-10000"
+        )));
+    }
+    let b = if robot.ends_with(".toml") || robot.contains('/') {
+        Robot::builder_from_config(robot)
+    } else {
+        Robot::builder(robot)
+    };
+    let bot = b
+        .scene(scene)
+        .use_arm(false)
+        .use_camera(false)
+        .backend(Backend::Sim {
+            seed,
+            realtime: false,
+        })
+        .build()?;
+    let base = bot.base()?;
+    let radius = bot
+        .config()
+        .base
+        .as_ref()
+        .map_or(0.2, |b| b.footprint_radius);
+    let plan = bot.scene().floor_plan(0.02, OBSTACLE_BAND, false)?;
+    let world = MapImage::from_occupied(
+        plan.origin,
+        plan.resolution,
+        plan.width,
+        plan.height,
+        &plan.occupied,
+    )
+    .to_grid(true)?;
+    let clear = Obstacles::new(Vec::new(), Some(&world))?;
+    // The odometry's frame in the world: the start pose (the odometry reads zero there).
+    let start = truth(&bot)?;
+    let odo0 = base.get_state()?;
+    let frame = to_planar(&(planar(start) * planar(odo0).inverse()));
+    let grid = resample(&world, frame)?;
+    let opts = GoalOptions {
+        map: Some(grid),
+        ..Default::default()
+    };
+    let mut rng = Rng(seed ^ 0x6E61_765F_6265_6E63);
+    let (mut ok, mut hits, mut ratios, mut times) = (0usize, 0usize, Vec::new(), Vec::new());
+    for _ in 0..goals {
+        let here = truth(&bot)?;
+        // A goal: free with clearance, reachable, not too near.
+        let mut goal = None;
+        for _ in 0..10_000 {
+            let i = (rng.uniform() * world.width as f64) as usize;
+            let j = (rng.uniform() * world.height as f64) as usize;
+            let c = world.centre(i.min(world.width - 1), j.min(world.height - 1));
+            if clear.clearance(c) < radius + GOAL_CLEARANCE
+                || (c[0] - here[0]).hypot(c[1] - here[1]) < MIN_GOAL_DISTANCE
+            {
+                continue;
+            }
+            if let Ok(p) = GridAStar.plan(&world, [here[0], here[1]], c, radius) {
+                goal = Some((c, p.length));
+                break;
+            }
+        }
+        // None: the robot is stuck where no path leaves (a failed goal left it against an
+        // obstacle); the goals left count as missed.
+        let Some((g, shortest)) = goal else {
+            break;
+        };
+        // The goal in the odometry's frame, facing along the way there.
+        let th = (g[1] - here[1]).atan2(g[0] - here[0]);
+        let go = to_planar(&(planar(frame).inverse() * planar([g[0], g[1], th])));
+        let t0 = bot.time();
+        let mut travelled = 0.0;
+        let mut last = here;
+        // A goal refused at once (the base's place seen as blocked on a drifted map) is a miss.
+        let Ok(mut motion) = base.go_to_absolute_with(go, opts.clone()) else {
+            continue;
+        };
+        let result = loop {
+            if let Some(r) = motion.poll() {
+                break r.is_ok();
+            }
+            let now = truth(&bot)?;
+            travelled += (now[0] - last[0]).hypot(now[1] - last[1]);
+            last = now;
+        };
+        let now = truth(&bot)?;
+        travelled += (now[0] - last[0]).hypot(now[1] - last[1]);
+        let bumped = bot
+            .take_faults()
+            .iter()
+            .filter(|f| f.kind == ferrobot_protocol::FaultKind::Bumper)
+            .count();
+        hits += bumped;
+        let reached = (now[0] - g[0]).hypot(now[1] - g[1]) <= GOAL_TOLERANCE;
+        if result && reached && bumped == 0 {
+            ok += 1;
+            ratios.push(travelled / shortest);
+            times.push(bot.time() - t0);
+        } else if bumped > 0 {
+            // Back off a little so the next goal starts free.
+            let _ = base.go_to_relative([-0.1, 0.0, 0.0]);
+        }
+    }
+    let out = NavJson {
+        bumper_hits: hits,
+        goals,
+        path_length_ratio: Median {
+            median: median(ratios),
+        },
+        success_rate: ok as f64 / goals as f64,
+        time_s: Median {
+            median: median(times),
+        },
+    };
+    if json {
+        print_json(&out);
+    } else {
+        say!(
+            "{robot} in {scene}: {ok}/{goals} goals reached ({:.0} %), {hits} bumper hits, median path {:.3}x the shortest, median {:.1} s per goal",
+            100.0 * out.success_rate,
+            out.path_length_ratio.median,
+            out.time_s.median
+        );
+    }
+    Ok(())
+}
