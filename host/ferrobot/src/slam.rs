@@ -46,8 +46,24 @@ impl std::fmt::Debug for SlamRunner {
     }
 }
 
-/// Points nearer the base's z axis than this are the robot itself (its folded arm), m.
-const SELF_RADIUS: f64 = 0.5;
+/// Points nearer the base's z axis than this are the robot itself, m: the LoCoBot's folded
+/// arm reaches 0.41 m ahead of the base's centre.
+pub const SELF_RADIUS: f64 = 0.5;
+
+/// The odometry pose `[x, y, θ]` (m, rad, the odometry's frame) of telemetry `tel` carried to
+/// time `t` (s, the robot's clock) by its forward speed and yaw rate, at most 0.1 s either way:
+/// the odometry at a camera frame's instant.
+pub fn odometry_at(tel: &ferrobot_protocol::Telemetry, t: f64) -> [f64; 3] {
+    let o = tel.odometry;
+    let dt = (t - tel.time_us as f64 * 1e-6).clamp(-0.1, 0.1);
+    let (v, w, th) = (o.v as f64, o.w as f64, o.theta as f64);
+    let mid = th + 0.5 * w * dt;
+    [
+        o.x as f64 + v * dt * mid.cos(),
+        o.y as f64 + v * dt * mid.sin(),
+        th + w * dt,
+    ]
+}
 
 impl Io {
     /// Feeds SLAM the frame whose instant time has just passed, if any (the pump calls this
@@ -89,16 +105,7 @@ impl Io {
                 return;
             }
         };
-        // The odometry at the frame's instant: the report's pose carried on by its speeds.
-        let o = tel.odometry;
-        let dt = (t - tel.time_us as f64 * 1e-6).clamp(-0.1, 0.1);
-        let (v, w, th) = (o.v as f64, o.w as f64, o.theta as f64);
-        let mid = th + 0.5 * w * dt;
-        let odometry = [
-            o.x as f64 + v * dt * mid.cos(),
-            o.y as f64 + v * dt * mid.sin(),
-            th + w * dt,
-        ];
+        let odometry = odometry_at(tel, t);
         match runner.slam.track(&RgbdInput {
             time: t,
             rgb: &raw.rgb,

@@ -89,7 +89,7 @@ impl Drive {
             let frame = camera.get_frame()?;
             // The odometry at the frame's instant: the newest report, carried on by its speeds.
             let tel = self.bot.telemetry()?;
-            let odometry = odometry_at(&tel, frame.time.as_secs_f64());
+            let odometry = ferrobot::slam::odometry_at(&tel, frame.time.as_secs_f64());
             let sample = Sample {
                 odometry,
                 truth: truth(&self.bot)?,
@@ -149,18 +149,4 @@ fn link_truth(bot: &Robot, name: &str) -> ferrobot::Result<Isometry3<f64>> {
         .link_index(name)
         .ok_or_else(|| ferrobot::Error::Usage(format!("the URDF has no link {name}")))?;
     Ok(sim.truth().links[i])
-}
-
-/// The odometry pose `[x, y, θ]` of telemetry `tel` carried to time `t` (s, the robot's
-/// clock) by its forward speed and yaw rate (at most 0.1 s either way).
-pub fn odometry_at(tel: &ferrobot_protocol::Telemetry, t: f64) -> [f64; 3] {
-    let o = tel.odometry;
-    let dt = (t - tel.time_us as f64 * 1e-6).clamp(-0.1, 0.1);
-    let (v, w, th) = (o.v as f64, o.w as f64, o.theta as f64);
-    let mid = th + 0.5 * w * dt;
-    [
-        o.x as f64 + v * dt * mid.cos(),
-        o.y as f64 + v * dt * mid.sin(),
-        th + w * dt,
-    ]
 }

@@ -28,10 +28,6 @@ use serde::Serialize;
 use super::common::print_json;
 use super::route::Drive;
 
-/// Points nearer the base's z axis than this are the robot itself (its folded arm), m: the
-/// LoCoBot's gripper reaches 0.41 m ahead of the base's centre.
-const SELF_RADIUS: f64 = 0.5;
-
 /// What to run SLAM on.
 pub enum Source<'a> {
     /// A simulated drive.
@@ -206,7 +202,7 @@ fn drive(
         .map_or(0.0, |b| b.footprint_radius);
     // The map's frame is the world's: SLAM starts at the robot's true start pose (the ground
     // truth is used for nothing else).
-    let settings = SlamSettings::ground_robot(radius.max(SELF_RADIUS));
+    let settings = SlamSettings::ground_robot(radius.max(ferrobot::slam::SELF_RADIUS));
     let k = d.bot.camera()?.intrinsics()?;
     let mut slam = match saved {
         // In a saved map the start is not told: SLAM must find it.
