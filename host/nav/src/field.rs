@@ -196,6 +196,9 @@ impl NavField {
     }
 }
 
+/// How far along the global path the window's local goal lies, m, with room about the base.
+const LOOKAHEAD: f64 = 0.6;
+
 /// The dynamic window approach to a goal among round obstacles and an occupancy-grid map.
 #[derive(Debug, Clone)]
 pub struct Dwa {
@@ -252,7 +255,10 @@ impl Dwa {
         let v_cap = (2.0 * l.accel_v * d_now).sqrt().max(vlo);
         // The local goal: the path point `LOOKAHEAD` beyond the one nearest the robot (the
         // goal itself once the path runs out or was not found).
-        const LOOKAHEAD: f64 = 0.6;
+        // In a narrow place (a doorway) the carrot comes nearer, so the base keeps to the
+        // path instead of cutting the corner beyond it with its body still in the door.
+        let room = self.obstacles.clearance([x[0], x[1]]) - self.radius;
+        let lookahead = (3.0 * room).clamp(0.2, LOOKAHEAD);
         let carrot = {
             let near = self
                 .path
@@ -271,7 +277,7 @@ impl Dwa {
                     let (a, b) = (self.path[k - 1], self.path[k]);
                     along += (b[0] - a[0]).hypot(b[1] - a[1]);
                 }
-                if along >= LOOKAHEAD {
+                if along >= lookahead {
                     c = self.path[k];
                     break;
                 }
