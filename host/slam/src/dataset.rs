@@ -11,8 +11,8 @@ use std::path::{Path, PathBuf};
 use ferrobot_perception::{io, DepthImage, Intrinsics, RgbImage};
 use yaml_rust2::{Yaml, YamlLoader};
 
-use crate::error::{Error, Result};
-use crate::trajectory::{parse_tum, to_tum, Stamped};
+use crate::error::{read_file, write_file, Error, Result};
+use crate::trajectory::{data_lines, parse_tum, to_tum, Stamped};
 
 /// Largest list or YAML file read, bytes.
 const MAX_TEXT: u64 = 64 << 20;
@@ -35,31 +35,20 @@ pub struct Dataset {
 }
 
 fn read_text(path: &Path) -> Result<String> {
-    let bad = |why: String| Error::File {
+    String::from_utf8(read_file(path, MAX_TEXT)?).map_err(|_| Error::File {
         path: path.to_path_buf(),
-        why,
-    };
-    let meta = std::fs::metadata(path).map_err(|e| bad(e.to_string()))?;
-    if !meta.is_file() || meta.len() > MAX_TEXT {
-        return Err(bad(format!(
-            "not a regular file of at most {MAX_TEXT} bytes"
-        )));
-    }
-    std::fs::read_to_string(path).map_err(|e| bad(e.to_string()))
+        why: "not UTF-8 text".into(),
+    })
 }
 
 /// Lines `timestamp path` of a TUM list, in file order.
 fn parse_list(path: &Path, dir: &Path) -> Result<Vec<(f64, PathBuf)>> {
     let text = read_text(path)?;
     let mut out = Vec::new();
-    for (n, line) in text.lines().enumerate() {
-        let line = line.trim();
-        if line.is_empty() || line.starts_with('#') {
-            continue;
-        }
+    for (n, line) in data_lines(&text) {
         let bad = |why: String| Error::File {
             path: path.to_path_buf(),
-            why: format!("line {}: {why}", n + 1),
+            why: format!("line {n}: {why}"),
         };
         let mut it = line.split_whitespace();
         let t: f64 = it
@@ -258,11 +247,7 @@ impl DatasetWriter {
             files.push(("groundtruth.txt", to_tum(&self.truth)));
         }
         for (name, text) in files {
-            let p = self.dir.join(name);
-            std::fs::write(&p, text).map_err(|e| Error::File {
-                path: p.clone(),
-                why: e.to_string(),
-            })?;
+            write_file(&self.dir.join(name), text)?;
         }
         Ok(())
     }

@@ -34,3 +34,25 @@ pub enum Error {
 
 /// This crate's result.
 pub type Result<T, E = Error> = core::result::Result<T, E>;
+
+/// The bytes of the regular file `path`, at most `max` of them: anything else (a missing
+/// file, a device, a folder, a larger file) is an error naming the file.
+pub(crate) fn read_file(path: &std::path::Path, max: u64) -> Result<Vec<u8>> {
+    let bad = |why: String| Error::File {
+        path: path.to_path_buf(),
+        why,
+    };
+    let meta = std::fs::metadata(path).map_err(|e| bad(e.to_string()))?;
+    if !meta.is_file() || meta.len() > max {
+        return Err(bad(format!("not a regular file of at most {max} bytes")));
+    }
+    std::fs::read(path).map_err(|e| bad(e.to_string()))
+}
+
+/// Writes `data` to `path`; an error names the file.
+pub(crate) fn write_file(path: &std::path::Path, data: impl AsRef<[u8]>) -> Result<()> {
+    std::fs::write(path, data).map_err(|e| Error::File {
+        path: path.to_path_buf(),
+        why: e.to_string(),
+    })
+}

@@ -162,10 +162,7 @@ impl Map {
             w.f64(e.sigma_t);
             w.f64(e.sigma_r);
         }
-        std::fs::write(path, &w.0).map_err(|e| Error::File {
-            path: path.to_path_buf(),
-            why: e.to_string(),
-        })
+        crate::error::write_file(path, &w.0)
     }
 
     /// Reads a map [`Map::save`] wrote. Errors name the file and what is wrong with it.
@@ -174,13 +171,7 @@ impl Map {
             path: path.to_path_buf(),
             why,
         };
-        let meta = std::fs::metadata(path).map_err(|e| bad(e.to_string()))?;
-        if !meta.is_file() || meta.len() > MAX_MAP_FILE {
-            return Err(bad(format!(
-                "not a regular file of at most {MAX_MAP_FILE} bytes"
-            )));
-        }
-        let data = std::fs::read(path).map_err(|e| bad(e.to_string()))?;
+        let data = crate::error::read_file(path, MAX_MAP_FILE)?;
         if !data.starts_with(MAGIC) {
             return Err(bad("not a Ferrobot SLAM map (version 1)".into()));
         }

@@ -37,24 +37,26 @@ pub fn to_tum(poses: &[Stamped]) -> String {
 
 /// Writes a TUM trajectory file.
 pub fn write_tum(path: &Path, poses: &[Stamped]) -> Result<()> {
-    std::fs::write(path, to_tum(poses)).map_err(|e| Error::File {
-        path: path.to_path_buf(),
-        why: e.to_string(),
-    })
+    crate::error::write_file(path, to_tum(poses))
+}
+
+/// The lines of a TUM text file that hold data, trimmed, with their 1-based numbers: blank
+/// lines and `#` comments skipped.
+pub(crate) fn data_lines(text: &str) -> impl Iterator<Item = (usize, &str)> {
+    text.lines()
+        .enumerate()
+        .map(|(n, l)| (n + 1, l.trim()))
+        .filter(|(_, l)| !(l.is_empty() || l.starts_with('#')))
 }
 
 /// Reads a TUM trajectory (lines of eight numbers; blank lines and `#` comments skipped;
 /// quaternions normalised). Errors name the line.
 pub fn parse_tum(text: &str, path: &Path) -> Result<Vec<Stamped>> {
     let mut out = Vec::new();
-    for (n, line) in text.lines().enumerate() {
-        let line = line.trim();
-        if line.is_empty() || line.starts_with('#') {
-            continue;
-        }
+    for (n, line) in data_lines(text) {
         let bad = |why: String| Error::File {
             path: path.to_path_buf(),
-            why: format!("line {}: {why}", n + 1),
+            why: format!("line {n}: {why}"),
         };
         let v: Vec<f64> = line
             .split_whitespace()

@@ -14,7 +14,7 @@
 
 use ferrobot::nav::{GlobalPlanner, GridAStar, MapImage, Obstacles, OccupancyGrid};
 use ferrobot::slam::optimise::{planar, to_planar};
-use ferrobot::{Backend, GoalOptions, Robot};
+use ferrobot::{Backend, GoalOptions};
 use ferrobot_sim::floor_plan::OBSTACLE_BAND;
 use nalgebra::Point3;
 use serde::Serialize;
@@ -110,11 +110,7 @@ pub fn run(robot: &str, scene: &str, goals: usize, seed: u64, json: bool) -> fer
             "--goals {goals}: ask for 1-10000"
         )));
     }
-    let b = if robot.ends_with(".toml") || robot.contains('/') {
-        Robot::builder_from_config(robot)
-    } else {
-        Robot::builder(robot)
-    };
+    let b = super::common::robot_builder(robot);
     let bot = b
         .scene(scene)
         .use_arm(false)

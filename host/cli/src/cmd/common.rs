@@ -84,3 +84,13 @@ pub fn planning_error(file: &std::path::Path, e: ferrobot::planning::Error) -> f
         other => ferrobot::Error::Planning(other),
     }
 }
+
+/// A builder for `robot`: a configuration file when it looks like a path (ends in `.toml` or
+/// holds a `/`), else a bundled robot's name.
+pub fn robot_builder(robot: &str) -> ferrobot::RobotBuilder {
+    if robot.ends_with(".toml") || robot.contains('/') {
+        ferrobot::Robot::builder_from_config(robot)
+    } else {
+        ferrobot::Robot::builder(robot)
+    }
+}

@@ -35,11 +35,7 @@ impl Drive {
     /// The simulated `robot` in `scene` (noise seeded by `seed`) with its head set for
     /// `route`.
     pub fn new(robot: &str, scene: &str, route: &str, seed: u64) -> ferrobot::Result<Self> {
-        let b = if robot.ends_with(".toml") || robot.contains('/') {
-            Robot::builder_from_config(robot)
-        } else {
-            Robot::builder(robot)
-        };
+        let b = super::common::robot_builder(robot);
         let bot = b
             .scene(scene)
             .backend(Backend::Sim {

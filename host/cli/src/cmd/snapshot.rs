@@ -5,7 +5,7 @@
 use std::path::Path;
 
 use ferrobot::perception::{io, DepthImage, DepthRange, RgbImage};
-use ferrobot::{Backend, Robot};
+use ferrobot::Backend;
 use serde::Serialize;
 
 use super::common::print_json;
@@ -94,17 +94,13 @@ fn side_by_side(rgb: &RgbImage, depth: &DepthImage) -> ferrobot::Result<RgbImage
 
 /// Take one frame and write the files.
 pub fn run(a: &SnapshotArgs) -> ferrobot::Result<()> {
-    let mut b = if a.robot.ends_with(".toml") || a.robot.contains('/') {
-        Robot::builder_from_config(a.robot)
-    } else {
-        Robot::builder(a.robot)
-    }
-    .scene(a.scene)
-    .depth_noise(!a.no_noise)
-    .backend(Backend::Sim {
-        seed: a.seed,
-        realtime: false,
-    });
+    let mut b = super::common::robot_builder(a.robot)
+        .scene(a.scene)
+        .depth_noise(!a.no_noise)
+        .backend(Backend::Sim {
+            seed: a.seed,
+            realtime: false,
+        });
     if let Some(p) = a.base {
         b = b.start_pose(p);
     }
