@@ -53,13 +53,23 @@ pub enum Error {
         /// The robot's radius, m.
         radius: f64,
     },
+    /// The base made no progress towards the goal, recoveries included.
+    #[error("no progress towards the goal at {at:?} (m), {left:.2} m of the way left, after {recoveries} recoveries")]
+    Stalled {
+        /// Where the base stopped, m.
+        at: [f64; 2],
+        /// The way left along the path, m.
+        left: f64,
+        /// Recoveries tried.
+        recoveries: u32,
+    },
 }
 
 impl Error {
     /// Whether the caller's input is at fault (a value, a map file, an end off the map or in
     /// an obstacle) rather than the map having no way through.
     pub fn is_input(&self) -> bool {
-        !matches!(self, Error::NoPath { .. })
+        !matches!(self, Error::NoPath { .. } | Error::Stalled { .. })
     }
 }
 

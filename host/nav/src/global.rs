@@ -1,6 +1,8 @@
 //! Global path planning on an occupancy grid: A* over the cells a round robot fits in
-//! (8-connected, no corner cutting; the `pathfinding` crate's A*), then the path pulled taut
-//! (each waypoint joined to a far later one in free line of sight, from alternating ends).
+//! (8-connected, no corner cutting; the `pathfinding` crate's A*), optionally paying more near
+//! obstacles so that the path keeps a margin where there is room (as move_base's inflation
+//! layer does), then the path pulled taut (each waypoint joined to a far later one in free line
+//! of sight, from alternating ends).
 
 use crate::error::{Error, Result};
 use crate::obstacles::{Obstacles, OccupancyGrid};
@@ -47,6 +49,10 @@ const PULLS: usize = 6;
 /// Largest robot radius, m.
 pub const MAX_RADIUS: f64 = 10.0;
 
+/// How much more a step costs where the clearance falls short of `radius + margin` by the whole
+/// margin (it grows linearly from nothing at the margin's edge).
+const MARGIN_PENALTY: f64 = 3.0;
+
 impl GlobalPlanner for GridAStar {
     fn plan(
         &self,
@@ -55,16 +61,49 @@ impl GlobalPlanner for GridAStar {
         goal: [f64; 2],
         radius: f64,
     ) -> Result<GlobalPath> {
+        self.plan_with_margin(map, start, goal, radius, 0.0)
+    }
+}
+
+impl GridAStar {
+    /// As [`GlobalPlanner::plan`], and where there is room the path keeps `margin` m more than
+    /// the radius: a step through a cell whose clearance falls short of `radius + margin` costs
+    /// up to [`MARGIN_PENALTY`] + 1 times as much, and a straight line of the pulled path keeps
+    /// `radius + margin` of clearance, or as much as its ends have when that is less (never
+    /// less than `radius`). So a path runs down the middle of a doorway and keeps off corners,
+    /// and a narrow passage is still taken when it is the way.
+    pub fn plan_with_margin(
+        &self,
+        map: &OccupancyGrid,
+        start: [f64; 2],
+        goal: [f64; 2],
+        radius: f64,
+        margin: f64,
+    ) -> Result<GlobalPath> {
         validate::finite("path start", &start)?;
         validate::finite("path goal", &goal)?;
         validate::in_range("robot radius", radius, 0.0, MAX_RADIUS)?;
+        validate::in_range("path margin", margin, 0.0, MAX_RADIUS)?;
         map.check()?;
         let field = Obstacles::new(Vec::new(), Some(map))?;
         let (w, h) = (map.width, map.height);
-        // Cells a robot centred on them fits in.
-        let is_open: Vec<bool> = (0..h)
+        let clearance: Vec<f64> = (0..h)
             .flat_map(|j| (0..w).map(move |i| (i, j)))
-            .map(|(i, j)| field.clearance(map.centre(i, j)) >= radius)
+            .map(|(i, j)| field.clearance(map.centre(i, j)))
+            .collect();
+        // Cells a robot centred on them fits in.
+        let is_open: Vec<bool> = clearance.iter().map(|&c| c >= radius).collect();
+        // The extra cost per unit of step of entering each cell, in thousandths.
+        let extra: Vec<u64> = clearance
+            .iter()
+            .map(|&c| {
+                if margin <= 0.0 || c >= radius + margin {
+                    0
+                } else {
+                    let short = ((radius + margin - c) / margin).clamp(0.0, 1.0);
+                    (1000.0 * MARGIN_PENALTY * short) as u64
+                }
+            })
             .collect();
         let end = |p: [f64; 2], what: &'static str| -> Result<(usize, usize)> {
             let (i, j) = map.cell(p).ok_or(Error::OutsideMap { what, at: p })?;
@@ -119,10 +158,9 @@ impl GlobalPlanner for GridAStar {
                 if diagonal && !(free(i + di, j) && free(i, j + dj)) {
                     continue;
                 }
-                next.push((
-                    (a as usize, b as usize),
-                    if diagonal { DIAGONAL } else { STRAIGHT },
-                ));
+                let base = if diagonal { DIAGONAL } else { STRAIGHT };
+                let penalty = base * extra[b as usize * w + a as usize] / 1000;
+                next.push(((a as usize, b as usize), base + penalty));
             }
             next
         };
@@ -146,11 +184,15 @@ impl GlobalPlanner for GridAStar {
         );
         raw.push(goal);
         let visible = |a: [f64; 2], b: [f64; 2]| {
+            let keep = (radius + margin)
+                .min(field.clearance(a))
+                .min(field.clearance(b))
+                .max(radius);
             let len = (b[0] - a[0]).hypot(b[1] - a[1]);
             let n = (len / (0.25 * map.resolution)).ceil().max(1.0) as usize;
             (0..=n).all(|k| {
                 let t = k as f64 / n as f64;
-                field.clearance([a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t]) >= radius
+                field.clearance([a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t]) >= keep
             })
         };
         // Pulling keeps only waypoints of the path it is given, and from one end: a grid

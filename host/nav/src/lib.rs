@@ -1,17 +1,20 @@
 //! Navigation for mobile bases in the odometry frame (m): obstacles and occupancy grids behind
 //! one clearance query ([`obstacles`]), maps on disk in ROS map_server's format ([`map_file`]),
-//! a global planner on the grid ([`global`]), the navigation field and the dynamic window
-//! approach ([`field`]).
+//! a global planner on the grid ([`global`]), the navigator that reaches a goal on a map with
+//! live obstacles, re-planning and recovery ([`navigator`]), the navigation field and the
+//! dynamic window approach ([`field`]).
 #![warn(missing_docs)]
 
 pub mod error;
 pub mod field;
 pub mod global;
 pub mod map_file;
+pub mod navigator;
 pub mod obstacles;
 
 pub use error::{Error, Result};
 pub use field::{Dwa, NavField};
 pub use global::{GlobalPath, GlobalPlanner, GridAStar};
 pub use map_file::{Cell, MapImage};
+pub use navigator::{NavCommand, NavSettings, Navigator, Scan};
 pub use obstacles::{Circle, Obstacles, OccupancyGrid};
