@@ -328,6 +328,22 @@ enum BenchCmd {
         /// Seed of the goals and the plants' noise.
         #[arg(long, default_value_t = 1)]
         seed: u64,
+        /// Where the base's pose comes from: `slam` (SLAM beside the robot, started at the
+        /// true start on the floor plan's frame) or `odometry` (the wheels alone).
+        #[arg(long, default_value = "slam")]
+        localise: String,
+        /// One line per goal on standard error.
+        #[arg(long)]
+        trace: bool,
+        /// Explore the scene first (SLAM, frontiers), then drive to the goals on SLAM's map;
+        /// the JSON gains `exploration`: `{"bumper_hits", "distance_m", "occupancy_iou",
+        /// "occupancy_iou_free", "occupancy_iou_occupied", "time_s"}`.
+        #[arg(long)]
+        explore: bool,
+        /// With --explore: write the explored map (`map.yaml`, `map.png`) and the part of the
+        /// floor plan it is judged against (`truth.yaml`, `truth.png`) here.
+        #[arg(long)]
+        out: Option<std::path::PathBuf>,
         /// Print one JSON object: `{"bumper_hits", "goals", "path_length_ratio": {"median"},
         /// "success_rate", "time_s": {"median"}}`.
         #[arg(long)]
@@ -544,9 +560,26 @@ fn run(cli: Cli) -> Result<(), (ferrobot::Error, bool)> {
                     scene,
                     goals,
                     seed,
+                    localise,
+                    trace,
+                    explore,
+                    out,
                     json,
                 },
-        } => (cmd::bench_nav::run(&robot, &scene, goals, seed, json), json),
+        } => (
+            cmd::bench_nav::run(&cmd::bench_nav::NavArgs {
+                robot: &robot,
+                scene: &scene,
+                goals,
+                seed,
+                localise: &localise,
+                trace,
+                explore,
+                out: out.as_deref(),
+                json,
+            }),
+            json,
+        ),
         Cmd::Bench {
             which: BenchCmd::Plan(a),
         } => {

@@ -29,9 +29,12 @@ fn check_relative(delta: [f64; 3]) -> Result<()> {
 use crate::backend::Link;
 use crate::config::RobotConfig;
 use crate::motion::{Claim, Goal, Motion, Step};
+use crate::navigate::NavGoal;
 use crate::obstacles::{Circle, Obstacles, OccupancyGrid};
 use crate::odometry_calibration::WheelGeometry;
 use crate::robot::{Io, Robot};
+use crate::slam::Source;
+use ferrobot_nav::Navigator;
 
 /// Control period of the host-side base controllers.
 pub const BASE_CONTROL_PERIOD: Duration = Duration::from_millis(50);
@@ -110,7 +113,14 @@ impl BaseGoal {
         wrap(dy.atan2(dx) + back - th)
     }
 
-    fn step_inner(&mut self, now: Duration, t: &Telemetry) -> Option<(f64, f64)> {
+    /// Aims at `goal` (the odometry's frame) from `now` on, keeping the present speeds.
+    pub(crate) fn retarget(&mut self, goal: [f64; 3], now: Duration) {
+        self.goal = goal;
+        self.phase = Phase::TurnToGoal;
+        self.next = now;
+    }
+
+    pub(crate) fn step_inner(&mut self, now: Duration, t: &Telemetry) -> Option<(f64, f64)> {
         if now < self.next {
             return Some((self.v, self.w));
         }
@@ -613,8 +623,19 @@ pub struct GoalOptions {
     /// Circular obstacles `[x, y, r]` (m) in the odometry frame. With obstacles or a map and no
     /// explicit controller, the dynamic window approach is used.
     pub obstacles: Vec<Circle>,
-    /// An occupancy-grid map in the odometry frame for the dynamic window approach.
+    /// An occupancy-grid map (in the frame `frame` names). With a map the base is driven by
+    /// the navigator ([`ferrobot_nav::Navigator`]: global plan, path following, re-planning,
+    /// recovery), the round obstacles stamped into it.
     pub map: Option<OccupancyGrid>,
+    /// The frame of the goal, the map and the obstacles: the odometry's, or SLAM's map (the
+    /// base then steers by SLAM's pose; SLAM must be running, see
+    /// [`crate::Robot::start_slam`]).
+    pub frame: Source,
+    /// Plan on SLAM's occupancy grid, refreshed as it grows (PyRobot's `use_map`): the frame
+    /// is then SLAM's map, whatever `frame` says, and `map`, when given, is used instead.
+    pub use_map: bool,
+    /// With a map: avoid what the depth camera sees too (when the robot has a camera).
+    pub live_obstacles: bool,
 }
 
 impl Default for GoalOptions {
@@ -625,6 +646,9 @@ impl Default for GoalOptions {
             close_loop: true,
             obstacles: Vec::new(),
             map: None,
+            frame: Source::Odometry,
+            use_map: false,
+            live_obstacles: true,
         }
     }
 }
@@ -701,7 +725,7 @@ impl BaseState {
 }
 
 /// Stop the base now (best effort: the motion is over either way).
-fn stop_base(link: &mut dyn Link) {
+pub(crate) fn stop_base(link: &mut dyn Link) {
     let _ = link.command(
         &HostMsg::BaseVelocity {
             v: 0.0,
@@ -714,7 +738,12 @@ fn stop_base(link: &mut dyn Link) {
 
 /// Send a base velocity `(v, ω)` (m/s, rad/s) held for `duration_ms`; `Some(Err)` when the
 /// link refuses it, which ends the motion.
-fn send_base_velocity(link: &mut dyn Link, v: f64, w: f64, duration_ms: u16) -> Option<Result<()>> {
+pub(crate) fn send_base_velocity(
+    link: &mut dyn Link,
+    v: f64,
+    w: f64,
+    duration_ms: u16,
+) -> Option<Result<()>> {
     link.command(
         &HostMsg::BaseVelocity {
             v: v as f32,
@@ -728,7 +757,7 @@ fn send_base_velocity(link: &mut dyn Link, v: f64, w: f64, duration_ms: u16) -> 
 }
 
 /// What every base goal claims.
-const BASE: Claim = Claim {
+pub(crate) const BASE: Claim = Claim {
     joints: 0,
     base: true,
     gripper: false,
@@ -861,7 +890,7 @@ impl Base {
     }
 
     /// A proportional controller for `goal`, starting now.
-    fn proportional(&self, goal: [f64; 3]) -> BaseGoal {
+    pub(crate) fn proportional(&self, goal: [f64; 3]) -> BaseGoal {
         let s = self.section();
         BaseGoal {
             goal,
@@ -1084,9 +1113,12 @@ impl Base {
     /// [`Error::Timeout`] when it runs out.
     pub fn go_to_absolute_with(&self, goal: [f64; 3], opts: GoalOptions) -> Result<Motion> {
         check_finite("base goal", &goal)?;
+        if opts.use_map || opts.map.is_some() {
+            return self.navigate(goal, &opts);
+        }
         let here = self.get_state()?;
         validate::base_goal(goal, here)?;
-        let obstacles = Obstacles::new(opts.obstacles.clone(), opts.map.as_ref())?;
+        let obstacles = Obstacles::new(opts.obstacles.clone(), None)?;
         let controller = opts.controller.unwrap_or(if obstacles.is_empty() {
             self.section().controller
         } else {
@@ -1118,19 +1150,6 @@ impl Base {
                             "the base ({radius} m footprint radius) at the goal would overlap an obstacle ({clear:.3} m from the goal)"
                         ),
                     });
-                }
-                // On a map, the global planner first: a goal no path reaches (another room
-                // behind closed doors, an island) is a typed error now, not a timeout later.
-                // Beyond the map's edge is unknown, so free (as move_base's allow_unknown).
-                if let Some(map) = &opts.map {
-                    use ferrobot_nav::GlobalPlanner;
-                    let (a, b) = ([here[0], here[1]], [goal[0], goal[1]]);
-                    let grid = map.grown_to(&[a, b], 1.0)?;
-                    // A base pressed against an obstacle still has its way out: the check
-                    // lets the start be as near as it is.
-                    let start_clear = obstacles.clearance(a);
-                    let r = radius.min(start_clear - 0.005).max(0.0);
-                    ferrobot_nav::GridAStar.plan(&grid, a, b, r)?;
                 }
                 let nav = NavField::new(
                     [here[0], here[1]],
@@ -1225,5 +1244,99 @@ impl Base {
     /// Move by `[x, y, θ]` relative to the current pose and wait.
     pub fn go_to_relative(&self, delta: [f64; 3]) -> Result<()> {
         self.go_to_relative_async(delta)?.wait()
+    }
+}
+
+impl Base {
+    /// A goal on a map, driven by the navigator (see [`GoalOptions::map`]).
+    fn navigate(&self, goal: [f64; 3], opts: &GoalOptions) -> Result<Motion> {
+        let slam = opts.use_map || opts.frame == Source::Slam;
+        let here = self.get_state_from(if slam { Source::Slam } else { Source::Odometry })?;
+        validate::base_goal(goal, here)?;
+        let radius = self.section().footprint_radius;
+        let lim = self.tracking_limits();
+        let grid = match (&opts.map, opts.use_map) {
+            (Some(m), _) => m.clone(),
+            (None, _) => match self.robot.slam_occupancy_map()? {
+                Some(image) => image.to_grid(false)?,
+                // Nothing mapped yet: all unknown, hence free.
+                None => OccupancyGrid::new([here[0], here[1]], 0.02, 1, 1)?,
+            },
+        };
+        // The map and the circles are checked before the circles are stamped into it.
+        grid.check()?;
+        Obstacles::new(opts.obstacles.clone(), None)?;
+        let map = NavGoal::stamped(&grid, &opts.obstacles);
+        let nav = Navigator::new(&map, [goal[0], goal[1]], NavGoal::settings(radius, lim))?;
+        // A goal no path reaches (another room behind closed doors, an island) is a typed
+        // error now, not a failure later. Beyond the map's edge is unknown, so free (as
+        // move_base's allow_unknown); a base pressed against an obstacle still has its way out.
+        {
+            use ferrobot_nav::GlobalPlanner;
+            let (a, b) = ([here[0], here[1]], [goal[0], goal[1]]);
+            let grown = map.grown_to(&[a, b], 1.0)?;
+            let start_clear = Obstacles::new(Vec::new(), Some(&grown))?.clearance(a);
+            let r = radius.min(start_clear - 0.02).max(0.0);
+            ferrobot_nav::GridAStar.plan(&grown, a, b, r)?;
+        }
+        let scans = opts.live_obstacles && self.robot.config().camera.is_some();
+        if scans {
+            let frames = self.robot.frames()?.clone();
+            let optical = self.robot.optical_frame()?;
+            self.robot.lock_io().sense.camera = Some((frames, optical));
+        }
+        // The heading stage's controller within the window's (tracking) limits.
+        let mut finish = self.proportional(goal);
+        finish.max_v = lim.v;
+        finish.max_w = lim.w;
+        let g = NavGoal {
+            nav,
+            goal,
+            slam,
+            slam_grid: opts.use_map && opts.map.is_none(),
+            circles: opts.obstacles.clone(),
+            scans,
+            seen: (0, 0),
+            finish,
+            finishing: false,
+            lost_since: None,
+            hold_ms: 250,
+        };
+        let dist = (goal[0] - here[0]).hypot(goal[1] - here[1]);
+        // Room for detours and every recovery.
+        let timeout = Duration::from_secs_f64(120.0 + 6.0 * dist / lim.v);
+        self.start(Box::new(g), "base position goal (navigator)", timeout)
+    }
+}
+
+/// Longest an exploration may take, s of the robot's clock.
+pub const EXPLORE_TIMEOUT: Duration = Duration::from_secs(1800);
+
+impl Base {
+    /// Explores with SLAM until no reachable frontier is left (see [`crate::navigate`]): the
+    /// base looks all round, then drives to the nearest frontier of SLAM's occupancy grid and
+    /// faces it, again and again, avoiding what the depth camera sees. Needs SLAM running
+    /// ([`Robot::start_slam`]); the map is then [`Robot::slam_occupancy_map`]. Fails after
+    /// [`EXPLORE_TIMEOUT`], or when SLAM has no pose for [`crate::navigate::SLAM_PATIENCE`].
+    pub fn explore_async(&self) -> Result<Motion> {
+        // SLAM must run (its pose may come with the first frames).
+        self.robot.slam_report()?;
+        if self.robot.config().camera.is_none() {
+            return Err(self.robot.missing("camera"));
+        }
+        let frames = self.robot.frames()?.clone();
+        let optical = self.robot.optical_frame()?;
+        self.robot.lock_io().sense.camera = Some((frames, optical));
+        let radius = self.section().footprint_radius;
+        let g = crate::navigate::ExploreGoal::new(
+            NavGoal::settings(radius, self.tracking_limits()),
+            ferrobot_nav::FrontierSettings::new(radius),
+        );
+        self.start(Box::new(g), "exploration", EXPLORE_TIMEOUT)
+    }
+
+    /// As [`Base::explore_async`], waiting until it is done.
+    pub fn explore(&self) -> Result<()> {
+        self.explore_async()?.wait()
     }
 }

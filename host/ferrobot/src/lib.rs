@@ -26,8 +26,10 @@ mod frames;
 pub mod gripper;
 pub mod head;
 pub mod motion;
+pub mod navigate;
 pub mod planning;
 pub mod robot;
+mod sense;
 pub mod slam;
 
 pub use ferrobot_control::odometry_calibration;

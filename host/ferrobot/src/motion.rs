@@ -89,6 +89,8 @@ pub(crate) struct Step<'a> {
     pub telemetry: &'a Telemetry,
     /// Base commands sent by host-side laws: (time s, v m/s, ω rad/s).
     pub base_log: &'a mut Vec<(f64, f64, f64)>,
+    /// What the camera and SLAM tell the goals.
+    pub sense: &'a crate::sense::Sense,
 }
 
 /// A goal of one component, stepped by whoever lets time pass.
@@ -99,6 +101,14 @@ pub(crate) trait Goal: Send {
     fn step(&mut self, s: &mut Step<'_>) -> Option<Result<()>>;
     /// Stop where it is (best effort): joints hold, the base stops.
     fn halt(&mut self, link: &mut dyn Link);
+    /// Whether it wants the camera's obstacle scans ([`crate::sense::Sense::scan`]).
+    fn wants_scans(&self) -> bool {
+        false
+    }
+    /// Whether it wants SLAM's occupancy grid ([`crate::sense::Sense::grid`]).
+    fn wants_grid(&self) -> bool {
+        false
+    }
 }
 
 struct Running {
@@ -124,6 +134,11 @@ pub(crate) struct Goals {
 }
 
 impl Goals {
+    /// Whether any goal under way wants what `f` asks of it.
+    pub(crate) fn any(&self, f: impl Fn(&dyn Goal) -> bool) -> bool {
+        self.running.iter().any(|g| f(g.goal.as_ref()))
+    }
+
     fn finish(&mut self, id: u64, r: Result<()>) {
         if !self.detached.remove(&id) {
             self.finished.insert(id, r);
@@ -252,6 +267,7 @@ impl Io {
                 now,
                 telemetry: &t,
                 base_log: &mut self.base.log,
+                sense: &self.sense,
             };
             let r = g.goal.step(&mut s).or_else(|| {
                 (now >= g.deadline).then(|| {
@@ -278,7 +294,7 @@ impl Io {
     pub(crate) fn pump(&mut self, cfg: &RobotConfig, dt: Duration) {
         self.link.wait(dt);
         self.step(cfg);
-        self.feed_slam();
+        self.feed_camera();
     }
 
     /// Stop goal `id` where it is, when it is under way; its result is dropped.

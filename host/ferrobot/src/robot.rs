@@ -162,6 +162,8 @@ pub(crate) struct Io {
     pub(crate) camera: Option<Box<dyn CameraDevice>>,
     /// SLAM beside the robot, once started.
     pub(crate) slam: Option<crate::slam::SlamRunner>,
+    /// What the camera and SLAM tell the base's goals.
+    pub(crate) sense: crate::sense::Sense,
 }
 
 impl std::fmt::Debug for Robot {
@@ -297,6 +299,7 @@ impl Robot {
                     base,
                     camera,
                     slam: None,
+                    sense: Default::default(),
                 }),
                 cfg,
                 uses,

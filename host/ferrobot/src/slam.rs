@@ -14,6 +14,7 @@ use std::time::Duration;
 /// The SLAM crate: tracking, keyframes, loop closure, the maps, trajectories and their error.
 pub use ferrobot_slam::*;
 
+use ferrobot_geometry::Pose2;
 use ferrobot_nav::MapImage;
 use ferrobot_perception::PointCloud;
 
@@ -66,13 +67,23 @@ pub fn odometry_at(tel: &ferrobot_protocol::Telemetry, t: f64) -> [f64; 3] {
 }
 
 impl Io {
-    /// Feeds SLAM the frame whose instant time has just passed, if any (the pump calls this
-    /// after every wait). A failure is kept for [`Robot::slam_report`].
-    pub(crate) fn feed_slam(&mut self) {
-        let (Some(_), Some(camera)) = (self.slam.as_ref(), self.camera.as_mut()) else {
+    /// Takes the frame whose instant time has just passed, if anyone wants it: SLAM, when it
+    /// runs, gets every frame; the base's goals that want obstacle scans or SLAM's occupancy
+    /// grid get them (see [`crate::sense`]). The pump calls this after every wait. A failure
+    /// is kept for [`Robot::slam_report`] (and a goal without scans goes on without them).
+    pub(crate) fn feed_camera(&mut self) {
+        let now = self.link.now();
+        let scans = self.sense.scan_due(now) && self.goals.any(|g| g.wants_scans());
+        if self.slam.is_some() && self.sense.grid_due(now) && self.goals.any(|g| g.wants_grid()) {
+            self.refresh_grid(now);
+        }
+        if self.slam.is_none() && !scans {
+            return;
+        }
+        let Some(camera) = self.camera.as_mut() else {
             return;
         };
-        if !camera.until_next(self.link.now()).is_zero() {
+        if !camera.until_next(now).is_zero() {
             return;
         }
         let got = self
@@ -80,7 +91,12 @@ impl Io {
             .telemetry()
             .and_then(|tel| Ok((camera.capture(self.link.as_mut())?, tel)));
         match got {
-            Ok((raw, tel)) => self.feed_frame(&tel, &raw),
+            Ok((raw, tel)) => {
+                self.feed_frame(&tel, &raw);
+                if scans {
+                    self.scan_frame(&tel, &raw);
+                }
+            }
             Err(e) => {
                 if let Some(r) = self.slam.as_mut() {
                     r.error = Some(e.to_string());
@@ -89,7 +105,45 @@ impl Io {
         }
     }
 
-    /// Feeds SLAM a frame taken with telemetry `tel` (the joints and odometry of its time).
+    /// Rebuilds SLAM's occupancy grid for the goals that plan on it.
+    fn refresh_grid(&mut self, now: Duration) {
+        let Some(r) = self.slam.as_ref() else {
+            return;
+        };
+        match r.slam.map().occupancy(&GridSettings::default()) {
+            Ok(Some(image)) => self.sense.keep_grid(now, image),
+            Ok(None) => {}
+            Err(e) => self
+                .slam
+                .as_mut()
+                .into_iter()
+                .for_each(|r| r.error = Some(e.to_string())),
+        }
+    }
+
+    /// Makes the obstacle scan of a frame taken with telemetry `tel`, in the map's frame (SLAM's
+    /// when it runs and has a pose, else the odometry's).
+    fn scan_frame(&mut self, tel: &ferrobot_protocol::Telemetry, raw: &RawFrame) {
+        let (Some((frames, optical)), Some(camera)) =
+            (self.sense.camera.as_ref(), self.camera.as_ref())
+        else {
+            return;
+        };
+        let Ok(on_base) = frames.transform_at(tel, optical, "base_link") else {
+            return;
+        };
+        let odometry = odometry_at(tel, raw.time.as_secs_f64());
+        let Some(base) = self.sense.in_map(odometry, self.slam.is_some()) else {
+            return;
+        };
+        let camera_pose = optimise::planar(base.to_array()) * on_base;
+        let scan =
+            crate::sense::obstacle_scan(&raw.depth, &camera.intrinsics(), &camera_pose, base);
+        self.sense.keep_scan(raw.time, scan);
+    }
+
+    /// Feeds SLAM a frame taken with telemetry `tel` (the joints and odometry of its time);
+    /// a tracked frame updates where the map lies in the odometry's frame.
     pub(crate) fn feed_frame(&mut self, tel: &ferrobot_protocol::Telemetry, raw: &RawFrame) {
         let Some(runner) = self.slam.as_mut() else {
             return;
@@ -106,6 +160,9 @@ impl Io {
             }
         };
         let odometry = odometry_at(tel, t);
+        if self.sense.want_keyframe.take() {
+            runner.slam.request_keyframe();
+        }
         match runner.slam.track(&RgbdInput {
             time: t,
             rgb: &raw.rgb,
@@ -113,7 +170,14 @@ impl Io {
             camera: camera_pose,
             odometry: Some(odometry),
         }) {
-            Ok(r) => runner.last = Some(r),
+            Ok(r) => {
+                runner.last = Some(r);
+                if r.state != TrackState::Lost {
+                    let map = Pose2::from(optimise::to_planar(&r.pose));
+                    self.sense
+                        .offer_correction(map.compose(&Pose2::from(odometry).inverse()));
+                }
+            }
             Err(e) => runner.error = Some(e.to_string()),
         }
     }
@@ -159,6 +223,7 @@ impl Robot {
             Some(m) => Slam::with_map(settings, k, m)?,
             None => Slam::new(settings, k, optimise::planar(start))?,
         };
+        io.sense.forget_slam();
         io.slam = Some(SlamRunner {
             slam,
             frames,
@@ -171,7 +236,9 @@ impl Robot {
 
     /// Stops SLAM; its map is returned.
     pub fn stop_slam(&self) -> Option<Map> {
-        self.lock_io().slam.take().map(|r| r.slam.map().clone())
+        let mut io = self.lock_io();
+        io.sense.forget_slam();
+        io.slam.take().map(|r| r.slam.map().clone())
     }
 
     /// SLAM's latest report (the base's pose in the map and how it was found); `None` before

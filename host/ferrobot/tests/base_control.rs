@@ -27,6 +27,7 @@ fn reaches(robot: &str, controller: BaseController, smooth: bool) {
             close_loop: true,
             obstacles: vec![],
             map: None,
+            ..Default::default()
         };
         bot.base()
             .expect("base")
@@ -216,6 +217,7 @@ fn a_bumper_hit_stops_lqr_tracking_with_an_error() {
         close_loop: true,
         obstacles: vec![],
         map: None,
+        ..Default::default()
     };
     let e = bot
         .base()
@@ -277,12 +279,12 @@ fn implausible_odometry_geometry_is_refused() {
 }
 
 /// A wall across the way with a door off to the side, given as an occupancy-grid map (5 cm
-/// cells) and built from posts in the simulated world: the dynamic window, told only the map,
+/// cells) and built from posts in the simulated world: the navigator, told only the map,
 /// drives through the door to the goal behind the wall without touching it (the simulated
 /// bumper would abort the motion) and ends within 2 cm and 2°. A goal inside the wall and a
 /// malformed map are refused before anything moves.
 #[test]
-fn dwa_drives_through_a_door_in_a_map_on_both_bases() {
+fn the_navigator_drives_through_a_door_in_a_map_on_both_bases() {
     use ferrobot::base_control::OccupancyGrid;
     // Posts of 5 cm radius every 7 cm along x = 1 m, for y in [-1.5, 1.5] m, except the door
     // at y in (0.3, 1.1) m.
@@ -323,7 +325,13 @@ fn dwa_drives_through_a_door_in_a_map_on_both_bases() {
             .expect("base")
             .go_to_absolute_with([1.0, -1.0, 0.0], opts)
             .expect_err("inside the wall");
-        assert!(matches!(e, Error::Unreachable { .. }), "{robot}: {e}");
+        assert!(
+            matches!(
+                e,
+                Error::Navigation(ferrobot::nav::Error::Blocked { what: "goal", .. })
+            ),
+            "{robot}: {e}"
+        );
     }
     let mut bad = map.clone();
     bad.occupied.truncate(10);

@@ -2,11 +2,12 @@
 //! one clearance query ([`obstacles`]), maps on disk in ROS map_server's format ([`map_file`]),
 //! a global planner on the grid ([`global`]), the navigator that reaches a goal on a map with
 //! live obstacles, re-planning and recovery ([`navigator`]), the navigation field and the
-//! dynamic window approach ([`field`]).
+//! dynamic window approach ([`field`]), frontiers for exploration ([`frontier`]).
 #![warn(missing_docs)]
 
 pub mod error;
 pub mod field;
+pub mod frontier;
 pub mod global;
 pub mod map_file;
 pub mod navigator;
@@ -14,6 +15,7 @@ pub mod obstacles;
 
 pub use error::{Error, Result};
 pub use field::{Dwa, NavField};
+pub use frontier::{frontiers, Frontier, FrontierSettings};
 pub use global::{GlobalPath, GlobalPlanner, GridAStar};
 pub use map_file::{Cell, MapImage};
 pub use navigator::{NavCommand, NavSettings, Navigator, Scan};

@@ -14,8 +14,8 @@
 //! - **Recovery.** When the way to the goal does not shorten by [`PROGRESS_STEP`] within
 //!   [`NavSettings::stall_time`], the base backs up (where the way behind is free) or turns a
 //!   full circle in place (which lets the camera see all round), in turn, then plans again; after
-//!   [`NavSettings::max_recoveries`] without progress the goal fails with
-//!   [`Error::Stalled`]. A goal no path reaches fails with [`Error::NoPath`] once the live
+//!   [`NavSettings::max_recoveries`] in a row (a row ends when the base gets
+//!   [`STREAK_DISTANCE`] from where it began) the goal fails with [`Error::Stalled`]. A goal no path reaches fails with [`Error::NoPath`] once the live
 //!   base has turned all round (so the camera has looked again at what it remembers: what has gone is cleared) and it still has none.
 //!
 //! Why not the dynamic window here: sampled arcs scored against a path cut corners with the
@@ -33,6 +33,11 @@ use crate::obstacles::{Obstacles, OccupancyGrid};
 
 /// Progress that counts, m: the way left to the goal must shorten by this much.
 pub const PROGRESS_STEP: f64 = 0.05;
+
+/// A streak of recoveries ends when the base gets this far from where it began, m.
+pub const STREAK_DISTANCE: f64 = 0.5;
+/// A recovery may take this much longer than it should before it is cut short, s.
+pub const RECOVERY_SLACK: f64 = 3.0;
 
 /// How a [`Navigator`] drives.
 #[derive(Debug, Clone, PartialEq)]
@@ -172,6 +177,10 @@ pub struct Navigator {
     progress: (f64, f64),
     recovering: Option<Recovery>,
     recoveries: u32,
+    /// Where the present streak of recoveries began, m.
+    streak_from: Option<[f64; 2]>,
+    /// When the recovery under way must end, s.
+    recovery_until: f64,
     /// Whether the base has turned all round since the last successful plan.
     looked_round: bool,
     last: (f64, f64),
@@ -212,6 +221,8 @@ impl Navigator {
             progress: (f64::INFINITY, 0.0),
             recovering: None,
             recoveries: 0,
+            streak_from: None,
+            recovery_until: 0.0,
             looked_round: false,
             last: (0.0, 0.0),
             stepped: None,
@@ -459,8 +470,17 @@ impl Navigator {
         if self.progress.0.is_infinite() {
             self.progress.1 = now;
         }
+        // A streak of recoveries ends once the base has got well away from where it began (as
+        // move_base's oscillation distance): backing up and coming back is no way out.
+        if self
+            .streak_from
+            .is_some_and(|p| dist(p, at) >= STREAK_DISTANCE)
+        {
+            self.streak_from = None;
+            self.recoveries = 0;
+        }
         if let Some(r) = self.recovering {
-            if let Some(u) = self.recover(r, x) {
+            if let Some(u) = self.recover(r, x, now) {
                 return Ok(self.send(u));
             }
             self.recovering = None;
@@ -482,8 +502,8 @@ impl Navigator {
                         turned: 0.0,
                         last: x[2],
                     };
-                    self.recovering = Some(r);
-                    if let Some(u) = self.recover(r, x) {
+                    self.start_recovery(r, now);
+                    if let Some(u) = self.recover(r, x, now) {
                         return Ok(self.send(u));
                     }
                 }
@@ -493,7 +513,6 @@ impl Navigator {
         let left = self.way_left(at);
         if left < self.progress.0 - PROGRESS_STEP {
             self.progress = (left, now);
-            self.recoveries = 0;
         } else if now - self.progress.1 > self.s.stall_time {
             if self.recoveries >= self.s.max_recoveries {
                 return Err(Error::Stalled {
@@ -503,6 +522,7 @@ impl Navigator {
                 });
             }
             self.recoveries += 1;
+            self.streak_from.get_or_insert(at);
             self.progress = (left, now);
             // Back up first when the way behind is clear, then turn all round, in turn.
             let r = if self.recoveries % 2 == 1 && self.arc_is_clear(x, -0.1, 0.0) {
@@ -513,8 +533,8 @@ impl Navigator {
                     last: x[2],
                 }
             };
-            self.recovering = Some(r);
-            if let Some(u) = self.recover(r, x) {
+            self.start_recovery(r, now);
+            if let Some(u) = self.recover(r, x, now) {
                 return Ok(self.send(u));
             }
         }
@@ -535,8 +555,23 @@ impl Navigator {
         NavCommand::Drive(u.0, u.1)
     }
 
-    /// The recovery's next command, `None` once it is done.
-    fn recover(&mut self, r: Recovery, x: [f64; 3]) -> Option<(f64, f64)> {
+    /// Starts recovery `r` at `now`: it gets as long as it should take and
+    /// [`RECOVERY_SLACK`] more (a base that cannot move does not hold it for ever).
+    fn start_recovery(&mut self, r: Recovery, now: f64) {
+        let l = &self.s.limits;
+        let takes = match r {
+            Recovery::BackUp { .. } => self.s.backup / 0.1f64.min(l.v),
+            Recovery::Turn { .. } => 2.0 * std::f64::consts::PI / l.w,
+        };
+        self.recovering = Some(r);
+        self.recovery_until = now + takes + RECOVERY_SLACK;
+    }
+
+    /// The recovery's next command at `now`, `None` once it is done.
+    fn recover(&mut self, r: Recovery, x: [f64; 3], now: f64) -> Option<(f64, f64)> {
+        if now >= self.recovery_until {
+            return None;
+        }
         match r {
             Recovery::BackUp { from } => {
                 let gone = dist(from, [x[0], x[1]]);
@@ -544,9 +579,11 @@ impl Navigator {
                 (gone < self.s.backup && self.arc_is_clear(x, u.0, 0.0)).then_some(u)
             }
             Recovery::Turn { turned, last } => {
-                let turned = turned + wrap(x[2] - last).abs();
+                // Signed: a pose's jitter cancels out.
+                let turned = turned + wrap(x[2] - last);
                 self.recovering = Some(Recovery::Turn { turned, last: x[2] });
-                (turned < 2.0 * std::f64::consts::PI).then(|| self.limited(0.0, self.s.limits.w))
+                (turned.abs() < 2.0 * std::f64::consts::PI)
+                    .then(|| self.limited(0.0, self.s.limits.w))
             }
         }
     }

@@ -251,6 +251,82 @@ pub fn map_iou(estimate: &MapImage, truth: &MapImage, slack: usize) -> Result<Ma
     Ok(MapIou {
         free: ratio(fi, fu),
         occupied: ratio(oi, ou),
+        cells: ratio(fi + oi, fu + ou),
+    })
+}
+
+/// The part of a ground-truth map that a robot starting at `from` (m) can map: the free cells
+/// joined to its cell through free cells (8-connected) and the occupied cells within one cell
+/// of them (the surfaces it can see); the rest is unknown: the inside of furniture and walls,
+/// and what lies beyond the outer walls. An error when `from` is outside the map or not on a
+/// free cell.
+pub fn reachable_part(truth: &MapImage, from: [f64; 2]) -> Result<MapImage> {
+    truth.check().map_err(|e| Error::Trajectory {
+        why: format!("ground-truth map: {e}"),
+    })?;
+    let r = truth.resolution;
+    let (w, h) = (truth.width, truth.height);
+    let i = ((from[0] - truth.origin[0]) / r).floor();
+    let j = ((from[1] - truth.origin[1]) / r).floor();
+    if !(i >= 0.0 && j >= 0.0 && i < w as f64 && j < h as f64) {
+        return Err(Error::Trajectory {
+            why: format!("the start {from:?} m is outside the map"),
+        });
+    }
+    let start = (i as usize, j as usize);
+    if truth.cells[start.1 * w + start.0] != Cell::Free {
+        return Err(Error::Trajectory {
+            why: format!("the start {from:?} m is not on a free cell"),
+        });
+    }
+    let mut reached = vec![false; w * h];
+    reached[start.1 * w + start.0] = true;
+    let mut queue = std::collections::VecDeque::from([start]);
+    while let Some((a, b)) = queue.pop_front() {
+        for di in -1i64..=1 {
+            for dj in -1i64..=1 {
+                let (x, y) = (a as i64 + di, b as i64 + dj);
+                if x < 0 || y < 0 || x as usize >= w || y as usize >= h {
+                    continue;
+                }
+                let k = y as usize * w + x as usize;
+                if !reached[k] && truth.cells[k] == Cell::Free {
+                    reached[k] = true;
+                    queue.push_back((x as usize, y as usize));
+                }
+            }
+        }
+    }
+    let mut cells = vec![Cell::Unknown; w * h];
+    for b in 0..h {
+        for a in 0..w {
+            let k = b * w + a;
+            cells[k] = match truth.cells[k] {
+                Cell::Free if reached[k] => Cell::Free,
+                Cell::Occupied => {
+                    let seen = (-1i64..=1).any(|di| {
+                        (-1i64..=1).any(|dj| {
+                            let (x, y) = (a as i64 + di, b as i64 + dj);
+                            x >= 0
+                                && y >= 0
+                                && (x as usize) < w
+                                && (y as usize) < h
+                                && reached[y as usize * w + x as usize]
+                        })
+                    });
+                    if seen {
+                        Cell::Occupied
+                    } else {
+                        Cell::Unknown
+                    }
+                }
+                _ => Cell::Unknown,
+            };
+        }
+    }
+    Ok(MapImage {
+        cells,
+        ..truth.clone()
     })
 }
 
@@ -261,4 +337,7 @@ pub struct MapIou {
     pub free: f64,
     /// Intersection over union of the occupied cells, within the slack.
     pub occupied: f64,
+    /// Cells labelled alike (free, or occupied within the slack) over cells either map labels
+    /// free or occupied: the two classes together.
+    pub cells: f64,
 }

@@ -193,6 +193,8 @@ pub struct Slam {
     /// Per landmark, the last search that considered it (to visit each once per search).
     stamp: Vec<usize>,
     searches: usize,
+    /// The next tracked frame becomes a keyframe.
+    keyframe_wanted: bool,
 }
 
 impl Slam {
@@ -233,6 +235,7 @@ impl Slam {
             frames: 0,
             stamp: Vec::new(),
             searches: 0,
+            keyframe_wanted: false,
             frames_log: Vec::new(),
             localising: false,
         })
@@ -447,8 +450,10 @@ impl Slam {
                 || moved > self.settings.keyframe_distance
                 || turned > self.settings.keyframe_angle
                 || (kept.len() < self.last_keyframe_inliers * 6 / 10)
+                || self.keyframe_wanted
             {
                 keyframe = true;
+                self.keyframe_wanted = false;
                 if loop_due {
                     loop_closed = self.close_loop(input, &feats, &kept);
                 }
@@ -464,6 +469,12 @@ impl Slam {
             keyframe,
             loop_closed,
         })
+    }
+
+    /// Makes the next tracked frame a keyframe (its view enters the maps), however little the
+    /// camera has moved: an explorer that stopped to look at something asks for this.
+    pub fn request_keyframe(&mut self) {
+        self.keyframe_wanted = true;
     }
 
     /// Records the latest pose relative to the newest keyframe.

@@ -8,13 +8,15 @@
 //! when no path leaves the robot's place (stuck against an obstacle), the goals left are
 //! missed too.
 //!
-//! The goals are given in the odometry's frame, which starts at the scene's start pose: the
-//! floor plan is resampled into that frame. The odometry's drift is not corrected (SLAM does
-//! not steer the base yet), so a long run on a drifting base misses by its drift.
+//! With `--localise slam` (the default) SLAM runs beside the robot from the true start pose, so
+//! its map's frame is the floor plan's: goals and map are given in it and the base steers by
+//! SLAM's pose. With `--localise odometry` the goals are given in the odometry's frame, which
+//! starts at the scene's start pose (the floor plan is resampled into it), and the odometry's
+//! drift is not corrected.
 
 use ferrobot::nav::{GlobalPlanner, GridAStar, MapImage, Obstacles, OccupancyGrid};
 use ferrobot::slam::optimise::{planar, to_planar};
-use ferrobot::{Backend, GoalOptions};
+use ferrobot::{Backend, GoalOptions, Source};
 use ferrobot_sim::floor_plan::OBSTACLE_BAND;
 use nalgebra::Point3;
 use serde::Serialize;
@@ -39,6 +41,8 @@ struct Median {
 #[derive(Serialize)]
 struct NavJson {
     bumper_hits: usize,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    exploration: Option<ExploreJson>,
     goals: usize,
     path_length_ratio: Median,
     success_rate: f64,
@@ -103,18 +107,126 @@ fn resample(world: &OccupancyGrid, frame: [f64; 3]) -> ferrobot::Result<Occupanc
     Ok(g)
 }
 
+/// What `bench nav` is asked.
+pub struct NavArgs<'a> {
+    /// Robot name or configuration path.
+    pub robot: &'a str,
+    /// Scene name or path.
+    pub scene: &'a str,
+    /// Goals.
+    pub goals: usize,
+    /// Seed of the goals and the plants.
+    pub seed: u64,
+    /// `slam` or `odometry`.
+    pub localise: &'a str,
+    /// One line per goal on standard error.
+    pub trace: bool,
+    /// Explore first, then drive on SLAM's map.
+    pub explore: bool,
+    /// Where to write the explored map (`map.yaml`, `map.png`) and its picture.
+    pub out: Option<&'a std::path::Path>,
+    /// JSON out.
+    pub json: bool,
+}
+
+/// `bench nav --explore --json`'s `exploration`: how exploring went and how good its map is
+/// against the part of the floor plan the robot can reach and see
+/// ([`ferrobot::slam::reachable_part`]): intersection over union of free cells, of occupied
+/// cells (within one cell), and of both.
+#[derive(Serialize)]
+struct ExploreJson {
+    bumper_hits: usize,
+    distance_m: f64,
+    occupancy_iou: f64,
+    occupancy_iou_free: f64,
+    occupancy_iou_occupied: f64,
+    time_s: f64,
+}
+
+/// Explores with SLAM until no frontier is left; measures the map against the reachable part
+/// of the floor plan; writes the map when asked.
+fn explore(
+    bot: &ferrobot::Robot,
+    plan: &MapImage,
+    start: [f64; 3],
+    out: Option<&std::path::Path>,
+    trace: bool,
+) -> ferrobot::Result<ExploreJson> {
+    let base = bot.base()?;
+    let t0 = bot.time();
+    let mut motion = base.explore_async()?;
+    let mut travelled = 0.0;
+    let mut last = truth(bot)?;
+    let result = loop {
+        if motion.poll().is_some() {
+            break motion.wait();
+        }
+        let now = truth(bot)?;
+        travelled += (now[0] - last[0]).hypot(now[1] - last[1]);
+        last = now;
+    };
+    let time = bot.time() - t0;
+    if trace {
+        eprintln!(
+            "exploration: {result:?} after {time:.1} s, {travelled:.1} m, truly at {:.3?}, SLAM says {:.3?}",
+            truth(bot)?,
+            base.get_state_from(ferrobot::Source::Slam).ok()
+        );
+    }
+    result?;
+    let bumps = bot
+        .take_faults()
+        .iter()
+        .filter(|f| f.kind == ferrobot_protocol::FaultKind::Bumper)
+        .count();
+    let map = bot
+        .slam_occupancy_map()?
+        .ok_or_else(|| ferrobot::Error::Usage("exploration mapped nothing".into()))?;
+    let truth_part = ferrobot::slam::reachable_part(plan, [start[0], start[1]])?;
+    let iou = ferrobot::slam::map_iou(&map, &truth_part, 1)?;
+    if let Some(dir) = out {
+        std::fs::create_dir_all(dir)
+            .map_err(|e| ferrobot::Error::Usage(format!("cannot make {}: {e}", dir.display())))?;
+        map.save(&dir.join("map.yaml"))?;
+        truth_part.save(&dir.join("truth.yaml"))?;
+    }
+    Ok(ExploreJson {
+        bumper_hits: bumps,
+        distance_m: travelled,
+        occupancy_iou: iou.cells,
+        occupancy_iou_free: iou.free,
+        occupancy_iou_occupied: iou.occupied,
+        time_s: time,
+    })
+}
+
 /// Drive to the goals and print the figures.
-pub fn run(robot: &str, scene: &str, goals: usize, seed: u64, json: bool) -> ferrobot::Result<()> {
+pub fn run(a: &NavArgs<'_>) -> ferrobot::Result<()> {
+    let (robot, scene, goals, seed, json) = (a.robot, a.scene, a.goals, a.seed, a.json);
     if !(1..=10_000).contains(&goals) {
         return Err(ferrobot::Error::Usage(format!(
             "--goals {goals}: ask for 1-10000"
         )));
     }
+    let slam = match a.localise {
+        "slam" => true,
+        "odometry" if a.explore => {
+            return Err(ferrobot::Error::Usage(
+                "--explore needs --localise slam: exploration maps with SLAM".into(),
+            ))
+        }
+        "odometry" => false,
+        other => {
+            return Err(ferrobot::Error::Usage(format!(
+                "--localise {other}: say slam or odometry"
+            )))
+        }
+    };
     let b = super::common::robot_builder(robot);
     let bot = b
         .scene(scene)
         .use_arm(false)
-        .use_camera(false)
+        .use_camera(slam)
         .backend(Backend::Sim {
             seed,
             realtime: false,
@@ -127,22 +239,44 @@ pub fn run(robot: &str, scene: &str, goals: usize, seed: u64, json: bool) -> fer
         .as_ref()
         .map_or(0.2, |b| b.footprint_radius);
     let plan = bot.scene().floor_plan(0.02, OBSTACLE_BAND, false)?;
-    let world = MapImage::from_occupied(
+    let plan_image = MapImage::from_occupied(
         plan.origin,
         plan.resolution,
         plan.width,
         plan.height,
         &plan.occupied,
-    )
-    .to_grid(true)?;
+    );
+    let world = plan_image.to_grid(true)?;
     let clear = Obstacles::new(Vec::new(), Some(&world))?;
-    // The odometry's frame in the world: the start pose (the odometry reads zero there).
     let start = truth(&bot)?;
-    let odo0 = base.get_state()?;
-    let frame = to_planar(&(planar(start) * planar(odo0).inverse()));
-    let grid = resample(&world, frame)?;
+    // The frame of the goals and the map: with SLAM, the floor plan's own (SLAM starts at the
+    // true start); without, the odometry's, which reads zero at the start.
+    let frame = if slam {
+        // The camera looks down a little, at the floor ahead and what stands on it.
+        bot.head()?.set_pan_tilt(0.0, 0.45)?;
+        bot.start_slam(start, None)?;
+        // Its first frames: a pose and a first keyframe.
+        bot.wait(0.5)?;
+        [0.0, 0.0, 0.0]
+    } else {
+        let odo0 = base.get_state()?;
+        to_planar(&(planar(start) * planar(odo0).inverse()))
+    };
+    let exploration = if a.explore {
+        Some(explore(&bot, &plan_image, start, a.out, a.trace)?)
+    } else {
+        None
+    };
+    let grid = if slam {
+        world.clone()
+    } else {
+        resample(&world, frame)?
+    };
+    // After exploring, the base plans on SLAM's own map, refreshed as it goes.
     let opts = GoalOptions {
-        map: Some(grid),
+        map: (!a.explore).then_some(grid),
+        use_map: a.explore,
+        frame: if slam { Source::Slam } else { Source::Odometry },
         ..Default::default()
     };
     let mut rng = Rng(seed ^ 0x6E61_765F_6265_6E63);
@@ -177,11 +311,22 @@ pub fn run(robot: &str, scene: &str, goals: usize, seed: u64, json: bool) -> fer
         let mut travelled = 0.0;
         let mut last = here;
         // A goal refused at once (the base's place seen as blocked on a drifted map) is a miss.
-        let Ok(mut motion) = base.go_to_absolute_with(go, opts.clone()) else {
-            continue;
+        let mut motion = match base.go_to_absolute_with(go, opts.clone()) {
+            Ok(m) => m,
+            Err(e) => {
+                if a.trace {
+                    eprintln!("goal {g:.2?} from {here:.2?}: refused: {e}");
+                }
+                continue;
+            }
         };
         let result = loop {
             if let Some(r) = motion.poll() {
+                if a.trace {
+                    if let Err(e) = &r {
+                        eprintln!("goal {g:.2?} from {here:.2?}: {e}");
+                    }
+                }
                 break r.is_ok();
             }
             let now = truth(&bot)?;
@@ -196,7 +341,15 @@ pub fn run(robot: &str, scene: &str, goals: usize, seed: u64, json: bool) -> fer
             .filter(|f| f.kind == ferrobot_protocol::FaultKind::Bumper)
             .count();
         hits += bumped;
-        let reached = (now[0] - g[0]).hypot(now[1] - g[1]) <= GOAL_TOLERANCE;
+        let miss = (now[0] - g[0]).hypot(now[1] - g[1]);
+        let reached = miss <= GOAL_TOLERANCE;
+        if a.trace {
+            eprintln!(
+                "goal {g:.2?} from {here:.2?}: {} {miss:.3} m off, {bumped} bumps, {:.1} s, {travelled:.2} m for {shortest:.2} m",
+                if result { "ok" } else { "failed" },
+                bot.time() - t0
+            );
+        }
         if result && reached && bumped == 0 {
             ok += 1;
             ratios.push(travelled / shortest);
@@ -207,7 +360,8 @@ pub fn run(robot: &str, scene: &str, goals: usize, seed: u64, json: bool) -> fer
         }
     }
     let out = NavJson {
-        bumper_hits: hits,
+        bumper_hits: hits + exploration.as_ref().map_or(0, |e| e.bumper_hits),
+        exploration,
         goals,
         path_length_ratio: Median {
             median: median(ratios),

@@ -1,0 +1,415 @@
+//! Goals on a map: the base driven by [`ferrobot_nav::Navigator`] (global plan, path
+//! following, live obstacles from the depth camera, re-planning, recovery), steered by SLAM's
+//! pose when the goal is in SLAM's map. The last few centimetres and the goal's heading are the
+//! proportional controller's, in the odometry's frame.
+//!
+//! Exploration ([`ExploreGoal`]): look all round, then again and again drive to the nearest
+//! frontier of SLAM's growing map ([`ferrobot_nav::frontiers`]) and face it, until no frontier
+//! the base can reach is left. A frontier seen from afar on the way is given up for the next;
+//! one the navigator cannot reach is marked failed and not offered again.
+
+use std::time::Duration;
+
+use ferrobot_geometry::Pose2;
+use ferrobot_nav::{
+    frontiers, Frontier, FrontierSettings, MapImage, NavCommand, NavSettings, Navigator,
+    OccupancyGrid,
+};
+
+use crate::base::BaseGoal;
+use crate::error::{Error, Result};
+use crate::motion::{Goal, Step};
+
+/// How long a SLAM-steered goal may go without a SLAM pose before it fails.
+pub const SLAM_PATIENCE: Duration = Duration::from_secs(10);
+
+/// A position goal on a map.
+pub(crate) struct NavGoal {
+    pub(crate) nav: Navigator,
+    /// The goal `[x, y, θ]` in the map's frame.
+    pub(crate) goal: [f64; 3],
+    /// Whether poses come through SLAM's correction (the map is SLAM's).
+    pub(crate) slam: bool,
+    /// Whether the map is SLAM's growing occupancy grid (refreshed as it grows).
+    pub(crate) slam_grid: bool,
+    /// Round obstacles stamped into every map, `[x, y, r]` m.
+    pub(crate) circles: Vec<[f64; 3]>,
+    /// Whether the camera's obstacle scans are used.
+    pub(crate) scans: bool,
+    /// The last scan and grid taken in.
+    pub(crate) seen: (u64, u64),
+    /// The heading stage, once the position is reached (its goal in the odometry's frame).
+    pub(crate) finish: BaseGoal,
+    pub(crate) finishing: bool,
+    /// Since when SLAM has had no pose.
+    pub(crate) lost_since: Option<Duration>,
+    pub(crate) hold_ms: u16,
+}
+
+impl NavGoal {
+    /// The settings for a base of `radius` m under `limits`.
+    pub(crate) fn settings(
+        radius: f64,
+        limits: ferrobot_control::trajectory::Limits,
+    ) -> NavSettings {
+        NavSettings::new(radius, limits)
+    }
+
+    /// `grid` with the round obstacles stamped in.
+    pub(crate) fn stamped(grid: &OccupancyGrid, circles: &[[f64; 3]]) -> OccupancyGrid {
+        let mut g = grid.clone();
+        for &c in circles {
+            g.fill_circle(c);
+        }
+        g
+    }
+
+    fn drive(&mut self, s: &mut Step<'_>, v: f64, w: f64) -> Option<Result<()>> {
+        if s.base_log.last().map(|l| (l.1, l.2)) != Some((v, w)) {
+            s.base_log.push((s.now.as_secs_f64(), v, w));
+        }
+        crate::base::send_base_velocity(s.link, v, w, self.hold_ms)
+    }
+}
+
+impl Goal for NavGoal {
+    fn claim(&self) -> crate::motion::Claim {
+        crate::base::BASE
+    }
+
+    fn wants_scans(&self) -> bool {
+        self.scans && !self.finishing
+    }
+
+    fn wants_grid(&self) -> bool {
+        self.slam_grid && !self.finishing
+    }
+
+    fn step(&mut self, s: &mut Step<'_>) -> Option<Result<()>> {
+        let o = s.telemetry.odometry;
+        let odometry = [o.x as f64, o.y as f64, o.theta as f64];
+        if self.finishing {
+            return match self.finish.step_inner(s.now, s.telemetry) {
+                Some((v, w)) => self.drive(s, v, w),
+                None => {
+                    crate::base::stop_base(s.link);
+                    Some(Ok(()))
+                }
+            };
+        }
+        let Some(pose) = s.sense.in_map(odometry, self.slam) else {
+            // No SLAM pose: stand still and wait for one.
+            let since = *self.lost_since.get_or_insert(s.now);
+            if s.now.saturating_sub(since) > SLAM_PATIENCE {
+                crate::base::stop_base(s.link);
+                return Some(Err(Error::Usage(format!(
+                    "SLAM has had no pose for {SLAM_PATIENCE:?}: the goal in its map cannot be steered to"
+                ))));
+            }
+            return self.drive(s, 0.0, 0.0);
+        };
+        self.lost_since = None;
+        if self.slam_grid {
+            if let Some((n, g)) = &s.sense.grid {
+                if *n != self.seen.1 {
+                    self.seen.1 = *n;
+                    let set = g
+                        .to_grid(false)
+                        .and_then(|g| self.nav.set_map(&Self::stamped(&g, &self.circles)));
+                    if let Err(e) = set {
+                        return Some(Err(e.into()));
+                    }
+                }
+            }
+        }
+        if self.scans {
+            if let Some((n, t, scan)) = &s.sense.scan {
+                if *n != self.seen.0 {
+                    self.seen.0 = *n;
+                    // A scan in the map's frame; one that cannot be taken in is skipped.
+                    let _ = self.nav.observe(*t, scan);
+                }
+            }
+        }
+        match self.nav.step(s.now.as_secs_f64(), pose.to_array()) {
+            Ok(NavCommand::Drive(v, w)) => self.drive(s, v, w),
+            Ok(NavCommand::Arrived) => {
+                // The last stretch and the heading in the odometry's frame, where the wheels
+                // are: the goal carried there by the present correction.
+                let to_odom = pose.compose(&Pose2::from(odometry).inverse()).inverse();
+                self.finish
+                    .retarget(to_odom.compose(&Pose2::from(self.goal)).to_array(), s.now);
+                self.finishing = true;
+                self.step(s)
+            }
+            Err(e) => {
+                crate::base::stop_base(s.link);
+                Some(Err(e.into()))
+            }
+        }
+    }
+
+    fn halt(&mut self, link: &mut dyn crate::backend::Link) {
+        crate::base::stop_base(link);
+    }
+}
+
+/// Turning speed while looking about, rad/s: slow enough for SLAM to track (a degree a frame
+/// at 30 frames a second).
+const LOOK_RATE: f64 = 0.4;
+/// Largest number of frontiers visited before exploration stops.
+pub const MAX_FRONTIERS: usize = 200;
+
+/// What exploration is doing.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Explore {
+    /// Turning all round where it stands: `turned` rad so far, the heading last seen.
+    Look { turned: f64, last: f64 },
+    /// Waiting for a grid newer than this, then choosing the nearest frontier.
+    Choose { after: u64 },
+    /// Driving to a frontier's view point.
+    Go,
+    /// Turning to face the frontier (rad).
+    Face { heading: f64 },
+}
+
+/// Frontier-based exploration on SLAM's growing map (see [`crate::Base::explore`]).
+pub(crate) struct ExploreGoal {
+    pub(crate) settings: NavSettings,
+    pub(crate) frontier: FrontierSettings,
+    state: Explore,
+    nav: Option<Navigator>,
+    target: Option<Frontier>,
+    seen: (u64, u64),
+    visited: usize,
+    /// Frontiers looked at: their centroid and how often.
+    looked: Vec<([f64; 2], u32)>,
+    last: (f64, f64),
+    lost_since: Option<Duration>,
+}
+
+impl ExploreGoal {
+    pub(crate) fn new(settings: NavSettings, frontier: FrontierSettings) -> Self {
+        ExploreGoal {
+            settings,
+            frontier,
+            state: Explore::Look {
+                turned: 0.0,
+                last: f64::NAN,
+            },
+            nav: None,
+            target: None,
+            seen: (0, 0),
+            visited: 0,
+            looked: Vec::new(),
+            last: (0.0, 0.0),
+            lost_since: None,
+        }
+    }
+
+    /// `(v, ω)` under the limits' accelerations from the last command, sent.
+    fn send(&mut self, s: &mut Step<'_>, v: f64, w: f64) -> Option<Result<()>> {
+        let l = &self.settings.limits;
+        let dt = BASE_PERIOD;
+        let v = self.last.0 + (v - self.last.0).clamp(-l.accel_v * dt, l.accel_v * dt);
+        let w = self.last.1 + (w - self.last.1).clamp(-l.accel_w * dt, l.accel_w * dt);
+        self.last = (v, w);
+        if s.base_log.last().map(|l| (l.1, l.2)) != Some((v, w)) {
+            s.base_log.push((s.now.as_secs_f64(), v, w));
+        }
+        crate::base::send_base_velocity(s.link, v, w, 250)
+    }
+
+    /// The nearest frontier on `map` from `at`, with a navigator to its view point; `None`
+    /// when no frontier is left. Frontiers whose view point the navigator refuses are marked
+    /// failed and the next is taken.
+    fn choose(&mut self, map: &MapImage, at: [f64; 2]) -> Result<Option<(Frontier, Navigator)>> {
+        let grid = map.to_grid(false)?;
+        loop {
+            let Some(f) = frontiers(map, at, &self.frontier)?.into_iter().next() else {
+                return Ok(None);
+            };
+            match Navigator::new(&grid, f.view_point, self.settings.clone()) {
+                Ok(n) => return Ok(Some((f, n))),
+                Err(_) => self.frontier.failed.push(f.view_point),
+            }
+        }
+    }
+}
+
+/// The period of exploration's own turning commands, s.
+const BASE_PERIOD: f64 = 0.05;
+
+impl Goal for ExploreGoal {
+    fn claim(&self) -> crate::motion::Claim {
+        crate::base::BASE
+    }
+
+    fn wants_scans(&self) -> bool {
+        true
+    }
+
+    fn wants_grid(&self) -> bool {
+        true
+    }
+
+    fn step(&mut self, s: &mut Step<'_>) -> Option<Result<()>> {
+        let o = s.telemetry.odometry;
+        let odometry = [o.x as f64, o.y as f64, o.theta as f64];
+        let Some(pose) = s.sense.in_map(odometry, true) else {
+            let since = *self.lost_since.get_or_insert(s.now);
+            if s.now.saturating_sub(since) > SLAM_PATIENCE {
+                crate::base::stop_base(s.link);
+                return Some(Err(Error::Usage(format!(
+                    "SLAM has had no pose for {SLAM_PATIENCE:?}: exploration cannot go on"
+                ))));
+            }
+            return self.send(s, 0.0, 0.0);
+        };
+        self.lost_since = None;
+        let x = pose.to_array();
+        let now = s.now.as_secs_f64();
+        // What the camera sees goes to the navigator under way.
+        if let (Some(nav), Some((n, t, scan))) = (self.nav.as_mut(), &s.sense.scan) {
+            if *n != self.seen.0 {
+                self.seen.0 = *n;
+                let _ = nav.observe(*t, scan);
+            }
+        }
+        match self.state {
+            Explore::Look { turned, last } => {
+                // Signed: the pose's jitter cancels out.
+                let turned = if last.is_nan() {
+                    0.0
+                } else {
+                    turned + ferrobot_geometry::wrap(x[2] - last)
+                };
+                if turned.abs() >= 2.0 * std::f64::consts::PI {
+                    self.state = Explore::Choose {
+                        after: s.sense.grid.as_ref().map_or(0, |g| g.0),
+                    };
+                    return self.send(s, 0.0, 0.0);
+                }
+                self.state = Explore::Look { turned, last: x[2] };
+                self.send(s, 0.0, LOOK_RATE.min(self.settings.limits.w))
+            }
+            Explore::Choose { after } => {
+                let Some((n, map)) = s.sense.grid.as_ref().filter(|g| g.0 > after) else {
+                    return self.send(s, 0.0, 0.0);
+                };
+                self.seen.1 = *n;
+                let map = map.clone();
+                if self.visited >= MAX_FRONTIERS {
+                    crate::base::stop_base(s.link);
+                    return Some(Ok(()));
+                }
+                match self.choose(&map, [x[0], x[1]]) {
+                    Ok(Some((f, nav))) => {
+                        self.target = Some(f);
+                        self.nav = Some(nav);
+                        self.state = Explore::Go;
+                        self.send(s, 0.0, 0.0)
+                    }
+                    // Nothing left to see: done.
+                    Ok(None) => {
+                        crate::base::stop_base(s.link);
+                        Some(Ok(()))
+                    }
+                    Err(e) => {
+                        crate::base::stop_base(s.link);
+                        Some(Err(e))
+                    }
+                }
+            }
+            Explore::Go => {
+                let (Some(nav), Some(target)) = (self.nav.as_mut(), self.target.clone()) else {
+                    self.state = Explore::Choose { after: 0 };
+                    return self.send(s, 0.0, 0.0);
+                };
+                // A newer map: follow it, and give the frontier up when it is seen already.
+                if let Some((n, map)) = &s.sense.grid {
+                    if *n != self.seen.1 {
+                        self.seen.1 = *n;
+                        let still = frontiers(map, [x[0], x[1]], &self.frontier)
+                            .map(|fs| {
+                                fs.iter().any(|f| {
+                                    (f.centroid[0] - target.centroid[0])
+                                        .hypot(f.centroid[1] - target.centroid[1])
+                                        < 0.5
+                                })
+                            })
+                            .unwrap_or(false);
+                        if !still {
+                            self.nav = None;
+                            self.state = Explore::Choose { after: *n - 1 };
+                            return self.send(s, 0.0, 0.0);
+                        }
+                        if let Ok(g) = map.to_grid(false) {
+                            let _ = nav.set_map(&g);
+                        }
+                    }
+                }
+                match nav.step(now, x) {
+                    Ok(NavCommand::Drive(v, w)) => {
+                        // The navigator limits its own commands.
+                        self.last = (v, w);
+                        if s.base_log.last().map(|l| (l.1, l.2)) != Some((v, w)) {
+                            s.base_log.push((now, v, w));
+                        }
+                        crate::base::send_base_velocity(s.link, v, w, 250)
+                    }
+                    Ok(NavCommand::Arrived) => {
+                        self.visited += 1;
+                        self.nav = None;
+                        self.state = Explore::Face {
+                            heading: target.heading,
+                        };
+                        self.send(s, 0.0, 0.0)
+                    }
+                    Err(_) => {
+                        // This frontier cannot be reached from here: the next one.
+                        self.frontier.failed.push(target.view_point);
+                        self.nav = None;
+                        self.state = Explore::Choose { after: 0 };
+                        self.send(s, 0.0, 0.0)
+                    }
+                }
+            }
+            Explore::Face { heading } => {
+                let e = ferrobot_geometry::wrap(heading - x[2]);
+                if e.abs() < 0.1 {
+                    // Looked: what the camera sees now enters the map. A frontier looked at
+                    // three times and still there (beyond what the camera can tell) is left.
+                    s.sense.want_keyframe.set(true);
+                    if let Some(t) = &self.target {
+                        self.frontier.failed.push(t.view_point);
+                        let c = t.centroid;
+                        match self
+                            .looked
+                            .iter_mut()
+                            .find(|(p, _)| (p[0] - c[0]).hypot(p[1] - c[1]) < 0.5)
+                        {
+                            Some((_, n)) => {
+                                *n += 1;
+                                if *n >= 3 {
+                                    self.frontier.done.push(c);
+                                }
+                            }
+                            None => self.looked.push((c, 1)),
+                        }
+                    }
+                    self.state = Explore::Choose {
+                        after: s.sense.grid.as_ref().map_or(0, |g| g.0),
+                    };
+                    return self.send(s, 0.0, 0.0);
+                }
+                let w = (1.5 * e).clamp(-LOOK_RATE, LOOK_RATE);
+                self.send(s, 0.0, w)
+            }
+        }
+    }
+
+    fn halt(&mut self, link: &mut dyn crate::backend::Link) {
+        crate::base::stop_base(link);
+    }
+}
