@@ -340,8 +340,9 @@ enum BenchCmd {
         /// "occupancy_iou_free", "occupancy_iou_occupied", "time_s"}`.
         #[arg(long)]
         explore: bool,
-        /// With --explore: write the explored map (`map.yaml`, `map.png`) and the part of the
-        /// floor plan it is judged against (`truth.yaml`, `truth.png`) here.
+        /// With --explore: write the explored map (`map.yaml`, `map.png`), the part of the
+        /// floor plan it is judged against (`truth.yaml`, `truth.png`) and a picture of the
+        /// map with the SLAM, true and wheel-odometry paths (`exploration.png`) here.
         #[arg(long)]
         out: Option<std::path::PathBuf>,
         /// Print one JSON object: `{"bumper_hits", "goals", "path_length_ratio": {"median"},

@@ -216,3 +216,58 @@ fn exploring_a_small_flat_maps_it_and_ends() {
     let iou = ferrobot::slam::map_iou(&map, &part, 1).expect("iou");
     assert!(iou.free > 0.8, "free IoU {:.3}", iou.free);
 }
+
+/// Goals in SLAM's map, SLAM's own map and exploration without SLAM running: typed errors at
+/// once, nothing moves; hostile maps and circles with a map are refused before any work.
+#[test]
+fn slam_goals_without_slam_and_hostile_maps_are_refused() {
+    let file = scene("refuse", "");
+    let bot = robot("locobot", &file);
+    let base = bot.base().expect("base");
+    for opts in [
+        GoalOptions {
+            map: Some(empty_map()),
+            frame: ferrobot::Source::Slam,
+            ..Default::default()
+        },
+        GoalOptions {
+            use_map: true,
+            ..Default::default()
+        },
+    ] {
+        let e = base
+            .go_to_absolute_with([1.0, 0.0, 0.0], opts)
+            .expect_err("no SLAM");
+        assert!(matches!(e, ferrobot::Error::Usage(_)), "{e}");
+    }
+    let e = base.explore_async().expect_err("no SLAM");
+    assert!(matches!(e, ferrobot::Error::Usage(_)), "{e}");
+    // A map whose cells do not match its shape, huge or non-finite circles.
+    let mut bad = empty_map();
+    bad.width = usize::MAX / 2;
+    let e = base
+        .go_to_absolute_with(
+            [1.0, 0.0, 0.0],
+            GoalOptions {
+                map: Some(bad),
+                ..Default::default()
+            },
+        )
+        .expect_err("bad map");
+    assert!(e.is_input(), "{e}");
+    for c in [[f64::NAN, 0.0, 0.1], [1.0, 1.0, 1e300], [1.0, 1.0, -1.0]] {
+        let e = base
+            .go_to_absolute_with(
+                [1.0, 0.0, 0.0],
+                GoalOptions {
+                    map: Some(empty_map()),
+                    obstacles: vec![c],
+                    ..Default::default()
+                },
+            )
+            .expect_err("bad circle");
+        assert!(e.is_input(), "{c:?}: {e}");
+    }
+    let odo = base.get_state().expect("odometry");
+    assert!(odo[0].abs() < 1e-3, "the base moved: {odo:?}");
+}

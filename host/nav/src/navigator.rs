@@ -34,6 +34,10 @@ use crate::obstacles::{Obstacles, OccupancyGrid};
 /// Progress that counts, m: the way left to the goal must shorten by this much.
 pub const PROGRESS_STEP: f64 = 0.05;
 
+/// Where the usual pursuit's arc would touch, the path is followed with the pursued point this
+/// near, m.
+const TIGHT_LOOKAHEAD: f64 = 0.12;
+
 /// A streak of recoveries ends when the base gets this far from where it began, m.
 pub const STREAK_DISTANCE: f64 = 0.5;
 /// A recovery may take this much longer than it should before it is cut short, s.
@@ -538,15 +542,20 @@ impl Navigator {
                 return Ok(self.send(u));
             }
         }
-        let u = self.pursue(x);
-        if self.arc_is_clear(x, u.0, u.1) {
-            return Ok(self.send(u));
+        // The path pursued as usual; where that arc would touch (it cuts a corner the path
+        // turns close by), the path followed tightly.
+        for (ahead, turn) in [(self.s.lookahead, 0.6), (TIGHT_LOOKAHEAD, 0.3)] {
+            let u = self.pursue(x, ahead, turn);
+            if self.arc_is_clear(x, u.0, u.1) {
+                return Ok(self.send(u));
+            }
         }
-        // Blocked ahead: stop (turning in place stays allowed to a round base) and plan anew.
+        // Blocked ahead: stop, turning in place along the path (which a round base may always
+        // do), and plan anew.
         self.replan = true;
-        let turn = self.limited(0.0, u.1);
-        self.last = (0.0, turn.1);
-        Ok(NavCommand::Drive(0.0, turn.1))
+        let u = self.pursue(x, TIGHT_LOOKAHEAD, 0.0);
+        self.last = (0.0, u.1);
+        Ok(NavCommand::Drive(0.0, u.1))
     }
 
     /// Records and returns a command.
@@ -589,16 +598,18 @@ impl Navigator {
     }
 
     /// Regulated pure pursuit of the path from `x`.
-    fn pursue(&self, x: [f64; 3]) -> (f64, f64) {
+    /// The point pursued lies `lookahead` m along the path; facing more than `turn` rad away
+    /// from it, the base turns in place.
+    fn pursue(&self, x: [f64; 3], lookahead: f64, turn: f64) -> (f64, f64) {
         let l = &self.s.limits;
         let at = [x[0], x[1]];
         let to_goal = dist(at, self.goal);
-        let ahead = self.s.lookahead.min(to_goal);
+        let ahead = lookahead.min(to_goal);
         let c = self.carrot(at, ahead);
         let (dx, dy) = (c[0] - x[0], c[1] - x[1]);
         let alpha = wrap(dy.atan2(dx) - x[2]);
         // Facing away: turn in place towards the path.
-        if alpha.abs() > 0.6 {
+        if alpha.abs() > turn {
             let w = (1.5 * alpha).clamp(-l.w, l.w);
             return self.limited(0.0, w);
         }

@@ -16,6 +16,7 @@
 
 use ferrobot::nav::{GlobalPlanner, GridAStar, MapImage, Obstacles, OccupancyGrid};
 use ferrobot::slam::optimise::{planar, to_planar};
+use ferrobot::slam::Stamped;
 use ferrobot::{Backend, GoalOptions, Source};
 use ferrobot_sim::floor_plan::OBSTACLE_BAND;
 use nalgebra::Point3;
@@ -154,9 +155,13 @@ fn explore(
 ) -> ferrobot::Result<ExploreJson> {
     let base = bot.base()?;
     let t0 = bot.time();
+    // The odometry's frame in the map's (the floor plan's): the start pose.
+    let odo0 = planar(start) * planar(base.get_state()?).inverse();
     let mut motion = base.explore_async()?;
     let mut travelled = 0.0;
     let mut last = truth(bot)?;
+    let (mut est, mut gt, mut odo) = (Vec::new(), Vec::new(), Vec::new());
+    let mut next_sample = t0;
     let result = loop {
         if motion.poll().is_some() {
             break motion.wait();
@@ -164,6 +169,16 @@ fn explore(
         let now = truth(bot)?;
         travelled += (now[0] - last[0]).hypot(now[1] - last[1]);
         last = now;
+        let t = bot.time();
+        if t >= next_sample {
+            next_sample = t + 0.5;
+            let stamp = |pose| Stamped { time: t, pose };
+            gt.push(stamp(planar(now)));
+            odo.push(stamp(odo0 * planar(base.get_state()?)));
+            if let Ok(p) = base.get_state_from(Source::Slam) {
+                est.push(stamp(planar(p)));
+            }
+        }
     };
     let time = bot.time() - t0;
     if trace {
@@ -189,6 +204,18 @@ fn explore(
             .map_err(|e| ferrobot::Error::Usage(format!("cannot make {}: {e}", dir.display())))?;
         map.save(&dir.join("map.yaml"))?;
         truth_part.save(&dir.join("truth.yaml"))?;
+        let caption = format!(
+            "exploring: {time:.0} s, {travelled:.1} m; free-cell IoU {:.2} against the reachable floor plan",
+            iou.free
+        );
+        super::slam::draw(
+            &map,
+            &est,
+            &gt,
+            &odo,
+            &caption,
+            &dir.join("exploration.png"),
+        )?;
     }
     Ok(ExploreJson {
         bumper_hits: bumps,
@@ -324,7 +351,11 @@ pub fn run(a: &NavArgs<'_>) -> ferrobot::Result<()> {
             if let Some(r) = motion.poll() {
                 if a.trace {
                     if let Err(e) = &r {
-                        eprintln!("goal {g:.2?} from {here:.2?}: {e}");
+                        eprintln!(
+                            "goal {g:.2?} from {here:.2?}: {e}; truly at {:.3?}, SLAM says {:.3?}",
+                            truth(&bot)?,
+                            base.get_state_from(Source::Slam).ok()
+                        );
                     }
                 }
                 break r.is_ok();

@@ -357,7 +357,7 @@ fn dataset(dir: &Path, out: Option<&Path>) -> ferrobot::Result<SlamJson> {
 
 /// The map (occupied black, unknown grey, free white) and the trajectories: true (green),
 /// estimated (red), odometry (blue).
-fn draw(
+pub(crate) fn draw(
     map: &MapImage,
     est: &[Stamped],
     gt: &[Stamped],
