@@ -34,7 +34,7 @@ use crate::obstacles::{Circle, Obstacles, OccupancyGrid};
 use crate::odometry_calibration::WheelGeometry;
 use crate::robot::{Io, Robot};
 use crate::slam::Source;
-use ferrobot_nav::Navigator;
+use ferrobot_nav::{NavSettings, Navigator};
 
 /// Control period of the host-side base controllers.
 pub const BASE_CONTROL_PERIOD: Duration = Duration::from_millis(50);
@@ -756,6 +756,20 @@ pub(crate) fn send_base_velocity(
     .map(Err)
 }
 
+/// Send a base velocity `(v, ω)` held for `duration_ms` from a goal's step, noting it in the
+/// base's command log when it differs from the last one noted.
+pub(crate) fn send_logged(
+    s: &mut Step<'_>,
+    v: f64,
+    w: f64,
+    duration_ms: u16,
+) -> Option<Result<()>> {
+    if s.base_log.last().map(|l| (l.1, l.2)) != Some((v, w)) {
+        s.base_log.push((s.now.as_secs_f64(), v, w));
+    }
+    send_base_velocity(s.link, v, w, duration_ms)
+}
+
 /// What every base goal claims.
 pub(crate) const BASE: Claim = Claim {
     joints: 0,
@@ -815,12 +829,7 @@ impl Goal for LawGoal {
                 stop_base(s.link);
                 Some(Ok(()))
             }
-            Ok(Some((v, w))) => {
-                if s.base_log.last().map(|l| (l.1, l.2)) != Some((v, w)) {
-                    s.base_log.push((s.now.as_secs_f64(), v, w));
-                }
-                send_base_velocity(s.link, v, w, self.0.hold_ms())
-            }
+            Ok(Some((v, w))) => send_logged(s, v, w, self.0.hold_ms()),
         }
     }
 
@@ -1267,7 +1276,7 @@ impl Base {
         grid.check()?;
         Obstacles::new(opts.obstacles.clone(), None)?;
         let map = NavGoal::stamped(&grid, &opts.obstacles);
-        let nav = Navigator::new(&map, [goal[0], goal[1]], NavGoal::settings(radius, lim))?;
+        let nav = Navigator::new(&map, [goal[0], goal[1]], NavSettings::new(radius, lim))?;
         // A goal no path reaches (another room behind closed doors, an island) is a typed
         // error now, not a failure later. Beyond the map's edge is unknown, so free (as
         // move_base's allow_unknown); a base pressed against an obstacle still has its way out.
@@ -1329,7 +1338,7 @@ impl Base {
         self.robot.lock_io().sense.camera = Some((frames, optical));
         let radius = self.section().footprint_radius;
         let g = crate::navigate::ExploreGoal::new(
-            NavGoal::settings(radius, self.tracking_limits()),
+            NavSettings::new(radius, self.tracking_limits()),
             ferrobot_nav::FrontierSettings::new(radius),
         );
         self.start(Box::new(g), "exploration", EXPLORE_TIMEOUT)

@@ -23,6 +23,23 @@ use crate::motion::{Goal, Step};
 /// How long a SLAM-steered goal may go without a SLAM pose before it fails.
 pub const SLAM_PATIENCE: Duration = Duration::from_secs(10);
 
+/// Notes since when SLAM has had no pose (`lost_since`, cleared by the caller once it has
+/// one); once that is longer than [`SLAM_PATIENCE`], stops the base and returns the error,
+/// saying what cannot go on (`what`).
+fn out_of_patience(
+    lost_since: &mut Option<Duration>,
+    s: &mut Step<'_>,
+    what: &str,
+) -> Option<Error> {
+    let since = *lost_since.get_or_insert(s.now);
+    (s.now.saturating_sub(since) > SLAM_PATIENCE).then(|| {
+        crate::base::stop_base(s.link);
+        Error::Usage(format!(
+            "SLAM has had no pose for {SLAM_PATIENCE:?}: {what}"
+        ))
+    })
+}
+
 /// A position goal on a map.
 pub(crate) struct NavGoal {
     pub(crate) nav: Navigator,
@@ -47,14 +64,6 @@ pub(crate) struct NavGoal {
 }
 
 impl NavGoal {
-    /// The settings for a base of `radius` m under `limits`.
-    pub(crate) fn settings(
-        radius: f64,
-        limits: ferrobot_control::trajectory::Limits,
-    ) -> NavSettings {
-        NavSettings::new(radius, limits)
-    }
-
     /// `grid` with the round obstacles stamped in.
     pub(crate) fn stamped(grid: &OccupancyGrid, circles: &[[f64; 3]]) -> OccupancyGrid {
         let mut g = grid.clone();
@@ -65,10 +74,7 @@ impl NavGoal {
     }
 
     fn drive(&mut self, s: &mut Step<'_>, v: f64, w: f64) -> Option<Result<()>> {
-        if s.base_log.last().map(|l| (l.1, l.2)) != Some((v, w)) {
-            s.base_log.push((s.now.as_secs_f64(), v, w));
-        }
-        crate::base::send_base_velocity(s.link, v, w, self.hold_ms)
+        crate::base::send_logged(s, v, w, self.hold_ms)
     }
 }
 
@@ -99,12 +105,12 @@ impl Goal for NavGoal {
         }
         let Some(pose) = s.sense.in_map(odometry, self.slam) else {
             // No SLAM pose: stand still and wait for one.
-            let since = *self.lost_since.get_or_insert(s.now);
-            if s.now.saturating_sub(since) > SLAM_PATIENCE {
-                crate::base::stop_base(s.link);
-                return Some(Err(Error::Usage(format!(
-                    "SLAM has had no pose for {SLAM_PATIENCE:?}: the goal in its map cannot be steered to"
-                ))));
+            if let Some(e) = out_of_patience(
+                &mut self.lost_since,
+                s,
+                "the goal in its map cannot be steered to",
+            ) {
+                return Some(Err(e));
             }
             return self.drive(s, 0.0, 0.0);
         };
@@ -214,10 +220,7 @@ impl ExploreGoal {
         let v = self.last.0 + (v - self.last.0).clamp(-l.accel_v * dt, l.accel_v * dt);
         let w = self.last.1 + (w - self.last.1).clamp(-l.accel_w * dt, l.accel_w * dt);
         self.last = (v, w);
-        if s.base_log.last().map(|l| (l.1, l.2)) != Some((v, w)) {
-            s.base_log.push((s.now.as_secs_f64(), v, w));
-        }
-        crate::base::send_base_velocity(s.link, v, w, 250)
+        crate::base::send_logged(s, v, w, 250)
     }
 
     /// The nearest frontier on `map` from `at`, with a navigator to its view point; `None`
@@ -257,12 +260,8 @@ impl Goal for ExploreGoal {
         let o = s.telemetry.odometry;
         let odometry = [o.x as f64, o.y as f64, o.theta as f64];
         let Some(pose) = s.sense.in_map(odometry, true) else {
-            let since = *self.lost_since.get_or_insert(s.now);
-            if s.now.saturating_sub(since) > SLAM_PATIENCE {
-                crate::base::stop_base(s.link);
-                return Some(Err(Error::Usage(format!(
-                    "SLAM has had no pose for {SLAM_PATIENCE:?}: exploration cannot go on"
-                ))));
+            if let Some(e) = out_of_patience(&mut self.lost_since, s, "exploration cannot go on") {
+                return Some(Err(e));
             }
             return self.send(s, 0.0, 0.0);
         };
@@ -353,10 +352,7 @@ impl Goal for ExploreGoal {
                     Ok(NavCommand::Drive(v, w)) => {
                         // The navigator limits its own commands.
                         self.last = (v, w);
-                        if s.base_log.last().map(|l| (l.1, l.2)) != Some((v, w)) {
-                            s.base_log.push((now, v, w));
-                        }
-                        crate::base::send_base_velocity(s.link, v, w, 250)
+                        crate::base::send_logged(s, v, w, 250)
                     }
                     Ok(NavCommand::Arrived) => {
                         self.visited += 1;

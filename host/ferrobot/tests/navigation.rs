@@ -34,6 +34,14 @@ fn robot(name: &str, scene: &std::path::Path) -> Robot {
         .expect("robot")
 }
 
+/// Bumper hits reported since the last look.
+fn bumps(bot: &Robot) -> usize {
+    bot.take_faults()
+        .iter()
+        .filter(|f| f.kind == FaultKind::Bumper)
+        .count()
+}
+
 /// An empty map of the area, 2 cm cells.
 fn empty_map() -> OccupancyGrid {
     OccupancyGrid::new([-2.0, -3.0], 0.02, 351, 301).expect("map")
@@ -81,11 +89,7 @@ fn a_box_only_the_camera_sees_is_driven_round_and_blind_it_is_hit() {
             widest > 0.45,
             "{name} kept within {widest:.2} m of the line"
         );
-        let bumps = bot
-            .take_faults()
-            .iter()
-            .filter(|f| f.kind == FaultKind::Bumper)
-            .count();
+        let bumps = bumps(&bot);
         assert_eq!(bumps, 0, "{name} bumped");
     }
     // Blind (no camera obstacles), the base drives into the box: the check above is real.
@@ -142,11 +146,7 @@ fn a_wall_the_map_lacks_is_seen_and_the_goal_behind_it_fails_typed() {
         ),
         "{e}"
     );
-    let bumps = bot
-        .take_faults()
-        .iter()
-        .filter(|f| f.kind == FaultKind::Bumper)
-        .count();
+    let bumps = bumps(&bot);
     assert_eq!(bumps, 0, "bumped a wall it should have seen");
 }
 
@@ -182,11 +182,7 @@ fn exploring_a_small_flat_maps_it_and_ends() {
     bot.wait(0.5).expect("first frames");
     let base = bot.base().expect("base");
     base.explore().expect("explores");
-    let bumps = bot
-        .take_faults()
-        .iter()
-        .filter(|f| f.kind == FaultKind::Bumper)
-        .count();
+    let bumps = bumps(&bot);
     assert_eq!(bumps, 0, "bumped while exploring");
     let map = bot.slam_occupancy_map().expect("map").expect("keyframes");
     // No frontier the robot can reach is left.

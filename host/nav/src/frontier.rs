@@ -18,7 +18,7 @@ use ferrobot_geometry::validate;
 
 use crate::error::{Error, Result};
 use crate::map_file::{Cell, MapImage};
-use crate::obstacles::{Obstacles, OccupancyGrid};
+use crate::obstacles::{neighbours, Obstacles, OccupancyGrid, NEIGHBOURS_4, NEIGHBOURS_8};
 
 /// How frontiers are found.
 #[derive(Debug, Clone, PartialEq)]
@@ -138,12 +138,7 @@ pub fn frontiers(map: &MapImage, from: [f64; 2], s: &FrontierSettings) -> Result
         if d > dist[j * w + i] {
             continue;
         }
-        for (di, dj) in NEIGHBOURS_8 {
-            let (a, b) = (i as i64 + di, j as i64 + dj);
-            if a < 0 || b < 0 || a as usize >= w || b as usize >= h {
-                continue;
-            }
-            let (a, b) = (a as usize, b as usize);
+        for ((a, b), (di, dj)) in neighbours((i, j), w, h, &NEIGHBOURS_8) {
             if !passable(a, b) {
                 continue;
             }
@@ -165,14 +160,7 @@ pub fn frontiers(map: &MapImage, from: [f64; 2], s: &FrontierSettings) -> Result
     // Frontier cells, grouped.
     let is_frontier = |i: usize, j: usize| {
         at(i, j) == Cell::Free
-            && NEIGHBOURS_4.iter().any(|&(di, dj)| {
-                let (a, b) = (i as i64 + di, j as i64 + dj);
-                a >= 0
-                    && b >= 0
-                    && (a as usize) < w
-                    && (b as usize) < h
-                    && at(a as usize, b as usize) == Cell::Unknown
-            })
+            && neighbours((i, j), w, h, &NEIGHBOURS_4).any(|((a, b), _)| at(a, b) == Cell::Unknown)
     };
     let mut group = vec![usize::MAX; w * h];
     let mut groups: Vec<Vec<(usize, usize)>> = Vec::new();
@@ -187,12 +175,7 @@ pub fn frontiers(map: &MapImage, from: [f64; 2], s: &FrontierSettings) -> Result
             group[j * w + i] = id;
             while let Some((a, b)) = queue.pop_front() {
                 cells.push((a, b));
-                for (di, dj) in NEIGHBOURS_8 {
-                    let (x, y) = (a as i64 + di, b as i64 + dj);
-                    if x < 0 || y < 0 || x as usize >= w || y as usize >= h {
-                        continue;
-                    }
-                    let (x, y) = (x as usize, y as usize);
+                for ((x, y), _) in neighbours((a, b), w, h, &NEIGHBOURS_8) {
                     if group[y * w + x] == usize::MAX && is_frontier(x, y) {
                         group[y * w + x] = id;
                         queue.push_back((x, y));
@@ -247,12 +230,7 @@ pub fn frontiers(map: &MapImage, from: [f64; 2], s: &FrontierSettings) -> Result
             if k >= reach {
                 continue;
             }
-            for (di, dj) in NEIGHBOURS_8 {
-                let (x, y) = (i as i64 + di, j as i64 + dj);
-                if x < 0 || y < 0 || x as usize >= w || y as usize >= h {
-                    continue;
-                }
-                let (x, y) = (x as usize, y as usize);
+            for ((x, y), _) in neighbours((i, j), w, h, &NEIGHBOURS_8) {
                 if at(x, y) == Cell::Free && seen.insert((x, y)) {
                     queue.push_back(((x, y), k + 1));
                 }
@@ -272,18 +250,6 @@ pub fn frontiers(map: &MapImage, from: [f64; 2], s: &FrontierSettings) -> Result
     out.sort_by(|a, b| a.distance.total_cmp(&b.distance));
     Ok(out)
 }
-
-const NEIGHBOURS_4: [(i64, i64); 4] = [(1, 0), (-1, 0), (0, 1), (0, -1)];
-const NEIGHBOURS_8: [(i64, i64); 8] = [
-    (1, 0),
-    (-1, 0),
-    (0, 1),
-    (0, -1),
-    (1, 1),
-    (1, -1),
-    (-1, 1),
-    (-1, -1),
-];
 
 /// A Dijkstra node: distance (m) and cell, ordered nearest first.
 #[derive(Debug, Clone, Copy, PartialEq)]

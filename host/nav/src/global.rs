@@ -5,7 +5,7 @@
 //! of sight, from alternating ends).
 
 use crate::error::{Error, Result};
-use crate::obstacles::{Obstacles, OccupancyGrid};
+use crate::obstacles::{Obstacles, OccupancyGrid, NEIGHBOURS_8};
 use ferrobot_geometry::validate;
 
 /// A planned path in the map's frame.
@@ -139,16 +139,7 @@ impl GridAStar {
         let successors = |&(i, j): &(usize, usize)| {
             let (i, j) = (i as i64, j as i64);
             let mut next = Vec::with_capacity(8);
-            for (di, dj) in [
-                (1, 0),
-                (-1, 0),
-                (0, 1),
-                (0, -1),
-                (1, 1),
-                (1, -1),
-                (-1, 1),
-                (-1, -1),
-            ] {
+            for (di, dj) in NEIGHBOURS_8 {
                 let (a, b) = (i + di, j + dj);
                 if !free(a, b) {
                     continue;

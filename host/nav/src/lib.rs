@@ -19,4 +19,4 @@ pub use frontier::{frontiers, Frontier, FrontierSettings};
 pub use global::{GlobalPath, GlobalPlanner, GridAStar};
 pub use map_file::{Cell, MapImage};
 pub use navigator::{NavCommand, NavSettings, Navigator, Scan};
-pub use obstacles::{Circle, Obstacles, OccupancyGrid};
+pub use obstacles::{neighbours, Circle, Obstacles, OccupancyGrid, NEIGHBOURS_4, NEIGHBOURS_8};

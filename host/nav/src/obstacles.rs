@@ -181,6 +181,35 @@ impl OccupancyGrid {
     }
 }
 
+/// The 4-connected neighbours' offsets of a grid cell.
+pub const NEIGHBOURS_4: [(i64, i64); 4] = [(1, 0), (-1, 0), (0, 1), (0, -1)];
+/// The 8-connected neighbours' offsets of a grid cell, the 4-connected ones first.
+pub const NEIGHBOURS_8: [(i64, i64); 8] = [
+    (1, 0),
+    (-1, 0),
+    (0, 1),
+    (0, -1),
+    (1, 1),
+    (1, -1),
+    (-1, 1),
+    (-1, -1),
+];
+
+/// The cells at `offsets` from cell `(i, j)` that lie inside a grid of `width` × `height`
+/// cells, with their offset.
+pub fn neighbours(
+    (i, j): (usize, usize),
+    width: usize,
+    height: usize,
+    offsets: &[(i64, i64)],
+) -> impl Iterator<Item = ((usize, usize), (i64, i64))> + '_ {
+    offsets.iter().filter_map(move |&(di, dj)| {
+        let (a, b) = (i as i64 + di, j as i64 + dj);
+        (a >= 0 && b >= 0 && (a as usize) < width && (b as usize) < height)
+            .then_some(((a as usize, b as usize), (di, dj)))
+    })
+}
+
 /// Exact Euclidean distance transform of a grid (Felzenszwalb and Huttenlocher, "Distance
 /// transforms of sampled functions", 2012): for every cell, the distance (m) between its centre
 /// and the nearest occupied cell's centre; infinite when nothing is occupied. Written here:

@@ -5,21 +5,10 @@
 use ferrobot_control::trajectory::{step, Limits};
 use ferrobot_nav::{Error, NavCommand, NavSettings, Navigator, Obstacles, OccupancyGrid, Scan};
 
-const RADIUS: f64 = 0.177;
+mod common;
+use common::wall_with_door;
 
-/// A wall along x = 0 (0.1 m thick) with a 0.9 m door at y in [-0.45, 0.45], 2 cm cells.
-fn wall_with_door() -> OccupancyGrid {
-    let mut g = OccupancyGrid::new([-2.0, -2.0], 0.02, 201, 201).expect("grid");
-    for j in 0..g.height {
-        for i in 0..g.width {
-            let c = g.centre(i, j);
-            if c[0].abs() <= 0.05 && c[1].abs() > 0.45 {
-                g.occupied[j * g.width + i] = true;
-            }
-        }
-    }
-    g
-}
+const RADIUS: f64 = 0.177;
 
 /// A camera's scan from `x`: ±0.6 rad, 0.3-3 m.
 fn scan(x: [f64; 3], points: Vec<[f64; 2]>) -> Scan {

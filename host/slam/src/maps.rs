@@ -4,7 +4,7 @@
 
 use std::collections::HashMap;
 
-use ferrobot_nav::{Cell, MapImage};
+use ferrobot_nav::{neighbours, Cell, MapImage, NEIGHBOURS_8};
 use ferrobot_perception::PointCloud;
 use nalgebra::Point3;
 
@@ -282,18 +282,12 @@ pub fn reachable_part(truth: &MapImage, from: [f64; 2]) -> Result<MapImage> {
     let mut reached = vec![false; w * h];
     reached[start.1 * w + start.0] = true;
     let mut queue = std::collections::VecDeque::from([start]);
-    while let Some((a, b)) = queue.pop_front() {
-        for di in -1i64..=1 {
-            for dj in -1i64..=1 {
-                let (x, y) = (a as i64 + di, b as i64 + dj);
-                if x < 0 || y < 0 || x as usize >= w || y as usize >= h {
-                    continue;
-                }
-                let k = y as usize * w + x as usize;
-                if !reached[k] && truth.cells[k] == Cell::Free {
-                    reached[k] = true;
-                    queue.push_back((x as usize, y as usize));
-                }
+    while let Some(c) = queue.pop_front() {
+        for ((x, y), _) in neighbours(c, w, h, &NEIGHBOURS_8) {
+            let k = y * w + x;
+            if !reached[k] && truth.cells[k] == Cell::Free {
+                reached[k] = true;
+                queue.push_back((x, y));
             }
         }
     }
@@ -304,16 +298,9 @@ pub fn reachable_part(truth: &MapImage, from: [f64; 2]) -> Result<MapImage> {
             cells[k] = match truth.cells[k] {
                 Cell::Free if reached[k] => Cell::Free,
                 Cell::Occupied => {
-                    let seen = (-1i64..=1).any(|di| {
-                        (-1i64..=1).any(|dj| {
-                            let (x, y) = (a as i64 + di, b as i64 + dj);
-                            x >= 0
-                                && y >= 0
-                                && (x as usize) < w
-                                && (y as usize) < h
-                                && reached[y as usize * w + x as usize]
-                        })
-                    });
+                    // Next to a reached cell (an occupied cell is never reached itself).
+                    let seen = neighbours((a, b), w, h, &NEIGHBOURS_8)
+                        .any(|((x, y), _)| reached[y * w + x]);
                     if seen {
                         Cell::Occupied
                     } else {
