@@ -209,7 +209,7 @@ fn exploring_a_small_flat_maps_it_and_ends() {
         &plan.occupied,
     );
     let part = ferrobot::slam::reachable_part(&truth, [start[0], start[1]]).expect("part");
-    let iou = ferrobot::slam::map_iou(&map, &part, 1).expect("iou");
+    let iou = ferrobot::slam::map_iou_seen(&map, &part, &truth, 1).expect("iou");
     assert!(iou.free > 0.8, "free IoU {:.3}", iou.free);
 }
 

@@ -20,9 +20,12 @@ pub struct GridSettings {
     pub band: [f64; 2],
     /// Points lower than this are floor: they clear the cells on their ray, m.
     pub floor: f64,
-    /// A cell is occupied when at least this many of its rays ended in it ...
+    /// A cell is occupied when, in some slab of the band this high (m), at least this many of
+    /// its rays ended in it ...
+    pub slab: f64,
+    /// ... at least this many of its rays ended in it ...
     pub min_hits: u32,
-    /// ... and at least this fraction of the rays that reached it.
+    /// ... and at least this fraction of the rays that reached it in that slab.
     pub min_ratio: f64,
 }
 
@@ -32,6 +35,7 @@ impl Default for GridSettings {
             resolution: 0.02,
             band: [0.1, 0.8],
             floor: 0.05,
+            slab: 0.1,
             min_hits: 2,
             min_ratio: 0.3,
         }
@@ -83,9 +87,13 @@ impl Map {
         Ok(cloud)
     }
 
-    /// The occupancy grid of the keyframes' depth samples: rays from the camera (projected on
-    /// the floor) clear the cells they cross; points in the obstacle band mark their cell.
-    /// The grid covers what was seen, with one cell of margin; `None` before any keyframe.
+    /// The occupancy grid of the keyframes' depth samples: rays from the camera clear the cells
+    /// they cross; points in the obstacle band mark their cell. Each cell keeps its counts per
+    /// slab of the band ([`GridSettings::slab`] high): a ray passing above a low obstacle (a
+    /// ball, a bed's top seen from higher up) clears only the slab it passes through, so it does
+    /// not outvote the obstacle's own points. A cell is occupied when some slab is, free when a
+    /// ray reached it and no slab is. The grid covers what was seen, with one cell of margin;
+    /// `None` before any keyframe.
     pub fn occupancy(&self, s: &GridSettings) -> Result<Option<MapImage>> {
         if !(s.resolution.is_finite() && (1e-3..=1.0).contains(&s.resolution)) {
             return Err(Error::InvalidSettings {
@@ -97,8 +105,24 @@ impl Map {
                 why: format!("obstacle band {:?} m is not an interval", s.band),
             });
         }
-        // Rays in the world's floor plane: (camera xy, point xy, is obstacle).
-        let mut rays: Vec<([f64; 2], [f64; 2], bool)> = Vec::new();
+        let slabs = (s.band[1] - s.band[0]) / s.slab;
+        if !(slabs.is_finite() && (0.0..=64.0).contains(&slabs)) {
+            return Err(Error::InvalidSettings {
+                why: format!(
+                    "slabs of {} m cut the band {:?} m into more than 64 or none",
+                    s.slab, s.band
+                ),
+            });
+        }
+        let slabs = (slabs.ceil() as usize).max(1);
+        // The slab of height z within the band, if any.
+        let slab_of = |z: f64| -> Option<usize> {
+            (s.band[0]..=s.band[1])
+                .contains(&z)
+                .then(|| (((z - s.band[0]) / s.slab) as usize).min(slabs - 1))
+        };
+        // Rays: (camera xyz, point xyz, is obstacle).
+        let mut rays: Vec<([f64; 3], [f64; 3], bool)> = Vec::new();
         let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
         for kf in &self.keyframes {
             // The map holds where the robot stood (half a metre about its body).
@@ -108,14 +132,14 @@ impl Map {
                 hi[i] = hi[i].max(b.vector[i] + 0.5);
             }
             let t = kf.camera_pose();
-            let o = [t.translation.x, t.translation.y];
+            let o = [t.translation.x, t.translation.y, t.translation.z];
             for (p, _) in &kf.cloud {
                 let w = t * Point3::new(p.x as f64, p.y as f64, p.z as f64);
                 let obstacle = (s.band[0]..=s.band[1]).contains(&w.z);
                 if !(obstacle || w.z < s.floor) {
                     continue;
                 }
-                let e = [w.x, w.y];
+                let e = [w.x, w.y, w.z];
                 for i in 0..2 {
                     lo[i] = lo[i].min(e[i]).min(o[i]);
                     hi[i] = hi[i].max(e[i]).max(o[i]);
@@ -140,9 +164,13 @@ impl Map {
             });
         }
         let (width, height) = (fw as usize, fh as usize);
-        let mut hits = vec![0u32; width * height];
-        let mut passes = vec![0u32; width * height];
-        let cell = |p: [f64; 2]| -> (i64, i64) {
+        let n = width * height;
+        // Per slab and cell: rays that ended there, rays that passed through.
+        let mut hits = vec![0u32; n * slabs];
+        let mut passes = vec![0u32; n * slabs];
+        // Cells some ray reached at any height.
+        let mut reached = vec![false; n];
+        let cell = |p: [f64; 3]| -> (i64, i64) {
             (
                 ((p[0] - origin[0]) / r).floor() as i64,
                 ((p[1] - origin[1]) / r).floor() as i64,
@@ -151,12 +179,19 @@ impl Map {
         for (o, e, obstacle) in rays {
             let (i0, j0) = cell(o);
             let (i1, j1) = cell(e);
-            // Bresenham from the camera's cell to the point's, its last cell excluded.
+            // Bresenham from the camera's cell to the point's, its last cell excluded; the
+            // ray's height over a cell from how far along it the cell lies.
+            let steps = (i1 - i0).abs().max((j1 - j0).abs()).max(1) as f64;
             let (di, dj) = ((i1 - i0).abs(), -(j1 - j0).abs());
             let (si, sj) = (if i0 < i1 { 1 } else { -1 }, if j0 < j1 { 1 } else { -1 });
             let (mut i, mut j, mut err) = (i0, j0, di + dj);
             while (i, j) != (i1, j1) {
-                passes[j as usize * width + i as usize] += 1;
+                let k = j as usize * width + i as usize;
+                reached[k] = true;
+                let along = ((i - i0).abs().max((j - j0).abs()) as f64 / steps).min(1.0);
+                if let Some(z) = slab_of(o[2] + along * (e[2] - o[2])) {
+                    passes[z * n + k] += 1;
+                }
                 let e2 = 2 * err;
                 if e2 >= dj {
                     err += dj;
@@ -168,19 +203,20 @@ impl Map {
                 }
             }
             let k = j1 as usize * width + i1 as usize;
-            if obstacle {
-                hits[k] += 1;
-            } else {
-                passes[k] += 1;
+            reached[k] = true;
+            if let (true, Some(z)) = (obstacle, slab_of(e[2])) {
+                hits[z * n + k] += 1;
             }
         }
-        let cells = hits
-            .iter()
-            .zip(&passes)
-            .map(|(&h, &p)| {
-                if h >= s.min_hits && h as f64 >= s.min_ratio * (h + p) as f64 {
+        let cells = (0..n)
+            .map(|k| {
+                let occupied = (0..slabs).any(|z| {
+                    let (h, p) = (hits[z * n + k], passes[z * n + k]);
+                    h >= s.min_hits && h as f64 >= s.min_ratio * (h + p) as f64
+                });
+                if occupied {
                     Cell::Occupied
-                } else if p > 0 || h > 0 {
+                } else if reached[k] {
                     Cell::Free
                 } else {
                     Cell::Unknown
@@ -202,12 +238,34 @@ impl Map {
 /// or `Unknown`, count as not free and not occupied). Occupied cells match within `slack`
 /// cells (a wall drawn one cell off still counts).
 pub fn map_iou(estimate: &MapImage, truth: &MapImage, slack: usize) -> Result<MapIou> {
-    if (estimate.resolution - truth.resolution).abs() > 1e-9 {
+    map_iou_seen(estimate, truth, truth, slack)
+}
+
+/// As [`map_iou`] against `must`, the part of the truth a map must hold (say the
+/// [`reachable_part`] of a floor plan: floor the robot can reach and the faces next to it),
+/// where an occupied cell of `estimate` that `must` leaves unknown is judged against the whole
+/// truth `all`: right (in both maps) when `all` has an obstacle within `slack` cells of it (the
+/// top of a bed seen from above is the bed), wrong otherwise. Both truths share one grid.
+pub fn map_iou_seen(
+    estimate: &MapImage,
+    must: &MapImage,
+    all: &MapImage,
+    slack: usize,
+) -> Result<MapIou> {
+    let truth = must;
+    for m in [estimate, all] {
+        if (m.resolution - truth.resolution).abs() > 1e-9 {
+            return Err(Error::Trajectory {
+                why: format!(
+                    "maps of resolution {} and {} m",
+                    m.resolution, truth.resolution
+                ),
+            });
+        }
+    }
+    if all.width != truth.width || all.height != truth.height || all.origin != truth.origin {
         return Err(Error::Trajectory {
-            why: format!(
-                "maps of resolution {} and {} m",
-                estimate.resolution, truth.resolution
-            ),
+            why: "the two truths are not on one grid".into(),
         });
     }
     let r = truth.resolution;
@@ -241,7 +299,7 @@ pub fn map_iou(estimate: &MapImage, truth: &MapImage, slack: usize) -> Result<Ma
                 let hit = if to {
                     near_occupied(estimate, x, y)
                 } else {
-                    near_occupied(truth, x, y)
+                    near_occupied(all, x, y)
                 };
                 oi += hit as usize;
             }

@@ -215,3 +215,47 @@ fn maps_with_points_far_away_are_refused_or_too_large_to_grid_not_a_panic() {
         .cells
         .contains(&ferrobot_nav::Cell::Occupied));
 }
+
+/// A ball on the floor 1 m ahead (its top's points 0.12-0.18 m up) and a wall 2 m ahead seen
+/// over it: the rays to the wall pass over the ball's cell 0.5 m up and clear only that height,
+/// so the ball stays on the grid; counted over the whole band at once they would outvote it.
+#[test]
+fn a_low_obstacle_is_not_cleared_by_the_rays_that_pass_over_it() {
+    let mut cloud: Vec<[f32; 3]> = (0..4).map(|k| [1.0, 0.0, 0.12 + 0.02 * k as f32]).collect();
+    // Camera 0.6 m up at the origin: points are given relative to it.
+    for p in &mut cloud {
+        p[2] -= 0.6;
+    }
+    for k in 0..30 {
+        cloud.push([2.0, 0.0005 * k as f32, 0.5 - 0.6]);
+    }
+    let f = map_file("ball", [0.0, 0.0, 0.6], &cloud);
+    let map = ferrobot_slam::Map::load(&f).expect("loads");
+    let at = |g: &ferrobot_nav::MapImage, x: f64, y: f64| {
+        let i = ((x - g.origin[0]) / g.resolution).floor() as usize;
+        let j = ((y - g.origin[1]) / g.resolution).floor() as usize;
+        g.cells[j * g.width + i]
+    };
+    let grid = map
+        .occupancy(&ferrobot_slam::GridSettings::default())
+        .expect("grid")
+        .expect("some");
+    assert_eq!(at(&grid, 1.0, 0.0), ferrobot_nav::Cell::Occupied);
+    assert_eq!(at(&grid, 2.0, 0.0), ferrobot_nav::Cell::Occupied);
+    assert_eq!(at(&grid, 1.5, 0.0), ferrobot_nav::Cell::Free);
+    // One slab for the whole band: 30 rays over the ball against its 4 points.
+    let flat = map
+        .occupancy(&ferrobot_slam::GridSettings {
+            slab: 0.7,
+            ..Default::default()
+        })
+        .expect("grid")
+        .expect("some");
+    assert_eq!(at(&flat, 1.0, 0.0), ferrobot_nav::Cell::Free);
+    // Slabs too thin to count are refused.
+    let e = map.occupancy(&ferrobot_slam::GridSettings {
+        slab: 1e-4,
+        ..Default::default()
+    });
+    assert!(matches!(e, Err(Error::InvalidSettings { .. })), "{e:?}");
+}

@@ -133,7 +133,8 @@ pub struct NavArgs<'a> {
 /// `bench nav --explore --json`'s `exploration`: how exploring went and how good its map is
 /// against the part of the floor plan the robot can reach and see
 /// ([`ferrobot::slam::reachable_part`]): intersection over union of free cells, of occupied
-/// cells (within one cell), and of both.
+/// cells (within one cell; an occupied cell the part leaves out, such as the top of a bed, is
+/// judged against the whole floor plan: [`ferrobot::slam::map_iou_seen`]), and of both.
 #[derive(Serialize)]
 struct ExploreJson {
     bumper_hits: usize,
@@ -198,7 +199,7 @@ fn explore(
         .slam_occupancy_map()?
         .ok_or_else(|| ferrobot::Error::Usage("exploration mapped nothing".into()))?;
     let truth_part = ferrobot::slam::reachable_part(plan, [start[0], start[1]])?;
-    let iou = ferrobot::slam::map_iou(&map, &truth_part, 1)?;
+    let iou = ferrobot::slam::map_iou_seen(&map, &truth_part, plan, 1)?;
     if let Some(dir) = out {
         std::fs::create_dir_all(dir)
             .map_err(|e| ferrobot::Error::Usage(format!("cannot make {}: {e}", dir.display())))?;
