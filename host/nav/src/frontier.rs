@@ -9,7 +9,9 @@
 //!   over free cells (8-connected).
 //! - A frontier's view point: a reached cell between [`FrontierSettings::min_view`] and
 //!   [`FrontierSettings::view`] of the frontier's cells (spreading from them over free cells,
-//!   so not through a wall), the one whose driving distance from the robot plus its distance
+//!   so not through a wall) with a clear line of sight to the frontier's middle cell (no
+//!   occupied cell between: a frontier round a door's corner is seen from inside, not from
+//!   the room before it), the one whose driving distance from the robot plus its distance
 //!   from the frontier is least.
 
 use std::collections::{BinaryHeap, VecDeque};
@@ -202,6 +204,17 @@ pub fn frontiers(map: &MapImage, from: [f64; 2], s: &FrontierSettings) -> Result
         {
             continue;
         }
+        // The frontier's cell nearest its centroid: the view point must see it.
+        let middle = cells
+            .iter()
+            .copied()
+            .min_by(|&a, &b| {
+                let (ca, cb) = (centre(a.0, a.1), centre(b.0, b.1));
+                let da = (ca[0] - centroid[0]).hypot(ca[1] - centroid[1]);
+                let db = (cb[0] - centroid[0]).hypot(cb[1] - centroid[1]);
+                da.total_cmp(&db)
+            })
+            .unwrap_or((0, 0));
         // (cost, driving distance, cell)
         let mut best: Option<(f64, f64, (usize, usize))> = None;
         let mut seen = std::collections::HashSet::new();
@@ -224,6 +237,7 @@ pub fn frontiers(map: &MapImage, from: [f64; 2], s: &FrontierSettings) -> Result
                 && !refused
                 && field.clearance(c) >= s.view_clearance
                 && best.is_none_or(|(b, _, _)| cost < b)
+                && in_sight(map, (i, j), middle)
             {
                 best = Some((cost, d, (i, j)));
             }
@@ -249,6 +263,33 @@ pub fn frontiers(map: &MapImage, from: [f64; 2], s: &FrontierSettings) -> Result
     }
     out.sort_by(|a, b| a.distance.total_cmp(&b.distance));
     Ok(out)
+}
+
+/// Whether no occupied cell of `map` lies on the straight line between cells `a` and `b`
+/// (Bresenham's line; unknown cells do not block).
+fn in_sight(map: &MapImage, a: (usize, usize), b: (usize, usize)) -> bool {
+    let (mut x, mut y) = (a.0 as i64, a.1 as i64);
+    let (x1, y1) = (b.0 as i64, b.1 as i64);
+    let (dx, dy) = ((x1 - x).abs(), -(y1 - y).abs());
+    let (sx, sy) = (if x < x1 { 1 } else { -1 }, if y < y1 { 1 } else { -1 });
+    let mut err = dx + dy;
+    loop {
+        if map.cells[y as usize * map.width + x as usize] == Cell::Occupied {
+            return false;
+        }
+        if (x, y) == (x1, y1) {
+            return true;
+        }
+        let e2 = 2 * err;
+        if e2 >= dy {
+            err += dy;
+            x += sx;
+        }
+        if e2 <= dx {
+            err += dx;
+            y += sy;
+        }
+    }
 }
 
 /// A Dijkstra node: distance (m) and cell, ordered nearest first.

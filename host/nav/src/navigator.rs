@@ -22,13 +22,12 @@
 //! body still between a door's jambs, and stalled there (the apartment's doors, see
 //! `tests/doorway.rs`); a follower of a path that keeps its margin does not.
 
-use std::collections::HashMap;
-
 use ferrobot_control::trajectory::{step, Limits};
 use ferrobot_geometry::{validate, wrap};
 
 use crate::error::{Error, Result};
 use crate::global::GridAStar;
+use crate::live::LiveObstacles;
 use crate::obstacles::{Obstacles, OccupancyGrid};
 
 /// Progress that counts, m: the way left to the goal must shorten by this much.
@@ -157,20 +156,13 @@ enum Recovery {
     Turn { turned: f64, last: f64 },
 }
 
-/// The live obstacles a camera reports: cells of the map's resolution, with when each was
-/// last seen (s).
-#[derive(Debug, Clone, Default)]
-struct LiveLayer {
-    cells: HashMap<(i64, i64), f64>,
-}
-
 /// A goal being reached on a map. See the module's documentation.
 #[derive(Debug, Clone)]
 pub struct Navigator {
     s: NavSettings,
     map: OccupancyGrid,
     known: Obstacles,
-    live: LiveLayer,
+    live: LiveObstacles,
     goal: [f64; 2],
     path: Vec<[f64; 2]>,
     /// Index of the path segment the base was last nearest.
@@ -212,11 +204,12 @@ impl Navigator {
                 radius: settings.radius,
             });
         }
+        let live = LiveObstacles::new(map.resolution)?;
         Ok(Navigator {
             s: settings,
             map,
             known,
-            live: LiveLayer::default(),
+            live,
             goal,
             path: Vec::new(),
             along: 0,
@@ -245,7 +238,20 @@ impl Navigator {
 
     /// How many live obstacle cells are remembered.
     pub fn live_cells(&self) -> usize {
-        self.live.cells.len()
+        self.live.len()
+    }
+
+    /// The live obstacles (to hand to the next navigator: [`Navigator::set_live`]).
+    pub fn live(&self) -> &LiveObstacles {
+        &self.live
+    }
+
+    /// Takes over live obstacles remembered elsewhere (another goal's navigator, or a layer
+    /// kept while no goal ran), in place of its own; the path is planned again.
+    pub fn set_live(&mut self, live: &LiveObstacles) -> Result<()> {
+        self.live = live.resampled(self.live.resolution())?;
+        self.replan = true;
+        Ok(())
     }
 
     /// Replaces the map (a SLAM map that has grown, say), keeping the goal and the live
@@ -264,51 +270,11 @@ impl Navigator {
     /// marked. Non-finite points are ignored; a scan whose pose or extent is not finite or out of
     /// range is an error.
     pub fn observe(&mut self, now: f64, scan: &Scan) -> Result<()> {
-        let Scan {
-            sensor,
-            half_fov,
-            near,
-            range,
-            ref points,
-        } = *scan;
-        validate::finite("sensor pose", &sensor)?;
-        validate::in_range(
-            "sensor half field of view",
-            half_fov,
-            0.0,
-            std::f64::consts::PI,
-        )?;
-        validate::in_range("sensor range", range, 0.0, 100.0)?;
-        validate::in_range("sensor near range", near, 0.0, range)?;
-        validate::finite("observation time", &[now])?;
-        let r = self.map.resolution;
-        let cell = |p: [f64; 2]| ((p[0] / r).round() as i64, (p[1] / r).round() as i64);
-        // Clear what the wedge shows free: cells in it, nearer than the range, not seen now.
-        let seen: HashMap<(i64, i64), ()> = points
-            .iter()
-            .filter(|p| p[0].is_finite() && p[1].is_finite())
-            .filter(|p| (p[0] - sensor[0]).hypot(p[1] - sensor[1]) <= range)
-            .map(|&p| (cell(p), ()))
-            .collect();
-        self.live.cells.retain(|c, t| {
-            let p = [c.0 as f64 * r, c.1 as f64 * r];
-            let (dx, dy) = (p[0] - sensor[0], p[1] - sensor[1]);
-            let d = dx.hypot(dy);
-            let inside = d < range - r
-                && d > near + r
-                && wrap(dy.atan2(dx) - sensor[2]).abs() < half_fov
-                && !seen.contains_key(c);
-            !inside && now - *t <= self.s.live_memory
-        });
-        for c in seen.into_keys() {
-            let p = [c.0 as f64 * r, c.1 as f64 * r];
-            // What the map already holds needs no live cell.
-            if self.map.is_occupied(p) {
-                continue;
-            }
-            if self.live.cells.insert(c, now).is_none() && self.path_blocked_by(p) {
-                self.replan = true;
-            }
+        let new = self
+            .live
+            .observe(now, scan, self.s.live_memory, Some(&self.map))?;
+        if new.iter().any(|&p| self.path_blocked_by(p)) {
+            self.replan = true;
         }
         Ok(())
     }
@@ -324,11 +290,10 @@ impl Navigator {
     /// The clearance (m) of `p` from the map and the live obstacles (cells as squares' inner
     /// circles).
     pub fn clearance(&self, p: [f64; 2]) -> f64 {
-        let r = self.map.resolution;
+        let r = self.live.resolution();
         let mut c = self.known.clearance(p);
-        for &(i, j) in self.live.cells.keys() {
-            let d = (i as f64 * r - p[0]).hypot(j as f64 * r - p[1]) - 0.5 * r;
-            c = c.min(d);
+        for q in self.live.centres() {
+            c = c.min((q[0] - p[0]).hypot(q[1] - p[1]) - 0.5 * r);
         }
         c
     }
@@ -336,16 +301,20 @@ impl Navigator {
     /// The map with the live obstacles stamped in.
     fn costmap(&self) -> OccupancyGrid {
         let mut g = self.map.clone();
-        let r = g.resolution;
-        for &(i, j) in self.live.cells.keys() {
-            g.fill_circle([i as f64 * r, j as f64 * r, 0.5 * r]);
+        let r = self.live.resolution();
+        for q in self.live.centres() {
+            g.fill_circle([q[0], q[1], 0.5 * r]);
         }
         g
     }
 
-    /// Plans from `at`: the start may be nearer an obstacle than the radius (a base pressed
-    /// against something must still have its way out).
-    fn plan(&mut self, now: f64, at: [f64; 2]) -> Result<()> {
+    /// Plans the path from `at` (m, the map's frame) at time `now` (s), as [`Navigator::step`]
+    /// does when a plan is due; a caller may call it first to learn at once whether the goal
+    /// can be reached ([`Error::NoPath`]). The start may be nearer an obstacle than the radius
+    /// (a base pressed against something must still have its way out).
+    pub fn plan(&mut self, now: f64, at: [f64; 2]) -> Result<()> {
+        validate::finite("navigation start", &at)?;
+        validate::finite("navigation time", &[now])?;
         let map = self.costmap().grown_to(&[at], 1.0)?;
         let field = Obstacles::new(Vec::new(), Some(&map))?;
         // The planner judges the start by its point and its cell's centre.

@@ -102,3 +102,43 @@ fn failed_places_are_not_offered_again_and_bad_input_is_refused() {
     bad.view = f64::INFINITY;
     assert!(frontiers(&room(true), [0.8, 1.5], &bad).is_err());
 }
+
+/// The room with its door, and beyond it a closet x in [2.1, 3.9] walled at x = 3.9, seen
+/// but for its lower part: y below 0.8 unknown (behind the wall beside the door, seen from
+/// the room).
+fn room_and_closet() -> MapImage {
+    let mut m = room(true);
+    let r = m.resolution;
+    for j in 0..m.height {
+        for i in 0..m.width {
+            let (x, y) = ((i as f64 + 0.5) * r, (j as f64 + 0.5) * r);
+            let c = &mut m.cells[j * m.width + i];
+            if x >= 3.9 && *c != Cell::Occupied {
+                *c = Cell::Occupied;
+            } else if x > 2.1 && (0.8..2.9).contains(&y) {
+                *c = Cell::Free;
+            }
+        }
+    }
+    m
+}
+
+#[test]
+fn a_frontier_round_the_door_s_corner_is_viewed_from_where_it_can_be_seen() {
+    let s = FrontierSettings::new(0.18);
+    let f = frontiers(&room_and_closet(), [0.5, 0.5], &s).expect("frontiers");
+    // The closet's unseen lower part, round the corner of the wall beside the door.
+    assert_eq!(f.len(), 1, "{f:?}");
+    let corner = &f[0];
+    assert!((corner.centroid[1] - 0.8).abs() < 0.06, "{corner:?}");
+    let v = corner.view_point;
+    // Seen from the closet, or through the door: where the line of sight crosses the wall
+    // (x = 2.05) it is within the opening.
+    let c = corner.centroid;
+    let through_door = v[0] < 2.0 && {
+        let t = (2.05 - v[0]) / (c[0] - v[0]);
+        let y = v[1] + t * (c[1] - v[1]);
+        (1.05..1.95).contains(&y)
+    };
+    assert!(v[0] > 2.1 || through_door, "{corner:?}");
+}

@@ -160,6 +160,43 @@ fn an_obstacle_only_the_camera_sees_is_driven_round() {
     assert!(blind.least < 0.0, "blind, the box was not touched");
 }
 
+/// What one goal's navigator saw is handed to the next (exploration's frontiers, one after
+/// another): the box seen on the way to the first is avoided on the way to the second before the
+/// camera looks at it again; a layer of another cell size is resampled.
+#[test]
+fn live_obstacles_outlive_the_goal_that_saw_them() {
+    let map = OccupancyGrid::new([-2.0, -2.0], 0.02, 201, 201).expect("grid");
+    let settings = NavSettings::new(RADIUS, Limits::TRACKING);
+    let mut first = Navigator::new(&map, [1.5, 0.0], settings.clone()).expect("first");
+    let box_points: Vec<[f64; 2]> = (0..=30)
+        .flat_map(|i| (0..=30).map(move |j| [-0.3 + 0.02 * i as f64, -0.3 + 0.02 * j as f64]))
+        .collect();
+    first
+        .observe(0.0, &scan([-1.5, 0.0, 0.0], box_points.clone()))
+        .expect("observe");
+    assert!(first.clearance([0.0, 0.0]) < 0.0);
+    let mut second = Navigator::new(&map, [1.5, 0.5], settings.clone()).expect("second");
+    assert!(
+        second.clearance([0.0, 0.0]) > 1.0,
+        "a fresh navigator knows nothing"
+    );
+    second.set_live(first.live()).expect("hand over");
+    assert_eq!(second.live_cells(), first.live_cells());
+    assert!(second.clearance([0.0, 0.0]) < 0.0);
+    // Its first plan goes round the box.
+    second.plan(0.1, [-1.5, 0.0]).expect("plan");
+    let path = second.path().to_vec();
+    assert!(
+        path.iter().all(|p| second.clearance(*p) >= RADIUS - 0.02),
+        "{path:?}"
+    );
+    // Resampled to 5 cm cells: still there, fewer cells.
+    let coarse = first.live().resampled(0.05).expect("resample");
+    assert!(coarse.len() < first.live_cells() && coarse.len() >= 36);
+    assert!(ferrobot_nav::LiveObstacles::new(0.0).is_err());
+    assert!(ferrobot_nav::LiveObstacles::new(f64::NAN).is_err());
+}
+
 /// A closed door: the camera sees the way blocked; no path is a typed error, not a timeout.
 #[test]
 fn a_door_closed_behind_the_map_is_no_path_once_seen() {
