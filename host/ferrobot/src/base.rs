@@ -1276,23 +1276,25 @@ impl Base {
         grid.check()?;
         Obstacles::new(opts.obstacles.clone(), None)?;
         let map = NavGoal::stamped(&grid, &opts.obstacles);
-        let nav = Navigator::new(&map, [goal[0], goal[1]], NavSettings::new(radius, lim))?;
-        // A goal no path reaches (another room behind closed doors, an island) is a typed
-        // error now, not a failure later. Beyond the map's edge is unknown, so free (as
-        // move_base's allow_unknown); a base pressed against an obstacle still has its way out.
-        {
-            use ferrobot_nav::GlobalPlanner;
-            let (a, b) = ([here[0], here[1]], [goal[0], goal[1]]);
-            let grown = map.grown_to(&[a, b], 1.0)?;
-            let start_clear = Obstacles::new(Vec::new(), Some(&grown))?.clearance(a);
-            let r = radius.min(start_clear - 0.02).max(0.0);
-            ferrobot_nav::GridAStar.plan(&grown, a, b, r)?;
-        }
+        let mut nav = Navigator::new(&map, [goal[0], goal[1]], NavSettings::new(radius, lim))?;
         let scans = opts.live_obstacles && self.robot.config().camera.is_some();
         if scans {
-            let frames = self.robot.frames()?.clone();
-            let optical = self.robot.optical_frame()?;
-            self.robot.lock_io().sense.camera = Some((frames, optical));
+            // What the last goal's camera saw counts from the start.
+            if let Some(live) = self.robot.lock_io().sense.live_for(slam) {
+                nav.set_live(&live)?;
+            }
+        }
+        // A goal no path reaches (another room behind closed doors, an island) is a typed
+        // error now, not a failure later: the navigator's first plan, made here. Beyond the
+        // map's edge is unknown, so free (as move_base's allow_unknown). When what blocks the
+        // way is only what the camera saw before, the navigator looks again first.
+        match nav.plan(self.now().as_secs_f64(), [here[0], here[1]]) {
+            Err(ferrobot_nav::Error::NoPath { .. }) if nav.live_cells() > 0 => {}
+            r => r?,
+        }
+        if scans {
+            let eyes = self.robot.eyes()?;
+            self.robot.lock_io().sense.camera = Some(eyes);
         }
         // The heading stage's controller within the window's (tracking) limits.
         let mut finish = self.proportional(goal);
@@ -1333,14 +1335,16 @@ impl Base {
         if self.robot.config().camera.is_none() {
             return Err(self.robot.missing("camera"));
         }
-        let frames = self.robot.frames()?.clone();
-        let optical = self.robot.optical_frame()?;
-        self.robot.lock_io().sense.camera = Some((frames, optical));
+        let eyes = self.robot.eyes()?;
+        self.robot.lock_io().sense.camera = Some(eyes);
         let radius = self.section().footprint_radius;
+        let live = self.robot.lock_io().sense.live_for(true);
         let g = crate::navigate::ExploreGoal::new(
             NavSettings::new(radius, self.tracking_limits()),
             ferrobot_nav::FrontierSettings::new(radius),
-        );
+            ferrobot_slam::GridSettings::default().resolution,
+            live,
+        )?;
         self.start(Box::new(g), "exploration", EXPLORE_TIMEOUT)
     }
 

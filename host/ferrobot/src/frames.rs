@@ -93,4 +93,17 @@ impl Frames {
         let poses = self.tree.poses(&self.joint_values(tel));
         Ok(self.tree.transform(&poses, src, dst)?)
     }
+
+    /// Index of link `name` in the URDF tree's order.
+    pub(crate) fn link_index(&self, name: &str) -> Option<usize> {
+        self.tree.link_index(name)
+    }
+
+    /// Pose of every link (in the URDF tree's order) in frame `dst` for the joints of `tel`.
+    pub(crate) fn poses_in(&self, tel: &Telemetry, dst: &str) -> Result<Vec<Isometry3<f64>>> {
+        let poses = self.tree.poses(&self.joint_values(tel));
+        let root = self.tree.root().to_string();
+        let to_dst = self.tree.transform(&poses, &root, dst)?;
+        Ok(poses.into_iter().map(|p| to_dst * p).collect())
+    }
 }

@@ -7,16 +7,21 @@
 //! frontier of SLAM's growing map ([`ferrobot_nav::frontiers`]) and face it, until no frontier
 //! the base can reach is left. A frontier seen from afar on the way is given up for the next;
 //! one the navigator cannot reach is marked failed and not offered again.
+//!
+//! The live obstacles the camera saw outlive each navigator: exploration hands them from one
+//! frontier's navigator to the next and keeps them while it looks about, and the robot keeps the
+//! last goal's for the next goal in the same frame (an obstacle seen on the way in is still
+//! there when the base, standing next to it and too near to see it, sets off again).
 
 use std::time::Duration;
 
 use ferrobot_geometry::Pose2;
 use ferrobot_nav::{
-    frontiers, Frontier, FrontierSettings, MapImage, NavCommand, NavSettings, Navigator,
-    OccupancyGrid,
+    frontiers, Frontier, FrontierSettings, LiveObstacles, MapImage, NavCommand, NavSettings,
+    Navigator, OccupancyGrid,
 };
 
-use crate::base::BaseGoal;
+use crate::base::{BaseGoal, BASE_CONTROL_PERIOD};
 use crate::error::{Error, Result};
 use crate::motion::{Goal, Step};
 
@@ -140,6 +145,9 @@ impl Goal for NavGoal {
         match self.nav.step(s.now.as_secs_f64(), pose.to_array()) {
             Ok(NavCommand::Drive(v, w)) => self.drive(s, v, w),
             Ok(NavCommand::Arrived) => {
+                if self.scans {
+                    s.sense.keep_live(self.slam, self.nav.live());
+                }
                 // The last stretch and the heading in the odometry's frame, where the wheels
                 // are: the goal carried there by the present correction.
                 let to_odom = pose.compose(&Pose2::from(odometry).inverse()).inverse();
@@ -149,6 +157,9 @@ impl Goal for NavGoal {
                 self.step(s)
             }
             Err(e) => {
+                if self.scans {
+                    s.sense.keep_live(self.slam, self.nav.live());
+                }
                 crate::base::stop_base(s.link);
                 Some(Err(e.into()))
             }
@@ -185,18 +196,34 @@ pub(crate) struct ExploreGoal {
     pub(crate) frontier: FrontierSettings,
     state: Explore,
     nav: Option<Navigator>,
+    /// The live obstacles while no navigator holds them (between frontiers, looking about).
+    live: LiveObstacles,
     target: Option<Frontier>,
     seen: (u64, u64),
     visited: usize,
     /// Frontiers looked at: their centroid and how often.
     looked: Vec<([f64; 2], u32)>,
     last: (f64, f64),
+    /// When exploration's own next command is due (between, the last is sent again).
+    next: Duration,
     lost_since: Option<Duration>,
 }
 
 impl ExploreGoal {
-    pub(crate) fn new(settings: NavSettings, frontier: FrontierSettings) -> Self {
-        ExploreGoal {
+    /// Exploration with the navigator's `settings`, frontiers chosen by `frontier`, live
+    /// obstacles kept in cells of `resolution` m (SLAM's grid's), starting from those an earlier
+    /// goal saw (`live`).
+    pub(crate) fn new(
+        settings: NavSettings,
+        frontier: FrontierSettings,
+        resolution: f64,
+        live: Option<LiveObstacles>,
+    ) -> Result<Self> {
+        let live = match live {
+            Some(l) => l.resampled(resolution)?,
+            None => LiveObstacles::new(resolution)?,
+        };
+        Ok(ExploreGoal {
             settings,
             frontier,
             state: Explore::Look {
@@ -204,19 +231,39 @@ impl ExploreGoal {
                 last: f64::NAN,
             },
             nav: None,
+            live,
             target: None,
             seen: (0, 0),
             visited: 0,
             looked: Vec::new(),
             last: (0.0, 0.0),
+            next: Duration::ZERO,
             lost_since: None,
+        })
+    }
+
+    /// Ends exploration with `result`: the base stops, the live obstacles are kept for the
+    /// goals that follow.
+    fn end(&mut self, s: &mut Step<'_>, result: Result<()>) -> Option<Result<()>> {
+        self.drop_nav();
+        s.sense.keep_live(true, &self.live);
+        crate::base::stop_base(s.link);
+        Some(result)
+    }
+
+    /// Ends the navigator under way, keeping what it remembers of the live obstacles.
+    fn drop_nav(&mut self) {
+        if let Some(nav) = self.nav.take() {
+            self.live = nav.live().clone();
         }
     }
 
-    /// `(v, ω)` under the limits' accelerations from the last command, sent.
+    /// `(v, ω)` under the limits' accelerations from the last command (one control period
+    /// before), sent.
     fn send(&mut self, s: &mut Step<'_>, v: f64, w: f64) -> Option<Result<()>> {
         let l = &self.settings.limits;
-        let dt = BASE_PERIOD;
+        let dt = BASE_CONTROL_PERIOD.as_secs_f64();
+        self.next = s.now + BASE_CONTROL_PERIOD;
         let v = self.last.0 + (v - self.last.0).clamp(-l.accel_v * dt, l.accel_v * dt);
         let w = self.last.1 + (w - self.last.1).clamp(-l.accel_w * dt, l.accel_w * dt);
         self.last = (v, w);
@@ -240,9 +287,6 @@ impl ExploreGoal {
     }
 }
 
-/// The period of exploration's own turning commands, s.
-const BASE_PERIOD: f64 = 0.05;
-
 impl Goal for ExploreGoal {
     fn claim(&self) -> crate::motion::Claim {
         crate::base::BASE
@@ -257,6 +301,10 @@ impl Goal for ExploreGoal {
     }
 
     fn step(&mut self, s: &mut Step<'_>) -> Option<Result<()>> {
+        // Between control periods the last command holds (the navigator keeps its own).
+        if s.now < self.next && self.nav.is_none() {
+            return crate::base::send_logged(s, self.last.0, self.last.1, 250);
+        }
         let o = s.telemetry.odometry;
         let odometry = [o.x as f64, o.y as f64, o.theta as f64];
         let Some(pose) = s.sense.in_map(odometry, true) else {
@@ -268,11 +316,17 @@ impl Goal for ExploreGoal {
         self.lost_since = None;
         let x = pose.to_array();
         let now = s.now.as_secs_f64();
-        // What the camera sees goes to the navigator under way.
-        if let (Some(nav), Some((n, t, scan))) = (self.nav.as_mut(), &s.sense.scan) {
+        // What the camera sees goes to the navigator under way, else to the layer kept.
+        if let Some((n, t, scan)) = &s.sense.scan {
             if *n != self.seen.0 {
                 self.seen.0 = *n;
-                let _ = nav.observe(*t, scan);
+                let _ = match self.nav.as_mut() {
+                    Some(nav) => nav.observe(*t, scan),
+                    None => self
+                        .live
+                        .observe(*t, scan, self.settings.live_memory, None)
+                        .map(|_| ()),
+                };
             }
         }
         match self.state {
@@ -299,25 +353,21 @@ impl Goal for ExploreGoal {
                 self.seen.1 = *n;
                 let map = map.clone();
                 if self.visited >= MAX_FRONTIERS {
-                    crate::base::stop_base(s.link);
-                    return Some(Ok(()));
+                    return self.end(s, Ok(()));
                 }
                 match self.choose(&map, [x[0], x[1]]) {
-                    Ok(Some((f, nav))) => {
+                    Ok(Some((f, mut nav))) => {
+                        if let Err(e) = nav.set_live(&self.live) {
+                            return self.end(s, Err(e.into()));
+                        }
                         self.target = Some(f);
                         self.nav = Some(nav);
                         self.state = Explore::Go;
                         self.send(s, 0.0, 0.0)
                     }
                     // Nothing left to see: done.
-                    Ok(None) => {
-                        crate::base::stop_base(s.link);
-                        Some(Ok(()))
-                    }
-                    Err(e) => {
-                        crate::base::stop_base(s.link);
-                        Some(Err(e))
-                    }
+                    Ok(None) => self.end(s, Ok(())),
+                    Err(e) => self.end(s, Err(e)),
                 }
             }
             Explore::Go => {
@@ -339,7 +389,7 @@ impl Goal for ExploreGoal {
                             })
                             .unwrap_or(false);
                         if !still {
-                            self.nav = None;
+                            self.drop_nav();
                             self.state = Explore::Choose { after: *n - 1 };
                             return self.send(s, 0.0, 0.0);
                         }
@@ -356,7 +406,7 @@ impl Goal for ExploreGoal {
                     }
                     Ok(NavCommand::Arrived) => {
                         self.visited += 1;
-                        self.nav = None;
+                        self.drop_nav();
                         self.state = Explore::Face {
                             heading: target.heading,
                         };
@@ -365,7 +415,7 @@ impl Goal for ExploreGoal {
                     Err(_) => {
                         // This frontier cannot be reached from here: the next one.
                         self.frontier.failed.push(target.view_point);
-                        self.nav = None;
+                        self.drop_nav();
                         self.state = Explore::Choose { after: 0 };
                         self.send(s, 0.0, 0.0)
                     }

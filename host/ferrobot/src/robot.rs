@@ -492,6 +492,15 @@ impl Robot {
         })
     }
 
+    /// What obstacle scans are made with: the frames, the camera's optical frame, the body.
+    pub(crate) fn eyes(&self) -> Result<crate::sense::Eyes> {
+        Ok(crate::sense::Eyes {
+            frames: self.frames()?.clone(),
+            optical: self.optical_frame()?,
+            body: crate::sense::SelfBody::new(self.config())?,
+        })
+    }
+
     /// The camera's optical frame.
     pub(crate) fn optical_frame(&self) -> Result<String> {
         self.inner

@@ -124,12 +124,18 @@ impl Io {
     /// Makes the obstacle scan of a frame taken with telemetry `tel`, in the map's frame (SLAM's
     /// when it runs and has a pose, else the odometry's).
     fn scan_frame(&mut self, tel: &ferrobot_protocol::Telemetry, raw: &RawFrame) {
-        let (Some((frames, optical)), Some(camera)) =
-            (self.sense.camera.as_ref(), self.camera.as_ref())
-        else {
+        let (Some(eyes), Some(camera)) = (self.sense.camera.as_ref(), self.camera.as_ref()) else {
             return;
         };
-        let Ok(on_base) = frames.transform_at(tel, optical, "base_link") else {
+        let Ok(poses) = eyes.frames.poses_in(tel, "base_link") else {
+            return;
+        };
+        let Some(on_base) = eyes
+            .frames
+            .link_index(&eyes.optical)
+            .and_then(|i| poses.get(i))
+            .copied()
+        else {
             return;
         };
         let odometry = odometry_at(tel, raw.time.as_secs_f64());
@@ -137,8 +143,14 @@ impl Io {
             return;
         };
         let camera_pose = optimise::planar(base.to_array()) * on_base;
-        let scan =
-            crate::sense::obstacle_scan(&raw.depth, &camera.intrinsics(), &camera_pose, base);
+        let body = eyes.body.placed(&poses);
+        let scan = crate::sense::obstacle_scan(
+            &raw.depth,
+            &camera.intrinsics(),
+            &camera_pose,
+            base,
+            &body,
+        );
         self.sense.keep_scan(raw.time, scan);
     }
 

@@ -31,7 +31,7 @@ pub mod timing;
 pub use acm::SelfCollisionMatrix;
 pub use checker::{CheckOptions, Checker, Contact};
 pub use error::{Error, Result};
-pub use model::CollisionModel;
+pub use model::{config_geometry, CollisionModel, LinkGeometry};
 pub use planner::{InformedRrtStar, Plan, PlanOptions, Planner, RrtConnect};
 pub use scene::{AttachedObject, PlanningScene, Voxels, WorldObject};
 pub use shape::Shape;

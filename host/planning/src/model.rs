@@ -196,6 +196,19 @@ pub fn urdf_geometry(urdf: &urdf_rs::Robot, dir: Option<&Path>) -> Result<Vec<Li
         .collect()
 }
 
+/// Each link's shapes from a robot configuration's URDF (meshes read beside the
+/// configuration file), in the URDF tree's link order.
+pub fn config_geometry(cfg: &RobotConfig) -> Result<Vec<LinkGeometry>> {
+    urdf_geometry(&cfg.urdf, config_dir(cfg))
+}
+
+/// Where a configuration's meshes are read from: its file's folder (none for a bundled robot).
+fn config_dir(cfg: &RobotConfig) -> Option<&Path> {
+    cfg.file
+        .parent()
+        .filter(|_| !cfg.file.starts_with("<bundled>"))
+}
+
 impl CollisionModel {
     /// The model of `urdf` for planning `joints` (URDF names, in path order) within `limits`
     /// (rad or m, one `(min, max)` per joint); meshes are read relative to `dir`. The
@@ -307,10 +320,7 @@ impl CollisionModel {
                     .ok_or_else(|| invalid("arm joints", format!("{n:?} not in the joint table")))
             })
             .collect::<Result<Vec<_>>>()?;
-        let dir = cfg
-            .file
-            .parent()
-            .filter(|_| !cfg.file.starts_with("<bundled>"));
+        let dir = config_dir(cfg);
         let acm = cfg
             .collision
             .as_ref()
