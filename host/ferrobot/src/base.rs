@@ -1288,8 +1288,14 @@ impl Base {
         // error now, not a failure later: the navigator's first plan, made here. Beyond the
         // map's edge is unknown, so free (as move_base's allow_unknown). When what blocks the
         // way is only what the camera saw before, the navigator looks again first.
-        match nav.plan(self.now().as_secs_f64(), [here[0], here[1]]) {
-            Err(ferrobot_nav::Error::NoPath { .. }) if nav.live_cells() > 0 => {}
+        let now = self.now().as_secs_f64();
+        match nav.plan(now, [here[0], here[1]]) {
+            Err(ferrobot_nav::Error::NoPath { .. }) if nav.live_cells() > 0 => {
+                // Blocked by the map itself: refused now.
+                let mut bare = nav.clone();
+                bare.set_live(&ferrobot_nav::LiveObstacles::new(map.resolution)?)?;
+                bare.plan(now, [here[0], here[1]])?;
+            }
             r => r?,
         }
         if scans {
