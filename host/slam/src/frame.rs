@@ -36,7 +36,9 @@ pub(crate) struct DepthUse {
 
 impl FrameFeatures {
     /// The features of `rgb` with a valid depth in `depth` away from depth edges (the 3 × 3
-    /// neighbourhood within 5 % of the centre), in range and off the robot's body.
+    /// neighbourhood within 5 % of the centre), in range, and off the robot's body: neither
+    /// on it nor with it inside the patch the descriptor is drawn from (a corner where the
+    /// arm's edge crosses the wall behind moves with the camera, not with the world).
     #[allow(clippy::too_many_arguments)]
     pub fn new(
         orb: &OrbExtractor,
@@ -53,6 +55,7 @@ impl FrameFeatures {
             data: vec![0; w * h],
         });
         let all = orb.extract(&grey);
+        let body = (range.self_radius > 0.0).then(|| SelfMask::new(depth, k, t_bc, range));
         let cols = w.div_ceil(GRID);
         let rows = h.div_ceil(GRID);
         let mut f = FrameFeatures {
@@ -83,9 +86,12 @@ impl FrameFeatures {
                 continue;
             }
             let p = k.unproject(kp.v as f64, kp.u as f64, z);
-            if range.self_radius > 0.0 {
-                let pb = t_bc * p;
-                if pb.x.hypot(pb.y) < range.self_radius {
+            if let Some(body) = &body {
+                if is_self(&p, t_bc, range) {
+                    continue;
+                }
+                let reach = (DESCRIPTOR_REACH * orb.level_scale(kp.level)).ceil() as i64;
+                if body.any_within(c as i64, r as i64, reach) {
                     continue;
                 }
             }
@@ -134,6 +140,67 @@ impl FrameFeatures {
     }
 }
 
+/// How far from its corner a feature's descriptor looks, px at its pyramid level: the
+/// binary tests' square of half-size 13 px, turned by up to 45°.
+const DESCRIPTOR_REACH: f32 = 18.4;
+
+/// Whether the optical-frame point `p` is the robot's own body (within the self radius of
+/// the body's z axis).
+fn is_self(p: &Point3<f64>, t_bc: &Isometry3<f64>, range: DepthUse) -> bool {
+    let pb = t_bc * p;
+    pb.x.hypot(pb.y) < range.self_radius
+}
+
+/// The pixels of a depth image that are the robot's own body, counted in a summed-area table
+/// so that any square's count is four look-ups.
+struct SelfMask {
+    /// Counts of body pixels above and left of each corner, `(w + 1) × (h + 1)`.
+    sums: Vec<u32>,
+    width: usize,
+    height: usize,
+}
+
+impl SelfMask {
+    fn new(
+        depth: &DepthImage,
+        k: &ferrobot_perception::Intrinsics,
+        t_bc: &Isometry3<f64>,
+        range: DepthUse,
+    ) -> Self {
+        let (w, h) = (depth.width as usize, depth.height as usize);
+        let mut sums = vec![0u32; (w + 1) * (h + 1)];
+        for r in 0..h {
+            let mut row = 0u32;
+            for c in 0..w {
+                let on_body = depth_at(depth, c, r)
+                    .is_some_and(|z| is_self(&k.unproject(r as f64, c as f64, z), t_bc, range));
+                row += on_body as u32;
+                sums[(r + 1) * (w + 1) + c + 1] = sums[r * (w + 1) + c + 1] + row;
+            }
+        }
+        SelfMask {
+            sums,
+            width: w,
+            height: h,
+        }
+    }
+
+    /// Whether any body pixel lies within `reach` px (the square) of pixel (`col`, `row`).
+    fn any_within(&self, col: i64, row: i64, reach: i64) -> bool {
+        let clamp = |x: i64, n: usize| x.clamp(0, n as i64) as usize;
+        let (c0, c1) = (
+            clamp(col - reach, self.width),
+            clamp(col + reach + 1, self.width),
+        );
+        let (r0, r1) = (
+            clamp(row - reach, self.height),
+            clamp(row + reach + 1, self.height),
+        );
+        let at = |r: usize, c: usize| self.sums[r * (self.width + 1) + c] as i64;
+        at(r1, c1) - at(r0, c1) - at(r1, c0) + at(r0, c0) > 0
+    }
+}
+
 /// The depth at pixel (`col`, `row`), m, when valid (finite and positive).
 pub(crate) fn depth_at(depth: &DepthImage, col: usize, row: usize) -> Option<f64> {
     if col >= depth.width as usize || row >= depth.height as usize {
@@ -164,11 +231,8 @@ pub(crate) fn sample_cloud(
                 continue;
             }
             let p = k.unproject(r as f64, c as f64, z);
-            if range.self_radius > 0.0 {
-                let pb = t_bc * p;
-                if pb.x.hypot(pb.y) < range.self_radius {
-                    continue;
-                }
+            if range.self_radius > 0.0 && is_self(&p, t_bc, range) {
+                continue;
             }
             let i = 3 * (r * w + c);
             let col = if rgb.data.len() >= i + 3 {
@@ -180,4 +244,53 @@ pub(crate) fn sample_cloud(
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::orb::OrbSettings;
+    use ferrobot_perception::Intrinsics;
+
+    #[test]
+    fn no_feature_has_the_robots_body_in_its_patch() {
+        // A checkered wall 2 m ahead; the body is what lies within 0.3 m of the optical axis
+        // (the camera is the body here), a disc of 93 px radius in the middle of the image.
+        let (w, h) = (320u32, 240u32);
+        let k = Intrinsics::new(w, h, 620.0, 620.0, 160.0, 120.0).expect("k");
+        let rgb: Vec<u8> = (0..w * h)
+            .flat_map(|i| {
+                let (c, r) = (i % w, i / w);
+                let v = if (c / 12 + r / 12) % 2 == 0 { 40 } else { 210 };
+                [v, v, v]
+            })
+            .collect();
+        let rgb = RgbImage::new(w, h, rgb).expect("rgb");
+        let depth = DepthImage::new(w, h, vec![2.0; (w * h) as usize]).expect("depth");
+        let orb = OrbExtractor::new(OrbSettings::default());
+        let range = |self_radius| DepthUse {
+            min: 0.3,
+            max: 4.0,
+            self_radius,
+        };
+        let t_bc = Isometry3::identity();
+        let all = FrameFeatures::new(&orb, &rgb, &depth, &k, &t_bc, range(0.0));
+        let off = FrameFeatures::new(&orb, &rgb, &depth, &k, &t_bc, range(0.3));
+        let body_px = 0.3 / 2.0 * 620.0;
+        let near = |f: &FrameFeatures, margin: f64| {
+            f.keypoints
+                .iter()
+                .filter(|kp| {
+                    let reach = margin * orb.level_scale(kp.level) as f64;
+                    (kp.u as f64 - 160.0).hypot(kp.v as f64 - 120.0) < body_px + reach
+                })
+                .count()
+        };
+        // Corners on the body and beside it are found without the mask ...
+        assert!(near(&all, 0.0) > 10, "{}", near(&all, 0.0));
+        assert!(near(&all, 18.0) > near(&all, 0.0));
+        // ... and with it none has a body pixel within its patch, while the rest stay.
+        assert_eq!(near(&off, 18.0), 0);
+        assert!(off.len() > 10 && off.len() < all.len(), "{}", off.len());
+    }
 }

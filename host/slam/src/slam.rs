@@ -7,8 +7,18 @@
 //! errors with the odometry as a prior; a keyframe when the view has changed enough. A keyframe
 //! that sees many landmarks of old keyframes closes a loop: its pose from the recent landmarks
 //! and from the old ones become two constraints of a pose graph of the keyframes, whose
-//! optimisation spreads the drift over the loop. When matching fails, the odometry carries the
-//! pose, and a frame with enough features is matched against every keyframe (relocalisation).
+//! optimisation spreads the drift over the loop; a keyframe also searches the old keyframes'
+//! landmarks wider around its pose, so a drift beyond tracking's search is closed too. When
+//! matching fails, the odometry carries the pose, and a frame with enough features is matched
+//! against every keyframe (relocalisation).
+//!
+//! The wheels check the camera: a tracked pose that strays from where the odometry since the
+//! last anchor (a keyframe that agreed with it) puts the body, beyond the odometry's error, may
+//! be on something the robot moves along (a basket its arm pushes fills the view and turns
+//! with it); the landmarks seen where the wheels put them then make the pose alone, or none
+//! does. For a moment after tracking is lost, relocalisation is held to the wheels as well (a
+//! kidnapped robot is relocalised once it has stayed lost a while); where the wheels' motion
+//! contradicts what it keeps finding, the map goes on from the wheels' pose.
 
 use ferrobot_perception::{DepthImage, Intrinsics, RgbImage};
 use nalgebra::{Isometry3, Point3};
@@ -17,14 +27,45 @@ use crate::error::{Error, Result};
 use crate::frame::{sample_cloud, DepthUse, FrameFeatures};
 use crate::map::{Keyframe, Landmark, Map};
 use crate::optimise::{
-    align, optimise_graph, optimise_pose, planar, to_planar, Dof, Edge, Observation, Pinhole,
-    PlanarPrior,
+    align, chi2, optimise_graph, optimise_pose, planar, to_planar, Dof, Edge, Observation, Pinhole,
+    PlanarPrior, CHI2_3,
 };
 use crate::orb::{hamming, OrbExtractor, OrbSettings};
 
 /// A landmark's position is never trusted beyond this, m (its fused measurements' errors are
 /// not all independent).
 pub(crate) const MIN_LANDMARK_SIGMA: f64 = 0.001;
+
+/// Tracking agrees with the wheels when it lies within this many of their standard
+/// deviations ([`SlamSettings::odometry_agreement`]) of where they put the body.
+const AGREEMENT: f64 = 3.0;
+
+/// Fewest matches of old landmarks that close a loop.
+const LOOP_MATCHES: usize = 30;
+
+/// Farthest a pose from old landmarks found by the wider search may lie from the tracked one,
+/// m and rad, to close a loop: farther is more likely a repeated texture matched wrongly than
+/// a drift.
+const LOOP_REACH: [f64; 2] = [0.3, 0.15];
+
+/// For this many frames after tracking is lost the wheels' pose is trusted over a
+/// relocalisation's (about a third of a second at 30 Hz).
+const WHEELS_TRUSTED: usize = 10;
+
+/// A match agrees with the wheels when seen where their pose puts it, give or take this many
+/// of their standard deviations.
+const WITHIN: f64 = 2.0;
+
+/// Whether planar pose `b` lies within [`AGREEMENT`] standard deviations `sigma` (m, rad) of `a`.
+fn agrees(a: &Isometry3<f64>, b: &Isometry3<f64>, sigma: [f64; 2]) -> bool {
+    within(a, b, sigma, AGREEMENT)
+}
+
+/// Whether planar pose `b` lies within `k` standard deviations `sigma` (m, rad) of `a`.
+fn within(a: &Isometry3<f64>, b: &Isometry3<f64>, sigma: [f64; 2], k: f64) -> bool {
+    let [x, y, th] = to_planar(&(a.inverse() * b));
+    x.hypot(y) <= k * sigma[0] && th.abs() <= k * sigma[1]
+}
 
 /// Settings of [`Slam`].
 #[derive(Debug, Clone, PartialEq)]
@@ -56,6 +97,12 @@ pub struct SlamSettings {
     pub loop_age: usize,
     /// Odometry's error per metre driven (fraction) and per radian turned (fraction).
     pub odometry_drift: [f64; 2],
+    /// How far tracking may stray from where the wheels put the body (carried from the last
+    /// pose that agreed with them) before the matches are asked whether some of them moved
+    /// with the robot: the standard deviation of that prediction's error, m and rad as a floor
+    /// (the pose's own noise and the odometry's timing) and a fraction of the distance driven
+    /// and the angle turned.
+    pub odometry_agreement: [f64; 2],
     /// Pixel stride of the depth sample kept per keyframe for the dense maps.
     pub cloud_stride: usize,
 }
@@ -86,6 +133,7 @@ impl SlamSettings {
             min_inliers: 25,
             loop_age: 15,
             odometry_drift: [0.2, 0.2],
+            odometry_agreement: [0.006, 0.05],
             cloud_stride: 4,
         }
     }
@@ -109,7 +157,9 @@ impl SlamSettings {
         if self.min_inliers < 6 || self.cloud_stride == 0 || self.cloud_stride > 64 {
             return bad("min_inliers must be at least 6 and cloud_stride in 1..=64".into());
         }
-        if !self.odometry_drift.iter().all(|&x| pos(x)) {
+        if !self.odometry_drift.iter().all(|&x| pos(x))
+            || !self.odometry_agreement.iter().all(|&x| pos(x))
+        {
             return bad("odometry drift must be finite and positive".into());
         }
         Ok(())
@@ -167,6 +217,10 @@ pub struct TrackReport {
 /// A pose found without a prediction, with its matches `(feature, landmark)`.
 type Located = (Isometry3<f64>, Vec<(usize, usize)>);
 
+/// A pose found from the matches that agree with the wheels: the pose, the matches
+/// `(feature, landmark)`, each one's verdict and the inlier count.
+type Agreeing = (Isometry3<f64>, Vec<(usize, usize)>, Vec<bool>, usize);
+
 /// RGB-D SLAM fused with wheel odometry.
 #[derive(Debug, Clone)]
 pub struct Slam {
@@ -183,6 +237,13 @@ pub struct Slam {
     last_odometry: Option<[f64; 3]>,
     last_keyframe_inliers: usize,
     lost: usize,
+    /// The newest pose the map confirmed (a keyframe's, a relocalised frame's) and the
+    /// odometry then: what the wheels say since is measured from it.
+    anchor: Option<(Isometry3<f64>, [f64; 3])>,
+    /// While lost, the first pose relocalisation found that the wheels refused, and the
+    /// odometry then: a later one that the wheels' motion since contradicts is on something
+    /// that moves with the robot.
+    refused: Option<(Isometry3<f64>, [f64; 3])>,
     last_loop: usize,
     loops: usize,
     frames: usize,
@@ -230,6 +291,8 @@ impl Slam {
             last_odometry: None,
             last_keyframe_inliers: 0,
             lost: 0,
+            anchor: None,
+            refused: None,
             last_loop: 0,
             loops: 0,
             frames: 0,
@@ -355,7 +418,7 @@ impl Slam {
         let mut pose = pred;
         let mut inlier = Vec::new();
         let dof = self.settings.dof;
-        let inliers = optimise_pose(
+        let mut inliers = optimise_pose(
             &self.cam,
             &mut pose,
             &input.camera,
@@ -364,6 +427,27 @@ impl Slam {
             prior.as_ref(),
             &mut inlier,
         );
+        // A pose the wheels disagree with, or none: the matches may be on something the robot
+        // moves (a basket its arm pushes along fills the view and turns with it). When enough
+        // of the landmarks are seen where the wheels put them, they alone make the pose; when
+        // not, the frame is not tracked (the wheels carry it, and a kidnap is found again by
+        // relocalisation, which trusts no prediction).
+        let wheels = self.wheels_pose(input.odometry);
+        if !self.localising {
+            if let Some((wheels, sigma)) = wheels {
+                if inliers < self.settings.min_inliers || !agrees(&wheels, &pose, sigma) {
+                    let split = self.pose_agreeing(&feats, &input.camera, &wheels, sigma, radius);
+                    if let Some((p, m, ok, n)) = split {
+                        pose = p;
+                        matches = m;
+                        inlier = ok;
+                        inliers = n;
+                    } else {
+                        inliers = 0;
+                    }
+                }
+            }
+        }
         let mut state = TrackState::Tracking;
         let mut kept: Vec<(usize, usize)> = Vec::new();
         if inliers >= self.settings.min_inliers {
@@ -396,30 +480,42 @@ impl Slam {
                 self.lost % 5 == 1
             };
             if feats.len() >= 4 * self.settings.min_inliers && due {
-                if let Some((p, k)) = self.relocalise(&feats, &input.camera) {
-                    pose = p;
-                    kept = k;
-                    state = TrackState::Relocalised;
-                    self.lost = 0;
-                    self.localising = false;
+                let trusted = self.trusted(wheels);
+                match self.relocalise(&feats, &input.camera, trusted) {
+                    (Some((p, k)), _) => {
+                        pose = p;
+                        kept = k;
+                        state = TrackState::Relocalised;
+                        self.lost = 0;
+                        self.localising = false;
+                    }
+                    (None, Some(refused)) => {
+                        self.refuse(refused, input.odometry);
+                    }
+                    (None, None) => {}
                 }
             }
         }
         // Carried by the odometry into a view the map does not hold (or cannot match): a
         // keyframe at the odometry's pose starts the map there, so tracking resumes. Not
         // before this very view failed to match every keyframe (after a kidnap the odometry's
-        // pose is wrong, and a map started there would be tracked against for good).
+        // pose is wrong, and a map started there would be tracked against for good), nor while
+        // it matched somewhere the wheels still refuse.
         let mut restart = state == TrackState::Odometry
             && !self.localising
             && self.lost >= 2
             && feats.len() >= 2 * self.settings.min_inliers;
         if restart {
-            if let Some((p, k)) = self.relocalise(&feats, &input.camera) {
-                pose = p;
-                kept = k;
-                state = TrackState::Relocalised;
-                self.lost = 0;
-                restart = false;
+            match self.relocalise(&feats, &input.camera, self.trusted(wheels)) {
+                (Some((p, k)), _) => {
+                    pose = p;
+                    kept = k;
+                    state = TrackState::Relocalised;
+                    self.lost = 0;
+                    restart = false;
+                }
+                (None, Some(refused)) => restart = self.refuse(refused, input.odometry),
+                (None, None) => {}
             }
         }
         // Without a pose from the map, the constant-velocity model is not carried on.
@@ -428,6 +524,9 @@ impl Slam {
         } else {
             pose
         };
+        if state == TrackState::Relocalised {
+            self.rebase(pose, input.odometry, false);
+        }
         self.pose = pose;
         self.last_odometry = input.odometry;
         let mut keyframe = false;
@@ -443,9 +542,9 @@ impl Slam {
             let turned = d.rotation.angle();
             let old = self.old_anchor_count(&kept);
             // A relocalised frame matched old landmarks only: nothing recent to compare with.
-            let loop_due = state == TrackState::Tracking
-                && old >= 30
+            let may_close = state == TrackState::Tracking
                 && last + 1 >= self.last_loop + self.settings.loop_age;
+            let mut loop_due = may_close && old >= LOOP_MATCHES;
             if loop_due
                 || moved > self.settings.keyframe_distance
                 || turned > self.settings.keyframe_angle
@@ -454,11 +553,28 @@ impl Slam {
             {
                 keyframe = true;
                 self.keyframe_wanted = false;
+                // Tracking sees old landmarks only near where the recent ones put them: a
+                // drift beyond its search (or its outlier test) would never be closed. So a
+                // keyframe also looks for the old keyframes' landmarks wider around its pose.
+                let mut seen = kept.clone();
+                if may_close && !loop_due {
+                    if let Some(more) = self.old_view(&feats, &input.camera, &kept) {
+                        seen.extend(more);
+                        loop_due = true;
+                    }
+                }
                 if loop_due {
-                    loop_closed = self.close_loop(input, &feats, &kept);
+                    loop_closed = self.close_loop(input, &feats, &seen);
                 }
                 self.insert_keyframe(input, &feats, &kept, kept.len(), false);
+                if loop_closed {
+                    // The loop moved the pose: what the wheels say is measured from there.
+                    self.rebase(self.pose, input.odometry, true);
+                }
             }
+        }
+        if self.lost == 0 {
+            self.refused = None;
         }
         self.log_frame(input.time);
         Ok(TrackReport {
@@ -555,6 +671,82 @@ impl Slam {
         if !kfs.contains(&last) {
             kfs.push(last);
         }
+        self.search_in(feats, pred, t_bc, radius, &kfs)
+    }
+
+    /// The kept matches of frame `feats` to landmarks of old keyframes (see
+    /// [`SlamSettings::loop_age`]) near the current pose, searched wider than tracking does
+    /// (no recent landmark among them: their pose is the old landmarks' alone), when at least
+    /// [`LOOP_MATCHES`] agree on a pose within [`LOOP_REACH`] of the current one. Features
+    /// already matched in `kept` are left out.
+    fn old_view(
+        &mut self,
+        feats: &FrameFeatures,
+        t_bc: &Isometry3<f64>,
+        kept: &[(usize, usize)],
+    ) -> Option<Vec<(usize, usize)>> {
+        let cut = self
+            .map
+            .keyframes
+            .len()
+            .checked_sub(self.settings.loop_age)?;
+        let t_wc = self.pose * t_bc;
+        let mut kfs = self.map.keyframes_near(&t_wc, 5.0, 1.4);
+        kfs.retain(|&k| k < cut);
+        kfs.truncate(40);
+        if kfs.is_empty() {
+            return None;
+        }
+        let pose = self.pose;
+        let taken: std::collections::HashSet<usize> = kept.iter().map(|&(f, _)| f).collect();
+        let matches: Vec<(usize, usize)> = self
+            .search_in(feats, &pose, t_bc, 2.5 * 15.0, &kfs)
+            .into_iter()
+            .filter(|(f, _)| !taken.contains(f))
+            .collect();
+        if matches.len() < LOOP_MATCHES {
+            return None;
+        }
+        let obs = self.observations(feats, &matches);
+        let mut t_old = pose;
+        let mut ok = Vec::new();
+        let n = optimise_pose(
+            &self.cam,
+            &mut t_old,
+            t_bc,
+            &obs,
+            self.settings.dof,
+            None,
+            &mut ok,
+        );
+        let gap = pose.inverse() * t_old;
+        if n < LOOP_MATCHES
+            || gap.translation.vector.norm() > LOOP_REACH[0]
+            || gap.rotation.angle() > LOOP_REACH[1]
+        {
+            return None;
+        }
+        Some(
+            matches
+                .into_iter()
+                .zip(ok)
+                .filter(|(_, good)| *good)
+                .map(|(m, _)| m)
+                .collect(),
+        )
+    }
+
+    /// Matches of frame features to the landmarks of keyframes `kfs` (see
+    /// [`Slam::search_local`]).
+    fn search_in(
+        &mut self,
+        feats: &FrameFeatures,
+        pred: &Isometry3<f64>,
+        t_bc: &Isometry3<f64>,
+        radius: f64,
+        kfs: &[usize],
+    ) -> Vec<(usize, usize)> {
+        let t_wc = pred * t_bc;
         self.stamp.resize(self.map.landmarks.len(), 0);
         self.searches += 1;
         let frame = self.searches;
@@ -563,7 +755,7 @@ impl Slam {
         let mut near = Vec::new();
         let (w, h) = (self.k.width as f64, self.k.height as f64);
         let inv = t_wc.inverse();
-        for &kf in &kfs {
+        for &kf in kfs {
             for l in self.map.keyframes[kf].landmarks.iter().flatten().copied() {
                 if self.stamp[l] == frame {
                     continue;
@@ -634,6 +826,129 @@ impl Slam {
             sigma_px: px.hypot(self.cam.fx * lm.sigma / z),
             sigma_disparity: sd.hypot(fb * lm.sigma / (z * z)),
         }
+    }
+
+    /// Makes `pose` (at `odometry`) the anchor the wheels' word is measured from: when
+    /// `force`d, when it agrees closely with the wheels (within one standard deviation), or
+    /// when it lies beyond their word (a relocalisation after a kidnap). A pose between those
+    /// is not: the anchor stays, so a drag by something moving with the robot, each step
+    /// within the wheels' error, still adds up against it.
+    fn rebase(&mut self, pose: Isometry3<f64>, odometry: Option<[f64; 3]>, force: bool) {
+        let Some(now) = odometry else {
+            self.anchor = None;
+            return;
+        };
+        let keep = !force
+            && self.wheels_pose(Some(now)).is_some_and(|(w, sigma)| {
+                !within(&w, &pose, sigma, 1.0) && agrees(&w, &pose, sigma)
+            });
+        if !keep {
+            self.anchor = Some((pose, now));
+        }
+    }
+
+    /// Where the wheels put the body now: the anchor moved by the odometry since, with the
+    /// standard deviations (m, rad) of that prediction's error.
+    fn wheels_pose(&self, odometry: Option<[f64; 3]>) -> Option<(Isometry3<f64>, [f64; 2])> {
+        let (at, then) = self.anchor?;
+        self.carried(at, then, odometry?)
+    }
+
+    /// Pose `at` (odometry `then`) carried by the odometry to `now`, with the standard
+    /// deviations (m, rad) of the carried pose's error.
+    fn carried(
+        &self,
+        at: Isometry3<f64>,
+        then: [f64; 3],
+        now: [f64; 3],
+    ) -> Option<(Isometry3<f64>, [f64; 2])> {
+        let d = planar(then).inverse() * planar(now);
+        let [dx, dy, dth] = to_planar(&d);
+        let dist = dx.hypot(dy);
+        let [floor, f] = self.settings.odometry_agreement;
+        Some((
+            at * d,
+            [floor + f * dist, floor + f * dth.abs() + 0.01 * dist],
+        ))
+    }
+
+    /// Notes a relocalised pose the wheels refused (`pose`, at odometry `odometry`); returns
+    /// whether the wheels' motion since the first one refused this time contradicts it (it
+    /// is on something that moved with the robot, so the wheels are right).
+    fn refuse(&mut self, pose: Isometry3<f64>, odometry: Option<[f64; 3]>) -> bool {
+        let Some(now) = odometry else {
+            return false;
+        };
+        match self.refused {
+            None => {
+                self.refused = Some((pose, now));
+                false
+            }
+            Some((first, then)) => self
+                .carried(first, then, now)
+                .is_some_and(|(p, sigma)| !agrees(&p, &pose, sigma)),
+        }
+    }
+
+    /// The pose from the matches that agree with the wheels' pose `wheels`: the landmarks
+    /// searched for where it puts them (within `radius` px), kept when seen there give or
+    /// take its error `sigma` (m, rad), the pose refined on them with the wheels as a prior.
+    /// Returns the pose, the matches, each one's verdict and the inlier count; `None` when too
+    /// few agree or their pose strays from the wheels' as well.
+    fn pose_agreeing(
+        &mut self,
+        feats: &FrameFeatures,
+        t_bc: &Isometry3<f64>,
+        wheels: &Isometry3<f64>,
+        sigma: [f64; 2],
+        radius: f64,
+    ) -> Option<Agreeing> {
+        let matches = self.search_local(feats, wheels, t_bc, radius);
+        let obs = self.observations(feats, &matches);
+        let fb = self.cam.fx * self.cam.baseline;
+        let agreeing: Vec<usize> = obs
+            .iter()
+            .enumerate()
+            .filter(|(_, o)| {
+                let z = fb / o.measured.z;
+                let px = self.cam.fx * WITHIN * (sigma[1] + sigma[0] / z);
+                let disparity = fb * WITHIN * sigma[0] / (z * z);
+                let wide = Observation {
+                    sigma_px: o.sigma_px.hypot(px),
+                    sigma_disparity: o.sigma_disparity.hypot(disparity),
+                    ..**o
+                };
+                chi2(&self.cam, wheels, t_bc, &wide) <= CHI2_3
+            })
+            .map(|(i, _)| i)
+            .collect();
+        if agreeing.len() < self.settings.min_inliers {
+            return None;
+        }
+        let sub: Vec<Observation> = agreeing.iter().map(|&i| obs[i]).collect();
+        let prior = PlanarPrior {
+            pose: *wheels,
+            sigma: [sigma[0], sigma[0], sigma[1]],
+        };
+        let mut pose = *wheels;
+        let mut ok = Vec::new();
+        let n = optimise_pose(
+            &self.cam,
+            &mut pose,
+            t_bc,
+            &sub,
+            self.settings.dof,
+            Some(&prior),
+            &mut ok,
+        );
+        if n < self.settings.min_inliers || !agrees(wheels, &pose, sigma) {
+            return None;
+        }
+        let mut all = vec![false; obs.len()];
+        for (&i, &good) in agreeing.iter().zip(&ok) {
+            all[i] = good;
+        }
+        Some((pose, matches, all, n))
     }
 
     /// How many kept matches are landmarks of old keyframes.
@@ -717,6 +1032,7 @@ impl Slam {
             ),
         });
         self.kf_odometry.push(input.odometry);
+        self.rebase(self.pose, input.odometry, false);
         self.last_keyframe_inliers = inliers.max(self.settings.min_inliers);
     }
 
@@ -854,10 +1170,27 @@ impl Slam {
         true
     }
 
+    /// The wheels' pose while it is still trusted over a relocalisation's: for the first
+    /// [`WHEELS_TRUSTED`] frames lost. (A relocalisation far from it then is more likely on
+    /// something the robot moved than a kidnap; a kidnapped robot stays lost longer.)
+    fn trusted(
+        &self,
+        wheels: Option<(Isometry3<f64>, [f64; 2])>,
+    ) -> Option<(Isometry3<f64>, [f64; 2])> {
+        wheels.filter(|_| self.lost < WHEELS_TRUSTED)
+    }
+
     /// The pose of a frame found by matching its features against every keyframe's (no
     /// prediction): the keyframes with the most descriptor matches are tried in turn with a
-    /// RANSAC of rigid fits on the matched 3-D points, then the pose is refined.
-    fn relocalise(&self, feats: &FrameFeatures, t_bc: &Isometry3<f64>) -> Option<Located> {
+    /// RANSAC of rigid fits on the matched 3-D points, then the pose is refined. With the
+    /// `wheels`' pose (and its error), only a pose that agrees with it is taken; the first one
+    /// found and refused is returned too.
+    fn relocalise(
+        &self,
+        feats: &FrameFeatures,
+        t_bc: &Isometry3<f64>,
+        wheels: Option<(Isometry3<f64>, [f64; 2])>,
+    ) -> (Option<Located>, Option<Isometry3<f64>>) {
         // The strongest 400 features of the frame.
         let mut order: Vec<usize> = (0..feats.len()).collect();
         order.sort_by(|&a, &b| {
@@ -891,12 +1224,17 @@ impl Slam {
             }
         }
         scored.sort_by(|a, b| b.1.len().cmp(&a.1.len()).then(a.0.cmp(&b.0)));
+        let mut refused = None;
         for (_, m) in scored.into_iter().take(3) {
-            if let Some(r) = self.ransac_pose(feats, t_bc, &m) {
-                return Some(r);
+            let Some(r) = self.ransac_pose(feats, t_bc, &m) else {
+                continue;
+            };
+            if wheels.is_none_or(|(w, sigma)| agrees(&w, &r.0, sigma)) {
+                return (Some(r), None);
             }
+            refused.get_or_insert(r.0);
         }
-        None
+        (None, refused)
     }
 
     /// A body pose from matches by RANSAC over rigid fits of three point pairs (seeded, so
