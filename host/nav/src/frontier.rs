@@ -20,7 +20,9 @@ use ferrobot_geometry::validate;
 
 use crate::error::{Error, Result};
 use crate::map_file::{Cell, MapImage};
-use crate::obstacles::{neighbours, Obstacles, OccupancyGrid, NEIGHBOURS_4, NEIGHBOURS_8};
+use crate::obstacles::{
+    grid_line, neighbours, Obstacles, OccupancyGrid, NEIGHBOURS_4, NEIGHBOURS_8,
+};
 
 /// How frontiers are found.
 #[derive(Debug, Clone, PartialEq)]
@@ -268,28 +270,8 @@ pub fn frontiers(map: &MapImage, from: [f64; 2], s: &FrontierSettings) -> Result
 /// Whether no occupied cell of `map` lies on the straight line between cells `a` and `b`
 /// (Bresenham's line; unknown cells do not block).
 fn in_sight(map: &MapImage, a: (usize, usize), b: (usize, usize)) -> bool {
-    let (mut x, mut y) = (a.0 as i64, a.1 as i64);
-    let (x1, y1) = (b.0 as i64, b.1 as i64);
-    let (dx, dy) = ((x1 - x).abs(), -(y1 - y).abs());
-    let (sx, sy) = (if x < x1 { 1 } else { -1 }, if y < y1 { 1 } else { -1 });
-    let mut err = dx + dy;
-    loop {
-        if map.cells[y as usize * map.width + x as usize] == Cell::Occupied {
-            return false;
-        }
-        if (x, y) == (x1, y1) {
-            return true;
-        }
-        let e2 = 2 * err;
-        if e2 >= dy {
-            err += dy;
-            x += sx;
-        }
-        if e2 <= dx {
-            err += dx;
-            y += sy;
-        }
-    }
+    grid_line((a.0 as i64, a.1 as i64), (b.0 as i64, b.1 as i64))
+        .all(|(x, y)| map.cells[y as usize * map.width + x as usize] != Cell::Occupied)
 }
 
 /// A Dijkstra node: distance (m) and cell, ordered nearest first.

@@ -21,4 +21,6 @@ pub use global::{GlobalPath, GlobalPlanner, GridAStar};
 pub use live::LiveObstacles;
 pub use map_file::{Cell, MapImage};
 pub use navigator::{NavCommand, NavSettings, Navigator, Scan};
-pub use obstacles::{neighbours, Circle, Obstacles, OccupancyGrid, NEIGHBOURS_4, NEIGHBOURS_8};
+pub use obstacles::{
+    grid_line, neighbours, Circle, Obstacles, OccupancyGrid, NEIGHBOURS_4, NEIGHBOURS_8,
+};

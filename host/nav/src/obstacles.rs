@@ -195,6 +195,34 @@ pub const NEIGHBOURS_8: [(i64, i64); 8] = [
     (-1, -1),
 ];
 
+/// The cells on the straight line from cell `a` to cell `b`, both included, in order
+/// (Bresenham's line).
+pub fn grid_line(a: (i64, i64), b: (i64, i64)) -> impl Iterator<Item = (i64, i64)> {
+    let (dx, dy) = ((b.0 - a.0).abs(), -(b.1 - a.1).abs());
+    let (sx, sy) = (
+        if a.0 < b.0 { 1 } else { -1 },
+        if a.1 < b.1 { 1 } else { -1 },
+    );
+    let mut at = Some((a, dx + dy));
+    std::iter::from_fn(move || {
+        let ((x, y), err) = at?;
+        at = ((x, y) != b).then(|| {
+            let (mut x, mut y, mut err2) = (x, y, err);
+            let e2 = 2 * err;
+            if e2 >= dy {
+                err2 += dy;
+                x += sx;
+            }
+            if e2 <= dx {
+                err2 += dx;
+                y += sy;
+            }
+            ((x, y), err2)
+        });
+        Some((x, y))
+    })
+}
+
 /// The cells at `offsets` from cell `(i, j)` that lie inside a grid of `width` × `height`
 /// cells, with their offset.
 pub fn neighbours(
@@ -409,6 +437,21 @@ impl Obstacles {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_grid_line_runs_from_end_to_end_in_steps_of_one_cell() {
+        let line: Vec<_> = grid_line((0, 0), (5, 2)).collect();
+        assert_eq!(line, [(0, 0), (1, 0), (2, 1), (3, 1), (4, 2), (5, 2)]);
+        for (a, b) in [((3, -4), (-6, 1)), ((2, 2), (2, 2)), ((0, 7), (0, -3))] {
+            let l: Vec<_> = grid_line(a, b).collect();
+            assert_eq!((l[0], *l.last().unwrap()), (a, b));
+            let steps = (b.0 - a.0).abs().max((b.1 - a.1).abs()) as usize;
+            assert_eq!(l.len(), steps + 1);
+            assert!(l
+                .windows(2)
+                .all(|w| (w[1].0 - w[0].0).abs() <= 1 && (w[1].1 - w[0].1).abs() <= 1));
+        }
+    }
 
     /// The transform equals brute force on a scattered grid, cell by cell.
     #[test]

@@ -4,7 +4,7 @@
 
 use std::collections::HashMap;
 
-use ferrobot_nav::{neighbours, Cell, MapImage, NEIGHBOURS_8};
+use ferrobot_nav::{grid_line, neighbours, Cell, MapImage, NEIGHBOURS_8};
 use ferrobot_perception::PointCloud;
 use nalgebra::Point3;
 
@@ -179,27 +179,15 @@ impl Map {
         for (o, e, obstacle) in rays {
             let (i0, j0) = cell(o);
             let (i1, j1) = cell(e);
-            // Bresenham from the camera's cell to the point's, its last cell excluded; the
-            // ray's height over a cell from how far along it the cell lies.
+            // The cells from the camera's to the point's, its last cell excluded; the ray's
+            // height over a cell from how far along it the cell lies.
             let steps = (i1 - i0).abs().max((j1 - j0).abs()).max(1) as f64;
-            let (di, dj) = ((i1 - i0).abs(), -(j1 - j0).abs());
-            let (si, sj) = (if i0 < i1 { 1 } else { -1 }, if j0 < j1 { 1 } else { -1 });
-            let (mut i, mut j, mut err) = (i0, j0, di + dj);
-            while (i, j) != (i1, j1) {
+            for (i, j) in grid_line((i0, j0), (i1, j1)).take_while(|&c| c != (i1, j1)) {
                 let k = j as usize * width + i as usize;
                 reached[k] = true;
                 let along = ((i - i0).abs().max((j - j0).abs()) as f64 / steps).min(1.0);
                 if let Some(z) = slab_of(o[2] + along * (e[2] - o[2])) {
                     passes[z * n + k] += 1;
-                }
-                let e2 = 2 * err;
-                if e2 >= dj {
-                    err += dj;
-                    i += si;
-                }
-                if e2 <= di {
-                    err += di;
-                    j += sj;
                 }
             }
             let k = j1 as usize * width + i1 as usize;
