@@ -50,7 +50,19 @@ fn hostile_configs() -> Vec<(&'static str, String, &'static str)> {
         base.replacen(from, to, 1)
     };
     let j1 = r#"servo = { id = 1, model = "xm430-w350" }"#;
+    let stow = "stow = [0.0, -0.45, 1.15, 1.05, 0.0]";
     vec![
+        ("stow_short", edit(stow, "stow = [0.0, -0.45]"), "arm.stow"),
+        (
+            "stow_nan",
+            edit(stow, "stow = [0.0, nan, 1.15, 1.05, 0.0]"),
+            "arm.stow[1]",
+        ),
+        (
+            "stow_beyond_limit",
+            edit(stow, "stow = [0.0, -0.45, 4.0, 1.05, 0.0]"),
+            "arm.stow[2]",
+        ),
         (
             "timeout_neg",
             edit("timeout = 20.0", "timeout = -1.0"),

@@ -103,6 +103,11 @@ pub struct ArmConfig {
     pub ee_frame: String,
     /// Home configuration, rad.
     pub home: Vec<f64>,
+    /// The configuration the arm travels in while the base drives, rad: folded within the
+    /// base's footprint (or as near it as the arm's self-collision allows) and out of the
+    /// camera's view. `None`: the arm has no such pose.
+    #[serde(default)]
+    pub stow: Option<Vec<f64>>,
     /// IK solver.
     pub ik: IkKind,
     /// IK position tolerance, m.
@@ -865,30 +870,28 @@ impl RobotConfig {
                     ));
                 }
             }
-            if arm.home.len() != arm.joints.len() {
-                return Err(cfg_err(
-                    file,
-                    "arm.home",
-                    format!(
-                        "has {} values for {} arm joints",
-                        arm.home.len(),
-                        arm.joints.len()
-                    ),
-                ));
-            }
-            for (i, (n, &q)) in arm.joints.iter().zip(&arm.home).enumerate() {
-                let l = joints
-                    .iter()
-                    .find(|j| j.name.as_str() == n.as_str())
-                    .map(|j| j.limits);
-                if let Some(l) = l {
-                    num(
+            let named = std::iter::once(("arm.home", &arm.home))
+                .chain(arm.stow.iter().map(|s| ("arm.stow", s)));
+            for (key, pose) in named {
+                if pose.len() != arm.joints.len() {
+                    return Err(cfg_err(
                         file,
-                        format!("arm.home[{i}]"),
-                        q,
-                        l.min as f64,
-                        l.max as f64,
-                    )?;
+                        key,
+                        format!(
+                            "has {} values for {} arm joints",
+                            pose.len(),
+                            arm.joints.len()
+                        ),
+                    ));
+                }
+                for (i, (n, &q)) in arm.joints.iter().zip(pose).enumerate() {
+                    let l = joints
+                        .iter()
+                        .find(|j| j.name.as_str() == n.as_str())
+                        .map(|j| j.limits);
+                    if let Some(l) = l {
+                        num(file, format!("{key}[{i}]"), q, l.min as f64, l.max as f64)?;
+                    }
                 }
             }
             num(

@@ -340,14 +340,13 @@ impl Arm {
                     "arm joint target",
                 )?;
                 let started = io.link.now();
-                let goal = JointsGoal {
-                    idx: parts.joints.clone(),
-                    target: q.to_vec(),
+                let goal = JointsGoal::new(
+                    parts.joints.clone(),
+                    q.to_vec(),
                     tolerance,
-                    due: started + Duration::from_secs_f64(duration),
                     started,
-                    stall_since: None,
-                };
+                    started + Duration::from_secs_f64(duration),
+                );
                 Ok((Box::new(goal) as Box<dyn crate::motion::Goal>, timeout))
             })
     }
@@ -485,6 +484,28 @@ impl Arm {
     pub fn go_home(&self) -> Result<()> {
         let home = self.cfg().home.clone();
         self.set_joint_positions(&home)
+    }
+
+    /// Fold the arm into the description's stow pose (`[arm] stow`), the pose it travels in
+    /// while the base drives: within (or near) the base's footprint and out of the camera's
+    /// view. Moves as [`Arm::set_joint_positions`] does. Error: the description has no stow
+    /// pose.
+    pub fn stow(&self) -> Result<()> {
+        let stow = self
+            .cfg()
+            .stow
+            .clone()
+            .ok_or_else(|| self.robot.missing("arm stow pose"))?;
+        self.set_joint_positions(&stow)
+    }
+
+    /// How far the arm reaches from the base's centre across the floor now, m: the largest
+    /// horizontal distance of its links' covering spheres (measured joints) that come down
+    /// into the map's obstacle band (0.1-0.8 m above the floor). Where it exceeds the base's
+    /// footprint radius, navigation on a map takes it as the robot's radius (see
+    /// [`crate::GoalOptions::map`]); [`Arm::stow`] brings it in.
+    pub fn reach(&self) -> Result<f64> {
+        self.robot.arm_reach()
     }
 
     /// Pose of the end effector from the measured joint angles.
@@ -719,16 +740,15 @@ impl Arm {
             .start_motion(claim, "Cartesian motion", |io: &mut Io| {
                 self.ensure_mode(io, JointMode::Position)?;
                 let started = io.link.now();
-                let goal = JointsGoal {
+                // Streaming may fall behind the knots' timing (a full queue): then the
+                // tolerance decides.
+                let goal = JointsGoal::new(
                     idx,
                     target,
                     tolerance,
-                    // Streaming may fall behind the knots' timing (a full queue): then the
-                    // tolerance decides.
-                    due: started + Duration::from_secs_f64(total),
                     started,
-                    stall_since: None,
-                };
+                    started + Duration::from_secs_f64(total),
+                );
                 Ok((Box::new(goal) as Box<dyn crate::motion::Goal>, timeout))
             })?;
         for (q, &t) in path.iter().zip(&durations) {

@@ -466,8 +466,11 @@ impl Arm {
         self.robot
             .start_motion(claim, "planned arm motion", |io: &mut Io| {
                 self.ensure_position_mode(io)?;
+                // The knots as sent, from the start: what the joints follow.
+                let mut reference = vec![(0.0, traj.trajectory.sample(0.0).position)];
                 for k in 1..=n {
                     let p = traj.trajectory.sample(dt * k as f64);
+                    reference.push((dt * k as f64, p.position.clone()));
                     let points = p
                         .position
                         .iter()
@@ -488,15 +491,15 @@ impl Arm {
                     )?;
                 }
                 let started = io.link.now();
-                let goal = JointsGoal {
+                // The servos lag the reference: give them time to settle at the end.
+                let goal = JointsGoal::new(
                     idx,
                     target,
                     tolerance,
-                    // The servos lag the reference: give them time to settle at the end.
-                    due: started + Duration::from_secs_f64(total + SETTLE_S),
                     started,
-                    stall_since: None,
-                };
+                    started + Duration::from_secs_f64(total + SETTLE_S),
+                )
+                .following(reference);
                 Ok((Box::new(goal) as Box<dyn crate::motion::Goal>, timeout))
             })
     }

@@ -625,7 +625,9 @@ pub struct GoalOptions {
     pub obstacles: Vec<Circle>,
     /// An occupancy-grid map (in the frame `frame` names). With a map the base is driven by
     /// the navigator ([`ferrobot_nav::Navigator`]: global plan, path following, re-planning,
-    /// recovery), the round obstacles stamped into it.
+    /// recovery), the round obstacles stamped into it. The navigator's robot radius is the
+    /// base's footprint radius, or the arm's reach ([`crate::Arm::reach`]) when the arm sticks
+    /// out further: [`crate::Arm::stow`] folds it in before a long drive.
     pub map: Option<OccupancyGrid>,
     /// The frame of the goal, the map and the obstacles: the odometry's, or SLAM's map (the
     /// base then steers by SLAM's pose; SLAM must be running, see
@@ -1257,12 +1259,18 @@ impl Base {
 }
 
 impl Base {
+    /// The robot's radius for the navigator, m: the base's footprint radius, or how far the arm
+    /// reaches across the floor now ([`crate::Arm::reach`]) where it sticks out further.
+    fn nav_radius(&self) -> Result<f64> {
+        Ok(self.section().footprint_radius.max(self.robot.arm_reach()?))
+    }
+
     /// A goal on a map, driven by the navigator (see [`GoalOptions::map`]).
     fn navigate(&self, goal: [f64; 3], opts: &GoalOptions) -> Result<Motion> {
         let slam = opts.use_map || opts.frame == Source::Slam;
         let here = self.get_state_from(if slam { Source::Slam } else { Source::Odometry })?;
         validate::base_goal(goal, here)?;
-        let radius = self.section().footprint_radius;
+        let radius = self.nav_radius()?;
         let lim = self.tracking_limits();
         let grid = match (&opts.map, opts.use_map) {
             (Some(m), _) => m.clone(),
@@ -1343,7 +1351,7 @@ impl Base {
         }
         let eyes = self.robot.eyes()?;
         self.robot.lock_io().sense.camera = Some(eyes);
-        let radius = self.section().footprint_radius;
+        let radius = self.nav_radius()?;
         let live = self.robot.lock_io().sense.live_for(true);
         let g = crate::navigate::ExploreGoal::new(
             NavSettings::new(radius, self.tracking_limits()),

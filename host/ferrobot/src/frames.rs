@@ -9,6 +9,10 @@ use nalgebra::Isometry3;
 
 use crate::error::Result;
 
+/// The mobile base's frame: its centre on the floor, x ahead (the navigator's footprint is a
+/// circle round it).
+pub(crate) const BASE_FRAME: &str = "base_link";
+
 /// The URDF's link tree and how the joint table's measured positions set its joints.
 #[derive(Debug, Clone)]
 pub(crate) struct Frames {
@@ -92,6 +96,16 @@ impl Frames {
     ) -> Result<Isometry3<f64>> {
         let poses = self.tree.poses(&self.joint_values(tel));
         Ok(self.tree.transform(&poses, src, dst)?)
+    }
+
+    /// The links (URDF tree indices) that the joints named `joints` move: each joint's child
+    /// and everything beyond it. Unknown names move nothing.
+    pub(crate) fn links_moved_by(&self, joints: &[String]) -> Vec<usize> {
+        let idx: Vec<usize> = joints
+            .iter()
+            .filter_map(|j| self.tree.joint_index(j))
+            .collect();
+        self.tree.links_moved_by(&idx)
     }
 
     /// Index of link `name` in the URDF tree's order.

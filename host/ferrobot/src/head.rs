@@ -68,14 +68,13 @@ impl Head {
                 }
                 io.send_rest_waypoint(mask, sorted.iter().map(|(_, v)| *v), t, "pan/tilt")?;
                 let started = io.link.now();
-                let goal = JointsGoal {
-                    idx: sorted.iter().map(|(j, _)| *j).collect(),
-                    target: sorted.iter().map(|(_, v)| *v).collect(),
-                    tolerance: 0.01,
-                    due: started + Duration::from_secs_f64(t),
+                let goal = JointsGoal::new(
+                    sorted.iter().map(|(j, _)| *j).collect(),
+                    sorted.iter().map(|(_, v)| *v).collect(),
+                    0.01,
                     started,
-                    stall_since: None,
-                };
+                    started + Duration::from_secs_f64(t),
+                );
                 Ok((
                     Box::new(goal) as Box<dyn Goal>,
                     Duration::from_secs_f64(t + 5.0),

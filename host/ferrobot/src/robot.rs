@@ -501,6 +501,19 @@ impl Robot {
         })
     }
 
+    /// How far the arm's links reach from the base's centre across the floor now, m (see
+    /// [`crate::sense::SelfBody::reach`]); 0 for a robot without an arm.
+    pub(crate) fn arm_reach(&self) -> Result<f64> {
+        let cfg = self.config();
+        let Some(arm) = &cfg.arm else {
+            return Ok(0.0);
+        };
+        let frames = self.frames()?;
+        let poses = frames.poses_in(&self.telemetry()?, crate::frames::BASE_FRAME)?;
+        let links = frames.links_moved_by(&arm.joints);
+        Ok(crate::sense::SelfBody::new(cfg)?.reach(&poses, &links))
+    }
+
     /// The camera's optical frame.
     pub(crate) fn optical_frame(&self) -> Result<String> {
         self.inner

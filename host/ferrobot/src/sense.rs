@@ -192,6 +192,22 @@ impl SelfBody {
         Ok(SelfBody { links })
     }
 
+    /// How far the links `links` (tree indices) reach from the base's centre across the floor,
+    /// m: the largest horizontal distance of their covering spheres (no margin) from the
+    /// vertical through the origin of `poses`' frame (the base's), counting only the spheres
+    /// that come down into the map's obstacle band ([`OBSTACLE_BAND`]: what is above it
+    /// meets nothing the map holds). 0 when none does.
+    pub(crate) fn reach(&self, poses: &[Isometry3<f64>], links: &[usize]) -> f64 {
+        self.links
+            .iter()
+            .filter(|(i, _)| links.contains(i))
+            .filter_map(|(i, spheres)| poses.get(*i).map(|p| (p, spheres)))
+            .flat_map(|(p, spheres)| spheres.iter().map(move |s| (p * s.centre, s.radius)))
+            .filter(|(c, r)| c.z - r <= OBSTACLE_BAND[1])
+            .map(|(c, r)| c.x.hypot(c.y) + r)
+            .fold(0.0, f64::max)
+    }
+
     /// The spheres grown by [`SELF_MARGIN`], placed by the links' poses `poses` (tree order)
     /// in their frame.
     pub(crate) fn placed(&self, poses: &[Isometry3<f64>]) -> Vec<Sphere> {

@@ -127,7 +127,7 @@ impl Io {
         let (Some(eyes), Some(camera)) = (self.sense.camera.as_ref(), self.camera.as_ref()) else {
             return;
         };
-        let Ok(poses) = eyes.frames.poses_in(tel, "base_link") else {
+        let Ok(poses) = eyes.frames.poses_in(tel, crate::frames::BASE_FRAME) else {
             return;
         };
         let Some(on_base) = eyes

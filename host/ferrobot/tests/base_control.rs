@@ -297,7 +297,8 @@ fn the_navigator_drives_through_a_door_in_a_map_on_both_bases() {
         map.fill_circle(*p);
     }
     for robot in ["locobot", "locobot_lite"] {
-        let bot = Robot::builder(robot).use_arm(false).build().expect("robot");
+        let bot = Robot::builder(robot).build().expect("robot");
+        common::stow(&bot);
         for p in &posts {
             place_post(&bot, p[0], p[1], p[2]);
         }

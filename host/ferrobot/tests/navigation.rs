@@ -2,6 +2,7 @@
 //! camera and driven round (without the camera's obstacles the base hits it), both bases; a
 //! goal behind a wall that the map lacks but the camera sees fails typed.
 
+mod common;
 use ferrobot::nav::OccupancyGrid;
 use ferrobot::{Backend, GoalOptions, Robot};
 use ferrobot_protocol::FaultKind;
@@ -22,16 +23,18 @@ fn scene(name: &str, objects: &str) -> std::path::PathBuf {
     file
 }
 
+/// The robot in `scene`, its arm stowed.
 fn robot(name: &str, scene: &std::path::Path) -> Robot {
-    Robot::builder(name)
+    let bot = Robot::builder(name)
         .scene(scene.to_str().expect("path"))
-        .use_arm(false)
         .backend(Backend::Sim {
             seed: 3,
             realtime: false,
         })
         .build()
-        .expect("robot")
+        .expect("robot");
+    common::stow(&bot);
+    bot
 }
 
 /// Bumper hits reported since the last look.

@@ -2,6 +2,7 @@
 //! whatever lets time pass, the base's pose from `Source::Slam` against the simulator's ground
 //! truth, the maps, a saved map reloaded, and the refusals.
 
+mod common;
 use ferrobot::slam::optimise::{planar, to_planar};
 use ferrobot::slam::Map;
 use ferrobot::{Backend, Error, Robot, Source};
@@ -118,6 +119,7 @@ fn go_to_absolute_on_the_slam_map_passes_a_door_and_a_goal_no_path_reaches_is_ty
             })
             .build()
             .expect("robot");
+        common::stow(&bot);
         let base = bot.base().expect("base");
         bot.head()
             .expect("head")

@@ -279,6 +279,10 @@ pub fn run(a: &NavArgs<'_>) -> ferrobot::Result<()> {
     let start = truth(&bot)?;
     // The frame of the goals and the map: with SLAM, the floor plan's own (SLAM starts at the
     // true start); without, the odometry's, which reads zero at the start.
+    // The arm travels folded: out, its reach would be the navigator's radius.
+    if bot.config().arm.as_ref().is_some_and(|a| a.stow.is_some()) {
+        bot.arm()?.stow()?;
+    }
     let frame = if slam {
         // The camera looks down a little, at the floor ahead and what stands on it.
         bot.head()?.set_pan_tilt(0.0, 0.45)?;
