@@ -194,8 +194,9 @@ pub enum Error {
     /// the robot stands).
     #[error("scene: {0}")]
     Scene(#[from] ferrobot_sim::scene::SceneError),
-    /// A bad image, pixel, depth range, cloud or file in perception.
-    #[error("camera: {0}")]
+    /// A bad image, pixel, depth range, cloud, file or parameter in perception, or what
+    /// perception could not find (no table plane).
+    #[error("perception: {0}")]
     Perception(ferrobot_perception::PerceptionError),
     /// Arm planning refused or failed: a malformed scene object, a start or goal in
     /// collision (naming the two bodies), no collision-free IK solution, no path within the
@@ -235,10 +236,10 @@ impl Error {
                 | Error::PathExists { .. }
                 | Error::Usage(_)
                 | Error::Scene(_)
-                | Error::Perception(_)
                 | Error::Planning(ferrobot_planning::Error::Invalid { .. })
                 | Error::Slam(_)
         ) || matches!(self, Error::Navigation(e) if e.is_input())
+            || matches!(self, Error::Perception(e) if e.is_input())
     }
 }
 

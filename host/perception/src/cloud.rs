@@ -9,6 +9,32 @@ use crate::intrinsics::Intrinsics;
 /// Farthest depth a range may keep, m (no depth camera sees further).
 pub const MAX_DEPTH: f64 = 1000.0;
 
+/// Largest coordinate (absolute, on each axis) of a point the algorithms accept, m: 1000 km
+/// from the frame's origin is beyond any sensor, and keeps every squared distance between
+/// two points finite.
+pub const MAX_COORDINATE: f64 = 1.0e6;
+
+/// Checks that every point is finite and within [`MAX_COORDINATE`] of the origin on each axis:
+/// the first that is not is a typed error naming its index.
+pub fn check_points(points: &[Point3<f64>]) -> Result<()> {
+    for (index, p) in points.iter().enumerate() {
+        let [x, y, z] = [p.x, p.y, p.z];
+        if !(x.is_finite() && y.is_finite() && z.is_finite()) {
+            return Err(PerceptionError::NonFinitePoint { index, x, y, z });
+        }
+        if x.abs() > MAX_COORDINATE || y.abs() > MAX_COORDINATE || z.abs() > MAX_COORDINATE {
+            return Err(PerceptionError::PointOutOfRange {
+                index,
+                x,
+                y,
+                z,
+                limit: MAX_COORDINATE,
+            });
+        }
+    }
+    Ok(())
+}
+
 /// The depths a point cloud keeps: `min < z < max`, m (PyRobot's default is (0.2, 1.5)).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DepthRange {

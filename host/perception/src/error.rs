@@ -57,6 +57,87 @@ pub enum PerceptionError {
         /// What is wrong.
         problem: String,
     },
+    /// A cloud (or a selection of one) with no points where points are needed.
+    #[error("the {what} has no points")]
+    EmptyCloud {
+        /// Which cloud: "cloud", "object", "plane's inliers", ...
+        what: &'static str,
+    },
+    /// A point with a NaN or infinite coordinate.
+    #[error("point {index} is not finite: ({x}, {y}, {z}) m")]
+    NonFinitePoint {
+        /// Index of the point in its cloud.
+        index: usize,
+        /// x, m.
+        x: f64,
+        /// y, m.
+        y: f64,
+        /// z, m.
+        z: f64,
+    },
+    /// A finite point too far from its frame's origin to come from any sensor (beyond
+    /// [`MAX_COORDINATE`](crate::cloud::MAX_COORDINATE) on some axis); squared distances
+    /// between such points would overflow.
+    #[error("point {index} ({x}, {y}, {z}) m lies beyond +-{limit} m of the origin")]
+    PointOutOfRange {
+        /// Index of the point in its cloud.
+        index: usize,
+        /// x, m.
+        x: f64,
+        /// y, m.
+        y: f64,
+        /// z, m.
+        z: f64,
+        /// The limit on each coordinate, m.
+        limit: f64,
+    },
+    /// A parameter outside its range (not finite, not positive, absurdly large).
+    #[error("{name} = {value} is out of range: {range}")]
+    Parameter {
+        /// The parameter.
+        name: &'static str,
+        /// The value given (counts as a float).
+        value: f64,
+        /// The range it must lie in, in words.
+        range: &'static str,
+    },
+    /// Fewer points than an algorithm needs.
+    #[error("{what} needs at least {need} points, got {got}")]
+    TooFewPoints {
+        /// What needed them.
+        what: &'static str,
+        /// Points needed.
+        need: usize,
+        /// Points given.
+        got: usize,
+    },
+    /// RANSAC found no plane with enough inliers (the cloud holds no plane at the
+    /// threshold, or every sample was degenerate).
+    #[error(
+        "no plane found: the best of {hypotheses} plane hypotheses had {best_inliers} inliers \
+         within {threshold} m, fewer than the {min_inliers} required"
+    )]
+    NoPlane {
+        /// Non-degenerate hypotheses scored.
+        hypotheses: usize,
+        /// Inliers of the best one.
+        best_inliers: usize,
+        /// Inlier distance, m.
+        threshold: f64,
+        /// Inliers required.
+        min_inliers: usize,
+    },
+    /// The k-d tree could not be built (kiddo refused the points).
+    #[error("k-d tree: {0}")]
+    KdTree(String),
+}
+
+impl PerceptionError {
+    /// Whether the caller's input is at fault (a bad value, file, image or cloud), as
+    /// opposed to the world (no plane where one was expected).
+    pub fn is_input(&self) -> bool {
+        !matches!(self, PerceptionError::NoPlane { .. })
+    }
 }
 
 /// The crate's result.

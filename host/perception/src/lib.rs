@@ -4,19 +4,33 @@
 //! pinhole [`Intrinsics`], colour ([`RgbImage`]) and depth ([`DepthImage`]) images,
 //! back-projection of pixels to 3-D points ([`backproject`], [`pixels_to_points`]) and
 //! [`PointCloud`]s, and their files ([`io`]: PNG colour, 16-bit millimetre depth PNG, PLY).
+//! From clouds: the table's plane by RANSAC ([`plane`]), the objects above it
+//! ([`segment`]), DBSCAN clustering with scikit-learn's semantics ([`cluster`]) and each
+//! object's centroid, extent and principal axis ([`features`]); seeded synthetic clouds for
+//! tests and benchmarks ([`synthetic`]).
 //!
 //! Frames: the camera's optical frame is x right, y down, z forward (REP 103's
 //! `*_optical_frame`); pixel (row r, column c) has its centre at image coordinates
-//! (u, v) = (c, r). Units are SI (metres); depth 0 marks an invalid pixel.
+//! (u, v) = (c, r). Units are SI (metres); depth 0 marks an invalid pixel. The cloud
+//! algorithms work in whatever frame the cloud is in, and say which way is up when they care.
 #![warn(missing_docs)]
 
 pub mod cloud;
+pub mod cluster;
 pub mod error;
+pub mod features;
 pub mod image;
 pub mod intrinsics;
 pub mod io;
+pub mod plane;
+pub mod segment;
+pub mod synthetic;
 
 pub use cloud::{backproject, pixels_to_points, DepthRange, PixelPoints, PointCloud};
+pub use cluster::{Clusterer, Clustering, Dbscan, DbscanParams, ExhaustiveDbscan, NOISE};
 pub use error::{PerceptionError, Result};
+pub use features::{features, object_features, ObjectFeatures};
 pub use image::{DepthImage, RgbImage};
 pub use intrinsics::Intrinsics;
+pub use plane::{fit_plane, Plane, PlaneFit, RansacParams};
+pub use segment::{above_table, segment_objects, SegmentParams, SegmentedObject, TableRegion};

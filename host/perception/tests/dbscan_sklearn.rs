@@ -1,0 +1,316 @@
+//! DBSCAN against its real peer: scikit-learn's `DBSCAN(eps, min_samples)` on the same clouds
+//! (`peer/dbscan_peer.py`).
+//!
+//! What is compared, exactly: for every point of every cloud, our label and scikit-learn's
+//! are equal (the same integer: -1 for noise, cluster numbers in scikit-learn's order, border
+//! points included), and so is whether the point is core. Not "up to a permutation": with
+//! both sides comparing squared distances `dx² + dy² + dz² <= eps²` in double precision, the
+//! labels are a function of the points (see `ferrobot_perception::cluster`), so any
+//! difference is a bug on one side. Each cloud is written as a PLY file (float32
+//! coordinates, as `write_ply` writes them) and read back, so both sides cluster exactly the
+//! same float64 values.
+//!
+//! The peer needs a Python with scikit-learn: `FERROBOT_PYTHON` (scripts/test.sh installs it
+//! with `scripts/python-env.sh cluster` and sets it; then it must be there), or else the
+//! workspace's `target/py-venv`; without either the test is skipped, saying so.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use ferrobot_perception::io::{read_ply, write_ply};
+use ferrobot_perception::synthetic::{blobs, DepthCamera, Tabletop};
+use ferrobot_perception::{
+    above_table, fit_plane, Clusterer, Clustering, Dbscan, PointCloud, RansacParams, SegmentParams,
+};
+use nalgebra::Point3;
+
+/// The peer's Python, or `None` (skip) when none has scikit-learn and `FERROBOT_PYTHON` is
+/// not set; with it set, a Python without scikit-learn fails the test.
+fn peer_python() -> Option<String> {
+    let has = |py: &str| {
+        Command::new(py)
+            .args(["-c", "import sklearn.cluster, threadpoolctl"])
+            .status()
+            .map(|s| s.success())
+            .unwrap_or(false)
+    };
+    if let Ok(py) = std::env::var("FERROBOT_PYTHON") {
+        assert!(
+            has(&py),
+            "FERROBOT_PYTHON={py:?} cannot import scikit-learn; run `scripts/python-env.sh \
+             cluster` (scripts/test.sh does)"
+        );
+        return Some(py);
+    }
+    let venv = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../target/py-venv/bin/python");
+    let venv = venv.to_string_lossy().into_owned();
+    if has(&venv) {
+        return Some(venv);
+    }
+    eprintln!("skipped: no Python with scikit-learn (run `scripts/python-env.sh cluster`)");
+    None
+}
+
+fn scratch() -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("ferrobot-dbscan-sklearn-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("scratch");
+    dir
+}
+
+/// One scikit-learn run: labels, core flags, the neighbour search it chose.
+struct Peer {
+    labels: Vec<i32>,
+    core: Vec<bool>,
+    algorithm: String,
+}
+
+/// scikit-learn's runs on the cloud in `ply`, one per (eps, min_samples), in one start-up.
+fn sklearn(py: &str, ply: &Path, params: &[(f64, usize)]) -> Vec<Peer> {
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("peer/dbscan_peer.py");
+    let mut cmd = Command::new(py);
+    cmd.arg(&script).arg(ply);
+    for (eps, m) in params {
+        cmd.args(["--eps", &eps.to_string(), "--min-samples", &m.to_string()]);
+    }
+    let out = cmd.output().expect("runs the peer");
+    assert!(
+        out.status.success(),
+        "peer failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("peer's JSON");
+    let runs = match v.get("runs") {
+        Some(r) => r.as_array().expect("runs").clone(),
+        None => vec![v],
+    };
+    assert_eq!(runs.len(), params.len());
+    runs.iter()
+        .map(|r| Peer {
+            labels: r["labels"]
+                .as_array()
+                .expect("labels")
+                .iter()
+                .map(|l| l.as_i64().expect("integer label") as i32)
+                .collect(),
+            core: r["core"]
+                .as_array()
+                .expect("core")
+                .iter()
+                .map(|c| c.as_i64() == Some(1))
+                .collect(),
+            algorithm: r["algorithm"].as_str().unwrap_or("?").to_string(),
+        })
+        .collect()
+}
+
+/// Border points whose core neighbours lie in two or more clusters (where the rule for
+/// border points decides), by exhaustive search; `None` for clouds too large for that.
+fn contested(pts: &[Point3<f64>], c: &Clustering, eps: f64) -> Option<usize> {
+    if pts.len() > 5000 {
+        return None;
+    }
+    let eps2 = eps * eps;
+    let mut count = 0;
+    for (i, p) in pts.iter().enumerate() {
+        if c.core[i] || c.labels[i] < 0 {
+            continue;
+        }
+        let mut seen: Vec<i32> = pts
+            .iter()
+            .enumerate()
+            .filter(|(j, q)| c.core[*j] && (p - *q).norm_squared() <= eps2)
+            .map(|(j, _)| c.labels[j])
+            .collect();
+        seen.sort_unstable();
+        seen.dedup();
+        count += usize::from(seen.len() > 1);
+    }
+    Some(count)
+}
+
+/// What one comparison saw: clusters, noise, contested border points (when counted).
+struct Seen {
+    clusters: usize,
+    noise: usize,
+    contested: Option<usize>,
+}
+
+/// Writes `points` as a PLY, reads them back (float32 coordinates), clusters them with ours
+/// and scikit-learn's for each (eps, min_samples), and checks every label and core flag.
+fn compare(py: &str, name: &str, points: &[Point3<f64>], params: &[(f64, usize)]) -> Vec<Seen> {
+    let path = scratch().join(format!("{name}.ply"));
+    let cloud = PointCloud {
+        points: points.to_vec(),
+        colours: vec![[128; 3]; points.len()],
+    };
+    write_ply(&path, &cloud).expect("writes");
+    let pts = read_ply(&path).expect("reads").points;
+    let peers = sklearn(py, &path, params);
+    let _ = std::fs::remove_file(&path);
+    params
+        .iter()
+        .zip(peers)
+        .map(|(&(eps, min_samples), peer)| {
+            let ours = Dbscan::new(eps, min_samples)
+                .unwrap()
+                .cluster(&pts)
+                .unwrap();
+            assert_eq!(peer.labels.len(), pts.len(), "{name}");
+            let differ: Vec<usize> = (0..pts.len())
+                .filter(|&i| peer.labels[i] != ours.labels[i] || peer.core[i] != ours.core[i])
+                .collect();
+            let seen = Seen {
+                clusters: ours.clusters,
+                noise: ours.noise(),
+                contested: contested(&pts, &ours, eps),
+            };
+            eprintln!(
+                "{name}: {} points, eps {eps} m, min_samples {min_samples}: {} clusters, {} \
+                 noise, {} core, contested border points {:?}; scikit-learn's neighbours by {}; \
+                 {} points differ",
+                pts.len(),
+                seen.clusters,
+                seen.noise,
+                ours.core.iter().filter(|&&c| c).count(),
+                seen.contested,
+                peer.algorithm,
+                differ.len()
+            );
+            if let Some(&i) = differ.first() {
+                panic!(
+                    "{name}, eps {eps}, min_samples {min_samples}: {} of {} points differ, e.g. \
+                     point {i}: ours label {} core {}, scikit-learn's label {} core {}",
+                    differ.len(),
+                    pts.len(),
+                    ours.labels[i],
+                    ours.core[i],
+                    peer.labels[i],
+                    peer.core[i]
+                );
+            }
+            seen
+        })
+        .collect()
+}
+
+#[test]
+fn labels_equal_scikit_learns_on_blobs_with_noise() {
+    let Some(py) = peer_python() else { return };
+    for seed in 1..=3u64 {
+        let centres = [
+            [0.0, 0.0, 0.0],
+            [0.06, 0.0, 0.01],
+            [0.0, 0.1, 0.0],
+            [0.2, 0.15, 0.05],
+        ];
+        let pts = blobs(seed, &centres, 600, 0.01, 400, [-0.1; 3], [0.3, 0.3, 0.15]);
+        let params = [(0.02, 15), (0.01, 5), (0.03, 30), (0.005, 3)];
+        let seen = compare(&py, &format!("blobs{seed}"), &pts, &params);
+        // Non-trivial cases: several clusters and noise with PyRobot's parameters, and
+        // border points that the rule for them decides.
+        assert!(seen[0].clusters >= 2 && seen[0].noise > 50);
+    }
+}
+
+/// A chain of tight blobs (20 points within 8 mm) 48 mm apart, so that with eps 0.02 m and
+/// min_samples 15 their core points stay apart, and a point at each midpoint that reaches a
+/// few points of both neighbours (the 4 mm deep caps of their balls): a border point contested by two clusters. Shuffled, so
+/// that the clusters' numbers do not follow the chain.
+fn contested_chain(seed: u64) -> Vec<Point3<f64>> {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let mut pts = Vec::new();
+    for k in 0..40 {
+        let c = Point3::new(0.048 * k as f64, 0.0, 0.0);
+        for _ in 0..20 {
+            loop {
+                let d = nalgebra::Vector3::new(
+                    rng.random_range(-0.008..0.008),
+                    rng.random_range(-0.008..0.008),
+                    rng.random_range(-0.008..0.008),
+                );
+                if d.norm() <= 0.008 {
+                    pts.push(c + d);
+                    break;
+                }
+            }
+        }
+        pts.push(c + nalgebra::Vector3::new(0.024, rng.random_range(-0.001..0.001), 0.0));
+    }
+    for i in (1..pts.len()).rev() {
+        pts.swap(i, rng.random_range(0..=i));
+    }
+    pts
+}
+
+#[test]
+fn labels_equal_scikit_learns_where_border_points_are_contested() {
+    let Some(py) = peer_python() else { return };
+    for seed in [1u64, 2, 3] {
+        let seen = compare(
+            &py,
+            &format!("chain{seed}"),
+            &contested_chain(seed),
+            &[(0.02, 15), (0.02, 12), (0.021, 15)],
+        );
+        let contested = seen[0].contested.unwrap_or(0);
+        assert!(contested >= 10, "only {contested} contested border points");
+    }
+}
+
+#[test]
+fn labels_equal_scikit_learns_on_a_table_top_camera_cloud() {
+    let Some(py) = peer_python() else { return };
+    for seed in [1u64, 2] {
+        let scene = Tabletop::random(seed, 8, 0.04);
+        // The whole view at 160x120 (floor, table and objects, D435-like noise).
+        let cloud = DepthCamera::locobot()
+            .scaled(0.25)
+            .cloud(&scene, seed)
+            .unwrap();
+        compare(
+            &py,
+            &format!("view{seed}"),
+            &cloud.points,
+            &[(0.02, 15), (0.01, 4), (0.05, 40)],
+        );
+        // PyRobot's pushing pipeline: the full 640x480 view, the table's plane, the points
+        // 1 cm to 0.5 m above it over the table, DBSCAN (0.02, 15).
+        let full = DepthCamera::locobot().cloud(&scene, seed).unwrap();
+        let fit = fit_plane(
+            &full.points,
+            &RansacParams {
+                threshold: 0.008,
+                max_tilt: 0.3,
+                seed,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        let above = above_table(&full.points, &fit, &SegmentParams::default()).unwrap();
+        let objects: Vec<Point3<f64>> = above.iter().map(|&i| full.points[i]).collect();
+        let seen = compare(&py, &format!("objects{seed}"), &objects, &[(0.02, 15)]);
+        assert!(seen[0].clusters >= 6, "{} objects of 8", seen[0].clusters);
+    }
+}
+
+#[test]
+fn labels_equal_scikit_learns_on_a_lattice_with_ties_at_eps() {
+    // A 1 cm lattice with stacked duplicates: many pairs lie exactly (or within a rounding
+    // of) eps apart, where the comparison's form decides.
+    let Some(py) = peer_python() else { return };
+    let mut pts = Vec::new();
+    for i in 0..30 {
+        for j in 0..20 {
+            for k in 0..3 {
+                let p = Point3::new(i as f64 * 0.01, j as f64 * 0.01, k as f64 * 0.01);
+                pts.push(p);
+                if (i * 7 + j * 3 + k) % 11 == 0 {
+                    pts.push(p);
+                }
+            }
+        }
+    }
+    let params = [(0.01, 7), (0.01, 8), (0.02, 20), (0.015, 12), (0.03, 90)];
+    compare(&py, "lattice", &pts, &params);
+}
