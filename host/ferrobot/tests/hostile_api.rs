@@ -459,3 +459,120 @@ fn the_camera_refuses_hostile_values() {
     // Still sees after all that.
     assert_eq!(cam.get_rgb().expect("rgb").data.len(), 640 * 480 * 3);
 }
+
+/// Perception's cloud algorithms under hostile clouds and parameters: DBSCAN (the k-d tree
+/// one and the exhaustive reference, which must agree whenever both accept), RANSAC plane
+/// fitting, segmentation above a table and per-object features. Points with a NaN, infinite
+/// or beyond-1e6 coordinate, empty clouds, and parameters out of their documented ranges
+/// must be refused.
+#[test]
+fn perception_refuses_hostile_clouds_and_parameters() {
+    use ferrobot::perception::cluster::{MAX_EPS, MAX_MIN_SAMPLES};
+    use ferrobot::perception::plane::{MAX_ITERATIONS, MAX_THRESHOLD};
+    use ferrobot::perception::{
+        features, fit_plane, segment_objects, Clusterer, Dbscan, ExhaustiveDbscan, RansacParams,
+        SegmentParams,
+    };
+    use nalgebra::Point3;
+    let calls = std::cell::Cell::new(0usize);
+    // Clouds of ordinary points (a few centimetres apart, so that clusters form), half of
+    // them with hostile coordinates mixed in.
+    let ordinary = || -0.05..0.05f64;
+    let coordinate = move || prop_oneof![8 => ordinary(), 1 => value()];
+    let cloud = prop_oneof![
+        prop::collection::vec([ordinary(), ordinary(), ordinary()], 0..60),
+        prop::collection::vec([coordinate(), coordinate(), coordinate()], 0..60),
+    ];
+    let strategy = (
+        cloud,
+        (
+            prop_oneof![3 => 0.001..0.05f64, 1 => value()],
+            prop_oneof![3 => 1usize..10, 1 => count()],
+        ),
+        (value(), count(), value(), count()),
+        (prop::option::of(triple()), value()),
+        (value(), value(), value()),
+    );
+    runner(14)
+        .run(
+            &strategy,
+            |(
+                pts,
+                (eps, m),
+                (threshold, iterations, confidence, min_inliers),
+                (up, tilt),
+                (h0, h1, margin),
+            )| {
+                let points: Vec<Point3<f64>> =
+                    pts.iter().map(|p| Point3::new(p[0], p[1], p[2])).collect();
+                let bad_cloud = points.is_empty() || pts.iter().any(|p| absurd(p));
+                let bad_dbscan = !(eps.is_finite() && eps > 0.0 && eps <= MAX_EPS)
+                    || m == 0
+                    || m > MAX_MIN_SAMPLES;
+                let fast = Dbscan::new(eps, m).and_then(|d| d.cluster(&points));
+                judge("Dbscan", bad_cloud || bad_dbscan, &fast)?;
+                let slow = ExhaustiveDbscan::new(eps, m).and_then(|d| d.cluster(&points));
+                judge("ExhaustiveDbscan", bad_cloud || bad_dbscan, &slow)?;
+                if let (Ok(a), Ok(b)) = (&fast, &slow) {
+                    prop_assert_eq!(a, b);
+                    prop_assert_eq!(a.labels.len(), points.len());
+                    prop_assert!(a
+                        .labels
+                        .iter()
+                        .all(|&l| l >= -1 && (l as i64) < a.clusters as i64));
+                }
+                let params = RansacParams {
+                    threshold,
+                    iterations,
+                    confidence,
+                    min_inliers,
+                    seed: 1,
+                    up: up.map(nalgebra::Vector3::from),
+                    max_tilt: tilt,
+                };
+                let bad_up = up.is_some_and(|u| {
+                    let n = nalgebra::Vector3::from(u).norm();
+                    !(n.is_finite() && n > 1e-12)
+                });
+                let bad_ransac =
+                    !(threshold.is_finite() && threshold > 0.0 && threshold <= MAX_THRESHOLD)
+                        || iterations == 0
+                        || iterations > MAX_ITERATIONS
+                        || !(confidence > 0.0 && confidence <= 1.0)
+                        || min_inliers < 3
+                        || bad_up
+                        || !(0.0..=std::f64::consts::FRAC_PI_2).contains(&tilt);
+                let fit = fit_plane(&points, &params);
+                judge(
+                    "fit_plane",
+                    bad_cloud || bad_ransac || points.len() < 3,
+                    &fit,
+                )?;
+                if let Ok(f) = &fit {
+                    prop_assert!(f.inliers.len() >= min_inliers);
+                    prop_assert!((f.plane.normal.norm() - 1.0).abs() < 1e-9);
+                }
+                let r = features(&points);
+                judge("features", bad_cloud, &r)?;
+                let table = fit_plane(&points, &RansacParams::default());
+                if let Ok(table) = &table {
+                    let seg = SegmentParams {
+                        min_height: h0,
+                        max_height: h1,
+                        over_table: true,
+                        margin,
+                    };
+                    let heights_ok =
+                        h0.is_finite() && h0 >= 0.0 && h1.is_finite() && h1 > h0 && h1 <= 10.0;
+                    let margin_ok = margin.is_finite() && (0.0..=1.0).contains(&margin);
+                    let bad_seg = !(heights_ok && margin_ok);
+                    let r = segment_objects(&points, table, &seg, &Dbscan::new(0.02, 3).unwrap());
+                    judge("segment_objects", bad_seg, &r)?;
+                }
+                calls.set(calls.get() + 6);
+                Ok(())
+            },
+        )
+        .expect("perception refuses hostile clouds and parameters");
+    report("perception", calls.get());
+}
