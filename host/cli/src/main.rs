@@ -16,6 +16,7 @@
 //! ferrobot bench plan --robot locobot --scene tabletop --problems 100 --seed 1 --ompl
 //! ferrobot collision-matrix sawyer --samples 10000 --seed 1
 //! ferrobot nav-plan --map map.yaml --from 1 1 --to 3 2 --radius 0.2 --json
+//! ferrobot cluster --in cloud.ply --eps 0.02 --min-samples 15 --json
 //! ```
 
 use std::process::ExitCode;
@@ -185,6 +186,23 @@ enum Cmd {
         #[arg(long)]
         plot: Option<std::path::PathBuf>,
         /// Print one JSON object: `{"length_m", "path": [[x, y], ...]}`.
+        #[arg(long)]
+        json: bool,
+    },
+    /// DBSCAN on a point cloud (a PLY file, metres), with scikit-learn's semantics and labels
+    /// (a point is core with at least MIN_SAMPLES neighbours within EPS, itself included;
+    /// noise is -1); a summary, or with --json one label per point in the file's order.
+    Cluster {
+        /// The cloud: a PLY file (ASCII or binary little-endian, vertices with x y z).
+        #[arg(long = "in", value_name = "CLOUD.ply")]
+        input: std::path::PathBuf,
+        /// Neighbourhood radius, m (finite, in (0, 100]).
+        #[arg(long, allow_negative_numbers = true)]
+        eps: f64,
+        /// Neighbours (the point itself included) that make a point core (1 to 1,000,000).
+        #[arg(long)]
+        min_samples: usize,
+        /// Print one JSON object: `{"labels": [...]}`, one label per point, -1 for noise.
         #[arg(long)]
         json: bool,
     },
@@ -631,6 +649,12 @@ fn run(cli: Cli) -> Result<(), (ferrobot::Error, bool)> {
             }),
             json,
         ),
+        Cmd::Cluster {
+            input,
+            eps,
+            min_samples,
+            json,
+        } => (cmd::cluster::run(&input, eps, min_samples, json), json),
         Cmd::Slam {
             robot,
             dataset,

@@ -390,3 +390,83 @@ fn snapshot_writes_images_and_a_cloud_in_the_world_frame() {
     assert_eq!((side.width, side.height), (1280, 480));
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn cluster_prints_the_librarys_labels_in_file_order() {
+    use ferrobot::perception::io::{read_ply, write_ply};
+    use ferrobot::perception::synthetic::blobs;
+    use ferrobot::perception::{Clusterer, Dbscan, PointCloud};
+    let dir = std::env::temp_dir().join(format!("ferrobot-cli-cluster-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("dir");
+    // Blobs with noise, binary PLY: the labels are the library's, point for point.
+    let centres = [[0.0, 0.0, 0.0], [0.1, 0.0, 0.0], [0.0, 0.2, 0.05]];
+    let pts = blobs(4, &centres, 300, 0.01, 150, [-0.1; 3], [0.2, 0.3, 0.1]);
+    let path = dir.join("blobs.ply");
+    let cloud = PointCloud {
+        colours: vec![[0, 0, 0]; pts.len()],
+        points: pts,
+    };
+    write_ply(&path, &cloud).expect("ply");
+    let back = read_ply(&path).expect("read");
+    let want = Dbscan::new(0.02, 15)
+        .unwrap()
+        .cluster(&back.points)
+        .unwrap();
+    let p = path.to_str().expect("utf-8");
+    let (ok, v) = run(&[
+        "cluster",
+        "--in",
+        p,
+        "--eps",
+        "0.02",
+        "--min-samples",
+        "15",
+        "--json",
+    ]);
+    assert!(ok, "{v}");
+    let labels: Vec<i64> = v["labels"]
+        .as_array()
+        .expect("labels")
+        .iter()
+        .map(|l| l.as_i64().expect("integer"))
+        .collect();
+    assert_eq!(labels.len(), back.len());
+    assert!(labels
+        .iter()
+        .zip(&want.labels)
+        .all(|(&a, &b)| a == b as i64));
+    assert!(want.clusters == 3 && want.noise() > 50, "{}", want.clusters);
+    assert_eq!(v.as_object().map(|o| o.len()), Some(1), "only labels");
+    // The summary names the clusters and the noise.
+    let out = Command::new(env!("CARGO_BIN_EXE_ferrobot"))
+        .args(["cluster", "--in", p, "--eps", "0.02", "--min-samples", "15"])
+        .output()
+        .expect("runs");
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success());
+    assert!(
+        text.contains("3 clusters") && text.contains(&format!("{} noise", want.noise())),
+        "{text}"
+    );
+    // An ASCII PLY by hand: three points 5 cm apart and one far away.
+    let ascii = dir.join("line.ply");
+    std::fs::write(
+        &ascii,
+        "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n\
+         property float z\nend_header\n0 0 0\n0.05 0 0\n5 5 5\n0.1 0 0\n",
+    )
+    .expect("ply");
+    let (ok, v) = run(&[
+        "cluster",
+        "--in",
+        ascii.to_str().expect("utf-8"),
+        "--eps",
+        "0.06",
+        "--min-samples",
+        "2",
+        "--json",
+    ]);
+    assert!(ok);
+    assert_eq!(v["labels"], serde_json::json!([0, 0, -1, 0]));
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -223,6 +223,23 @@ fn scratch() -> PathBuf {
         ),
     )
     .expect("problems");
+    // Point clouds for `cluster`: a good one, one with a NaN vertex, one with a coordinate
+    // far beyond any sensor, one with no vertices, one whose vertex count lies.
+    let ply = |n: usize, body: &str| {
+        format!(
+            "ply\nformat ascii 1.0\nelement vertex {n}\nproperty float x\nproperty float y\n\
+             property float z\nend_header\n{body}"
+        )
+    };
+    for (name, text) in [
+        ("cloud.ply", ply(3, "0 0 0\n0.01 0 0\n0 0.01 0\n")),
+        ("nan.ply", ply(2, "0 0 0\nnan 0 0\n")),
+        ("far.ply", ply(2, "0 0 0\n1e300 0 0\n")),
+        ("no-points.ply", ply(0, "")),
+        ("short.ply", ply(1000, "0 0 0\n")),
+    ] {
+        std::fs::write(dir.join(name), text).expect("cloud");
+    }
     std::fs::write(
         dir.join("bad-start.json"),
         format!(
@@ -906,6 +923,82 @@ fn cases() -> Vec<Case> {
             ));
         }
     }
+    // cluster: files that are not clouds or hold no usable points, and hostile parameters.
+    for cloud in [
+        "./notes.txt",
+        "./binary.toml",
+        "./empty.toml",
+        "/dev/zero",
+        "./",
+        "",
+        "./nonexistent.ply",
+        "./subdir",
+        "./nan.ply",
+        "./far.ply",
+        "./no-points.ply",
+        "./short.ply",
+    ] {
+        c.push(case(
+            &[
+                "cluster",
+                "--in",
+                cloud,
+                "--eps",
+                "0.02",
+                "--min-samples",
+                "15",
+                "--json",
+            ],
+            Input,
+        ));
+    }
+    for eps in HOSTILE.iter().copied().chain(["0", "-0.02", "100.5", "-0"]) {
+        c.push(case(
+            &[
+                "cluster",
+                "--in",
+                "./cloud.ply",
+                "--eps",
+                eps,
+                "--min-samples",
+                "2",
+                "--json",
+            ],
+            Input,
+        ));
+    }
+    for m in [
+        "0",
+        "-1",
+        "1e3",
+        "",
+        "nan",
+        "1000001",
+        "18446744073709551615",
+        "99999999999999999999999",
+    ] {
+        c.push(case(
+            &[
+                "cluster",
+                "--in",
+                "./cloud.ply",
+                "--eps",
+                "0.02",
+                "--min-samples",
+                m,
+                "--json",
+            ],
+            Input,
+        ));
+    }
+    c.push(case(
+        &["cluster", "--eps", "0.02", "--min-samples", "15"],
+        Input,
+    ));
+    c.push(case(
+        &["cluster", "--in", "./cloud.ply", "--min-samples", "15"],
+        Input,
+    ));
     c.push(case(&["teleport", "locobot"], Input));
     c
 }

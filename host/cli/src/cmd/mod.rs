@@ -7,6 +7,7 @@ pub mod bench_camera;
 pub mod bench_nav;
 pub mod bench_plan;
 pub mod calibrate_odometry;
+pub mod cluster;
 pub mod collision_matrix;
 pub mod common;
 pub mod demo;
