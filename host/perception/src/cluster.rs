@@ -197,8 +197,9 @@ const MIXED_AROUND: usize = 4096;
 enum Kind {
     /// At least `min_samples` points within `r` of the leader: every member is core.
     Dense,
-    /// Fewer than `min_samples` points within `1.5 eps` of the leader, which hold every
-    /// member's neighbours: no member is core. Those points are `kept[from..to]`.
+    /// Fewer than `min_samples` points within `1.5 eps` of the leader (within `eps` for a
+    /// group of one), which hold every member's neighbours: no member is core. Those points
+    /// are `kept[from..to]`.
     Sparse { from: u32, to: u32 },
     /// Mixed (members counted one by one), or sparse with the points around not kept.
     Other,
@@ -277,11 +278,19 @@ impl Clusterer for Dbscan {
                 kind.push(Kind::Dense);
                 continue;
             }
+            // A group of one (a point alone within r: noise, mostly) needs only its own
+            // neighbourhood; a larger one the ball that holds all its members'.
+            let alone = joined.len() == 1;
             around.clear();
             tree.query(&pts[i])
-                .within::<SquaredEuclidean<f64>>(outer2)
+                .within::<SquaredEuclidean<f64>>(if alone { eps2 } else { outer2 })
                 .unsorted()
                 .visit(|hit| around.push((hit.item, hit.distance)));
+            if alone && around.len() >= min_samples {
+                core[i] = true;
+                kind.push(Kind::Other);
+                continue;
+            }
             if around.len() < min_samples {
                 // No member is core; keep the points around for their border test.
                 if kept.len() + around.len() <= SPARSE_BUDGET {
