@@ -27,6 +27,10 @@ pub struct GridSettings {
     pub min_hits: u32,
     /// ... and at least this fraction of the rays that reached it in that slab.
     pub min_ratio: f64,
+    /// A point marks every slab within this height of it, m: a flat top at a slab's edge (a
+    /// bed's top at 0.5 m) is held by the slab below too, which the rays grazing over the top
+    /// do not pass (they would outvote its points in the slab above).
+    pub surface: f64,
 }
 
 impl Default for GridSettings {
@@ -38,6 +42,7 @@ impl Default for GridSettings {
             slab: 0.1,
             min_hits: 2,
             min_ratio: 0.3,
+            surface: 0.02,
         }
     }
 }
@@ -91,7 +96,8 @@ impl Map {
     /// they cross; points in the obstacle band mark their cell. Each cell keeps its counts per
     /// slab of the band ([`GridSettings::slab`] high): a ray passing above a low obstacle (a
     /// ball, a bed's top seen from higher up) clears only the slab it passes through, so it does
-    /// not outvote the obstacle's own points. A cell is occupied when some slab is, free when a
+    /// not outvote the obstacle's own points; a point counts in the slabs within
+    /// [`GridSettings::surface`] of it. A cell is occupied when some slab is, free when a
     /// ray reached it and no slab is. The grid covers what was seen, with one cell of margin;
     /// `None` before any keyframe.
     pub fn occupancy(&self, s: &GridSettings) -> Result<Option<MapImage>> {
@@ -115,6 +121,14 @@ impl Map {
             });
         }
         let slabs = (slabs.ceil() as usize).max(1);
+        if !(s.surface.is_finite() && (0.0..=s.slab).contains(&s.surface)) {
+            return Err(Error::InvalidSettings {
+                why: format!(
+                    "a surface's height {} m is not within [0, {}] (the slab)",
+                    s.surface, s.slab
+                ),
+            });
+        }
         // The slab of height z within the band, if any.
         let slab_of = |z: f64| -> Option<usize> {
             (s.band[0]..=s.band[1])
@@ -192,8 +206,14 @@ impl Map {
             }
             let k = j1 as usize * width + i1 as usize;
             reached[k] = true;
-            if let (true, Some(z)) = (obstacle, slab_of(e[2])) {
-                hits[z * n + k] += 1;
+            if obstacle {
+                // The point and the slabs within `surface` of it (the band clamps the range).
+                let clamp = |z: f64| slab_of(z.clamp(s.band[0], s.band[1]));
+                if let (Some(a), Some(b)) = (clamp(e[2] - s.surface), clamp(e[2] + s.surface)) {
+                    for z in a..=b {
+                        hits[z * n + k] += 1;
+                    }
+                }
             }
         }
         let cells = (0..n)

@@ -253,7 +253,6 @@ pub fn run(a: &NavArgs<'_>) -> ferrobot::Result<()> {
     let b = super::common::robot_builder(robot);
     let bot = b
         .scene(scene)
-        .use_arm(false)
         .use_camera(slam)
         .backend(Backend::Sim {
             seed,
