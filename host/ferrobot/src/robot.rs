@@ -143,6 +143,8 @@ struct Inner {
     frames: Result<Frames, String>,
     /// The URDF frame of the camera's images (absent without a camera).
     optical: Option<String>,
+    /// The robot's own body (its links' covering spheres), built on first use.
+    body: std::sync::OnceLock<crate::sense::SelfBody>,
     /// The simulated world the robot started in (the empty one on hardware).
     scene: Arc<Scene>,
     io: Mutex<Io>,
@@ -306,6 +308,7 @@ impl Robot {
                 arm,
                 frames,
                 optical,
+                body: std::sync::OnceLock::new(),
                 scene: scene.clone(),
             }),
         };
@@ -497,8 +500,17 @@ impl Robot {
         Ok(crate::sense::Eyes {
             frames: self.frames()?.clone(),
             optical: self.optical_frame()?,
-            body: crate::sense::SelfBody::new(self.config())?,
+            body: self.self_body()?.clone(),
         })
+    }
+
+    /// The robot's own body: its links' covering spheres, computed once.
+    pub(crate) fn self_body(&self) -> Result<&crate::sense::SelfBody> {
+        if let Some(b) = self.inner.body.get() {
+            return Ok(b);
+        }
+        let b = crate::sense::SelfBody::new(self.config())?;
+        Ok(self.inner.body.get_or_init(|| b))
     }
 
     /// How far the arm's links reach from the base's centre across the floor now, m (see
@@ -511,7 +523,7 @@ impl Robot {
         let frames = self.frames()?;
         let poses = frames.poses_in(&self.telemetry()?, crate::frames::BASE_FRAME)?;
         let links = frames.links_moved_by(&arm.joints);
-        Ok(crate::sense::SelfBody::new(cfg)?.reach(&poses, &links))
+        Ok(self.self_body()?.reach(&poses, &links))
     }
 
     /// The camera's optical frame.
