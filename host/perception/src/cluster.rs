@@ -636,6 +636,18 @@ mod tests {
         Point3::new(x, y, z)
     }
 
+    /// The fast clustering of `pts`, checked equal to the exhaustive reference's (`what`
+    /// names the case in the failure).
+    fn agreed(pts: &[Point3<f64>], eps: f64, min_samples: usize, what: &str) -> Clustering {
+        let d = Dbscan::new(eps, min_samples).unwrap().cluster(pts).unwrap();
+        let e = ExhaustiveDbscan::new(eps, min_samples)
+            .unwrap()
+            .cluster(pts)
+            .unwrap();
+        assert_eq!(d, e, "{what}");
+        d
+    }
+
     #[test]
     fn a_small_case_by_hand() {
         // Two tight groups of 4 on a line, a border point, and an isolated point.
@@ -677,12 +689,7 @@ mod tests {
             pts.push(p(-0.01 * k as f64, 0.0, 0.0)); // A: 4..8, reaching x = 0
         }
         pts.push(p(0.5, 0.0, 0.0)); // border, 0.5 from both ends with eps 0.5
-        let d = Dbscan::new(0.5, 5).unwrap().cluster(&pts).unwrap();
-        let e = ExhaustiveDbscan::new(0.5, 5)
-            .unwrap()
-            .cluster(&pts)
-            .unwrap();
-        assert_eq!(d, e);
+        let d = agreed(&pts, 0.5, 5, "");
         assert_eq!(d.labels[8], 0, "{:?}", d.labels);
         assert_eq!(&d.labels[..8], &[0, 0, 0, 0, 1, 1, 1, 1]);
     }
@@ -709,12 +716,7 @@ mod tests {
             }
         }
         for (eps, m) in [(0.01, 5), (0.01, 6), (0.02, 13), (0.0141, 9), (0.03, 40)] {
-            let d = Dbscan::new(eps, m).unwrap().cluster(&pts).unwrap();
-            let e = ExhaustiveDbscan::new(eps, m)
-                .unwrap()
-                .cluster(&pts)
-                .unwrap();
-            assert_eq!(d, e, "eps {eps}, min_samples {m}");
+            agreed(&pts, eps, m, &format!("eps {eps}, min_samples {m}"));
         }
     }
 
@@ -740,12 +742,12 @@ mod tests {
                 .collect();
             let eps = rng.random_range(0.002..0.08);
             let m = rng.random_range(1..30);
-            let d = Dbscan::new(eps, m).unwrap().cluster(&pts).unwrap();
-            let e = ExhaustiveDbscan::new(eps, m)
-                .unwrap()
-                .cluster(&pts)
-                .unwrap();
-            assert_eq!(d, e, "case {case}: n {n}, eps {eps}, min_samples {m}");
+            agreed(
+                &pts,
+                eps,
+                m,
+                &format!("case {case}: n {n}, eps {eps}, min_samples {m}"),
+            );
         }
     }
 
@@ -756,24 +758,12 @@ mod tests {
         let mut pts = vec![p(0.0, 0.0, 0.0); 300];
         pts.extend(vec![p(0.03, 0.0, 0.0); 300]);
         for eps in [0.02, 0.0151, 0.0149] {
-            let d = Dbscan::new(eps, 10).unwrap().cluster(&pts).unwrap();
-            let e = ExhaustiveDbscan::new(eps, 10)
-                .unwrap()
-                .cluster(&pts)
-                .unwrap();
-            assert_eq!(d, e, "eps {eps}");
+            let d = agreed(&pts, eps, 10, &format!("eps {eps}"));
             assert_eq!(d.clusters, 2);
         }
         pts.push(p(0.015, 0.0, 0.0));
-        let d = Dbscan::new(0.0151, 10).unwrap().cluster(&pts).unwrap();
+        let d = agreed(&pts, 0.0151, 10, "with the bridge");
         assert_eq!(d.clusters, 1);
-        assert_eq!(
-            d,
-            ExhaustiveDbscan::new(0.0151, 10)
-                .unwrap()
-                .cluster(&pts)
-                .unwrap()
-        );
     }
 
     #[test]
@@ -795,12 +785,7 @@ mod tests {
             }
         }
         for m in [20, 60, 4000] {
-            let d = Dbscan::new(eps, m).unwrap().cluster(&pts).unwrap();
-            let e = ExhaustiveDbscan::new(eps, m)
-                .unwrap()
-                .cluster(&pts)
-                .unwrap();
-            assert_eq!(d, e, "min_samples {m}");
+            agreed(&pts, eps, m, &format!("min_samples {m}"));
         }
     }
 

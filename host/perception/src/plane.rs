@@ -335,15 +335,12 @@ mod tests {
     fn a_noisy_plane_with_outliers_is_found_within_half_a_degree_and_a_millimetre() {
         for seed in 0..5 {
             let (pts, normal, offset) = noisy_plane(seed);
-            let fit = fit_plane(
-                &pts,
-                &RansacParams {
-                    threshold: 0.006,
-                    seed,
-                    ..Default::default()
-                },
-            )
-            .unwrap();
+            let params = RansacParams {
+                threshold: 0.006,
+                seed,
+                ..Default::default()
+            };
+            let fit = fit_plane(&pts, &params).unwrap();
             let angle = fit.plane.normal.dot(&normal).clamp(-1.0, 1.0).acos();
             assert!(angle < 0.5f64.to_radians(), "seed {seed}: {angle} rad");
             assert!(
@@ -361,15 +358,7 @@ mod tests {
             );
             assert!((fit.rms - 0.002).abs() < 0.0003, "rms {}", fit.rms);
             // Seeded: the same again.
-            let again = fit_plane(
-                &pts,
-                &RansacParams {
-                    threshold: 0.006,
-                    seed,
-                    ..Default::default()
-                },
-            )
-            .unwrap();
+            let again = fit_plane(&pts, &params).unwrap();
             assert_eq!(fit, again);
         }
     }
