@@ -94,3 +94,61 @@ pub fn robot_builder(robot: &str) -> ferrobot::RobotBuilder {
         ferrobot::Robot::builder(robot)
     }
 }
+
+/// The board firmware's ELF that `--backend emulated` boots in QEMU by default, relative to
+/// the repository's root (`scripts/build-boards.sh` builds it).
+pub const DEFAULT_FIRMWARE: &str =
+    "boards/mps2-an386/target/thumbv7em-none-eabihf/release/board-mps2-an386";
+
+/// Where a tool's robot runs (`--backend`, `--firmware`, `--port`, `--seed`): the same
+/// program drives the in-process simulator, the real firmware in QEMU, or a serial port.
+#[derive(clap::Args, Debug, Clone)]
+pub struct BackendArgs {
+    /// sim (in-process simulator, the default), emulated (the real firmware in QEMU with
+    /// simulated plants; --firmware) or serial (a board or `ferrobot sim-firmware` on --port).
+    #[arg(long, value_enum, default_value_t = BackendKind::Sim)]
+    pub backend: BackendKind,
+    /// The board firmware's ELF for --backend emulated.
+    #[arg(long, default_value = DEFAULT_FIRMWARE)]
+    pub firmware: std::path::PathBuf,
+    /// The serial port for --backend serial (e.g. /dev/ttyACM0).
+    #[arg(long)]
+    pub port: Option<std::path::PathBuf>,
+    /// Seed of the simulated plants' noise (sim backend).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+}
+
+/// The kinds of backend a tool can drive ([`BackendArgs`]).
+#[derive(clap::ValueEnum, Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BackendKind {
+    /// The in-process lockstep simulator.
+    Sim,
+    /// The real firmware in QEMU with simulated plants.
+    Emulated,
+    /// A serial port.
+    Serial,
+}
+
+// The tools that drive a robot (grasp, push, teleop, calibrate-camera) land next.
+#[allow(dead_code)]
+impl BackendArgs {
+    /// The API's backend, or a typed error when --backend serial has no --port.
+    pub fn backend(&self) -> ferrobot::Result<ferrobot::Backend> {
+        Ok(match self.backend {
+            BackendKind::Sim => ferrobot::Backend::Sim {
+                seed: self.seed,
+                realtime: false,
+            },
+            BackendKind::Emulated => ferrobot::Backend::Emulated {
+                firmware: self.firmware.clone(),
+            },
+            BackendKind::Serial => ferrobot::Backend::Serial {
+                path: self
+                    .port
+                    .clone()
+                    .ok_or_else(|| ferrobot::Error::Link("--backend serial needs --port".into()))?,
+            },
+        })
+    }
+}
