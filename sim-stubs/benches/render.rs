@@ -152,7 +152,7 @@ fn compare_with_pybullet(cpu: Option<usize>) {
         eprintln!("scripts/python-env.sh bench failed: no PyBullet comparison");
         return;
     }
-    let python = root.join("target/py-venv/bin/python");
+    let python = ferrobot_peers::venv_python();
     let target = std::env::var_os("CARGO_TARGET_DIR").map_or(root.join("target"), PathBuf::from);
     let dir = target.join("bench-render");
     std::fs::create_dir_all(&dir).expect("bench-render dir");

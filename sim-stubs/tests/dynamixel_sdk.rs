@@ -16,19 +16,11 @@ impl Drop for Server {
     }
 }
 
-fn python() -> String {
-    let py = std::env::var("FERROBOT_PYTHON").unwrap_or_else(|_| "python3".into());
-    let ok = Command::new(&py)
-        .args(["-c", "import dynamixel_sdk"])
-        .status()
-        .map(|s| s.success())
-        .unwrap_or(false);
-    assert!(
-        ok,
-        "the ROBOTIS Dynamixel SDK is not importable with {py:?}; run `scripts/test.sh` (it installs \
-         dynamixel-sdk into target/py-venv and sets FERROBOT_PYTHON), or `pip install dynamixel-sdk`"
-    );
-    py
+/// The SDK's Python: the test command's (`FERROBOT_PYTHON`), or the workspace's environment.
+fn python() -> std::path::PathBuf {
+    ferrobot_peers::for_test("dynamixel_sdk", "scripts/python-env.sh").expect(
+        "the ROBOTIS Dynamixel SDK is needed: run `scripts/python-env.sh` (scripts/test.sh does)",
+    )
 }
 
 #[test]

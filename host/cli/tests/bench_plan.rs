@@ -38,31 +38,9 @@ fn peer_script() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../planning/peer/plan_peer.py")
 }
 
-/// The peer's Python, or `None` (skip) when none has OMPL and FCL and `FERROBOT_PYTHON` is
-/// not set; with it set, a Python without them fails the test.
-fn peer_python() -> Option<String> {
-    let has = |py: &str| {
-        Command::new(py)
-            .args(["-c", "import ompl.geometric, fcl, numpy"])
-            .status()
-            .map(|s| s.success())
-            .unwrap_or(false)
-    };
-    if let Ok(py) = std::env::var("FERROBOT_PYTHON") {
-        assert!(
-            has(&py),
-            "FERROBOT_PYTHON={py:?} cannot import OMPL and FCL; run `scripts/python-env.sh plan` \
-             (scripts/test.sh does)"
-        );
-        return Some(py);
-    }
-    let venv = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../target/py-venv/bin/python");
-    let venv = venv.to_string_lossy().into_owned();
-    if has(&venv) {
-        return Some(venv);
-    }
-    eprintln!("skipped: no Python with OMPL and FCL (run `scripts/python-env.sh plan`)");
-    None
+/// The peer's Python, or `None` (skip): [`ferrobot_peers::for_test`]'s rule.
+fn peer_python() -> Option<PathBuf> {
+    ferrobot_peers::for_test("ompl.geometric, fcl, numpy", "scripts/python-env.sh plan")
 }
 
 fn keys(v: &serde_json::Value) -> Vec<String> {

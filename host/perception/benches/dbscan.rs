@@ -90,20 +90,12 @@ fn clouds() -> Vec<(&'static str, Vec<Point3<f64>>, f64, usize)> {
 }
 
 /// The peer's Python: `FERROBOT_PYTHON`, else the workspace's venv, if it has scikit-learn.
-fn peer_python() -> Option<String> {
-    let venv = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../target/py-venv/bin/python");
-    let py =
-        std::env::var("FERROBOT_PYTHON").unwrap_or_else(|_| venv.to_string_lossy().into_owned());
-    let ok = Command::new(&py)
-        .args(["-c", "import sklearn.cluster, threadpoolctl"])
-        .status()
-        .map(|s| s.success())
-        .unwrap_or(false);
-    ok.then_some(py)
+fn peer_python() -> Option<PathBuf> {
+    ferrobot_peers::for_bench("sklearn.cluster, threadpoolctl")
 }
 
 /// scikit-learn's labels and fit times (s) on the cloud in `ply`.
-fn sklearn(py: &str, ply: &Path, eps: f64, m: usize) -> (Vec<i32>, Vec<f64>, String) {
+fn sklearn(py: &Path, ply: &Path, eps: f64, m: usize) -> (Vec<i32>, Vec<f64>, String) {
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("peer/dbscan_peer.py");
     let out = Command::new(py)
         .arg(script)

@@ -24,31 +24,12 @@ use ferrobot_perception::{
 };
 use nalgebra::Point3;
 
-/// The peer's Python, or `None` (skip) when none has scikit-learn and `FERROBOT_PYTHON` is
-/// not set; with it set, a Python without scikit-learn fails the test.
-fn peer_python() -> Option<String> {
-    let has = |py: &str| {
-        Command::new(py)
-            .args(["-c", "import sklearn.cluster, threadpoolctl"])
-            .status()
-            .map(|s| s.success())
-            .unwrap_or(false)
-    };
-    if let Ok(py) = std::env::var("FERROBOT_PYTHON") {
-        assert!(
-            has(&py),
-            "FERROBOT_PYTHON={py:?} cannot import scikit-learn; run `scripts/python-env.sh \
-             cluster` (scripts/test.sh does)"
-        );
-        return Some(py);
-    }
-    let venv = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../target/py-venv/bin/python");
-    let venv = venv.to_string_lossy().into_owned();
-    if has(&venv) {
-        return Some(venv);
-    }
-    eprintln!("skipped: no Python with scikit-learn (run `scripts/python-env.sh cluster`)");
-    None
+/// The peer's Python, or `None` (skip): [`ferrobot_peers::for_test`]'s rule.
+fn peer_python() -> Option<PathBuf> {
+    ferrobot_peers::for_test(
+        "sklearn.cluster, threadpoolctl",
+        "scripts/python-env.sh cluster",
+    )
 }
 
 fn scratch() -> PathBuf {
@@ -65,7 +46,7 @@ struct Peer {
 }
 
 /// scikit-learn's runs on the cloud in `ply`, one per (eps, min_samples), in one start-up.
-fn sklearn(py: &str, ply: &Path, params: &[(f64, usize)]) -> Vec<Peer> {
+fn sklearn(py: &Path, ply: &Path, params: &[(f64, usize)]) -> Vec<Peer> {
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("peer/dbscan_peer.py");
     let mut cmd = Command::new(py);
     cmd.arg(&script).arg(ply);
@@ -137,7 +118,7 @@ struct Seen {
 
 /// Writes `points` as a PLY, reads them back (float32 coordinates), clusters them with ours
 /// and scikit-learn's for each (eps, min_samples), and checks every label and core flag.
-fn compare(py: &str, name: &str, points: &[Point3<f64>], params: &[(f64, usize)]) -> Vec<Seen> {
+fn compare(py: &Path, name: &str, points: &[Point3<f64>], params: &[(f64, usize)]) -> Vec<Seen> {
     let path = scratch().join(format!("{name}.ply"));
     let cloud = PointCloud {
         points: points.to_vec(),

@@ -602,17 +602,6 @@ fn write_export(
     Ok(())
 }
 
-/// The Python interpreter for the peer: `FERROBOT_PYTHON`, else the workspace's
-/// `target/py-venv` (made by `scripts/python-env.sh plan`).
-fn peer_python() -> PathBuf {
-    std::env::var_os("FERROBOT_PYTHON")
-        .filter(|p| !p.is_empty())
-        .map(PathBuf::from)
-        .unwrap_or_else(|| {
-            Path::new(env!("CARGO_MANIFEST_DIR")).join("../../target/py-venv/bin/python")
-        })
-}
-
 fn peer_error(why: String) -> Error {
     Error::Io(std::io::Error::other(format!(
         "the OMPL peer: {why}; `scripts/python-env.sh plan` installs OMPL and FCL into \
@@ -622,7 +611,7 @@ fn peer_error(why: String) -> Error {
 
 /// Checks, before any planning, that the peer's Python has OMPL and FCL.
 fn peer_preflight() -> ferrobot::Result<()> {
-    let python = peer_python();
+    let python = ferrobot_peers::python();
     let out = Command::new(&python)
         .args(["-c", "import ompl.geometric, fcl, numpy"])
         .output()
@@ -646,7 +635,7 @@ fn run_peer(path: &Path, time_limit: f64, seed: u64) -> ferrobot::Result<serde_j
     if !script.is_file() {
         return Err(peer_error(format!("{} is missing", script.display())));
     }
-    let python = peer_python();
+    let python = ferrobot_peers::python();
     let out = Command::new(&python)
         .arg(&script)
         .arg("ompl")
