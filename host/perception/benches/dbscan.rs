@@ -29,7 +29,7 @@ use std::time::{Duration, Instant};
 use ferrobot_perception::io::{read_ply, write_ply};
 use ferrobot_perception::synthetic::{blobs, DepthCamera, Tabletop};
 use ferrobot_perception::{
-    above_table, fit_plane, Clusterer, Dbscan, PointCloud, RansacParams, SegmentParams,
+    above_table, fit_plane, Clusterer, Dbscan, Intrinsics, PointCloud, RansacParams, SegmentParams,
 };
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use nalgebra::Point3;
@@ -37,6 +37,20 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 const N: usize = 100_000;
+
+/// The LoCoBot's camera intrinsics (its D435 at 640x480), from its description.
+fn locobot_intrinsics() -> Intrinsics {
+    let cfg = ferrobot_description::RobotConfig::bundled("locobot").expect("bundled LoCoBot");
+    let c = cfg.camera.expect("the LoCoBot has a camera");
+    Intrinsics {
+        width: c.width,
+        height: c.height,
+        fx: c.fx,
+        fy: c.fy,
+        cx: c.cx,
+        cy: c.cy,
+    }
+}
 
 /// `n` of `points` drawn at random (seeded), in their original order.
 fn subset(points: &[Point3<f64>], n: usize, seed: u64) -> Vec<Point3<f64>> {
@@ -54,7 +68,9 @@ fn subset(points: &[Point3<f64>], n: usize, seed: u64) -> Vec<Point3<f64>> {
 
 fn clouds() -> Vec<(&'static str, Vec<Point3<f64>>, f64, usize)> {
     let scene = Tabletop::random(1, 10, 0.04);
-    let view = DepthCamera::locobot().cloud(&scene, 1).expect("renders");
+    let view = DepthCamera::looking_down(locobot_intrinsics())
+        .cloud(&scene, 1)
+        .expect("renders");
     let fit = fit_plane(
         &view.points,
         &RansacParams {

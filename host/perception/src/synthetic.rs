@@ -323,21 +323,16 @@ pub struct DepthCamera {
 }
 
 impl DepthCamera {
-    /// The LoCoBot's D435 (PyRobot's intrinsics, 640x480) on its head, 0.55 m above the floor,
-    /// tilted 0.8 rad down, keeping depths in (0.2, 1.5) m, with 2 mm of noise at 1 m.
-    pub fn locobot() -> DepthCamera {
+    /// A camera with `intrinsics` on a LoCoBot-like head: 0.55 m above the floor, looking along
+    /// +x, tilted 0.8 rad down (PyRobot's grasping view), keeping depths in (0.2, 1.5) m, with
+    /// 2 mm of noise at 1 m. A robot's intrinsics are a fact of its description
+    /// (`[camera]` in its TOML): the caller brings them.
+    pub fn looking_down(intrinsics: Intrinsics) -> DepthCamera {
         DepthCamera {
             eye: Point3::new(0.03, 0.0, 0.55),
             yaw: 0.0,
             tilt: 0.8,
-            intrinsics: Intrinsics {
-                width: 640,
-                height: 480,
-                fx: 619.8997,
-                fy: 620.11,
-                cx: 320.654,
-                cy: 241.1125,
-            },
+            intrinsics,
             range: DepthRange::PYROBOT,
             noise_at_1m: 0.002,
         }
@@ -518,11 +513,19 @@ mod tests {
     fn the_camera_sees_the_table_and_the_objects_where_they_are() {
         let scene = Tabletop::random(3, 6, 0.05);
         assert_eq!(scene.objects.len(), 6);
+        // A 320x240 pinhole with a 54 degree horizontal field of view.
+        let k = Intrinsics {
+            width: 320,
+            height: 240,
+            fx: 310.0,
+            fy: 310.0,
+            cx: 159.5,
+            cy: 119.5,
+        };
         let cam = DepthCamera {
             noise_at_1m: 0.0,
-            ..DepthCamera::locobot()
-        }
-        .scaled(0.5);
+            ..DepthCamera::looking_down(k)
+        };
         let cloud = cam.cloud(&scene, 1).unwrap();
         assert!(cloud.len() > 50_000, "{}", cloud.len());
         let mut on_objects = 0;

@@ -20,9 +20,24 @@ use std::process::Command;
 use ferrobot_perception::io::{read_ply, write_ply};
 use ferrobot_perception::synthetic::{blobs, DepthCamera, Tabletop};
 use ferrobot_perception::{
-    above_table, fit_plane, Clusterer, Clustering, Dbscan, PointCloud, RansacParams, SegmentParams,
+    above_table, fit_plane, Clusterer, Clustering, Dbscan, Intrinsics, PointCloud, RansacParams,
+    SegmentParams,
 };
 use nalgebra::Point3;
+
+/// The LoCoBot's camera intrinsics (its D435 at 640x480), from its description.
+fn locobot_intrinsics() -> Intrinsics {
+    let cfg = ferrobot_description::RobotConfig::bundled("locobot").expect("bundled LoCoBot");
+    let c = cfg.camera.expect("the LoCoBot has a camera");
+    Intrinsics {
+        width: c.width,
+        height: c.height,
+        fx: c.fx,
+        fy: c.fy,
+        cx: c.cx,
+        cy: c.cy,
+    }
+}
 
 /// The peer's Python, or `None` (skip): [`ferrobot_peers::for_test`]'s rule.
 fn peer_python() -> Option<PathBuf> {
@@ -245,7 +260,7 @@ fn labels_equal_scikit_learns_on_a_table_top_camera_cloud() {
     for seed in [1u64, 2] {
         let scene = Tabletop::random(seed, 8, 0.04);
         // The whole view at 160x120 (floor, table and objects, D435-like noise).
-        let cloud = DepthCamera::locobot()
+        let cloud = DepthCamera::looking_down(locobot_intrinsics())
             .scaled(0.25)
             .cloud(&scene, seed)
             .unwrap();
@@ -257,7 +272,9 @@ fn labels_equal_scikit_learns_on_a_table_top_camera_cloud() {
         );
         // PyRobot's pushing pipeline: the full 640x480 view, the table's plane, the points
         // 1 cm to 0.5 m above it over the table, DBSCAN (0.02, 15).
-        let full = DepthCamera::locobot().cloud(&scene, seed).unwrap();
+        let full = DepthCamera::looking_down(locobot_intrinsics())
+            .cloud(&scene, seed)
+            .unwrap();
         let fit = fit_plane(
             &full.points,
             &RansacParams {
