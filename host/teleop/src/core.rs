@@ -21,16 +21,21 @@ pub struct HoldTiming {
 }
 
 impl Default for HoldTiming {
-    /// 0.5 s after a first press (the common auto-repeat delay), 0.06 s after a repeat (two
-    /// intervals at the common 30 repeats per second; the base's own stop then takes about
-    /// 0.12 s, so that it rests within 0.2 s of the last repeat).
+    /// 0.5 s after a first press (the common auto-repeat delay), 0.05 s after a repeat (one
+    /// and a half intervals at the common 30 repeats per second, 25 % more than an interval
+    /// at X11's default 25 per second; the base's own stop then takes about 0.12 s, so that
+    /// it rests within 0.2 s of the last repeat).
     fn default() -> Self {
         HoldTiming {
             first: 0.5,
-            repeat: 0.06,
+            repeat: 0.05,
         }
     }
 }
+
+/// The resolution of the instants the core is given, s: a hold due within it of `now` has
+/// ended (sums of seconds in `f64` land a hair either side of a whole microsecond).
+pub const TIME_RESOLUTION: f64 = 1e-6;
 
 /// What the robot is to do.
 #[derive(Debug, Clone, PartialEq)]
@@ -178,7 +183,8 @@ impl Teleop {
     /// the commands to execute (a new base velocity or a stop).
     pub fn poll(&mut self, now: f64) -> Vec<Command> {
         let mut out = Vec::new();
-        self.held.retain(|h| h.until > now);
+        // Instants compare to the microsecond, the resolution of the robots' clocks.
+        self.held.retain(|h| h.until > now + TIME_RESOLUTION);
         self.drive(&mut out);
         out
     }
@@ -283,17 +289,18 @@ mod tests {
         // Nothing until the terminal's auto-repeat begins (0.45 s later here).
         assert!(t.poll(10.449).is_empty());
         assert_eq!(t.poll_at(), Some(10.5));
-        // Repeats every 33 ms keep it held without a new command.
+        // Repeats every 33 ms keep it held without a new command (sums of 0.033 s, checked
+        // at the microsecond before each next repeat).
         let mut now = 10.45;
         for _ in 0..10 {
             assert!(t.on_key(now, KeyEvent::press(Up), false).is_empty());
-            assert!(t.poll(now + 0.033).is_empty());
+            assert!(t.poll(now + 0.033 - 2e-6).is_empty());
             now += 0.033;
         }
-        // The last repeat was at now - 0.033: released 0.06 s after it.
+        // The last repeat was at now - 0.033: released 0.05 s after it.
         let last = now - 0.033;
-        assert!(t.poll(last + 0.059).is_empty());
-        assert_eq!(t.poll(last + 0.06), [Command::BaseStop]);
+        assert!(t.poll(last + 0.049).is_empty());
+        assert_eq!(t.poll(last + 0.05), [Command::BaseStop]);
         assert_eq!(t.base_velocity(), None);
         // A tap shorter than the repeat delay drives for the first hold.
         assert_eq!(t.on_key(20.0, KeyEvent::press(Down), false).len(), 1);

@@ -12,5 +12,5 @@
 pub mod core;
 pub mod keymap;
 
-pub use crate::core::{Command, HoldTiming, Teleop};
+pub use crate::core::{Command, HoldTiming, Teleop, TIME_RESOLUTION};
 pub use keymap::{Action, Binding, GripperAction, Key, KeyEvent, KeyKind, KeyMap};
