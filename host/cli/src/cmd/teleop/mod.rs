@@ -18,6 +18,34 @@ mod screen;
 mod terminal;
 mod trace;
 
+#[cfg(feature = "gamepad")]
+mod gamepad;
+
+/// The gamepads, when built with them (feature `gamepad`) and the system offers them.
+#[cfg(feature = "gamepad")]
+type Pad = Option<gamepad::Gamepad>;
+/// No gamepad without the feature.
+#[cfg(not(feature = "gamepad"))]
+type Pad = ();
+
+/// Open the gamepads, and say what reads keys.
+fn open_pad() -> (Pad, String) {
+    #[cfg(feature = "gamepad")]
+    {
+        match gamepad::Gamepad::open() {
+            Ok(p) => {
+                let n = p.connected();
+                (Some(p), format!("keyboard and gamepads ({n} connected)"))
+            }
+            Err(e) => (None, format!("keyboard (no gamepads: {e})")),
+        }
+    }
+    #[cfg(not(feature = "gamepad"))]
+    {
+        ((), "keyboard".into())
+    }
+}
+
 use std::io::IsTerminal;
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -100,6 +128,8 @@ pub fn run(a: &Args) -> ferrobot::Result<()> {
             cfg.name
         )));
     }
+    // The world, checked before the terminal is taken (the robot loads it again).
+    ferrobot::scene::Scene::load(&ferrobot::scene::SceneSource::from_arg(a.scene))?;
     if !(std::io::stdin().is_terminal() && std::io::stdout().is_terminal()) {
         return Err(ferrobot::Error::Usage(
             "teleop needs a terminal on standard input and output".into(),
@@ -134,28 +164,35 @@ pub fn run(a: &Args) -> ferrobot::Result<()> {
             .map_err(|e| ferrobot::Error::Link(format!("cannot watch signal {sig}: {e}")))?;
     }
     let term = terminal::Terminal::open()?;
+    let (pad, input) = open_pad();
     let header = screen::Header {
         robot: op.name().to_string(),
         backend: describe(&backend, pace),
+        input,
         releases: term.releases(),
         timing,
     };
     let mut screen = screen::Screen::new(header, core.key_map());
+    let mut inputs = Inputs {
+        term,
+        pad,
+        stop,
+        hangup,
+    };
     let reason = drive(
         &mut core,
         &mut op,
-        &term,
+        &mut inputs,
         &mut screen,
         &mut trace,
         pace,
-        [&stop, &hangup],
     );
     // Leave the robot safe first, then the terminal.
     let report = op.quit(SETTLE_S);
     if let Some(t) = trace.as_mut() {
         t.end(reason, &report);
     }
-    drop(term);
+    drop(inputs);
     if reason != QuitReason::Hangup {
         // On the restored terminal; a closed one is no error here.
         use std::io::Write;
@@ -164,16 +201,33 @@ pub fn run(a: &Args) -> ferrobot::Result<()> {
     Ok(())
 }
 
+/// Where keys and requests to leave come from.
+struct Inputs {
+    /// The terminal (restored when dropped).
+    term: terminal::Terminal,
+    /// Gamepads.
+    pad: Pad,
+    /// SIGTERM or SIGINT came.
+    stop: Arc<AtomicBool>,
+    /// SIGHUP came.
+    hangup: Arc<AtomicBool>,
+}
+
 /// The loop: keys in, commands out, time passes, the screen follows. Returns why it ended.
 fn drive(
     core: &mut Teleop,
     op: &mut Operator,
-    term: &terminal::Terminal,
+    inputs: &mut Inputs,
     screen: &mut screen::Screen,
     trace: &mut Option<trace::Trace>,
     pace: Pace,
-    [stop, hangup]: [&Arc<AtomicBool>; 2],
 ) -> QuitReason {
+    let Inputs {
+        term,
+        pad,
+        stop,
+        hangup,
+    } = inputs;
     let mut events = Vec::new();
     loop {
         let wall = Instant::now()
@@ -199,6 +253,15 @@ fn drive(
                     closed = true;
                     break;
                 }
+            }
+        }
+        #[cfg(not(feature = "gamepad"))]
+        let () = *pad;
+        #[cfg(feature = "gamepad")]
+        if let Some(pad) = pad.as_mut() {
+            for k in pad.events() {
+                events.push(k);
+                commands.extend(core.on_key(now, k, true));
             }
         }
         commands.extend(core.poll(now));

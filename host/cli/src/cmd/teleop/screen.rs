@@ -15,6 +15,8 @@ pub struct Header {
     pub robot: String,
     /// The backend and the pace.
     pub backend: String,
+    /// What reads keys (the keyboard, gamepads).
+    pub input: String,
     /// Whether the terminal reports key releases.
     pub releases: bool,
     /// The hold times of base keys.
@@ -130,6 +132,7 @@ impl Screen {
         l.push(format!("last     #{} {}", s.commands, s.last));
         l.push(String::new());
         l.extend(self.help.iter().cloned());
+        l.push(format!("input    {}", h.input));
         l.push(if h.releases {
             "releases reported by the terminal".into()
         } else {
