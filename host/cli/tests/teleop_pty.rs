@@ -164,6 +164,21 @@ impl Session {
         }
     }
 
+    /// [`Session::start`], then wait until the start pose is reached and the screen says how
+    /// key releases are known.
+    fn ready(dir: &Path, kitty: bool) -> Session {
+        let mut s = Session::start(dir, kitty);
+        let releases = if kitty {
+            "releases reported"
+        } else {
+            "releases inferred"
+        };
+        s.until("the start pose", |sh, text| {
+            (sh.last == "ready" && sh.moving == "none" && text.contains(releases)).then_some(())
+        });
+        s
+    }
+
     fn send(&mut self, bytes: &[u8]) {
         type_keys(&self.writer, bytes);
     }
@@ -378,11 +393,7 @@ fn stty(s: &mut Session) -> String {
 #[test]
 fn every_key_moves_what_it_should_a_released_base_key_stops_and_quitting_is_safe() {
     let dir = scratch("keys");
-    let mut s = Session::start(&dir, false);
-    s.until("the start pose", |sh, text| {
-        (sh.last == "ready" && sh.moving == "none" && text.contains("releases inferred"))
-            .then_some(())
-    });
+    let mut s = Session::ready(&dir, false);
     // The end effector: PyRobot's steps along each axis of base_link.
     let ee = [
         (b"w", "w (", [0.01, 0.0, 0.0]),
@@ -521,11 +532,7 @@ fn every_key_moves_what_it_should_a_released_base_key_stops_and_quitting_is_safe
 #[test]
 fn with_reported_releases_a_release_stops_the_base_and_a_closing_terminal_quits_safely() {
     let dir = scratch("kitty");
-    let mut s = Session::start(&dir, true);
-    s.until("the start pose", |sh, text| {
-        (sh.last == "ready" && sh.moving == "none" && text.contains("releases reported"))
-            .then_some(())
-    });
+    let mut s = Session::ready(&dir, true);
     // Kitty's encoding: `w` pressed (its release is ignored), then Up pressed, held 0.8 s
     // with no repeat, released.
     let before = s.settled();

@@ -1,7 +1,7 @@
 //! The teleoperation state machine: key events at instants of the robot's clock in, commands
 //! out; held base keys expire by the same clock.
 
-use crate::keymap::{Action, GripperAction, Key, KeyEvent, KeyKind, KeyMap};
+use crate::keymap::{Action, Key, KeyEvent, KeyKind, KeyMap, Step};
 
 /// How long a base key counts as held after its last event, s of the robot's clock.
 ///
@@ -40,22 +40,8 @@ pub const TIME_RESOLUTION: f64 = 1e-6;
 /// What the robot is to do.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Command {
-    /// Move the end effector by `[dx, dy, dz]`, m (the arm's base frame), keeping the
-    /// gripper's orientation (pitch and roll on a 5-joint arm).
-    EeStep([f64; 3]),
-    /// Turn the named arm joint by `delta`, rad.
-    JointStep {
-        /// Joint name.
-        joint: String,
-        /// Step, rad.
-        delta: f64,
-    },
-    /// Open or close the gripper.
-    Gripper(GripperAction),
-    /// Pan and tilt the head by `[dpan, dtilt]`, rad.
-    PanTilt([f64; 2]),
-    /// The arm to its home pose.
-    Reset,
+    /// One step of the arm, the gripper or the head.
+    Step(Step),
     /// Drive the base at `v` m/s and `w` rad/s until the next base command.
     BaseVelocity {
         /// Forward speed, m/s.
@@ -167,13 +153,7 @@ impl Teleop {
                 out.push(Command::Quit);
                 return out;
             }
-            (Action::EeStep(d), _) => out.push(Command::EeStep(d)),
-            (Action::JointStep { joint, delta }, _) => {
-                out.push(Command::JointStep { joint, delta })
-            }
-            (Action::Gripper(g), _) => out.push(Command::Gripper(g)),
-            (Action::PanTilt(d), _) => out.push(Command::PanTilt(d)),
-            (Action::Reset, _) => out.push(Command::Reset),
+            (Action::Step(step), _) => out.push(Command::Step(step)),
         }
         self.drive(&mut out);
         out
@@ -218,7 +198,7 @@ impl Teleop {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::keymap::{KeyMap, BASE_SPEED, BASE_TURN};
+    use crate::keymap::{GripperAction, KeyMap, BASE_SPEED, BASE_TURN};
     use Key::*;
 
     fn core() -> Teleop {
@@ -232,26 +212,31 @@ mod tests {
     fn every_step_key_gives_pyrobots_step() {
         let mut t = core();
         let cases = [
-            ('w', Command::EeStep([0.01, 0.0, 0.0])),
-            ('s', Command::EeStep([-0.01, 0.0, 0.0])),
-            ('a', Command::EeStep([0.0, 0.01, 0.0])),
-            ('d', Command::EeStep([0.0, -0.01, 0.0])),
-            ('z', Command::EeStep([0.0, 0.0, 0.015])),
-            ('x', Command::EeStep([0.0, 0.0, -0.01])),
-            ('u', Command::PanTilt([0.08, 0.0])),
-            ('i', Command::PanTilt([-0.08, 0.0])),
-            ('o', Command::PanTilt([0.0, 0.08])),
-            ('p', Command::PanTilt([0.0, -0.08])),
-            ('n', Command::Gripper(GripperAction::Open)),
-            ('m', Command::Gripper(GripperAction::Close)),
-            ('r', Command::Reset),
+            ('w', Step::Ee([0.01, 0.0, 0.0])),
+            ('s', Step::Ee([-0.01, 0.0, 0.0])),
+            ('a', Step::Ee([0.0, 0.01, 0.0])),
+            ('d', Step::Ee([0.0, -0.01, 0.0])),
+            ('z', Step::Ee([0.0, 0.0, 0.015])),
+            ('x', Step::Ee([0.0, 0.0, -0.01])),
+            ('u', Step::PanTilt([0.08, 0.0])),
+            ('i', Step::PanTilt([-0.08, 0.0])),
+            ('o', Step::PanTilt([0.0, 0.08])),
+            ('p', Step::PanTilt([0.0, -0.08])),
+            ('n', Step::Gripper(GripperAction::Open)),
+            ('m', Step::Gripper(GripperAction::Close)),
+            ('r', Step::Reset),
         ];
         for (k, want) in cases {
-            assert_eq!(t.on_key(1.0, KeyEvent::press(Char(k)), false), [want]);
+            assert_eq!(
+                t.on_key(1.0, KeyEvent::press(Char(k)), false),
+                [Command::Step(want)]
+            );
         }
-        let joint = |j: &str, delta| Command::JointStep {
-            joint: j.into(),
-            delta,
+        let joint = |j: &str, delta| {
+            Command::Step(Step::Joint {
+                joint: j.into(),
+                delta,
+            })
         };
         assert_eq!(
             t.on_key(1.0, KeyEvent::press(Char('h')), false),
@@ -274,7 +259,7 @@ mod tests {
         assert!(t.on_key(1.0, KeyEvent::release(Char('w')), true).is_empty());
         assert_eq!(
             t.on_key(1.0, KeyEvent::repeat(Char('w')), true),
-            [Command::EeStep([0.01, 0.0, 0.0])]
+            [Command::Step(Step::Ee([0.01, 0.0, 0.0]))]
         );
     }
 

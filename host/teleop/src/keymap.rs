@@ -87,14 +87,14 @@ pub enum GripperAction {
     Close,
 }
 
-/// What a key does.
+/// A discrete step: one per key event (and per auto-repeat).
 #[derive(Debug, Clone, PartialEq)]
-pub enum Action {
+pub enum Step {
     /// Move the end effector by `[dx, dy, dz]` (m, the arm's base frame), keeping the
-    /// gripper's pitch and roll: one step per key event.
-    EeStep([f64; 3]),
-    /// Turn one arm joint (by name) by `delta` rad: one step per key event.
-    JointStep {
+    /// gripper's orientation (pitch and roll on a 5-joint arm).
+    Ee([f64; 3]),
+    /// Turn one arm joint (by name) by `delta` rad.
+    Joint {
         /// The joint's name in the robot description.
         joint: String,
         /// Step, rad.
@@ -102,8 +102,17 @@ pub enum Action {
     },
     /// Open or close the gripper.
     Gripper(GripperAction),
-    /// Pan and tilt the camera head by `[dpan, dtilt]` rad: one step per key event.
+    /// Pan and tilt the camera head by `[dpan, dtilt]` rad.
     PanTilt([f64; 2]),
+    /// The arm to its home pose.
+    Reset,
+}
+
+/// What a key does.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Action {
+    /// A step, once per key event.
+    Step(Step),
     /// Drive the base at `v` m/s forward and `w` rad/s (counter-clockwise) while the key is
     /// held; several held base keys add up.
     Base {
@@ -112,8 +121,6 @@ pub enum Action {
         /// Yaw rate, rad/s.
         w: f64,
     },
-    /// The arm to its home pose.
-    Reset,
     /// Stop the base, hold the arm, leave.
     Quit,
 }
@@ -172,62 +179,35 @@ impl KeyMap {
             action,
             label: label.to_string(),
         };
-        let joint = |name: &str, delta| Action::JointStep {
-            joint: name.to_string(),
-            delta,
+        let joint = |name: &str, delta| {
+            Action::Step(Step::Joint {
+                joint: name.to_string(),
+                delta,
+            })
         };
+        let ee = |d| Action::Step(Step::Ee(d));
+        let head = |d| Action::Step(Step::PanTilt(d));
+        let grip = |g| Action::Step(Step::Gripper(g));
         use Key::*;
         let [j4, j5] = wrist;
         KeyMap {
             bindings: vec![
-                b(
-                    Char('w'),
-                    Action::EeStep([EE_STEP, 0.0, 0.0]),
-                    "end effector +x",
-                ),
-                b(
-                    Char('s'),
-                    Action::EeStep([-EE_STEP, 0.0, 0.0]),
-                    "end effector -x",
-                ),
-                b(
-                    Char('a'),
-                    Action::EeStep([0.0, EE_STEP, 0.0]),
-                    "end effector +y",
-                ),
-                b(
-                    Char('d'),
-                    Action::EeStep([0.0, -EE_STEP, 0.0]),
-                    "end effector -y",
-                ),
-                b(
-                    Char('z'),
-                    Action::EeStep([0.0, 0.0, EE_STEP_UP]),
-                    "end effector +z",
-                ),
-                b(
-                    Char('x'),
-                    Action::EeStep([0.0, 0.0, -EE_STEP_DOWN]),
-                    "end effector -z",
-                ),
+                b(Char('w'), ee([EE_STEP, 0.0, 0.0]), "end effector +x"),
+                b(Char('s'), ee([-EE_STEP, 0.0, 0.0]), "end effector -x"),
+                b(Char('a'), ee([0.0, EE_STEP, 0.0]), "end effector +y"),
+                b(Char('d'), ee([0.0, -EE_STEP, 0.0]), "end effector -y"),
+                b(Char('z'), ee([0.0, 0.0, EE_STEP_UP]), "end effector +z"),
+                b(Char('x'), ee([0.0, 0.0, -EE_STEP_DOWN]), "end effector -z"),
                 b(Char('h'), joint(j4, JOINT_4_STEP), &format!("{j4} +")),
                 b(Char('j'), joint(j4, -JOINT_4_STEP), &format!("{j4} -")),
                 b(Char('k'), joint(j5, JOINT_5_STEP), &format!("{j5} +")),
                 b(Char('l'), joint(j5, -JOINT_5_STEP), &format!("{j5} -")),
-                b(
-                    Char('n'),
-                    Action::Gripper(GripperAction::Open),
-                    "gripper open",
-                ),
-                b(
-                    Char('m'),
-                    Action::Gripper(GripperAction::Close),
-                    "gripper close",
-                ),
-                b(Char('u'), Action::PanTilt([CAMERA_STEP, 0.0]), "pan +"),
-                b(Char('i'), Action::PanTilt([-CAMERA_STEP, 0.0]), "pan -"),
-                b(Char('o'), Action::PanTilt([0.0, CAMERA_STEP]), "tilt +"),
-                b(Char('p'), Action::PanTilt([0.0, -CAMERA_STEP]), "tilt -"),
+                b(Char('n'), grip(GripperAction::Open), "gripper open"),
+                b(Char('m'), grip(GripperAction::Close), "gripper close"),
+                b(Char('u'), head([CAMERA_STEP, 0.0]), "pan +"),
+                b(Char('i'), head([-CAMERA_STEP, 0.0]), "pan -"),
+                b(Char('o'), head([0.0, CAMERA_STEP]), "tilt +"),
+                b(Char('p'), head([0.0, -CAMERA_STEP]), "tilt -"),
                 b(
                     Up,
                     Action::Base {
@@ -260,7 +240,7 @@ impl KeyMap {
                     },
                     "base turn right (held)",
                 ),
-                b(Char('r'), Action::Reset, "arm home"),
+                b(Char('r'), Action::Step(Step::Reset), "arm home"),
                 b(Char('q'), Action::Quit, "quit"),
                 b(Esc, Action::Quit, "quit"),
                 b(CtrlC, Action::Quit, "quit"),

@@ -13,4 +13,4 @@ pub mod core;
 pub mod keymap;
 
 pub use crate::core::{Command, HoldTiming, Teleop, TIME_RESOLUTION};
-pub use keymap::{Action, Binding, GripperAction, Key, KeyEvent, KeyKind, KeyMap};
+pub use keymap::{Action, Binding, GripperAction, Key, KeyEvent, KeyKind, KeyMap, Step};

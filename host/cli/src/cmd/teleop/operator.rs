@@ -3,7 +3,7 @@
 
 use ferrobot::config::IkKind;
 use ferrobot::{Motion, MoveOptions, Orientation, Robot};
-use ferrobot_teleop::{Action, Command, GripperAction, KeyMap};
+use ferrobot_teleop::{Action, Command, GripperAction, KeyMap, Step};
 use serde::Serialize;
 
 use super::QuitReason;
@@ -157,9 +157,9 @@ impl Operator {
     /// Whether this robot can do `action` (has the component).
     pub fn can(&self, action: &Action) -> bool {
         match action {
-            Action::EeStep(_) | Action::JointStep { .. } | Action::Reset => !self.joints.is_empty(),
-            Action::Gripper(_) => self.bot.gripper().is_ok(),
-            Action::PanTilt(_) => self.bot.head().is_ok(),
+            Action::Step(Step::Ee(_) | Step::Joint { .. } | Step::Reset) => !self.joints.is_empty(),
+            Action::Step(Step::Gripper(_)) => self.bot.gripper().is_ok(),
+            Action::Step(Step::PanTilt(_)) => self.bot.head().is_ok(),
             Action::Base { .. } => self.bot.base().is_ok(),
             Action::Quit => true,
         }
@@ -219,11 +219,11 @@ impl Operator {
     /// Execute one command of the core; the result shows in [`State::last`].
     pub fn execute(&mut self, c: &Command, map: &KeyMap) {
         let r = match c {
-            Command::EeStep(d) => self.ee_step(*d),
-            Command::JointStep { joint, delta } => self.joint_step(joint, *delta),
-            Command::Gripper(g) => self.gripper(*g),
-            Command::PanTilt(d) => self.pan_tilt(*d),
-            Command::Reset => self.reset(),
+            Command::Step(Step::Ee(d)) => self.ee_step(*d),
+            Command::Step(Step::Joint { joint, delta }) => self.joint_step(joint, *delta),
+            Command::Step(Step::Gripper(g)) => self.gripper(*g),
+            Command::Step(Step::PanTilt(d)) => self.pan_tilt(*d),
+            Command::Step(Step::Reset) => self.reset(),
             Command::BaseVelocity { v, w } => self
                 .bot
                 .base()
@@ -248,6 +248,11 @@ impl Operator {
         };
     }
 
+    /// A value of the arm's description (the default without an arm).
+    fn arm_config<T: Default>(&self, f: impl Fn(&ferrobot::config::ArmConfig) -> T) -> T {
+        self.bot.config().arm.as_ref().map(f).unwrap_or_default()
+    }
+
     /// The arm's joints the next step builds on: the last target, else the measured angles.
     fn arm_base(&self) -> ferrobot::Result<Vec<f64>> {
         match &self.arm_target {
@@ -259,13 +264,7 @@ impl Operator {
     fn ee_step(&mut self, d: [f64; 3]) -> ferrobot::Result<String> {
         let arm = self.bot.arm()?;
         let q0 = self.arm_base()?;
-        let ee = self
-            .bot
-            .config()
-            .arm
-            .as_ref()
-            .map(|a| a.ee_frame.clone())
-            .unwrap_or_default();
+        let ee = self.arm_config(|a| a.ee_frame.clone());
         let start = arm.compute_fk_position(&q0, &ee)?;
         let p = [
             start.position[0] + d[0],
@@ -308,13 +307,7 @@ impl Operator {
     }
 
     fn reset(&mut self) -> ferrobot::Result<String> {
-        let home = self
-            .bot
-            .config()
-            .arm
-            .as_ref()
-            .map(|a| a.home.clone())
-            .unwrap_or_default();
+        let home = self.arm_config(|a| a.home.clone());
         self.move_arm(home)?;
         Ok("arm to home".into())
     }
@@ -437,23 +430,14 @@ impl Operator {
     }
 }
 
-/// What a command is, in the key map's words.
+/// What a command is, in the key map's words (a step by its key and label).
 fn describe(c: &Command, map: &KeyMap) -> String {
-    let label = |want: &Action| {
-        map.bindings
-            .iter()
-            .find(|b| &b.action == want)
-            .map(|b| format!("{} ({})", b.key, b.label))
-    };
     let found = match c {
-        Command::EeStep(d) => label(&Action::EeStep(*d)),
-        Command::JointStep { joint, delta } => label(&Action::JointStep {
-            joint: joint.clone(),
-            delta: *delta,
-        }),
-        Command::Gripper(g) => label(&Action::Gripper(*g)),
-        Command::PanTilt(d) => label(&Action::PanTilt(*d)),
-        Command::Reset => label(&Action::Reset),
+        Command::Step(step) => map
+            .bindings
+            .iter()
+            .find(|b| matches!(&b.action, Action::Step(s) if s == step))
+            .map(|b| format!("{} ({})", b.key, b.label)),
         _ => None,
     };
     found.unwrap_or_else(|| format!("{c:?}"))

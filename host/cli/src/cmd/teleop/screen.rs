@@ -105,30 +105,9 @@ impl Screen {
             None => "base     -".into(),
         });
         let held: Vec<String> = core.held_keys().iter().map(|k| k.to_string()).collect();
-        l.push(format!(
-            "held     {}",
-            if held.is_empty() {
-                na()
-            } else {
-                held.join(" ")
-            }
-        ));
-        l.push(format!(
-            "moving   {}",
-            if s.moving.is_empty() {
-                "none".to_string()
-            } else {
-                s.moving.join(" ")
-            }
-        ));
-        l.push(format!(
-            "faults   {}",
-            if s.faults.is_empty() {
-                "none".to_string()
-            } else {
-                s.faults.join(", ")
-            }
-        ));
+        l.push(format!("held     {}", list(&held, " ", "-")));
+        l.push(format!("moving   {}", list(&s.moving, " ", "none")));
+        l.push(format!("faults   {}", list(&s.faults, ", ", "none")));
         l.push(format!("last     #{} {}", s.commands, s.last));
         l.push(String::new());
         l.extend(self.help.iter().cloned());
@@ -142,6 +121,19 @@ impl Screen {
             )
         });
         l
+    }
+}
+
+/// `items` joined by `sep`, or `none` when there are none.
+fn list<T: AsRef<str>>(items: &[T], sep: &str, none: &str) -> String {
+    if items.is_empty() {
+        none.to_string()
+    } else {
+        items
+            .iter()
+            .map(AsRef::as_ref)
+            .collect::<Vec<_>>()
+            .join(sep)
     }
 }
 
