@@ -231,14 +231,14 @@ impl Operator {
                 .map(|m| {
                     // The velocity runs until the next base command preempts it.
                     drop(m);
-                    format!("base v {v:.3} m/s, w {w:.3} rad/s")
+                    format!("v {v:.3} m/s, w {w:.3} rad/s")
                 }),
             Command::BaseStop => self
                 .bot
                 .base()
                 .and_then(|b| b.stop())
-                .map(|()| "base stop".into()),
-            Command::Quit => Ok("quit".into()),
+                .map(|()| "stop".into()),
+            Command::Quit => Ok("stopping the base, holding the arm".into()),
         };
         let what = describe(c, map);
         self.state.commands += 1;
@@ -438,7 +438,8 @@ fn describe(c: &Command, map: &KeyMap) -> String {
             .iter()
             .find(|b| matches!(&b.action, Action::Step(s) if s == step))
             .map(|b| format!("{} ({})", b.key, b.label)),
-        _ => None,
+        Command::BaseVelocity { .. } | Command::BaseStop => Some("base".into()),
+        Command::Quit => Some("quit".into()),
     };
     found.unwrap_or_else(|| format!("{c:?}"))
 }
