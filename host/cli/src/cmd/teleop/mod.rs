@@ -6,7 +6,8 @@
 //! reports its state, the screen shows it, and one loop lets the robot's time pass.
 //!
 //! Time: each turn of the loop reads the keys that came, stamps them with the robot's clock,
-//! executes the commands, then lets [`Pace::tick`] of robot time pass. On the simulator the
+//! executes the commands, then lets [`Pace::tick`] of robot time pass ([`TICK_S`], 10 ms,
+//! unless `--step-ms` says otherwise). On the simulator the
 //! default is real time (simulated time paced to the wall clock, catching up after a stall);
 //! `--step-ms` instead advances simulated time by exactly that step per turn, each turn
 //! collecting keys for the same span of wall time, with no catching up: a loaded machine slows
@@ -20,6 +21,18 @@ mod trace;
 
 #[cfg(feature = "gamepad")]
 mod gamepad;
+
+use std::io::IsTerminal;
+use std::path::Path;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use ferrobot::{validate, Backend};
+use ferrobot_teleop::{Command, HoldTiming, KeyMap, Teleop};
+
+use crate::cmd::common::{self, BackendArgs};
+use operator::Operator;
 
 /// The gamepads, when built with them (feature `gamepad`) and the system offers them.
 #[cfg(feature = "gamepad")]
@@ -45,18 +58,6 @@ fn open_pad() -> (Pad, String) {
         ((), "keyboard".into())
     }
 }
-
-use std::io::IsTerminal;
-use std::path::Path;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
-use std::time::{Duration, Instant};
-
-use ferrobot::{validate, Backend};
-use ferrobot_teleop::{Command, HoldTiming, KeyMap, Teleop};
-
-use crate::cmd::common::{self, BackendArgs};
-use operator::Operator;
 
 /// The loop's period on the robot's clock without `--step-ms`, s.
 pub const TICK_S: f64 = 0.01;
