@@ -585,3 +585,20 @@ fn with_reported_releases_a_release_stops_the_base_and_a_closing_terminal_quits_
     assert_eq!(end["report"]["base_stopped"], true, "{end}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn ctrl_c_and_escape_quit_safely_too() {
+    for (name, key) in [("ctrl-c", &b"\x03"[..]), ("esc", &b"\x1b"[..])] {
+        let dir = scratch(name);
+        let mut s = Session::ready(&dir, false);
+        s.send(key);
+        assert_eq!(s.exit_code(), 0, "{name}: teleop's exit code");
+        let trace = s.trace();
+        let end = trace.last().expect("trace end");
+        assert_eq!(end["quit"], "key", "{name}: {end}");
+        assert_eq!(end["report"]["base_stopped"], true, "{name}: {end}");
+        let screen = s.parser.screen().contents();
+        assert!(screen.contains("teleop: quit (Key)"), "{name}: {screen}");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
