@@ -17,6 +17,7 @@
 //! ferrobot collision-matrix sawyer --samples 10000 --seed 1
 //! ferrobot nav-plan --map map.yaml --from 1 1 --to 3 2 --radius 0.2 --json
 //! ferrobot cluster --in cloud.ply --eps 0.02 --min-samples 15 --json
+//! ferrobot teleop locobot --scene tabletop
 //! ```
 
 use std::process::ExitCode;
@@ -281,6 +282,11 @@ enum Cmd {
     /// One RGB-D frame of the simulated robot in a scene: writes rgb.png, depth.png (16-bit
     /// mm, 0 invalid), cloud.ply (world frame) and snapshot.png (colour | depth) to --out.
     Snapshot(SnapshotCli),
+    /// Drive a robot from the keyboard in a terminal, with PyRobot's key map and steps: the
+    /// end effector, the wrist, the gripper, the camera's pan and tilt, and the base while an
+    /// arrow is held; the robot's state shown live. q, Esc or Ctrl-C quits with the base
+    /// stopped and the arm holding.
+    Teleop(TeleopCli),
     /// Run the quickstart on the simulated LoCoBot.
     Demo {
         /// Robot (default locobot).
@@ -421,6 +427,28 @@ struct BenchPlanCli {
 }
 
 #[derive(Args)]
+struct TeleopCli {
+    /// Robot name or configuration path.
+    robot: String,
+    /// Scene name or path (the simulated world).
+    #[arg(long, default_value = "empty")]
+    scene: String,
+    #[command(flatten)]
+    backend: cmd::common::BackendArgs,
+    /// Simulator only: advance simulated time by this many ms per turn of the loop, each turn
+    /// reading keys for as long of wall time, never catching up (default: real time).
+    #[arg(long, allow_negative_numbers = true)]
+    step_ms: Option<f64>,
+    /// The terminal's auto-repeat delay, s (0.05-2): how long a first press of an arrow
+    /// drives the base when the terminal does not report key releases.
+    #[arg(long, default_value_t = 0.5, allow_negative_numbers = true)]
+    repeat_delay: f64,
+    /// Write one JSON line per turn (time, keys, commands, state) to this new file.
+    #[arg(long)]
+    trace: Option<std::path::PathBuf>,
+}
+
+#[derive(Args)]
 struct SnapshotCli {
     /// Robot name or configuration path.
     robot: String,
@@ -497,6 +525,17 @@ fn run(cli: Cli) -> Result<(), (ferrobot::Error, bool)> {
         Cmd::Jacobian { robot, q, json } => (cmd::jacobian::run(&robot, &q, json), json),
         Cmd::Ik(a) => (cmd::ik::run(&a), a.json),
         Cmd::Demo { robot } => (cmd::demo::run(&robot), false),
+        Cmd::Teleop(a) => (
+            cmd::teleop::run(&cmd::teleop::Args {
+                robot: &a.robot,
+                scene: &a.scene,
+                backend: &a.backend,
+                step_ms: a.step_ms,
+                repeat_delay: a.repeat_delay,
+                trace: a.trace.as_deref(),
+            }),
+            false,
+        ),
         Cmd::Scene {
             name,
             map,

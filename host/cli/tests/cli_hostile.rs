@@ -1000,6 +1000,43 @@ fn cases() -> Vec<Case> {
         Input,
     ));
     c.push(case(&["teleport", "locobot"], Input));
+    // teleop: unknown robots, scenes and backends, hostile times, and no terminal (the
+    // table's standard input is not one).
+    for robot in [
+        "wall-e",
+        "",
+        "./nonexistent.toml",
+        "./binary.toml",
+        "/dev/zero",
+    ] {
+        c.push(case(&["teleop", robot], Input));
+    }
+    for v in HOSTILE.iter().copied().chain(["0", "-20", "1001"]) {
+        c.push(case(&["teleop", "locobot", "--step-ms", v], Input));
+        c.push(case(&["teleop", "locobot", "--repeat-delay", v], Input));
+    }
+    for args in [
+        &["--backend", "bogus"][..],
+        &["--backend", "serial"],
+        &[
+            "--backend",
+            "serial",
+            "--port",
+            "./notes.txt",
+            "--step-ms",
+            "10",
+        ],
+        &["--backend", "emulated", "--step-ms", "10"],
+        &["--scene", "nowhere"],
+        &["--scene", "./notes.txt"],
+        &["--seed", "-1"],
+        &["--trace", "./notes.txt"],
+        &[],
+    ] {
+        let mut a = vec!["teleop", "locobot"];
+        a.extend_from_slice(args);
+        c.push(case(&a, Input));
+    }
     c
 }
 

@@ -619,6 +619,27 @@ impl Arm {
         self.set_joint_positions(&q)
     }
 
+    /// 5-DOF arms: joint angles that put the end effector at `position` (m) with gripper
+    /// pitch `pitch` (rad below horizontal) and roll `roll` (rad; the seed's when `None`),
+    /// nearest to `seed` (default: the current joint angles). The closed-form solver of
+    /// [`Arm::set_ee_pose_pitch_roll`], without moving.
+    pub fn compute_ik_pitch_roll(
+        &self,
+        position: [f64; 3],
+        pitch: f64,
+        roll: Option<f64>,
+        seed: Option<&[f64]>,
+    ) -> Result<Vec<f64>> {
+        let seed = match seed {
+            Some(s) => {
+                self.check_angles("IK seed", s)?;
+                Some(s.to_vec())
+            }
+            None => None,
+        };
+        self.ik_pitch_roll(position, pitch, roll, seed)
+    }
+
     fn ik_pitch_roll(
         &self,
         position: [f64; 3],

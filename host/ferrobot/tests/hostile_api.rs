@@ -82,10 +82,19 @@ fn the_arm_refuses_hostile_values() {
             judge("compute_ik (matrix)", absurd(&p) || absurd(&[a, b]), &r)?;
             let r = arm.set_ee_pose_pitch_roll(p, a, Some(b));
             judge("set_ee_pose_pitch_roll", absurd(&p) || absurd(&[a, b]), &r)?;
+            let r = arm.compute_ik_pitch_roll(p, a, Some(b), Some(&q));
+            let bad = bad_q || absurd(&p) || absurd(&[a, b]);
+            judge("compute_ik_pitch_roll", bad, &r)?;
+            let r = arm.compute_ik_pitch_roll(p, b, None, None);
+            judge(
+                "compute_ik_pitch_roll (no seed)",
+                absurd(&p) || absurd(&[b]),
+                &r,
+            )?;
             let d = [p[0] * 0.05, p[1] * 0.05, p[2] * 0.05];
             let r = arm.move_ee_xyz(d, a.abs() * 0.01);
             judge("move_ee_xyz", absurd(&d) || absurd(&[a]) || a == 0.0, &r)?;
-            calls.set(calls.get() + 11);
+            calls.set(calls.get() + 13);
             let cam = bot.head().expect("camera");
             let r = cam.set_pan_tilt_async(a, b).map(|m| {
                 let _ = m.cancel();

@@ -23,3 +23,4 @@ pub mod scene;
 pub mod sim_firmware;
 pub mod slam;
 pub mod snapshot;
+pub mod teleop;

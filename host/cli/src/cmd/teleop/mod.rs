@@ -1,0 +1,301 @@
+//! `ferrobot teleop ROBOT`: drive a robot from the keyboard in a terminal, with PyRobot's key
+//! map and steps (`ferrobot_teleop::KeyMap::pyrobot`).
+//!
+//! The shell around the sans-IO core ([`ferrobot_teleop::Teleop`]): the terminal
+//! ([`terminal`]) gives key events, the robot ([`operator`]) executes the core's commands and
+//! reports its state, the screen shows it, and one loop lets the robot's time pass.
+//!
+//! Time: each turn of the loop reads the keys that came, stamps them with the robot's clock,
+//! executes the commands, then lets [`Pace::tick`] of robot time pass ([`TICK_S`], 10 ms,
+//! unless `--step-ms` says otherwise). On the simulator the
+//! default is real time (simulated time paced to the wall clock, catching up after a stall);
+//! `--step-ms` instead advances simulated time by exactly that step per turn, each turn
+//! collecting keys for the same span of wall time, with no catching up: a loaded machine slows
+//! the robot rather than stretching the gaps between a held key's auto-repeats (the tests use
+//! it). On the firmware (serial, emulated) the robot's clock is the firmware's.
+
+mod operator;
+mod screen;
+mod terminal;
+mod trace;
+
+#[cfg(feature = "gamepad")]
+mod gamepad;
+
+use std::io::IsTerminal;
+use std::path::Path;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use ferrobot::{validate, Backend};
+use ferrobot_teleop::{Command, HoldTiming, KeyMap, Teleop};
+
+use crate::cmd::common::{self, BackendArgs};
+use operator::Operator;
+
+/// The gamepads, when built with them (feature `gamepad`) and the system offers them.
+#[cfg(feature = "gamepad")]
+type Pad = Option<gamepad::Gamepad>;
+/// No gamepad without the feature.
+#[cfg(not(feature = "gamepad"))]
+type Pad = ();
+
+/// Open the gamepads, and say what reads keys.
+fn open_pad() -> (Pad, String) {
+    #[cfg(feature = "gamepad")]
+    {
+        match gamepad::Gamepad::open() {
+            Ok(p) => {
+                let n = p.connected();
+                (Some(p), format!("keyboard and gamepads ({n} connected)"))
+            }
+            Err(e) => (None, format!("keyboard (no gamepads: {e})")),
+        }
+    }
+    #[cfg(not(feature = "gamepad"))]
+    {
+        ((), "keyboard".into())
+    }
+}
+
+/// The loop's period on the robot's clock without `--step-ms`, s.
+pub const TICK_S: f64 = 0.01;
+/// How long the robot is watched after a quit (base stopping, arm holding), s.
+pub const SETTLE_S: f64 = 0.3;
+
+/// The arguments of `ferrobot teleop`.
+#[derive(Debug)]
+pub struct Args<'a> {
+    /// Robot name or configuration path.
+    pub robot: &'a str,
+    /// Scene name or path (the simulated world).
+    pub scene: &'a str,
+    /// Where the robot runs.
+    pub backend: &'a BackendArgs,
+    /// Simulator only: robot time per loop turn, ms, instead of real time.
+    pub step_ms: Option<f64>,
+    /// The terminal's auto-repeat delay, s: how long a first press of a base key holds when
+    /// the terminal reports no releases.
+    pub repeat_delay: f64,
+    /// Write one JSON line per loop turn here (a new file).
+    pub trace: Option<&'a Path>,
+}
+
+/// How the loop lets time pass.
+#[derive(Debug, Clone, Copy)]
+pub struct Pace {
+    /// Robot time per turn, s.
+    pub tick: f64,
+    /// Collect keys for `tick` of wall time before letting `tick` of robot time pass (the
+    /// lockstep simulator, which has no clock of its own); otherwise the robot's clock paces.
+    pub lockstep: bool,
+}
+
+/// Why the loop ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum QuitReason {
+    /// A quit key.
+    Key,
+    /// The terminal closed (SIGHUP, or its input ended).
+    Hangup,
+    /// SIGTERM or SIGINT from outside.
+    Signal,
+}
+
+/// Check the arguments, connect, drive, and leave the robot safe.
+pub fn run(a: &Args) -> ferrobot::Result<()> {
+    if let Some(ms) = a.step_ms {
+        validate::in_range("--step-ms", ms, 1.0, 1000.0)?;
+    }
+    validate::in_range("--repeat-delay", a.repeat_delay, 0.05, 2.0)?;
+    let cfg = common::load(a.robot)?;
+    let backend = match (a.backend.backend()?, a.step_ms) {
+        (Backend::Sim { seed, .. }, step) => Backend::Sim {
+            seed,
+            realtime: step.is_none(),
+        },
+        (_, Some(_)) => {
+            return Err(ferrobot::Error::Usage(
+                "--step-ms is for the simulator (--backend sim) only".into(),
+            ))
+        }
+        (b, None) => b,
+    };
+    if cfg.arm.is_none() && cfg.base.is_none() && cfg.camera.is_none() {
+        return Err(ferrobot::Error::Usage(format!(
+            "{} has nothing to teleoperate",
+            cfg.name
+        )));
+    }
+    // The world, checked before the terminal is taken (the robot loads it again).
+    ferrobot::scene::Scene::load(&ferrobot::scene::SceneSource::from_arg(a.scene))?;
+    if !(std::io::stdin().is_terminal() && std::io::stdout().is_terminal()) {
+        return Err(ferrobot::Error::Usage(
+            "teleop needs a terminal on standard input and output".into(),
+        ));
+    }
+    let mut trace = a.trace.map(trace::Trace::create).transpose()?;
+    let pace = Pace {
+        tick: a.step_ms.map_or(TICK_S, |ms| ms / 1000.0),
+        lockstep: a.step_ms.is_some(),
+    };
+    let bot = common::robot_builder(a.robot)
+        .scene(a.scene)
+        .backend(backend.clone())
+        .build()?;
+    let mut op = Operator::new(bot)?;
+    op.start_pose();
+    let wrist = op.wrist_joints();
+    let map = KeyMap::pyrobot([&wrist[0], &wrist[1]]).retain(|action| op.can(action));
+    let timing = HoldTiming {
+        first: a.repeat_delay,
+        ..HoldTiming::default()
+    };
+    let mut core = Teleop::new(map, timing);
+    let stop = Arc::new(AtomicBool::new(false));
+    let hangup = Arc::new(AtomicBool::new(false));
+    for (sig, flag) in [
+        (signal_hook::consts::SIGHUP, &hangup),
+        (signal_hook::consts::SIGTERM, &stop),
+        (signal_hook::consts::SIGINT, &stop),
+    ] {
+        signal_hook::flag::register(sig, flag.clone())
+            .map_err(|e| ferrobot::Error::Link(format!("cannot watch signal {sig}: {e}")))?;
+    }
+    let term = terminal::Terminal::open()?;
+    let (pad, input) = open_pad();
+    let header = screen::Header {
+        robot: op.name().to_string(),
+        backend: describe(&backend, pace),
+        input,
+        releases: term.releases(),
+        timing,
+    };
+    let mut screen = screen::Screen::new(header, core.key_map());
+    let mut inputs = Inputs {
+        term,
+        pad,
+        stop,
+        hangup,
+    };
+    let reason = drive(
+        &mut core,
+        &mut op,
+        &mut inputs,
+        &mut screen,
+        &mut trace,
+        pace,
+    );
+    // Leave the robot safe first, then the terminal.
+    let report = op.quit(SETTLE_S);
+    if let Some(t) = trace.as_mut() {
+        t.end(reason, &report);
+    }
+    drop(inputs);
+    if reason != QuitReason::Hangup {
+        // On the restored terminal; a closed one is no error here.
+        use std::io::Write;
+        let _ = writeln!(std::io::stdout(), "{}", report.summary(reason));
+    }
+    Ok(())
+}
+
+/// Where keys and requests to leave come from.
+struct Inputs {
+    /// The terminal (restored when dropped).
+    term: terminal::Terminal,
+    /// Gamepads.
+    pad: Pad,
+    /// SIGTERM or SIGINT came.
+    stop: Arc<AtomicBool>,
+    /// SIGHUP came.
+    hangup: Arc<AtomicBool>,
+}
+
+/// The loop: keys in, commands out, time passes, the screen follows. Returns why it ended.
+fn drive(
+    core: &mut Teleop,
+    op: &mut Operator,
+    inputs: &mut Inputs,
+    screen: &mut screen::Screen,
+    trace: &mut Option<trace::Trace>,
+    pace: Pace,
+) -> QuitReason {
+    let Inputs {
+        term,
+        pad,
+        stop,
+        hangup,
+    } = inputs;
+    let mut events = Vec::new();
+    loop {
+        let wall = Instant::now()
+            + if pace.lockstep {
+                Duration::from_secs_f64(pace.tick)
+            } else {
+                Duration::ZERO
+            };
+        let now = op.time();
+        let mut commands = Vec::new();
+        let mut closed = false;
+        events.clear();
+        // Every key that comes before the turn's wall-clock end, stamped with the robot's time.
+        loop {
+            match term.next_key(wall.saturating_duration_since(Instant::now())) {
+                terminal::Input::Key(k) => {
+                    events.push(k);
+                    commands.extend(core.on_key(now, k, term.releases()));
+                }
+                terminal::Input::Resize => screen.invalidate(),
+                terminal::Input::Idle => break,
+                terminal::Input::Closed => {
+                    closed = true;
+                    break;
+                }
+            }
+        }
+        #[cfg(not(feature = "gamepad"))]
+        let () = *pad;
+        #[cfg(feature = "gamepad")]
+        if let Some(pad) = pad.as_mut() {
+            for k in pad.events() {
+                events.push(k);
+                commands.extend(core.on_key(now, k, true));
+            }
+        }
+        commands.extend(core.poll(now));
+        for c in &commands {
+            op.execute(c, core.key_map());
+        }
+        if let Some(t) = trace.as_mut() {
+            t.turn(now, &events, &commands, &op.state());
+        }
+        if hangup.load(Ordering::Relaxed) || closed {
+            return QuitReason::Hangup;
+        }
+        if stop.load(Ordering::Relaxed) {
+            return QuitReason::Signal;
+        }
+        if commands.contains(&Command::Quit) {
+            return QuitReason::Key;
+        }
+        op.wait(pace.tick);
+        op.observe();
+        screen.draw(&op.state(), core);
+    }
+}
+
+/// The backend and the pace, for the screen's header.
+fn describe(backend: &Backend, pace: Pace) -> String {
+    match backend {
+        Backend::Sim { .. } if pace.lockstep => {
+            format!("sim, {:.0} ms per turn", pace.tick * 1000.0)
+        }
+        Backend::Sim { .. } => "sim, real time".into(),
+        Backend::Serial { path } => format!("serial {}", path.display()),
+        Backend::Emulated { .. } => "emulated (QEMU)".into(),
+        _ => "other".into(),
+    }
+}
