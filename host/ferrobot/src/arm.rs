@@ -619,6 +619,26 @@ impl Arm {
         self.set_joint_positions(&q)
     }
 
+    /// 5-DOF arms: the joint angles [`Arm::set_ee_pose_pitch_roll`] would move to (`position`
+    /// m in the base frame, `pitch` rad below horizontal, `roll` rad or the current roll when
+    /// `None`), nearest `seed` (default: the current joints), without moving.
+    pub fn compute_ik_pitch_roll(
+        &self,
+        position: [f64; 3],
+        pitch: f64,
+        roll: Option<f64>,
+        seed: Option<&[f64]>,
+    ) -> Result<Vec<f64>> {
+        let seed = match seed {
+            Some(s) => {
+                self.check_angles("IK seed", s)?;
+                Some(s.to_vec())
+            }
+            None => None,
+        };
+        self.ik_pitch_roll(position, pitch, roll, seed)
+    }
+
     fn ik_pitch_roll(
         &self,
         position: [f64; 3],
