@@ -14,6 +14,7 @@
 //! ferrobot bench base --robot locobot --trials 5 --seed 1
 //! ferrobot bench camera --scene apartment --seconds 10
 //! ferrobot bench plan --robot locobot --scene tabletop --problems 100 --seed 1 --ompl
+//! ferrobot bench push locobot --scene tabletop --trials 100 --seed 1 --json
 //! ferrobot collision-matrix sawyer --samples 10000 --seed 1
 //! ferrobot nav-plan --map map.yaml --from 1 1 --to 3 2 --radius 0.2 --json
 //! ferrobot cluster --in cloud.ply --eps 0.02 --min-samples 15 --json
@@ -331,6 +332,26 @@ enum BenchCmd {
     /// success rate, time, path length, collision checks per second; with --ompl, OMPL's
     /// RRTConnect on the same problems in the same run.
     Plan(BenchPlanCli),
+    /// PyRobot's pushing example, measured by ground truth: objects placed at random on the
+    /// table per trial (seed SEED + k), one object pushed; how far it moved along the push
+    /// and whether any other object moved more than 1 cm.
+    Push {
+        /// Robot name or configuration path.
+        robot: String,
+        /// Scene name or path (movable objects on a static body `table`).
+        #[arg(long, default_value = "tabletop")]
+        scene: String,
+        /// Trials.
+        #[arg(long, default_value_t = 10)]
+        trials: usize,
+        /// Where the robot runs; --seed is the first trial's (placement and plants).
+        #[command(flatten)]
+        backend: cmd::common::BackendArgs,
+        /// Print one JSON object: `{"others_moved", "per_trial": [...], "success_rate",
+        /// "target_moved_m": {"median", "min"}, "time_s": {"median"}, "trials"}`.
+        #[arg(long)]
+        json: bool,
+    },
     /// Navigation on the scene's ground-truth floor plan: the simulated robot drives to N
     /// random reachable goals; success rate, bumper hits, path length against the shortest
     /// path, time per goal.
@@ -595,6 +616,25 @@ fn run(cli: Cli) -> Result<(), (ferrobot::Error, bool)> {
                 trace,
                 explore,
                 out: out.as_deref(),
+                json,
+            }),
+            json,
+        ),
+        Cmd::Bench {
+            which:
+                BenchCmd::Push {
+                    robot,
+                    scene,
+                    trials,
+                    backend,
+                    json,
+                },
+        } => (
+            cmd::bench_push::run(&cmd::bench_push::PushArgs {
+                robot: &robot,
+                scene: &scene,
+                trials,
+                backend: &backend,
                 json,
             }),
             json,
