@@ -70,7 +70,7 @@ impl Default for PushParams {
     /// Drive 8 cm (the goal is 5), start 4 cm short, the LoCoBot's gripper as the pusher,
     /// 2 cm clearance, the LoCoBot's reach pointing down a
     /// few centimetres above its table (0.12-0.38 m from the shoulder's axis, 0.097 m ahead of
-    /// `base_link`'s origin), 24 directions, the tip at half the object's height within 5-20
+    /// `base_link`'s origin), 24 directions, the tip at a fifth of the object's height within 5-20
     /// mm of the table; flat tops: of the points in the top 12 mm, 55 % in the top 3 mm
     /// (a box about 80 %, a lying cylinder about 40 %, a ball 25 %).
     fn default() -> Self {
@@ -83,11 +83,11 @@ impl Default for PushParams {
             clearance: 0.02,
             reach: [0.12, 0.38],
             reach_centre: [0.097, 0.0],
-            directions: 24,
+            directions: 36,
             viewpoint: None,
             flat_share: 0.55,
             flat_band: [0.003, 0.012],
-            height_fraction: 0.5,
+            height_fraction: 0.2,
             tip_height: [0.005, 0.02],
         }
     }
@@ -468,7 +468,7 @@ mod tests {
 
     /// Of two boxes side by side, one in reach, the push drives the reachable one away from
     /// the other, its stroke within reach and starting the gap short of its near side, the
-    /// tip at half its height.
+    /// tip at its share of the height.
     #[test]
     fn the_push_leaves_the_neighbour_alone_and_stays_in_reach() {
         let (pts, objects, table) = table_with(&[
@@ -488,7 +488,8 @@ mod tests {
         for q in [plan.start, plan.end] {
             let r = (q.coords.xy() - Vector2::from(p.reach_centre)).norm();
             assert!(r >= p.reach[0] && r <= p.reach[1], "{q} out of reach");
-            assert!((q.z - (0.09 + 0.02)).abs() < 0.002, "tip at {}", q.z);
+            let tip = (p.height_fraction * 0.04).clamp(p.tip_height[0], p.tip_height[1]);
+            assert!((q.z - (0.09 + tip)).abs() < 0.002, "tip at {}", q.z);
         }
         let stroke = (plan.end - plan.start).xy().norm();
         assert!((stroke - (p.gap + p.distance)).abs() < 1e-9);

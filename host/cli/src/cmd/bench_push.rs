@@ -69,11 +69,15 @@ struct Trial {
 struct PushJson {
     /// Trials in which another object moved more than [`OTHERS_STILL`].
     others_moved: usize,
+    per_trial: Vec<Trial>,
+    /// Trials in which the robot pushed (it found an object it could push within reach).
+    pushes: usize,
     success_rate: f64,
+    /// Successes among the trials in which the robot pushed.
+    success_rate_of_pushes: f64,
     target_moved_m: MinMedian,
     time_s: Median,
     trials: usize,
-    per_trial: Vec<Trial>,
 }
 
 #[derive(Serialize)]
@@ -108,9 +112,12 @@ pub fn run(a: &PushArgs) -> ferrobot::Result<()> {
     let n = trials.len();
     let ok = trials.iter().filter(|t| t.success).count();
     let moved: Vec<f64> = trials.iter().map(|t| t.target_moved_m).collect();
+    let pushes = trials.iter().filter(|t| t.target.is_some()).count();
     let out = PushJson {
         others_moved: trials.iter().filter(|t| t.others_moved).count(),
+        pushes,
         success_rate: ok as f64 / n as f64,
+        success_rate_of_pushes: ok as f64 / pushes.max(1) as f64,
         target_moved_m: MinMedian {
             median: median(moved.clone()),
             min: moved.iter().copied().fold(f64::INFINITY, f64::min),
@@ -125,7 +132,7 @@ pub fn run(a: &PushArgs) -> ferrobot::Result<()> {
         print_json(&out);
     } else {
         say!(
-            "push: {ok}/{n} trials succeeded ({:.0} %): target moved {:.3} m along the push (median, min {:.3}), another object moved > {OTHERS_STILL} m in {} trials, {:.1} s per push (median)",
+            "push: {ok}/{n} trials succeeded ({:.0} %; {ok}/{pushes} of the pushes made): target moved {:.3} m along the push (median, min {:.3}), another object moved > {OTHERS_STILL} m in {} trials, {:.1} s per push (median)",
             100.0 * out.success_rate,
             out.target_moved_m.median,
             out.target_moved_m.min,
