@@ -14,6 +14,7 @@
 //! ferrobot bench base --robot locobot --trials 5 --seed 1
 //! ferrobot bench camera --scene apartment --seconds 10
 //! ferrobot bench plan --robot locobot --scene tabletop --problems 100 --seed 1 --ompl
+//! ferrobot bench arm locobot --cycles 30 --out target/bench-arm --json
 //! ferrobot bench push locobot --scene tabletop --trials 100 --seed 1 --json
 //! ferrobot collision-matrix sawyer --samples 10000 --seed 1
 //! ferrobot nav-plan --map map.yaml --from 1 1 --to 3 2 --radius 0.2 --json
@@ -332,6 +333,26 @@ enum BenchCmd {
     /// success rate, time, path length, collision checks per second; with --ompl, OMPL's
     /// RRTConnect on the same problems in the same run.
     Plan(BenchPlanCli),
+    /// The arm in the manner of ISO 9283: pose accuracy and repeatability over five poses in
+    /// a cube (by ground truth), and the joint tracking of a streamed trajectory, with plots.
+    Arm {
+        /// Robot name or configuration path.
+        robot: String,
+        /// Cycles through the five poses (ISO 9283: 30).
+        #[arg(long, default_value_t = 30)]
+        cycles: usize,
+        /// Where the robot runs.
+        #[command(flatten)]
+        backend: cmd::common::BackendArgs,
+        /// Write one PNG per joint (commanded and measured angle over time) here.
+        #[arg(long)]
+        out: Option<std::path::PathBuf>,
+        /// Print one JSON object: `{"accuracy_mm_max", "cycles", "poses": [{"accuracy_mm",
+        /// "commanded_m", "repeatability_mm"}], "repeatability_mm_max", "tracking": [{"max_rad",
+        /// "name", "rms_rad"}], "tracking_duration_s"}`.
+        #[arg(long)]
+        json: bool,
+    },
     /// PyRobot's pushing example, measured by ground truth: objects placed at random on the
     /// table per trial (seed SEED + k), one object pushed; how far it moved along the push
     /// and whether any other object moved more than 1 cm.
@@ -347,8 +368,9 @@ enum BenchCmd {
         /// Where the robot runs; --seed is the first trial's (placement and plants).
         #[command(flatten)]
         backend: cmd::common::BackendArgs,
-        /// Print one JSON object: `{"others_moved", "per_trial": [...], "success_rate",
-        /// "target_moved_m": {"median", "min"}, "time_s": {"median"}, "trials"}`.
+        /// Print one JSON object: `{"others_moved", "per_trial": [...], "pushes",
+        /// "success_rate", "success_rate_of_pushes", "target_moved_m": {"median", "min"},
+        /// "time_s": {"median"}, "trials"}`.
         #[arg(long)]
         json: bool,
     },
@@ -615,6 +637,25 @@ fn run(cli: Cli) -> Result<(), (ferrobot::Error, bool)> {
                 localise: &localise,
                 trace,
                 explore,
+                out: out.as_deref(),
+                json,
+            }),
+            json,
+        ),
+        Cmd::Bench {
+            which:
+                BenchCmd::Arm {
+                    robot,
+                    cycles,
+                    backend,
+                    out,
+                    json,
+                },
+        } => (
+            cmd::bench_arm::run(&cmd::bench_arm::ArmArgs {
+                robot: &robot,
+                cycles,
+                backend: &backend,
                 out: out.as_deref(),
                 json,
             }),

@@ -1026,6 +1026,19 @@ fn cases() -> Vec<Case> {
         &push(&["locobot", "--trials", "1", "--backend", "warp", "--json"]),
         Input,
     ));
+    // bench arm: unknown robots, a robot without a pitch-roll arm's poses, absurd cycles.
+    for robot in ["wall-e", "", "/dev/zero"] {
+        c.push(case(
+            &["bench", "arm", robot, "--cycles", "1", "--json"],
+            Input,
+        ));
+    }
+    for n in ["0", "-1", "1e9", "100000", "nan", ""] {
+        c.push(case(
+            &["bench", "arm", "locobot", "--cycles", n, "--json"],
+            Input,
+        ));
+    }
     c.push(case(&["teleport", "locobot"], Input));
     c
 }

@@ -2,6 +2,7 @@
 //! the API's error for `main` to print and turn into an exit code.
 
 pub mod base_move;
+pub mod bench_arm;
 pub mod bench_base;
 pub mod bench_camera;
 pub mod bench_nav;
