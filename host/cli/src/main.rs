@@ -14,6 +14,8 @@
 //! ferrobot bench base --robot locobot --trials 5 --seed 1
 //! ferrobot bench camera --scene apartment --seconds 10
 //! ferrobot bench plan --robot locobot --scene tabletop --problems 100 --seed 1 --ompl
+//! ferrobot bench arm locobot --cycles 30 --out target/bench-arm --json
+//! ferrobot bench push locobot --scene tabletop --trials 100 --seed 1 --json
 //! ferrobot collision-matrix sawyer --samples 10000 --seed 1
 //! ferrobot nav-plan --map map.yaml --from 1 1 --to 3 2 --radius 0.2 --json
 //! ferrobot cluster --in cloud.ply --eps 0.02 --min-samples 15 --json
@@ -337,6 +339,47 @@ enum BenchCmd {
     /// success rate, time, path length, collision checks per second; with --ompl, OMPL's
     /// RRTConnect on the same problems in the same run.
     Plan(BenchPlanCli),
+    /// The arm in the manner of ISO 9283: pose accuracy and repeatability over five poses in
+    /// a cube (by ground truth), and the joint tracking of a streamed trajectory, with plots.
+    Arm {
+        /// Robot name or configuration path.
+        robot: String,
+        /// Cycles through the five poses (ISO 9283: 30).
+        #[arg(long, default_value_t = 30)]
+        cycles: usize,
+        /// Where the robot runs.
+        #[command(flatten)]
+        backend: cmd::common::BackendArgs,
+        /// Write one PNG per joint (commanded and measured angle over time) here.
+        #[arg(long)]
+        out: Option<std::path::PathBuf>,
+        /// Print one JSON object: `{"accuracy_mm_max", "cycles", "poses": [{"accuracy_mm",
+        /// "commanded_m", "repeatability_mm"}], "repeatability_mm_max", "tracking": [{"max_rad",
+        /// "name", "rms_rad"}], "tracking_duration_s"}`.
+        #[arg(long)]
+        json: bool,
+    },
+    /// PyRobot's pushing example, measured by ground truth: objects placed at random on the
+    /// table per trial (seed SEED + k), one object pushed; how far it moved along the push
+    /// and whether any other object moved more than 1 cm.
+    Push {
+        /// Robot name or configuration path.
+        robot: String,
+        /// Scene name or path (movable objects on a static body `table`).
+        #[arg(long, default_value = "tabletop")]
+        scene: String,
+        /// Trials.
+        #[arg(long, default_value_t = 10)]
+        trials: usize,
+        /// Where the robot runs; --seed is the first trial's (placement and plants).
+        #[command(flatten)]
+        backend: cmd::common::BackendArgs,
+        /// Print one JSON object: `{"others_moved", "per_trial": [...], "pushes",
+        /// "success_rate", "success_rate_of_pushes", "target_moved_m": {"median", "min"},
+        /// "time_s": {"median"}, "trials"}`.
+        #[arg(long)]
+        json: bool,
+    },
     /// Navigation on the scene's ground-truth floor plan: the simulated robot drives to N
     /// random reachable goals; success rate, bumper hits, path length against the shortest
     /// path, time per goal.
@@ -634,6 +677,44 @@ fn run(cli: Cli) -> Result<(), (ferrobot::Error, bool)> {
                 trace,
                 explore,
                 out: out.as_deref(),
+                json,
+            }),
+            json,
+        ),
+        Cmd::Bench {
+            which:
+                BenchCmd::Arm {
+                    robot,
+                    cycles,
+                    backend,
+                    out,
+                    json,
+                },
+        } => (
+            cmd::bench_arm::run(&cmd::bench_arm::ArmArgs {
+                robot: &robot,
+                cycles,
+                backend: &backend,
+                out: out.as_deref(),
+                json,
+            }),
+            json,
+        ),
+        Cmd::Bench {
+            which:
+                BenchCmd::Push {
+                    robot,
+                    scene,
+                    trials,
+                    backend,
+                    json,
+                },
+        } => (
+            cmd::bench_push::run(&cmd::bench_push::PushArgs {
+                robot: &robot,
+                scene: &scene,
+                trials,
+                backend: &backend,
                 json,
             }),
             json,

@@ -999,6 +999,46 @@ fn cases() -> Vec<Case> {
         &["cluster", "--in", "./cloud.ply", "--min-samples", "15"],
         Input,
     ));
+    // bench push: unknown robots and scenes, a scene without a table, absurd trial counts,
+    // a serial backend without its port.
+    fn push<'a>(extra: &[&'a str]) -> Vec<&'a str> {
+        let mut a = vec!["bench", "push"];
+        a.extend_from_slice(extra);
+        a
+    }
+    for robot in ["wall-e", "", "./binary.toml", "/dev/zero"] {
+        c.push(case(&push(&[robot, "--trials", "1", "--json"]), Input));
+    }
+    for scene in ["kitchen", "", "./binary.toml", "/dev/zero", "empty"] {
+        c.push(case(
+            &push(&["locobot", "--scene", scene, "--trials", "1", "--json"]),
+            Input,
+        ));
+    }
+    for n in ["0", "-1", "1e9", "1000000000", "nan", ""] {
+        c.push(case(&push(&["locobot", "--trials", n, "--json"]), Input));
+    }
+    c.push(case(
+        &push(&["locobot", "--trials", "1", "--backend", "serial", "--json"]),
+        Input,
+    ));
+    c.push(case(
+        &push(&["locobot", "--trials", "1", "--backend", "warp", "--json"]),
+        Input,
+    ));
+    // bench arm: unknown robots, a robot without a pitch-roll arm's poses, absurd cycles.
+    for robot in ["wall-e", "", "/dev/zero"] {
+        c.push(case(
+            &["bench", "arm", robot, "--cycles", "1", "--json"],
+            Input,
+        ));
+    }
+    for n in ["0", "-1", "1e9", "100000", "nan", ""] {
+        c.push(case(
+            &["bench", "arm", "locobot", "--cycles", n, "--json"],
+            Input,
+        ));
+    }
     c.push(case(&["teleport", "locobot"], Input));
     // teleop: unknown robots, scenes and backends, hostile times, and no terminal (the
     // table's standard input is not one).

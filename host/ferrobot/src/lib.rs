@@ -28,6 +28,7 @@ pub mod head;
 pub mod motion;
 pub mod navigate;
 pub mod planning;
+pub mod push;
 pub mod robot;
 mod sense;
 pub mod slam;
@@ -57,6 +58,7 @@ pub use ferrobot_perception as perception;
 pub use ferrobot_protocol::GripperState;
 pub use ferrobot_sim::scene;
 pub use motion::Motion;
+pub use push::{PushOptions, Pushed};
 pub use robot::{Robot, RobotBuilder};
 pub use slam::Source;
 

@@ -37,6 +37,8 @@ pub struct RobotBuilder {
     uses: Use,
     overrides: Vec<(String, toml::Value)>,
     scene: SceneSource,
+    /// A scene already loaded (and perhaps changed), used instead of `scene`.
+    loaded_scene: Option<Scene>,
     depth_noise: bool,
     camera_device: Option<Box<dyn CameraDevice>>,
     start_pose: Option<[f64; 3]>,
@@ -54,6 +56,12 @@ impl RobotBuilder {
     /// before scenes existed). The simulator backend renders its camera from this world.
     pub fn scene(mut self, scene: &str) -> Self {
         self.scene = SceneSource::from_arg(scene);
+        self
+    }
+    /// The simulated world as a scene already loaded (and perhaps changed: objects placed at
+    /// random for a benchmark's trial), instead of [`RobotBuilder::scene`].
+    pub fn with_scene(mut self, scene: Scene) -> Self {
+        self.loaded_scene = Some(scene);
         self
     }
     /// Simulate the depth camera's noise (default on: the D435's stereo noise model); off for
@@ -101,7 +109,10 @@ impl RobotBuilder {
     /// Load, connect, configure.
     pub fn build(self) -> Result<Robot> {
         let cfg = RobotConfig::load(&self.source, &self.overrides)?;
-        let mut scene = Scene::load(&self.scene)?;
+        let mut scene = match self.loaded_scene {
+            Some(s) => s,
+            None => Scene::load(&self.scene)?,
+        };
         if let Some(p) = self.start_pose {
             let m = crate::validate::MAX_BASE_COORDINATE;
             crate::validate::all_in_range("start position", &p[..2], -m, m)?;
@@ -200,6 +211,7 @@ impl Robot {
             },
             overrides: Vec::new(),
             scene: SceneSource::default(),
+            loaded_scene: None,
             depth_noise: true,
             camera_device: None,
             start_pose: None,
@@ -219,6 +231,7 @@ impl Robot {
             },
             overrides: Vec::new(),
             scene: SceneSource::default(),
+            loaded_scene: None,
             depth_noise: true,
             camera_device: None,
             start_pose: None,
@@ -622,6 +635,16 @@ impl Robot {
     /// The backend's clock, s.
     pub fn time(&self) -> f64 {
         self.lock_io().link.now().as_secs_f64()
+    }
+
+    /// The simulated world's ground truth now (the servos' true angles, the base's true pose,
+    /// every scene body's pose in the world), on the simulator and on the emulated board; an
+    /// error on hardware, which has none.
+    pub fn truth(&self) -> Result<ferrobot_sim::lockstep::Truth> {
+        self.lock_io()
+            .link
+            .truth()
+            .ok_or_else(|| self.missing("ground truth (a simulated world)"))
     }
 
     /// The simulator behind this robot, when it is simulated (ground truth, fault injection).

@@ -585,3 +585,103 @@ fn perception_refuses_hostile_clouds_and_parameters() {
         .expect("perception refuses hostile clouds and parameters");
     report("perception", calls.get());
 }
+
+/// `Robot::push_object` refuses absurd options (tilt, lifts, margins, the push's geometry)
+/// with a typed input error before anything moves.
+#[test]
+fn the_push_refuses_hostile_options() {
+    use ferrobot::PushOptions;
+    let bot = Robot::builder("locobot")
+        .scene("tabletop")
+        .build()
+        .expect("robot");
+    let q0 = bot.arm().expect("arm").get_joint_angles().expect("q");
+    let hostile = [
+        f64::NAN,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::MAX,
+        -f64::MAX,
+        1e300,
+        -1e300,
+        1e38,
+        -1.0,
+    ];
+    for v in hostile {
+        let cases: Vec<(&str, PushOptions)> = vec![
+            (
+                "tilt",
+                PushOptions {
+                    tilt: v,
+                    ..Default::default()
+                },
+            ),
+            (
+                "lifts",
+                PushOptions {
+                    lifts: vec![0.05, v],
+                    ..Default::default()
+                },
+            ),
+            (
+                "object_margin",
+                PushOptions {
+                    object_margin: v,
+                    ..Default::default()
+                },
+            ),
+            (
+                "eps",
+                PushOptions {
+                    eps: v,
+                    ..Default::default()
+                },
+            ),
+            ("distance", {
+                let mut o = PushOptions::default();
+                o.push.distance = v;
+                o
+            }),
+            ("gap", {
+                let mut o = PushOptions::default();
+                o.push.gap = v;
+                o
+            }),
+            ("reach", {
+                let mut o = PushOptions::default();
+                o.push.reach = [0.1, v];
+                o
+            }),
+            ("segment", {
+                let mut o = PushOptions::default();
+                o.segment.min_height = v;
+                o
+            }),
+        ];
+        for (what, opts) in cases {
+            if what == "tilt" && v == -1.0 {
+                continue; // an ordinary tilt
+            }
+            let r = bot.push_object(&opts);
+            match r {
+                Err(e) => assert!(e.is_input(), "{what} = {v}: {e}"),
+                Ok(p) => panic!("{what} = {v} accepted: {p:?}"),
+            }
+        }
+    }
+    let r = bot.push_object(&PushOptions {
+        lifts: vec![],
+        ..Default::default()
+    });
+    assert!(r.is_err_and(|e| e.is_input()));
+    let r = bot.push_object(&PushOptions {
+        min_samples: 0,
+        ..Default::default()
+    });
+    assert!(r.is_err_and(|e| e.is_input()));
+    // Nothing moved.
+    let q1 = bot.arm().expect("arm").get_joint_angles().expect("q");
+    for (a, b) in q0.iter().zip(&q1) {
+        assert!((a - b).abs() < 0.01, "{q0:?} -> {q1:?}");
+    }
+}

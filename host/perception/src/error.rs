@@ -127,6 +127,19 @@ pub enum PerceptionError {
         /// Inliers required.
         min_inliers: usize,
     },
+    /// A push, a grasp or a pick was asked for on a table with no object on it (none found
+    /// above the table's plane).
+    #[error("no object on the table")]
+    NoObjectOnTable,
+    /// Objects lie on the table, but none can be pushed: every object and direction tried
+    /// left the arm's reach, came near another object or drove the object off the table.
+    #[error(
+        "none of the {objects} objects on the table can be pushed clear of the others within reach"
+    )]
+    NoPush {
+        /// Objects on the table.
+        objects: usize,
+    },
     /// The k-d tree could not be built (kiddo refused the points).
     #[error("k-d tree: {0}")]
     KdTree(String),
@@ -136,7 +149,12 @@ impl PerceptionError {
     /// Whether the caller's input is at fault (a bad value, file, image or cloud), as
     /// opposed to the world (no plane where one was expected).
     pub fn is_input(&self) -> bool {
-        !matches!(self, PerceptionError::NoPlane { .. })
+        !matches!(
+            self,
+            PerceptionError::NoPlane { .. }
+                | PerceptionError::NoObjectOnTable
+                | PerceptionError::NoPush { .. }
+        )
     }
 }
 

@@ -6,7 +6,8 @@
 //! [`PointCloud`]s, and their files ([`io`]: PNG colour, 16-bit millimetre depth PNG, PLY).
 //! From clouds: the table's plane by RANSAC ([`plane`]), the objects above it
 //! ([`segment`]), DBSCAN clustering with scikit-learn's semantics ([`cluster`]) and each
-//! object's centroid, extent and principal axis ([`features`]); seeded synthetic clouds for
+//! object's centroid, extent and principal axis ([`features`]); where to push an object
+//! ([`push`]); seeded synthetic clouds for
 //! tests and benchmarks ([`synthetic`]).
 //!
 //! Frames: the camera's optical frame is x right, y down, z forward (REP 103's
@@ -23,6 +24,7 @@ pub mod image;
 pub mod intrinsics;
 pub mod io;
 pub mod plane;
+pub mod push;
 pub mod segment;
 pub mod synthetic;
 
@@ -33,4 +35,5 @@ pub use features::{features, object_features, ObjectFeatures};
 pub use image::{DepthImage, RgbImage};
 pub use intrinsics::Intrinsics;
 pub use plane::{fit_plane, Plane, PlaneFit, RansacParams};
+pub use push::{plan_push, rank_pushes, PushParams, PushPlan};
 pub use segment::{above_table, segment_objects, SegmentParams, SegmentedObject, TableRegion};

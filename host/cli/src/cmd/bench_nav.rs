@@ -33,9 +33,10 @@ const GOAL_CLEARANCE: f64 = 0.15;
 /// Goals lie at least this far from where the robot is, m.
 const MIN_GOAL_DISTANCE: f64 = 1.0;
 
+/// A median, for JSON.
 #[derive(Serialize)]
-struct Median {
-    median: f64,
+pub(crate) struct Median {
+    pub(crate) median: f64,
 }
 
 /// `bench nav --json`, fields in alphabetical order (see [`print_json`]).
@@ -50,7 +51,8 @@ struct NavJson {
     time_s: Median,
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
+/// The median of `v` (NaN when empty).
+pub(crate) fn median(mut v: Vec<f64>) -> f64 {
     if v.is_empty() {
         return f64::NAN;
     }

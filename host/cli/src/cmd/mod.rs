@@ -2,10 +2,12 @@
 //! the API's error for `main` to print and turn into an exit code.
 
 pub mod base_move;
+pub mod bench_arm;
 pub mod bench_base;
 pub mod bench_camera;
 pub mod bench_nav;
 pub mod bench_plan;
+pub mod bench_push;
 pub mod calibrate_odometry;
 pub mod cluster;
 pub mod collision_matrix;
