@@ -33,6 +33,7 @@ pub mod hostile;
 pub mod lockstep;
 pub mod mesh;
 pub mod pipe;
+pub mod placement;
 pub mod render;
 pub mod rng;
 pub mod robots;

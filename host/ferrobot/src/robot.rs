@@ -37,6 +37,7 @@ pub struct RobotBuilder {
     uses: Use,
     overrides: Vec<(String, toml::Value)>,
     scene: SceneSource,
+    world: Option<Scene>,
     depth_noise: bool,
     camera_device: Option<Box<dyn CameraDevice>>,
     start_pose: Option<[f64; 3]>,
@@ -54,6 +55,12 @@ impl RobotBuilder {
     /// before scenes existed). The simulator backend renders its camera from this world.
     pub fn scene(mut self, scene: &str) -> Self {
         self.scene = SceneSource::from_arg(scene);
+        self
+    }
+    /// The simulated world as a loaded scene (one changed in code, e.g. with its objects
+    /// placed by [`ferrobot_sim::placement::scatter`]); replaces [`RobotBuilder::scene`].
+    pub fn world(mut self, scene: Scene) -> Self {
+        self.world = Some(scene);
         self
     }
     /// Simulate the depth camera's noise (default on: the D435's stereo noise model); off for
@@ -101,7 +108,10 @@ impl RobotBuilder {
     /// Load, connect, configure.
     pub fn build(self) -> Result<Robot> {
         let cfg = RobotConfig::load(&self.source, &self.overrides)?;
-        let mut scene = Scene::load(&self.scene)?;
+        let mut scene = match self.world {
+            Some(s) => s,
+            None => Scene::load(&self.scene)?,
+        };
         if let Some(p) = self.start_pose {
             let m = crate::validate::MAX_BASE_COORDINATE;
             crate::validate::all_in_range("start position", &p[..2], -m, m)?;
@@ -200,6 +210,7 @@ impl Robot {
             },
             overrides: Vec::new(),
             scene: SceneSource::default(),
+            world: None,
             depth_noise: true,
             camera_device: None,
             start_pose: None,
@@ -219,6 +230,7 @@ impl Robot {
             },
             overrides: Vec::new(),
             scene: SceneSource::default(),
+            world: None,
             depth_noise: true,
             camera_device: None,
             start_pose: None,
@@ -622,6 +634,14 @@ impl Robot {
     /// The backend's clock, s.
     pub fn time(&self) -> f64 {
         self.lock_io().link.now().as_secs_f64()
+    }
+
+    /// Simulation only: the simulated world's ground truth now (the robot's true pose and
+    /// joints, every scene body's pose in the world, in [`Scene::bodies`] order), on the
+    /// in-process simulator and behind an emulated board alike; `None` on a real robot. For
+    /// judging trials, never for the robot's own decisions.
+    pub fn truth(&self) -> Option<ferrobot_sim::lockstep::Truth> {
+        self.lock_io().link.truth()
     }
 
     /// The simulator behind this robot, when it is simulated (ground truth, fault injection).

@@ -286,4 +286,7 @@ impl Link for EmulatedLink {
     fn simulator(&mut self) -> Option<&mut ferrobot_sim::LockstepSim> {
         None
     }
+    fn truth(&mut self) -> Option<ferrobot_sim::lockstep::Truth> {
+        Some(self.board.server.truth())
+    }
 }
