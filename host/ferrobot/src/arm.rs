@@ -619,7 +619,7 @@ impl Arm {
         self.set_joint_positions(&q)
     }
 
-    fn ik_pitch_roll(
+    pub(crate) fn ik_pitch_roll(
         &self,
         position: [f64; 3],
         pitch: f64,
