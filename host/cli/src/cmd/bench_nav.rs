@@ -33,9 +33,11 @@ const GOAL_CLEARANCE: f64 = 0.15;
 /// Goals lie at least this far from where the robot is, m.
 const MIN_GOAL_DISTANCE: f64 = 1.0;
 
+/// A median, as the benches' JSON gives it (`{"median": ...}`).
 #[derive(Serialize)]
-struct Median {
-    median: f64,
+pub struct Median {
+    /// The median.
+    pub median: f64,
 }
 
 /// `bench nav --json`, fields in alphabetical order (see [`print_json`]).
@@ -50,7 +52,8 @@ struct NavJson {
     time_s: Median,
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
+/// The median of `v` (NaN when empty).
+pub fn median(mut v: Vec<f64>) -> f64 {
     if v.is_empty() {
         return f64::NAN;
     }

@@ -130,8 +130,6 @@ pub enum BackendKind {
     Serial,
 }
 
-// The tools that drive a robot (grasp, push, teleop, calibrate-camera) land next.
-#[allow(dead_code)]
 impl BackendArgs {
     /// The API's backend, or a typed error when --backend serial has no --port.
     pub fn backend(&self) -> ferrobot::Result<ferrobot::Backend> {
@@ -140,14 +138,20 @@ impl BackendArgs {
                 seed: self.seed,
                 realtime: false,
             },
+            BackendKind::Emulated if !self.firmware.is_file() => {
+                return Err(ferrobot::Error::Usage(format!(
+                    "no firmware at {} for --backend emulated: build it with \
+                     scripts/build-boards.sh, or give --firmware",
+                    self.firmware.display()
+                )))
+            }
             BackendKind::Emulated => ferrobot::Backend::Emulated {
                 firmware: self.firmware.clone(),
             },
             BackendKind::Serial => ferrobot::Backend::Serial {
-                path: self
-                    .port
-                    .clone()
-                    .ok_or_else(|| ferrobot::Error::Link("--backend serial needs --port".into()))?,
+                path: self.port.clone().ok_or_else(|| {
+                    ferrobot::Error::Usage("--backend serial needs --port".into())
+                })?,
             },
         })
     }
