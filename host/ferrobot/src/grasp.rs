@@ -293,8 +293,8 @@ fn table_box(view: &TableView) -> Result<([f64; 3], [f64; 3])> {
 
 /// Look, choose, and pick the best grasp the arm reaches: open the gripper, plan to the
 /// pregrasp `opts.pregrasp` above it (the table in the planning scene), descend, close, lift
-/// `opts.lift`. The arm first goes to its stow pose (out of the camera's view) when the
-/// description has one. Errors: [`GraspFailure`]s (no object, no feasible or reachable
+/// `opts.lift`. The arm first goes out of the camera's view: to the description's look pose
+/// (`[arm] look`), or else its stow pose, when it has one. Errors: [`GraspFailure`]s (no object, no feasible or reachable
 /// grasp, closed on nothing: the gripper is opened and the arm raised again), and those of
 /// the parts (camera, planning, motions).
 pub fn pick(robot: &Robot, opts: &GraspOptions) -> Result<Grasped> {
@@ -308,13 +308,11 @@ pub fn pick_with(robot: &Robot, opts: &GraspOptions, model: &dyn GraspModel) -> 
     let gripper = robot.gripper()?;
     let (geometry, tip) = gripper_geometry(robot.config())?;
     gripper.open()?;
-    if robot
-        .config()
-        .arm
-        .as_ref()
-        .is_some_and(|a| a.stow.is_some())
-    {
-        arm.stow()?;
+    let arm_cfg = robot.config().arm.as_ref();
+    match arm_cfg.and_then(|a| a.look.clone()) {
+        Some(q) => arm.set_joint_positions(&q)?,
+        None if arm_cfg.is_some_and(|a| a.stow.is_some()) => arm.stow()?,
+        None => {}
     }
     let view = look(robot, opts, model)?;
     if view.objects.is_empty() {
