@@ -346,8 +346,8 @@ enum BenchCmd {
         /// The backend; --seed seeds the placements (and the plants' noise on the sim).
         #[command(flatten)]
         backend: cmd::common::BackendArgs,
-        /// Print one JSON object: `{"failures", "success_rate", "time_s": {"median"},
-        /// "trials"}`.
+        /// Print one JSON object: `{"failures", "objects", "success_rate", "time_s":
+        /// {"median"}, "trials"}` (the failures' reasons, the objects placed).
         #[arg(long)]
         json: bool,
     },

@@ -40,6 +40,7 @@ const MAX_TRIALS: usize = 10_000;
 #[derive(Serialize)]
 struct GraspJson {
     failures: Vec<String>,
+    objects: Vec<String>,
     success_rate: f64,
     time_s: Median,
     trials: usize,
@@ -207,6 +208,12 @@ pub fn run(args: &GraspArgs<'_>) -> ferrobot::Result<()> {
         },
         trials: args.trials,
         failures,
+        objects: world
+            .bodies
+            .iter()
+            .filter(|b| !b.fixed)
+            .map(|b| b.id.clone())
+            .collect(),
     };
     if args.json {
         print_json(&out);
@@ -220,6 +227,7 @@ pub fn run(args: &GraspArgs<'_>) -> ferrobot::Result<()> {
             100.0 * out.success_rate,
             out.time_s.median
         );
+        say!("  objects placed: {}", out.objects.join(", "));
         for f in &out.failures {
             say!("  {f}");
         }
