@@ -380,6 +380,26 @@ enum BenchCmd {
         #[arg(long)]
         json: bool,
     },
+    /// PyRobot's grasping example as a benchmark: each trial places the scene's graspable
+    /// objects at random on the table (seed SEED + trial), looks, grasps, lifts; success is an
+    /// object lifted at least 5 cm and held 2 s, from the simulator's ground truth.
+    Grasp {
+        /// Robot name or configuration path.
+        robot: String,
+        /// Scene name or path (with a fixed body `table`).
+        #[arg(long, default_value = "tabletop")]
+        scene: String,
+        /// Trials.
+        #[arg(long, default_value_t = 10)]
+        trials: usize,
+        /// The backend; --seed seeds the placements (and the plants' noise on the sim).
+        #[command(flatten)]
+        backend: cmd::common::BackendArgs,
+        /// Print one JSON object: `{"failures", "objects", "success_rate", "time_s":
+        /// {"median"}, "trials"}` (the failures' reasons, the objects placed).
+        #[arg(long)]
+        json: bool,
+    },
     /// Navigation on the scene's ground-truth floor plan: the simulated robot drives to N
     /// random reachable goals; success rate, bumper hits, path length against the shortest
     /// path, time per goal.
@@ -711,6 +731,25 @@ fn run(cli: Cli) -> Result<(), (ferrobot::Error, bool)> {
                 },
         } => (
             cmd::bench_push::run(&cmd::bench_push::PushArgs {
+                robot: &robot,
+                scene: &scene,
+                trials,
+                backend: &backend,
+                json,
+            }),
+            json,
+        ),
+        Cmd::Bench {
+            which:
+                BenchCmd::Grasp {
+                    robot,
+                    scene,
+                    trials,
+                    backend,
+                    json,
+                },
+        } => (
+            cmd::bench_grasp::run(&cmd::bench_grasp::GraspArgs {
                 robot: &robot,
                 scene: &scene,
                 trials,

@@ -698,6 +698,41 @@ fn cases() -> Vec<Case> {
         Input,
     ));
     c.push(case(&["bench", "warp"], Input));
+    // bench grasp: unknown or armless robots, unknown scenes and scenes without a table,
+    // absurd trial counts and seeds, a backend without its port or firmware.
+    fn grasp<'a>(extra: &[&'a str]) -> Vec<&'a str> {
+        let mut a = vec!["bench", "grasp"];
+        a.extend_from_slice(extra);
+        a.extend_from_slice(&["--trials", "1", "--json"]);
+        a
+    }
+    for robot in ["wall-e", "", "./binary.toml", "/dev/zero", "sawyer"] {
+        c.push(case(&grasp(&[robot]), Input));
+    }
+    for scene in ["kitchen", "", "./binary.toml", "/dev/zero", "empty"] {
+        c.push(case(&grasp(&["locobot", "--scene", scene]), Input));
+    }
+    for n in ["0", "-1", "1e9", "10001", "18446744073709551616", "nan", ""] {
+        c.push(case(
+            &["bench", "grasp", "locobot", "--trials", n, "--json"],
+            Input,
+        ));
+    }
+    for seed in ["-1", "nan", "1e300", ""] {
+        c.push(case(&grasp(&["locobot", "--seed", seed]), Input));
+    }
+    c.push(case(&grasp(&["locobot", "--backend", "serial"]), Input));
+    c.push(case(&grasp(&["locobot", "--backend", "warp"]), Input));
+    c.push(case(
+        &grasp(&[
+            "locobot",
+            "--backend",
+            "emulated",
+            "--firmware",
+            "./missing.elf",
+        ]),
+        Input,
+    ));
     // bench plan: unknown robots, scenes and planners, absurd counts and limits, malformed
     // problems files; an export path is never written when the input is refused.
     fn plan<'a>(extra: &[&'a str]) -> Vec<&'a str> {

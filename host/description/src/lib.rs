@@ -108,6 +108,11 @@ pub struct ArmConfig {
     /// camera's view. `None`: the arm has no such pose.
     #[serde(default)]
     pub stow: Option<Vec<f64>>,
+    /// The configuration the arm holds while the camera looks at a table in front of the
+    /// robot (grasping at PyRobot's 0.8 rad tilt), rad: out of that view. `None`: the stow
+    /// pose serves.
+    #[serde(default)]
+    pub look: Option<Vec<f64>>,
     /// IK solver.
     pub ik: IkKind,
     /// IK position tolerance, m.
@@ -871,7 +876,8 @@ impl RobotConfig {
                 }
             }
             let named = std::iter::once(("arm.home", &arm.home))
-                .chain(arm.stow.iter().map(|s| ("arm.stow", s)));
+                .chain(arm.stow.iter().map(|s| ("arm.stow", s)))
+                .chain(arm.look.iter().map(|s| ("arm.look", s)));
             for (key, pose) in named {
                 if pose.len() != arm.joints.len() {
                     return Err(cfg_err(

@@ -640,7 +640,7 @@ impl Arm {
         self.ik_pitch_roll(position, pitch, roll, seed)
     }
 
-    fn ik_pitch_roll(
+    pub(crate) fn ik_pitch_roll(
         &self,
         position: [f64; 3],
         pitch: f64,

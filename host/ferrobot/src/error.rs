@@ -210,6 +210,10 @@ pub enum Error {
     /// SLAM refused its input: settings, a frame, a trajectory or dataset file.
     #[error("SLAM: {0}")]
     Slam(#[from] ferrobot_slam::Error),
+    /// A grasp could not be made: no object on the table, no feasible or reachable grasp,
+    /// the gripper closed on nothing.
+    #[error("grasp: {0}")]
+    Grasp(#[from] crate::grasp::GraspFailure),
     /// An I/O error.
     #[error("I/O error: {0}")]
     Io(#[from] std::io::Error),

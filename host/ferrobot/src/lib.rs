@@ -23,6 +23,7 @@ pub mod base;
 pub mod camera;
 pub mod error;
 mod frames;
+pub mod grasp;
 pub mod gripper;
 pub mod head;
 pub mod motion;

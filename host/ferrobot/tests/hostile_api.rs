@@ -685,3 +685,110 @@ fn the_push_refuses_hostile_options() {
         assert!((a - b).abs() < 0.01, "{q0:?} -> {q1:?}");
     }
 }
+
+#[test]
+fn grasping_refuses_hostile_clouds_and_options() {
+    use ferrobot::grasp::{view_table, GraspOptions};
+    use ferrobot::perception::{
+        detect_grasps, AnalyticScorer, GraspParams, GripperGeometry, SegmentedObject,
+    };
+    use nalgebra::Point3;
+    let bot = Robot::new("locobot").expect("robot");
+    let calls = std::cell::Cell::new(0usize);
+    // A table of ordinary points 1 cm apart with a small block on it, some coordinates
+    // replaced by hostile ones.
+    let table: Vec<[f64; 3]> = (0..400)
+        .map(|i| {
+            [
+                0.3 + 0.01 * (i % 20) as f64,
+                -0.1 + 0.01 * (i / 20) as f64,
+                0.1,
+            ]
+        })
+        .chain((0..27).map(|i| {
+            let (a, b, c) = (i % 3, (i / 3) % 3, i / 9);
+            [
+                0.4 + 0.01 * a as f64,
+                0.01 * b as f64,
+                0.12 + 0.01 * c as f64,
+            ]
+        }))
+        .collect();
+    let strategy = (
+        prop::collection::vec((0usize..427, 0usize..3, value()), 0..3),
+        (value(), value(), value(), count(), count()),
+        (count(), value(), value()),
+        [value(), value(), value(), value()],
+    );
+    runner(15)
+        .run(
+            &strategy,
+            |(spoil, (tilt, pregrasp, lift, attempts, stride), (yaws, depth, gap), g)| {
+                let mut pts = table.clone();
+                for &(i, k, v) in &spoil {
+                    pts[i][k] = v;
+                }
+                let points: Vec<Point3<f64>> = pts.iter().map(|p| Point3::from(*p)).collect();
+                let bad_cloud = pts.iter().any(|p| absurd(p));
+                let params = GraspParams {
+                    yaws,
+                    target_depth: depth,
+                    table_gap: gap,
+                };
+                let good_params = (1..=64).contains(&yaws)
+                    && depth.is_finite()
+                    && depth > 0.0
+                    && depth <= 0.5
+                    && gap.is_finite()
+                    && (0.0..=0.5).contains(&gap);
+                let bad_params = !good_params;
+                let opts = GraspOptions {
+                    head_tilt: tilt,
+                    pregrasp,
+                    lift,
+                    attempts,
+                    stride,
+                    params,
+                    ..Default::default()
+                };
+                let bad_opts = bad_params
+                    || absurd(&[tilt, pregrasp, lift])
+                    || tilt.abs() > std::f64::consts::FRAC_PI_2
+                    || !(0.0..=1.0).contains(&pregrasp)
+                    || !(0.0..=1.0).contains(&lift)
+                    || !(1..=100).contains(&attempts)
+                    || !(1..=16).contains(&stride);
+                let gripper = GripperGeometry {
+                    opening: g[0],
+                    finger_thickness: g[1],
+                    finger_width: g[2],
+                    finger_length: g[3],
+                };
+                let bad_gripper = g.iter().any(|v| !(v.is_finite() && *v > 0.0 && *v <= 0.5));
+                let scorer = AnalyticScorer::default();
+                let r = view_table(points.clone(), &gripper, &opts, &scorer);
+                judge("view_table", bad_cloud || bad_opts || bad_gripper, &r)?;
+                let object = SegmentedObject {
+                    indices: (400..427).collect(),
+                    features: ferrobot::perception::features(&points[..3]).unwrap_or_else(|_| {
+                        ferrobot::perception::features(&[Point3::origin()]).unwrap()
+                    }),
+                };
+                let plane = ferrobot::perception::Plane {
+                    normal: nalgebra::Vector3::z_axis(),
+                    offset: 0.1,
+                };
+                let r = detect_grasps(&points, &plane, &[object], &gripper, &params, &scorer);
+                judge("detect_grasps", bad_cloud || bad_params || bad_gripper, &r)?;
+                if bad_opts {
+                    // Refused before anything moves.
+                    let r = ferrobot::grasp::pick(&bot, &opts);
+                    judge("grasp::pick", true, &r)?;
+                }
+                calls.set(calls.get() + 2 + usize::from(bad_opts));
+                Ok(())
+            },
+        )
+        .expect("grasping refuses hostile clouds and options");
+    report("grasping", calls.get());
+}

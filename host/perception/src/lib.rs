@@ -7,7 +7,8 @@
 //! From clouds: the table's plane by RANSAC ([`plane`]), the objects above it
 //! ([`segment`]), DBSCAN clustering with scikit-learn's semantics ([`cluster`]) and each
 //! object's centroid, extent and principal axis ([`features`]); where to push an object
-//! ([`push`]); seeded synthetic clouds for
+//! ([`push`]); top-down antipodal grasps on the objects, scored by a replaceable model
+//! ([`grasp`]); seeded synthetic clouds for
 //! tests and benchmarks ([`synthetic`]).
 //!
 //! Frames: the camera's optical frame is x right, y down, z forward (REP 103's
@@ -20,6 +21,7 @@ pub mod cloud;
 pub mod cluster;
 pub mod error;
 pub mod features;
+pub mod grasp;
 pub mod image;
 pub mod intrinsics;
 pub mod io;
@@ -32,6 +34,9 @@ pub use cloud::{backproject, pixels_to_points, DepthRange, PixelPoints, PointClo
 pub use cluster::{Clusterer, Clustering, Dbscan, DbscanParams, ExhaustiveDbscan, NOISE};
 pub use error::{PerceptionError, Result};
 pub use features::{features, object_features, ObjectFeatures};
+pub use grasp::{
+    detect_grasps, AnalyticScorer, Grasp, GraspCandidate, GraspModel, GraspParams, GripperGeometry,
+};
 pub use image::{DepthImage, RgbImage};
 pub use intrinsics::Intrinsics;
 pub use plane::{fit_plane, Plane, PlaneFit, RansacParams};

@@ -33,10 +33,11 @@ const GOAL_CLEARANCE: f64 = 0.15;
 /// Goals lie at least this far from where the robot is, m.
 const MIN_GOAL_DISTANCE: f64 = 1.0;
 
-/// A median, for JSON.
+/// A median, as the benches' JSON gives it (`{"median": ...}`).
 #[derive(Serialize)]
-pub(crate) struct Median {
-    pub(crate) median: f64,
+pub struct Median {
+    /// The median.
+    pub median: f64,
 }
 
 /// `bench nav --json`, fields in alphabetical order (see [`print_json`]).
@@ -52,7 +53,7 @@ struct NavJson {
 }
 
 /// The median of `v` (NaN when empty).
-pub(crate) fn median(mut v: Vec<f64>) -> f64 {
+pub fn median(mut v: Vec<f64>) -> f64 {
     if v.is_empty() {
         return f64::NAN;
     }

@@ -138,6 +138,13 @@ impl BackendArgs {
                 seed: self.seed,
                 realtime: false,
             },
+            BackendKind::Emulated if !self.firmware.is_file() => {
+                return Err(ferrobot::Error::Usage(format!(
+                    "no firmware at {} for --backend emulated: build it with \
+                     scripts/build-boards.sh, or give --firmware",
+                    self.firmware.display()
+                )))
+            }
             BackendKind::Emulated => ferrobot::Backend::Emulated {
                 firmware: self.firmware.clone(),
             },

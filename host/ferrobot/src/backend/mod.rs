@@ -76,8 +76,8 @@ pub trait Link: Send {
     fn take_faults(&mut self) -> Vec<Fault>;
     /// The simulator, when this backend is one (ground truth, fault injection).
     fn simulator(&mut self) -> Option<&mut ferrobot_sim::LockstepSim>;
-    /// The simulated world's ground truth, when this backend has one (the simulator, the
-    /// emulated board's plants).
+    /// The simulated world's ground truth now, when the plants are simulated (in-process or
+    /// behind an emulated board); `None` on a real robot.
     fn truth(&mut self) -> Option<ferrobot_sim::lockstep::Truth> {
         self.simulator().map(|s| s.truth())
     }
