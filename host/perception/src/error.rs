@@ -127,6 +127,13 @@ pub enum PerceptionError {
         /// Inliers required.
         min_inliers: usize,
     },
+    /// The fiducial marker was not found in an image (or in any image).
+    #[error("marker not seen: {0}")]
+    MarkerNotSeen(String),
+    /// Hand-eye calibration cannot determine the camera's mount from what it was given (too
+    /// few images of the marker, or views that leave a direction unobserved).
+    #[error("hand-eye calibration: {0}")]
+    HandEye(String),
     /// The k-d tree could not be built (kiddo refused the points).
     #[error("k-d tree: {0}")]
     KdTree(String),
@@ -136,7 +143,12 @@ impl PerceptionError {
     /// Whether the caller's input is at fault (a bad value, file, image or cloud), as
     /// opposed to the world (no plane where one was expected).
     pub fn is_input(&self) -> bool {
-        !matches!(self, PerceptionError::NoPlane { .. })
+        !matches!(
+            self,
+            PerceptionError::NoPlane { .. }
+                | PerceptionError::MarkerNotSeen(_)
+                | PerceptionError::HandEye(_)
+        )
     }
 }
 

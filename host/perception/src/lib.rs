@@ -7,7 +7,8 @@
 //! From clouds: the table's plane by RANSAC ([`plane`]), the objects above it
 //! ([`segment`]), DBSCAN clustering with scikit-learn's semantics ([`cluster`]) and each
 //! object's centroid, extent and principal axis ([`features`]); seeded synthetic clouds for
-//! tests and benchmarks ([`synthetic`]).
+//! tests and benchmarks ([`synthetic`]). From images: a square fiducial's corners
+//! ([`marker`]) and the camera's mount from them ([`hand_eye`]).
 //!
 //! Frames: the camera's optical frame is x right, y down, z forward (REP 103's
 //! `*_optical_frame`); pixel (row r, column c) has its centre at image coordinates
@@ -19,9 +20,11 @@ pub mod cloud;
 pub mod cluster;
 pub mod error;
 pub mod features;
+pub mod hand_eye;
 pub mod image;
 pub mod intrinsics;
 pub mod io;
+pub mod marker;
 pub mod plane;
 pub mod segment;
 pub mod synthetic;
@@ -30,7 +33,9 @@ pub use cloud::{backproject, pixels_to_points, DepthRange, PixelPoints, PointClo
 pub use cluster::{Clusterer, Clustering, Dbscan, DbscanParams, ExhaustiveDbscan, NOISE};
 pub use error::{PerceptionError, Result};
 pub use features::{features, object_features, ObjectFeatures};
+pub use hand_eye::{HandEyeProblem, HandEyeSolution, MarkerView};
 pub use image::{DepthImage, RgbImage};
 pub use intrinsics::Intrinsics;
+pub use marker::{detect_square, SquareDetection};
 pub use plane::{fit_plane, Plane, PlaneFit, RansacParams};
 pub use segment::{above_table, segment_objects, SegmentParams, SegmentedObject, TableRegion};
