@@ -213,6 +213,21 @@ impl Renderer {
                         .push((Owner::Link(li), draw_mesh(&m, closed, s.origin, mat, label)));
                 }
             }
+            for (li, s) in &body.decals {
+                let name = body.tree.links().nth(*li).unwrap_or_default();
+                r.labels.push(format!("robot/{name}/marker"));
+                let label = (r.labels.len() - 1) as u32;
+                let (m, closed) = tessellate(&s.shape);
+                r.materials.push(Material {
+                    colour: s.colour,
+                    texture: None,
+                });
+                let mat = (r.materials.len() - 1) as u32;
+                r.meshes.push((
+                    Owner::Link(*li),
+                    draw_mesh(&m, closed, s.origin, mat, label),
+                ));
+            }
         }
         r
     }

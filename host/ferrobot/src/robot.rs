@@ -40,6 +40,21 @@ pub struct RobotBuilder {
     depth_noise: bool,
     camera_device: Option<Box<dyn CameraDevice>>,
     start_pose: Option<[f64; 3]>,
+    camera_mount_error: [f64; 6],
+    camera_calibration: Option<std::path::PathBuf>,
+}
+
+/// Largest camera mount error the simulator takes: 0.1 m along each axis, 0.5 rad about each.
+pub const MAX_CAMERA_MOUNT_ERROR: [f64; 2] = [0.1, 0.5];
+
+/// The simulated world a robot is connected to: the scene, the camera's depth noise and how
+/// far the camera truly sits off its URDF mount, and the description the world is built from
+/// (the URDF's, whatever calibration the host believes).
+struct World {
+    scene: Arc<Scene>,
+    depth_noise: bool,
+    mount_error: nalgebra::Isometry3<f64>,
+    cfg: RobotConfig,
 }
 
 impl RobotBuilder {
@@ -56,6 +71,25 @@ impl RobotBuilder {
         self.scene = SceneSource::from_arg(scene);
         self
     }
+    /// Mount the simulated camera off its URDF pose by `[dx, dy, dz, droll, dpitch, dyaw]`
+    /// (m and rad, in the camera link's frame: the true camera link is the URDF's times this
+    /// pose, the rotation roll-pitch-yaw as in a URDF) for hand-eye calibration studies; on
+    /// the sim and emulated backends. The host keeps believing the URDF (or the calibration
+    /// of [`RobotBuilder::camera_calibration`]). Checked by [`RobotBuilder::build`]: finite,
+    /// within [`MAX_CAMERA_MOUNT_ERROR`].
+    pub fn camera_mount_error(mut self, error: [f64; 6]) -> Self {
+        self.camera_mount_error = error;
+        self
+    }
+
+    /// Use the camera mount measured by hand-eye calibration (a file of
+    /// [`ferrobot_description::CameraCalibration`]) instead of the URDF's: every camera pose
+    /// and cloud the host computes then uses it.
+    pub fn camera_calibration(mut self, path: impl AsRef<Path>) -> Self {
+        self.camera_calibration = Some(path.as_ref().to_path_buf());
+        self
+    }
+
     /// Simulate the depth camera's noise (default on: the D435's stereo noise model); off for
     /// exact depth.
     pub fn depth_noise(mut self, on: bool) -> Self {
@@ -100,7 +134,17 @@ impl RobotBuilder {
 
     /// Load, connect, configure.
     pub fn build(self) -> Result<Robot> {
-        let cfg = RobotConfig::load(&self.source, &self.overrides)?;
+        let world_cfg = RobotConfig::load(&self.source, &self.overrides)?;
+        let mut cfg = world_cfg.clone();
+        if let Some(path) = &self.camera_calibration {
+            let c = ferrobot_description::CameraCalibration::load(path)?;
+            cfg.set_camera_mount(&c, path)?;
+        }
+        let e = self.camera_mount_error;
+        let [tmax, rmax] = MAX_CAMERA_MOUNT_ERROR;
+        crate::validate::all_in_range("camera mount error (m)", &e[..3], -tmax, tmax)?;
+        crate::validate::all_in_range("camera mount error (rad)", &e[3..], -rmax, rmax)?;
+        let mount_error = crate::hand_eye::mount_error_pose(&e);
         let mut scene = Scene::load(&self.scene)?;
         if let Some(p) = self.start_pose {
             let m = crate::validate::MAX_BASE_COORDINATE;
@@ -108,15 +152,13 @@ impl RobotBuilder {
             crate::validate::in_range("start heading", p[2], -m, m)?;
             scene.robot_pose = p;
         }
-        let scene = Arc::new(scene);
-        Robot::connect(
-            cfg,
-            self.backend,
-            self.uses,
-            scene,
-            self.depth_noise,
-            self.camera_device,
-        )
+        let world = World {
+            scene: Arc::new(scene),
+            depth_noise: self.depth_noise,
+            mount_error,
+            cfg: world_cfg,
+        };
+        Robot::connect(cfg, self.backend, self.uses, world, self.camera_device)
     }
 }
 
@@ -203,6 +245,8 @@ impl Robot {
             depth_noise: true,
             camera_device: None,
             start_pose: None,
+            camera_mount_error: [0.0; 6],
+            camera_calibration: None,
         }
     }
 
@@ -222,6 +266,8 @@ impl Robot {
             depth_noise: true,
             camera_device: None,
             start_pose: None,
+            camera_mount_error: [0.0; 6],
+            camera_calibration: None,
         }
     }
 
@@ -229,15 +275,20 @@ impl Robot {
         cfg: RobotConfig,
         backend: Backend,
         uses: Use,
-        scene: Arc<Scene>,
-        depth_noise: bool,
+        world: World,
         camera_device: Option<Box<dyn CameraDevice>>,
     ) -> Result<Robot> {
+        let World {
+            scene,
+            depth_noise,
+            mount_error,
+            cfg: world_cfg,
+        } = world;
         // The link, and the socket of a camera served from the backend's world, if any.
         let (mut link, served_camera): (Box<dyn Link>, Option<std::path::PathBuf>) = match &backend
         {
             Backend::Sim { seed, realtime } => (
-                Box::new(SimLink::start(&cfg, *seed, *realtime, scene.clone())?),
+                Box::new(SimLink::start(&world_cfg, *seed, *realtime, scene.clone())?),
                 None,
             ),
             // `ferrobot sim-firmware` serves its world's camera beside the port.
@@ -257,6 +308,7 @@ impl Robot {
                         section,
                         seed: 1,
                         noise: depth_noise,
+                        mount_error,
                     });
                 let link = crate::backend::emulated::EmulatedLink::start_in(
                     &cfg.name,
@@ -279,10 +331,15 @@ impl Robot {
         let camera = match (&cfg.camera, uses.camera, camera_device) {
             (Some(_), true, Some(d)) => Some(d),
             (Some(section), true, None) => match (&backend, link.simulator(), served_camera) {
-                (Backend::Sim { seed, .. }, Some(sim), _) => Some(Box::new(
-                    crate::backend::sim::SimCameraDevice::new(sim, section, depth_noise, *seed)?,
-                )
-                    as Box<dyn CameraDevice>),
+                (Backend::Sim { seed, .. }, Some(sim), _) => {
+                    Some(Box::new(crate::backend::sim::SimCameraDevice::new(
+                        sim,
+                        section,
+                        depth_noise,
+                        *seed,
+                        &mount_error,
+                    )?) as Box<dyn CameraDevice>)
+                }
                 (_, _, Some(socket)) => Some(Box::new(
                     crate::backend::camera_socket::SocketCamera::connect(socket)?,
                 ) as Box<dyn CameraDevice>),

@@ -33,6 +33,7 @@ pub fn run(
             section,
             seed,
             noise,
+            mount_error: nalgebra::Isometry3::identity(),
         });
     ferrobot_sim::serve::run_firmware_server(sim, &cfg.name, link, camera).map_err(|e| match e {
         ferrobot_sim::serve::ServeError::LinkExists(path) => ferrobot::Error::PathExists { path },
