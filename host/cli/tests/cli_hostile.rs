@@ -1000,6 +1000,69 @@ fn cases() -> Vec<Case> {
         Input,
     ));
     c.push(case(&["teleport", "locobot"], Input));
+    // calibrate-camera: hostile and absurd mount errors, counts, robots, scenes, output paths.
+    for v in HOSTILE {
+        c.push(case(
+            &[
+                "calibrate-camera",
+                "locobot",
+                "--perturb",
+                "0",
+                v,
+                "0",
+                "0",
+                "0",
+                "0",
+                "--json",
+            ],
+            Input,
+        ));
+        c.push(case(
+            &[
+                "calibrate-camera",
+                "locobot",
+                "--perturb",
+                "0",
+                "0",
+                "0",
+                "0",
+                "0",
+                v,
+                "--json",
+            ],
+            Input,
+        ));
+    }
+    for args in [
+        &["--perturb", "0.2", "0", "0", "0", "0", "0"][..],
+        &["--perturb", "0", "0", "0", "0.6", "0", "0"],
+        &["--perturb", "0", "0"],
+        &["--poses", "0"],
+        &["--poses", "7"],
+        &["--grid", "0"],
+        &["--grid", "99"],
+        &["--poses", "-1"],
+        &["--scene", "nowhere"],
+        &["--out", "./no-such-dir/cal.toml"],
+        &["--out", "."],
+    ] {
+        let mut a = vec!["calibrate-camera", "locobot"];
+        a.extend_from_slice(args);
+        a.push("--json");
+        c.push(case(&a, Input));
+    }
+    c.push(case(&["calibrate-camera", "nobot", "--json"], Input));
+    c.push(case(&["calibrate-camera", "sawyer", "--json"], Input));
+    c.push(case(
+        &[
+            "calibrate-camera",
+            "locobot",
+            "--backend",
+            "serial",
+            "--json",
+        ],
+        Failure,
+    ));
     c
 }
 

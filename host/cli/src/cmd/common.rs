@@ -130,8 +130,6 @@ pub enum BackendKind {
     Serial,
 }
 
-// The tools that drive a robot (grasp, push, teleop, calibrate-camera) land next.
-#[allow(dead_code)]
 impl BackendArgs {
     /// The API's backend, or a typed error when --backend serial has no --port.
     pub fn backend(&self) -> ferrobot::Result<ferrobot::Backend> {

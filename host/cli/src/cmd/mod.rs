@@ -6,6 +6,7 @@ pub mod bench_base;
 pub mod bench_camera;
 pub mod bench_nav;
 pub mod bench_plan;
+pub mod calibrate_camera;
 pub mod calibrate_odometry;
 pub mod cluster;
 pub mod collision_matrix;
