@@ -888,6 +888,7 @@ fn hand_eye_calibration_through_the_firmware() {
     let perturb = [0.012, -0.01, 0.012, 0.03, -0.03, 0.03];
     let bot = Robot::builder("locobot")
         .camera_mount_error(perturb)
+        .calibration_marker(true)
         .backend(Backend::Emulated { firmware })
         .build()
         .expect("emulated robot");

@@ -273,6 +273,11 @@ impl SimCamera {
         self.mount_offset = link_to_optical.inverse() * error * link_to_optical;
     }
 
+    /// Draw the robot's decals (the description's hand-eye marker; default off).
+    pub fn show_decals(&mut self, on: bool) {
+        self.renderer.decals = on;
+    }
+
     /// The renderer (labels, triangle count).
     pub fn renderer(&self) -> &Renderer {
         &self.renderer
@@ -302,8 +307,10 @@ impl SimCamera {
     pub fn capture_into(&mut self, truth: &Truth, out: &mut RenderedImage) -> PinholeCamera {
         let cam = self.pinhole(truth);
         self.renderer.render(&cam, &truth.bodies, &truth.links, out);
-        for i in 0..self.decals.len() {
-            self.supersample_decal(i, &cam, truth, out);
+        if self.renderer.decals {
+            for i in 0..self.decals.len() {
+                self.supersample_decal(i, &cam, truth, out);
+            }
         }
         if let Some(n) = self.noise {
             n.apply(&mut out.depth, cam.width as usize, cam.fx, &mut self.rng);
@@ -529,6 +536,13 @@ impl BandedCamera {
     /// The camera's description (the whole image's intrinsics and rate).
     pub fn section(&self) -> &CameraSection {
         &self.section
+    }
+
+    /// Draw the robot's decals ([`SimCamera::show_decals`]).
+    pub fn show_decals(&mut self, on: bool) {
+        for b in &mut self.bands {
+            b.camera.show_decals(on);
+        }
     }
 
     /// Mount the camera off its URDF pose by `error` ([`SimCamera::set_mount_error`]).

@@ -286,6 +286,8 @@ pub struct CameraOptions {
     /// How far the camera sits off its URDF mount, in the camera link's frame
     /// ([`crate::camera::SimCamera::set_mount_error`]); identity for none.
     pub mount_error: nalgebra::Isometry3<f64>,
+    /// Draw the description's hand-eye marker on the robot.
+    pub marker: bool,
 }
 
 impl CameraOptions {
@@ -299,6 +301,7 @@ impl CameraOptions {
         let mut cam =
             crate::camera::BandedCamera::new(scene, body, &self.section, self.seed, self.noise)?;
         cam.set_mount_error(body, &self.mount_error);
+        cam.show_decals(self.marker);
         Some(cam)
     }
 }

@@ -208,7 +208,8 @@ impl Robot {
     }
 
     /// Calibrate the camera's mount against the description's marker (see the module's
-    /// documentation): moves the arm and the head, so the arm's workspace before the robot
+    /// documentation; a simulated robot shows it when built with
+    /// [`crate::RobotBuilder::calibration_marker`]): moves the arm and the head, so the arm's workspace before the robot
     /// must be clear. The host's current belief about the mount (the URDF's, or a
     /// calibration the robot was built with) is where the search starts.
     ///
@@ -284,7 +285,8 @@ impl Robot {
         }
         if views.is_empty() {
             return Err(Error::Perception(PerceptionError::MarkerNotSeen(format!(
-                "in none of {captured} images ({})",
+                "in none of {captured} images ({}; a simulated robot shows its marker when built \
+                 with RobotBuilder::calibration_marker(true))",
                 misses.first().map_or("", String::as_str)
             ))));
         }

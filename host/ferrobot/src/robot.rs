@@ -42,6 +42,7 @@ pub struct RobotBuilder {
     start_pose: Option<[f64; 3]>,
     camera_mount_error: [f64; 6],
     camera_calibration: Option<std::path::PathBuf>,
+    marker: bool,
 }
 
 /// Largest camera mount error the simulator takes: 0.1 m along each axis, 0.5 rad about each.
@@ -54,6 +55,7 @@ struct World {
     scene: Arc<Scene>,
     depth_noise: bool,
     mount_error: nalgebra::Isometry3<f64>,
+    marker: bool,
     cfg: RobotConfig,
 }
 
@@ -79,6 +81,15 @@ impl RobotBuilder {
     /// within [`MAX_CAMERA_MOUNT_ERROR`].
     pub fn camera_mount_error(mut self, error: [f64; 6]) -> Self {
         self.camera_mount_error = error;
+        self
+    }
+
+    /// Draw the description's hand-eye marker (`[camera.marker]`) on the simulated robot, on
+    /// the sim and emulated backends (default off: with the arm at home its corners sit fixed
+    /// in the camera's view and visual SLAM takes them for features of the world;
+    /// [`Robot::calibrate_camera`] needs it on).
+    pub fn calibration_marker(mut self, on: bool) -> Self {
+        self.marker = on;
         self
     }
 
@@ -156,6 +167,7 @@ impl RobotBuilder {
             scene: Arc::new(scene),
             depth_noise: self.depth_noise,
             mount_error,
+            marker: self.marker,
             cfg: world_cfg,
         };
         Robot::connect(cfg, self.backend, self.uses, world, self.camera_device)
@@ -247,6 +259,7 @@ impl Robot {
             start_pose: None,
             camera_mount_error: [0.0; 6],
             camera_calibration: None,
+            marker: false,
         }
     }
 
@@ -268,6 +281,7 @@ impl Robot {
             start_pose: None,
             camera_mount_error: [0.0; 6],
             camera_calibration: None,
+            marker: false,
         }
     }
 
@@ -282,6 +296,7 @@ impl Robot {
             scene,
             depth_noise,
             mount_error,
+            marker,
             cfg: world_cfg,
         } = world;
         // The link, and the socket of a camera served from the backend's world, if any.
@@ -309,6 +324,7 @@ impl Robot {
                         seed: 1,
                         noise: depth_noise,
                         mount_error,
+                        marker,
                     });
                 let link = crate::backend::emulated::EmulatedLink::start_in(
                     &cfg.name,
@@ -338,6 +354,7 @@ impl Robot {
                         depth_noise,
                         *seed,
                         &mount_error,
+                        marker,
                     )?) as Box<dyn CameraDevice>)
                 }
                 (_, _, Some(socket)) => Some(Box::new(

@@ -82,6 +82,7 @@ fn table_error(bot: &Robot) -> (f64, f64) {
 fn calibration_recovers_the_mount_and_the_camera_uses_it() {
     let bot = Robot::builder("locobot")
         .camera_mount_error(PERTURB)
+        .calibration_marker(true)
         .build()
         .unwrap();
     let report = bot.calibrate_camera(&HandEyeOptions::default()).unwrap();
@@ -175,7 +176,10 @@ fn bad_input_and_an_unseen_marker_are_typed_errors() {
     let _ = std::fs::remove_file(&bad);
     assert!(matches!(e, Error::Config { .. }), "{e}");
     // The head looking away from the marker: never seen.
-    let bot = Robot::new("locobot").unwrap();
+    let bot = Robot::builder("locobot")
+        .calibration_marker(true)
+        .build()
+        .unwrap();
     let opts = HandEyeOptions {
         arm_poses: vec![vec![0.0, 0.3, 0.3, -0.9, 0.0]],
         pan_offsets: vec![1.0],
@@ -191,4 +195,10 @@ fn bad_input_and_an_unseen_marker_are_typed_errors() {
         "{e}"
     );
     assert!(!e.is_input());
+    // A robot built without its marker shown: never seen either.
+    let e = Robot::new("locobot")
+        .unwrap()
+        .calibrate_camera(&HandEyeOptions::with_counts(1, 1).unwrap())
+        .unwrap_err();
+    assert!(e.to_string().contains("calibration_marker"), "{e}");
 }

@@ -96,19 +96,16 @@ pub fn detect_square(
     let grey = Grey::new(img);
     let (w, h) = (grey.w as f64, grey.h as f64);
     let not_seen = |why: String| Err(PerceptionError::MarkerNotSeen(why));
-    // The search window.
-    let lo_u = predicted.iter().map(|p| p[0]).fold(f64::INFINITY, f64::min) - radius;
-    let hi_u = predicted
-        .iter()
-        .map(|p| p[0])
-        .fold(f64::NEG_INFINITY, f64::max)
-        + radius;
-    let lo_v = predicted.iter().map(|p| p[1]).fold(f64::INFINITY, f64::min) - radius;
-    let hi_v = predicted
-        .iter()
-        .map(|p| p[1])
-        .fold(f64::NEG_INFINITY, f64::max)
-        + radius;
+    // The search window: the prediction's bounds on axis k (0: u, 1: v), widened by radius.
+    let lo = |k: usize| predicted.iter().map(|p| p[k]).fold(f64::INFINITY, f64::min) - radius;
+    let hi = |k: usize| {
+        predicted
+            .iter()
+            .map(|p| p[k])
+            .fold(f64::NEG_INFINITY, f64::max)
+            + radius
+    };
+    let (lo_u, hi_u, lo_v, hi_v) = (lo(0), hi(0), lo(1), hi(1));
     let (c0, c1) = (lo_u.max(0.0), hi_u.min(w - 1.0));
     let (r0, r1) = (lo_v.max(0.0), hi_v.min(h - 1.0));
     if c0 > c1 || r0 > r1 {

@@ -67,7 +67,8 @@ pub fn run(a: &CalibrateArgs) -> ferrobot::Result<()> {
     let builder: RobotBuilder = robot_builder(a.robot)
         .backend(a.backend.backend()?)
         .scene(a.scene)
-        .camera_mount_error(a.perturb);
+        .camera_mount_error(a.perturb)
+        .calibration_marker(true);
     let bot = builder.build()?;
     let nominal = bot
         .config()

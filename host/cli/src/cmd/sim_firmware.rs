@@ -34,6 +34,7 @@ pub fn run(
             seed,
             noise,
             mount_error: nalgebra::Isometry3::identity(),
+            marker: false,
         });
     ferrobot_sim::serve::run_firmware_server(sim, &cfg.name, link, camera).map_err(|e| match e {
         ferrobot_sim::serve::ServeError::LinkExists(path) => ferrobot::Error::PathExists { path },

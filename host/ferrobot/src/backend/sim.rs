@@ -133,13 +133,14 @@ impl SimCameraDevice {
     /// noise on or off, seeded by `seed`, at the section's rate (frames at whole multiples of
     /// the period on the simulator's clock; each capture takes the next one not yet taken),
     /// mounted off its URDF pose by `mount_error` (the camera link's frame; identity for
-    /// none).
+    /// none), the hand-eye marker drawn or not (`marker`).
     pub fn new(
         sim: &LockstepSim,
         section: &ferrobot_description::CameraSection,
         noise: bool,
         seed: u64,
         mount_error: &nalgebra::Isometry3<f64>,
+        marker: bool,
     ) -> Result<Self> {
         let intrinsics = ferrobot_perception::Intrinsics::new(
             section.width,
@@ -166,6 +167,7 @@ impl SimCameraDevice {
                     ))
                 })?;
         camera.set_mount_error(body, mount_error);
+        camera.show_decals(marker);
         let clock = ferrobot_sim::camera::FrameClock::new(section.rate)
             .ok_or_else(|| bad(format!("rate {} Hz (need (0, 1000])", section.rate)))?;
         Ok(SimCameraDevice {
