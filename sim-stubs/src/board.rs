@@ -343,14 +343,7 @@ impl BoardServer {
                 "the robot has no body to mount a camera on",
             ))
         })?;
-        let cam = crate::camera::BandedCamera::new(
-            &self.scene,
-            &body,
-            &camera.section,
-            camera.seed,
-            camera.noise,
-        )
-        .ok_or_else(|| {
+        let cam = camera.camera(&self.scene, &body).ok_or_else(|| {
             ServeError::Io(std::io::Error::other(format!(
                 "the URDF has no camera frame {:?}",
                 camera.section.frame

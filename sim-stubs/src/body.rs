@@ -44,6 +44,9 @@ pub struct RobotBody {
     pub tree: LinkTree,
     /// Collision shapes of each link, in [`LinkTree::links`] order.
     pub shapes: Vec<Vec<LinkShape>>,
+    /// Shapes the camera sees but nothing touches, on links ([`LinkTree::links`] index): the
+    /// description's fiducial marker.
+    pub decals: Vec<(usize, LinkShape)>,
     drives: Vec<Option<Drive>>,
     gripper: Option<GripperSection>,
     hand: Option<Hand>,
@@ -91,6 +94,22 @@ fn link_colour(name: &str) -> [f32; 3] {
         [0.95, 0.95, 0.95]
     } else {
         [0.72, 0.72, 0.75]
+    }
+}
+
+/// Thickness of the marker's black square, m (its top is the face the description places;
+/// the description puts that face this far above the plate it is printed on, so that the two
+/// never fight for a pixel's depth).
+pub const MARKER_THICKNESS: f64 = 1e-4;
+
+/// The fiducial `m` as a shape: a black square of its size and [`MARKER_THICKNESS`], its top
+/// the face the description names.
+fn marker_decal(m: &ferrobot_description::MarkerSection) -> LinkShape {
+    let [x, y, z] = m.xyz;
+    LinkShape {
+        origin: Isometry3::translation(x, y, z - MARKER_THICKNESS / 2.0),
+        shape: Shape::Box([m.size, m.size, MARKER_THICKNESS]),
+        colour: [0.02, 0.02, 0.02],
     }
 }
 
@@ -175,9 +194,17 @@ impl RobotBody {
                 open: tick(g.stops[1]),
             })
         });
+        let decals = cfg
+            .camera
+            .as_ref()
+            .and_then(|c| c.marker.as_ref())
+            .and_then(|m| Some((tree.link_index(&m.link)?, marker_decal(m))))
+            .into_iter()
+            .collect();
         Some(Arc::new(RobotBody {
             tree,
             shapes,
+            decals,
             drives,
             gripper: cfg.gripper.clone(),
             hand,

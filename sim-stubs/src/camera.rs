@@ -213,7 +213,19 @@ pub struct SimCamera {
     /// A pose offset of the camera against its URDF mount (optical frame, for calibration
     /// studies): the true optical frame is `mount * offset`.
     pub mount_offset: Isometry3<f64>,
+    /// The robot's decals (its fiducial marker): link index, and the box's pose in the link
+    /// and half extents, m. Their pixels are rendered with area coverage ([`SUPERSAMPLE`]).
+    decals: Vec<(usize, Isometry3<f64>, [f64; 3])>,
+    /// Scratch image of the supersampled crops.
+    crop: RenderedImage,
 }
+
+/// Sub-pixels per pixel side where a decal (the calibration marker) is in view: a real
+/// camera's pixel integrates the light over its area, so a marker's edge gives a grey level
+/// that places it to a fraction of a pixel; rendering at the pixels' centres alone would put
+/// every edge on a half-pixel. The crop around each decal is rendered at this many times the
+/// resolution and averaged down (colour only; depth and labels stay sampled at the centres).
+pub const SUPERSAMPLE: usize = 8;
 
 impl SimCamera {
     /// The camera of `section` on `body` in `scene`, with the D435's depth noise seeded by
@@ -232,12 +244,38 @@ impl SimCamera {
             noise: Some(StereoNoise::D435),
             rng: SimRng::new(seed, 0x00ca_3e2a),
             mount_offset: Isometry3::identity(),
+            decals: body
+                .decals
+                .iter()
+                .filter_map(|(link, s)| match s.shape {
+                    crate::scene::Shape::Box(e) => Some((*link, s.origin, e.map(|v| v / 2.0))),
+                    _ => None,
+                })
+                .collect(),
+            crop: RenderedImage::new(0, 0),
         })
     }
 
     /// The camera's description (intrinsics, rate, optical frame).
     pub fn section(&self) -> &CameraSection {
         &self.section
+    }
+
+    /// Mount the camera off its URDF pose by `error`, a pose in the frame of the optical
+    /// frame's parent link (the camera's body, `camera_link`): the true camera link is the
+    /// URDF's times `error` (the host keeps believing the URDF, or its calibration).
+    pub fn set_mount_error(&mut self, body: &RobotBody, error: &Isometry3<f64>) {
+        // The optical frame's pose in the camera link (its fixed joint's origin).
+        let link_to_optical = body
+            .tree
+            .link_origin(self.optical)
+            .unwrap_or_else(Isometry3::identity);
+        self.mount_offset = link_to_optical.inverse() * error * link_to_optical;
+    }
+
+    /// Draw the robot's decals (the description's hand-eye marker; default off).
+    pub fn show_decals(&mut self, on: bool) {
+        self.renderer.decals = on;
     }
 
     /// The renderer (labels, triangle count).
@@ -269,10 +307,85 @@ impl SimCamera {
     pub fn capture_into(&mut self, truth: &Truth, out: &mut RenderedImage) -> PinholeCamera {
         let cam = self.pinhole(truth);
         self.renderer.render(&cam, &truth.bodies, &truth.links, out);
+        if self.renderer.decals {
+            for i in 0..self.decals.len() {
+                self.supersample_decal(i, &cam, truth, out);
+            }
+        }
         if let Some(n) = self.noise {
             n.apply(&mut out.depth, cam.width as usize, cam.fx, &mut self.rng);
         }
         cam
+    }
+
+    /// Re-render the colour of the pixels round decal `i` with [`SUPERSAMPLE`]² samples each,
+    /// averaged.
+    fn supersample_decal(
+        &mut self,
+        i: usize,
+        cam: &PinholeCamera,
+        truth: &Truth,
+        out: &mut RenderedImage,
+    ) {
+        let (link, origin, h) = self.decals[i];
+        let Some(pose) = truth.links.get(link).map(|l| l * origin) else {
+            return;
+        };
+        // The decal's pixel bounds, a pixel wider each side.
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for k in 0..8 {
+            let sign = |bit: usize| if k & bit == 0 { -1.0 } else { 1.0 };
+            let p = pose * nalgebra::Point3::new(sign(1) * h[0], sign(2) * h[1], sign(4) * h[2]);
+            let Some((u, v)) = cam.project(&p) else {
+                return;
+            };
+            lo = [lo[0].min(u), lo[1].min(v)];
+            hi = [hi[0].max(u), hi[1].max(v)];
+        }
+        let (w, ht) = (cam.width as f64, cam.height as f64);
+        let c0 = (lo[0].floor() - 1.0).max(0.0);
+        let r0 = (lo[1].floor() - 1.0).max(0.0);
+        let c1 = (hi[0].ceil() + 1.0).min(w - 1.0);
+        let r1 = (hi[1].ceil() + 1.0).min(ht - 1.0);
+        // Nothing in view, or absurdly large (a decal at the lens): leave it sampled.
+        if c0 > c1 || r0 > r1 || (c1 - c0) * (r1 - r0) > 40_000.0 {
+            return;
+        }
+        let (cw, ch) = ((c1 - c0) as usize + 1, (r1 - r0) as usize + 1);
+        let s = SUPERSAMPLE;
+        // Sub-pixel (i, j) of the crop samples image point (c0 - 0.5 + (i + 0.5) / s, ...).
+        let sf = s as f64;
+        let crop = PinholeCamera {
+            width: (cw * s) as u32,
+            height: (ch * s) as u32,
+            fx: cam.fx * sf,
+            fy: cam.fy * sf,
+            cx: sf * (cam.cx - c0 + 0.5) - 0.5,
+            cy: sf * (cam.cy - r0 + 0.5) - 0.5,
+            pose: cam.pose,
+        };
+        self.renderer
+            .render(&crop, &truth.bodies, &truth.links, &mut self.crop);
+        let (c0, r0, w) = (c0 as usize, r0 as usize, cam.width as usize);
+        let cw_s = cw * s;
+        for r in 0..ch {
+            for c in 0..cw {
+                let mut sum = [0u32; 3];
+                for j in 0..s {
+                    let row = (r * s + j) * cw_s + c * s;
+                    for px in self.crop.rgb[3 * row..3 * (row + s)].chunks_exact(3) {
+                        for (acc, &v) in sum.iter_mut().zip(px) {
+                            *acc += u32::from(v);
+                        }
+                    }
+                }
+                let n = (s * s) as u32;
+                let o = 3 * ((r0 + r) * w + c0 + c);
+                for (dst, acc) in out.rgb[o..o + 3].iter_mut().zip(sum) {
+                    *dst = ((acc + n / 2) / n) as u8;
+                }
+            }
+        }
     }
 
     /// Render the world of `truth`.
@@ -423,6 +536,20 @@ impl BandedCamera {
     /// The camera's description (the whole image's intrinsics and rate).
     pub fn section(&self) -> &CameraSection {
         &self.section
+    }
+
+    /// Draw the robot's decals ([`SimCamera::show_decals`]).
+    pub fn show_decals(&mut self, on: bool) {
+        for b in &mut self.bands {
+            b.camera.show_decals(on);
+        }
+    }
+
+    /// Mount the camera off its URDF pose by `error` ([`SimCamera::set_mount_error`]).
+    pub fn set_mount_error(&mut self, body: &RobotBody, error: &Isometry3<f64>) {
+        for b in &mut self.bands {
+            b.camera.set_mount_error(body, error);
+        }
     }
 
     /// What a label of a captured image shows ([`Renderer::label_name`]; both bands share

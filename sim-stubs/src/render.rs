@@ -126,6 +126,10 @@ pub struct Renderer {
     sun: Vector3<f32>,
     /// Colour where nothing is hit (the sky), 0-1.
     pub background: [f32; 3],
+    /// Index in `meshes` of the first of the robot's decals (they come last).
+    first_decal: usize,
+    /// Whether the decals (the hand-eye marker) are drawn.
+    pub decals: bool,
 }
 
 fn tessellate(shape: &Shape) -> (TriMesh, bool) {
@@ -191,6 +195,8 @@ impl Renderer {
             labels: vec![String::new()],
             sun: Vector3::new(0.35f32, 0.25, 0.9).normalize(),
             background: [0.75, 0.8, 0.85],
+            first_decal: usize::MAX,
+            decals: false,
         };
         for (i, b) in scene.bodies.iter().enumerate() {
             r.add_body(i, b);
@@ -212,6 +218,22 @@ impl Renderer {
                     r.meshes
                         .push((Owner::Link(li), draw_mesh(&m, closed, s.origin, mat, label)));
                 }
+            }
+            r.first_decal = r.meshes.len();
+            for (li, s) in &body.decals {
+                let name = body.tree.links().nth(*li).unwrap_or_default();
+                r.labels.push(format!("robot/{name}/marker"));
+                let label = (r.labels.len() - 1) as u32;
+                let (m, closed) = tessellate(&s.shape);
+                r.materials.push(Material {
+                    colour: s.colour,
+                    texture: None,
+                });
+                let mat = (r.materials.len() - 1) as u32;
+                r.meshes.push((
+                    Owner::Link(*li),
+                    draw_mesh(&m, closed, s.origin, mat, label),
+                ));
             }
         }
         r
@@ -289,7 +311,12 @@ impl Renderer {
         // Every triangle that survives culling gets a shading record; the id buffer names the
         // nearest one per pixel (deferred shading: each pixel is shaded once).
         let mut shades: Vec<Shade> = Vec::with_capacity(self.triangles());
-        for (owner, m) in &self.meshes {
+        let drawn = if self.decals {
+            self.meshes.len()
+        } else {
+            self.first_decal.min(self.meshes.len())
+        };
+        for (owner, m) in &self.meshes[..drawn] {
             let owner_pose = match owner {
                 Owner::Body(i) => bodies.get(*i),
                 Owner::Link(i) => links.get(*i),

@@ -283,6 +283,27 @@ pub struct CameraOptions {
     pub seed: u64,
     /// Simulate the depth noise.
     pub noise: bool,
+    /// How far the camera sits off its URDF mount, in the camera link's frame
+    /// ([`crate::camera::SimCamera::set_mount_error`]); identity for none.
+    pub mount_error: nalgebra::Isometry3<f64>,
+    /// Draw the description's hand-eye marker on the robot.
+    pub marker: bool,
+}
+
+impl CameraOptions {
+    /// The camera of `section` on `body` in `scene`, or `None` if the URDF has no such
+    /// optical frame.
+    pub fn camera(
+        &self,
+        scene: &crate::scene::Scene,
+        body: &crate::body::RobotBody,
+    ) -> Option<crate::camera::BandedCamera> {
+        let mut cam =
+            crate::camera::BandedCamera::new(scene, body, &self.section, self.seed, self.noise)?;
+        cam.set_mount_error(body, &self.mount_error);
+        cam.show_decals(self.marker);
+        Some(cam)
+    }
 }
 
 impl FirmwareServer {
@@ -339,9 +360,7 @@ pub fn serve_firmware(
     let (tap, truth_rx) = std::sync::mpsc::channel();
     let camera = match (camera, sim.body()) {
         (Some(c), Some(body)) => {
-            let Some(cam) =
-                crate::camera::BandedCamera::new(sim.scene(), body, &c.section, c.seed, c.noise)
-            else {
+            let Some(cam) = c.camera(sim.scene(), body) else {
                 return Err(ServeError::Io(io::Error::other(format!(
                     "the URDF has no camera frame {:?}",
                     c.section.frame

@@ -289,6 +289,10 @@ enum Cmd {
     /// arrow is held; the robot's state shown live. q, Esc or Ctrl-C quits with the base
     /// stopped and the arm holding.
     Teleop(TeleopCli),
+    /// Hand-eye calibration of the head camera against the marker on the gripper (PyRobot's
+    /// locobot_calibration), the simulated camera mounted off nominal by --perturb: prints
+    /// the fitted mount's error against the true one; --out writes the calibration file.
+    CalibrateCamera(CalibrateCameraCli),
     /// Run the quickstart on the simulated LoCoBot.
     Demo {
         /// Robot (default locobot).
@@ -512,6 +516,34 @@ struct TeleopCli {
 }
 
 #[derive(Args)]
+struct CalibrateCameraCli {
+    /// Robot name or configuration path.
+    robot: String,
+    /// The simulated camera's mount error DX DY DZ DROLL DPITCH DYAW (m and rad, in the camera
+    /// link's frame; each within 0.1 m and 0.5 rad).
+    #[arg(long, num_args = 6, allow_negative_numbers = true,
+          value_names = ["DX", "DY", "DZ", "DROLL", "DPITCH", "DYAW"])]
+    perturb: Option<Vec<f64>>,
+    /// Arm poses holding the marker (1-6).
+    #[arg(long, default_value_t = 6)]
+    poses: usize,
+    /// Head grid side: GRID x GRID pan/tilt views per arm pose (1-5).
+    #[arg(long, default_value_t = 3)]
+    grid: usize,
+    /// Scene name or path.
+    #[arg(long, default_value = "empty")]
+    scene: String,
+    #[command(flatten)]
+    backend: cmd::common::BackendArgs,
+    /// Write the calibration (TOML) here, for `RobotBuilder::camera_calibration`.
+    #[arg(long)]
+    out: Option<std::path::PathBuf>,
+    /// Print one JSON object.
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(Args)]
 struct SnapshotCli {
     /// Robot name or configuration path.
     robot: String,
@@ -625,6 +657,22 @@ fn run(cli: Cli) -> Result<(), (ferrobot::Error, bool)> {
             }),
             a.json,
         ),
+        Cmd::CalibrateCamera(a) => {
+            let p = a.perturb.as_deref().unwrap_or(&[0.0; 6]);
+            (
+                cmd::calibrate_camera::run(&cmd::calibrate_camera::CalibrateArgs {
+                    robot: &a.robot,
+                    perturb: [p[0], p[1], p[2], p[3], p[4], p[5]],
+                    poses: a.poses,
+                    grid: a.grid,
+                    scene: &a.scene,
+                    backend: &a.backend,
+                    out: a.out.as_deref(),
+                    json: a.json,
+                }),
+                a.json,
+            )
+        }
         Cmd::BaseMove {
             robot,
             relative,

@@ -41,6 +41,9 @@ fn case(args: &[&str], expect: Expect) -> Case {
 /// Non-finite, huge, negative-huge, tiny and empty numbers.
 const HOSTILE: [&str; 8] = ["nan", "inf", "-inf", "1e300", "-1e308", "1e9", "NaN", ""];
 
+/// The LoCoBot's hand-eye marker line.
+const MARKER: &str = r#"marker = { link = "ar_tag", size = 0.03, xyz = [0.0, 0.0, 0.0026] }"#;
+
 /// Copies of the bundled LoCoBot configuration with one hostile edit each, and the key the
 /// error must name: every number in a configuration is checked at load.
 fn hostile_configs() -> Vec<(&'static str, String, &'static str)> {
@@ -102,6 +105,16 @@ fn hostile_configs() -> Vec<(&'static str, String, &'static str)> {
             "base.max_linear",
         ),
         ("fx_nan", edit("fx = 619.8997", "fx = nan"), "camera.fx"),
+        (
+            "marker_size_nan",
+            edit(MARKER, &MARKER.replace("size = 0.03", "size = nan")),
+            "camera.marker.size",
+        ),
+        (
+            "marker_link_unknown",
+            edit(MARKER, &MARKER.replace("ar_tag", "nowhere")),
+            "camera.marker.link",
+        ),
         (
             "width_zero",
             edit("width = 640", "width = 0"),
@@ -1112,6 +1125,47 @@ fn cases() -> Vec<Case> {
         a.extend_from_slice(args);
         c.push(case(&a, Input));
     }
+    // calibrate-camera: hostile and absurd mount errors, counts, robots, scenes, output paths.
+    for v in HOSTILE {
+        for at in [1, 5] {
+            let mut p = ["0"; 6];
+            p[at] = v;
+            let mut a = vec!["calibrate-camera", "locobot", "--perturb"];
+            a.extend_from_slice(&p);
+            a.push("--json");
+            c.push(case(&a, Input));
+        }
+    }
+    for args in [
+        &["--perturb", "0.2", "0", "0", "0", "0", "0"][..],
+        &["--perturb", "0", "0", "0", "0.6", "0", "0"],
+        &["--perturb", "0", "0"],
+        &["--poses", "0"],
+        &["--poses", "7"],
+        &["--grid", "0"],
+        &["--grid", "99"],
+        &["--poses", "-1"],
+        &["--scene", "nowhere"],
+        &["--out", "./no-such-dir/cal.toml"],
+        &["--out", "."],
+    ] {
+        let mut a = vec!["calibrate-camera", "locobot"];
+        a.extend_from_slice(args);
+        a.push("--json");
+        c.push(case(&a, Input));
+    }
+    c.push(case(&["calibrate-camera", "nobot", "--json"], Input));
+    c.push(case(&["calibrate-camera", "sawyer", "--json"], Input));
+    c.push(case(
+        &[
+            "calibrate-camera",
+            "locobot",
+            "--backend",
+            "serial",
+            "--json",
+        ],
+        Failure,
+    ));
     c
 }
 

@@ -8,6 +8,9 @@
 
 #![warn(missing_docs)]
 
+pub mod camera_mount;
+pub use camera_mount::{CameraCalibration, CameraMount};
+
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 
@@ -257,6 +260,33 @@ pub struct CameraSection {
     /// Frames per second (default 30, the D435's colour and depth rate).
     #[serde(default = "default_camera_rate")]
     pub rate: f64,
+    /// The fiducial marker on the arm that hand-eye calibration looks for, if any.
+    #[serde(default)]
+    pub marker: Option<MarkerSection>,
+}
+
+/// `[camera.marker]`: a square fiducial (a black square on a white plate) on a link of the
+/// arm, seen by the camera during hand-eye calibration.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MarkerSection {
+    /// The link the marker is fixed to (PyRobot's LoCoBot: `ar_tag` on the gripper).
+    pub link: String,
+    /// Side of the black square, m (PyRobot's AR tag: 0.03).
+    pub size: f64,
+    /// Centre of the square's face in the link's frame, m; the square lies in the link's xy
+    /// plane (its sides along x and y), facing +z.
+    pub xyz: [f64; 3],
+}
+
+impl MarkerSection {
+    /// The square's corners in the marker link's frame, m: (+x, +y), (−x, +y), (−x, −y),
+    /// (+x, −y) from the centre, counter-clockwise seen from +z.
+    pub fn corners(&self) -> [[f64; 3]; 4] {
+        let h = self.size / 2.0;
+        let [x, y, z] = self.xyz;
+        [[h, h], [-h, h], [-h, -h], [h, -h]].map(|[dx, dy]| [x + dx, y + dy, z])
+    }
 }
 
 fn default_camera_rate() -> f64 {
@@ -1067,6 +1097,19 @@ impl RobotConfig {
                     "camera.frame",
                     format!("the URDF has no link {:?}", c.frame),
                 ));
+            }
+            if let Some(m) = &c.marker {
+                if !urdf.links.iter().any(|l| l.name == m.link) {
+                    return Err(cfg_err(
+                        file,
+                        "camera.marker.link",
+                        format!("the URDF has no link {:?}", m.link),
+                    ));
+                }
+                num(file, "camera.marker.size", m.size, 1e-3, 1.0)?;
+                for v in m.xyz {
+                    num(file, "camera.marker.xyz", v, -1.0, 1.0)?;
+                }
             }
         }
         if let Some(b) = &raw.base {

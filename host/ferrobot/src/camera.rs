@@ -17,6 +17,7 @@ use ferrobot_perception::{
     backproject, pixels_to_points, DepthImage, DepthRange, Intrinsics, PixelPoints, PointCloud,
     RgbImage,
 };
+use ferrobot_protocol::Telemetry;
 use nalgebra::Isometry3;
 
 use crate::backend::Link;
@@ -107,6 +108,11 @@ impl Camera {
     /// The next frame with its time and the camera's pose at that time. The time until the
     /// frame passes as any wait does: the motions under way go on meanwhile.
     pub fn get_frame(&self) -> Result<Frame> {
+        Ok(self.frame_with_telemetry()?.0)
+    }
+
+    /// [`Camera::get_frame`] and the telemetry whose joints placed the camera.
+    pub(crate) fn frame_with_telemetry(&self) -> Result<(Frame, Telemetry)> {
         let frame = self.robot.optical_frame()?;
         let until = {
             let io = self.robot.lock_io();
@@ -139,13 +145,14 @@ impl Camera {
             .robot
             .frames()?
             .transform_at(&tel, &frame, "base_link")?;
-        Ok(Frame {
+        let frame = Frame {
             rgb: raw.rgb,
             depth: raw.depth,
             intrinsics,
             time: raw.time,
             camera_pose,
-        })
+        };
+        Ok((frame, tel))
     }
 
     /// The next colour image (H x W x 3, 8-bit RGB).

@@ -42,6 +42,23 @@ pub struct RobotBuilder {
     depth_noise: bool,
     camera_device: Option<Box<dyn CameraDevice>>,
     start_pose: Option<[f64; 3]>,
+    camera_mount_error: [f64; 6],
+    camera_calibration: Option<std::path::PathBuf>,
+    marker: bool,
+}
+
+/// Largest camera mount error the simulator takes: 0.1 m along each axis, 0.5 rad about each.
+pub const MAX_CAMERA_MOUNT_ERROR: [f64; 2] = [0.1, 0.5];
+
+/// The simulated world a robot is connected to: the scene, the camera's depth noise and how
+/// far the camera truly sits off its URDF mount, and the description the world is built from
+/// (the URDF's, whatever calibration the host believes).
+struct World {
+    scene: Arc<Scene>,
+    depth_noise: bool,
+    mount_error: nalgebra::Isometry3<f64>,
+    marker: bool,
+    cfg: RobotConfig,
 }
 
 impl RobotBuilder {
@@ -64,6 +81,35 @@ impl RobotBuilder {
         self.loaded_scene = Some(scene);
         self
     }
+
+    /// Mount the simulated camera off its URDF pose by `[dx, dy, dz, droll, dpitch, dyaw]`
+    /// (m and rad, in the camera link's frame: the true camera link is the URDF's times this
+    /// pose, the rotation roll-pitch-yaw as in a URDF) for hand-eye calibration studies; on
+    /// the sim and emulated backends. The host keeps believing the URDF (or the calibration
+    /// of [`RobotBuilder::camera_calibration`]). Checked by [`RobotBuilder::build`]: finite,
+    /// within [`MAX_CAMERA_MOUNT_ERROR`].
+    pub fn camera_mount_error(mut self, error: [f64; 6]) -> Self {
+        self.camera_mount_error = error;
+        self
+    }
+
+    /// Draw the description's hand-eye marker (`[camera.marker]`) on the simulated robot, on
+    /// the sim and emulated backends (default off: with the arm at home its corners sit fixed
+    /// in the camera's view and visual SLAM takes them for features of the world;
+    /// [`Robot::calibrate_camera`] needs it on).
+    pub fn calibration_marker(mut self, on: bool) -> Self {
+        self.marker = on;
+        self
+    }
+
+    /// Use the camera mount measured by hand-eye calibration (a file of
+    /// [`ferrobot_description::CameraCalibration`]) instead of the URDF's: every camera pose
+    /// and cloud the host computes then uses it.
+    pub fn camera_calibration(mut self, path: impl AsRef<Path>) -> Self {
+        self.camera_calibration = Some(path.as_ref().to_path_buf());
+        self
+    }
+
     /// Simulate the depth camera's noise (default on: the D435's stereo noise model); off for
     /// exact depth.
     pub fn depth_noise(mut self, on: bool) -> Self {
@@ -108,7 +154,17 @@ impl RobotBuilder {
 
     /// Load, connect, configure.
     pub fn build(self) -> Result<Robot> {
-        let cfg = RobotConfig::load(&self.source, &self.overrides)?;
+        let world_cfg = RobotConfig::load(&self.source, &self.overrides)?;
+        let mut cfg = world_cfg.clone();
+        if let Some(path) = &self.camera_calibration {
+            let c = ferrobot_description::CameraCalibration::load(path)?;
+            cfg.set_camera_mount(&c, path)?;
+        }
+        let e = self.camera_mount_error;
+        let [tmax, rmax] = MAX_CAMERA_MOUNT_ERROR;
+        crate::validate::all_in_range("camera mount error (m)", &e[..3], -tmax, tmax)?;
+        crate::validate::all_in_range("camera mount error (rad)", &e[3..], -rmax, rmax)?;
+        let mount_error = crate::hand_eye::mount_error_pose(&e);
         let mut scene = match self.loaded_scene {
             Some(s) => s,
             None => Scene::load(&self.scene)?,
@@ -119,15 +175,14 @@ impl RobotBuilder {
             crate::validate::in_range("start heading", p[2], -m, m)?;
             scene.robot_pose = p;
         }
-        let scene = Arc::new(scene);
-        Robot::connect(
-            cfg,
-            self.backend,
-            self.uses,
-            scene,
-            self.depth_noise,
-            self.camera_device,
-        )
+        let world = World {
+            scene: Arc::new(scene),
+            depth_noise: self.depth_noise,
+            mount_error,
+            marker: self.marker,
+            cfg: world_cfg,
+        };
+        Robot::connect(cfg, self.backend, self.uses, world, self.camera_device)
     }
 }
 
@@ -215,6 +270,9 @@ impl Robot {
             depth_noise: true,
             camera_device: None,
             start_pose: None,
+            camera_mount_error: [0.0; 6],
+            camera_calibration: None,
+            marker: false,
         }
     }
 
@@ -235,6 +293,9 @@ impl Robot {
             depth_noise: true,
             camera_device: None,
             start_pose: None,
+            camera_mount_error: [0.0; 6],
+            camera_calibration: None,
+            marker: false,
         }
     }
 
@@ -242,15 +303,21 @@ impl Robot {
         cfg: RobotConfig,
         backend: Backend,
         uses: Use,
-        scene: Arc<Scene>,
-        depth_noise: bool,
+        world: World,
         camera_device: Option<Box<dyn CameraDevice>>,
     ) -> Result<Robot> {
+        let World {
+            scene,
+            depth_noise,
+            mount_error,
+            marker,
+            cfg: world_cfg,
+        } = world;
         // The link, and the socket of a camera served from the backend's world, if any.
         let (mut link, served_camera): (Box<dyn Link>, Option<std::path::PathBuf>) = match &backend
         {
             Backend::Sim { seed, realtime } => (
-                Box::new(SimLink::start(&cfg, *seed, *realtime, scene.clone())?),
+                Box::new(SimLink::start(&world_cfg, *seed, *realtime, scene.clone())?),
                 None,
             ),
             // `ferrobot sim-firmware` serves its world's camera beside the port.
@@ -270,6 +337,8 @@ impl Robot {
                         section,
                         seed: 1,
                         noise: depth_noise,
+                        mount_error,
+                        marker,
                     });
                 let link = crate::backend::emulated::EmulatedLink::start_in(
                     &cfg.name,
@@ -292,10 +361,16 @@ impl Robot {
         let camera = match (&cfg.camera, uses.camera, camera_device) {
             (Some(_), true, Some(d)) => Some(d),
             (Some(section), true, None) => match (&backend, link.simulator(), served_camera) {
-                (Backend::Sim { seed, .. }, Some(sim), _) => Some(Box::new(
-                    crate::backend::sim::SimCameraDevice::new(sim, section, depth_noise, *seed)?,
-                )
-                    as Box<dyn CameraDevice>),
+                (Backend::Sim { seed, .. }, Some(sim), _) => {
+                    Some(Box::new(crate::backend::sim::SimCameraDevice::new(
+                        sim,
+                        section,
+                        depth_noise,
+                        *seed,
+                        &mount_error,
+                        marker,
+                    )?) as Box<dyn CameraDevice>)
+                }
                 (_, _, Some(socket)) => Some(Box::new(
                     crate::backend::camera_socket::SocketCamera::connect(socket)?,
                 ) as Box<dyn CameraDevice>),

@@ -792,3 +792,110 @@ fn grasping_refuses_hostile_clouds_and_options() {
         .expect("grasping refuses hostile clouds and options");
     report("grasping", calls.get());
 }
+
+/// Hand-eye calibration under hostile values: camera mount errors for the simulator (refused
+/// unless finite and within 0.1 m / 0.5 rad), head offsets, inlier thresholds and search radii
+/// (refused before anything moves), predicted marker corners and search radii for the
+/// detector, and views and thresholds for the solver. The calibration itself runs in
+/// `hand_eye.rs`; here only its refusals.
+#[test]
+fn hand_eye_calibration_refuses_hostile_values() {
+    use ferrobot::perception::{detect_square, HandEyeProblem, MarkerView};
+    use ferrobot::HandEyeOptions;
+    let bot = Robot::new("locobot").expect("robot");
+    let frame = bot.camera().expect("camera").get_frame().expect("frame");
+    let k = frame.intrinsics;
+    let calls = std::cell::Cell::new(0usize);
+    let strategy = (
+        [value(), value(), value(), value(), value(), value()],
+        [
+            value(),
+            value(),
+            value(),
+            value(),
+            value(),
+            value(),
+            value(),
+            value(),
+        ],
+        (value(), value(), value()),
+        (value(), value()),
+    );
+    runner(10)
+        .run(
+            &strategy,
+            |(perturb, corners, (radius, pan, tilt), (inlier, search))| {
+                if calls.get() < 40 {
+                    let r = Robot::builder("locobot")
+                        .use_arm(false)
+                        .camera_mount_error(perturb)
+                        .build();
+                    let out = perturb[..3].iter().any(|v| !(-0.1..=0.1).contains(v))
+                        || perturb[3..].iter().any(|v| !(-0.5..=0.5).contains(v));
+                    judge("RobotBuilder::camera_mount_error", out, &r)?;
+                }
+                let c = [
+                    [corners[0] * 300.0, corners[1] * 300.0],
+                    [corners[2] * 300.0, corners[3] * 300.0],
+                    [corners[4] * 300.0, corners[5] * 300.0],
+                    [corners[6] * 300.0, corners[7] * 300.0],
+                ];
+                let r = detect_square(&frame.rgb, &c, radius * 100.0);
+                judge(
+                    "detect_square",
+                    absurd(&corners)
+                        || absurd(&[radius])
+                        || radius.is_nan()
+                        || radius * 100.0 < 1.0,
+                    &r,
+                )?;
+                // Options out of range: refused before the arm or head moves.
+                let opts = HandEyeOptions {
+                    pan_offsets: vec![pan],
+                    tilt_offsets: vec![tilt],
+                    inlier_px: inlier * 100.0,
+                    search_px: search * 100.0,
+                    ..HandEyeOptions::default()
+                };
+                let bad = !(-1.0..=1.0).contains(&pan)
+                    || !(-1.0..=1.0).contains(&tilt)
+                    || !((0.1..=1000.0).contains(&(inlier * 100.0)))
+                    || !((1.0..=1000.0).contains(&(search * 100.0)));
+                if bad {
+                    judge(
+                        "Robot::calibrate_camera",
+                        true,
+                        &bot.calibrate_camera(&opts),
+                    )?;
+                }
+                // The solver: hostile views and thresholds.
+                let p = HandEyeProblem {
+                    intrinsics: k,
+                    link_to_optical: Isometry3::identity(),
+                    corners: [nalgebra::Point3::new(corners[0], corners[1], 0.5); 4],
+                    views: vec![
+                        MarkerView {
+                            head: Isometry3::translation(perturb[0], perturb[1], perturb[2]),
+                            marker: Isometry3::translation(0.0, 0.0, 0.5),
+                            corners: c,
+                        };
+                        4
+                    ],
+                    initial: Isometry3::identity(),
+                    inlier_px: inlier * 100.0,
+                    min_views: 3,
+                    min_sensitivity: 0.1,
+                };
+                let r = p.solve();
+                judge(
+                    "HandEyeProblem::solve",
+                    absurd(&corners) || absurd(&perturb[..3]) || !(inlier > 0.0 && inlier <= 10.0),
+                    &r,
+                )?;
+                calls.set(calls.get() + 4);
+                Ok(())
+            },
+        )
+        .expect("hand-eye calibration refuses hostile values");
+    report("hand-eye calibration", calls.get());
+}

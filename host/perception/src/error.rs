@@ -140,6 +140,13 @@ pub enum PerceptionError {
         /// Objects on the table.
         objects: usize,
     },
+    /// The fiducial marker was not found in an image (or in any image).
+    #[error("marker not seen: {0}")]
+    MarkerNotSeen(String),
+    /// Hand-eye calibration cannot determine the camera's mount from what it was given (too
+    /// few images of the marker, or views that leave a direction unobserved).
+    #[error("hand-eye calibration: {0}")]
+    HandEye(String),
     /// The k-d tree could not be built (kiddo refused the points).
     #[error("k-d tree: {0}")]
     KdTree(String),
@@ -154,6 +161,8 @@ impl PerceptionError {
             PerceptionError::NoPlane { .. }
                 | PerceptionError::NoObjectOnTable
                 | PerceptionError::NoPush { .. }
+                | PerceptionError::MarkerNotSeen(_)
+                | PerceptionError::HandEye(_)
         )
     }
 }

@@ -8,8 +8,9 @@
 //! ([`segment`]), DBSCAN clustering with scikit-learn's semantics ([`cluster`]) and each
 //! object's centroid, extent and principal axis ([`features`]); where to push an object
 //! ([`push`]); top-down antipodal grasps on the objects, scored by a replaceable model
-//! ([`grasp`]); seeded synthetic clouds for
-//! tests and benchmarks ([`synthetic`]).
+//! ([`grasp`]); seeded synthetic clouds for tests and benchmarks ([`synthetic`]). From
+//! images: a square fiducial's corners ([`marker`]) and the camera's mount from them
+//! ([`hand_eye`]).
 //!
 //! Frames: the camera's optical frame is x right, y down, z forward (REP 103's
 //! `*_optical_frame`); pixel (row r, column c) has its centre at image coordinates
@@ -22,9 +23,11 @@ pub mod cluster;
 pub mod error;
 pub mod features;
 pub mod grasp;
+pub mod hand_eye;
 pub mod image;
 pub mod intrinsics;
 pub mod io;
+pub mod marker;
 pub mod plane;
 pub mod push;
 pub mod segment;
@@ -37,8 +40,10 @@ pub use features::{features, object_features, ObjectFeatures};
 pub use grasp::{
     detect_grasps, AnalyticScorer, Grasp, GraspCandidate, GraspModel, GraspParams, GripperGeometry,
 };
+pub use hand_eye::{HandEyeProblem, HandEyeSolution, MarkerView};
 pub use image::{DepthImage, RgbImage};
 pub use intrinsics::Intrinsics;
+pub use marker::{detect_square, SquareDetection};
 pub use plane::{fit_plane, Plane, PlaneFit, RansacParams};
 pub use push::{plan_push, rank_pushes, PushParams, PushPlan};
 pub use segment::{above_table, segment_objects, SegmentParams, SegmentedObject, TableRegion};

@@ -9,6 +9,7 @@ pub mod bench_grasp;
 pub mod bench_nav;
 pub mod bench_plan;
 pub mod bench_push;
+pub mod calibrate_camera;
 pub mod calibrate_odometry;
 pub mod cluster;
 pub mod collision_matrix;

@@ -33,6 +33,8 @@ pub fn run(
             section,
             seed,
             noise,
+            mount_error: nalgebra::Isometry3::identity(),
+            marker: false,
         });
     ferrobot_sim::serve::run_firmware_server(sim, &cfg.name, link, camera).map_err(|e| match e {
         ferrobot_sim::serve::ServeError::LinkExists(path) => ferrobot::Error::PathExists { path },

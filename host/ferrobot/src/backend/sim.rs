@@ -131,12 +131,16 @@ pub struct SimCameraDevice {
 impl SimCameraDevice {
     /// The camera of `section` in the simulator `sim` (its scene and the robot's body), depth
     /// noise on or off, seeded by `seed`, at the section's rate (frames at whole multiples of
-    /// the period on the simulator's clock; each capture takes the next one not yet taken).
+    /// the period on the simulator's clock; each capture takes the next one not yet taken),
+    /// mounted off its URDF pose by `mount_error` (the camera link's frame; identity for
+    /// none), the hand-eye marker drawn or not (`marker`).
     pub fn new(
         sim: &LockstepSim,
         section: &ferrobot_description::CameraSection,
         noise: bool,
         seed: u64,
+        mount_error: &nalgebra::Isometry3<f64>,
+        marker: bool,
     ) -> Result<Self> {
         let intrinsics = ferrobot_perception::Intrinsics::new(
             section.width,
@@ -154,7 +158,7 @@ impl SimCameraDevice {
         let body = sim
             .body()
             .ok_or_else(|| bad("the simulated robot has no body to mount a camera on".into()))?;
-        let camera =
+        let mut camera =
             ferrobot_sim::camera::BandedCamera::new(sim.scene(), body, section, seed, noise)
                 .ok_or_else(|| {
                     bad(format!(
@@ -162,6 +166,8 @@ impl SimCameraDevice {
                         section.frame
                     ))
                 })?;
+        camera.set_mount_error(body, mount_error);
+        camera.show_decals(marker);
         let clock = ferrobot_sim::camera::FrameClock::new(section.rate)
             .ok_or_else(|| bad(format!("rate {} Hz (need (0, 1000])", section.rate)))?;
         Ok(SimCameraDevice {
