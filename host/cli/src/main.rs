@@ -20,6 +20,10 @@
 //! ferrobot nav-plan --map map.yaml --from 1 1 --to 3 2 --radius 0.2 --json
 //! ferrobot cluster --in cloud.ply --eps 0.02 --min-samples 15 --json
 //! ferrobot teleop locobot --scene tabletop
+//! ferrobot bench grasp locobot --scene tabletop --trials 100 --seed 1 --json
+//! ferrobot bench push locobot --scene tabletop --trials 100 --seed 1 --json
+//! ferrobot bench arm locobot --out target/bench-arm --json
+//! ferrobot calibrate-camera locobot --perturb 0.02 0 0 0 0.0524 0 --seed 1 --json
 //! ```
 
 use std::process::ExitCode;
