@@ -38,19 +38,9 @@ use rand_chacha::ChaCha8Rng;
 
 const N: usize = 100_000;
 
-/// The LoCoBot's camera intrinsics (its D435 at 640x480), from its description.
-fn locobot_intrinsics() -> Intrinsics {
-    let cfg = ferrobot_description::RobotConfig::bundled("locobot").expect("bundled LoCoBot");
-    let c = cfg.camera.expect("the LoCoBot has a camera");
-    Intrinsics {
-        width: c.width,
-        height: c.height,
-        fx: c.fx,
-        fy: c.fy,
-        cx: c.cx,
-        cy: c.cy,
-    }
-}
+#[path = "../tests/support/locobot_camera.rs"]
+mod locobot_camera;
+use locobot_camera::locobot_intrinsics;
 
 /// `n` of `points` drawn at random (seeded), in their original order.
 fn subset(points: &[Point3<f64>], n: usize, seed: u64) -> Vec<Point3<f64>> {

@@ -382,13 +382,15 @@ mod tests {
         finger_length: 0.03,
     };
 
+    use crate::locobot_camera::locobot_intrinsics;
+
     /// A table top at 0.1 m with `objects` on it, seen by the LoCoBot's camera (exact depth).
     fn look(objects: Vec<Solid>) -> (Vec<Point3<f64>>, Plane, Vec<SegmentedObject>) {
         let mut scene = Tabletop::random(1, 0, 0.05);
         scene.objects = objects;
         let cam = DepthCamera {
             noise_at_1m: 0.0,
-            ..DepthCamera::looking_down(crate::synthetic::locobot_intrinsics()).scaled(0.5)
+            ..DepthCamera::looking_down(locobot_intrinsics()).scaled(0.5)
         };
         let pts = cam.cloud(&scene, 1).unwrap().points;
         let fit = fit_plane(

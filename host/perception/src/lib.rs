@@ -33,6 +33,10 @@ pub mod push;
 pub mod segment;
 pub mod synthetic;
 
+#[cfg(test)]
+#[path = "../tests/support/locobot_camera.rs"]
+mod locobot_camera;
+
 pub use cloud::{backproject, pixels_to_points, DepthRange, PixelPoints, PointCloud};
 pub use cluster::{Clusterer, Clustering, Dbscan, DbscanParams, ExhaustiveDbscan, NOISE};
 pub use error::{PerceptionError, Result};

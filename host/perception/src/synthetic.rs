@@ -505,21 +505,6 @@ pub fn sample_rectangle(
     pts
 }
 
-/// The LoCoBot's camera intrinsics (its D435 at 640x480), from its description, for tests.
-#[cfg(test)]
-pub(crate) fn locobot_intrinsics() -> Intrinsics {
-    let cfg = ferrobot_description::RobotConfig::bundled("locobot").expect("bundled LoCoBot");
-    let c = cfg.camera.expect("the LoCoBot has a camera");
-    Intrinsics {
-        width: c.width,
-        height: c.height,
-        fx: c.fx,
-        fy: c.fy,
-        cx: c.cx,
-        cy: c.cy,
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -25,19 +25,9 @@ use ferrobot_perception::{
 };
 use nalgebra::Point3;
 
-/// The LoCoBot's camera intrinsics (its D435 at 640x480), from its description.
-fn locobot_intrinsics() -> Intrinsics {
-    let cfg = ferrobot_description::RobotConfig::bundled("locobot").expect("bundled LoCoBot");
-    let c = cfg.camera.expect("the LoCoBot has a camera");
-    Intrinsics {
-        width: c.width,
-        height: c.height,
-        fx: c.fx,
-        fy: c.fy,
-        cx: c.cx,
-        cy: c.cy,
-    }
-}
+#[path = "support/locobot_camera.rs"]
+mod locobot_camera;
+use locobot_camera::locobot_intrinsics;
 
 /// The peer's Python, or `None` (skip): [`ferrobot_peers::for_test`]'s rule.
 fn peer_python() -> Option<PathBuf> {
