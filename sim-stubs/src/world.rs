@@ -5,7 +5,9 @@
 //!   bodies; movable ones are dynamic rigid bodies with their mass (inertia from the shape at
 //!   uniform density) and friction. Primitives map to rapier's shapes (cylinders and capsules
 //!   along z as in the scene); a movable mesh is its convex hull (rapier's dynamic bodies
-//!   need convex or decomposed shapes; the bundled objects are convex or nearly so), a static
+//!   need convex or decomposed shapes; the bundled objects are convex or nearly so), touching
+//!   with whole faces ([`crate::hull::Hull`]: parry alone lets a many-sided face, a mug's
+//!   base, touch at four neighbouring corners, and the mug walks), a static
 //!   mesh its exact triangle mesh. A mesh rapier cannot build (degenerate: no hull, no
 //!   triangles) gets no collider: it is seen by the camera but not touched.
 //! * The robot's links with collision shapes are kinematic (position-based) bodies, moved at
@@ -256,7 +258,7 @@ fn collider(b: &Body) -> Option<ColliderBuilder> {
             if b.fixed {
                 ColliderBuilder::trimesh(v, mesh.triangles.clone()).ok()?
             } else {
-                ColliderBuilder::convex_hull(&v)?
+                ColliderBuilder::new(SharedShape::new(crate::hull::Hull::new(&v)?))
             }
         }
     };
@@ -355,13 +357,7 @@ impl World {
         w.pw.detect_collisions(&(), &());
         w.check_overlap(scene)?;
         // Every movable body starts awake (rapier may sleep it once it rests).
-        for h in &w.bodies {
-            if let Some(b) = w.pw.bodies.get_mut(*h) {
-                if b.is_dynamic() {
-                    b.wake_up(true);
-                }
-            }
-        }
+        w.wake_all();
         Ok(w)
     }
 
@@ -522,6 +518,19 @@ impl World {
             }
         }
         Ok(())
+    }
+
+    /// Wake every movable body: the engine moves each again until it has been at rest long
+    /// enough to sleep (rapier's 2 s). A body asleep does not move at all; a world kept awake
+    /// (by a moving robot, a rolling object) shows what the engine does to a resting one.
+    pub fn wake_all(&mut self) {
+        for h in &self.bodies {
+            if let Some(b) = self.pw.bodies.get_mut(*h) {
+                if b.is_dynamic() {
+                    b.wake_up(true);
+                }
+            }
+        }
     }
 
     /// Simulated time of the world, µs.
