@@ -657,6 +657,20 @@ fn the_push_refuses_hostile_options() {
                 o.segment.min_height = v;
                 o
             }),
+            (
+                "base_shifts",
+                PushOptions {
+                    base_shifts: vec![0.1, v],
+                    ..Default::default()
+                },
+            ),
+            (
+                "table_clearance",
+                PushOptions {
+                    table_clearance: v,
+                    ..Default::default()
+                },
+            ),
         ];
         for (what, opts) in cases {
             if what == "tilt" && v == -1.0 {
