@@ -30,6 +30,7 @@ pub mod diff_drive;
 pub mod floor_plan;
 pub mod hardware;
 pub mod hostile;
+pub mod hull;
 pub mod lockstep;
 pub mod mesh;
 pub mod pipe;

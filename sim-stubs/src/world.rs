@@ -4,8 +4,11 @@
 //! * Static scene bodies ([`Body::fixed`]: the floor, walls, furniture) are fixed rigid
 //!   bodies; movable ones are dynamic rigid bodies with their mass (inertia from the shape at
 //!   uniform density) and friction. Primitives map to rapier's shapes (cylinders and capsules
-//!   along z as in the scene); a movable mesh is its convex hull (rapier's dynamic bodies
-//!   need convex or decomposed shapes; the bundled objects are convex or nearly so), a static
+//!   along z as in the scene; a movable capsule is a chain of balls, [`BALL_SPACING`], up to
+//!   [`MAX_BALLS`]: rapier's own rolls away by itself); a movable mesh is its convex hull (rapier's dynamic bodies
+//!   need convex or decomposed shapes; the bundled objects are convex or nearly so), touching
+//!   with whole faces ([`crate::hull::Hull`]: parry alone lets a many-sided face, a mug's
+//!   base, touch at four neighbouring corners, and the mug walks), a static
 //!   mesh its exact triangle mesh. A mesh rapier cannot build (degenerate: no hull, no
 //!   triangles) gets no collider: it is seen by the camera but not touched.
 //! * The robot's links with collision shapes are kinematic (position-based) bodies, moved at
@@ -81,6 +84,10 @@ pub const OVERLAP: f64 = 0.001;
 /// at 0.05 m and above a mug's convex hull (a many-sided base) rocks and walks on the table
 /// (2 mm/s at 0.05, 10 mm/s at 1), at 0.02 m everything in the bundled scenes comes to rest.
 pub const LENGTH_UNIT: f32 = 0.02;
+/// Greatest distance between the balls of a movable capsule, as a fraction of its radius.
+pub const BALL_SPACING: f32 = 1.0 / 3.0;
+/// A movable capsule needing more balls than this (a needle) keeps rapier's capsule.
+pub const MAX_BALLS: usize = 64;
 /// Lowest and highest point of the bases' bumper ring above the floor, m.
 pub const BUMPER_BAND: (f64, f64) = (0.015, 0.105);
 /// Standard gravity, m/s².
@@ -247,6 +254,11 @@ fn collider(b: &Body) -> Option<ColliderBuilder> {
         Shape::Cylinder { radius, length } => {
             upright(ColliderBuilder::cylinder(f(length / 2.0), f(*radius)))
         }
+        Shape::Capsule { radius, length }
+            if !b.fixed && balls(f(*radius), f(*length)) <= MAX_BALLS =>
+        {
+            ColliderBuilder::compound(ball_chain(f(*radius), f(*length)))
+        }
         Shape::Capsule { radius, length } => {
             ColliderBuilder::capsule_z(f(length / 2.0), f(*radius))
         }
@@ -256,11 +268,38 @@ fn collider(b: &Body) -> Option<ColliderBuilder> {
             if b.fixed {
                 ColliderBuilder::trimesh(v, mesh.triangles.clone()).ok()?
             } else {
-                ColliderBuilder::convex_hull(&v)?
+                ColliderBuilder::new(SharedShape::new(crate::hull::Hull::new(&v)?))
             }
         }
     };
     Some(c)
+}
+
+/// A movable capsule (along z, `length` between its end centres, m) as balls of its
+/// `radius` along its axis, at most [`BALL_SPACING`] of the radius apart (the side's ripples
+/// are under 1.4 % of the radius). Why: rapier's capsule lying on a box, once awake, rolls on by
+/// itself and gathers speed (0.1-4 m in 20 s kept awake), while balls roll true on it.
+fn ball_chain(radius: f32, length: f32) -> Vec<(Pose, SharedShape)> {
+    let n = balls(radius, length) - 1;
+    (0..=n)
+        .map(|i| {
+            let z = -length / 2.0 + length * i as f32 / n as f32;
+            (
+                Pose::from_translation(Vector::new(0.0, 0.0, z)),
+                SharedShape::ball(radius),
+            )
+        })
+        .collect()
+}
+
+/// How many balls [`ball_chain`] makes of a capsule (saturating for absurd ones).
+fn balls(radius: f32, length: f32) -> usize {
+    let gaps = (length / (BALL_SPACING * radius)).ceil();
+    if gaps.is_finite() && gaps < MAX_BALLS as f32 {
+        gaps.max(1.0) as usize + 1
+    } else {
+        usize::MAX
+    }
 }
 
 fn link_collider(s: &crate::body::LinkShape) -> Option<ColliderBuilder> {
@@ -355,13 +394,7 @@ impl World {
         w.pw.detect_collisions(&(), &());
         w.check_overlap(scene)?;
         // Every movable body starts awake (rapier may sleep it once it rests).
-        for h in &w.bodies {
-            if let Some(b) = w.pw.bodies.get_mut(*h) {
-                if b.is_dynamic() {
-                    b.wake_up(true);
-                }
-            }
-        }
+        w.wake_all();
         Ok(w)
     }
 
@@ -522,6 +555,19 @@ impl World {
             }
         }
         Ok(())
+    }
+
+    /// Wake every movable body: the engine moves each again until it has been at rest long
+    /// enough to sleep (rapier's 2 s). A body asleep does not move at all; a world kept awake
+    /// (by a moving robot, a rolling object) shows what the engine does to a resting one.
+    pub fn wake_all(&mut self) {
+        for h in &self.bodies {
+            if let Some(b) = self.pw.bodies.get_mut(*h) {
+                if b.is_dynamic() {
+                    b.wake_up(true);
+                }
+            }
+        }
     }
 
     /// Simulated time of the world, µs.

@@ -47,6 +47,13 @@ pub struct PushOptions {
     /// Pushes tried, best first, when the arm cannot make one (out of reach, or refused by
     /// the planning scene before the gripper meets the object).
     pub attempts: usize,
+    /// Moves of the base tried, in order, when no flat-topped object can be pushed from where
+    /// it stands: sideways by each of these (m, along `base_link`'s y; turn, drive, turn
+    /// back), then forward up to `table_clearance` from the table. Empty: the base stays.
+    pub base_shifts: Vec<f64>,
+    /// Least distance kept between the base's footprint and the table's near edge when the
+    /// base drives up to it, m: in [0, 0.5].
+    pub table_clearance: f64,
 }
 
 impl Default for PushOptions {
@@ -69,6 +76,8 @@ impl Default for PushOptions {
             lifts: vec![0.10, 0.08, 0.06, 0.04, 0.03],
             step: 0.01,
             attempts: 3,
+            base_shifts: vec![0.0, 0.1, -0.1, 0.2, -0.2, 0.3, -0.3],
+            table_clearance: 0.04,
         }
     }
 }
@@ -84,6 +93,9 @@ pub struct Pushed {
     pub lift: f64,
     /// The gripper's roll used, rad.
     pub roll: f64,
+    /// How the base moved before the push (forward, left), m, in `base_link` where it stood;
+    /// `plan` and `objects` are in `base_link` where it stands after the move.
+    pub base_move: [f64; 2],
 }
 
 impl Robot {
@@ -96,37 +108,133 @@ impl Robot {
         crate::validate::angles("tilt", &[opts.tilt])?;
         crate::validate::in_range("object margin", opts.object_margin, 0.0, 0.1)?;
         crate::validate::all_in_range("approach lifts", &opts.lifts, 0.0, 0.5)?;
+        crate::validate::all_in_range("base shifts", &opts.base_shifts, -0.5, 0.5)?;
+        crate::validate::in_range("table clearance", opts.table_clearance, 0.0, 0.5)?;
         if opts.lifts.is_empty() {
             return Err(Error::Usage("push: give at least one approach lift".into()));
         }
         opts.segment.check()?;
         opts.ransac.check()?;
-        let arm = self.arm()?;
+        self.arm()?;
         let mut params = opts.push;
         params.reach_centre = self.shoulder_axis()?;
         params.check()?;
-        let gripper = self.gripper()?;
-        let camera = self.camera()?;
-        let tip = self.finger_tip_depth()?;
+        self.gripper()?;
+        self.camera()?;
         let clusterer = Dbscan::new(opts.eps, opts.min_samples)?;
-        // Look: the gripper closed, the arm folded out of view, the head down at the table.
-        gripper.close()?;
-        arm.stow()?;
+        let seen = self.look_at_table(opts, &clusterer, params)?;
+        let here = rank_pushes(&seen.points, &seen.objects, &seen.table, &seen.params);
+        let flat_here = matches!(&here, Ok(p) if p[0].flat);
+        if !flat_here && !opts.base_shifts.is_empty() && self.base().is_ok() {
+            if let Some(shift) = self.base_shift(&seen, opts, here.is_ok())? {
+                self.shift_base(shift)?;
+                let seen = self.look_at_table(opts, &clusterer, params)?;
+                let plans = rank_pushes(&seen.points, &seen.objects, &seen.table, &seen.params)?;
+                return self.push_ranked(seen, plans, opts, shift);
+            }
+        }
+        self.push_ranked(seen, here?, opts, [0.0, 0.0])
+    }
+
+    /// Look at the table: the gripper closed, the arm folded out of view, the head down at
+    /// the table; its plane, the objects on it, and `params` with the camera's viewpoint.
+    fn look_at_table(
+        &self,
+        opts: &PushOptions,
+        clusterer: &Dbscan,
+        mut params: PushParams,
+    ) -> Result<TableView> {
+        self.gripper()?.close()?;
+        self.arm()?.stow()?;
+        let camera = self.camera()?;
         camera.head()?.set_pan_tilt(0.0, opts.tilt)?;
-        let cloud = camera.get_current_pcd(false)?;
-        let points = &cloud.points;
+        let points = camera.get_current_pcd(false)?.points;
         let fit = fit_plane(
-            points,
+            &points,
             &RansacParams {
                 up: Some(Vector3::z()),
                 ..opts.ransac
             },
         )?;
-        let objects = segment_objects(points, &fit, &opts.segment, &clusterer)?;
-        let table = TableRegion::new(points, &fit)?;
+        let objects = segment_objects(&points, &fit, &opts.segment, clusterer)?;
+        let table = TableRegion::new(&points, &fit)?;
         let eye = self.link_transform(&self.optical_frame()?, "base_link")?;
         params.viewpoint = Some([eye.translation.x, eye.translation.y]);
-        let plans = rank_pushes(points, &objects, &table, &params)?;
+        Ok(TableView {
+            points,
+            fit,
+            objects,
+            table,
+            params,
+        })
+    }
+
+    /// The base's move (forward, left; m) from which a flat-topped object can be pushed (any
+    /// object if `any` is false: nothing can be pushed from here): the first of
+    /// `opts.base_shifts` sideways, and forward to `opts.table_clearance` from the table's
+    /// near edge, for which the ranking with the arm's reach moved along finds one. `None`:
+    /// no such move.
+    fn base_shift(
+        &self,
+        seen: &TableView,
+        opts: &PushOptions,
+        any: bool,
+    ) -> Result<Option<[f64; 2]>> {
+        let radius = self
+            .config()
+            .base
+            .as_ref()
+            .map(|b| b.footprint_radius)
+            .ok_or_else(|| self.missing("base"))?;
+        let (lo, _) = table_bounds(&seen.table);
+        let forward = (lo.x - radius - opts.table_clearance).clamp(0.0, 0.5);
+        for &left in &opts.base_shifts {
+            let mut params = seen.params;
+            params.reach_centre[0] += forward;
+            params.reach_centre[1] += left;
+            if let Ok(p) = rank_pushes(&seen.points, &seen.objects, &seen.table, &params) {
+                if p[0].flat || !any {
+                    return Ok(Some([forward, left]));
+                }
+            }
+        }
+        Ok(None)
+    }
+
+    /// Move the base by `shift` (forward, left; m): sideways by turning a quarter, driving
+    /// and turning back, then forward.
+    fn shift_base(&self, [forward, left]: [f64; 2]) -> Result<()> {
+        let base = self.base()?;
+        if left.abs() > 1e-3 {
+            let quarter = FRAC_PI_2.copysign(left);
+            base.go_to_relative([0.0, 0.0, quarter])?;
+            base.go_to_relative([left.abs(), 0.0, 0.0])?;
+            base.go_to_relative([0.0, 0.0, -quarter])?;
+        }
+        if forward > 1e-3 {
+            base.go_to_relative([forward, 0.0, 0.0])?;
+        }
+        Ok(())
+    }
+
+    /// Push by the best of `plans` (ranked on `seen`) the arm can make; `base_move` is
+    /// reported.
+    fn push_ranked(
+        &self,
+        seen: TableView,
+        plans: Vec<PushPlan>,
+        opts: &PushOptions,
+        base_move: [f64; 2],
+    ) -> Result<Pushed> {
+        let arm = self.arm()?;
+        let tip = self.finger_tip_depth()?;
+        let TableView {
+            fit,
+            objects,
+            table,
+            params,
+            ..
+        } = seen;
         // The planning scene: the table and every object seen (the target too, until the
         // strokes, which go through it; added before each attempt).
         arm.remove_all_objects()?;
@@ -168,6 +276,7 @@ impl Robot {
                         objects: objects.into_iter().map(|o| o.features).collect(),
                         lift,
                         roll,
+                        base_move,
                     });
                 }
                 Err(e @ (Error::Unreachable { .. } | Error::Planning(_))) => last = Some(e),
@@ -313,6 +422,20 @@ impl Robot {
             problem: "no finger link with a collision box to push with".into(),
         })
     }
+}
+
+/// What a look at the table found, in `base_link`.
+struct TableView {
+    /// The cloud, m.
+    points: Vec<Point3<f64>>,
+    /// The table's plane.
+    fit: ferrobot_perception::PlaneFit,
+    /// The objects above it.
+    objects: Vec<ferrobot_perception::SegmentedObject>,
+    /// The table's region.
+    table: TableRegion,
+    /// The push's parameters with the camera's viewpoint.
+    params: PushParams,
 }
 
 /// The axis-aligned bounds (x, y; z of the plane) of the table's region, m.

@@ -657,6 +657,30 @@ fn the_push_refuses_hostile_options() {
                 o.segment.min_height = v;
                 o
             }),
+            ("low", {
+                let mut o = PushOptions::default();
+                o.push.low = [0.01, v];
+                o
+            }),
+            ("along_axis", {
+                let mut o = PushOptions::default();
+                o.push.along_axis = v;
+                o
+            }),
+            (
+                "base_shifts",
+                PushOptions {
+                    base_shifts: vec![0.1, v],
+                    ..Default::default()
+                },
+            ),
+            (
+                "table_clearance",
+                PushOptions {
+                    table_clearance: v,
+                    ..Default::default()
+                },
+            ),
         ];
         for (what, opts) in cases {
             if what == "tilt" && v == -1.0 {

@@ -64,7 +64,19 @@ pub struct PushParams {
     pub height_fraction: f64,
     /// Lowest and highest tip height above the table, m: 0 <= low <= high <= 0.2.
     pub tip_height: [f64; 2],
+    /// An object lower than `low[0]` (m) is driven `low[1]` (m) instead of `distance`: only
+    /// the closed fingers reach down to a flat one, and it turns off them on the way. In
+    /// [0, 0.2] and (0, 0.5].
+    pub low: [f64; 2],
+    /// A rolling object (no flat top) elongated along its principal axis (the axis's variance
+    /// at least [`ELONGATED`] times the next) is pushed only within this angle of that axis,
+    /// rad: across it, it rolls on. In [0, π/2].
+    pub along_axis: f64,
 }
+
+/// Ratio of an object's largest to second variance from which a rolling object is elongated
+/// ([`PushParams::along_axis`]): a lying 3 x 7 cm capsule seen from above is about 5, a ball 1.
+pub const ELONGATED: f64 = 3.0;
 
 impl Default for PushParams {
     /// Drive 8 cm (the goal is 5), start 4 cm short, the LoCoBot's gripper as the pusher,
@@ -72,7 +84,8 @@ impl Default for PushParams {
     /// few centimetres above its table (0.12-0.38 m from the shoulder's axis, 0.097 m ahead of
     /// `base_link`'s origin), 24 directions, the tip at a fifth of the object's height within 5-20
     /// mm of the table; flat tops: of the points in the top 12 mm, 55 % in the top 3 mm
-    /// (a box about 80 %, a lying cylinder about 40 %, a ball 25 %).
+    /// (a box about 80 %, a lying cylinder about 40 %, a ball 25 %); objects under 12 mm driven
+    /// 12 cm; elongated rolling ones pushed within 20° of their axis.
     fn default() -> Self {
         PushParams {
             distance: 0.08,
@@ -89,6 +102,8 @@ impl Default for PushParams {
             flat_band: [0.003, 0.012],
             height_fraction: 0.2,
             tip_height: [0.005, 0.02],
+            low: [0.012, 0.12],
+            along_axis: 0.35,
         }
     }
 }
@@ -180,6 +195,21 @@ impl PushParams {
                 "finite [low, high] with 0 <= low <= high <= 0.2 m",
             );
         }
+        let [h, d] = self.low;
+        if !(within(h, 0.0, 0.2) && within(d, 0.0, 0.5) && d > 0.0) {
+            return bad(
+                "low",
+                d,
+                "a height in [0, 0.2] m and a distance in (0, 0.5] m",
+            );
+        }
+        if !within(self.along_axis, 0.0, std::f64::consts::FRAC_PI_2) {
+            return bad(
+                "along_axis",
+                self.along_axis,
+                "a finite angle in [0, pi/2] rad",
+            );
+        }
         Ok(())
     }
 }
@@ -266,10 +296,22 @@ pub fn rank_pushes(
             let z = (table.plane.offset + tip - n.x * xy.x - n.y * xy.y) / n.z;
             Point3::new(xy.x, xy.y, z)
         };
+        let mut own = *params;
+        if height < params.low[0] {
+            own.distance = params.low[1];
+        }
+        let v = o.features.variances;
+        let axis = Vector2::new(o.features.principal_axis.x, o.features.principal_axis.y);
+        let roller_axis = (!flat && v[0] >= ELONGATED * v[1])
+            .then(|| axis.try_normalize(1e-9))
+            .flatten();
         for j in 0..params.directions {
             let heading = std::f64::consts::TAU * j as f64 / params.directions as f64;
             let d = Vector2::new(heading.cos(), heading.sin());
-            if let Some(c) = candidate(points, &owner, k, o, table, params, d, flat) {
+            if roller_axis.is_some_and(|a| a.dot(&d).abs() < params.along_axis.cos()) {
+                continue;
+            }
+            if let Some(c) = candidate(points, &owner, k, o, table, &own, d, flat) {
                 plans.push(PushPlan {
                     target: k,
                     direction: [d.x, d.y],
@@ -494,6 +536,40 @@ mod tests {
         let stroke = (plan.end - plan.start).xy().norm();
         assert!((stroke - (p.gap + p.distance)).abs() < 1e-9);
         assert!(plan.room >= p.distance + p.clearance && plan.feasible > 0);
+    }
+
+    /// An 11 mm block is driven `low[1]`, not `distance`; an elongated object without a flat
+    /// top (here a bar whose top band counts as curved) is pushed only along its long axis.
+    #[test]
+    fn low_objects_go_further_and_rollers_go_along_their_axis() {
+        let p = PushParams::default();
+        let (pts, objects, table) = table_with(&[([0.36, 0.0], [0.02, 0.04, 0.011])]);
+        let plan = plan_push(&pts, &objects, &table, &p).unwrap();
+        let stroke = (plan.end - plan.start).xy().norm();
+        assert!(
+            (stroke - (p.gap + p.low[1])).abs() < 1e-9,
+            "stroke {stroke}"
+        );
+        let (pts, objects, table) = table_with(&[([0.36, 0.0], [0.08, 0.02, 0.02])]);
+        let curved = PushParams {
+            flat_share: 1.0,
+            flat_band: [0.0005, 0.05],
+            ..p
+        };
+        let plans = rank_pushes(&pts, &objects, &table, &curved).unwrap();
+        assert!(!plans[0].flat);
+        for q in &plans {
+            assert!(
+                q.direction[0].abs() >= p.along_axis.cos() - 1e-9,
+                "across the bar: {q:?}"
+            );
+        }
+        let any = PushParams {
+            along_axis: std::f64::consts::FRAC_PI_2,
+            ..curved
+        };
+        let all = rank_pushes(&pts, &objects, &table, &any).unwrap();
+        assert!(all.len() > plans.len(), "{} vs {}", all.len(), plans.len());
     }
 
     /// An empty table, an object out of reach, or one boxed in by its neighbours: typed

@@ -48,6 +48,8 @@ pub struct PushArgs<'a> {
 /// One trial, fields in alphabetical order (see [`print_json`]).
 #[derive(Serialize, Clone)]
 struct Trial {
+    /// How the base moved before the push (forward, left), m, as the robot reports it.
+    base_move_m: [f64; 2],
     /// Why the push failed, if it did.
     error: Option<String>,
     /// The farthest another object moved, m (ground truth).
@@ -158,6 +160,7 @@ fn trial(a: &PushArgs, base_scene: &Scene, seed: u64) -> ferrobot::Result<Trial>
         .backend(backend.backend()?)
         .build()?;
     let mut t = Trial {
+        base_move_m: [0.0; 2],
         error: None,
         others_max_moved_m: 0.0,
         others_moved: false,
@@ -186,8 +189,11 @@ fn trial(a: &PushArgs, base_scene: &Scene, seed: u64) -> ferrobot::Result<Trial>
     let moved = |i: usize| after.bodies[i].translation.vector - before.bodies[i].translation.vector;
     let target = match &pushed {
         Ok(p) => {
+            t.base_move_m = p.base_move;
+            // The plan is in `base_link` where the base stood for the push (it may have
+            // moved first; the push itself moves only the arm).
             let c = p.objects[p.plan.target].centroid;
-            let w = world_point(&before.root, &c);
+            let w = world_point(&after.root, &c);
             movable
                 .iter()
                 .copied()
@@ -196,7 +202,7 @@ fn trial(a: &PushArgs, base_scene: &Scene, seed: u64) -> ferrobot::Result<Trial>
                     d(i).total_cmp(&d(j))
                 })
                 .map(|i| {
-                    let dir = before.root.rotation
+                    let dir = after.root.rotation
                         * Vector3::new(p.plan.direction[0], p.plan.direction[1], 0.0);
                     (i, moved(i).dot(&dir))
                 })
