@@ -2,21 +2,8 @@
 //! and real tolerances (ISO 9283 figures by ground truth, tracking errors, the plots written;
 //! one push judged by ground truth).
 
-use std::process::Command;
-
-fn ferrobot(args: &[&str]) -> (bool, serde_json::Value, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_ferrobot"))
-        .args(args)
-        .output()
-        .expect("runs");
-    let v = serde_json::from_slice(&out.stdout).unwrap_or(serde_json::Value::Null);
-    let text = format!(
-        "{}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    (out.status.success(), v, text)
-}
+mod support;
+use support::ferrobot;
 
 /// Three cycles of the five poses: every pose within 1 mm of its command (accuracy) and
 /// repeated within 2 mm, the tracking error of every joint below 0.1 rad at most and 0.05 rad

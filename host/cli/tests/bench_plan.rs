@@ -9,19 +9,8 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-fn ferrobot(args: &[&str]) -> (bool, serde_json::Value, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_ferrobot"))
-        .args(args)
-        .output()
-        .expect("runs");
-    let v = serde_json::from_slice(&out.stdout).unwrap_or(serde_json::Value::Null);
-    let text = format!(
-        "{}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    (out.status.success(), v, text)
-}
+mod support;
+use support::ferrobot;
 
 /// A fresh scratch directory for one test.
 fn scratch(name: &str) -> PathBuf {
