@@ -782,7 +782,7 @@ fn run(cli: Cli) -> Result<(), (ferrobot::Error, bool)> {
                     json,
                 },
         } => (
-            cmd::bench_push::run(&cmd::bench_push::PushArgs {
+            cmd::bench_push::run(&cmd::common::TableTrials {
                 robot: &robot,
                 scene: &scene,
                 trials,
@@ -801,7 +801,7 @@ fn run(cli: Cli) -> Result<(), (ferrobot::Error, bool)> {
                     json,
                 },
         } => (
-            cmd::bench_grasp::run(&cmd::bench_grasp::GraspArgs {
+            cmd::bench_grasp::run(&cmd::common::TableTrials {
                 robot: &robot,
                 scene: &scene,
                 trials,

@@ -19,7 +19,7 @@ use ferrobot_sim::placement::{scatter, standing_half_extents, Region};
 use serde::Serialize;
 
 use super::bench_nav::{median, Median};
-use super::common::{load, print_json, BackendArgs};
+use super::common::{load, print_json, TableTrials};
 
 /// An object counts as lifted when it rose this far above where it lay, m.
 pub const LIFT: f64 = 0.05;
@@ -44,20 +44,6 @@ struct GraspJson {
     success_rate: f64,
     time_s: Median,
     trials: usize,
-}
-
-/// What the bench needs.
-pub struct GraspArgs<'a> {
-    /// Robot name or configuration path.
-    pub robot: &'a str,
-    /// Scene name or path (it must hold a fixed body `table`).
-    pub scene: &'a str,
-    /// Trials.
-    pub trials: usize,
-    /// The backend (its seed K: trial k places its objects with seed K + k).
-    pub backend: &'a BackendArgs,
-    /// One JSON object instead of text.
-    pub json: bool,
 }
 
 /// The narrowest horizontal width and the height of a body standing as it does (its yaw
@@ -126,7 +112,7 @@ fn heights(bot: &Robot, scene: &Scene) -> ferrobot::Result<Vec<(String, f64)>> {
 /// One trial: `Ok(Some(simulated seconds))` on success, `Ok(None)` with the reason pushed
 /// into `why` on failure.
 fn trial(
-    args: &GraspArgs<'_>,
+    args: &TableTrials<'_>,
     backend: Backend,
     world: Scene,
     why: &mut String,
@@ -165,7 +151,7 @@ fn trial(
 }
 
 /// Run the bench.
-pub fn run(args: &GraspArgs<'_>) -> ferrobot::Result<()> {
+pub fn run(args: &TableTrials<'_>) -> ferrobot::Result<()> {
     ferrobot::validate::count("trials", args.trials, 1..=MAX_TRIALS)?;
     let backend = args.backend.backend()?;
     let scene = Scene::load(&SceneSource::from_arg(args.scene))?;

@@ -14,7 +14,7 @@ use nalgebra::{Isometry3, Point3, Vector3};
 use serde::Serialize;
 
 use super::bench_nav::{median, Median};
-use super::common::{print_json, robot_builder, BackendArgs};
+use super::common::{print_json, robot_builder, TableTrials};
 
 /// The robot starts this far behind the scene's start pose and drives up to it, m.
 pub const APPROACH: f64 = 0.4;
@@ -30,20 +30,6 @@ const REST_MOTION: f64 = 1e-4;
 const REST_WINDOW_S: f64 = 0.1;
 /// Longest wait for the world to come to rest after a push, s (simulated).
 const REST_TIMEOUT_S: f64 = 10.0;
-
-/// What `bench push` is asked.
-pub struct PushArgs<'a> {
-    /// Robot name or configuration path.
-    pub robot: &'a str,
-    /// Scene name or path (its movable objects on a static body `table`).
-    pub scene: &'a str,
-    /// Trials.
-    pub trials: usize,
-    /// The backend; its seed is the first trial's.
-    pub backend: &'a BackendArgs,
-    /// One JSON object instead of text.
-    pub json: bool,
-}
 
 /// One trial, fields in alphabetical order (see [`print_json`]).
 #[derive(Serialize, Clone)]
@@ -89,7 +75,7 @@ struct MinMedian {
 }
 
 /// Run the benchmark and print it.
-pub fn run(a: &PushArgs) -> ferrobot::Result<()> {
+pub fn run(a: &TableTrials) -> ferrobot::Result<()> {
     ferrobot::validate::count("trials", a.trials, 1..=10_000)?;
     // Input errors before any trial: the robot, the scene, the backend.
     let base_scene = Scene::load(&SceneSource::from_arg(a.scene))?;
@@ -147,7 +133,7 @@ pub fn run(a: &PushArgs) -> ferrobot::Result<()> {
 
 /// One trial with seed `seed`. Errors: only the input's and the robot's start (a failed push
 /// is a failed trial).
-fn trial(a: &PushArgs, base_scene: &Scene, seed: u64) -> ferrobot::Result<Trial> {
+fn trial(a: &TableTrials, base_scene: &Scene, seed: u64) -> ferrobot::Result<Trial> {
     let mut scene = base_scene.clone();
     ferrobot_sim::placement::scatter_on(&mut scene, "table", seed, PLACEMENT_GAP)?;
     let start = scene.robot_pose;
