@@ -398,15 +398,20 @@ impl BoardServer {
         ))))
     }
 
-    /// Let the clock run up to `t_us` and hold there; blocks until it is there (or `timeout`
-    /// of wall time passed: false). Holding keeps the board at that instant for a snapshot.
+    /// Let the clock run up to `t_us` and hold there; blocks until it is there and the board
+    /// has settled (or `timeout` of wall time passed: false). Holding keeps the board at that
+    /// instant for a snapshot.
+    ///
+    /// Settled means what [`Conductor::poll`] means: the board reported idle at `t_us`, and
+    /// every byte it sent until then has reached the plants. The board's idle report and the
+    /// bytes it sent just before travel on different pseudo-terminals, so the report alone
+    /// may come first; a snapshot then would miss those bytes on a busy machine.
     pub fn run_to(&self, t_us: u64, timeout: Duration) -> bool {
         self.lock().hold_at = t_us;
         let deadline = Instant::now() + timeout;
         while Instant::now() < deadline {
-            let i = self.lock();
-            let settled = i.conductor.now_us() == t_us
-                && i.conductor.report().is_some_and(|r| r.now_us == t_us);
+            let mut i = self.lock();
+            let settled = i.conductor.now_us() == t_us && i.conductor.poll().is_some();
             if settled || i.conductor.now_us() > t_us || i.stopped.is_some() {
                 return settled;
             }
