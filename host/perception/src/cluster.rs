@@ -310,8 +310,22 @@ impl Clusterer for Dbscan {
             // least min_samples neighbours when dm + dk <= eps, fewer when eps + dm < dk (by
             // the triangle inequality; the margins cover rounding); otherwise it counts them
             // among the points around (which hold them all).
+            // When min_samples of them are within eps, the k-th nearest is among those: select
+            // in that smaller part, gathered at the front.
+            let mut within = 0;
+            for k in 0..around.len() {
+                if around[k].1 <= eps2 {
+                    around.swap(within, k);
+                    within += 1;
+                }
+            }
+            let nearest = if within >= min_samples {
+                &mut around[..within]
+            } else {
+                &mut around[..]
+            };
             let (_, &mut (_, dk2), _) =
-                around.select_nth_unstable_by(min_samples - 1, |a, b| a.1.total_cmp(&b.1));
+                nearest.select_nth_unstable_by(min_samples - 1, |a, b| a.1.total_cmp(&b.1));
             let dk = dk2.sqrt();
             for &(m, dm2) in &joined {
                 let dm = dm2.sqrt();
@@ -369,29 +383,16 @@ impl Clusterer for Dbscan {
                 .iter()
                 .map(|&g| pts[leaders[g as usize] as usize])
                 .collect();
-            let ltree: ImmutableKdTree<f64, 3> = ImmutableKdTree::new_from_slice(&lpts)
-                .map_err(|e| PerceptionError::KdTree(format!("{e:?}")))?;
             let reach2 = 4.0 * eps2;
             let mut pending: Vec<(u32, u32)> = Vec::new();
-            for (ia, &ga) in active.iter().enumerate() {
-                let la_core = core[leaders[ga as usize] as usize];
-                ltree
-                    .query(&lpts[ia])
-                    .within::<SquaredEuclidean<f64>>(reach2)
-                    .unsorted()
-                    .visit(|hit| {
-                        let ib = hit.item as usize;
-                        if ib <= ia {
-                            return;
-                        }
-                        let gb = active[ib] as usize;
-                        if la_core && hit.distance <= eps2 && core[leaders[gb] as usize] {
-                            sets.union(ga as usize, gb);
-                        } else {
-                            pending.push((ia as u32, ib as u32));
-                        }
-                    });
-            }
+            near_pairs(&lpts, reach2, |ia, ib, d2| {
+                let (ga, gb) = (active[ia] as usize, active[ib] as usize);
+                if d2 <= eps2 && core[leaders[ga] as usize] && core[leaders[gb] as usize] {
+                    sets.union(ga, gb);
+                } else {
+                    pending.push((ia as u32, ib as u32));
+                }
+            })?;
             let mut bridge = Bridge::default();
             for &(ia, ib) in &pending {
                 let (ga, gb) = (active[ia as usize] as usize, active[ib as usize] as usize);
@@ -466,6 +467,112 @@ impl Clusterer for Dbscan {
             clusters,
         })
     }
+}
+
+/// Most cells of a [`near_pairs`] grid per point.
+const PAIR_CELLS_PER_POINT: usize = 8;
+
+/// Calls `visit(a, b, d²)` for every pair `a < b` of `pts` whose squared distance
+/// ([`d2`]) is at most `reach2` (positive), in no particular order.
+///
+/// On a grid of cubes a little wider than `sqrt(reach2)` (by 1e-9, far beyond the rounding of
+/// a point's cube), points sorted by cube, each point scanning the 27 cubes around its own:
+/// for the few thousand leaders DBSCAN joins, faster than a radius query per point on
+/// kiddo's tree, whose per-query cost dominates at this size (the `blobs` benchmark cloud's
+/// 7,551 leaders, visits included: 13 ms against 18-23 ms, same machine, same load; the
+/// whole clustering 7 % fewer instructions). Where the grid would need more than
+/// [`PAIR_CELLS_PER_POINT`] cells per point (points spread far apart), kiddo's tree.
+fn near_pairs(
+    pts: &[[f64; 3]],
+    reach2: f64,
+    mut visit: impl FnMut(usize, usize, f64),
+) -> Result<()> {
+    let cell = reach2.sqrt() * (1.0 + 1e-9);
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for p in pts {
+        for k in 0..3 {
+            lo[k] = lo[k].min(p[k]);
+            hi[k] = hi[k].max(p[k]);
+        }
+    }
+    let inv = 1.0 / cell;
+    let mut dims = [0usize; 3];
+    let mut cells = Some(1usize);
+    for k in 0..3 {
+        let d = ((hi[k] - lo[k]) * inv).floor();
+        // A cube per side at least, and finite counts (`cell` is positive, points finite).
+        dims[k] = if d.is_finite() && d < 1e9 {
+            d as usize + 1
+        } else {
+            usize::MAX
+        };
+        cells = cells.and_then(|c| c.checked_mul(dims[k]));
+    }
+    let cells = match cells {
+        Some(c) if c <= PAIR_CELLS_PER_POINT.saturating_mul(pts.len()) => c,
+        _ => {
+            let tree: ImmutableKdTree<f64, 3> = ImmutableKdTree::new_from_slice(pts)
+                .map_err(|e| PerceptionError::KdTree(format!("{e:?}")))?;
+            for (a, p) in pts.iter().enumerate() {
+                tree.query(p)
+                    .within::<SquaredEuclidean<f64>>(reach2)
+                    .unsorted()
+                    .visit(|hit| {
+                        let b = hit.item as usize;
+                        if b > a {
+                            visit(a, b, hit.distance);
+                        }
+                    });
+            }
+            return Ok(());
+        }
+    };
+    let coord = |p: &[f64; 3], k: usize| (((p[k] - lo[k]) * inv) as usize).min(dims[k] - 1);
+    let index = |c: [usize; 3]| (c[0] * dims[1] + c[1]) * dims[2] + c[2];
+    // Points sorted by cell (a counting sort), z fastest: the cubes z-1..=z+1 of one column
+    // are one run of `order`.
+    let mut start = vec![0u32; cells + 1];
+    let cell_of: Vec<usize> = pts
+        .iter()
+        .map(|p| index([coord(p, 0), coord(p, 1), coord(p, 2)]))
+        .collect();
+    for &c in &cell_of {
+        start[c + 1] += 1;
+    }
+    for c in 0..cells {
+        start[c + 1] += start[c];
+    }
+    let mut fill = start.clone();
+    let mut order = vec![0u32; pts.len()];
+    let mut sorted = vec![[0.0f64; 3]; pts.len()];
+    for (i, &c) in cell_of.iter().enumerate() {
+        let at = fill[c] as usize;
+        order[at] = i as u32;
+        sorted[at] = pts[i];
+        fill[c] += 1;
+    }
+    for (a, p) in pts.iter().enumerate() {
+        let c = [coord(p, 0), coord(p, 1), coord(p, 2)];
+        let z0 = c[2].saturating_sub(1);
+        let z1 = (c[2] + 1).min(dims[2] - 1);
+        for x in c[0].saturating_sub(1)..=(c[0] + 1).min(dims[0] - 1) {
+            for y in c[1].saturating_sub(1)..=(c[1] + 1).min(dims[1] - 1) {
+                let from = start[index([x, y, z0])] as usize;
+                let to = start[index([x, y, z1]) + 1] as usize;
+                for (q, &b) in sorted[from..to].iter().zip(&order[from..to]) {
+                    let b = b as usize;
+                    if b > a {
+                        let d = d2(p, q);
+                        if d <= reach2 {
+                            visit(a, b, d);
+                        }
+                    }
+                }
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Whether two groups of core points are within `eps` of each other somewhere, with reused
@@ -717,6 +824,48 @@ mod tests {
         }
         for (eps, m) in [(0.01, 5), (0.01, 6), (0.02, 13), (0.0141, 9), (0.03, 40)] {
             agreed(&pts, eps, m, &format!("eps {eps}, min_samples {m}"));
+        }
+    }
+
+    #[test]
+    fn near_pairs_finds_every_close_pair_on_the_grid_and_on_the_tree() {
+        let mut rng = ChaCha8Rng::seed_from_u64(11);
+        // Clumped (the grid: few cells per point) and spread over a kilometre (more cells
+        // than PAIR_CELLS_PER_POINT per point: the tree), with duplicates and points on
+        // cell boundaries.
+        let clumped: Vec<[f64; 3]> = (0..600)
+            .map(|k| match k % 10 {
+                0 => [0.04 * (k / 10) as f64, 0.0, 0.08],
+                1 => [0.04 * (k / 10) as f64, 0.0, 0.08],
+                _ => [0; 3].map(|_| rng.random_range(0.0..0.3)),
+            })
+            .collect();
+        let spread: Vec<[f64; 3]> = (0..300)
+            .map(|k| {
+                let far = [0; 3].map(|_| rng.random_range(-500.0..500.0));
+                if k % 3 == 0 {
+                    far
+                } else {
+                    [far[0] * 1e-4, far[1] * 1e-4, far[2] * 1e-4]
+                }
+            })
+            .collect();
+        for (pts, reach) in [(&clumped, 0.04), (&spread, 0.04), (&clumped, 2.0)] {
+            let reach2 = reach * reach;
+            let mut found = Vec::new();
+            near_pairs(pts, reach2, |a, b, d| found.push((a, b, d))).unwrap();
+            found.sort_by_key(|x| (x.0, x.1));
+            let mut want = Vec::new();
+            for a in 0..pts.len() {
+                for b in a + 1..pts.len() {
+                    let d = d2(&pts[a], &pts[b]);
+                    if d <= reach2 {
+                        want.push((a, b, d));
+                    }
+                }
+            }
+            assert!(!want.is_empty());
+            assert_eq!(found, want, "{} points, reach {reach}", pts.len());
         }
     }
 
