@@ -499,6 +499,19 @@ impl Arm {
         self.set_joint_positions(&stow)
     }
 
+    /// Fold the arm out of the camera's view of a table in front of the robot: to the
+    /// description's look pose (`[arm] look`), or else its stow pose; with neither, the arm
+    /// stays. Moves as [`Arm::set_joint_positions`] does. (The LoCoBot's stow pose hides the
+    /// table's near middle from the camera, and its forearm sweeps down before the shoulder
+    /// on the way there from home; the look pose folds the arm across the base, above it.)
+    pub(crate) fn clear_view(&self) -> Result<()> {
+        let cfg = self.cfg();
+        match cfg.look.clone().or_else(|| cfg.stow.clone()) {
+            Some(q) => self.set_joint_positions(&q),
+            None => Ok(()),
+        }
+    }
+
     /// How far the arm reaches from the base's centre across the floor now, m: the largest
     /// horizontal distance of its links' covering spheres (measured joints) that come down
     /// into the map's obstacle band (0.1-0.8 m above the floor). Where it exceeds the base's
