@@ -308,7 +308,12 @@ pub fn pick_with(robot: &Robot, opts: &GraspOptions, model: &dyn GraspModel) -> 
     let gripper = robot.gripper()?;
     let (geometry, tip) = gripper_geometry(robot.config())?;
     gripper.open()?;
-    arm.clear_view()?;
+    let arm_cfg = robot.config().arm.as_ref();
+    match arm_cfg.and_then(|a| a.look.clone()) {
+        Some(q) => arm.set_joint_positions(&q)?,
+        None if arm_cfg.is_some_and(|a| a.stow.is_some()) => arm.stow()?,
+        None => {}
+    }
     let view = look(robot, opts, model)?;
     if view.objects.is_empty() {
         let band = ferrobot_perception::above_table(&view.points, &view.table, &opts.segment)?;
