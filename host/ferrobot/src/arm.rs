@@ -499,6 +499,25 @@ impl Arm {
         self.set_joint_positions(&stow)
     }
 
+    /// Fold the arm out of the camera's view of a table in front of the robot: to its stow
+    /// pose (`[arm] stow`), then to its look pose (`[arm] look`), each when the description
+    /// has it. Moves as [`Arm::set_joint_positions`] does, with nothing known around it yet.
+    /// (The LoCoBot's stow pose hides the table's near middle from the camera; its look pose
+    /// folds the arm across the base, above it. Turned straight to the look pose, a hanging
+    /// arm swept the table's near edge; from the stow pose the turn stays within 0.2 m of the
+    /// base's centre and 0.2 m above the floor.)
+    pub(crate) fn clear_view(&self) -> Result<()> {
+        let cfg = self.cfg();
+        let (stow, look) = (cfg.stow.clone(), cfg.look.clone());
+        if let Some(q) = stow {
+            self.set_joint_positions(&q)?;
+        }
+        match look {
+            Some(q) => self.set_joint_positions(&q),
+            None => Ok(()),
+        }
+    }
+
     /// How far the arm reaches from the base's centre across the floor now, m: the largest
     /// horizontal distance of its links' covering spheres (measured joints) that come down
     /// into the map's obstacle band (0.1-0.8 m above the floor). Where it exceeds the base's

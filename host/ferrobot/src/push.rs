@@ -1,5 +1,6 @@
 //! Pushing an object on a table: PyRobot's pushing example through the public API. The robot
-//! looks at the table, fits its plane, finds the objects above it (DBSCAN, eps 0.02 m, 15
+//! folds its arm out of the camera's view ([`crate::Arm`]'s look pose: the stow pose hides the
+//! table's near middle) and looks at the table, fits its plane, finds the objects above it (DBSCAN, eps 0.02 m, 15
 //! samples), lets [`ferrobot_perception::push`] choose the object and the direction, then
 //! moves its gripper, closed and pointing down (pitch π/2), its broad side facing the push,
 //! above the stroke's start (planned around the table and every object seen), and makes two
@@ -49,10 +50,15 @@ pub struct PushOptions {
     pub attempts: usize,
     /// Moves of the base tried, in order, when no flat-topped object can be pushed from where
     /// it stands: sideways by each of these (m, along `base_link`'s y; turn, drive, turn
-    /// back), then forward up to `table_clearance` from the table. Empty: the base stays.
+    /// back), then forward up to `table_clearance` from the table. The arm stays folded as it
+    /// looked (above the base, out of the way of anything on the table). Empty: the base
+    /// stays.
     pub base_shifts: Vec<f64>,
-    /// Least distance kept between the base's footprint and the table's near edge when the
-    /// base drives up to it, m: in [0, 0.5].
+    /// Least distance kept between the robot's body and the table's near edge when the base
+    /// drives up to it, m: in [0, 0.5]. The body is the footprint and whatever of the robot
+    /// reaches further ahead low enough to meet the table or an object on it (the LoCoBot's
+    /// plates, at the table top's height, 7 cm ahead of its footprint; from its links'
+    /// covering spheres).
     pub table_clearance: f64,
 }
 
@@ -145,7 +151,7 @@ impl Robot {
         mut params: PushParams,
     ) -> Result<TableView> {
         self.gripper()?.close()?;
-        self.arm()?.stow()?;
+        self.arm()?.clear_view()?;
         let camera = self.camera()?;
         camera.head()?.set_pan_tilt(0.0, opts.tilt)?;
         let points = camera.get_current_pcd(false)?.points;
@@ -171,8 +177,8 @@ impl Robot {
 
     /// The base's move (forward, left; m) from which a flat-topped object can be pushed (any
     /// object if `any` is false: nothing can be pushed from here): the first of
-    /// `opts.base_shifts` sideways, and forward to `opts.table_clearance` from the table's
-    /// near edge, for which the ranking with the arm's reach moved along finds one. `None`:
+    /// `opts.base_shifts` sideways, and forward until the robot's body (see
+    /// [`PushOptions::table_clearance`]) is `opts.table_clearance` from the table's near edge, for which the ranking with the arm's reach moved along finds one. `None`:
     /// no such move.
     fn base_shift(
         &self,
@@ -186,8 +192,11 @@ impl Robot {
             .as_ref()
             .map(|b| b.footprint_radius)
             .ok_or_else(|| self.missing("base"))?;
-        let (lo, _) = table_bounds(&seen.table);
-        let forward = (lo.x - radius - opts.table_clearance).clamp(0.0, 0.5);
+        let (lo, hi) = table_bounds(&seen.table);
+        // Not the footprint alone: the LoCoBot's plates reach 7 cm further ahead, at the
+        // table top's height, and the arm stays folded out of the camera's view as it stands.
+        let ahead = self.body_ahead(hi.z + opts.segment.max_height)?;
+        let forward = (lo.x - radius.max(ahead) - opts.table_clearance).clamp(0.0, 0.5);
         for &left in &opts.base_shifts {
             let mut params = seen.params;
             params.reach_centre[0] += forward;

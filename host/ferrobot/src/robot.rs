@@ -614,6 +614,16 @@ impl Robot {
         Ok(self.self_body()?.reach(&poses, &links))
     }
 
+    /// How far the robot's body reaches ahead of the base's centre now, m (see
+    /// [`crate::sense::SelfBody::ahead`]): the largest x in the base's frame of its links'
+    /// covering spheres that come down below `below` (m, the base's z): the base, its plates,
+    /// the arm as it stands.
+    pub(crate) fn body_ahead(&self, below: f64) -> Result<f64> {
+        let frames = self.frames()?;
+        let poses = frames.poses_in(&self.telemetry()?, crate::frames::BASE_FRAME)?;
+        Ok(self.self_body()?.ahead(&poses, None, below))
+    }
+
     /// The camera's optical frame.
     pub(crate) fn optical_frame(&self) -> Result<String> {
         self.inner

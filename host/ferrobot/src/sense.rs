@@ -208,6 +208,26 @@ impl SelfBody {
             .fold(0.0, f64::max)
     }
 
+    /// How far the links `links` (tree indices; every link when `None`) reach ahead of the
+    /// base's centre, m: the largest x (in the frame of `poses`, the base's) of their
+    /// covering spheres (no margin) that come down below `below` (m, that frame's z). 0 when
+    /// none does.
+    pub(crate) fn ahead(
+        &self,
+        poses: &[Isometry3<f64>],
+        links: Option<&[usize]>,
+        below: f64,
+    ) -> f64 {
+        self.links
+            .iter()
+            .filter(|(i, _)| links.is_none_or(|l| l.contains(i)))
+            .filter_map(|(i, spheres)| poses.get(*i).map(|p| (p, spheres)))
+            .flat_map(|(p, spheres)| spheres.iter().map(move |s| (p * s.centre, s.radius)))
+            .filter(|(c, r)| c.z - r <= below)
+            .map(|(c, r)| c.x + r)
+            .fold(0.0, f64::max)
+    }
+
     /// The spheres grown by [`SELF_MARGIN`], placed by the links' poses `poses` (tree order)
     /// in their frame.
     pub(crate) fn placed(&self, poses: &[Isometry3<f64>]) -> Vec<Sphere> {

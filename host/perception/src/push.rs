@@ -81,8 +81,8 @@ pub const ELONGATED: f64 = 3.0;
 impl Default for PushParams {
     /// Drive 8 cm (the goal is 5), start 4 cm short, the LoCoBot's gripper as the pusher,
     /// 2 cm clearance, the LoCoBot's reach pointing down a
-    /// few centimetres above its table (0.12-0.38 m from the shoulder's axis, 0.097 m ahead of
-    /// `base_link`'s origin), 24 directions, the tip at a fifth of the object's height within 5-20
+    /// few centimetres above its table (0.12-0.39 m from the shoulder's axis, 0.097 m ahead of
+    /// `base_link`'s origin; its pitch-roll IK reaches 0.393 m there), 24 directions, the tip at a fifth of the object's height within 5-20
     /// mm of the table; flat tops: of the points in the top 12 mm, 55 % in the top 3 mm
     /// (a box about 80 %, a lying cylinder about 40 %, a ball 25 %); objects under 12 mm driven
     /// 12 cm; elongated rolling ones pushed within 20° of their axis.
@@ -94,7 +94,7 @@ impl Default for PushParams {
             pusher_depth: 0.05,
             contact_offset: 0.01,
             clearance: 0.02,
-            reach: [0.12, 0.38],
+            reach: [0.12, 0.39],
             reach_centre: [0.097, 0.0],
             directions: 36,
             viewpoint: None,
