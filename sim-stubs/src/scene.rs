@@ -943,7 +943,13 @@ impl Scene {
 
     /// A body by id.
     pub fn body(&self, id: &str) -> Option<&Body> {
-        self.bodies.iter().find(|b| b.id == id)
+        self.body_index(id).map(|i| &self.bodies[i])
+    }
+
+    /// Where the body `id` stands in [`Scene::bodies`] (and in every per-body list in that
+    /// order, such as the ground truth's poses).
+    pub fn body_index(&self, id: &str) -> Option<usize> {
+        self.bodies.iter().position(|b| b.id == id)
     }
 }
 

@@ -41,13 +41,7 @@ fn session(robot: &str, scene: Scene, seed: u64) -> SimHost {
 }
 
 fn body(s: &SimHost, id: &str) -> Vector3<f64> {
-    let i = s
-        .sim
-        .scene()
-        .bodies
-        .iter()
-        .position(|b| b.id == id)
-        .unwrap();
+    let i = s.sim.scene().body_index(id).unwrap();
     s.sim.truth().bodies[i].translation.vector
 }
 
@@ -143,13 +137,7 @@ fn push_watching(seed: u64, links: &[&str]) -> (SimHost, Vector3<f64>) {
 #[test]
 fn the_gripper_pushes_a_cube_10_cm_along_the_table() {
     let (s, d) = push(3);
-    let i = s
-        .sim
-        .scene()
-        .bodies
-        .iter()
-        .position(|b| b.id == "red_cube")
-        .unwrap();
+    let i = s.sim.scene().body_index("red_cube").unwrap();
     println!(
         "cube moved {d:?}, rotation {:?}",
         s.sim.truth().bodies[i].rotation.euler_angles()
@@ -220,7 +208,7 @@ fn closing_on_a_3_cm_cube_holds_it_lifting_carries_it_and_opening_drops_it() {
     let g = gripper_ticks(&s);
     assert!((2320..=2380).contains(&g), "fingers at {g} ticks");
     let held = s.sim.hw.world().unwrap().held();
-    let i = s.sim.scene().bodies.iter().position(|b| b.id == "red_cube");
+    let i = s.sim.scene().body_index("red_cube");
     assert_eq!(held, i);
     // Lift 10 cm: the cube's height follows the gripper's within 5 mm.
     let (g0, c1) = (Arm::gripper(&s), body(&s, "red_cube"));
@@ -616,12 +604,7 @@ colour = [0.9, 0.2, 0.2]
 "#;
     let mut s = sim("locobot", parse(text), 1).unwrap();
     s.run_for(100_000);
-    let i = s
-        .scene()
-        .bodies
-        .iter()
-        .position(|b| b.id == "ball")
-        .unwrap();
+    let i = s.scene().body_index("ball").unwrap();
     let z = s.truth().bodies[i].translation.z;
     // 0.1 s of free fall: g t² / 2 = 49 mm (1 ms steps: within 1 mm).
     let fallen = 0.55 - z;

@@ -41,12 +41,7 @@ fn table_error(bot: &Robot) -> (f64, f64) {
             .filter(|&i| cam.label_name(img.labels[i]) == Some("table"))
             .map(|i| ((i / w) as i64, (i % w) as i64))
             .collect();
-        let i = sim
-            .scene()
-            .bodies
-            .iter()
-            .position(|b| b.id == "table")
-            .unwrap();
+        let i = sim.scene().body_index("table").unwrap();
         let base = truth.links[body.tree.link_index("base_link").unwrap()];
         (px, truth.bodies[i], base.inverse())
     };

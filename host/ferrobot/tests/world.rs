@@ -21,7 +21,7 @@ fn scene_file(name: &str, text: &str) -> String {
 /// Where scene body `id` is now (world, m), by the simulator's ground truth.
 fn body(bot: &Robot, id: &str) -> Vector3<f64> {
     let sim = bot.simulator().unwrap();
-    let i = sim.scene().bodies.iter().position(|b| b.id == id).unwrap();
+    let i = sim.scene().body_index(id).unwrap();
     sim.truth().bodies[i].translation.vector
 }
 

@@ -258,12 +258,7 @@ fn two_seconds_of_blank_view_are_bridged_by_the_odometry() {
 /// (its arm caught it); returns how far SLAM's pose ends from the truth (m, rad).
 fn push_basket(turn: f64, dist: f64) -> (f64, f64) {
     let mut world = World::new();
-    let basket = world
-        .scene
-        .bodies
-        .iter()
-        .position(|b| b.id == "laundry_basket")
-        .expect("basket");
+    let basket = world.scene.body_index("laundry_basket").expect("basket");
     let at = world.scene.bodies[basket].pose;
     let reach = 0.7;
     let facing: f64 = -1.83;
