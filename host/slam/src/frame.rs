@@ -55,7 +55,8 @@ impl FrameFeatures {
             data: vec![0; w * h],
         });
         let all = orb.extract(&grey);
-        let body = (range.self_radius > 0.0).then(|| SelfMask::new(depth, k, t_bc, range));
+        let is_self = SelfTest::new(t_bc, range);
+        let body = (range.self_radius > 0.0).then(|| SelfMask::new(depth, k, &is_self));
         let cols = w.div_ceil(GRID);
         let rows = h.div_ceil(GRID);
         let mut f = FrameFeatures {
@@ -87,7 +88,7 @@ impl FrameFeatures {
             }
             let p = k.unproject(kp.v as f64, kp.u as f64, z);
             if let Some(body) = &body {
-                if is_self(&p, t_bc, range) {
+                if is_self.contains(&p) {
                     continue;
                 }
                 let reach = (DESCRIPTOR_REACH * orb.level_scale(kp.level)).ceil() as i64;
@@ -144,11 +145,36 @@ impl FrameFeatures {
 /// binary tests' square of half-size 13 px, turned by up to 45°.
 const DESCRIPTOR_REACH: f32 = 18.4;
 
-/// Whether the optical-frame point `p` is the robot's own body (within the self radius of
-/// the body's z axis).
-fn is_self(p: &Point3<f64>, t_bc: &Isometry3<f64>, range: DepthUse) -> bool {
-    let pb = t_bc * p;
-    pb.x.hypot(pb.y) < range.self_radius
+/// Which optical-frame points are the robot's own body: those within the self radius of the
+/// body frame's z axis. Built once per frame: the test runs on every depth pixel, so it keeps
+/// only the two rows of `t_bc` it needs and compares squared distances (no square root, no
+/// quaternion rotation per point).
+#[derive(Debug, Clone, Copy)]
+struct SelfTest {
+    /// The body frame's x and y as affine functions of the optical-frame point.
+    x: [f64; 4],
+    y: [f64; 4],
+    /// The self radius squared, m².
+    r2: f64,
+}
+
+impl SelfTest {
+    fn new(t_bc: &Isometry3<f64>, range: DepthUse) -> Self {
+        let m = t_bc.to_homogeneous();
+        let row = |i: usize| [m[(i, 0)], m[(i, 1)], m[(i, 2)], m[(i, 3)]];
+        SelfTest {
+            x: row(0),
+            y: row(1),
+            r2: range.self_radius * range.self_radius,
+        }
+    }
+
+    /// Whether the optical-frame point `p` is the body's.
+    fn contains(&self, p: &Point3<f64>) -> bool {
+        let at = |a: &[f64; 4]| a[0] * p.x + a[1] * p.y + a[2] * p.z + a[3];
+        let (x, y) = (at(&self.x), at(&self.y));
+        x * x + y * y < self.r2
+    }
 }
 
 /// The pixels of a depth image that are the robot's own body, counted in a summed-area table
@@ -161,19 +187,14 @@ struct SelfMask {
 }
 
 impl SelfMask {
-    fn new(
-        depth: &DepthImage,
-        k: &ferrobot_perception::Intrinsics,
-        t_bc: &Isometry3<f64>,
-        range: DepthUse,
-    ) -> Self {
+    fn new(depth: &DepthImage, k: &ferrobot_perception::Intrinsics, is_self: &SelfTest) -> Self {
         let (w, h) = (depth.width as usize, depth.height as usize);
         let mut sums = vec![0u32; (w + 1) * (h + 1)];
         for r in 0..h {
             let mut row = 0u32;
             for c in 0..w {
                 let on_body = depth_at(depth, c, r)
-                    .is_some_and(|z| is_self(&k.unproject(r as f64, c as f64, z), t_bc, range));
+                    .is_some_and(|z| is_self.contains(&k.unproject(r as f64, c as f64, z)));
                 row += on_body as u32;
                 sums[(r + 1) * (w + 1) + c + 1] = sums[r * (w + 1) + c + 1] + row;
             }
@@ -221,6 +242,7 @@ pub(crate) fn sample_cloud(
     stride: usize,
 ) -> Vec<(Point3<f32>, [u8; 3])> {
     let (w, h) = (depth.width as usize, depth.height as usize);
+    let is_self = SelfTest::new(t_bc, range);
     let mut out = Vec::with_capacity((w / stride) * (h / stride));
     for r in (stride / 2..h).step_by(stride) {
         for c in (stride / 2..w).step_by(stride) {
@@ -231,7 +253,7 @@ pub(crate) fn sample_cloud(
                 continue;
             }
             let p = k.unproject(r as f64, c as f64, z);
-            if range.self_radius > 0.0 && is_self(&p, t_bc, range) {
+            if range.self_radius > 0.0 && is_self.contains(&p) {
                 continue;
             }
             let i = 3 * (r * w + c);
