@@ -112,8 +112,19 @@ done
 step "waited for: the HIL tests"
 join hil
 
-step "cargo test: every other test"
-check "cargo test" cargo test --workspace --no-fail-fast --exclude ferrobot-hil
+# cargo-nextest (on every machine of this kind; cargo's own runner where it is missing) runs
+# the tests of all binaries in one queue, two at a time: cargo test runs one binary after the
+# other, and a binary whose last test is long leaves the second core idle until it ends.
+# Nextest does not run doc tests: cargo runs them after it.
+if cargo nextest --version >/dev/null 2>&1; then
+    step "cargo nextest run: every other test"
+    check "cargo nextest" cargo nextest run --workspace --no-fail-fast --exclude ferrobot-hil
+    step "cargo test --doc"
+    check "cargo test --doc" cargo test --workspace --doc --exclude ferrobot-hil
+else
+    step "cargo test: every other test (cargo-nextest is not installed)"
+    check "cargo test" cargo test --workspace --no-fail-fast --exclude ferrobot-hil
+fi
 
 if [ ${#failed[@]} -gt 0 ]; then
     step "FAILED: ${failed[*]}"
