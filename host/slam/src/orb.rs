@@ -307,65 +307,7 @@ impl OrbExtractor {
     /// at most `want`, the strongest of each cell first.
     fn corners(&self, img: &GreyImage, want: usize) -> Vec<(usize, usize, f32, f32, f32)> {
         let (w, h) = (img.width, img.height);
-        let t = self.settings.threshold as i16;
-        let mut score = vec![0u16; w * h];
-        let lo = BORDER - 1;
-        for y in lo..h - lo {
-            let r: [&[u8]; 7] =
-                std::array::from_fn(|k| &img.data[(y + k - 3) * w..(y + k - 2) * w]);
-            let out = &mut score[y * w..(y + 1) * w];
-            for x in lo..w - lo {
-                let c = r[3][x] as i16;
-                // Quick rejection: of the four compass pixels, at least two must be brighter
-                // (or darker) for nine contiguous ones to be.
-                // Any arc of nine holds two of every four ring pixels spaced by four.
-                let compass = [r[0][x], r[3][x + 3], r[6][x], r[3][x - 3]];
-                let diagonal = [r[1][x + 2], r[5][x + 2], r[5][x - 2], r[1][x - 2]];
-                let count = |q: &[u8; 4], f: &dyn Fn(i16) -> bool| {
-                    q.iter().filter(|&&p| f(p as i16)).count()
-                };
-                let brighter = |p: i16| p > c + t;
-                let darker = |p: i16| p < c - t;
-                let maybe_bright =
-                    count(&compass, &brighter) >= 2 && count(&diagonal, &brighter) >= 2;
-                let maybe_dark = count(&compass, &darker) >= 2 && count(&diagonal, &darker) >= 2;
-                if !maybe_bright && !maybe_dark {
-                    continue;
-                }
-                let ring = [
-                    r[0][x],
-                    r[0][x + 1],
-                    r[1][x + 2],
-                    r[2][x + 3],
-                    r[3][x + 3],
-                    r[4][x + 3],
-                    r[5][x + 2],
-                    r[6][x + 1],
-                    r[6][x],
-                    r[6][x - 1],
-                    r[5][x - 2],
-                    r[4][x - 3],
-                    r[3][x - 3],
-                    r[2][x - 3],
-                    r[1][x - 2],
-                    r[0][x - 1],
-                ];
-                let (mut mb, mut md, mut sb, mut sd) = (0u32, 0u32, 0u16, 0u16);
-                for (k, &p) in ring.iter().enumerate() {
-                    let d = p as i16 - c;
-                    if d > t {
-                        mb |= 1 << k;
-                        sb += (d - t) as u16;
-                    } else if d < -t {
-                        md |= 1 << k;
-                        sd += (-d - t) as u16;
-                    }
-                }
-                if has_run9(mb) || has_run9(md) {
-                    out[x] = sb.max(sd).max(1);
-                }
-            }
-        }
+        let score = fast_scores(img, self.settings.threshold);
         // Non-maximum suppression and the grid.
         let cell = self.settings.cell;
         let cols = w.div_ceil(cell);
@@ -443,15 +385,21 @@ impl OrbExtractor {
     /// The angle of the intensity centroid of the disc around `(x, y)`, rad.
     fn orientation(&self, img: &GreyImage, x: usize, y: usize) -> f32 {
         let r = PATCH_RADIUS;
-        let (mut m10, mut m01) = (0i64, 0i64);
+        // Integer sums, exact: |m10|, |m01| <= 15 * 255 * 961 < 2^31.
+        let (mut m10, mut m01) = (0i32, 0i32);
         for dy in -r..=r {
             let half = self.disc[(dy + r) as usize];
-            let row = (y as i32 + dy) as usize * img.width;
-            for dx in -half..=half {
-                let v = img.data[row + (x as i32 + dx) as usize] as i64;
-                m10 += dx as i64 * v;
-                m01 += dy as i64 * v;
+            let start = (y as i32 + dy) as usize * img.width + x - half as usize;
+            let row = &img.data[start..=start + 2 * half as usize];
+            // The row's sum and its moment about its first pixel (dx = i - half); the
+            // compiler vectorises both.
+            let (mut sum, mut moment) = (0i32, 0i32);
+            for (i, &v) in row.iter().enumerate() {
+                sum += v as i32;
+                moment += i as i32 * v as i32;
             }
+            m10 += moment - half * sum;
+            m01 += dy * sum;
         }
         (m01 as f32).atan2(m10 as f32)
     }
@@ -472,6 +420,106 @@ impl OrbExtractor {
             }
         }
         d
+    }
+}
+
+/// The FAST-9 score of every pixel at least `BORDER - 1` px from the edges (0 elsewhere and
+/// where there is no corner): the summed contrast beyond `threshold` of the brighter or the
+/// darker ring pixels, whichever is larger, at least 1, where nine contiguous pixels of the
+/// 16-pixel Bresenham circle of radius 3 are all brighter than the centre by more than
+/// `threshold` or all darker.
+fn fast_scores(img: &GreyImage, threshold: u8) -> Vec<u16> {
+    let (w, h) = (img.width, img.height);
+    let t = threshold as i16;
+    let mut score = vec![0u16; w * h];
+    let lo = BORDER - 1;
+    if w <= 2 * lo || h <= 2 * lo {
+        return score;
+    }
+    let mut maybe = vec![0u8; w];
+    for y in lo..h - lo {
+        let r: [&[u8]; 7] = std::array::from_fn(|k| &img.data[(y + k - 3) * w..(y + k - 2) * w]);
+        may_be_corners(&r, lo, w - lo, t, &mut maybe);
+        let out = &mut score[y * w..(y + 1) * w];
+        for x in lo..w - lo {
+            if maybe[x] == 0 {
+                continue;
+            }
+            let c = r[3][x] as i16;
+            let ring = [
+                r[0][x],
+                r[0][x + 1],
+                r[1][x + 2],
+                r[2][x + 3],
+                r[3][x + 3],
+                r[4][x + 3],
+                r[5][x + 2],
+                r[6][x + 1],
+                r[6][x],
+                r[6][x - 1],
+                r[5][x - 2],
+                r[4][x - 3],
+                r[3][x - 3],
+                r[2][x - 3],
+                r[1][x - 2],
+                r[0][x - 1],
+            ];
+            let (mut mb, mut md, mut sb, mut sd) = (0u32, 0u32, 0u16, 0u16);
+            for (k, &p) in ring.iter().enumerate() {
+                let d = p as i16 - c;
+                if d > t {
+                    mb |= 1 << k;
+                    sb += (d - t) as u16;
+                } else if d < -t {
+                    md |= 1 << k;
+                    sd += (-d - t) as u16;
+                }
+            }
+            if has_run9(mb) || has_run9(md) {
+                out[x] = sb.max(sd).max(1);
+            }
+        }
+    }
+    score
+}
+
+/// FAST's quick rejection for the pixels `a..b` of the middle row of `r` (seven rows, the
+/// circle's): `maybe[x]` is 1 where at least two of the four compass pixels of the circle and
+/// two of its four diagonal ones are brighter than the centre by more than `t`, or two and
+/// two darker, else 0. Nine contiguous circle pixels hold two of every four spaced by four,
+/// so a pixel marked 0 is no corner. Branch-free over whole rows, so that the compiler
+/// vectorises it: most pixels of an image end here.
+fn may_be_corners(r: &[&[u8]; 7], a: usize, b: usize, t: i16, maybe: &mut [u8]) {
+    let n = b - a;
+    let centre = &r[3][a..b];
+    let compass = [
+        &r[0][a..b],
+        &r[3][a + 3..b + 3],
+        &r[6][a..b],
+        &r[3][a - 3..b - 3],
+    ];
+    let diagonal = [
+        &r[1][a + 2..b + 2],
+        &r[5][a + 2..b + 2],
+        &r[5][a - 2..b - 2],
+        &r[1][a - 2..b - 2],
+    ];
+    let out = &mut maybe[a..b];
+    for i in 0..n {
+        let c = centre[i] as i16;
+        let (hi, lo) = (c + t, c - t);
+        let (mut cb, mut cd, mut db, mut dd) = (0u8, 0u8, 0u8, 0u8);
+        for q in compass {
+            let p = q[i] as i16;
+            cb += (p > hi) as u8;
+            cd += (p < lo) as u8;
+        }
+        for q in diagonal {
+            let p = q[i] as i16;
+            db += (p > hi) as u8;
+            dd += (p < lo) as u8;
+        }
+        out[i] = ((cb >= 2) & (db >= 2) | (cd >= 2) & (dd >= 2)) as u8;
     }
 }
 
@@ -527,4 +575,133 @@ fn test_pairs() -> [(i8, i8, i8, i8); 256] {
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// FAST-9 by its definition: the 16 circle pixels, nine contiguous all brighter (or all
+    /// darker) than the centre by more than `t`; the score as [`fast_scores`] defines it.
+    fn fast_by_definition(img: &GreyImage, t: u8) -> Vec<u16> {
+        const CIRCLE: [(i64, i64); 16] = [
+            (0, -3),
+            (1, -3),
+            (2, -2),
+            (3, -1),
+            (3, 0),
+            (3, 1),
+            (2, 2),
+            (1, 3),
+            (0, 3),
+            (-1, 3),
+            (-2, 2),
+            (-3, 1),
+            (-3, 0),
+            (-3, -1),
+            (-2, -2),
+            (-1, -3),
+        ];
+        let (w, h) = (img.width, img.height);
+        let at = |x: i64, y: i64| img.data[y as usize * w + x as usize] as i64;
+        let t = t as i64;
+        let mut out = vec![0u16; w * h];
+        let lo = (BORDER - 1) as i64;
+        for y in lo..h as i64 - lo {
+            for x in lo..w as i64 - lo {
+                let c = at(x, y);
+                let d: Vec<i64> = CIRCLE
+                    .iter()
+                    .map(|&(dx, dy)| at(x + dx, y + dy) - c)
+                    .collect();
+                let run =
+                    |f: &dyn Fn(i64) -> bool| (0..16).any(|s| (0..9).all(|k| f(d[(s + k) % 16])));
+                if run(&|v| v > t) || run(&|v| v < -t) {
+                    let sb: i64 = d.iter().filter(|&&v| v > t).map(|&v| v - t).sum();
+                    let sd: i64 = d.iter().filter(|&&v| v < -t).map(|&v| -v - t).sum();
+                    out[y as usize * w + x as usize] = sb.max(sd).max(1) as u16;
+                }
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn orientation_is_the_intensity_centroids_angle() {
+        let (w, h) = (64, 64);
+        let mut state = 0x0f0f_1234_5555_aaaau64;
+        let data: Vec<u8> = (0..w * h)
+            .map(|i| {
+                state ^= state << 13;
+                state ^= state >> 7;
+                state ^= state << 17;
+                // A ramp up and to the right, with noise.
+                ((i % w + i / w) as u64 * 2 + state % 40) as u8
+            })
+            .collect();
+        let img = GreyImage {
+            width: w,
+            height: h,
+            data,
+        };
+        let orb = OrbExtractor::new(OrbSettings::default());
+        let r = PATCH_RADIUS;
+        for (x, y) in [(32usize, 32usize), (20, 40), (40, 17)] {
+            // The centroid by its definition: every pixel of the disc, in floating point.
+            let (mut m10, mut m01) = (0.0f64, 0.0f64);
+            for dy in -r..=r {
+                let half = orb.disc[(dy + r) as usize];
+                for dx in -half..=half {
+                    let v = img.data[(y as i32 + dy) as usize * w + (x as i32 + dx) as usize];
+                    m10 += dx as f64 * v as f64;
+                    m01 += dy as f64 * v as f64;
+                }
+            }
+            let want = m01.atan2(m10) as f32;
+            let got = orb.orientation(&img, x, y);
+            assert!((got - want).abs() < 1e-6, "({x}, {y}): {got} vs {want}");
+            // The ramp rises along +x and +y: the centroid lies near 45°.
+            assert!((got - std::f32::consts::FRAC_PI_4).abs() < 0.3, "{got}");
+        }
+    }
+
+    #[test]
+    fn fast_scores_are_fast9_by_its_definition() {
+        // Noise (every kind of pixel), blocks with noise (real corners and edges), and a
+        // flat image (none).
+        let (w, h) = (96, 72);
+        let mut state = 0x1234_5678_9abc_def0u64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        let noise: Vec<u8> = (0..w * h).map(|_| next() as u8).collect();
+        let blocks: Vec<u8> = (0..w * h)
+            .map(|i| {
+                let (x, y) = (i % w, i / w);
+                let base = if (x / 7 + y / 5) % 2 == 0 { 60 } else { 190 };
+                (base + (next() % 9) as i32 - 4) as u8
+            })
+            .collect();
+        let flat = vec![128u8; w * h];
+        let mut corners = 0;
+        for (what, data) in [("noise", noise), ("blocks", blocks), ("flat", flat)] {
+            let img = GreyImage {
+                width: w,
+                height: h,
+                data,
+            };
+            for t in [0u8, 4, 20, 60] {
+                let ours = fast_scores(&img, t);
+                assert_eq!(ours, fast_by_definition(&img, t), "{what}, threshold {t}");
+                corners += ours.iter().filter(|&&s| s > 0).count();
+            }
+        }
+        assert!(
+            corners > 500,
+            "{corners} corners: the images test too little"
+        );
+    }
 }
