@@ -39,6 +39,9 @@ pub(crate) struct SlamRunner {
     last: Option<TrackReport>,
     /// The last failure to feed a frame.
     error: Option<String>,
+    /// The occupancy grid of SLAM's map, kept up to date for the goals that plan on it (each
+    /// refresh counts only the keyframes that are new or that a loop closure moved).
+    grid: OccupancyGrid,
 }
 
 impl std::fmt::Debug for SlamRunner {
@@ -107,17 +110,13 @@ impl Io {
 
     /// Rebuilds SLAM's occupancy grid for the goals that plan on it.
     fn refresh_grid(&mut self, now: Duration) {
-        let Some(r) = self.slam.as_ref() else {
+        let Some(r) = self.slam.as_mut() else {
             return;
         };
-        match r.slam.map().occupancy(&GridSettings::default()) {
+        match r.grid.update(r.slam.map()) {
             Ok(Some(image)) => self.sense.keep_grid(now, image),
             Ok(None) => {}
-            Err(e) => self
-                .slam
-                .as_mut()
-                .into_iter()
-                .for_each(|r| r.error = Some(e.to_string())),
+            Err(e) => r.error = Some(e.to_string()),
         }
     }
 
@@ -242,6 +241,7 @@ impl Robot {
             optical,
             last: None,
             error: None,
+            grid: OccupancyGrid::new(GridSettings::default())?,
         });
         Ok(())
     }

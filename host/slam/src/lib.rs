@@ -24,7 +24,7 @@ pub mod trajectory;
 pub use dataset::{Dataset, DatasetWriter};
 pub use error::{Error, Result};
 pub use map::{Keyframe, Map};
-pub use maps::{map_iou, map_iou_seen, reachable_part, GridSettings, MapIou};
+pub use maps::{map_iou, map_iou_seen, reachable_part, GridSettings, MapIou, OccupancyGrid};
 pub use optimise::Dof;
 pub use slam::{RgbdInput, Slam, SlamSettings, TrackReport, TrackState};
 pub use trajectory::{ate, parse_tum, to_tum, write_tum, Ate, Stamped};
