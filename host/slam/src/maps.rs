@@ -120,7 +120,7 @@ impl GridSettings {
             });
         }
         let slabs = (s.band[1] - s.band[0]) / s.slab;
-        if !(slabs.is_finite() && (0.0..=64.0).contains(&slabs)) {
+        if !(s.slab.is_finite() && slabs.is_finite() && (0.0..=64.0).contains(&slabs)) {
             return Err(Error::InvalidSettings {
                 why: format!(
                     "slabs of {} m cut the band {:?} m into more than 64 or none",

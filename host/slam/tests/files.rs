@@ -202,6 +202,39 @@ fn maps_with_points_far_away_are_refused_or_too_large_to_grid_not_a_panic() {
     let map = ferrobot_slam::Map::load(&f).expect("loads");
     let e = map.occupancy(&ferrobot_slam::GridSettings::default());
     assert!(matches!(e, Err(Error::InvalidSettings { .. })), "{e:?}");
+    // The kept grid refuses it alike, and again on the next update (it starts afresh).
+    let mut kept =
+        ferrobot_slam::OccupancyGrid::new(ferrobot_slam::GridSettings::default()).expect("new");
+    for _ in 0..2 {
+        let e = kept.update(&map);
+        assert!(matches!(e, Err(Error::InvalidSettings { .. })), "{e:?}");
+    }
+    // Hostile settings are refused when the kept grid is made.
+    for s in [
+        ferrobot_slam::GridSettings {
+            resolution: f64::NAN,
+            ..Default::default()
+        },
+        ferrobot_slam::GridSettings {
+            resolution: 0.0,
+            ..Default::default()
+        },
+        ferrobot_slam::GridSettings {
+            band: [0.8, 0.1],
+            ..Default::default()
+        },
+        ferrobot_slam::GridSettings {
+            slab: f64::INFINITY,
+            ..Default::default()
+        },
+        ferrobot_slam::GridSettings {
+            surface: -1.0,
+            ..Default::default()
+        },
+    ] {
+        let e = ferrobot_slam::OccupancyGrid::new(s);
+        assert!(matches!(e, Err(Error::InvalidSettings { .. })), "{s:?}");
+    }
     // A small one grids, and holds its obstacle.
     let f = map_file("small", [0.0; 3], &[[0.3, 0.0, 0.5]]);
     let map = ferrobot_slam::Map::load(&f).expect("loads");
