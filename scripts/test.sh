@@ -71,7 +71,9 @@ check fmt cargo fmt --all -- --check
 # Every cargo command below selects the whole workspace (--workspace), as the full build does,
 # so that nothing is built twice: a narrower selection (-p) would unify other features.
 step "cargo test --no-run: what the HIL tests need"
-cargo test --workspace --no-run --test hil --bin firmware-process
+# --timings: each build's per-crate times in target/cargo-timings/ (the HTML reports), to see
+# where CI's compile time goes.
+cargo test --workspace --no-run --timings --test hil --bin firmware-process
 
 step "waited for: the board builds"
 join boards
@@ -88,7 +90,7 @@ step "started: the HIL tests (hil-tests/tests/hil.rs: the firmware in QEMU, real
 background hil 'cargo test --workspace --no-fail-fast --test hil --bin firmware-process'
 
 step "cargo test --no-run: every other test"
-cargo test --workspace --no-run
+cargo test --workspace --no-run --timings
 
 step "cargo clippy --all-targets -D warnings (workspace)"
 check clippy cargo clippy --workspace --all-targets -- -D warnings
