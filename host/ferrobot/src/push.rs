@@ -50,10 +50,10 @@ pub struct PushOptions {
     /// the planning scene before the gripper meets the object).
     pub attempts: usize,
     /// Moves of the base tried, in order, when no flat-topped object can be pushed from where
-    /// it stands: sideways by each of these (m, along `base_link`'s y; turn, drive, turn
-    /// back), then forward up to `table_clearance` from the table. The arm stays folded as it
-    /// looked (above the base, out of the way of anything on the table). Empty: the base
-    /// stays.
+    /// it stands: sideways by each of these (m, along `base_link`'s y; back until the body
+    /// turns clear of the table, turn, drive, turn back), then forward up to
+    /// `table_clearance` from the table. The arm stays folded as it looked (above the base,
+    /// out of the way of anything on the table). Empty: the base stays.
     pub base_shifts: Vec<f64>,
     /// Least distance kept between the robot's body and the table's near edge when the base
     /// drives up to it, m: in [0, 0.5]. The body is the footprint and whatever of the robot
@@ -167,7 +167,12 @@ impl Robot {
         if !flat_here && self.base().is_ok() {
             if !opts.base_shifts.is_empty() {
                 if let Some(shift) = self.base_shift(&seen, opts, here.is_ok())? {
-                    self.shift_base(shift)?;
+                    // Room to turn in place: the body's turning circle `table_clearance` from
+                    // the table's near edge (the LoCoBot's plates' corners reach 0.29 m).
+                    let (lo, hi) = table_bounds(&seen.table);
+                    let radius = self.body_radius(hi.z + opts.segment.max_height)?;
+                    let back = (radius + opts.table_clearance - lo.x).max(0.0);
+                    self.shift_base(shift, back)?;
                     let seen = self.look_at_table(opts, clusterer, params, above)?;
                     let plans =
                         rank_pushes(&seen.points, &seen.objects, &seen.table, &seen.params)?;
@@ -384,11 +389,17 @@ impl Robot {
         Ok(None)
     }
 
-    /// Move the base by `shift` (forward, left; m): sideways by turning a quarter, driving
-    /// and turning back, then forward.
-    fn shift_base(&self, [forward, left]: [f64; 2]) -> Result<()> {
+    /// Move the base by `shift` (forward, left; m): sideways by backing `back` (m, room to
+    /// turn in place), turning a quarter, driving and turning back, then forward (by `back`
+    /// more).
+    fn shift_base(&self, [forward, left]: [f64; 2], back: f64) -> Result<()> {
         let base = self.base()?;
+        let mut forward = forward;
         if left.abs() > 1e-3 {
+            if back > 1e-3 {
+                base.go_to_relative([-back, 0.0, 0.0])?;
+                forward += back;
+            }
             let quarter = FRAC_PI_2.copysign(left);
             base.go_to_relative([0.0, 0.0, quarter])?;
             base.go_to_relative([left.abs(), 0.0, 0.0])?;
