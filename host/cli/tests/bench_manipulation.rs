@@ -53,6 +53,7 @@ fn bench_push_runs_one_trial_judged_by_ground_truth() {
     let t = &v["per_trial"][0];
     assert!(t["target_moved_m"].as_f64().unwrap() >= 0.05, "{t}");
     assert!(t["others_max_moved_m"].as_f64().unwrap() < 0.01, "{t}");
+    assert_eq!(t["side"], "near", "{t}");
     assert_eq!(v["success_rate"], 1.0, "{text}");
     assert!(v["time_s"]["median"].as_f64().unwrap() > 1.0);
 }

@@ -34,6 +34,7 @@ pub mod push;
 pub mod robot;
 mod sense;
 pub mod slam;
+pub mod stance;
 
 pub use ferrobot_control::odometry_calibration;
 pub use ferrobot_description as config;

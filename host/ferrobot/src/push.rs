@@ -19,6 +19,7 @@ use ferrobot_perception::{
 use nalgebra::{Point3, Vector3};
 
 use crate::error::{Error, Result};
+use crate::stance::{stance, Side, Stance};
 use crate::{Orientation, Robot};
 
 /// How the robot looks and pushes.
@@ -49,10 +50,10 @@ pub struct PushOptions {
     /// the planning scene before the gripper meets the object).
     pub attempts: usize,
     /// Moves of the base tried, in order, when no flat-topped object can be pushed from where
-    /// it stands: sideways by each of these (m, along `base_link`'s y; turn, drive, turn
-    /// back), then forward up to `table_clearance` from the table. The arm stays folded as it
-    /// looked (above the base, out of the way of anything on the table). Empty: the base
-    /// stays.
+    /// it stands: sideways by each of these (m, along `base_link`'s y; back until the body
+    /// turns clear of the table, turn, drive, turn back), then forward up to
+    /// `table_clearance` from the table. The arm stays folded as it looked (above the base,
+    /// out of the way of anything on the table). Empty: the base stays.
     pub base_shifts: Vec<f64>,
     /// Least distance kept between the robot's body and the table's near edge when the base
     /// drives up to it, m: in [0, 0.5]. The body is the footprint and whatever of the robot
@@ -60,6 +61,16 @@ pub struct PushOptions {
     /// plates, at the table top's height, 7 cm ahead of its footprint; from its links'
     /// covering spheres).
     pub table_clearance: f64,
+    /// Least distance kept between the robot's body and the table's seen extent on the drive
+    /// round the table, m: in [0, 0.5]. When no flat-topped object can be pushed from the
+    /// near side (any base move of `base_shifts` included), the robot drives round the table
+    /// to its left end, right end or far side (each stance `base_shifts` along the side from
+    /// its middle, the shortest route first) from which one can, looks again there and
+    /// pushes. The body is the circle it sweeps turning in place (footprint, plates and the
+    /// folded arm, from the links' covering spheres); the route runs on the table's seen
+    /// rectangle grown by that radius and this clearance (see [`crate::stance`]). `None`:
+    /// the robot stays at the near side.
+    pub route_clearance: Option<f64>,
 }
 
 impl Default for PushOptions {
@@ -84,6 +95,7 @@ impl Default for PushOptions {
             attempts: 3,
             base_shifts: vec![0.0, 0.1, -0.1, 0.2, -0.2, 0.3, -0.3],
             table_clearance: 0.04,
+            route_clearance: Some(0.05),
         }
     }
 }
@@ -102,6 +114,8 @@ pub struct Pushed {
     /// How the base moved before the push (forward, left), m, in `base_link` where it stood;
     /// `plan` and `objects` are in `base_link` where it stands after the move.
     pub base_move: [f64; 2],
+    /// The side of the table pushed from, named as seen from where the robot first looked.
+    pub side: Side,
 }
 
 impl Robot {
@@ -116,6 +130,9 @@ impl Robot {
         crate::validate::all_in_range("approach lifts", &opts.lifts, 0.0, 0.5)?;
         crate::validate::all_in_range("base shifts", &opts.base_shifts, -0.5, 0.5)?;
         crate::validate::in_range("table clearance", opts.table_clearance, 0.0, 0.5)?;
+        if let Some(c) = opts.route_clearance {
+            crate::validate::in_range("route clearance", c, 0.0, 0.5)?;
+        }
         if opts.lifts.is_empty() {
             return Err(Error::Usage("push: give at least one approach lift".into()));
         }
@@ -128,33 +145,195 @@ impl Robot {
         self.gripper()?;
         self.camera()?;
         let clusterer = Dbscan::new(opts.eps, opts.min_samples)?;
-        let seen = self.look_at_table(opts, &clusterer, params)?;
+        self.push_from_side(opts, &clusterer, params, Side::Near, None)
+    }
+
+    /// Look and push from the side the robot stands at (`side`, for the report): from here,
+    /// else after a move of the base along this side (`opts.base_shifts`), else, from the
+    /// near side only, from another side of the table (`opts.route_clearance`). `above`: the
+    /// height (m, `base_link`'s z) below which the cloud is not looked at, if known (see
+    /// [`Robot::look_at_table`]).
+    fn push_from_side(
+        &self,
+        opts: &PushOptions,
+        clusterer: &Dbscan,
+        params: PushParams,
+        side: Side,
+        above: Option<f64>,
+    ) -> Result<Pushed> {
+        let seen = self.look_at_table(opts, clusterer, params, above)?;
         let here = rank_pushes(&seen.points, &seen.objects, &seen.table, &seen.params);
         let flat_here = matches!(&here, Ok(p) if p[0].flat);
-        if !flat_here && !opts.base_shifts.is_empty() && self.base().is_ok() {
-            if let Some(shift) = self.base_shift(&seen, opts, here.is_ok())? {
-                self.shift_base(shift)?;
-                let seen = self.look_at_table(opts, &clusterer, params)?;
-                let plans = rank_pushes(&seen.points, &seen.objects, &seen.table, &seen.params)?;
-                return self.push_ranked(seen, plans, opts, shift);
+        if !flat_here && self.base().is_ok() {
+            if !opts.base_shifts.is_empty() {
+                if let Some(shift) = self.base_shift(&seen, opts, here.is_ok())? {
+                    // Room to turn in place: the body's turning circle `table_clearance` from
+                    // the table's near edge (the LoCoBot's plates' corners reach 0.29 m).
+                    let (lo, hi) = table_bounds(&seen.table);
+                    let radius = self.body_radius(hi.z + opts.segment.max_height)?;
+                    let back = (radius + opts.table_clearance - lo.x).max(0.0);
+                    self.shift_base(shift, back)?;
+                    let seen = self.look_at_table(opts, clusterer, params, above)?;
+                    let plans =
+                        rank_pushes(&seen.points, &seen.objects, &seen.table, &seen.params)?;
+                    return self.push_ranked(seen, plans, opts, shift, side);
+                }
+            }
+            if let (Side::Near, Some(clear)) = (side, opts.route_clearance) {
+                if let Some(st) = self.other_side(&seen, opts, clear, here.is_ok())? {
+                    self.drive_route(&st)?;
+                    // From an end of the table the floor fills more of the view than the
+                    // table's top: the top's height seen from here (the floor is level, so
+                    // it stands as high in `base_link` there) keeps RANSAC off the floor.
+                    let (lo, hi) = table_bounds(&seen.table);
+                    let top = (lo.z + hi.z) / 2.0 - TOP_BAND;
+                    return self.push_from_side(opts, clusterer, params, st.side, Some(top));
+                }
             }
         }
-        self.push_ranked(seen, here?, opts, [0.0, 0.0])
+        self.push_ranked(seen, here?, opts, [0.0, 0.0], side)
+    }
+
+    /// The stance at another side of the table (see [`crate::stance`]) from which a
+    /// flat-topped object can be pushed (any object if `any` is false), the shortest route
+    /// first: each side's stances `opts.base_shifts` from its middle, judged by the ranking
+    /// with the arm's reach and the camera moved to where the robot would push from (its
+    /// body `opts.table_clearance` from that side's edge). The table is the rectangle its
+    /// seen region spans; the route keeps the body's turning circle `clear` (m) from it.
+    /// `None`: no such stance.
+    fn other_side(
+        &self,
+        seen: &TableView,
+        opts: &PushOptions,
+        clear: f64,
+        any: bool,
+    ) -> Result<Option<Stance>> {
+        let hi = table_bounds(&seen.table).1;
+        let below = hi.z + opts.segment.max_height;
+        let ahead = self.body_ahead(below)?;
+        let radius = self.body_radius(below)?;
+        let (lo2, hi2, seen_edges) = self.look_round(seen, opts, radius)?;
+        let mut stances: Vec<Stance> = [Side::Left, Side::Right, Side::Far]
+            .iter()
+            .flat_map(|&side| {
+                opts.base_shifts.iter().filter_map(move |&along| {
+                    stance(lo2, hi2, radius + clear, [0.0, 0.0], side, along)
+                })
+            })
+            .collect();
+        // Only routes along edges seen to be the table's: elsewhere it may reach further.
+        stances.retain(|st| (0..4).all(|k| !st.passes[k] || seen_edges[k]));
+        stances.sort_by(|a, b| a.length.total_cmp(&b.length));
+        let shoulder = seen.params.reach_centre;
+        let eye = seen.params.viewpoint.unwrap_or(shoulder);
+        // Where the robot would push from: the body `table_clearance` from the side's edge.
+        let stand = ahead + opts.table_clearance;
+        for st in stances {
+            let [x, y, h] = st.side.pose(lo2, hi2, stand, st.along);
+            let (s, c) = h.sin_cos();
+            let at = |p: [f64; 2]| [x + c * p[0] - s * p[1], y + s * p[0] + c * p[1]];
+            let mut params = seen.params;
+            params.reach_centre = at(shoulder);
+            params.viewpoint = Some(at(eye));
+            if params.check().is_err() {
+                continue;
+            }
+            if let Ok(p) = rank_pushes(&seen.points, &seen.objects, &seen.table, &params) {
+                if p[0].flat || !any {
+                    return Ok(Some(st));
+                }
+            }
+        }
+        Ok(None)
+    }
+
+    /// The table's extent and which of its edges are seen (see [`crate::stance::edges_seen`]):
+    /// the region seen in `seen`, grown by what looks with the head turned
+    /// [`LOOK_ROUND_PAN`] to either side show on the table's plane; the head is left turned
+    /// back. Points within `body` (m) of the base's axis are the robot's own (the LoCoBot's
+    /// plates lie level with the tabletop's top). Returns the rectangle's corners (x, y; m,
+    /// `base_link`) and the edges seen.
+    fn look_round(
+        &self,
+        seen: &TableView,
+        opts: &PushOptions,
+        body: f64,
+    ) -> Result<([f64; 2], [f64; 2], [bool; 4])> {
+        let plane = &seen.table.plane;
+        let (lo, hi) = table_bounds(&seen.table);
+        let (mut lo, mut hi) = ([lo.x, lo.y], [hi.x, hi.y]);
+        let camera = self.camera()?;
+        let head = camera.head()?;
+        let optical = self.optical_frame()?;
+        let mut looks = Vec::with_capacity(3);
+        for pan in [0.0, LOOK_ROUND_PAN, -LOOK_ROUND_PAN] {
+            let points = if pan == 0.0 {
+                seen.points.clone()
+            } else {
+                head.set_pan_tilt(pan, opts.tilt)?;
+                camera.get_current_pcd(false)?.points
+            };
+            let eye = Point3::from(
+                self.link_transform(&optical, "base_link")?
+                    .translation
+                    .vector,
+            );
+            let flat = |p: &Point3<f64>| [p.x, p.y, plane.signed_distance(p)];
+            let points: Vec<[f64; 3]> = points.iter().map(flat).collect();
+            for &[x, y, h] in &points {
+                // On the table's plane and next to what was seen of it (not a far surface
+                // level with it).
+                let near = x > lo[0] - 0.1 && x < hi[0] + 0.1 && y > lo[1] - 0.1 && y < hi[1] + 0.1;
+                if h.abs() <= opts.ransac.threshold && near && x.hypot(y) > body {
+                    lo = [lo[0].min(x), lo[1].min(y)];
+                    hi = [hi[0].max(x), hi[1].max(y)];
+                }
+            }
+            looks.push((flat(&eye), points));
+        }
+        head.set_pan_tilt(0.0, opts.tilt)?;
+        let mut edges = [false; 4];
+        for (eye, points) in &looks {
+            let e = crate::stance::edges_seen(points, *eye, lo, hi, EDGE_BAND, EDGE_DROP);
+            for k in 0..4 {
+                edges[k] |= e[k];
+            }
+        }
+        Ok((lo, hi, edges))
+    }
+
+    /// Drive `st.route` (waypoints in `base_link` where the robot stands now): to each
+    /// waypoint in a straight line, turning in place on arrival to the next leg's heading
+    /// (odometry-frame goals, so small errors do not add up).
+    fn drive_route(&self, st: &Stance) -> Result<()> {
+        let base = self.base()?;
+        let origin = ferrobot_geometry::Pose2::from(base.get_state()?);
+        for w in &st.route {
+            let goal = origin.compose(&ferrobot_geometry::Pose2::from(*w));
+            base.go_to_absolute(goal.to_array())?;
+        }
+        Ok(())
     }
 
     /// Look at the table: the gripper closed, the arm folded out of view, the head down at
     /// the table; its plane, the objects on it, and `params` with the camera's viewpoint.
+    /// With `above` (m, `base_link`'s z), only the points above it are looked at (the table's
+    /// top where its height is known, not the floor).
     fn look_at_table(
         &self,
         opts: &PushOptions,
         clusterer: &Dbscan,
         mut params: PushParams,
+        above: Option<f64>,
     ) -> Result<TableView> {
         self.gripper()?.close()?;
         self.arm()?.clear_view()?;
         let camera = self.camera()?;
         camera.head()?.set_pan_tilt(0.0, opts.tilt)?;
-        let points = camera.get_current_pcd(false)?.points;
+        let mut points = camera.get_current_pcd(false)?.points;
+        if let Some(z) = above {
+            points.retain(|p| p.z >= z);
+        }
         let fit = fit_plane(
             &points,
             &RansacParams {
@@ -210,11 +389,17 @@ impl Robot {
         Ok(None)
     }
 
-    /// Move the base by `shift` (forward, left; m): sideways by turning a quarter, driving
-    /// and turning back, then forward.
-    fn shift_base(&self, [forward, left]: [f64; 2]) -> Result<()> {
+    /// Move the base by `shift` (forward, left; m): sideways by backing `back` (m, room to
+    /// turn in place), turning a quarter, driving and turning back, then forward (by `back`
+    /// more).
+    fn shift_base(&self, [forward, left]: [f64; 2], back: f64) -> Result<()> {
         let base = self.base()?;
+        let mut forward = forward;
         if left.abs() > 1e-3 {
+            if back > 1e-3 {
+                base.go_to_relative([-back, 0.0, 0.0])?;
+                forward += back;
+            }
             let quarter = FRAC_PI_2.copysign(left);
             base.go_to_relative([0.0, 0.0, quarter])?;
             base.go_to_relative([left.abs(), 0.0, 0.0])?;
@@ -234,6 +419,7 @@ impl Robot {
         plans: Vec<PushPlan>,
         opts: &PushOptions,
         base_move: [f64; 2],
+        side: Side,
     ) -> Result<Pushed> {
         let arm = self.arm()?;
         let tip = self.finger_tip_depth()?;
@@ -286,6 +472,7 @@ impl Robot {
                         lift,
                         roll,
                         base_move,
+                        side,
                     });
                 }
                 Err(e @ (Error::Unreachable { .. } | Error::Planning(_))) => last = Some(e),
@@ -432,6 +619,22 @@ impl Robot {
         })
     }
 }
+
+/// How far the head turns to either side to see the table's ends before the robot drives
+/// round it, rad.
+const LOOK_ROUND_PAN: f64 = 0.6;
+
+/// An edge of the table is seen when the camera saw past it within this, m (see
+/// [`crate::stance::edges_seen`]).
+const EDGE_BAND: f64 = 0.05;
+
+/// Depth below the table's plane from which a point is the floor's, m (the tabletop's top is
+/// 0.1 m above it).
+const EDGE_DROP: f64 = 0.05;
+
+/// How far below the table's top seen from the near side the cloud is cut when the robot
+/// looks from another side, m (the tabletop's top is 0.1 m above the floor).
+const TOP_BAND: f64 = 0.03;
 
 /// What a look at the table found, in `base_link`.
 struct TableView {

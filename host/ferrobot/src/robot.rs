@@ -624,6 +624,20 @@ impl Robot {
         Ok(self.self_body()?.ahead(&poses, None, below))
     }
 
+    /// The radius of the circle the robot's body sweeps as the base turns in place, m, in
+    /// the pose it holds now: the footprint, and every link's covering spheres that come down
+    /// below `below` (m, `base_link`'s z).
+    pub(crate) fn body_radius(&self, below: f64) -> Result<f64> {
+        let frames = self.frames()?;
+        let poses = frames.poses_in(&self.telemetry()?, crate::frames::BASE_FRAME)?;
+        let footprint = self
+            .config()
+            .base
+            .as_ref()
+            .map_or(0.0, |b| b.footprint_radius);
+        Ok(self.self_body()?.around(&poses, below).max(footprint))
+    }
+
     /// The camera's optical frame.
     pub(crate) fn optical_frame(&self) -> Result<String> {
         self.inner

@@ -228,6 +228,20 @@ impl SelfBody {
             .fold(0.0, f64::max)
     }
 
+    /// How far the links reach from the base's vertical axis in any direction, m: the
+    /// largest horizontal distance (in the frame of `poses`, the base's) of their covering
+    /// spheres' far sides (no margin), among those that come down below `below` (m, that
+    /// frame's z). The radius of the circle the body sweeps turning in place. 0 when none does.
+    pub(crate) fn around(&self, poses: &[Isometry3<f64>], below: f64) -> f64 {
+        self.links
+            .iter()
+            .filter_map(|(i, spheres)| poses.get(*i).map(|p| (p, spheres)))
+            .flat_map(|(p, spheres)| spheres.iter().map(move |s| (p * s.centre, s.radius)))
+            .filter(|(c, r)| c.z - r <= below)
+            .map(|(c, r)| c.x.hypot(c.y) + r)
+            .fold(0.0, f64::max)
+    }
+
     /// The spheres grown by [`SELF_MARGIN`], placed by the links' poses `poses` (tree order)
     /// in their frame.
     pub(crate) fn placed(&self, poses: &[Isometry3<f64>]) -> Vec<Sphere> {

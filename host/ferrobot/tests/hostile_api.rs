@@ -681,6 +681,13 @@ fn the_push_refuses_hostile_options() {
                     ..Default::default()
                 },
             ),
+            (
+                "route_clearance",
+                PushOptions {
+                    route_clearance: Some(v),
+                    ..Default::default()
+                },
+            ),
         ];
         for (what, opts) in cases {
             if what == "tilt" && v == -1.0 {

@@ -64,3 +64,42 @@ fn an_empty_table_is_a_typed_error() {
     );
     assert!(!e.is_input());
 }
+
+/// The only object stands 0.2 m from the far edge, out of the arm's reach from the near side
+/// and both ends: the robot drives round the table (its body clear of the table all the way)
+/// and pushes it from the far side; nothing else touched the table.
+#[test]
+fn an_object_out_of_reach_is_pushed_from_the_far_side() {
+    let mut scene = Scene::bundled("tabletop").unwrap();
+    scene.bodies.retain(|b| b.fixed || b.id == "cyan_cube");
+    let cube = scene.body_index("cyan_cube").unwrap();
+    let z = scene.bodies[cube].pose.translation.z;
+    scene.bodies[cube].pose.translation.vector = Vector3::new(0.68, 0.0, z);
+    let bot = Robot::builder("locobot").with_scene(scene).build().unwrap();
+    {
+        let mut sim = bot.simulator().expect("simulator");
+        let links = sim.hw.world().expect("world").robot_links();
+        sim.hw.watch_robot_contacts(&links).expect("watch");
+    }
+    let before = bot.truth().unwrap();
+    let pushed = bot.push_object(&PushOptions::default()).unwrap();
+    bot.wait(2.0).unwrap();
+    let after = bot.truth().unwrap();
+    // Only the wheels on the floor and the gripper on the cube.
+    let contacts = bot.simulator().expect("simulator").hw.take_robot_contacts();
+    let touched: Vec<_> = contacts
+        .iter()
+        .filter(|c| c.body != "floor" && c.body != "cyan_cube")
+        .collect();
+    assert!(touched.is_empty(), "{touched:?}");
+    assert_eq!(pushed.side, ferrobot::stance::Side::Far);
+    // The push's direction in the world: the base faces -x there.
+    let d =
+        after.root.rotation * Vector3::new(pushed.plan.direction[0], pushed.plan.direction[1], 0.0);
+    let moved = after.bodies[cube].translation.vector - before.bodies[cube].translation.vector;
+    println!(
+        "cube moved {moved:?} along {d:?}; base at {:?}",
+        after.root.translation
+    );
+    assert!(moved.dot(&d) >= 0.05, "the cube moved {moved:?}");
+}

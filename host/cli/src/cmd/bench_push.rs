@@ -43,6 +43,8 @@ struct Trial {
     /// Whether another object moved more than [`OTHERS_STILL`].
     others_moved: bool,
     seed: u64,
+    /// The side of the table pushed from (as seen from the start), if a push was made.
+    side: Option<ferrobot::stance::Side>,
     success: bool,
     /// The scene body pushed (the one nearest the chosen object's centroid).
     target: Option<String>,
@@ -151,6 +153,7 @@ fn trial(a: &TableTrials, base_scene: &Scene, seed: u64) -> ferrobot::Result<Tri
         others_max_moved_m: 0.0,
         others_moved: false,
         seed,
+        side: None,
         success: false,
         target: None,
         target_moved_m: 0.0,
@@ -176,6 +179,7 @@ fn trial(a: &TableTrials, base_scene: &Scene, seed: u64) -> ferrobot::Result<Tri
     let target = match &pushed {
         Ok(p) => {
             t.base_move_m = p.base_move;
+            t.side = Some(p.side);
             // The plan is in `base_link` where the base stood for the push (it may have
             // moved first; the push itself moves only the arm).
             let c = p.objects[p.plan.target].centroid;
