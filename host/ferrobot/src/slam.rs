@@ -277,9 +277,10 @@ impl Robot {
     /// The occupancy grid so far (PyRobot's 0.02 m cells, obstacles 0.1-0.8 m above the floor),
     /// in the map's frame; `None` before the first keyframe.
     pub fn slam_occupancy_map(&self) -> crate::Result<Option<MapImage>> {
-        let io = self.lock_io();
-        let r = io.slam.as_ref().ok_or_else(not_running)?;
-        Ok(r.slam.map().occupancy(&GridSettings::default())?)
+        let mut io = self.lock_io();
+        let r = io.slam.as_mut().ok_or_else(not_running)?;
+        // The grid the goals plan on, brought up to date (the same image as a fresh one).
+        Ok(r.grid.update(r.slam.map())?)
     }
 
     /// The SLAM map so far (to save with [`Map::save`]).
