@@ -197,29 +197,29 @@ pub fn edges_seen(
     seen
 }
 
-/// The least distance from the point `p` to the rectangle `[lo, hi]` (0 inside), m.
-pub fn distance_to_rect(p: [f64; 2], lo: [f64; 2], hi: [f64; 2]) -> f64 {
-    let dx = (lo[0] - p[0]).max(p[0] - hi[0]).max(0.0);
-    let dy = (lo[1] - p[1]).max(p[1] - hi[1]).max(0.0);
-    dx.hypot(dy)
-}
-
-/// The least distance from the segment `a`-`b` to the rectangle `[lo, hi]`, m, sampled every
-/// millimetre (exact enough for a clearance check).
-pub fn segment_distance_to_rect(a: [f64; 2], b: [f64; 2], lo: [f64; 2], hi: [f64; 2]) -> f64 {
-    let n = ((b[0] - a[0]).hypot(b[1] - a[1]) / 1e-3).ceil().max(1.0) as usize;
-    (0..=n)
-        .map(|k| {
-            let t = k as f64 / n as f64;
-            let p = [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])];
-            distance_to_rect(p, lo, hi)
-        })
-        .fold(f64::INFINITY, f64::min)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The least distance from the point `p` to the rectangle `[lo, hi]` (0 inside), m.
+    fn distance_to_rect(p: [f64; 2], lo: [f64; 2], hi: [f64; 2]) -> f64 {
+        let dx = (lo[0] - p[0]).max(p[0] - hi[0]).max(0.0);
+        let dy = (lo[1] - p[1]).max(p[1] - hi[1]).max(0.0);
+        dx.hypot(dy)
+    }
+
+    /// The least distance from the segment `a`-`b` to the rectangle `[lo, hi]`, m, sampled every
+    /// millimetre (exact enough for a clearance check).
+    fn segment_distance_to_rect(a: [f64; 2], b: [f64; 2], lo: [f64; 2], hi: [f64; 2]) -> f64 {
+        let n = ((b[0] - a[0]).hypot(b[1] - a[1]) / 1e-3).ceil().max(1.0) as usize;
+        (0..=n)
+            .map(|k| {
+                let t = k as f64 / n as f64;
+                let p = [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])];
+                distance_to_rect(p, lo, hi)
+            })
+            .fold(f64::INFINITY, f64::min)
+    }
 
     const LO: [f64; 2] = [0.28, -0.4];
     const HI: [f64; 2] = [0.73, 0.4];
