@@ -17,8 +17,10 @@
 //! * with `FERROBOT_BENCH_CLOUD=FILE.ply`, that cloud too (e.g. the simulator's own frame:
 //!   `ferrobot snapshot locobot --scene tabletop --out DIR` writes `DIR/cloud.ply`).
 //!
-//! Ours: median and best of 15 runs after one warm-up, on the calling thread (the k-d tree
-//! built in every run). scikit-learn: `DBSCAN(eps, min_samples).fit(X)` (tree, neighbourhoods
+//! `FERROBOT_BENCH_ONLY=NAME` (`view`, `objects`, `blobs` or `file`) runs that cloud alone.
+//!
+//! Ours: median and best of 15 runs after one warm-up, on the calling thread (the grid of
+//! cells built in every run). scikit-learn: `DBSCAN(eps, min_samples).fit(X)` (tree, neighbourhoods
 //! and labels), median and best of 3, one thread. The labels of the two are compared point
 //! by point.
 
@@ -156,7 +158,11 @@ fn main() {
     let py = peer_python();
     let mut rows = Vec::new();
     let mut version = String::from("not run");
+    let only = std::env::var("FERROBOT_BENCH_ONLY").ok();
     for (name, points, eps, m) in clouds() {
+        if only.as_deref().is_some_and(|o| o != name) {
+            continue;
+        }
         let path = dir.join(format!("{name}.ply"));
         let cloud = PointCloud {
             colours: vec![[128; 3]; points.len()],
@@ -211,7 +217,9 @@ fn main() {
             equal,
         ));
     }
-    println!("\nDBSCAN, single thread, ferrobot (kiddo k-d tree) vs scikit-learn {version}");
+    println!(
+        "\nDBSCAN, single thread, ferrobot (grid of cells eps wide) vs scikit-learn {version}"
+    );
     println!(
         "| cloud | points | eps, min_samples | mean neighbours | clusters | noise | ours: median (best) | scikit-learn: median (best) | ratio (medians) | labels equal |"
     );

@@ -1,5 +1,5 @@
 //! Clustering of point clouds: DBSCAN with scikit-learn's semantics behind the [`Clusterer`]
-//! trait, on a k-d tree ([`Dbscan`], the fast one) and by exhaustive search
+//! trait, on a grid of cells or a k-d tree ([`Dbscan`], the fast one) and by exhaustive search
 //! ([`ExhaustiveDbscan`], the literal algorithm, a reference for checking).
 //!
 //! # Semantics (scikit-learn's `DBSCAN(eps, min_samples)`, metric euclidean)
@@ -25,6 +25,7 @@ use nalgebra::Point3;
 
 use crate::cloud::check_points;
 use crate::error::{PerceptionError, Result};
+use crate::grid::CellGrid;
 
 /// The label of a noise point.
 pub const NOISE: i32 = -1;
@@ -156,9 +157,10 @@ fn d2(a: &[f64; 3], b: &[f64; 3]) -> f64 {
     dx * dx + dy * dy + dz * dz
 }
 
-/// DBSCAN on a k-d tree (kiddo's [`ImmutableKdTree`], built once per call), single-threaded,
-/// with the semantics of the [module](self). Cost: about linear in the number of points for
-/// a cloud of surfaces, whatever its density (see [`Dbscan::cluster`]).
+/// DBSCAN on a grid of cells `eps` wide, or kiddo's k-d tree ([`ImmutableKdTree`]) for a
+/// cloud spread too far for a grid (either built once per call), single-threaded, with the
+/// semantics of the [module](self). Cost: about linear in the number of points for a cloud of
+/// surfaces, whatever its density (see [`Dbscan::cluster`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Dbscan {
     /// The parameters.
@@ -205,18 +207,99 @@ enum Kind {
     Other,
 }
 
+/// Most cells of DBSCAN's grid per point; a cloud spread wider for its `eps` is searched
+/// through kiddo's k-d tree instead.
+const GRID_CELLS_PER_POINT: usize = 16;
+
+/// Where DBSCAN looks for a point's neighbours: a grid of cells `eps` wide with the points
+/// sorted by cell (compact clouds), or kiddo's k-d tree over the points in the caller's order.
+/// Both name points by their *position* in [`Neighbours::pts`].
+enum Neighbours {
+    Grid(CellGrid),
+    Tree {
+        pts: Vec<[f64; 3]>,
+        tree: ImmutableKdTree<f64, 3>,
+    },
+}
+
+impl Neighbours {
+    /// The grid of cells `eps` wide over `points` where it needs at most
+    /// [`GRID_CELLS_PER_POINT`] cells per point, else the tree.
+    fn new(points: &[Point3<f64>], eps: f64) -> Result<Self> {
+        let pts: Vec<[f64; 3]> = points.iter().map(|p| [p.x, p.y, p.z]).collect();
+        let max_cells = GRID_CELLS_PER_POINT.saturating_mul(pts.len());
+        match CellGrid::new(&pts, eps, 1, max_cells) {
+            Some(grid) => Ok(Neighbours::Grid(grid)),
+            None => Self::tree(pts),
+        }
+    }
+
+    /// Kiddo's k-d tree over `pts`.
+    fn tree(pts: Vec<[f64; 3]>) -> Result<Self> {
+        let tree = ImmutableKdTree::new_from_slice(&pts)
+            .map_err(|e| PerceptionError::KdTree(format!("{e:?}")))?;
+        Ok(Neighbours::Tree { pts, tree })
+    }
+
+    /// The points, by position.
+    fn pts(&self) -> &[[f64; 3]] {
+        match self {
+            Neighbours::Grid(g) => &g.pts,
+            Neighbours::Tree { pts, .. } => pts,
+        }
+    }
+
+    /// The caller's index of the point at position `s`.
+    fn orig(&self, s: usize) -> usize {
+        match self {
+            Neighbours::Grid(g) => g.orig[s] as usize,
+            Neighbours::Tree { .. } => s,
+        }
+    }
+
+    /// Calls `visit(position, d²)` for every point within squared distance `r2` of `p`.
+    #[inline]
+    fn within(&self, p: &[f64; 3], r2: f64, mut visit: impl FnMut(u32, f64)) {
+        match self {
+            Neighbours::Grid(g) => g.within(p, r2, visit),
+            Neighbours::Tree { tree, .. } => tree
+                .query(p)
+                .within::<SquaredEuclidean<f64>>(r2)
+                .unsorted()
+                .visit(|hit| visit(hit.item, hit.distance)),
+        }
+    }
+
+    /// At least the number of points within `eps` of `p`, where that is cheap to bound (the
+    /// grid's cells around it); else `usize::MAX`.
+    #[inline]
+    fn at_most(&self, p: &[f64; 3], eps: f64) -> usize {
+        match self {
+            Neighbours::Grid(g) => g.count_around(p, eps),
+            Neighbours::Tree { .. } => usize::MAX,
+        }
+    }
+}
+
 impl Clusterer for Dbscan {
     /// DBSCAN as the [module](self) defines it. The work is organised so that a dense cloud
     /// (a camera's surfaces, hundreds of neighbours per point) costs little more than a
-    /// sparse one, and the labels stay exact:
+    /// sparse one, and the labels stay exact. Neighbours are found on a grid of cells `eps`
+    /// wide, the points sorted by cell (a cloud too spread for a grid of
+    /// [`GRID_CELLS_PER_POINT`] cells per point: kiddo's k-d tree); the steps below work on
+    /// the points in that order.
     ///
-    /// 1. *Leaders.* Scanning points by index, a point not yet in any group becomes a leader
-    ///    and takes every ungrouped point within `r = eps / 2` (less 1e-9) of it into its
-    ///    group. Any two points within `r` of one leader are within `eps` of each other.
-    ///    When the leader's ball holds at least `min_samples` points, every member of its
-    ///    group is core (the ball lies inside each member's neighbourhood); when the ball of
-    ///    `1.5 eps` around it (which holds every member's neighbourhood) holds fewer, none
-    ///    is, and those points are kept for step 3; otherwise the distance of the leader's
+    /// 1. *Leaders.* Scanning the points, a point whose grid cells around hold fewer than
+    ///    `min_samples` points is not core (noise, mostly) and is left to step 3. Any other
+    ///    point not yet in a group becomes a leader and takes every ungrouped point within
+    ///    `r = eps / 2` (less 1e-9) of it into its group. Any two points within `r` of one
+    ///    leader are within `eps` of each other. When the leader's ball holds at least
+    ///    `min_samples` points, every member of its group is core (the ball lies inside each
+    ///    member's neighbourhood). Otherwise, on the grid, each member counts its own
+    ///    neighbours in the cells around it, stopping at `min_samples`. On the tree, where a
+    ///    query costs more, the leader's ball of `1.5 eps` (which holds every member's
+    ///    neighbourhood) decides for all: with fewer than `min_samples` points, no member is
+    ///    core, and those points are kept for step 3; else the distance of the leader's
     ///    `min_samples`-th nearest settles most members by the triangle inequality, and the
     ///    others count their neighbours among the points around.
     /// 2. *Clusters.* The core members of one group are connected among themselves; two
@@ -230,19 +313,27 @@ impl Clusterer for Dbscan {
     fn cluster(&self, points: &[Point3<f64>]) -> Result<Clustering> {
         self.params.check()?;
         check_cloud(points)?;
-        let n = points.len();
-        let min_samples = self.params.min_samples;
-        let eps2 = self.params.eps * self.params.eps;
-        let pts: Vec<[f64; 3]> = points.iter().map(|p| [p.x, p.y, p.z]).collect();
-        let tree: ImmutableKdTree<f64, 3> = ImmutableKdTree::new_from_slice(&pts)
-            .map_err(|e| PerceptionError::KdTree(format!("{e:?}")))?;
+        self.cluster_on(&Neighbours::new(points, self.params.eps)?)
+    }
+}
 
-        // 1. Leaders, their groups, and which points are core.
-        let r = 0.5 * self.params.eps * LEADER_SHRINK;
+impl Dbscan {
+    /// [`Clusterer::cluster`] on the checked points in `index`.
+    fn cluster_on(&self, index: &Neighbours) -> Result<Clustering> {
+        let pts = index.pts();
+        let n = pts.len();
+        let min_samples = self.params.min_samples;
+        let eps = self.params.eps;
+        let eps2 = eps * eps;
+
+        // 1. Leaders, their groups, and which points are core (by position).
+        let r = 0.5 * eps * LEADER_SHRINK;
         let r2 = r * r;
         // A member's neighbours lie within eps + r < 1.5 eps of its leader.
         let outer2 = 2.25 * eps2;
         const NONE: u32 = u32::MAX;
+        // Not core by the count of its cells around; in no group.
+        const FEW: u32 = u32::MAX - 1;
         let mut group = vec![NONE; n];
         let mut core = vec![false; n];
         let mut leaders: Vec<u32> = Vec::new();
@@ -254,23 +345,23 @@ impl Clusterer for Dbscan {
             if group[i] != NONE {
                 continue;
             }
+            if index.at_most(&pts[i], eps) < min_samples {
+                group[i] = FEW;
+                continue;
+            }
             let g = leaders.len() as u32;
             leaders.push(i as u32);
             group[i] = g;
             joined.clear();
             joined.push((i as u32, 0.0));
             let mut count = 0usize;
-            tree.query(&pts[i])
-                .within::<SquaredEuclidean<f64>>(r2)
-                .unsorted()
-                .visit(|hit| {
-                    count += 1;
-                    let j = hit.item as usize;
-                    if group[j] == NONE {
-                        group[j] = g;
-                        joined.push((hit.item, hit.distance));
-                    }
-                });
+            index.within(&pts[i], r2, |j, d| {
+                count += 1;
+                if group[j as usize] == NONE {
+                    group[j as usize] = g;
+                    joined.push((j, d));
+                }
+            });
             if count >= min_samples {
                 for &(m, _) in &joined {
                     core[m as usize] = true;
@@ -278,14 +369,22 @@ impl Clusterer for Dbscan {
                 kind.push(Kind::Dense);
                 continue;
             }
+            if let Neighbours::Grid(grid) = index {
+                // Each member counts its own neighbours: a few cells of contiguous points,
+                // counting until min_samples.
+                for &(m, _) in &joined {
+                    core[m as usize] = grid.reaches(&pts[m as usize], eps2, min_samples);
+                }
+                kind.push(Kind::Other);
+                continue;
+            }
             // A group of one (a point alone within r: noise, mostly) needs only its own
             // neighbourhood; a larger one the ball that holds all its members'.
             let alone = joined.len() == 1;
             around.clear();
-            tree.query(&pts[i])
-                .within::<SquaredEuclidean<f64>>(if alone { eps2 } else { outer2 })
-                .unsorted()
-                .visit(|hit| around.push((hit.item, hit.distance)));
+            index.within(&pts[i], if alone { eps2 } else { outer2 }, |j, d| {
+                around.push((j, d))
+            });
             if alone && around.len() >= min_samples {
                 core[i] = true;
                 kind.push(Kind::Other);
@@ -329,9 +428,9 @@ impl Clusterer for Dbscan {
             let dk = dk2.sqrt();
             for &(m, dm2) in &joined {
                 let dm = dm2.sqrt();
-                core[m as usize] = if dm + dk <= self.params.eps * (1.0 - 1e-9) {
+                core[m as usize] = if dm + dk <= eps * (1.0 - 1e-9) {
                     true
-                } else if (self.params.eps + dm) * (1.0 + 1e-9) < dk {
+                } else if (eps + dm) * (1.0 + 1e-9) < dk {
                     false
                 } else if around.len() <= MIXED_AROUND {
                     let p = &pts[m as usize];
@@ -341,13 +440,10 @@ impl Clusterer for Dbscan {
                         .count();
                     count >= min_samples
                 } else {
-                    // Many points around (a crowd just beyond the member's reach): the tree
+                    // Many points around (a crowd just beyond the member's reach): the index
                     // visits only its own neighbours.
                     let mut count = 0usize;
-                    tree.query(&pts[m as usize])
-                        .within::<SquaredEuclidean<f64>>(eps2)
-                        .unsorted()
-                        .visit(|_| count += 1);
+                    index.within(&pts[m as usize], eps2, |_, _| count += 1);
                     count >= min_samples
                 };
             }
@@ -402,25 +498,32 @@ impl Clusterer for Dbscan {
                 let a = &members[start[ga]..start[ga + 1]];
                 let b = &members[start[gb]..start[gb + 1]];
                 let (la, lb) = (&lpts[ia as usize], &lpts[ib as usize]);
-                if bridge.connects(a, la, b, lb, self.params.eps)? {
+                if bridge.connects(a, la, b, lb, eps)? {
                     sets.union(ga, gb);
                 }
             }
         }
 
-        // 3. Labels: clusters numbered by their lowest-index core point; border points take
-        // the lowest cluster among their core neighbours.
-        let mut label_of_set = vec![NOISE; groups];
-        let mut labels = vec![NOISE; n];
-        let mut clusters = 0usize;
+        // 3. Labels: clusters numbered by their lowest core point in the caller's order;
+        // border points take the lowest cluster among their core neighbours.
+        let mut first = vec![usize::MAX; groups];
         for i in 0..n {
             if core[i] {
                 let s = sets.find(group[i] as usize);
-                if label_of_set[s] == NOISE {
-                    label_of_set[s] = clusters as i32;
-                    clusters += 1;
-                }
-                labels[i] = label_of_set[s];
+                first[s] = first[s].min(index.orig(i));
+            }
+        }
+        let mut roots: Vec<usize> = (0..groups).filter(|&s| first[s] != usize::MAX).collect();
+        roots.sort_unstable_by_key(|&s| first[s]);
+        let clusters = roots.len();
+        let mut label_of_set = vec![NOISE; groups];
+        for (label, &s) in roots.iter().enumerate() {
+            label_of_set[s] = label as i32;
+        }
+        let mut labels = vec![NOISE; n];
+        for i in 0..n {
+            if core[i] {
+                labels[i] = label_of_set[sets.find(group[i] as usize)];
             }
         }
         // A sparse group none of whose points around is core has only noise.
@@ -433,37 +536,43 @@ impl Clusterer for Dbscan {
                 _ => true,
             })
             .collect();
-        for i in 0..n {
-            if core[i] || clusters == 0 || !sparse_near_core[group[i] as usize] {
-                continue;
-            }
-            let mut best = i32::MAX;
-            let mut consider = |j: usize| {
-                if core[j] && labels[j] < best {
-                    best = labels[j];
+        if clusters > 0 {
+            for i in 0..n {
+                if core[i] || (group[i] != FEW && !sparse_near_core[group[i] as usize]) {
+                    continue;
                 }
-            };
-            match kind[group[i] as usize] {
-                Kind::Sparse { from, to } => {
-                    for &j in &kept[from as usize..to as usize] {
-                        if d2(&pts[i], &pts[j as usize]) <= eps2 {
-                            consider(j as usize);
+                let mut best = i32::MAX;
+                let mut consider = |j: usize| {
+                    if core[j] && labels[j] < best {
+                        best = labels[j];
+                    }
+                };
+                match kind.get(group[i] as usize) {
+                    Some(&Kind::Sparse { from, to }) => {
+                        for &j in &kept[from as usize..to as usize] {
+                            if d2(&pts[i], &pts[j as usize]) <= eps2 {
+                                consider(j as usize);
+                            }
                         }
                     }
+                    _ => index.within(&pts[i], eps2, |j, _| consider(j as usize)),
                 }
-                _ => tree
-                    .query(&pts[i])
-                    .within::<SquaredEuclidean<f64>>(eps2)
-                    .unsorted()
-                    .visit(|hit| consider(hit.item as usize)),
-            }
-            if best != i32::MAX {
-                labels[i] = best;
+                if best != i32::MAX {
+                    labels[i] = best;
+                }
             }
         }
+        // Back to the caller's order.
+        let mut out_labels = vec![NOISE; n];
+        let mut out_core = vec![false; n];
+        for i in 0..n {
+            let o = index.orig(i);
+            out_labels[o] = labels[i];
+            out_core[o] = core[i];
+        }
         Ok(Clustering {
-            labels,
-            core,
+            labels: out_labels,
+            core: out_core,
             clusters,
         })
     }
@@ -475,9 +584,8 @@ const PAIR_CELLS_PER_POINT: usize = 8;
 /// Calls `visit(a, b, d²)` for every pair `a < b` of `pts` whose squared distance
 /// ([`d2`]) is at most `reach2` (positive), in no particular order.
 ///
-/// On a grid of cubes a little wider than `sqrt(reach2)` (by 1e-9, far beyond the rounding of
-/// a point's cube), points sorted by cube, each point scanning the 27 cubes around its own:
-/// for the few thousand leaders DBSCAN joins, faster than a radius query per point on
+/// On a [`CellGrid`] of cubes `sqrt(reach2)` wide, each point scanning the cubes around its
+/// own: for the few thousand leaders DBSCAN joins, faster than a radius query per point on
 /// kiddo's tree, whose per-query cost dominates at this size (the `blobs` benchmark cloud's
 /// 7,551 leaders, visits included: 13 ms against 18-23 ms, same machine, same load; the
 /// whole clustering 7 % fewer instructions). Where the grid would need more than
@@ -487,90 +595,32 @@ fn near_pairs(
     reach2: f64,
     mut visit: impl FnMut(usize, usize, f64),
 ) -> Result<()> {
-    let cell = reach2.sqrt() * (1.0 + 1e-9);
-    let mut lo = [f64::INFINITY; 3];
-    let mut hi = [f64::NEG_INFINITY; 3];
-    for p in pts {
-        for k in 0..3 {
-            lo[k] = lo[k].min(p[k]);
-            hi[k] = hi[k].max(p[k]);
-        }
-    }
-    let inv = 1.0 / cell;
-    let mut dims = [0usize; 3];
-    let mut cells = Some(1usize);
-    for k in 0..3 {
-        let d = ((hi[k] - lo[k]) * inv).floor();
-        // A cube per side at least, and finite counts (`cell` is positive, points finite).
-        dims[k] = if d.is_finite() && d < 1e9 {
-            d as usize + 1
-        } else {
-            usize::MAX
-        };
-        cells = cells.and_then(|c| c.checked_mul(dims[k]));
-    }
-    let cells = match cells {
-        Some(c) if c <= PAIR_CELLS_PER_POINT.saturating_mul(pts.len()) => c,
-        _ => {
-            let tree: ImmutableKdTree<f64, 3> = ImmutableKdTree::new_from_slice(pts)
-                .map_err(|e| PerceptionError::KdTree(format!("{e:?}")))?;
-            for (a, p) in pts.iter().enumerate() {
-                tree.query(p)
-                    .within::<SquaredEuclidean<f64>>(reach2)
-                    .unsorted()
-                    .visit(|hit| {
-                        let b = hit.item as usize;
-                        if b > a {
-                            visit(a, b, hit.distance);
-                        }
-                    });
-            }
-            return Ok(());
-        }
-    };
-    let coord = |p: &[f64; 3], k: usize| (((p[k] - lo[k]) * inv) as usize).min(dims[k] - 1);
-    let index = |c: [usize; 3]| (c[0] * dims[1] + c[1]) * dims[2] + c[2];
-    // Points sorted by cell (a counting sort), z fastest: the cubes z-1..=z+1 of one column
-    // are one run of `order`.
-    let mut start = vec![0u32; cells + 1];
-    let cell_of: Vec<usize> = pts
-        .iter()
-        .map(|p| index([coord(p, 0), coord(p, 1), coord(p, 2)]))
-        .collect();
-    for &c in &cell_of {
-        start[c + 1] += 1;
-    }
-    for c in 0..cells {
-        start[c + 1] += start[c];
-    }
-    let mut fill = start.clone();
-    let mut order = vec![0u32; pts.len()];
-    let mut sorted = vec![[0.0f64; 3]; pts.len()];
-    for (i, &c) in cell_of.iter().enumerate() {
-        let at = fill[c] as usize;
-        order[at] = i as u32;
-        sorted[at] = pts[i];
-        fill[c] += 1;
-    }
-    for (a, p) in pts.iter().enumerate() {
-        let c = [coord(p, 0), coord(p, 1), coord(p, 2)];
-        let z0 = c[2].saturating_sub(1);
-        let z1 = (c[2] + 1).min(dims[2] - 1);
-        for x in c[0].saturating_sub(1)..=(c[0] + 1).min(dims[0] - 1) {
-            for y in c[1].saturating_sub(1)..=(c[1] + 1).min(dims[1] - 1) {
-                let from = start[index([x, y, z0])] as usize;
-                let to = start[index([x, y, z1]) + 1] as usize;
-                for (q, &b) in sorted[from..to].iter().zip(&order[from..to]) {
-                    let b = b as usize;
+    let max_cells = PAIR_CELLS_PER_POINT.saturating_mul(pts.len());
+    let Some(grid) = CellGrid::new(pts, reach2.sqrt(), 1, max_cells) else {
+        let tree: ImmutableKdTree<f64, 3> = ImmutableKdTree::new_from_slice(pts)
+            .map_err(|e| PerceptionError::KdTree(format!("{e:?}")))?;
+        for (a, p) in pts.iter().enumerate() {
+            tree.query(p)
+                .within::<SquaredEuclidean<f64>>(reach2)
+                .unsorted()
+                .visit(|hit| {
+                    let b = hit.item as usize;
                     if b > a {
-                        let d = d2(p, q);
-                        if d <= reach2 {
-                            visit(a, b, d);
-                        }
+                        visit(a, b, hit.distance);
                     }
-                }
-            }
+                });
         }
+        return Ok(());
+    };
+    // Each pair once: from the earlier of its two sorted positions.
+    for (sa, p) in grid.pts.iter().enumerate() {
+        let a = grid.orig[sa] as usize;
+        grid.within(p, reach2, |sb, d| {
+            if sb as usize > sa {
+                let b = grid.orig[sb as usize] as usize;
+                visit(a.min(b), a.max(b), d);
+            }
+        });
     }
     Ok(())
 }
@@ -745,14 +795,23 @@ mod tests {
 
     /// The fast clustering of `pts`, checked equal to the exhaustive reference's (`what`
     /// names the case in the failure).
+    /// The fast clustering is checked both on the index it chooses and on the tree.
     fn agreed(pts: &[Point3<f64>], eps: f64, min_samples: usize, what: &str) -> Clustering {
-        let d = Dbscan::new(eps, min_samples).unwrap().cluster(pts).unwrap();
+        let dbscan = Dbscan::new(eps, min_samples).unwrap();
+        let d = dbscan.cluster(pts).unwrap();
         let e = ExhaustiveDbscan::new(eps, min_samples)
             .unwrap()
             .cluster(pts)
             .unwrap();
         assert_eq!(d, e, "{what}");
+        let tree = Neighbours::tree(pts.iter().map(|p| [p.x, p.y, p.z]).collect()).unwrap();
+        assert_eq!(dbscan.cluster_on(&tree).unwrap(), e, "{what}, on the tree");
         d
+    }
+
+    /// Whether the clustering of `pts` with `eps` searches a grid (not the tree).
+    fn on_grid(pts: &[Point3<f64>], eps: f64) -> bool {
+        matches!(Neighbours::new(pts, eps).unwrap(), Neighbours::Grid(_))
     }
 
     #[test]
@@ -872,6 +931,7 @@ mod tests {
     #[test]
     fn random_clouds_agree_with_the_reference() {
         let mut rng = ChaCha8Rng::seed_from_u64(14);
+        let mut grids = 0;
         for case in 0..40 {
             let n = rng.random_range(1..600);
             let spread = [0.05, 0.2, 1.0][case % 3];
@@ -891,6 +951,7 @@ mod tests {
                 .collect();
             let eps = rng.random_range(0.002..0.08);
             let m = rng.random_range(1..30);
+            grids += on_grid(&pts, eps) as usize;
             agreed(
                 &pts,
                 eps,
@@ -898,6 +959,9 @@ mod tests {
                 &format!("case {case}: n {n}, eps {eps}, min_samples {m}"),
             );
         }
+        // Both indexes are chosen by some of the clouds (and every cloud is also clustered
+        // on the tree).
+        assert!((5..35).contains(&grids), "{grids} of 40 on a grid");
     }
 
     #[test]
@@ -933,6 +997,7 @@ mod tests {
                 pts.push(Point3::from(v.normalize() * 1.2 * eps));
             }
         }
+        assert!(on_grid(&pts, eps));
         for m in [20, 60, 4000] {
             agreed(&pts, eps, m, &format!("min_samples {m}"));
         }

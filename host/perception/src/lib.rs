@@ -23,6 +23,7 @@ pub mod cluster;
 pub mod error;
 pub mod features;
 pub mod grasp;
+mod grid;
 pub mod hand_eye;
 pub mod image;
 pub mod intrinsics;
