@@ -613,13 +613,11 @@ fn near_pairs(
         return Ok(());
     };
     // Each pair once: from the earlier of its two sorted positions.
-    for (sa, p) in grid.pts.iter().enumerate() {
+    for sa in 0..grid.pts.len() {
         let a = grid.orig[sa] as usize;
-        grid.within(p, reach2, |sb, d| {
-            if sb as usize > sa {
-                let b = grid.orig[sb as usize] as usize;
-                visit(a.min(b), a.max(b), d);
-            }
+        grid.within_after(sa, reach2, |sb, d| {
+            let b = grid.orig[sb as usize] as usize;
+            visit(a.min(b), a.max(b), d);
         });
     }
     Ok(())

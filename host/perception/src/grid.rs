@@ -100,10 +100,11 @@ impl CellGrid {
         for k in 0..3 {
             let t = (p[k] - self.lo[k]) * self.inv[k];
             let reach = radius * self.inv[k] + MARGIN;
-            let (a, b) = ((t - reach).floor(), (t + reach).floor());
+            let (a, b) = (t - reach, t + reach);
             if !(b >= 0.0 && a < self.dims[k] as f64) {
                 return None;
             }
+            // Truncation is the floor for these non-negative values (a negative `a`: cell 0).
             from[k] = a.max(0.0) as usize;
             to[k] = (b as usize).min(self.dims[k] - 1);
         }
@@ -155,6 +156,24 @@ impl CellGrid {
             true
         });
         count
+    }
+
+    /// Calls `visit(j, d²)` for every sorted point `j` after position `i` whose squared
+    /// distance from point `i` is at most `r2` (m²): each close pair once, from its first.
+    #[inline]
+    pub fn within_after(&self, i: usize, r2: f64, mut visit: impl FnMut(u32, f64)) {
+        let p = &self.pts[i];
+        self.runs(p, r2.sqrt(), |a, b| {
+            let a = a.max(i + 1);
+            for (j, q) in (a..b).zip(self.pts.get(a..b).unwrap_or(&[])) {
+                let (dx, dy, dz) = (p[0] - q[0], p[1] - q[1], p[2] - q[2]);
+                let d = dx * dx + dy * dy + dz * dz;
+                if d <= r2 {
+                    visit(j as u32, d);
+                }
+            }
+            true
+        });
     }
 
     /// Calls `visit(j, d²)` for every sorted point `j` whose squared distance from `p`
