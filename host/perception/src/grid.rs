@@ -28,8 +28,23 @@ pub(crate) struct CellGrid {
     start: Vec<u32>,
     /// The points, sorted by cell.
     pub pts: Vec<[f64; 3]>,
-    /// The index in the caller's slice of each sorted point.
+    /// The index in the caller's slice of each sorted point (the lowest of its copies, once
+    /// duplicates are merged).
     pub orig: Vec<u32>,
+    /// Exact duplicates merged by [`CellGrid::merge_duplicates`], if they were.
+    copies: Option<Copies>,
+}
+
+/// The points of the caller's that each sorted point stands for, once exact duplicates are
+/// merged.
+struct Copies {
+    /// Copies of each sorted point.
+    weight: Vec<u32>,
+    /// Copies before each sorted position (one more than the points).
+    before: Vec<u32>,
+    /// The caller's indices of the copies of sorted point `s`: `of[before[s]..before[s + 1]]`,
+    /// ascending.
+    of: Vec<u32>,
 }
 
 impl CellGrid {
@@ -67,6 +82,7 @@ impl CellGrid {
             start: vec![0u32; cells + 1],
             pts: vec![[0.0; 3]; pts.len()],
             orig: vec![0u32; pts.len()],
+            copies: None,
         };
         let cell_of: Vec<u32> = pts.iter().map(|p| grid.cell_of(p) as u32).collect();
         for &c in &cell_of {
@@ -83,6 +99,95 @@ impl CellGrid {
             fill[c as usize] += 1;
         }
         Some(grid)
+    }
+
+    /// Most points in one cell.
+    pub fn most(&self) -> usize {
+        self.start
+            .windows(2)
+            .map(|w| (w[1] - w[0]) as usize)
+            .max()
+            .unwrap_or(0)
+    }
+
+    /// Merges the exact duplicates (equal coordinates) within each cell of more than `above`
+    /// points into one sorted point that stands for all its copies ([`CellGrid::weight`],
+    /// [`CellGrid::copies`]): a crowd of copies (a cloud's invalid points all at the origin,
+    /// say) then costs a query one point instead of thousands. Distances from a merged point
+    /// are those from each copy, so counts weighted by copies are the caller's counts.
+    pub fn merge_duplicates(&mut self, above: usize) {
+        let n = self.pts.len();
+        let cells = self.start.len() - 1;
+        let mut pts = Vec::with_capacity(n);
+        let mut orig = Vec::with_capacity(n);
+        let mut weight = Vec::with_capacity(n);
+        let mut of = Vec::with_capacity(n);
+        let mut start = vec![0u32; cells + 1];
+        let mut order: Vec<usize> = Vec::new();
+        for c in 0..cells {
+            let (a, b) = (self.start[c] as usize, self.start[c + 1] as usize);
+            order.clear();
+            order.extend(a..b);
+            if b - a > above {
+                // Equal coordinates together, each run in the caller's order.
+                order.sort_unstable_by(|&i, &j| {
+                    let (p, q) = (&self.pts[i], &self.pts[j]);
+                    (p[0].total_cmp(&q[0]))
+                        .then(p[1].total_cmp(&q[1]))
+                        .then(p[2].total_cmp(&q[2]))
+                        .then(self.orig[i].cmp(&self.orig[j]))
+                });
+            }
+            let mut k = 0;
+            while k < order.len() {
+                let p = self.pts[order[k]];
+                let mut e = k + 1;
+                while e < order.len() && self.pts[order[e]] == p {
+                    e += 1;
+                }
+                pts.push(p);
+                orig.push(self.orig[order[k]]);
+                weight.push((e - k) as u32);
+                of.extend(order[k..e].iter().map(|&i| self.orig[i]));
+                k = e;
+            }
+            start[c + 1] = pts.len() as u32;
+        }
+        let mut before = Vec::with_capacity(weight.len() + 1);
+        before.push(0u32);
+        let mut total = 0u32;
+        for &w in &weight {
+            total += w;
+            before.push(total);
+        }
+        self.pts = pts;
+        self.orig = orig;
+        self.start = start;
+        self.copies = Some(Copies { weight, before, of });
+    }
+
+    /// Whether duplicates were merged ([`CellGrid::merge_duplicates`]).
+    pub fn merged(&self) -> bool {
+        self.copies.is_some()
+    }
+
+    /// The number of the caller's points.
+    pub fn caller_len(&self) -> usize {
+        self.copies.as_ref().map_or(self.pts.len(), |c| c.of.len())
+    }
+
+    /// The number of the caller's points that sorted point `s` stands for.
+    #[inline]
+    pub fn weight(&self, s: usize) -> usize {
+        self.copies.as_ref().map_or(1, |c| c.weight[s] as usize)
+    }
+
+    /// The caller's indices of the points that sorted point `s` stands for (ascending).
+    pub fn copies(&self, s: usize) -> &[u32] {
+        match &self.copies {
+            Some(c) => &c.of[c.before[s] as usize..c.before[s + 1] as usize],
+            None => std::slice::from_ref(&self.orig[s]),
+        }
     }
 
     /// The cell holding `p` (a point of the grid's cloud).
@@ -131,30 +236,64 @@ impl CellGrid {
         }
     }
 
-    /// Whether at least `k` points lie within squared distance `r2` (m²) of `p` (counting
-    /// stops once they do).
+    /// Whether at least `k` points (copies counted) lie within squared distance `r2` (m²) of
+    /// `p` (counting stops once they do; on a merged grid, also once the points left cannot
+    /// make up the difference).
     #[inline]
     pub fn reaches(&self, p: &[f64; 3], r2: f64, k: usize) -> bool {
+        let radius = r2.sqrt();
         let mut count = 0usize;
-        self.runs(p, r2.sqrt(), |a, b| {
-            for q in &self.pts[a..b] {
-                let (dx, dy, dz) = (p[0] - q[0], p[1] - q[1], p[2] - q[2]);
-                count += (dx * dx + dy * dy + dz * dz <= r2) as usize;
+        match &self.copies {
+            None => self.runs(p, radius, |a, b| {
+                for q in &self.pts[a..b] {
+                    let (dx, dy, dz) = (p[0] - q[0], p[1] - q[1], p[2] - q[2]);
+                    count += (dx * dx + dy * dy + dz * dz <= r2) as usize;
+                }
+                count < k
+            }),
+            Some(c) => {
+                // A crowded grid: the heaviest runs first, and counting also stops once the
+                // points left cannot make up the difference (a merged crowd out of reach
+                // settles it at once).
+                let mut left = self.count_around(p, radius);
+                let mut runs = Vec::with_capacity(16);
+                self.runs(p, radius, |a, b| {
+                    runs.push((c.before[b] - c.before[a], a, b));
+                    true
+                });
+                runs.sort_unstable_by_key(|r| std::cmp::Reverse(r.0));
+                for (run, a, b) in runs {
+                    for (q, &w) in self.pts[a..b].iter().zip(&c.weight[a..b]) {
+                        let (dx, dy, dz) = (p[0] - q[0], p[1] - q[1], p[2] - q[2]);
+                        if dx * dx + dy * dy + dz * dz <= r2 {
+                            count += w as usize;
+                        }
+                    }
+                    left -= run as usize;
+                    if count >= k || count + left < k {
+                        break;
+                    }
+                }
             }
-            count < k
-        });
+        }
         count >= k
     }
 
-    /// At least the number of points within `radius` (m) of `p`: the points of the cells
-    /// around it.
+    /// At least the number of points (copies counted) within `radius` (m) of `p`: the points
+    /// of the cells around it.
     #[inline]
     pub fn count_around(&self, p: &[f64; 3], radius: f64) -> usize {
         let mut count = 0;
-        self.runs(p, radius, |a, b| {
-            count += b - a;
-            true
-        });
+        match &self.copies {
+            None => self.runs(p, radius, |a, b| {
+                count += b - a;
+                true
+            }),
+            Some(c) => self.runs(p, radius, |a, b| {
+                count += (c.before[b] - c.before[a]) as usize;
+                true
+            }),
+        }
         count
     }
 
@@ -170,6 +309,30 @@ impl CellGrid {
                 let d = dx * dx + dy * dy + dz * dz;
                 if d <= r2 {
                     visit(j as u32, d);
+                }
+            }
+            true
+        });
+    }
+
+    /// Calls `visit(j)` for the sorted points `j` within squared distance `r2` (m²) of `p`
+    /// among those marked: `marked_before[s]` is the number marked before position `s` (one
+    /// more than the points), so runs with none are skipped; `visit` tells marked from not.
+    #[inline]
+    pub fn within_marked(
+        &self,
+        p: &[f64; 3],
+        r2: f64,
+        marked_before: &[u32],
+        mut visit: impl FnMut(u32),
+    ) {
+        self.runs(p, r2.sqrt(), |a, b| {
+            if marked_before[b] > marked_before[a] {
+                for (j, q) in (a..b).zip(&self.pts[a..b]) {
+                    let (dx, dy, dz) = (p[0] - q[0], p[1] - q[1], p[2] - q[2]);
+                    if dx * dx + dy * dy + dz * dz <= r2 {
+                        visit(j as u32);
+                    }
                 }
             }
             true
@@ -240,6 +403,53 @@ mod tests {
             assert!(grid.count_around(&p, radius) >= want.len());
             assert!(grid.reaches(&p, r2, want.len()));
             assert!(!grid.reaches(&p, r2, want.len() + 1));
+        }
+    }
+
+    #[test]
+    fn merged_duplicates_count_as_their_copies() {
+        let mut rng = ChaCha8Rng::seed_from_u64(6);
+        // A crowd of copies, copies of a few other points, and points alone.
+        let mut pts: Vec<[f64; 3]> = vec![[0.1, 0.1, 0.1]; 500];
+        for k in 0..700 {
+            pts.push(if k % 3 == 0 {
+                [0.02 * (k % 4) as f64, 0.11, 0.1]
+            } else {
+                [0; 3].map(|_| rng.random_range(0.0..0.2))
+            });
+        }
+        let mut grid = CellGrid::new(&pts, 0.02, 1, 1 << 20).expect("a grid");
+        assert!(grid.most() >= 500);
+        grid.merge_duplicates(0);
+        assert!(grid.pts.len() < pts.len() - 499);
+        assert_eq!(grid.caller_len(), pts.len());
+        let mut all: Vec<u32> = (0..grid.pts.len())
+            .flat_map(|s| {
+                let c = grid.copies(s);
+                assert_eq!(c.len(), grid.weight(s));
+                assert_eq!(c[0], grid.orig[s], "the lowest copy first");
+                assert!(c.iter().all(|&o| pts[o as usize] == grid.pts[s]));
+                c.to_vec()
+            })
+            .collect();
+        all.sort_unstable();
+        assert_eq!(all, (0..pts.len() as u32).collect::<Vec<_>>());
+        for (q, radius) in [(0, 0.02), (600, 0.03), (1199, 0.01)] {
+            let p = pts[q];
+            let r2 = radius * radius;
+            let want = pts
+                .iter()
+                .filter(|o| {
+                    let (dx, dy, dz) = (p[0] - o[0], p[1] - o[1], p[2] - o[2]);
+                    dx * dx + dy * dy + dz * dz <= r2
+                })
+                .count();
+            let mut got = 0;
+            grid.within(&p, r2, |j, _| got += grid.weight(j as usize));
+            assert_eq!(got, want, "point {q}");
+            assert!(grid.count_around(&p, radius) >= want);
+            assert!(grid.reaches(&p, r2, want));
+            assert!(!grid.reaches(&p, r2, want + 1));
         }
     }
 
