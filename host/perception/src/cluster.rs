@@ -25,7 +25,7 @@ use nalgebra::Point3;
 
 use crate::cloud::check_points;
 use crate::error::{PerceptionError, Result};
-use crate::grid::CellGrid;
+use crate::grid::{d2, CellGrid};
 
 /// The label of a noise point.
 pub const NOISE: i32 = -1;
@@ -149,14 +149,6 @@ fn check_cloud(points: &[Point3<f64>]) -> Result<()> {
     check_points(points)
 }
 
-/// Squared Euclidean distance, summed x, y, z in that order (as scikit-learn's k-d tree and
-/// kiddo sum it), m².
-#[inline(always)]
-fn d2(a: &[f64; 3], b: &[f64; 3]) -> f64 {
-    let (dx, dy, dz) = (a[0] - b[0], a[1] - b[1], a[2] - b[2]);
-    dx * dx + dy * dy + dz * dz
-}
-
 /// DBSCAN on a grid of cells `eps` wide, or kiddo's k-d tree ([`ImmutableKdTree`]) for a
 /// cloud spread too far for a grid (either built once per call), single-threaded, with the
 /// semantics of the [module](self). Cost: about linear in the number of points for a cloud of
@@ -238,7 +230,7 @@ impl Neighbours {
     fn new(points: &[Point3<f64>], eps: f64) -> Result<Self> {
         let pts: Vec<[f64; 3]> = points.iter().map(|p| [p.x, p.y, p.z]).collect();
         let max_cells = GRID_CELLS_PER_POINT.saturating_mul(pts.len());
-        match CellGrid::new(&pts, eps, 1, max_cells) {
+        match CellGrid::new(&pts, eps, max_cells) {
             Some(mut grid) => {
                 if grid.most() > CROWDED_CELL {
                     grid.merge_duplicates(MERGE_IN_CELLS_ABOVE);
@@ -653,7 +645,7 @@ fn near_pairs(
     mut visit: impl FnMut(usize, usize, f64),
 ) -> Result<()> {
     let max_cells = PAIR_CELLS_PER_POINT.saturating_mul(pts.len());
-    let Some(grid) = CellGrid::new(pts, reach2.sqrt(), 1, max_cells) else {
+    let Some(grid) = CellGrid::new(pts, reach2.sqrt(), max_cells) else {
         let tree: ImmutableKdTree<f64, 3> = ImmutableKdTree::new_from_slice(pts)
             .map_err(|e| PerceptionError::KdTree(format!("{e:?}")))?;
         for (a, p) in pts.iter().enumerate() {
@@ -863,7 +855,7 @@ mod tests {
         let tree = Neighbours::tree(raw.clone()).unwrap();
         assert_eq!(dbscan.cluster_on(&tree).unwrap(), e, "{what}, on the tree");
         // And with every cell's duplicates merged, where there is a grid.
-        if let Some(mut grid) = CellGrid::new(&raw, eps, 1, usize::MAX) {
+        if let Some(mut grid) = CellGrid::new(&raw, eps, usize::MAX) {
             grid.merge_duplicates(0);
             let merged = Neighbours::Grid(grid);
             assert_eq!(dbscan.cluster_on(&merged).unwrap(), e, "{what}, merged");

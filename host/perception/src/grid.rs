@@ -16,13 +16,20 @@ const MARGIN: f64 = 1e-6;
 /// Most cells per axis (bounds the rounding of a cell coordinate, see [`MARGIN`]).
 const MAX_DIM: usize = 1 << 20;
 
-/// Points of a cloud sorted into box cells (`cell` wide along x and y, `cell / z_split`
-/// along z), z fastest: the cells `z0..=z1` of one (x, y) column are one contiguous run of
-/// the sorted points.
+/// Squared Euclidean distance, summed x, y, z in that order (as scikit-learn's k-d tree and
+/// kiddo sum it), m².
+#[inline(always)]
+pub(crate) fn d2(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+    let (dx, dy, dz) = (a[0] - b[0], a[1] - b[1], a[2] - b[2]);
+    dx * dx + dy * dy + dz * dz
+}
+
+/// Points of a cloud sorted into cubic cells, z fastest: the cells `z0..=z1` of one (x, y)
+/// column are one contiguous run of the sorted points.
 pub(crate) struct CellGrid {
     lo: [f64; 3],
-    /// Cells per metre along each axis.
-    inv: [f64; 3],
+    /// Cells per metre.
+    inv: f64,
     dims: [usize; 3],
     /// Sorted position of each cell's first point, one more than the cells.
     start: Vec<u32>,
@@ -48,10 +55,10 @@ struct Copies {
 }
 
 impl CellGrid {
-    /// The grid of cells `cell` wide (m, positive) along x and y and `cell / z_split` along
-    /// z over `pts`, or `None` where it would need more than `max_cells` cells or more than
-    /// [`MAX_DIM`] on an axis. `pts` must be finite and fewer than `u32::MAX`.
-    pub fn new(pts: &[[f64; 3]], cell: f64, z_split: usize, max_cells: usize) -> Option<Self> {
+    /// The grid of cells `cell` wide (m, positive) over `pts`, or `None` where it would need
+    /// more than `max_cells` cells or more than [`MAX_DIM`] on an axis. `pts` must be finite
+    /// and fewer than `u32::MAX`.
+    pub fn new(pts: &[[f64; 3]], cell: f64, max_cells: usize) -> Option<Self> {
         let mut lo = [f64::INFINITY; 3];
         let mut hi = [f64::NEG_INFINITY; 3];
         for p in pts {
@@ -60,11 +67,11 @@ impl CellGrid {
                 hi[k] = hi[k].max(p[k]);
             }
         }
-        let inv = [1.0 / cell, 1.0 / cell, z_split as f64 / cell];
+        let inv = 1.0 / cell;
         let mut dims = [0usize; 3];
         let mut cells = 1usize;
         for k in 0..3 {
-            let d = ((hi[k] - lo[k]) * inv[k]).floor();
+            let d = ((hi[k] - lo[k]) * inv).floor();
             if !(d.is_finite() && d < MAX_DIM as f64) {
                 return None;
             }
@@ -192,7 +199,7 @@ impl CellGrid {
 
     /// The cell holding `p` (a point of the grid's cloud).
     fn cell_of(&self, p: &[f64; 3]) -> usize {
-        let c = |k: usize| (((p[k] - self.lo[k]) * self.inv[k]) as usize).min(self.dims[k] - 1);
+        let c = |k: usize| (((p[k] - self.lo[k]) * self.inv) as usize).min(self.dims[k] - 1);
         (c(0) * self.dims[1] + c(1)) * self.dims[2] + c(2)
     }
 
@@ -203,8 +210,8 @@ impl CellGrid {
         let mut from = [0usize; 3];
         let mut to = [0usize; 3];
         for k in 0..3 {
-            let t = (p[k] - self.lo[k]) * self.inv[k];
-            let reach = radius * self.inv[k] + MARGIN;
+            let t = (p[k] - self.lo[k]) * self.inv;
+            let reach = radius * self.inv + MARGIN;
             let (a, b) = (t - reach, t + reach);
             if !(b >= 0.0 && a < self.dims[k] as f64) {
                 return None;
@@ -246,8 +253,7 @@ impl CellGrid {
         match &self.copies {
             None => self.runs(p, radius, |a, b| {
                 for q in &self.pts[a..b] {
-                    let (dx, dy, dz) = (p[0] - q[0], p[1] - q[1], p[2] - q[2]);
-                    count += (dx * dx + dy * dy + dz * dz <= r2) as usize;
+                    count += (d2(p, q) <= r2) as usize;
                 }
                 count < k
             }),
@@ -264,8 +270,7 @@ impl CellGrid {
                 runs.sort_unstable_by_key(|r| std::cmp::Reverse(r.0));
                 for (run, a, b) in runs {
                     for (q, &w) in self.pts[a..b].iter().zip(&c.weight[a..b]) {
-                        let (dx, dy, dz) = (p[0] - q[0], p[1] - q[1], p[2] - q[2]);
-                        if dx * dx + dy * dy + dz * dz <= r2 {
+                        if d2(p, q) <= r2 {
                             count += w as usize;
                         }
                     }
@@ -303,14 +308,7 @@ impl CellGrid {
     pub fn within_after(&self, i: usize, r2: f64, mut visit: impl FnMut(u32, f64)) {
         let p = &self.pts[i];
         self.runs(p, r2.sqrt(), |a, b| {
-            let a = a.max(i + 1);
-            for (j, q) in (a..b).zip(self.pts.get(a..b).unwrap_or(&[])) {
-                let (dx, dy, dz) = (p[0] - q[0], p[1] - q[1], p[2] - q[2]);
-                let d = dx * dx + dy * dy + dz * dz;
-                if d <= r2 {
-                    visit(j as u32, d);
-                }
-            }
+            self.scan(p, a.max(i + 1), b, r2, &mut visit);
             true
         });
     }
@@ -328,12 +326,7 @@ impl CellGrid {
     ) {
         self.runs(p, r2.sqrt(), |a, b| {
             if marked_before[b] > marked_before[a] {
-                for (j, q) in (a..b).zip(&self.pts[a..b]) {
-                    let (dx, dy, dz) = (p[0] - q[0], p[1] - q[1], p[2] - q[2]);
-                    if dx * dx + dy * dy + dz * dz <= r2 {
-                        visit(j as u32);
-                    }
-                }
+                self.scan(p, a, b, r2, |j, _| visit(j));
             }
             true
         });
@@ -344,15 +337,21 @@ impl CellGrid {
     #[inline]
     pub fn within(&self, p: &[f64; 3], r2: f64, mut visit: impl FnMut(u32, f64)) {
         self.runs(p, r2.sqrt(), |a, b| {
-            for (j, q) in (a..b).zip(&self.pts[a..b]) {
-                let (dx, dy, dz) = (p[0] - q[0], p[1] - q[1], p[2] - q[2]);
-                let d = dx * dx + dy * dy + dz * dz;
-                if d <= r2 {
-                    visit(j as u32, d);
-                }
-            }
+            self.scan(p, a, b, r2, &mut visit);
             true
         });
+    }
+
+    /// Calls `visit(j, d²)` for every sorted point `j` in `a..b` (empty where `a >= b`)
+    /// within squared distance `r2` (m²) of `p`.
+    #[inline(always)]
+    fn scan(&self, p: &[f64; 3], a: usize, b: usize, r2: f64, mut visit: impl FnMut(u32, f64)) {
+        for (j, q) in (a..b).zip(self.pts.get(a..b).unwrap_or(&[])) {
+            let d = d2(p, q);
+            if d <= r2 {
+                visit(j as u32, d);
+            }
+        }
     }
 }
 
@@ -374,7 +373,7 @@ mod tests {
             })
             .collect();
         pts.push([-0.2, -0.2, 0.5]);
-        let grid = CellGrid::new(&pts, 0.02, 3, 1 << 20).expect("a grid");
+        let grid = CellGrid::new(&pts, 0.02, 1 << 20).expect("a grid");
         let mut seen = grid.orig.clone();
         seen.sort_unstable();
         assert_eq!(seen, (0..pts.len() as u32).collect::<Vec<_>>());
@@ -418,7 +417,7 @@ mod tests {
                 [0; 3].map(|_| rng.random_range(0.0..0.2))
             });
         }
-        let mut grid = CellGrid::new(&pts, 0.02, 1, 1 << 20).expect("a grid");
+        let mut grid = CellGrid::new(&pts, 0.02, 1 << 20).expect("a grid");
         assert!(grid.most() >= 500);
         grid.merge_duplicates(0);
         assert!(grid.pts.len() < pts.len() - 499);
@@ -456,8 +455,8 @@ mod tests {
     #[test]
     fn a_cloud_too_spread_has_no_grid() {
         let pts = [[0.0, 0.0, 0.0], [1e5, 1e5, 1e5]];
-        assert!(CellGrid::new(&pts, 0.02, 1, 1 << 20).is_none());
-        assert!(CellGrid::new(&pts, 1e-12, 1, usize::MAX).is_none());
-        assert!(CellGrid::new(&pts, 1e5, 2, 12).is_some());
+        assert!(CellGrid::new(&pts, 0.02, 1 << 20).is_none());
+        assert!(CellGrid::new(&pts, 1e-12, usize::MAX).is_none());
+        assert!(CellGrid::new(&pts, 1e5, 8).is_some());
     }
 }
