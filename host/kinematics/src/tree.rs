@@ -185,25 +185,32 @@ impl LinkTree {
     }
 
     /// Pose of link `i` for joint values `q`, its parent's pose read from `poses`.
+    ///
+    /// A revolute joint's rotation is built from one sine and cosine of the half angle about
+    /// the stored unit axis (no axis normalisation), and identities are not composed: this is
+    /// the planner's innermost forward kinematics.
     #[inline]
     fn pose_of(&self, i: usize, q: &[f64], poses: &[Isometry3<f64>]) -> Isometry3<f64> {
         let n = &self.nodes[i];
-        let parent = n.parent.map_or(Isometry3::identity(), |p| poses[p]);
-        let motion = n.joint.map_or(Isometry3::identity(), |j| {
-            let v = q.get(j).copied().unwrap_or(0.0);
-            let joint = &self.joints[j];
-            match joint.kind {
-                JointType::Revolute => Isometry3::from_parts(
-                    Translation3::identity(),
-                    UnitQuaternion::from_scaled_axis(joint.axis * v),
-                ),
-                JointType::Prismatic => Isometry3::from_parts(
-                    Translation3::from(joint.axis * v),
-                    UnitQuaternion::identity(),
-                ),
+        let joint_frame = match n.parent {
+            Some(p) => poses[p] * n.origin,
+            None => n.origin,
+        };
+        let Some(j) = n.joint else {
+            return joint_frame;
+        };
+        let v = q.get(j).copied().unwrap_or(0.0);
+        let joint = &self.joints[j];
+        match joint.kind {
+            JointType::Revolute => {
+                let (s, c) = (0.5 * v).sin_cos();
+                let a = joint.axis * s;
+                let motion =
+                    UnitQuaternion::new_unchecked(nalgebra::Quaternion::new(c, a.x, a.y, a.z));
+                Isometry3::from_parts(joint_frame.translation, joint_frame.rotation * motion)
             }
-        });
-        parent * n.origin * motion
+            JointType::Prismatic => joint_frame * Translation3::from(joint.axis * v),
+        }
     }
 
     /// The parent of link `link` ([`LinkTree::links`] indices); `None` for the root.

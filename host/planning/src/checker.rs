@@ -37,6 +37,7 @@ use nalgebra::Isometry3;
 use parry3d::query;
 
 use crate::boxes;
+use crate::coarse::{BoxSet, FAR, LANES};
 use crate::convert::{self, Exact};
 use crate::model::{bounding_sphere, CollisionModel};
 use crate::scene::PlanningScene;
@@ -194,6 +195,8 @@ struct Scratch {
     bounds: Vec<Sphere>,
     /// While an edge is checked: what may come near anything on it.
     near: Near,
+    /// A body's coarse gaps to each of its obstacles, m.
+    gaps: Vec<f32>,
 }
 
 /// World spheres of every body: x, y, z, radius (`f32`), at the checker's layout (each
@@ -311,6 +314,8 @@ pub struct Checker {
     /// For each body, every obstacle it is checked against: world obstacles by index, then
     /// robot obstacles after them.
     all_of: Vec<Vec<usize>>,
+    /// The bounding boxes of each body's obstacles, in `all_of`'s order.
+    all_boxes: Vec<BoxSet>,
     /// All moving pairs, by index into `pairs`.
     all_pairs: Vec<usize>,
     /// Where each body's world spheres go in [`Placed`]: `lo..hi`, padded to `lo..end`.
@@ -662,7 +667,7 @@ impl Checker {
                     .collect()
             })
             .collect();
-        let all_of = bodies
+        let all_of: Vec<Vec<usize>> = bodies
             .iter()
             .zip(&fixed_of)
             .map(|(b, fixed)| {
@@ -676,6 +681,14 @@ impl Checker {
             })
             .collect();
         let all_pairs = (0..pairs.len()).collect();
+        let obstacle = |k: usize| match k.checked_sub(obstacles.len()) {
+            None => &obstacles[k],
+            Some(r) => &robot_obstacles[r],
+        };
+        let all_boxes = all_of
+            .iter()
+            .map(|list| BoxSet::new(list.iter().map(|&k| (&obstacle(k).inv, &obstacle(k).bbox))))
+            .collect();
         let mut layout = Vec::with_capacity(bodies.len());
         let mut at = 0;
         for b in &bodies {
@@ -688,6 +701,7 @@ impl Checker {
             pair_reach,
             layout,
             all_of,
+            all_boxes,
             all_pairs,
             body_reach,
             model,
@@ -1154,10 +1168,20 @@ impl Checker {
         for (bi, list) in s.near.obstacles.iter_mut().enumerate() {
             list.clear();
             let bound = &s.bounds[bi];
-            list.extend(self.all_of[bi].iter().copied().filter(|&k| {
-                self.obstacle(k).coarse_gap(&bound.centre, bound.radius)
-                    < speed.body[bi] + step + 1e-6
-            }));
+            let c = bound.centre;
+            self.all_boxes[bi].gaps(
+                [c.x as f32, c.y as f32, c.z as f32],
+                bound.radius as f32,
+                &mut s.gaps,
+            );
+            let within = speed.body[bi] + step + 1e-6;
+            list.extend(
+                self.all_of[bi]
+                    .iter()
+                    .zip(&s.gaps)
+                    .filter(|&(_, &g)| f64::from(g) < within)
+                    .map(|(&k, _)| k),
+            );
         }
         s.near.pairs.clear();
         s.near.pairs.extend((0..self.pairs.len()).filter(|&p| {
@@ -1300,13 +1324,6 @@ impl Checker {
 /// Spacing (m of the fastest point's motion) below which [`Checker::rake`] stops adding
 /// states: 0.1 and 0.5 were slower on the benchmark's sets (seed 1; seed 2 agreed).
 const RAKE_SPACING: f64 = 0.3;
-
-/// Lanes of the sphere loops: each body's spheres are padded to a multiple of it, so the
-/// loops run whole chunks the compiler turns into vector instructions.
-const LANES: usize = 8;
-/// Coordinate of the padding spheres, m: far from everything, small enough that squares of
-/// differences stay finite in `f32`.
-const FAR: f32 = 1.0e15;
 
 /// The smallest of `LANES` running minima (a select, not `f32::min`, so the lanes vectorise).
 #[inline(always)]

@@ -18,6 +18,7 @@ pub mod acm;
 pub mod bench;
 mod boxes;
 pub mod checker;
+mod coarse;
 mod convert;
 pub mod error;
 pub mod model;

@@ -440,15 +440,24 @@ impl CollisionModel {
 
     /// Pose of every link in the root frame for planned joint values `q`, into `poses`:
     /// only the links the planned joints move are computed when `poses` already holds every
-    /// link's pose from an earlier call (the other links never move). `values` is scratch.
+    /// link's pose from an earlier call (the other links never move), and none when that call
+    /// was for the same `q` (an edge's start is measured right after the edge is begun there).
+    /// `values` holds the tree's joint values of the last call.
     pub(crate) fn link_poses_into(
         &self,
         q: &[f64],
         values: &mut Vec<f64>,
         poses: &mut Vec<Isometry3<f64>>,
     ) {
+        let complete = poses.len() == self.links.len() && values.len() == self.values.len();
+        if complete
+            && q.len() == self.planned.len()
+            && self.planned.iter().zip(q).all(|(&i, &x)| values[i] == x)
+        {
+            return;
+        }
         self.tree_values_into(q, values);
-        if poses.len() == self.links.len() {
+        if complete {
             self.tree.update_poses(values, &self.moved, poses);
         } else {
             self.tree.poses_into(values, poses);
