@@ -4,6 +4,8 @@
 //! after another. [`crate::checker`] uses it where every obstacle of every body is measured:
 //! at the start of each edge, to find what may come near along it.
 
+use crate::shape::box_distance;
+
 /// Lanes of the checker's loops: lists of boxes, and each body's spheres, are padded to a
 /// multiple of it, so that the loops run whole chunks the compiler turns into vector
 /// instructions.
@@ -76,40 +78,15 @@ impl BoxSet {
             let lx = m0[i] * x + m1[i] * y + m2[i] * z + tx[i];
             let ly = m3[i] * x + m4[i] * y + m5[i] * z + ty[i];
             let lz = m6[i] * x + m7[i] * y + m8[i] * z + tz[i];
-            let qx = (lx - cx[i]).abs() - hx[i];
-            let qy = (ly - cy[i]).abs() - hy[i];
-            let qz = (lz - cz[i]).abs() - hz[i];
-            let (ox, oy, oz) = (max(qx, 0.0), max(qy, 0.0), max(qz, 0.0));
-            let inside = min(max(max(qx, qy), qz), 0.0);
-            out[i] = (ox * ox + oy * oy + oz * oz).sqrt() + inside - r;
+            out[i] = box_distance([cx[i], cy[i], cz[i]], [hx[i], hy[i], hz[i]], lx, ly, lz) - r;
         }
-    }
-}
-
-/// `a.max(b)` as a select, which vectorises (`f32::max` handles NaN and does not).
-#[inline(always)]
-fn max(a: f32, b: f32) -> f32 {
-    if a > b {
-        a
-    } else {
-        b
-    }
-}
-
-/// `a.min(b)` as a select.
-#[inline(always)]
-fn min(a: f32, b: f32) -> f32 {
-    if a < b {
-        a
-    } else {
-        b
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::shape::{box_distance, to_local};
+    use crate::shape::to_local;
 
     /// Every lane gives the scalar signed distance of its box, whatever the list's length,
     /// and padding lanes are far.
