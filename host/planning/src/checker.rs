@@ -681,14 +681,6 @@ impl Checker {
             })
             .collect();
         let all_pairs = (0..pairs.len()).collect();
-        let obstacle = |k: usize| match k.checked_sub(obstacles.len()) {
-            None => &obstacles[k],
-            Some(r) => &robot_obstacles[r],
-        };
-        let all_boxes = all_of
-            .iter()
-            .map(|list| BoxSet::new(list.iter().map(|&k| (&obstacle(k).inv, &obstacle(k).bbox))))
-            .collect();
         let mut layout = Vec::with_capacity(bodies.len());
         let mut at = 0;
         for b in &bodies {
@@ -697,11 +689,11 @@ impl Checker {
             layout.push((at, at + n, end));
             at = end;
         }
-        Ok(Checker {
+        let mut checker = Checker {
             pair_reach,
             layout,
             all_of,
-            all_boxes,
+            all_boxes: Vec::new(),
             all_pairs,
             body_reach,
             model,
@@ -715,7 +707,19 @@ impl Checker {
             opts,
             scratch: RefCell::new(Scratch::default()),
             counters: Counters::default(),
-        })
+        };
+        // Through `Checker::obstacle`, which numbers them as `all_of` does.
+        checker.all_boxes = checker
+            .all_of
+            .iter()
+            .map(|list| {
+                BoxSet::new(list.iter().map(|&k| {
+                    let o = checker.obstacle(k);
+                    (&o.inv, &o.bbox)
+                }))
+            })
+            .collect();
+        Ok(checker)
     }
 
     /// The model.
