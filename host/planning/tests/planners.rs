@@ -114,3 +114,67 @@ fn problems_reach_the_hub() {
     inside.hub = cfg.arm.as_ref().expect("arm").home.clone();
     assert!(bench::generate(&checker, 1, 5, 0.05, Some(&inside)).is_err());
 }
+
+/// Shortcutting checks only shortcuts that save at least `shortcut_min_gain`: on a straight
+/// path with a 1 mrad kink, a gain of 0.01 rad checks no shortcut edge (only the final pass's
+/// few), none checks dozens; both end on the straight path. Hostile gains are refused.
+#[test]
+fn shortcuts_that_save_too_little_are_not_checked() {
+    use ferrobot_planning::planner::shortcut;
+    use rand::SeedableRng;
+    use std::sync::atomic::Ordering;
+    let cfg = RobotConfig::bundled("locobot").expect("robot");
+    let model = Arc::new(CollisionModel::from_config(&cfg).expect("model"));
+    let checker =
+        Checker::new(model, &PlanningScene::new(), CheckOptions::default()).expect("checker");
+    let (a, b) = ([0.0, 0.2, 0.3, 0.1, 0.0], [0.6, 0.2, 0.3, 0.1, 0.0]);
+    let mut path: Vec<Vec<f64>> = (0..=6)
+        .map(|k| {
+            a.iter()
+                .zip(&b)
+                .map(|(x, y)| x + (y - x) * f64::from(k) / 6.0)
+                .collect()
+        })
+        .collect();
+    // A kink of 1 mrad sideways at the middle: a shortcut saves about 3e-6 rad.
+    path[3][1] += 0.001;
+    let straight = ferrobot_planning::planner::path_length(&[a.to_vec(), b.to_vec()]);
+    let edges = |min_gain: f64| {
+        let opts = PlanOptions {
+            shortcut_min_gain: min_gain,
+            time_limit: std::time::Duration::from_secs(30),
+            ..PlanOptions::default()
+        };
+        let before = checker.counters().edges.load(Ordering::Relaxed);
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
+        let out = shortcut(
+            &checker,
+            path.clone(),
+            &opts,
+            &mut rng,
+            std::time::Instant::now(),
+        );
+        let len = ferrobot_planning::planner::path_length(&out);
+        assert!(
+            (len - straight).abs() < 1e-9,
+            "{min_gain}: {len} rad, straight {straight}"
+        );
+        checker.counters().edges.load(Ordering::Relaxed) - before
+    };
+    let (skipping, checking) = (edges(0.01), edges(0.0));
+    assert!(
+        skipping <= 6,
+        "{skipping} edges checked with a gain of 0.01 rad"
+    );
+    assert!(checking >= 30, "only {checking} edges checked with no gain");
+    for bad in [f64::NAN, -0.01, f64::INFINITY, 1e9] {
+        let opts = PlanOptions {
+            shortcut_min_gain: bad,
+            ..PlanOptions::default()
+        };
+        let err = RrtConnect
+            .plan(&checker, &a, &b, &opts)
+            .expect_err("a hostile gain is refused");
+        assert!(err.to_string().contains("shortcut_min_gain"), "{err}");
+    }
+}
