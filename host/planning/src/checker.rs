@@ -22,8 +22,9 @@
 //! it, keeping the states measured ahead, until the rule holds; an edge that would need a step
 //! below `min_step / 128` (about 8 µm by default) is not proven. Nothing can hide between two
 //! checked states, however thin or short the contact, so every edge a planner returns is
-//! free. Before advancing, a few states spread over the edge are checked for contact alone
-//! ([`Checker::rake`]), which refuses most colliding edges cheaply.
+//! free. Advancement starts with a few states spread over the edge ([`rake`]: its end, its
+//! middle, its quarters…), which refuse most colliding edges after a few states; on a free
+//! edge their clearances are states measured ahead.
 //!
 //! Along one edge, what was far at one state stays far for a while: each body's candidates
 //! are those that may come near it anywhere on the edge, and each keeps the interval of the
@@ -1206,31 +1207,6 @@ impl Checker {
         EdgeGuard(self)
     }
 
-    /// Whether states spread over the edge from `a` to `b` (`total` m of motion) are free of
-    /// contact: its end, its middle, its quarters and so on while they are more than
-    /// [`RAKE_SPACING`] apart. An edge that collides is mostly refused here after a few
-    /// states rather than after conservative advancement's walk up to its contact (that walk
-    /// took about 70 % of the LoCoBot's states). It refuses only edges with a state in
-    /// contact, so it changes no verdict. It must run outside an edge's [`Near`] limits: its
-    /// checks for contact alone would set far intervals that do not hold for the edge's steps.
-    fn rake(&self, a: &[f64], b: &[f64], total: f64) -> bool {
-        let mut q = a.to_vec();
-        let mut free_at = |t: f64| self.measure_at(&mut q, (a, b), t, None, 0.0, 0.0).is_ok();
-        if !free_at(1.0) {
-            return false;
-        }
-        let mut n = 2u32;
-        while total / f64::from(n) > RAKE_SPACING && n < 1 << 16 {
-            for k in (1..n).step_by(2) {
-                if !free_at(f64::from(k) / f64::from(n)) {
-                    return false;
-                }
-            }
-            n *= 2;
-        }
-        true
-    }
-
     /// Each body's largest point motion (m) over the edge from `a` to `b`, and each moving
     /// pair's largest relative motion.
     fn speeds(&self, a: &[f64], b: &[f64]) -> Speeds {
@@ -1246,20 +1222,22 @@ impl Checker {
         }
     }
 
-    /// Whether the edge from `a` to `b` is free: [`Checker::rake`] first, then
-    /// [`Checker::advance`].
+    /// Whether the edge from `a` to `b` is free ([`Checker::advance`]).
     fn prove(&self, a: &[f64], b: &[f64], min_step: f64, exact_below: f64) -> bool {
         if !self.within_limits(a) || !self.within_limits(b) {
             return false;
         }
         self.counters.edges.fetch_add(1, Ordering::Relaxed);
         let total = self.motion_bound(a, b);
-        self.rake(a, b, total) && self.advance(a, b, total, min_step, exact_below)
+        self.advance(a, b, total, min_step, exact_below)
     }
 
-    /// Conservative advancement from `a` to `b` (`total` m of motion, within limits): steps
-    /// proven by the clearances at both ends, tried at three times the clearance or `min_step` (m of
-    /// the fastest point) and halved; exact distances where the spheres' bound is below
+    /// Conservative advancement from `a` to `b` (`total` m of motion, within limits): first
+    /// the clearances at the [`rake`]'s states (a contact there refuses the edge, as any
+    /// would: an edge that collides is mostly refused after a few states rather than after a
+    /// walk up to its contact, which took about 70 % of the LoCoBot's states), then steps
+    /// proven by the clearances at both ends, tried at three times the clearance or `min_step`
+    /// (m of the fastest point) and halved; exact distances where the spheres' bound is below
     /// `exact_below` (m).
     fn advance(&self, a: &[f64], b: &[f64], total: f64, min_step: f64, exact_below: f64) -> bool {
         let speed = self.speeds(a, b);
@@ -1276,6 +1254,15 @@ impl Checker {
             self.measure_at(&mut q, (a, b), t, Some(&speed), cap, exact_below)
                 .ok()
         };
+        // States measured ahead, the nearest on top: the rake's first.
+        let mut ahead: Vec<(f64, f64)> = Vec::new();
+        for t in rake(total) {
+            let Some(c) = clearance(t) else {
+                return false;
+            };
+            ahead.push((t, c));
+        }
+        ahead.sort_by(|x, y| y.0.total_cmp(&x.0));
         let Some(mut clear) = clearance(0.0) else {
             return false;
         };
@@ -1286,10 +1273,8 @@ impl Checker {
         let smallest = self.opts.min_step / total / 128.0;
         // A step from `t` to `u` is free when the clearances at its ends add up to more than
         // its length: a point x into it is at least max(c − x, cᵤ − (u − t − x)) > 0 from
-        // anything (for each body, as each clearance is the smallest over bodies). States
-        // measured ahead wait on `ahead`, the nearest on top; a step that is not proven is
-        // halved, keeping its far end.
-        let mut ahead: Vec<(f64, f64)> = Vec::new();
+        // anything (for each body, as each clearance is the smallest over bodies). A step
+        // that is not proven is halved, keeping its far end.
         let mut t = 0.0f64;
         while t < 1.0 {
             let (u, cu) = match ahead.last() {
@@ -1325,9 +1310,22 @@ impl Checker {
     }
 }
 
-/// Spacing (m of the fastest point's motion) below which [`Checker::rake`] stops adding
-/// states: 0.1 and 0.5 were slower on the benchmark's sets (seed 1; seed 2 agreed).
+/// Spacing (m of the fastest point's motion) below which [`rake`] stops adding states: 0.1
+/// and 0.5 were slower on the benchmark's sets (seed 1; seed 2 agreed).
 const RAKE_SPACING: f64 = 0.3;
+
+/// The edge parameters of states spread over an edge of `total` m of motion, in the order
+/// they are measured: its end, its middle, its quarters and so on while they are more than
+/// [`RAKE_SPACING`] apart.
+fn rake(total: f64) -> impl Iterator<Item = f64> {
+    let levels = (0..16u32)
+        .take_while(move |&l| total / f64::from(2u32 << l) > RAKE_SPACING)
+        .count() as u32;
+    std::iter::once(1.0).chain((0..levels).flat_map(|l| {
+        let n = 2u32 << l;
+        (1..n).step_by(2).map(move |k| f64::from(k) / f64::from(n))
+    }))
+}
 
 /// The smallest of `LANES` running minima (a select, not `f32::min`, so the lanes vectorise).
 #[inline(always)]
@@ -1411,11 +1409,23 @@ mod tests {
     use ferrobot_description::RobotConfig;
     use rand::{Rng, SeedableRng};
 
-    /// The rake refuses only edges that conservative advancement refuses too (a state in
-    /// contact), and it refuses many of them: LoCoBot edges among a table and a post, the
-    /// arm folding onto its own camera mast.
+    /// The rake's states: the end, then each level's odd multiples while they are more than
+    /// [`RAKE_SPACING`] apart.
     #[test]
-    fn the_rake_refuses_only_colliding_edges() {
+    fn the_rake_spreads_states_coarse_to_fine() {
+        let got = |total: f64| rake(total).collect::<Vec<f64>>();
+        assert_eq!(got(0.0), [1.0]);
+        assert_eq!(got(0.5), [1.0]);
+        assert_eq!(got(0.7), [1.0, 0.5]);
+        assert_eq!(got(1.3), [1.0, 0.5, 0.25, 0.75]);
+        assert_eq!(got(1e9).len(), 1 << 16);
+    }
+
+    /// Edges that collide are refused after a few states (the rake's), not after a walk up to
+    /// their contact: LoCoBot edges among a table and a post, the arm folding onto its own
+    /// camera mast. Every refused edge the 1 mm samples find in contact counts.
+    #[test]
+    fn colliding_edges_are_refused_after_a_few_states() {
         let cfg = RobotConfig::bundled("locobot").expect("locobot");
         let model = Arc::new(CollisionModel::from_config(&cfg).expect("model"));
         let mut scene = PlanningScene::new();
@@ -1439,7 +1449,8 @@ mod tests {
         let c = Checker::new(model.clone(), &scene, CheckOptions::default()).expect("checker");
         let limits = model.limits().to_vec();
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
-        let (mut refused, mut free) = (0, 0);
+        let states = || c.counters().states.load(Ordering::Relaxed);
+        let (mut refused, mut refused_states, mut free, mut free_states) = (0, 0, 0, 0);
         while refused < 60 || free < 20 {
             let q: Vec<Vec<f64>> = (0..2)
                 .map(|_| {
@@ -1453,16 +1464,25 @@ mod tests {
             if !c.is_free(a) || !c.is_free(b) {
                 continue;
             }
-            let total = c.motion_bound(a, b);
-            let advanced = c.advance(a, b, total, 0.01, 0.005);
-            if c.rake(a, b, total) {
-                free += usize::from(advanced);
-            } else {
-                assert!(!advanced, "raked out but advanced: {a:?} -> {b:?}");
-                assert!(!c.motion_sampled(a, b, 0.001));
+            let before = states();
+            let ok = c.motion_free(a, b);
+            let used = states() - before;
+            if ok {
+                free += 1;
+                free_states += used;
+            } else if !c.motion_sampled(a, b, 0.001) {
                 refused += 1;
+                refused_states += used;
             }
         }
+        let (per_refused, per_free) = (
+            refused_states as f64 / f64::from(refused),
+            free_states as f64 / f64::from(free),
+        );
+        assert!(
+            per_refused < 6.0 && per_refused < 0.5 * per_free,
+            "{per_refused} states per refused edge, {per_free} per free one"
+        );
     }
 
     /// Over random edges of Sawyer (seven links that fold onto each other), no sphere centre
