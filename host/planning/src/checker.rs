@@ -1241,13 +1241,18 @@ impl Checker {
     /// `exact_below` (m).
     fn advance(&self, a: &[f64], b: &[f64], total: f64, min_step: f64, exact_below: f64) -> bool {
         let speed = self.speeds(a, b);
-        let _near = self.begin_edge(a, &speed);
         let mut q = a.to_vec();
         let (cap, min_dt) = if total > 0.0 {
             (self.opts.max_step / total, min_step / total)
         } else {
             (1.0, 1.0)
         };
+        // The end first, before the edge's limits are set up (they cost more than a state):
+        // many edges that collide end in contact.
+        let Ok(end) = self.measure_at(&mut q, (a, b), 1.0, Some(&speed), cap, exact_below) else {
+            return false;
+        };
+        let _near = self.begin_edge(a, &speed);
         // How far along the edge (in t) nothing can be reached from `t`, or `None` at a
         // contact.
         let mut clearance = |t: f64| {
@@ -1255,8 +1260,8 @@ impl Checker {
                 .ok()
         };
         // States measured ahead, the nearest on top: the rake's first.
-        let mut ahead: Vec<(f64, f64)> = Vec::new();
-        for t in rake(total) {
+        let mut ahead: Vec<(f64, f64)> = vec![(1.0, end)];
+        for t in rake(total).skip(1) {
             let Some(c) = clearance(t) else {
                 return false;
             };
