@@ -1095,7 +1095,7 @@ impl Checker {
         q: &mut [f64],
         (a, b): (&[f64], &[f64]),
         t: f64,
-        speed: Option<&Speeds>,
+        speed: &Speeds,
         cap: f64,
         exact_below: f64,
     ) -> std::result::Result<f64, Contact> {
@@ -1103,7 +1103,7 @@ impl Checker {
             *v = x + (y - x) * t;
         }
         self.scratch.borrow_mut().near.t = t;
-        self.measure_with(q, speed, cap, exact_below)
+        self.measure_with(q, Some(speed), cap, exact_below)
     }
 
     /// Whether the straight joint-space edge from `a` to `b` is free, proven by conservative
@@ -1146,7 +1146,7 @@ impl Checker {
             (1.0, 1.0)
         };
         loop {
-            let Ok(dt) = self.measure_at(&mut q, (a, b), t, Some(&speed), cap, 0.0) else {
+            let Ok(dt) = self.measure_at(&mut q, (a, b), t, &speed, cap, 0.0) else {
                 return false;
             };
             if t >= 1.0 {
@@ -1247,18 +1247,18 @@ impl Checker {
         } else {
             (1.0, 1.0)
         };
-        // The end first, before the edge's limits are set up (they cost more than a state):
-        // many edges that collide end in contact.
-        let Ok(end) = self.measure_at(&mut q, (a, b), 1.0, Some(&speed), cap, exact_below) else {
-            return false;
-        };
-        let _near = self.begin_edge(a, &speed);
         // How far along the edge (in t) nothing can be reached from `t`, or `None` at a
         // contact.
         let mut clearance = |t: f64| {
-            self.measure_at(&mut q, (a, b), t, Some(&speed), cap, exact_below)
+            self.measure_at(&mut q, (a, b), t, &speed, cap, exact_below)
                 .ok()
         };
+        // The end first, before the edge's limits are set up (they cost more than a state):
+        // many edges that collide end in contact.
+        let Some(end) = clearance(1.0) else {
+            return false;
+        };
+        let _near = self.begin_edge(a, &speed);
         // States measured ahead, the nearest on top: the rake's first.
         let mut ahead: Vec<(f64, f64)> = vec![(1.0, end)];
         for t in rake(total).skip(1) {

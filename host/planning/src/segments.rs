@@ -183,7 +183,7 @@ mod tests {
             (at(-1.0, 0.0, 0.0), at(1.0, 0.0, 0.0), 0.0),
             // Parallel to z beside the +x face, 0.3 out.
             (at(0.5, 0.0, -2.0), at(0.5, 0.0, 2.0), 0.3),
-            // Diagonal past an edge: nearest at the edge (0.2, 0.1, z), distance 0.1·√2/2·…
+            // Diagonal x + y = 0.4 past the edge at (0.2, 0.1): distance 0.1/√2.
             (
                 at(0.4, 0.0, 0.0),
                 at(0.0, 0.4, 0.0),
