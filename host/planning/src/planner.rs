@@ -30,7 +30,7 @@ pub struct PlanOptions {
     pub shortcuts: usize,
     /// A shortcut is checked only when it would shorten the path by at least this much, rad:
     /// once the path is nearly straight, most attempts would save little and each costs an
-    /// edge check. At 0.01 rad the benchmark's sets took 14 % (LoCoBot) to 41 % (Sawyer's
+    /// edge check. At 0.01 rad the benchmark's sets took 14 % (LoCoBot) to 25 % (Sawyer's
     /// shelf) fewer instructions for paths 0.1–0.25 % longer on average (`BENCHMARKS.md`).
     pub shortcut_min_gain: f64,
     /// Informed RRT*: time spent improving the first path (within the time limit).
