@@ -60,7 +60,8 @@ pub fn build_board(
             cmd.env("CARGO_TARGET_DIR", dir.join(t));
             dir.join(t)
         }
-        None => dir.join("target"),
+        // Both boards' `.cargo/config.toml` name one target directory, `boards/target`.
+        None => dir.join("../target"),
     };
     let out = cmd.output().map_err(|e| format!("cannot run cargo: {e}"))?;
     if !out.status.success() {
