@@ -92,19 +92,13 @@ background hil 'cargo test --workspace --no-fail-fast --test hil --bin firmware-
 step "cargo test --no-run: every other test"
 cargo test --workspace --no-run --timings
 
+# The workspace includes the fuzz targets (fuzz/, built without libFuzzer as programs that
+# replay inputs), so they are linted here too.
 step "cargo clippy --all-targets -D warnings (workspace)"
 check clippy cargo clippy --workspace --all-targets -- -D warnings
 
-# The fuzz targets share the workspace's target directory and dev profile, so only they and
-# the fuzzing crates are checked again; clippy does not link, so libFuzzer's C++ need not be
-# compiled (libfuzzer-sys then only names a library to link).
-step "cargo clippy --all-targets -D warnings (fuzz targets)"
-check "clippy (fuzz)" bash -c 'cd fuzz && CARGO_TARGET_DIR=../target CUSTOM_LIBFUZZER_PATH="$PWD/../target/no-libfuzzer/libfuzzer.a" \
-    cargo clippy --all-targets -- -D warnings'
-rc=0
-git diff --quiet -- fuzz/Cargo.lock 2>/dev/null || rc=$?
-[ "$rc" -ne 1 ] || echo "note: fuzz/Cargo.lock was out of step with Cargo.lock (its clippy re-resolved and re-checked dependencies): commit the updated one" >&2
-
+# Both boards share one target directory (boards/target), so the second reuses the host-side
+# build dependencies the first checked.
 step "cargo clippy -D warnings (both boards, Debian's clippy)"
 for board in mps2-an386 opencr; do
     check "clippy ($board)" bash -c "cd boards/$board && env -u RUSTUP_TOOLCHAIN -u CARGO -u RUSTC -u RUSTC_WRAPPER -u CARGO_TARGET_DIR \

@@ -1,12 +1,15 @@
 //! Base feedback: the Kobuki and Create 2 parsers, then both firmware base drivers fed the
 //! bytes. Nothing may panic.
-#![no_main]
+#![cfg_attr(fuzzing, no_main)]
 use ferrobot_firmware::time::Instant;
 use ferrobot_firmware::{config, Firmware};
 use ferrobot_protocol::{create2, kobuki};
 use libfuzzer_sys::fuzz_target;
 
-fuzz_target!(|data: &[u8]| {
+fuzz_target!(|data: &[u8]| run(data));
+
+/// One input.
+fn run(data: &[u8]) {
     let mut k = kobuki::Parser::new();
     let mut c = create2::StreamParser::new();
     for &b in data {
@@ -23,4 +26,11 @@ fuzz_target!(|data: &[u8]| {
             fw.poll(now);
         }
     }
-});
+}
+
+/// Without libFuzzer: replay the input files (or corpus directories) named on the command
+/// line.
+#[cfg(not(fuzzing))]
+fn main() -> std::process::ExitCode {
+    ferrobot_fuzz::replay(run, std::env::args().skip(1))
+}

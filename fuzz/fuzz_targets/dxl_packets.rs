@@ -1,12 +1,15 @@
 //! Dynamixel packets: the packet decoder alone, then the firmware's bus master fed the bytes
 //! as servo replies while it runs its loop. Nothing may panic.
-#![no_main]
+#![cfg_attr(fuzzing, no_main)]
 use ferrobot_firmware::time::{Duration, Instant};
 use ferrobot_firmware::{config, Firmware, Link};
 use ferrobot_protocol::dxl::PacketDecoder;
 use libfuzzer_sys::fuzz_target;
 
-fuzz_target!(|data: &[u8]| {
+fuzz_target!(|data: &[u8]| run(data));
+
+/// One input.
+fn run(data: &[u8]) {
     let mut d = PacketDecoder::<256>::new();
     for &b in data {
         let _ = d.push(b);
@@ -40,4 +43,11 @@ fuzz_target!(|data: &[u8]| {
             fw.consume(link, n);
         }
     }
-});
+}
+
+/// Without libFuzzer: replay the input files (or corpus directories) named on the command
+/// line.
+#[cfg(not(fuzzing))]
+fn main() -> std::process::ExitCode {
+    ferrobot_fuzz::replay(run, std::env::args().skip(1))
+}

@@ -7,7 +7,7 @@
 //! true state (joint limits and speeds, wheel speeds, servo modes); at the end an emergency
 //! stop must stop everything and a valid session must recover the arm. Any violation or panic
 //! is a crash.
-#![no_main]
+#![cfg_attr(fuzzing, no_main)]
 use ferrobot_sim::hostile::hostile_stream;
 use libfuzzer_sys::fuzz_target;
 use rand::RngCore;
@@ -36,11 +36,18 @@ impl RngCore for Bytes<'_> {
     }
 }
 
-fuzz_target!(|data: &[u8]| {
+fuzz_target!(|data: &[u8]| run(data));
+
+/// One input.
+fn run(data: &[u8]) {
     let Some((&pick, rest)) = data.split_first() else {
         return;
     };
-    let robot = if pick & 1 == 0 { "locobot" } else { "locobot_lite" };
+    let robot = if pick & 1 == 0 {
+        "locobot"
+    } else {
+        "locobot_lite"
+    };
     // About one message per 24 bytes of input, at most 200.
     let messages = (rest.len() / 24).clamp(1, 200);
     let (c, _) = hostile_stream(&mut Bytes(rest), robot, 7, messages);
@@ -50,4 +57,11 @@ fuzz_target!(|data: &[u8]| {
         c.violations.len(),
         c.violations[0]
     );
-});
+}
+
+/// Without libFuzzer: replay the input files (or corpus directories) named on the command
+/// line.
+#[cfg(not(fuzzing))]
+fn main() -> std::process::ExitCode {
+    ferrobot_fuzz::replay(run, std::env::args().skip(1))
+}

@@ -2,13 +2,16 @@
 //! the same bytes after a valid handshake, then every message postcard can read from the
 //! bytes, framed validly (so that arbitrary commands and values reach the firmware's
 //! handlers past the CRC). Nothing may panic.
-#![no_main]
+#![cfg_attr(fuzzing, no_main)]
 use ferrobot_firmware::time::Instant;
 use ferrobot_firmware::{config, Firmware, Link};
 use ferrobot_protocol::*;
 use libfuzzer_sys::fuzz_target;
 
-fuzz_target!(|data: &[u8]| {
+fuzz_target!(|data: &[u8]| run(data));
+
+/// One input.
+fn run(data: &[u8]) {
     let mut d = FrameDecoder::new();
     for &b in data {
         let _ = d.push::<HostMsg>(b);
@@ -19,7 +22,14 @@ fuzz_target!(|data: &[u8]| {
     }
     let mut fw = Firmware::new(config::locobot(), "fuzz", Instant::ZERO);
     let mut hello = [0u8; MAX_WIRE];
-    if let Ok(n) = encode_frame(0, &HostMsg::Hello { protocol_version: PROTOCOL_VERSION, schema_hash: SCHEMA_HASH }, &mut hello) {
+    if let Ok(n) = encode_frame(
+        0,
+        &HostMsg::Hello {
+            protocol_version: PROTOCOL_VERSION,
+            schema_hash: SCHEMA_HASH,
+        },
+        &mut hello,
+    ) {
         fw.on_host_bytes(Instant::ZERO, &hello[..n]);
     }
     for (i, chunk) in data.chunks(17).enumerate() {
@@ -52,4 +62,11 @@ fuzz_target!(|data: &[u8]| {
             Err(_) => rest = &rest[1..],
         }
     }
-});
+}
+
+/// Without libFuzzer: replay the input files (or corpus directories) named on the command
+/// line.
+#[cfg(not(fuzzing))]
+fn main() -> std::process::ExitCode {
+    ferrobot_fuzz::replay(run, std::env::args().skip(1))
+}
