@@ -7,6 +7,11 @@
 //! crash file that `cargo fuzz` saved, or every file of a corpus directory), so a crash is
 //! reproduced, and a corpus re-run, with the stable toolchain and no libFuzzer.
 
+// `cargo fuzz` builds with `--cfg fuzzing`: the targets then have no `main` of their own and
+// need libFuzzer's.
+#[cfg(all(fuzzing, not(feature = "libfuzzer")))]
+compile_error!("fuzzing needs libFuzzer linked: `cargo fuzz run --features libfuzzer TARGET`");
+
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
