@@ -32,5 +32,5 @@ fn run(data: &[u8]) {
 /// line.
 #[cfg(not(fuzzing))]
 fn main() -> std::process::ExitCode {
-    ferrobot_fuzz::replay(run, std::env::args().skip(1))
+    ferrobot_fuzz::replay(run, std::env::args_os().skip(1))
 }

@@ -12,54 +12,95 @@
 #[cfg(all(fuzzing, not(feature = "libfuzzer")))]
 compile_error!("fuzzing needs libFuzzer linked: `cargo fuzz run --features libfuzzer TARGET`");
 
+use std::ffi::OsString;
+use std::fmt;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
-/// Run `target` on every input named by `args`: a file, or every file (not recursively) in a
-/// directory, in name order. Prints how many inputs ran; an input whose run panics is named on
-/// stderr and ends the replay with a failure. No argument at all runs the empty input once.
-pub fn replay(target: fn(&[u8]), args: impl IntoIterator<Item = String>) -> ExitCode {
-    let mut inputs = Vec::new();
-    for arg in args {
-        let path = PathBuf::from(arg);
-        if let Err(e) = collect(&path, &mut inputs) {
-            eprintln!("error: cannot read {}: {e}", path.display());
-            return ExitCode::FAILURE;
+/// Run `target` on every input named by `args` (a program's arguments, without its name): a
+/// file, or every file in a directory and its subdirectories, in name order, as libFuzzer
+/// reads a corpus. Each input's path is printed on stderr before it runs (as libFuzzer's
+/// `Running:` lines), so an abort or a hang names its input too. Fails when an input cannot be
+/// read, when a run panics (naming the input), or when the arguments name no input at all (an
+/// empty directory); no argument runs the empty input once.
+pub fn replay(target: fn(&[u8]), args: impl IntoIterator<Item = OsString>) -> ExitCode {
+    let args: Vec<PathBuf> = args.into_iter().map(PathBuf::from).collect();
+    match replay_paths(target, &args) {
+        Ok(0) => {
+            println!("ran the empty input (name input files or corpus directories to replay them)");
+            ExitCode::SUCCESS
+        }
+        Ok(n) => {
+            println!("ran {n} inputs");
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("{e}");
+            ExitCode::FAILURE
         }
     }
-    if inputs.is_empty() {
-        target(&[]);
-        println!("ran the empty input (name input files or corpus directories to replay them)");
-        return ExitCode::SUCCESS;
-    }
-    for path in &inputs {
-        let bytes = match std::fs::read(path) {
-            Ok(b) => b,
-            Err(e) => {
-                eprintln!("error: cannot read {}: {e}", path.display());
-                return ExitCode::FAILURE;
-            }
-        };
-        let run = std::panic::catch_unwind(|| target(&bytes));
-        if run.is_err() {
-            eprintln!("crash: {} ({} bytes)", path.display(), bytes.len());
-            return ExitCode::FAILURE;
-        }
-    }
-    println!("ran {} inputs", inputs.len());
-    ExitCode::SUCCESS
 }
 
-/// `path` itself, or the files directly inside it in name order.
+/// Why a replay failed.
+#[derive(Debug, PartialEq)]
+pub enum ReplayError {
+    /// A named path, or a file in a named directory, could not be read.
+    Unreadable(PathBuf, String),
+    /// The arguments named only empty directories.
+    NoInputs(Vec<PathBuf>),
+    /// The target panicked on this input.
+    Crash(PathBuf),
+}
+
+impl fmt::Display for ReplayError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ReplayError::Unreadable(p, e) => write!(f, "error: cannot read {}: {e}", p.display()),
+            ReplayError::NoInputs(args) => write!(f, "error: no input files in {args:?}"),
+            ReplayError::Crash(p) => write!(f, "crash: {}", p.display()),
+        }
+    }
+}
+
+/// [`replay`]'s work: how many inputs ran (0: the empty input, for no arguments).
+pub fn replay_paths(target: fn(&[u8]), args: &[PathBuf]) -> Result<usize, ReplayError> {
+    if args.is_empty() {
+        return run_one(target, &[], Path::new("<empty input>")).map(|()| 0);
+    }
+    let mut inputs = Vec::new();
+    for path in args {
+        collect(path, &mut inputs)
+            .map_err(|e| ReplayError::Unreadable(path.clone(), e.to_string()))?;
+    }
+    if inputs.is_empty() {
+        return Err(ReplayError::NoInputs(args.to_vec()));
+    }
+    for path in &inputs {
+        let bytes = std::fs::read(path)
+            .map_err(|e| ReplayError::Unreadable(path.clone(), e.to_string()))?;
+        eprintln!("Running: {}", path.display());
+        run_one(target, &bytes, path)?;
+    }
+    Ok(inputs.len())
+}
+
+/// `target` on `bytes`; a panic is a crash of `path`.
+fn run_one(target: fn(&[u8]), bytes: &[u8], path: &Path) -> Result<(), ReplayError> {
+    std::panic::catch_unwind(|| target(bytes)).map_err(|_| ReplayError::Crash(path.to_path_buf()))
+}
+
+/// `path` itself, or the files inside it and its subdirectories, in name order.
 fn collect(path: &Path, into: &mut Vec<PathBuf>) -> std::io::Result<()> {
     if path.is_dir() {
-        let mut files = std::fs::read_dir(path)?
+        let mut entries = std::fs::read_dir(path)?
             .map(|e| e.map(|e| e.path()))
             .collect::<std::io::Result<Vec<_>>>()?;
-        files.retain(|p| p.is_file());
-        files.sort();
-        into.extend(files);
+        entries.sort();
+        for entry in entries {
+            collect(&entry, into)?;
+        }
     } else {
+        // A missing path or a broken link is an error here, not a silent skip.
         std::fs::metadata(path)?;
         into.push(path.to_path_buf());
     }
@@ -76,16 +117,43 @@ mod tests {
     }
 
     #[test]
-    fn a_panicking_input_fails_the_replay_and_others_pass() {
+    fn a_crash_is_reported_with_its_input_and_others_pass() {
         let dir = std::env::temp_dir().join(format!("ferrobot-fuzz-lib-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(dir.join("sub")).unwrap();
         std::fs::write(dir.join("a"), [1, 2, 3]).unwrap();
         std::fs::write(dir.join("b"), []).unwrap();
-        let dir_arg = dir.to_string_lossy().into_owned();
-        assert_eq!(replay(picky, [dir_arg.clone()]), ExitCode::SUCCESS);
-        std::fs::write(dir.join("c"), [0xFF]).unwrap();
-        assert_eq!(replay(picky, [dir_arg]), ExitCode::FAILURE);
-        assert_eq!(replay(picky, []), ExitCode::SUCCESS);
+        std::fs::write(dir.join("sub").join("c"), [7]).unwrap();
+        let args = [dir.clone()];
+        assert_eq!(replay_paths(picky, &args), Ok(3), "subdirectories are read");
+        std::fs::write(dir.join("sub").join("d"), [0xFF]).unwrap();
+        assert_eq!(
+            replay_paths(picky, &args),
+            Err(ReplayError::Crash(dir.join("sub").join("d")))
+        );
+        assert_eq!(
+            replay(picky, [dir.clone().into_os_string()]),
+            ExitCode::FAILURE
+        );
+        assert_eq!(replay_paths(picky, &[]), Ok(0));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn an_empty_directory_or_a_missing_path_is_an_error() {
+        let dir = std::env::temp_dir().join(format!("ferrobot-fuzz-empty-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(dir.join("only-a-subdirectory")).unwrap();
+        let args = [dir.clone()];
+        assert_eq!(
+            replay_paths(picky, &args),
+            Err(ReplayError::NoInputs(args.to_vec()))
+        );
+        let missing = dir.join("missing");
+        assert!(matches!(
+            replay_paths(picky, std::slice::from_ref(&missing)),
+            Err(ReplayError::Unreadable(p, _)) if p == missing
+        ));
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

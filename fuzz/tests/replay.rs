@@ -33,6 +33,7 @@ fn corpus(name: &str, n: usize) -> PathBuf {
     dir
 }
 
+/// Runs the replay program `exe` on `args`; its stdout (fails the test if the program fails).
 fn replay(exe: &str, args: &[PathBuf]) -> String {
     let out = Command::new(exe).args(args).output().expect("runs");
     assert!(

@@ -87,7 +87,7 @@ fn main() {
         let (flash, ram) = sizes(&elf);
         println!("| {board}: flash / static RAM | {flash} B ({:.1} KiB) / {ram} B ({:.1} KiB) | {goal} |", flash as f64 / 1024.0, ram as f64 / 1024.0);
     }
-    let bench = build_board("mps2-an386", &["tick-bench"], Some("target/tick-bench"))
+    let bench = build_board("mps2-an386", &["tick-bench"], Some("../target/tick-bench"))
         .unwrap_or_else(|e| panic!("{e}"));
     let mut qemu = Command::new("qemu-system-arm")
         .args(ferrobot::backend::emulated::QEMU_MACHINE_ARGS)

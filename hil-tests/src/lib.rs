@@ -35,8 +35,9 @@ static FIRMWARE: OnceLock<Result<PathBuf, String>> = OnceLock::new();
 ///
 /// The boards build with Debian's toolchain (their own `rust-toolchain.toml`); a cargo started
 /// from `cargo test` inherits `RUSTUP_TOOLCHAIN`, `CARGO*` and `RUSTC*`, which would override
-/// it, so the child gets a clean environment. `target_dir` keeps differently-featured builds
-/// apart.
+/// it, so the child gets a clean environment. `target_dir`, relative to the board's directory,
+/// keeps differently-featured builds apart; without it the build goes to `boards/target`, the
+/// directory both boards' `.cargo/config.toml` name.
 pub fn build_board(
     board: &str,
     features: &[&str],
