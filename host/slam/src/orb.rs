@@ -394,9 +394,11 @@ impl OrbExtractor {
             // The row's sum and its moment about its first pixel (dx = i - half); the
             // compiler vectorises both.
             let (mut sum, mut moment) = (0i32, 0i32);
+            // Wrapping adds, which cannot wrap (the bound above): the test profile's overflow
+            // checks would otherwise keep the loop scalar.
             for (i, &v) in row.iter().enumerate() {
-                sum += v as i32;
-                moment += i as i32 * v as i32;
+                sum = sum.wrapping_add(v as i32);
+                moment = moment.wrapping_add((i as i32).wrapping_mul(v as i32));
             }
             m10 += moment - half * sum;
             m01 += dy * sum;
@@ -412,12 +414,15 @@ impl OrbExtractor {
         let w = img.width as isize;
         let centre = (y * img.width + x) as isize;
         let mut d = [0u64; 4];
+        // Offsets within the image (the border keeps the tests inside), so the wrapping
+        // arithmetic never wraps; it spares the test profile an overflow check per step.
+        let at = |dx: i8, dy: i8| {
+            img.data[centre
+                .wrapping_add((dy as isize).wrapping_mul(w))
+                .wrapping_add(dx as isize) as usize]
+        };
         for (k, &(x1, y1, x2, y2)) in pat.iter().enumerate() {
-            let p1 = img.data[(centre + y1 as isize * w + x1 as isize) as usize];
-            let p2 = img.data[(centre + y2 as isize * w + x2 as isize) as usize];
-            if p1 < p2 {
-                d[k / 64] |= 1 << (k % 64);
-            }
+            d[k >> 6] |= ((at(x1, y1) < at(x2, y2)) as u64) << (k & 63);
         }
         d
     }
@@ -465,15 +470,14 @@ fn fast_scores(img: &GreyImage, threshold: u8) -> Vec<u16> {
                 r[0][x - 1],
             ];
             let (mut mb, mut md, mut sb, mut sd) = (0u32, 0u32, 0u16, 0u16);
+            // Branch-free, and wrapping where nothing can wrap (|d| <= 255, sums <= 16 · 255):
+            // the contrast beyond the threshold is positive exactly where the pixel counts.
             for (k, &p) in ring.iter().enumerate() {
-                let d = p as i16 - c;
-                if d > t {
-                    mb |= 1 << k;
-                    sb += (d - t) as u16;
-                } else if d < -t {
-                    md |= 1 << k;
-                    sd += (-d - t) as u16;
-                }
+                let d = (p as i16).wrapping_sub(c);
+                mb |= ((d > t) as u32) << (k & 15);
+                md |= ((d < -t) as u32) << (k & 15);
+                sb = sb.wrapping_add(d.wrapping_sub(t).max(0) as u16);
+                sd = sd.wrapping_add(0i16.wrapping_sub(d).wrapping_sub(t).max(0) as u16);
             }
             if has_run9(mb) || has_run9(md) {
                 out[x] = sb.max(sd).max(1);
@@ -507,17 +511,19 @@ fn may_be_corners(r: &[&[u8]; 7], a: usize, b: usize, t: i16, maybe: &mut [u8]) 
     let out = &mut maybe[a..b];
     for i in 0..n {
         let c = centre[i] as i16;
-        let (hi, lo) = (c + t, c - t);
+        // Wrapping where nothing can wrap (|c ± t| <= 510, counts <= 4), so that the test
+        // profile's overflow checks leave the loop vectorised.
+        let (hi, lo) = (c.wrapping_add(t), c.wrapping_sub(t));
         let (mut cb, mut cd, mut db, mut dd) = (0u8, 0u8, 0u8, 0u8);
         for q in compass {
             let p = q[i] as i16;
-            cb += (p > hi) as u8;
-            cd += (p < lo) as u8;
+            cb = cb.wrapping_add((p > hi) as u8);
+            cd = cd.wrapping_add((p < lo) as u8);
         }
         for q in diagonal {
             let p = q[i] as i16;
-            db += (p > hi) as u8;
-            dd += (p < lo) as u8;
+            db = db.wrapping_add((p > hi) as u8);
+            dd = dd.wrapping_add((p < lo) as u8);
         }
         out[i] = ((cb >= 2) & (db >= 2) | (cd >= 2) & (dd >= 2)) as u8;
     }
