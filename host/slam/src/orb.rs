@@ -54,27 +54,39 @@ impl GreyImage {
     fn downscaled(&self, factor: f32) -> GreyImage {
         let w = ((self.width as f32 / factor).round() as usize).max(1);
         let h = ((self.height as f32 / factor).round() as usize).max(1);
-        // Source index and weight of the second sample, per output column and row.
-        let taps = |n_out: usize, n_in: usize| -> Vec<(usize, usize, u32)> {
+        // Source indices and weights of the two samples, per output column and row.
+        let taps = |n_out: usize, n_in: usize| -> Vec<(usize, usize, u32, u32)> {
             (0..n_out)
                 .map(|x| {
                     let sx = ((x as f32 + 0.5) * factor - 0.5).clamp(0.0, (n_in - 1) as f32);
                     let x0 = sx as usize;
                     let x1 = (x0 + 1).min(n_in - 1);
-                    (x0, x1, ((sx - x0 as f32) * 256.0).round() as u32)
+                    let f = ((sx - x0 as f32) * 256.0).round() as u32;
+                    (x0, x1, 256 - f, f)
                 })
                 .collect()
         };
         let cols = taps(w, self.width);
         let rows = taps(h, self.height);
         let mut data = vec![0u8; w * h];
-        for (out_row, &(y0, y1, fy)) in data.chunks_exact_mut(w).zip(&rows) {
+        // Weights sum to 256 on each axis, so every sum is at most 255 · 2¹⁶ + 2¹⁵: the
+        // wrapping arithmetic never wraps (and the test profile checks no overflow per pixel).
+        let blend = |a: u8, b: u8, wa: u32, wb: u32| {
+            (a as u32)
+                .wrapping_mul(wa)
+                .wrapping_add((b as u32).wrapping_mul(wb))
+        };
+        for (out_row, &(y0, y1, gy, fy)) in data.chunks_exact_mut(w).zip(&rows) {
             let r0 = &self.data[y0 * self.width..(y0 + 1) * self.width];
             let r1 = &self.data[y1 * self.width..(y1 + 1) * self.width];
-            for (o, &(x0, x1, fx)) in out_row.iter_mut().zip(&cols) {
-                let top = r0[x0] as u32 * (256 - fx) + r0[x1] as u32 * fx;
-                let bottom = r1[x0] as u32 * (256 - fx) + r1[x1] as u32 * fx;
-                *o = ((top * (256 - fy) + bottom * fy + (1 << 15)) >> 16) as u8;
+            for (o, &(x0, x1, gx, fx)) in out_row.iter_mut().zip(&cols) {
+                let top = blend(r0[x0], r0[x1], gx, fx);
+                let bottom = blend(r1[x0], r1[x1], gx, fx);
+                let v = top
+                    .wrapping_mul(gy)
+                    .wrapping_add(bottom.wrapping_mul(fy))
+                    .wrapping_add(1 << 15);
+                *o = (v >> 16) as u8;
             }
         }
         GreyImage {
@@ -314,11 +326,9 @@ impl OrbExtractor {
         let rows = h.div_ceil(cell);
         let mut cells: Vec<Vec<(usize, usize, f32)>> = vec![Vec::new(); cols * rows];
         for y in BORDER..h - BORDER {
-            for x in BORDER..w - BORDER {
-                let sc = score[y * w + x];
-                if sc == 0 {
-                    continue;
-                }
+            // Most scores are 0: skipped by an iterator over the row (no index arithmetic).
+            let row = &score[y * w + BORDER..(y + 1) * w - BORDER];
+            for (x, &sc) in (BORDER..).zip(row).filter(|&(_, &sc)| sc != 0) {
                 let mut is_max = true;
                 'n: for dy in -1isize..=1 {
                     for dx in -1isize..=1 {
