@@ -111,6 +111,7 @@ join hil
 # cargo-nextest (on every machine of this kind; cargo's own runner where it is missing) runs
 # the tests of all binaries in one queue, two at a time: cargo test runs one binary after the
 # other, and a binary whose last test is long leaves the second core idle until it ends.
+# The slowest tests start first (.config/nextest.toml), for the same reason.
 # Nextest does not run doc tests: cargo runs them after it.
 if cargo nextest --version >/dev/null 2>&1; then
     step "cargo nextest run: every other test"
