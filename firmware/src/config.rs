@@ -163,8 +163,8 @@ const fn link(origin: [f32; 3], axis: [f32; 3], mass: f32, com: [f32; 3]) -> Lin
 /// description (`host/description/robots/locobot.urdf`, PyRobot's "cmu" inertial data): joint
 /// origins and axes, and each link's mass and centre of mass; the gripper link carries the two
 /// fingers (at the closed position, their travel is across the roll axis and moves the centre
-/// of mass by under 0.1 mm) and the AR tag. `host/description/tests/gravity_model.rs` checks
-/// it against the URDF.
+/// of mass by under 0.1 mm) and the AR tag.
+/// `host/description/tests/integration/gravity_model.rs` checks it against the URDF.
 pub const LOCOBOT_GRAVITY: GravityModel = GravityModel {
     links: [
         link(

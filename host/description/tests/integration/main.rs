@@ -1,0 +1,4 @@
+//! `ferrobot-description`'s integration tests as one binary: a module per former test file.
+
+mod firmware_profiles;
+mod gravity_model;
