@@ -20,7 +20,7 @@
 //!
 //! Why not the dynamic window here: sampled arcs scored against a path cut corners with the
 //! body still between a door's jambs, and stalled there (the apartment's doors, see
-//! `tests/doorway.rs`); a follower of a path that keeps its margin does not.
+//! `tests/integration/doorway.rs`); a follower of a path that keeps its margin does not.
 
 use ferrobot_control::trajectory::{step, Limits};
 use ferrobot_geometry::{validate, wrap};

@@ -5,7 +5,7 @@
 use ferrobot_control::trajectory::{step, Limits};
 use ferrobot_nav::{Error, NavCommand, NavSettings, Navigator, Obstacles, OccupancyGrid, Scan};
 
-mod common;
+use crate::common;
 use common::wall_with_door;
 
 const RADIUS: f64 = 0.177;

@@ -4,7 +4,7 @@
 use ferrobot_control::trajectory::{step, Limits};
 use ferrobot_nav::{Dwa, NavField, Obstacles};
 
-mod common;
+use crate::common;
 use common::wall_with_door;
 
 /// Drives the unicycle with the window's commands from `start` to `goal`; returns the final
@@ -58,7 +58,8 @@ fn through_a_door_and_straight_round_the_corner() {
 /// A known stall of the dynamic window: entering the door off its axis with the goal just round
 /// the far corner, the window stops 0.6 m short, every arc that would turn the corner closing
 /// on a jamb within its horizon. Goals on a map are driven by the navigator instead, which
-/// passes this case (`tests/navigator.rs`); the window is left for round obstacles alone.
+/// passes this case (`tests/integration/navigator.rs`); the window is left for round
+/// obstacles alone.
 #[test]
 #[ignore = "known stall of the dynamic window in doorways; maps use the navigator"]
 fn off_axis_into_a_door_and_round_the_near_corner() {
