@@ -868,7 +868,7 @@ proptest! {
 
 /// Many more random paths than the property test, with repeated, collinear, reversing and
 /// nearly repeated waypoints and still joints: `cargo test -p ferrobot-planning --release
-/// --test timing -- --ignored --nocapture`.
+/// --test integration timing:: -- --ignored --nocapture`.
 #[test]
 #[ignore]
 fn many_random_paths() {
