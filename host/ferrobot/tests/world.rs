@@ -1,7 +1,7 @@
 //! The world through the public API on the simulator backend: the base stops at a wall with
 //! the bumper fault, the gripper grasps, lifts and drops a cube, an object where the robot
 //! stands is a typed error. (The same physics through the firmware in QEMU:
-//! `hil-tests/tests/hil.rs`; at the plants' level: `sim-stubs/tests/physics.rs`.)
+//! `hil-tests/tests/hil.rs`; at the plants' level: `sim-stubs/tests/integration/physics.rs`.)
 
 use std::f64::consts::FRAC_PI_2;
 

@@ -1,7 +1,7 @@
 //! Lockstep acceptance: LoCoBot arm targets through the protocol, in position and current
 //! mode; the gripper state machine with and without an object.
 
-mod common;
+use crate::common;
 use common::*;
 use ferrobot_protocol::*;
 

@@ -1,6 +1,6 @@
 //! Lockstep acceptance: the bases through the protocol, against ground truth.
 
-mod common;
+use crate::common;
 use common::*;
 use ferrobot_protocol::*;
 

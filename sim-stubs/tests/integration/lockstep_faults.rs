@@ -1,7 +1,7 @@
 //! Lockstep fault tests: watchdog, a servo that stops answering, corrupted frames on every
 //! link, overload, emergency stop, protocol mismatch.
 
-mod common;
+use crate::common;
 use common::*;
 use ferrobot_firmware::Link;
 use ferrobot_protocol::*;

@@ -1,5 +1,4 @@
 //! Helpers shared by the lockstep acceptance tests.
-#![allow(dead_code)]
 
 use ferrobot_protocol::dxl::units;
 use ferrobot_protocol::*;

@@ -5,7 +5,7 @@
 //! acknowledged, engages, zeroes the base's wheel command within one base cycle (Kobuki 20 ms,
 //! Create 2 15 ms) of reaching the firmware, holds every arm joint where it is, and refuses
 //! motion until `Resume`.
-mod common;
+use crate::common;
 
 use common::*;
 use ferrobot_protocol::*;
