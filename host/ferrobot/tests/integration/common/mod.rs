@@ -2,7 +2,6 @@
 
 use ferrobot::Robot;
 
-#[allow(dead_code)]
 /// A round post of radius `r` at `(x, y)` (m, world frame) in the simulated base's world.
 pub fn place_post(bot: &Robot, x: f64, y: f64, r: f64) {
     bot.simulator()
@@ -18,7 +17,6 @@ pub fn place_post(bot: &Robot, x: f64, y: f64, r: f64) {
 
 /// Folds the arm into its travel pose ([`ferrobot::Arm::stow`]), as a user does before a drive
 /// on a map: with the arm out, the navigator takes its reach as the robot's radius.
-#[allow(dead_code)]
 pub fn stow(bot: &Robot) {
     bot.arm().expect("arm").stow().expect("stow");
 }

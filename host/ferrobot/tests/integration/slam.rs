@@ -2,7 +2,7 @@
 //! whatever lets time pass, the base's pose from `Source::Slam` against the simulator's ground
 //! truth, the maps, a saved map reloaded, and the refusals.
 
-mod common;
+use crate::common;
 use ferrobot::slam::optimise::{planar, to_planar};
 use ferrobot::slam::Map;
 use ferrobot::{Backend, Error, Robot, Source};

@@ -2,7 +2,7 @@
 //! camera and driven round (without the camera's obstacles the base hits it), both bases; a
 //! goal behind a wall that the map lacks but the camera sees fails typed.
 
-mod common;
+use crate::common;
 use ferrobot::nav::OccupancyGrid;
 use ferrobot::{Backend, GoalOptions, Robot};
 use ferrobot_protocol::FaultKind;

@@ -6,7 +6,7 @@ use ferrobot::base_control::wrap;
 use ferrobot::{Error, GripperState, MoveOptions, Orientation, Robot};
 use ferrobot_protocol::FaultKind;
 
-mod common;
+use crate::common;
 
 const JOINT_TOL: f64 = 0.01;
 const EE_POS_TOL: f64 = 0.005;
@@ -511,10 +511,10 @@ fn builder_overrides_and_config_files() {
     std::fs::create_dir_all(&dir).expect("dir");
     std::fs::write(
         dir.join("mybot.urdf"),
-        include_str!("../../description/robots/locobot_lite.urdf"),
+        include_str!("../../../description/robots/locobot_lite.urdf"),
     )
     .expect("urdf");
-    let toml = include_str!("../../description/robots/locobot_lite.toml")
+    let toml = include_str!("../../../description/robots/locobot_lite.toml")
         .replace("name = \"locobot_lite\"", "name = \"mybot\"")
         .replace("locobot_lite.urdf", "mybot.urdf");
     std::fs::write(dir.join("mybot.toml"), toml).expect("toml");

@@ -8,7 +8,7 @@ use ferrobot::config::BaseController;
 use ferrobot::{Error, GoalOptions, Robot};
 use ferrobot_protocol::FaultKind;
 
-mod common;
+use crate::common;
 use common::place_post;
 
 const TARGETS: [[f64; 3]; 4] = [

@@ -185,8 +185,8 @@ fn sawyer_numerical_ik_solves_random_reachable_poses() {
 
 #[test]
 fn config_errors_name_the_file_the_key_and_the_problem() {
-    let base = include_str!("../../description/robots/locobot.toml");
-    let urdf = include_str!("../../description/robots/locobot.urdf");
+    let base = include_str!("../../../description/robots/locobot.toml");
+    let urdf = include_str!("../../../description/robots/locobot.urdf");
     let load = |text: &str| {
         RobotConfig::parse(text, std::path::Path::new("test.toml"), |_| {
             Ok(urdf.to_string())

@@ -1,0 +1,17 @@
+//! `ferrobot`'s integration tests as one binary: a module per former test file.
+
+mod api_sim;
+mod base_control;
+mod camera;
+mod common;
+mod concurrency;
+mod grasp;
+mod hand_eye;
+mod hostile_api;
+mod kinematics;
+mod navigation;
+mod planning;
+mod push;
+mod slam;
+mod stow;
+mod world;
