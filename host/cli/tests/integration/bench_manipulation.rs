@@ -2,7 +2,7 @@
 //! and real tolerances (ISO 9283 figures by ground truth, tracking errors, the plots written;
 //! one push judged by ground truth).
 
-mod support;
+use crate::support;
 use support::ferrobot;
 
 /// Three cycles of the five poses: every pose within 1 mm of its command (accuracy) and

@@ -9,7 +9,7 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-mod support;
+use crate::support;
 use support::ferrobot;
 
 /// A fresh scratch directory for one test.
@@ -368,7 +368,7 @@ fn collision_matrix_prints_the_stored_section() {
     let (ok, _, text) = ferrobot(&["collision-matrix", "sawyer", "--samples", "10000"]);
     assert!(ok, "{text}");
     assert!(text.contains("[collision]\ndisabled = ["), "{text}");
-    let stored = include_str!("../../description/robots/sawyer.toml");
+    let stored = include_str!("../../../description/robots/sawyer.toml");
     assert!(
         stored.ends_with(&text),
         "sawyer.toml does not end with the section computed now:\n{text}"

@@ -4,7 +4,7 @@
 
 use ferrobot::Robot;
 
-#[path = "../../ferrobot/tests/integration/support/hostile.rs"]
+#[path = "../../../ferrobot/tests/integration/support/hostile.rs"]
 mod hostile;
 use hostile::*;
 

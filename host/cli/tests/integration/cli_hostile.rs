@@ -47,7 +47,7 @@ const MARKER: &str = r#"marker = { link = "ar_tag", size = 0.03, xyz = [0.0, 0.0
 /// Copies of the bundled LoCoBot configuration with one hostile edit each, and the key the
 /// error must name: every number in a configuration is checked at load.
 fn hostile_configs() -> Vec<(&'static str, String, &'static str)> {
-    let base = include_str!("../../description/robots/locobot.toml");
+    let base = include_str!("../../../description/robots/locobot.toml");
     let edit = |from: &str, to: &str| {
         assert!(base.contains(from), "{from}");
         base.replacen(from, to, 1)
@@ -197,7 +197,7 @@ fn scratch() -> PathBuf {
     std::fs::create_dir_all(dir.join("subdir")).expect("scratch dir");
     std::fs::write(
         dir.join("locobot.urdf"),
-        include_str!("../../description/robots/locobot.urdf"),
+        include_str!("../../../description/robots/locobot.urdf"),
     )
     .expect("urdf");
     for (name, text, _) in hostile_configs() {

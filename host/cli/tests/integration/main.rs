@@ -1,0 +1,14 @@
+//! `ferrobot-cli`'s integration tests as one binary: a module per former test file.
+
+mod api_serial;
+mod bench_base;
+mod bench_grasp;
+mod bench_manipulation;
+mod bench_plan;
+mod cli;
+mod cli_hostile;
+mod hostile_plots;
+mod nav_plan;
+mod slam;
+mod support;
+mod teleop_pty;
