@@ -203,8 +203,12 @@ impl SelfMask {
         // compiler vectorises (a ray per pixel, with its two divisions, was SLAM's costliest
         // step after feature extraction).
         let (sx, sy) = (&is_self.x, &is_self.y);
-        let ray: Vec<f64> = (0..w).map(|c| (c as f64 - k.cx) / k.fx).collect();
-        let (ax, ay): (Vec<f64>, Vec<f64>) = ray.iter().map(|u| (sx[0] * u, sy[0] * u)).unzip();
+        let (ax, ay): (Vec<f64>, Vec<f64>) = (0..w)
+            .map(|c| {
+                let u = (c as f64 - k.cx) / k.fx;
+                (sx[0] * u, sy[0] * u)
+            })
+            .unzip();
         let mut on_body = vec![0u32; w];
         for (r, zs) in depth.data.chunks_exact(w).enumerate() {
             let v = (r as f64 - k.cy) / k.fy;
