@@ -1,4 +1,6 @@
-//! Puts memory.x and device.x where the linker finds them.
+//! Puts memory.x and device.x where the linker finds them, and links the binary with
+//! cortex-m-rt's and defmt's linker scripts (link arguments of the binary alone, so that
+//! the other crates build with the flags of every board and are shared between them).
 use std::{env, fs, path::PathBuf};
 
 fn main() {
@@ -8,4 +10,6 @@ fn main() {
         println!("cargo:rerun-if-changed={f}");
     }
     println!("cargo:rustc-link-search={}", out.display());
+    println!("cargo:rustc-link-arg-bins=-Tlink.x");
+    println!("cargo:rustc-link-arg-bins=-Tdefmt.x");
 }
