@@ -17,6 +17,12 @@ prints one JSON object for one pair:
 or {"runs": [one such object per pair, in order]} for several (one Python start-up, which
 takes longer than most fits).
 
+  dbscan_peer.py --batch CASES.json
+
+runs several clouds in one start-up: CASES.json is a list of {"cloud": PATH, "eps": [E, ...],
+"min_samples": [M, ...], "repeat": R (optional)}, and the output is {"batch": [{"runs": [...]}
+for each case, in order]}.
+
 The fit times cover `fit` only (the tree, the neighbourhoods and the labelling), not reading
 the file. Threads: OMP/OpenBLAS/MKL limited to one before numpy is imported, and
 threadpoolctl's limit around the fits; DBSCAN's own n_jobs stays at its default (one).
@@ -88,16 +94,35 @@ def read_ply(path):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("cloud")
-    ap.add_argument("--eps", type=float, action="append", required=True)
-    ap.add_argument("--min-samples", type=int, action="append", required=True)
+    ap.add_argument("cloud", nargs="?")
+    ap.add_argument("--eps", type=float, action="append")
+    ap.add_argument("--min-samples", type=int, action="append")
     ap.add_argument("--repeat", type=int, default=1)
+    ap.add_argument("--batch", help="a JSON list of cases, each with its own cloud")
     a = ap.parse_args()
-    if len(a.eps) != len(a.min_samples):
-        sys.exit("give one --min-samples per --eps")
-    x = read_ply(a.cloud)
-    runs = [run(x, eps, m, a.repeat) for eps, m in zip(a.eps, a.min_samples)]
-    print(json.dumps(runs[0] if len(runs) == 1 else {"runs": runs}))
+    if a.batch is not None:
+        if a.cloud is not None or a.eps or a.min_samples:
+            sys.exit("--batch takes its clouds and parameters from its file alone")
+        with open(a.batch) as f:
+            cases = json.load(f)
+        batch = [
+            {"runs": runs(case["cloud"], case["eps"], case["min_samples"], case.get("repeat", 1))}
+            for case in cases
+        ]
+        print(json.dumps({"batch": batch}))
+        return
+    if a.cloud is None or not a.eps or not a.min_samples:
+        sys.exit("give a cloud and at least one --eps and --min-samples (or --batch)")
+    out = runs(a.cloud, a.eps, a.min_samples, a.repeat)
+    print(json.dumps(out[0] if len(out) == 1 else {"runs": out}))
+
+
+def runs(cloud, eps, min_samples, repeat):
+    """One run for each (eps, min_samples) pair on the cloud in the PLY file `cloud`."""
+    if len(eps) != len(min_samples):
+        sys.exit("give one min_samples per eps")
+    x = read_ply(cloud)
+    return [run(x, e, m, repeat) for e, m in zip(eps, min_samples)]
 
 
 def run(x, eps, min_samples, repeat):

@@ -50,41 +50,78 @@ struct Peer {
     algorithm: String,
 }
 
-/// scikit-learn's runs on the cloud in `ply`, one per (eps, min_samples), in one start-up.
-fn sklearn(py: &Path, ply: &Path, params: &[(f64, usize)]) -> Vec<Peer> {
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("peer/dbscan_peer.py");
-    let mut cmd = Command::new(py);
-    cmd.arg(&script).arg(ply);
-    for (eps, m) in params {
-        cmd.args(["--eps", &eps.to_string(), "--min-samples", &m.to_string()]);
+/// One cloud to compare: a name for messages, its points, and the (eps, min_samples) pairs.
+struct Case {
+    name: String,
+    points: Vec<Point3<f64>>,
+    params: Vec<(f64, usize)>,
+}
+
+impl Case {
+    fn new(name: impl Into<String>, points: Vec<Point3<f64>>, params: &[(f64, usize)]) -> Self {
+        Case {
+            name: name.into(),
+            points,
+            params: params.to_vec(),
+        }
     }
-    let out = cmd.output().expect("runs the peer");
+}
+
+/// scikit-learn's runs on each case's cloud (the PLY file beside it in `plys`), one per
+/// (eps, min_samples), all in one Python start-up (which takes longer than most fits).
+fn sklearn(py: &Path, cases: &[Case], plys: &[PathBuf]) -> Vec<Vec<Peer>> {
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("peer/dbscan_peer.py");
+    let spec: Vec<serde_json::Value> = cases
+        .iter()
+        .zip(plys)
+        .map(|(case, ply)| {
+            serde_json::json!({
+                "cloud": ply,
+                "eps": case.params.iter().map(|p| p.0).collect::<Vec<_>>(),
+                "min_samples": case.params.iter().map(|p| p.1).collect::<Vec<_>>(),
+            })
+        })
+        .collect();
+    let spec_path = plys[0].with_extension("json");
+    std::fs::write(&spec_path, serde_json::to_vec(&spec).unwrap()).expect("writes the cases");
+    let out = Command::new(py)
+        .arg(&script)
+        .arg("--batch")
+        .arg(&spec_path)
+        .output()
+        .expect("runs the peer");
+    let _ = std::fs::remove_file(&spec_path);
     assert!(
         out.status.success(),
         "peer failed: {}",
         String::from_utf8_lossy(&out.stderr)
     );
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("peer's JSON");
-    let runs = match v.get("runs") {
-        Some(r) => r.as_array().expect("runs").clone(),
-        None => vec![v],
-    };
-    assert_eq!(runs.len(), params.len());
-    runs.iter()
-        .map(|r| Peer {
-            labels: r["labels"]
-                .as_array()
-                .expect("labels")
-                .iter()
-                .map(|l| l.as_i64().expect("integer label") as i32)
-                .collect(),
-            core: r["core"]
-                .as_array()
-                .expect("core")
-                .iter()
-                .map(|c| c.as_i64() == Some(1))
-                .collect(),
-            algorithm: r["algorithm"].as_str().unwrap_or("?").to_string(),
+    let batch = v["batch"].as_array().expect("batch");
+    assert_eq!(batch.len(), cases.len());
+    batch
+        .iter()
+        .zip(cases)
+        .map(|(b, case)| {
+            let runs = b["runs"].as_array().expect("runs");
+            assert_eq!(runs.len(), case.params.len(), "{}", case.name);
+            runs.iter()
+                .map(|r| Peer {
+                    labels: r["labels"]
+                        .as_array()
+                        .expect("labels")
+                        .iter()
+                        .map(|l| l.as_i64().expect("integer label") as i32)
+                        .collect(),
+                    core: r["core"]
+                        .as_array()
+                        .expect("core")
+                        .iter()
+                        .map(|c| c.as_i64() == Some(1))
+                        .collect(),
+                    algorithm: r["algorithm"].as_str().unwrap_or("?").to_string(),
+                })
+                .collect()
         })
         .collect()
 }
@@ -121,26 +158,48 @@ struct Seen {
     contested: Option<usize>,
 }
 
-/// Writes `points` as a PLY, reads them back (float32 coordinates), clusters them with ours
-/// and scikit-learn's for each (eps, min_samples), and checks every label and core flag.
-fn compare(py: &Path, name: &str, points: &[Point3<f64>], params: &[(f64, usize)]) -> Vec<Seen> {
-    let path = scratch().join(format!("{name}.ply"));
-    let cloud = PointCloud {
-        points: points.to_vec(),
-        colours: vec![[128; 3]; points.len()],
-    };
-    write_ply(&path, &cloud).expect("writes");
-    let pts = read_ply(&path).expect("reads").points;
-    let peers = sklearn(py, &path, params);
-    let _ = std::fs::remove_file(&path);
+/// Writes each case's points as a PLY, reads them back (float32 coordinates), clusters them
+/// with ours and scikit-learn's for each (eps, min_samples), and checks every label and core
+/// flag; what each run saw, case by case.
+fn compare(py: &Path, cases: &[Case]) -> Vec<Vec<Seen>> {
+    let dir = scratch();
+    let plys: Vec<PathBuf> = cases
+        .iter()
+        .map(|case| {
+            let path = dir.join(format!("{}.ply", case.name));
+            let cloud = PointCloud {
+                points: case.points.clone(),
+                colours: vec![[128; 3]; case.points.len()],
+            };
+            write_ply(&path, &cloud).expect("writes");
+            path
+        })
+        .collect();
+    let peers = sklearn(py, cases, &plys);
+    cases
+        .iter()
+        .zip(&plys)
+        .zip(peers)
+        .map(|((case, ply), peers)| {
+            let pts = read_ply(ply).expect("reads").points;
+            let _ = std::fs::remove_file(ply);
+            compare_one(&case.name, &pts, &case.params, peers)
+        })
+        .collect()
+}
+
+/// Ours against scikit-learn's `peers` on the points read back, one run per pair.
+fn compare_one(
+    name: &str,
+    pts: &[Point3<f64>],
+    params: &[(f64, usize)],
+    peers: Vec<Peer>,
+) -> Vec<Seen> {
     params
         .iter()
         .zip(peers)
         .map(|(&(eps, min_samples), peer)| {
-            let ours = Dbscan::new(eps, min_samples)
-                .unwrap()
-                .cluster(&pts)
-                .unwrap();
+            let ours = Dbscan::new(eps, min_samples).unwrap().cluster(pts).unwrap();
             assert_eq!(peer.labels.len(), pts.len(), "{name}");
             let differ: Vec<usize> = (0..pts.len())
                 .filter(|&i| peer.labels[i] != ours.labels[i] || peer.core[i] != ours.core[i])
@@ -148,7 +207,7 @@ fn compare(py: &Path, name: &str, points: &[Point3<f64>], params: &[(f64, usize)
             let seen = Seen {
                 clusters: ours.clusters,
                 noise: ours.noise(),
-                contested: contested(&pts, &ours, eps),
+                contested: contested(pts, &ours, eps),
             };
             eprintln!(
                 "{name}: {} points, eps {eps} m, min_samples {min_samples}: {} clusters, {} \
@@ -182,16 +241,20 @@ fn compare(py: &Path, name: &str, points: &[Point3<f64>], params: &[(f64, usize)
 #[test]
 fn labels_equal_scikit_learns_on_blobs_with_noise() {
     let Some(py) = peer_python() else { return };
-    for seed in 1..=3u64 {
-        let centres = [
-            [0.0, 0.0, 0.0],
-            [0.06, 0.0, 0.01],
-            [0.0, 0.1, 0.0],
-            [0.2, 0.15, 0.05],
-        ];
-        let pts = blobs(seed, &centres, 600, 0.01, 400, [-0.1; 3], [0.3, 0.3, 0.15]);
-        let params = [(0.02, 15), (0.01, 5), (0.03, 30), (0.005, 3)];
-        let seen = compare(&py, &format!("blobs{seed}"), &pts, &params);
+    let centres = [
+        [0.0, 0.0, 0.0],
+        [0.06, 0.0, 0.01],
+        [0.0, 0.1, 0.0],
+        [0.2, 0.15, 0.05],
+    ];
+    let params = [(0.02, 15), (0.01, 5), (0.03, 30), (0.005, 3)];
+    let cases: Vec<Case> = (1..=3u64)
+        .map(|seed| {
+            let pts = blobs(seed, &centres, 600, 0.01, 400, [-0.1; 3], [0.3, 0.3, 0.15]);
+            Case::new(format!("blobs{seed}"), pts, &params)
+        })
+        .collect();
+    for seen in compare(&py, &cases) {
         // Non-trivial cases: several clusters and noise with PyRobot's parameters, and
         // border points that the rule for them decides.
         assert!(seen[0].clusters >= 2 && seen[0].noise > 50);
@@ -232,13 +295,12 @@ fn contested_chain(seed: u64) -> Vec<Point3<f64>> {
 #[test]
 fn labels_equal_scikit_learns_where_border_points_are_contested() {
     let Some(py) = peer_python() else { return };
-    for seed in [1u64, 2, 3] {
-        let seen = compare(
-            &py,
-            &format!("chain{seed}"),
-            &contested_chain(seed),
-            &[(0.02, 15), (0.02, 12), (0.021, 15)],
-        );
+    let params = [(0.02, 15), (0.02, 12), (0.021, 15)];
+    let cases: Vec<Case> = [1u64, 2, 3]
+        .iter()
+        .map(|&seed| Case::new(format!("chain{seed}"), contested_chain(seed), &params))
+        .collect();
+    for seen in compare(&py, &cases) {
         let contested = seen[0].contested.unwrap_or(0);
         assert!(contested >= 10, "only {contested} contested border points");
     }
@@ -247,6 +309,7 @@ fn labels_equal_scikit_learns_where_border_points_are_contested() {
 #[test]
 fn labels_equal_scikit_learns_on_a_table_top_camera_cloud() {
     let Some(py) = peer_python() else { return };
+    let mut cases = Vec::new();
     for seed in [1u64, 2] {
         let scene = Tabletop::random(seed, 8, 0.04);
         // The whole view at 160x120 (floor, table and objects, D435-like noise).
@@ -254,12 +317,11 @@ fn labels_equal_scikit_learns_on_a_table_top_camera_cloud() {
             .scaled(0.25)
             .cloud(&scene, seed)
             .unwrap();
-        compare(
-            &py,
-            &format!("view{seed}"),
-            &cloud.points,
+        cases.push(Case::new(
+            format!("view{seed}"),
+            cloud.points,
             &[(0.02, 15), (0.01, 4), (0.05, 40)],
-        );
+        ));
         // PyRobot's pushing pipeline: the full 640x480 view, the table's plane, the points
         // 1 cm to 0.5 m above it over the table, DBSCAN (0.02, 15).
         let full = DepthCamera::looking_down(locobot_intrinsics())
@@ -277,8 +339,15 @@ fn labels_equal_scikit_learns_on_a_table_top_camera_cloud() {
         .unwrap();
         let above = above_table(&full.points, &fit, &SegmentParams::default()).unwrap();
         let objects: Vec<Point3<f64>> = above.iter().map(|&i| full.points[i]).collect();
-        let seen = compare(&py, &format!("objects{seed}"), &objects, &[(0.02, 15)]);
-        assert!(seen[0].clusters >= 6, "{} objects of 8", seen[0].clusters);
+        cases.push(Case::new(format!("objects{seed}"), objects, &[(0.02, 15)]));
+    }
+    let seen = compare(&py, &cases);
+    for objects in [&seen[1], &seen[3]] {
+        assert!(
+            objects[0].clusters >= 6,
+            "{} objects of 8",
+            objects[0].clusters
+        );
     }
 }
 
@@ -300,5 +369,5 @@ fn labels_equal_scikit_learns_on_a_lattice_with_ties_at_eps() {
         }
     }
     let params = [(0.01, 7), (0.01, 8), (0.02, 20), (0.015, 12), (0.03, 90)];
-    compare(&py, "lattice", &pts, &params);
+    compare(&py, &[Case::new("lattice", pts, &params)]);
 }
