@@ -4,9 +4,8 @@
 use ferrobot_firmware::time::Instant;
 use ferrobot_firmware::{config, Firmware};
 use ferrobot_protocol::{create2, kobuki};
-use libfuzzer_sys::fuzz_target;
 
-fuzz_target!(|data: &[u8]| run(data));
+ferrobot_fuzz::target!(run);
 
 /// One input.
 fn run(data: &[u8]) {
@@ -26,11 +25,4 @@ fn run(data: &[u8]) {
             fw.poll(now);
         }
     }
-}
-
-/// Without libFuzzer: replay the input files (or corpus directories) named on the command
-/// line.
-#[cfg(not(fuzzing))]
-fn main() -> std::process::ExitCode {
-    ferrobot_fuzz::replay(run, std::env::args_os().skip(1))
 }

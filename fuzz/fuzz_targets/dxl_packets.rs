@@ -4,9 +4,8 @@
 use ferrobot_firmware::time::{Duration, Instant};
 use ferrobot_firmware::{config, Firmware, Link};
 use ferrobot_protocol::dxl::PacketDecoder;
-use libfuzzer_sys::fuzz_target;
 
-fuzz_target!(|data: &[u8]| run(data));
+ferrobot_fuzz::target!(run);
 
 /// One input.
 fn run(data: &[u8]) {
@@ -43,11 +42,4 @@ fn run(data: &[u8]) {
             fw.consume(link, n);
         }
     }
-}
-
-/// Without libFuzzer: replay the input files (or corpus directories) named on the command
-/// line.
-#[cfg(not(fuzzing))]
-fn main() -> std::process::ExitCode {
-    ferrobot_fuzz::replay(run, std::env::args_os().skip(1))
 }

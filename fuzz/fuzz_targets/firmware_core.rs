@@ -9,7 +9,6 @@
 //! is a crash.
 #![cfg_attr(fuzzing, no_main)]
 use ferrobot_sim::hostile::hostile_stream;
-use libfuzzer_sys::fuzz_target;
 use rand::RngCore;
 
 /// The fuzzer's bytes as a random source; zeros once they are used up.
@@ -36,7 +35,7 @@ impl RngCore for Bytes<'_> {
     }
 }
 
-fuzz_target!(|data: &[u8]| run(data));
+ferrobot_fuzz::target!(run);
 
 /// One input.
 fn run(data: &[u8]) {
@@ -57,11 +56,4 @@ fn run(data: &[u8]) {
         c.violations.len(),
         c.violations[0]
     );
-}
-
-/// Without libFuzzer: replay the input files (or corpus directories) named on the command
-/// line.
-#[cfg(not(fuzzing))]
-fn main() -> std::process::ExitCode {
-    ferrobot_fuzz::replay(run, std::env::args_os().skip(1))
 }

@@ -6,9 +6,8 @@
 use ferrobot_firmware::time::Instant;
 use ferrobot_firmware::{config, Firmware, Link};
 use ferrobot_protocol::*;
-use libfuzzer_sys::fuzz_target;
 
-fuzz_target!(|data: &[u8]| run(data));
+ferrobot_fuzz::target!(run);
 
 /// One input.
 fn run(data: &[u8]) {
@@ -62,11 +61,4 @@ fn run(data: &[u8]) {
             Err(_) => rest = &rest[1..],
         }
     }
-}
-
-/// Without libFuzzer: replay the input files (or corpus directories) named on the command
-/// line.
-#[cfg(not(fuzzing))]
-fn main() -> std::process::ExitCode {
-    ferrobot_fuzz::replay(run, std::env::args_os().skip(1))
 }

@@ -17,6 +17,27 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
+/// Declares a fuzz target's entry points for `run` (a `fn(&[u8])`): libFuzzer's, through
+/// `libfuzzer_sys::fuzz_target!`, and, without libFuzzer, a `main` that [`replay`]s the input
+/// files named on the command line. The target file still starts with
+/// `#![cfg_attr(fuzzing, no_main)]` (an inner attribute, which a macro cannot give).
+#[macro_export]
+macro_rules! target {
+    ($run:path) => {
+        $crate::__libfuzzer_sys::fuzz_target!(|data: &[u8]| $run(data));
+
+        /// Without libFuzzer: replay the input files (or corpus directories) named on the
+        /// command line.
+        #[cfg(not(fuzzing))]
+        fn main() -> ::std::process::ExitCode {
+            $crate::replay($run, ::std::env::args_os().skip(1))
+        }
+    };
+}
+
+#[doc(hidden)]
+pub use libfuzzer_sys as __libfuzzer_sys;
+
 /// Run `target` on every input named by `args` (a program's arguments, without its name): a
 /// file, or every file in a directory and its subdirectories, in name order, as libFuzzer
 /// reads a corpus. Each input's path is printed on stderr before it runs (as libFuzzer's
