@@ -7,6 +7,7 @@ cd "$(dirname "$0")/.."
 for board in mps2-an386 opencr; do
     (cd "boards/$board" && env -u RUSTUP_TOOLCHAIN -u CARGO -u RUSTC -u RUSTC_WRAPPER -u CARGO_TARGET_DIR \
         cargo build --release --quiet)
+    # Where the host finds it: ferrobot::backend::emulated::{board_elf, DEFAULT_FIRMWARE}.
     elf="boards/target/thumbv7em-none-eabihf/release/board-$board"
     size -A "$elf" | awk -v b="$board" '
         $1==".vector_table"||$1==".text"||$1==".rodata" {flash+=$2}

@@ -71,7 +71,7 @@ pub fn build_board(
             String::from_utf8_lossy(&out.stderr)
         ));
     }
-    Ok(target.join(format!("thumbv7em-none-eabihf/release/board-{board}")))
+    Ok(ferrobot::backend::emulated::board_elf(&target, board))
 }
 
 /// Build the QEMU firmware once per process; its ELF path.

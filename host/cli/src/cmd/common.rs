@@ -97,7 +97,7 @@ pub fn robot_builder(robot: &str) -> ferrobot::RobotBuilder {
 
 /// The board firmware's ELF that `--backend emulated` boots in QEMU by default, relative to
 /// the repository's root (`scripts/build-boards.sh` builds it).
-pub const DEFAULT_FIRMWARE: &str = "boards/target/thumbv7em-none-eabihf/release/board-mps2-an386";
+pub use ferrobot::backend::emulated::DEFAULT_FIRMWARE;
 
 /// Where a tool's robot runs (`--backend`, `--firmware`, `--port`, `--seed`): the same
 /// program drives the in-process simulator, the real firmware in QEMU, or a serial port.

@@ -32,6 +32,18 @@ pub const QEMU_MACHINE_ARGS: [&str; 8] = [
     "none",
 ];
 
+/// The QEMU board's firmware ELF as `scripts/build-boards.sh` builds it, relative to the
+/// repository's root: [`board_elf`] of `mps2-an386` in `boards/target`.
+pub const DEFAULT_FIRMWARE: &str = "boards/target/thumbv7em-none-eabihf/release/board-mps2-an386";
+
+/// A board's release firmware ELF in the board builds' target directory `target_dir` (both
+/// boards' `.cargo/config.toml` name `boards/target`): `board-BOARD` for `thumbv7em-none-eabihf`.
+pub fn board_elf(target_dir: &Path, board: &str) -> PathBuf {
+    target_dir
+        .join("thumbv7em-none-eabihf/release")
+        .join(format!("board-{board}"))
+}
+
 /// How long the firmware may take to boot and report on its clock link (wall time).
 pub const BOOT_TIMEOUT: Duration = Duration::from_secs(10);
 
@@ -288,5 +300,18 @@ impl Link for EmulatedLink {
     }
     fn truth(&mut self) -> Option<ferrobot_sim::lockstep::Truth> {
         Some(self.board.server.truth())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_default_firmware_is_the_qemu_boards_elf_in_the_boards_target_directory() {
+        assert_eq!(
+            board_elf(Path::new("boards/target"), "mps2-an386"),
+            Path::new(DEFAULT_FIRMWARE)
+        );
     }
 }

@@ -41,7 +41,7 @@ pub enum Backend {
     /// pseudo-terminals, over the serial backend: one call. `firmware` is the board's release
     /// ELF (`scripts/build-boards.sh` builds it).
     Emulated {
-        /// Path of `boards/target/thumbv7em-none-eabihf/release/board-mps2-an386`.
+        /// Path of the board's ELF, e.g. [`emulated::DEFAULT_FIRMWARE`].
         firmware: PathBuf,
     },
 }
