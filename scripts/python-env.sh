@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Creates target/py-venv with the Python packages the conformance tests need (ROBOTIS'
 # official Dynamixel SDK); with `bench`, also those the benchmarks compare against (PyBullet,
-# sim-stubs/benches/requirements.txt); with `plan`, also those of the planning benchmark's peer
+# benches/benches/requirements.txt); with `plan`, also those of the planning benchmark's peer
 # (OMPL and FCL, host/planning/peer/requirements.txt); with `cluster`, also the clustering
 # peer's (scikit-learn, host/perception/peer/requirements.txt). Idempotent: does nothing when
 # they are already there.
@@ -26,7 +26,7 @@ fi
 install sim-stubs/tests/conformance/requirements.txt .installed-requirements dynamixel_sdk
 case "${1:-}" in
     "") ;;
-    bench) install sim-stubs/benches/requirements.txt .installed-bench-requirements pybullet ;;
+    bench) install benches/benches/requirements.txt .installed-bench-requirements pybullet ;;
     plan) install host/planning/peer/requirements.txt .installed-plan-requirements "ompl.geometric, fcl, scipy.spatial" ;;
     cluster) install host/perception/peer/requirements.txt .installed-cluster-requirements "sklearn.cluster" ;;
     *) echo "usage: $0 [bench|plan|cluster]" >&2; exit 2 ;;

@@ -161,7 +161,7 @@ fn sawyer_numerical_ik_solves_random_reachable_poses() {
     let chain = arm_chain("sawyer");
     // The default 5 ms wall-clock budget is for programs; on a busy machine it can run out
     // before the seeded restarts find a solution. With 1 s the result depends only on the
-    // seed (speed is `benches/kinematics.rs`'s business).
+    // seed (speed is the `kinematics` bench's business: `benches/benches/kinematics.rs`).
     let opts = IkOptions {
         timeout: std::time::Duration::from_secs(1),
         ..IkOptions::default()

@@ -1,5 +1,5 @@
 //! Encode plus decode of the LoCoBot telemetry frame (8 joints, base, faults, loop stats).
-//! Run: `cargo bench -p ferrobot-protocol --bench telemetry`.
+//! Run: `cargo bench -p ferrobot-benches --bench telemetry`.
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use ferrobot_protocol::*;

@@ -1,4 +1,4 @@
-"""PyBullet's CPU renderer on a scene exported by the `render` bench (sim-stubs/benches/render.rs).
+"""PyBullet's CPU renderer on a scene exported by the `render` bench (benches/benches/render.rs).
 
 Usage: python pybullet_render.py SCENE.json
 

@@ -1,5 +1,5 @@
 //! SLAM's front end on the simulator's frames. Run:
-//! `cargo bench -p ferrobot-slam --bench front_end`.
+//! `cargo bench -p ferrobot-benches --bench front_end`.
 //!
 //! * ORB extraction (1000 features, 4 levels) of 640 × 480 frames of the bundled apartment,
 //!   rendered as the LoCoBot's camera sees them (criterion).

@@ -1,4 +1,4 @@
-//! Kinematics benchmarks. Run: `cargo bench -p ferrobot --bench kinematics`.
+//! Kinematics benchmarks. Run: `cargo bench -p ferrobot-benches --bench kinematics`.
 //!
 //! * FK of the Sawyer and LoCoBot arms (criterion).
 //! * LoCoBot closed-form IK, 6-D pose in (criterion).

@@ -1,5 +1,5 @@
 //! Benchmarks of the firmware core and the lockstep simulator.
-//! Run: `cargo bench -p ferrobot-sim --bench sim`.
+//! Run: `cargo bench -p ferrobot-benches --bench sim`.
 //!
 //! * `firmware tick`: one servo-loop tick of the firmware core for the LoCoBot's 9 servos plus
 //!   the Kobuki: poll (sync read out), the 9 status packets in (recorded from the simulated

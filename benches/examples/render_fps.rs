@@ -2,14 +2,11 @@
 //! bundled tabletop and apartment scenes, arm folded out of the view), with and without depth
 //! noise, and the last frames in DIR (default /tmp) as PNGs for a look and as raw colour and
 //! depth (f32, little-endian) for comparisons. Quicker than the bench, for profiling. Run:
-//! `cargo run --release -p ferrobot-sim --example render_fps [DIR [SCENE]]`.
-
-#[path = "../benches/common/mod.rs"]
-mod common;
+//! `cargo run --release -p ferrobot-benches --example render_fps [DIR [SCENE]]`.
 
 use std::path::Path;
 
-use common::{cpu_time, depth_png, views, write_png};
+use ferrobot_benches::render::{cpu_time, depth_png, views, write_png};
 use ferrobot_sim::render::RenderedImage;
 use ferrobot_sim::rng::SimRng;
 

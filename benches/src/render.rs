@@ -1,6 +1,5 @@
-//! What the render bench and the `render_fps` example share: the camera views of the bundled
-//! scenes, their export to PyBullet, CPU time and PNG output. Each uses part of it.
-#![allow(dead_code)]
+//! What the render bench (`benches/render.rs`) and the `render_fps` example share: the camera
+//! views of the bundled scenes, their export to PyBullet, CPU time and PNG output.
 
 use std::path::Path;
 use std::sync::Arc;
@@ -23,12 +22,17 @@ const FAR: f64 = 20.0;
 pub struct View {
     /// The bundled scene's name.
     pub name: &'static str,
+    /// The scene.
     pub scene: Arc<Scene>,
+    /// The LoCoBot's body (its links' shapes).
     pub body: Arc<RobotBody>,
+    /// The renderer of the scene and the body.
     pub renderer: Renderer,
+    /// The LoCoBot's camera: the description's intrinsics at the optical frame's pose.
     pub camera: PinholeCamera,
-    /// World poses of the scene's bodies and of the robot's links.
+    /// World poses of the scene's bodies.
     pub bodies: Vec<Isometry3<f64>>,
+    /// World poses of the robot's links.
     pub links: Vec<Isometry3<f64>>,
 }
 
@@ -74,6 +78,7 @@ impl View {
         }
     }
 
+    /// One frame of the view into `out`, with the D435's depth noise when `noise` is given.
     pub fn render(&self, out: &mut RenderedImage, noise: Option<&mut SimRng>) {
         self.renderer
             .render(&self.camera, &self.bodies, &self.links, out);
@@ -173,6 +178,7 @@ pub fn cpu_time() -> f64 {
         .map_or(f64::NAN, |ns| ns as f64 * 1e-9)
 }
 
+/// An 8-bit PNG of `data` (`w` x `h` pixels of `colour`) at `path`.
 pub fn write_png(path: &Path, w: u32, h: u32, colour: png::ColorType, data: &[u8]) {
     let f = std::io::BufWriter::new(std::fs::File::create(path).expect("create PNG"));
     let mut e = png::Encoder::new(f, w, h);

@@ -1,7 +1,7 @@
 //! Rendering benchmarks: the simulated camera's frames (640 x 480 colour, depth and labels)
 //! in the bundled `tabletop` and `apartment` scenes, and PyBullet's CPU renderer
 //! (`getCameraImage` with `ER_TINY_RENDERER`, DIRECT mode) on the same scene and camera in the
-//! same run. Run: `cargo bench -p ferrobot-sim --bench render`.
+//! same run. Run: `cargo bench -p ferrobot-benches --bench render`.
 //!
 //! * The view: the LoCoBot at the scene's start pose, its arm folded up out of the view, the
 //!   head tilted down (0.8 rad at the table, 0.3 rad in the apartment); the robot's links are
@@ -25,11 +25,9 @@ use std::process::{Command, Stdio};
 use std::time::Instant;
 
 use criterion::{criterion_group, criterion_main, Criterion};
+use ferrobot_benches::render::{cpu_time, depth_png, views, write_png};
 use ferrobot_sim::render::RenderedImage;
 use ferrobot_sim::rng::SimRng;
-
-mod common;
-use common::{cpu_time, depth_png, views, write_png};
 
 /// Rounds of the comparison, and about how long each side renders in one, s.
 const ROUNDS: usize = 7;
