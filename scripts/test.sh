@@ -69,11 +69,14 @@ step "cargo fmt --check"
 check fmt cargo fmt --all -- --check
 
 # Every cargo command below selects the whole workspace (--workspace), as the full build does,
-# so that nothing is built twice: a narrower selection (-p) would unify other features.
+# so that nothing is built twice: a narrower selection (-p) would unify other features. The
+# test builds leave out the criterion benchmarks' crate (--exclude ferrobot-benches): no test
+# needs criterion, and the rest builds the same without it (sim-stubs' dev-dependencies enable
+# the features it adds). Clippy lints it with the rest.
 step "cargo test --no-run: what the HIL tests need"
 # --timings: each build's per-crate times in target/cargo-timings/ (the HTML reports), to see
 # where CI's compile time goes.
-cargo test --workspace --no-run --timings --test hil --bin firmware-process
+cargo test --workspace --exclude ferrobot-benches --no-run --timings --test hil --bin firmware-process
 
 step "waited for: the board builds"
 join boards
@@ -87,10 +90,10 @@ export FERROBOT_PYTHON="$PWD/target/py-venv/bin/python"
 # library and its firmware-process binary are the harness and hold no tests of their own (the
 # binary's empty test harness still runs, here).
 step "started: the HIL tests (hil-tests/tests/hil.rs: the firmware in QEMU, real-time paced)"
-background hil 'cargo test --workspace --no-fail-fast --test hil --bin firmware-process'
+background hil 'cargo test --workspace --exclude ferrobot-benches --no-fail-fast --test hil --bin firmware-process'
 
 step "cargo test --no-run: every other test"
-cargo test --workspace --no-run --timings
+cargo test --workspace --exclude ferrobot-benches --no-run --timings
 
 # The workspace includes the fuzz targets (fuzz/, built without libFuzzer as programs that
 # replay inputs), so they are linted here too.
@@ -115,12 +118,15 @@ join hil
 # Nextest does not run doc tests: cargo runs them after it.
 if cargo nextest --version >/dev/null 2>&1; then
     step "cargo nextest run: every other test"
-    check "cargo nextest" cargo nextest run --workspace --no-fail-fast --exclude ferrobot-hil
+    check "cargo nextest" cargo nextest run --workspace --no-fail-fast --exclude ferrobot-hil \
+        --exclude ferrobot-benches
     step "cargo test --doc"
-    check "cargo test --doc" cargo test --workspace --doc --exclude ferrobot-hil
+    check "cargo test --doc" cargo test --workspace --doc --exclude ferrobot-hil \
+        --exclude ferrobot-benches
 else
     step "cargo test: every other test (cargo-nextest is not installed)"
-    check "cargo test" cargo test --workspace --no-fail-fast --exclude ferrobot-hil
+    check "cargo test" cargo test --workspace --no-fail-fast --exclude ferrobot-hil \
+        --exclude ferrobot-benches
 fi
 
 if [ ${#failed[@]} -gt 0 ]; then

@@ -5,6 +5,10 @@
 //! (`front_end`). Benchmarks without criterion stay with their crates (`ferrobot-hil`'s
 //! `firmware`, `ferrobot-perception`'s `dbscan`).
 //!
+//! criterion is a dev-dependency of this crate alone, and `scripts/test.sh` leaves the crate
+//! out of its test builds (`--exclude ferrobot-benches`), so the tests never compile it;
+//! clippy (`--workspace --all-targets`) still lints the benchmarks.
+//!
 //! The library holds what the render bench and the `render_fps` example share (`render`).
 
 pub mod render;
