@@ -72,11 +72,12 @@ check fmt cargo fmt --all -- --check
 # so that nothing is built twice: a narrower selection (-p) would unify other features. The
 # test builds leave out the criterion benchmarks' crate (--exclude ferrobot-benches): no test
 # needs criterion, and the rest builds the same without it (sim-stubs' dev-dependencies enable
-# the features it adds). Clippy lints it with the rest.
+# the features it adds). Clippy lints it with the rest. `tested` is that one selection.
+tested=(--workspace --exclude ferrobot-benches)
 step "cargo test --no-run: what the HIL tests need"
 # --timings: each build's per-crate times in target/cargo-timings/ (the HTML reports), to see
 # where CI's compile time goes.
-cargo test --workspace --exclude ferrobot-benches --no-run --timings --test hil --bin firmware-process
+cargo test "${tested[@]}" --no-run --timings --test hil --bin firmware-process
 
 step "waited for: the board builds"
 join boards
@@ -90,10 +91,10 @@ export FERROBOT_PYTHON="$PWD/target/py-venv/bin/python"
 # library and its firmware-process binary are the harness and hold no tests of their own (the
 # binary's empty test harness still runs, here).
 step "started: the HIL tests (hil-tests/tests/hil.rs: the firmware in QEMU, real-time paced)"
-background hil 'cargo test --workspace --exclude ferrobot-benches --no-fail-fast --test hil --bin firmware-process'
+background hil "cargo test ${tested[*]} --no-fail-fast --test hil --bin firmware-process"
 
 step "cargo test --no-run: every other test"
-cargo test --workspace --exclude ferrobot-benches --no-run --timings
+cargo test "${tested[@]}" --no-run --timings
 
 # The workspace includes the fuzz targets (fuzz/, built without libFuzzer as programs that
 # replay inputs), so they are linted here too.
@@ -118,15 +119,12 @@ join hil
 # Nextest does not run doc tests: cargo runs them after it.
 if cargo nextest --version >/dev/null 2>&1; then
     step "cargo nextest run: every other test"
-    check "cargo nextest" cargo nextest run --workspace --no-fail-fast --exclude ferrobot-hil \
-        --exclude ferrobot-benches
+    check "cargo nextest" cargo nextest run "${tested[@]}" --no-fail-fast --exclude ferrobot-hil
     step "cargo test --doc"
-    check "cargo test --doc" cargo test --workspace --doc --exclude ferrobot-hil \
-        --exclude ferrobot-benches
+    check "cargo test --doc" cargo test "${tested[@]}" --doc --exclude ferrobot-hil
 else
     step "cargo test: every other test (cargo-nextest is not installed)"
-    check "cargo test" cargo test --workspace --no-fail-fast --exclude ferrobot-hil \
-        --exclude ferrobot-benches
+    check "cargo test" cargo test "${tested[@]}" --no-fail-fast --exclude ferrobot-hil
 fi
 
 if [ ${#failed[@]} -gt 0 ]; then
