@@ -161,7 +161,8 @@ pub struct Summary {
     pub time_ms: [f64; 3],
     /// Median joint-space path length of the solved problems, rad.
     pub path_length_median: f64,
-    /// Sphere-level checks per second of planning time.
+    /// Sphere-level checks ([`crate::checker::Counters::sphere_checks`]) per second of
+    /// planning time.
     pub sphere_checks_per_s: f64,
 }
 

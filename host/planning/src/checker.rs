@@ -883,6 +883,7 @@ impl Checker {
                     }
                 };
                 let o = self.obstacle(k);
+                checks += 1;
                 let coarse = o.coarse_gap(&bound.centre, bound.radius);
                 if coarse >= clear * m {
                     keep(coarse);
@@ -954,6 +955,7 @@ impl Checker {
                     f[n] = (t, (gap - cap * m) / m);
                 }
             };
+            checks += 1;
             let gap = (bi.centre - bj.centre).norm() - bi.radius - bj.radius;
             if gap >= m * clear {
                 keep(gap);
@@ -974,7 +976,6 @@ impl Checker {
                 &s.poses[self.bodies[j].link],
                 self.layout[j],
             );
-            checks += ((hi_ - li) * (hj - lj)) as u64;
             let reach = (m * clear) as f32;
             let (cx, cy, cz) = (bj.centre.x as f32, bj.centre.y as f32, bj.centre.z as f32);
             let rj = bj.radius as f32;
@@ -982,11 +983,13 @@ impl Checker {
             for k in li..hi_ {
                 let (x, y, z, r) = (w.x[k], w.y[k], w.z[k], w.r[k]);
                 // This sphere against the other body's bound first.
+                checks += 1;
                 let far = ((cx - x).powi(2) + (cy - y).powi(2) + (cz - z).powi(2)).sqrt() - rj - r;
                 if far >= reach {
                     lb = lb.min(far);
                     continue;
                 }
+                checks += (hj - lj) as u64;
                 let g = sphere_spheres_gap(
                     (x, y, z, r),
                     (&w.x[lj..ej], &w.y[lj..ej], &w.z[lj..ej], &w.r[lj..ej]),
@@ -1202,6 +1205,11 @@ impl Checker {
         }
         s.near.pair_far.clear();
         s.near.pair_far.resize(s.near.pairs.len(), (0.0, -1.0));
+        // Each moving body's bound against each of its obstacles, each pair's two bounds.
+        let checks = self.all_of.iter().map(Vec::len).sum::<usize>() + self.pairs.len();
+        self.counters
+            .sphere_checks
+            .fetch_add(checks as u64, Ordering::Relaxed);
         s.near.t = 0.0;
         s.near.on = true;
         EdgeGuard(self)
@@ -1424,6 +1432,48 @@ mod tests {
         assert_eq!(got(0.7), [1.0, 0.5]);
         assert_eq!(got(1.3), [1.0, 0.5, 0.25, 0.75]);
         assert_eq!(got(1e9).len(), 1 << 16);
+    }
+
+    /// One test is counted per test run: an obstacle far from every body adds exactly one
+    /// bounding-sphere test per moving body to a state's count, and nothing else.
+    #[test]
+    fn sphere_checks_count_the_tests_run() {
+        let cfg = RobotConfig::bundled("locobot").expect("locobot");
+        let model = Arc::new(CollisionModel::from_config(&cfg).expect("model"));
+        let checker = |scene: &PlanningScene| {
+            Checker::new(model.clone(), scene, CheckOptions::default()).expect("checker")
+        };
+        let empty = checker(&PlanningScene::new());
+        let mut scene = PlanningScene::new();
+        scene
+            .add_object(
+                "far",
+                Shape::Box([0.2, 0.2, 0.2]),
+                Isometry3::translation(10.0, 0.0, 0.0),
+            )
+            .expect("far box");
+        let far = checker(&scene);
+        let bodies = empty.moving_links().len() as u64;
+        assert_eq!(bodies, 8, "{:?}", empty.moving_links());
+        let checks = |c: &Checker| c.counters().sphere_checks.load(Ordering::Relaxed);
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        let mut states = 0;
+        while states < 5 {
+            let q: Vec<f64> = model
+                .limits()
+                .iter()
+                .map(|&(lo, hi)| rng.random_range(lo..=hi))
+                .collect();
+            let (e0, f0) = (checks(&empty), checks(&far));
+            if !empty.is_free(&q) {
+                continue;
+            }
+            assert!(far.is_free(&q));
+            states += 1;
+            let (e, f) = (checks(&empty) - e0, checks(&far) - f0);
+            assert!(e > bodies, "{e} tests");
+            assert_eq!(f, e + bodies, "{q:?}");
+        }
     }
 
     /// Edges that collide are refused after a few states (the rake's), not after a walk up to

@@ -77,7 +77,8 @@ pub struct PlanArgs<'a> {
 /// `bench plan --json`, fields in alphabetical order (see [`print_json`]).
 #[derive(Serialize)]
 struct SummaryJson {
-    /// Sphere-level collision checks per second of planning time.
+    /// Sphere-level collision checks (covering and bounding spheres against obstacles and
+    /// each other, as run) per second of planning time.
     collision_checks_per_s: f64,
     /// Joint-space path length of the solved problems, rad.
     path_length_rad: LengthJson,
