@@ -288,6 +288,10 @@ enum Cmd {
     /// One RGB-D frame of the simulated robot in a scene: writes rgb.png, depth.png (16-bit
     /// mm, 0 invalid), cloud.ply (world frame) and snapshot.png (colour | depth) to --out.
     Snapshot(SnapshotCli),
+    /// Plan an arm motion around a scene's objects on the simulator and execute it: prints
+    /// the plan (time, waypoints, length, duration) and the executed motion's contacts in the
+    /// physics engine; --png draws the motion seen from beside the robot.
+    ArmPlan(ArmPlanCli),
     /// Drive a robot from the keyboard in a terminal, with PyRobot's key map and steps: the
     /// end effector, the wrist, the gripper, the camera's pan and tilt, and the base while an
     /// arrow is held; the robot's state shown live. q, Esc or Ctrl-C quits with the base
@@ -584,6 +588,35 @@ struct SnapshotCli {
 }
 
 #[derive(Args)]
+struct ArmPlanCli {
+    /// Robot name or configuration path.
+    robot: String,
+    /// Scene name or path.
+    #[arg(long, default_value = "tabletop")]
+    scene: String,
+    /// Start configuration, rad (reached first by a planned motion; default: as the robot
+    /// starts).
+    #[arg(long, num_args = 1.., allow_negative_numbers = true)]
+    from: Option<Vec<f64>>,
+    /// Goal configuration, rad.
+    #[arg(long, num_args = 1.., allow_negative_numbers = true, required = true)]
+    to: Vec<f64>,
+    /// Room kept between the arm and the scene's objects along the motion, m.
+    #[arg(long, default_value_t = ferrobot::arm_plan::DEFAULT_PADDING)]
+    padding: f64,
+    /// Seed of the plants.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Draw the executed motion into this PNG.
+    #[arg(long)]
+    png: Option<std::path::PathBuf>,
+    /// Print one JSON object: `{"contacts", "duration_s", "final_error_rad", "joints",
+    /// "path", "path_length_rad", "planning_ms", "scene_objects"}`.
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(Args)]
 struct IkArgs {
     /// Robot name or configuration path.
     robot: String,
@@ -657,6 +690,19 @@ fn run(cli: Cli) -> Result<(), (ferrobot::Error, bool)> {
                 depth_range: a.depth_range.as_ref().map(|r| [r[0], r[1]]),
                 out: &a.out,
                 seed: a.seed,
+                json: a.json,
+            }),
+            a.json,
+        ),
+        Cmd::ArmPlan(a) => (
+            cmd::arm_plan::run(&cmd::arm_plan::ArmPlanArgs {
+                robot: &a.robot,
+                scene: &a.scene,
+                from: a.from.as_deref(),
+                to: &a.to,
+                padding: a.padding,
+                seed: a.seed,
+                png: a.png.as_deref(),
                 json: a.json,
             }),
             a.json,

@@ -54,6 +54,12 @@ impl ArmTrajectory {
     }
 }
 
+/// [`PlanningOptions::padding`] by default, m: the arm's executed motion follows its
+/// trajectory to within a few millimetres (the tracking tests' bound is 1 cm at the end
+/// effector); without room, a path that grazes an object touched it in the physics engine
+/// when executed (`ferrobot arm-plan`, BENCHMARKS.md).
+pub const DEFAULT_PADDING: f64 = 0.01;
+
 /// Options of a planned motion.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PlanningOptions {
@@ -64,6 +70,11 @@ pub struct PlanningOptions {
     /// Largest deviation of the blended trajectory from the path's corners, rad (blends are
     /// checked for collision and shrunk when they touch).
     pub max_deviation: f64,
+    /// Room kept between the arm and the scene's objects along the motion, m, for the arm's
+    /// tracking error when it runs (at most [`ferrobot_planning::MAX_PADDING`]). Where the
+    /// start or the goal is closer to an object than twice this, half that end's gap is kept
+    /// instead, so that both ends stay valid.
+    pub padding: f64,
 }
 
 impl Default for PlanningOptions {
@@ -72,6 +83,7 @@ impl Default for PlanningOptions {
             plan: PlanOptions::default(),
             optimise: false,
             max_deviation: 0.05,
+            padding: DEFAULT_PADDING,
         }
     }
 }
@@ -107,6 +119,11 @@ impl Arm {
 
     /// [`Arm::checker`] with link pairs `allowed` to touch besides the matrix's.
     fn checker_allowing(&self, allowed: &[(String, String)]) -> Result<Checker> {
+        self.checker_with(allowed, 0.0)
+    }
+
+    /// [`Arm::checker_allowing`] keeping `padding` (m) from the scene's objects.
+    fn checker_with(&self, allowed: &[(String, String)], padding: f64) -> Result<Checker> {
         let mut model = (*self.model()?).clone();
         for (a, b) in allowed {
             model.allow_pair(a, b);
@@ -137,7 +154,10 @@ impl Arm {
         Ok(Checker::new(
             Arc::new(model),
             &scene,
-            CheckOptions::default(),
+            CheckOptions {
+                padding,
+                ..CheckOptions::default()
+            },
         )?)
     }
 
@@ -363,6 +383,12 @@ impl Arm {
     /// Plans from the current joints to `goal`.
     pub fn plan_to(&self, goal: &[f64], opts: &PlanningOptions) -> Result<ArmTrajectory> {
         self.check_goal(goal)?;
+        crate::validate::in_range(
+            "planning padding (m)",
+            opts.padding,
+            0.0,
+            ferrobot_planning::MAX_PADDING,
+        )?;
         let start = self.get_joint_angles()?;
         let mut checker = self.checker()?;
         // Measured angles may sit a hair outside a limit.
@@ -384,6 +410,20 @@ impl Arm {
             }
             allowed.push((c.a, c.b));
             checker = self.checker_allowing(&allowed)?;
+        }
+        if opts.padding > 0.0 && checker.contact(&start).is_none() {
+            let gap = checker
+                .world_gap(&start, 2.0 * opts.padding)
+                .min(checker.world_gap(goal, 2.0 * opts.padding));
+            let pad = opts.padding.min(0.5 * gap);
+            if pad > 0.0 {
+                let padded = self.checker_with(&allowed, pad)?;
+                // Gaps are lower bounds of more than one kind: should one put an end within the
+                // padding after all, plan without it rather than refuse the end.
+                if padded.contact(&start).is_none() && padded.contact(goal).is_none() {
+                    checker = padded;
+                }
+            }
         }
         let plan = if opts.optimise {
             ferrobot_planning::InformedRrtStar.plan(&checker, &start, goal, &opts.plan)?

@@ -47,6 +47,9 @@ use crate::shape::{self, Sdf, Shape};
 use crate::spheres::{self, Sphere};
 use crate::{Error, Result};
 
+/// Largest [`CheckOptions::padding`], m.
+pub const MAX_PADDING: f64 = 0.2;
+
 /// Options of the checker.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CheckOptions {
@@ -58,6 +61,10 @@ pub struct CheckOptions {
     /// [`Checker::motion_proven`]'s step where the clearance is below it, halved near contact
     /// (down to `min_step / 128` in both checks), m.
     pub min_step: f64,
+    /// Clearance kept from the world's objects and voxels (not from the robot's own links),
+    /// m: closer counts as a contact. A planned motion keeps this much room for the arm's
+    /// tracking error when it is executed.
+    pub padding: f64,
 }
 
 impl Default for CheckOptions {
@@ -66,6 +73,7 @@ impl Default for CheckOptions {
             resolution: 0.01,
             max_step: 0.05,
             min_step: 0.001,
+            padding: 0.0,
         }
     }
 }
@@ -506,6 +514,15 @@ impl Checker {
                 ),
             });
         }
+        if !(opts.padding.is_finite() && (0.0..=MAX_PADDING).contains(&opts.padding)) {
+            return Err(Error::Invalid {
+                what: "check options".into(),
+                why: format!(
+                    "padding {} m must be finite, within [0, {MAX_PADDING}]",
+                    opts.padding
+                ),
+            });
+        }
         let mut bodies: Vec<Body> = model
             .links()
             .iter()
@@ -776,6 +793,62 @@ impl Checker {
         }
     }
 
+    /// The padding (m) kept from obstacle `k` ([`Checker::obstacle`]'s numbering): the
+    /// options' for the world's objects, none for the robot's own links.
+    fn padding_of(&self, k: usize) -> f64 {
+        if k < self.obstacles.len() {
+            self.opts.padding
+        } else {
+            0.0
+        }
+    }
+
+    /// The gap (m) between the robot at `q` and the nearest of the world's objects and voxels
+    /// (not its own links), without the padding: exact (GJK's certified bound) where below
+    /// `cap`, at most `cap`; 0 at a contact and for a `q` outside the limits.
+    pub fn world_gap(&self, q: &[f64], cap: f64) -> f64 {
+        if !self.within_limits(q) || cap.is_nan() {
+            return 0.0;
+        }
+        let mut s = self.scratch.borrow_mut();
+        let s = &mut *s;
+        self.model.link_poses_into(q, &mut s.values, &mut s.poses);
+        s.spheres.reset(&self.layout);
+        let mut gap = cap.max(0.0);
+        for (bi, b) in self.bodies.iter().enumerate() {
+            if !b.moving {
+                continue;
+            }
+            let pose = s.poses[b.link];
+            let centre = pose * b.bound.centre;
+            for o in &self.obstacles {
+                if o.coarse_gap(&centre, b.bound.radius) >= gap {
+                    continue;
+                }
+                let d = exact_gap(
+                    &b.exact,
+                    &pose,
+                    &o.placed,
+                    &Isometry3::identity(),
+                    gap,
+                    &self.counters,
+                );
+                gap = gap.min(d);
+            }
+            if let Some(g) = &self.grid {
+                s.spheres.place(bi, &b.spheres, &pose, self.layout[bi]);
+                match self.grid_gap(g, b, bi, s, gap, 0.0) {
+                    Ok(d) => gap = gap.min(d),
+                    Err(_) => return 0.0,
+                }
+            }
+            if gap <= 0.0 {
+                return 0.0;
+            }
+        }
+        gap
+    }
+
     /// A bound on how far any robot point moves from `a` to `b` (rad), m.
     pub fn motion_bound(&self, a: &[f64], b: &[f64]) -> f64 {
         a.iter()
@@ -883,8 +956,9 @@ impl Checker {
                     }
                 };
                 let o = self.obstacle(k);
+                let pad = self.padding_of(k);
                 checks += 1;
-                let coarse = o.coarse_gap(&bound.centre, bound.radius);
+                let coarse = o.coarse_gap(&bound.centre, bound.radius) - pad;
                 if coarse >= clear * m {
                     keep(coarse);
                     continue;
@@ -899,7 +973,7 @@ impl Checker {
                     &w.y[lo..end],
                     &w.z[lo..end],
                     &w.r[lo..end],
-                ));
+                )) - pad;
                 if lb >= clear * m {
                     keep(lb);
                     continue;
@@ -910,9 +984,9 @@ impl Checker {
                     &s.poses[b.link],
                     &o.placed,
                     &Isometry3::identity(),
-                    exact_below,
+                    exact_below + pad,
                     &self.counters,
-                );
+                ) - pad;
                 if d <= 0.0 {
                     flush(checks);
                     return Err(Contact {
@@ -927,7 +1001,7 @@ impl Checker {
             if let Some(g) = &self.grid {
                 s.spheres
                     .place(bi, &b.spheres, &s.poses[b.link], self.layout[bi]);
-                match self.grid_gap(g, b, bi, s, clear * m) {
+                match self.grid_gap(g, b, bi, s, clear * m, self.opts.padding) {
                     Ok(gap) => clear = clear.min(gap / m),
                     Err(c) => {
                         flush(checks);
@@ -1026,7 +1100,8 @@ impl Checker {
         Ok(clear.max(0.0))
     }
 
-    /// A lower bound of body `b`'s gap to the voxels (at most `cap`), or the contact.
+    /// A lower bound of body `b`'s gap to the voxels less `pad` (at most `cap`), or the
+    /// contact (closer than `pad`).
     fn grid_gap(
         &self,
         g: &Grid,
@@ -1034,6 +1109,7 @@ impl Checker {
         bi: usize,
         s: &Scratch,
         cap: f64,
+        pad: f64,
     ) -> std::result::Result<f64, Contact> {
         let (lo, hi, _) = self.layout[bi];
         let w = &s.spheres;
@@ -1042,7 +1118,7 @@ impl Checker {
         let mut clear = cap;
         for k in lo..hi {
             let (x, y, z) = (w.x[k], w.y[k], w.z[k]);
-            let reach = w.r[k] + clear as f32;
+            let reach = w.r[k] + (clear + pad) as f32;
             let cell = |v: f32| (v / size).floor() as i32;
             for i in cell(x - reach)..=cell(x + reach) {
                 for j in cell(y - reach)..=cell(y + reach) {
@@ -1060,7 +1136,7 @@ impl Checker {
                             centre: c,
                             half: [half; 3],
                         };
-                        let lb = f64::from(sdf.distance(x, y, z) - w.r[k]);
+                        let lb = f64::from(sdf.distance(x, y, z) - w.r[k]) - pad;
                         if lb >= clear {
                             continue;
                         }
@@ -1074,9 +1150,9 @@ impl Checker {
                             &s.poses[b.link],
                             &g.cube,
                             &pose,
-                            0.0,
+                            pad,
                             &self.counters,
-                        );
+                        ) - pad;
                         if d <= 0.0 {
                             return Err(Contact {
                                 a: b.name.clone(),
@@ -1187,7 +1263,7 @@ impl Checker {
                 self.all_of[bi]
                     .iter()
                     .zip(&s.gaps)
-                    .filter(|&(_, &g)| f64::from(g) < within)
+                    .filter(|&(&k, &g)| f64::from(g) - self.padding_of(k) < within)
                     .map(|(&k, _)| k),
             );
         }
@@ -1432,6 +1508,85 @@ mod tests {
         assert_eq!(got(0.7), [1.0, 0.5]);
         assert_eq!(got(1.3), [1.0, 0.5, 0.25, 0.75]);
         assert_eq!(got(1e9).len(), 1 << 16);
+    }
+
+    /// With a padding, a state is free only where the world is farther than the padding
+    /// ([`Checker::world_gap`], unpadded, says how far), and every edge proven free keeps it:
+    /// states 1 mm apart along it are all at least the padding from the world.
+    #[test]
+    fn padding_keeps_room_from_the_world() {
+        let cfg = RobotConfig::bundled("locobot").expect("locobot");
+        let model = Arc::new(CollisionModel::from_config(&cfg).expect("model"));
+        let mut scene = PlanningScene::new();
+        scene
+            .add_object(
+                "table",
+                Shape::Box([0.45, 0.8, 0.1]),
+                Isometry3::translation(0.5, 0.0, 0.05),
+            )
+            .expect("table");
+        scene
+            .add_object(
+                "post",
+                Shape::Cylinder {
+                    radius: 0.02,
+                    length: 0.3,
+                },
+                Isometry3::translation(0.35, 0.1, 0.25),
+            )
+            .expect("post");
+        let pad = 0.02;
+        let plain = Checker::new(model.clone(), &scene, CheckOptions::default()).expect("plain");
+        let padded = Checker::new(
+            model.clone(),
+            &scene,
+            CheckOptions {
+                padding: pad,
+                ..CheckOptions::default()
+            },
+        )
+        .expect("padded");
+        let limits = model.limits().to_vec();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
+        let mut sample = || -> Vec<f64> {
+            limits
+                .iter()
+                .map(|&(lo, hi)| rng.random_range(lo..=hi))
+                .collect()
+        };
+        let (mut within, mut beyond) = (0, 0);
+        while within < 30 || beyond < 30 {
+            let q = sample();
+            if !plain.is_free(&q) {
+                continue;
+            }
+            let g = plain.world_gap(&q, 0.1);
+            if g < pad - 1e-4 {
+                within += 1;
+                assert!(!padded.is_free(&q), "{g} m from the world: {q:?}");
+            } else if g > pad + 1e-4 {
+                beyond += 1;
+                assert!(padded.is_free(&q), "{g} m from the world: {q:?}");
+            }
+        }
+        let mut proven = 0;
+        while proven < 15 {
+            let (a, b) = (sample(), sample());
+            if !(padded.is_free(&a) && padded.is_free(&b) && padded.motion_free(&a, &b)) {
+                continue;
+            }
+            proven += 1;
+            let n = (plain.motion_bound(&a, &b) / 1e-3).ceil().max(1.0) as usize;
+            for k in 0..=n {
+                let t = k as f64 / n as f64;
+                let q: Vec<f64> = a.iter().zip(&b).map(|(x, y)| x + (y - x) * t).collect();
+                let g = plain.world_gap(&q, pad);
+                assert!(
+                    g >= pad - 1e-4,
+                    "{g} m from the world at {t} of {a:?} → {b:?}"
+                );
+            }
+        }
     }
 
     /// One test is counted per test run: an obstacle far from every body adds exactly one

@@ -30,7 +30,7 @@ pub mod spheres;
 pub mod timing;
 
 pub use acm::SelfCollisionMatrix;
-pub use checker::{CheckOptions, Checker, Contact};
+pub use checker::{CheckOptions, Checker, Contact, MAX_PADDING};
 pub use error::{Error, Result};
 pub use model::{config_geometry, CollisionModel, LinkGeometry};
 pub use planner::{InformedRrtStar, Plan, PlanOptions, Planner, RrtConnect};

@@ -1,6 +1,7 @@
 //! One module per subcommand of `ferrobot`; each `run` does the work and prints, and returns
 //! the API's error for `main` to print and turn into an exit code.
 
+pub mod arm_plan;
 pub mod base_move;
 pub mod bench_arm;
 pub mod bench_base;

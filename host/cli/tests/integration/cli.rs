@@ -391,6 +391,46 @@ fn snapshot_writes_images_and_a_cloud_in_the_world_frame() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// A planned motion low over the tabletop, from the left of the objects to their right (a
+/// benchmark problem whose path, planned without room, grazed the green cylinder and knocked it
+/// over when executed): with the default padding the executed motion touches nothing in the
+/// physics engine and ends at the goal; the picture is drawn, the gripper's path in red.
+#[test]
+fn arm_plan_executes_around_the_tabletop_without_contact_and_draws_it() {
+    let dir = std::env::temp_dir().join(format!("ferrobot-arm-plan-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let png = dir.join("motion.png");
+    let goal = [0.6932, -0.0235, 0.6592, 1.3374, -0.4848];
+    let goal_s: Vec<String> = goal.iter().map(|v| v.to_string()).collect();
+    let mut args = vec![
+        "arm-plan", "locobot", "--scene", "tabletop", "--from", "-0.0623", "0.8197", "-0.2944",
+        "-0.1524", "1.3604", "--to",
+    ];
+    args.extend(goal_s.iter().map(String::as_str));
+    args.extend(["--png", png.to_str().unwrap(), "--json"]);
+    let (ok, v) = run(&args);
+    assert!(ok, "{v}");
+    assert!(v["scene_objects"].as_u64().unwrap() > 5, "{v}");
+    assert_eq!(v["contacts"].as_u64(), Some(0), "{v}");
+    // The servos' arrival tolerance.
+    assert!(v["final_error_rad"].as_f64().unwrap() < 0.02, "{v}");
+    let path = v["path"].as_array().unwrap();
+    assert!(path.len() >= 3, "the straight line is not free: {v}");
+    for (got, want) in path.last().unwrap().as_array().unwrap().iter().zip(goal) {
+        assert!((got.as_f64().unwrap() - want).abs() < 1e-9, "{v}");
+    }
+    assert!(v["duration_s"].as_f64().unwrap() > 0.5, "{v}");
+    let img = ferrobot::perception::io::read_rgb_png(&png).unwrap();
+    assert_eq!((img.width, img.height), (800, 600));
+    let red = img
+        .data
+        .chunks_exact(3)
+        .filter(|p| p[0] == 214 && p[1] == 39 && p[2] == 40)
+        .count();
+    assert!(red > 300, "{red} px of the gripper's path");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
 #[test]
 fn cluster_prints_the_librarys_labels_in_file_order() {
     use ferrobot::perception::io::{read_ply, write_ply};

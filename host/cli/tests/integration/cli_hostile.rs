@@ -571,6 +571,79 @@ fn cases() -> Vec<Case> {
             Input,
         ));
     }
+    // arm-plan: hostile goals, starts and paddings, wrong counts, unknown scenes, a goal out
+    // of the limits (the input's fault) and one in the table (the planner's refusal).
+    for v in HOSTILE {
+        c.push(case(
+            &[
+                "arm-plan", "locobot", "--to", "0", v, "0", "0", "0", "--json",
+            ],
+            Input,
+        ));
+        c.push(case(
+            &[
+                "arm-plan", "locobot", "--from", v, "0", "0", "0", "0", "--to", "0", "0", "0", "0",
+                "0", "--json",
+            ],
+            Input,
+        ));
+        c.push(case(
+            &[
+                "arm-plan",
+                "locobot",
+                "--to",
+                "0",
+                "0",
+                "0",
+                "0",
+                "0",
+                "--padding",
+                v,
+                "--json",
+            ],
+            Input,
+        ));
+    }
+    for padding in ["-0.01", "0.5"] {
+        c.push(case(
+            &[
+                "arm-plan",
+                "locobot",
+                "--to",
+                "0",
+                "0",
+                "0",
+                "0",
+                "0",
+                "--padding",
+                padding,
+                "--json",
+            ],
+            Input,
+        ));
+    }
+    c.push(case(
+        &["arm-plan", "locobot", "--to", "0", "0", "--json"],
+        Input,
+    ));
+    c.push(case(
+        &[
+            "arm-plan", "locobot", "--scene", "kitchen", "--to", "0", "0", "0", "0", "0", "--json",
+        ],
+        Input,
+    ));
+    c.push(case(
+        &[
+            "arm-plan", "locobot", "--to", "3", "0", "0", "0", "0", "--json",
+        ],
+        Input,
+    ));
+    c.push(case(
+        &[
+            "arm-plan", "locobot", "--to", "0", "1.4", "0.6", "0", "0", "--json",
+        ],
+        Failure,
+    ));
     c.push(case(
         &["snapshot", "sawyer", "--out", "./out", "--json"],
         Input,

@@ -160,9 +160,21 @@ fn the_planning_scene_refuses_hostile_values() {
             judge("make_plan_joint_positions", q.len() != 5 || absurd(&q), &r)?;
             let r = arm.make_plan_pose(p, Orientation::Quaternion(quat));
             judge("make_plan_pose", bad_pose, &r)?;
+            let r = arm.plan_to(
+                &[0.2, 0.0, 0.0, 0.0, 0.0],
+                &ferrobot::arm_plan::PlanningOptions {
+                    padding: a,
+                    ..Default::default()
+                },
+            );
+            judge(
+                "plan_to's padding",
+                absurd(&[a]) || a.is_nan() || !(0.0..=ferrobot::planning::MAX_PADDING).contains(&a),
+                &r,
+            )?;
             let _ = arm.get_collision_state();
             arm.remove_all_objects().expect("clear");
-            calls.set(calls.get() + 7);
+            calls.set(calls.get() + 8);
             Ok(())
         })
         .expect("the planning scene refuses hostile values");

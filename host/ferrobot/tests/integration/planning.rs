@@ -22,6 +22,7 @@ fn assert_path_free(bot: &Robot, scene: &planning::PlanningScene, traj: &ArmTraj
             resolution: 0.001,
             max_step: 0.001,
             min_step: 0.001,
+            padding: 0.0,
         },
     )
     .expect("checker");

@@ -1,0 +1,345 @@
+//! `ferrobot arm-plan`: one planned arm motion on the simulator, around the scene's objects.
+//! The arm plans from where it starts (or from `--from`, reached by a planned motion first) to
+//! `--to`, executes the trajectory, and the command prints what the planner found and what the
+//! executed motion did in the physics engine: contacts between the arm's links and anything,
+//! and how far the arm ended from the goal. With `--png`, a picture of the executed motion
+//! seen from beside the robot: the arm where it ends, its earlier poses at evenly spaced times
+//! drawn over it translucent and tinted from blue (the start) to orange, the gripper's path
+//! traced in red.
+
+use std::path::Path;
+
+use ferrobot::arm_plan::PlanningOptions;
+use ferrobot::perception::{io, RgbImage};
+use ferrobot::Backend;
+use ferrobot_sim::lockstep::Truth;
+use ferrobot_sim::render::{PinholeCamera, RenderedImage, Renderer};
+use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
+use serde::Serialize;
+
+use super::common::print_json;
+
+/// Poses of the arm drawn in the picture (the first, the last and evenly between).
+pub const POSES: usize = 6;
+/// Simulated time between recorded states of the executed motion, s.
+const RECORD_DT: f64 = 0.02;
+/// Picture size, px.
+const WIDTH: u32 = 800;
+const HEIGHT: u32 = 600;
+/// Opacity of the earlier poses drawn over the last one.
+const GHOST: f32 = 0.55;
+/// Tints of the earlier poses, the first's and the last's (the plots' blue and orange).
+const TINTS: [[f32; 3]; 2] = [[31.0, 119.0, 180.0], [255.0, 127.0, 14.0]];
+
+/// `arm-plan --json`, fields in alphabetical order (see [`print_json`]).
+#[derive(Serialize)]
+struct ArmPlanJson {
+    /// Contacts of the arm's links recorded by the physics engine during the motion.
+    contacts: usize,
+    /// Duration of the planned trajectory, s.
+    duration_s: f64,
+    /// Largest joint error at the end of the executed motion, rad.
+    final_error_rad: f64,
+    /// The planned joints, in the order of `path`.
+    joints: Vec<String>,
+    /// Joint-space length of the path, rad.
+    path_length_rad: f64,
+    /// The path's waypoints, rad.
+    path: Vec<Vec<f64>>,
+    /// Planning time (search, shortcutting and time parameterisation), ms.
+    planning_ms: f64,
+    /// Scene objects added to the arm's planning scene.
+    scene_objects: usize,
+}
+
+/// What to plan.
+pub struct ArmPlanArgs<'a> {
+    /// Robot name or configuration path.
+    pub robot: &'a str,
+    /// Scene name or path.
+    pub scene: &'a str,
+    /// Start configuration (reached first by a planned motion), rad; `None`: as it starts.
+    pub from: Option<&'a [f64]>,
+    /// Goal configuration, rad.
+    pub to: &'a [f64],
+    /// Room kept from the scene's objects, m ([`PlanningOptions::padding`]).
+    pub padding: f64,
+    /// Seed of the plants.
+    pub seed: u64,
+    /// Where the picture goes.
+    pub png: Option<&'a Path>,
+    /// Print JSON.
+    pub json: bool,
+}
+
+/// Plan, execute, report, draw.
+pub fn run(a: &ArmPlanArgs) -> ferrobot::Result<()> {
+    // Refused before the simulator starts.
+    ferrobot::validate::in_range(
+        "padding (m)",
+        a.padding,
+        0.0,
+        ferrobot::planning::MAX_PADDING,
+    )?;
+    ferrobot::validate::angles("--to", a.to)?;
+    if let Some(q) = a.from {
+        ferrobot::validate::angles("--from", q)?;
+    }
+    let bot = super::common::robot_builder(a.robot)
+        .scene(a.scene)
+        .backend(Backend::Sim {
+            seed: a.seed,
+            realtime: false,
+        })
+        .build()?;
+    let arm = bot.arm()?;
+    let objects = arm.add_scene_objects()?;
+    let cfg = bot.config().clone();
+    let arm_cfg = cfg
+        .arm
+        .as_ref()
+        .ok_or_else(|| ferrobot::Error::NoComponent {
+            robot: cfg.name.clone(),
+            component: "arm",
+        })?;
+    // The links the arm's joints move, watched for contacts while the plan runs.
+    let (arm_joints, watched, ee) = {
+        let sim = bot
+            .simulator()
+            .ok_or_else(|| ferrobot::Error::Usage("arm-plan needs the simulator".into()))?;
+        let body = sim
+            .body()
+            .ok_or_else(|| ferrobot::Error::Usage("the simulated robot has no body".into()))?;
+        let tree = &body.tree;
+        let joints: Vec<usize> = arm_cfg
+            .joints
+            .iter()
+            .map(|j| {
+                tree.joint_index(j)
+                    .ok_or_else(|| ferrobot::Error::Usage(format!("no joint {j} in the URDF")))
+            })
+            .collect::<ferrobot::Result<_>>()?;
+        let names: Vec<String> = tree.links().map(str::to_string).collect();
+        let watched: Vec<String> = tree
+            .links_moved_by(&joints)
+            .into_iter()
+            .map(|l| names[l].clone())
+            .collect();
+        let ee = tree.link_index(&arm_cfg.ee_frame).ok_or_else(|| {
+            ferrobot::Error::Usage(format!("no link {} in the URDF", arm_cfg.ee_frame))
+        })?;
+        (joints, watched, ee)
+    };
+    bot.simulator()
+        .ok_or_else(|| ferrobot::Error::Usage("arm-plan needs the simulator".into()))?
+        .hw
+        .watch_robot_contacts(&watched)
+        .map_err(|e| ferrobot::Error::Usage(e.to_string()))?;
+    if let Some(q) = a.from {
+        arm.set_joint_positions(q)?;
+    }
+    // Reaching the start is not part of the motion reported.
+    bot.simulator()
+        .ok_or_else(|| ferrobot::Error::Usage("arm-plan needs the simulator".into()))?
+        .hw
+        .take_robot_contacts();
+    let plan = arm.plan_to(
+        a.to,
+        &PlanningOptions {
+            padding: a.padding,
+            ..PlanningOptions::default()
+        },
+    )?;
+    let mut motion = arm.execute(&plan)?;
+    let mut record: Vec<Truth> = vec![bot.truth()?];
+    // The motion ends within its duration and the executor's timeout; this only bounds a
+    // motion that would not.
+    let limit = plan.duration() + 30.0;
+    let mut waited = 0.0;
+    while !motion.is_finished() && waited < limit {
+        bot.wait(RECORD_DT)?;
+        waited += RECORD_DT;
+        record.push(bot.truth()?);
+    }
+    motion.poll();
+    motion.wait()?;
+    record.push(bot.truth()?);
+    let contacts = bot
+        .simulator()
+        .ok_or_else(|| ferrobot::Error::Usage("arm-plan needs the simulator".into()))?
+        .hw
+        .take_robot_contacts();
+    let last = record.last().map(|t| t.joints.clone()).unwrap_or_default();
+    let final_error = arm_joints
+        .iter()
+        .zip(a.to)
+        .map(|(&j, &g)| (last[j] - g).abs())
+        .fold(0.0, f64::max);
+    if let Some(path) = a.png {
+        let sim = bot
+            .simulator()
+            .ok_or_else(|| ferrobot::Error::Usage("arm-plan needs the simulator".into()))?;
+        let body = sim
+            .body()
+            .ok_or_else(|| ferrobot::Error::Usage("the simulated robot has no body".into()))?;
+        let renderer = Renderer::new(sim.scene(), Some(body));
+        let img = picture(&renderer, &record, ee)?;
+        drop(sim);
+        io::write_rgb_png(path, &img)?;
+    }
+    let length = ferrobot::planning::planner::path_length(&plan.path);
+    if a.json {
+        print_json(&ArmPlanJson {
+            contacts: contacts.len(),
+            duration_s: plan.duration(),
+            final_error_rad: final_error,
+            joints: plan.joints.clone(),
+            path_length_rad: length,
+            path: plan.path.clone(),
+            planning_ms: plan.planning_time.as_secs_f64() * 1e3,
+            scene_objects: objects,
+        });
+    } else {
+        say!(
+            "{} in {}: planned in {:.1} ms around {objects} scene objects: {} waypoints, {:.3} rad, a {:.2} s trajectory",
+            cfg.name,
+            a.scene,
+            plan.planning_time.as_secs_f64() * 1e3,
+            plan.path.len(),
+            length,
+            plan.duration()
+        );
+        say!(
+            "executed: {} contacts of the arm in the physics engine; ended {:.4} rad from the goal",
+            contacts.len(),
+            final_error
+        );
+        for c in &contacts {
+            say!(
+                "  {} touched {} from {:.3} s to {:.3} s, {:.1} mm deep at most",
+                c.link,
+                c.body,
+                c.first_us as f64 * 1e-6,
+                c.last_us as f64 * 1e-6,
+                c.max_depth * 1e3
+            );
+        }
+        if let Some(p) = a.png {
+            say!("wrote {}", p.display());
+        }
+    }
+    Ok(())
+}
+
+/// The optical frame (x right, y down, z forward) of a camera at `eye` looking at `target`,
+/// the world's z up.
+fn look_at(eye: Point3<f64>, target: Point3<f64>) -> Isometry3<f64> {
+    let z = (target - eye).normalize();
+    let x = z.cross(&Vector3::z()).normalize();
+    let y = z.cross(&x);
+    let r = Rotation3::from_matrix_unchecked(Matrix3::from_columns(&[x, y, z]));
+    Isometry3::from_parts(
+        Translation3::from(eye.coords),
+        UnitQuaternion::from_rotation_matrix(&r),
+    )
+}
+
+/// The executed motion (`record`, evenly spaced states) drawn from beside the robot: the arm
+/// at [`POSES`] times, the earlier ones faded over the last, and the path of link `ee`.
+fn picture(renderer: &Renderer, record: &[Truth], ee: usize) -> ferrobot::Result<RgbImage> {
+    let first = record
+        .first()
+        .ok_or_else(|| ferrobot::Error::Usage("nothing was recorded".into()))?;
+    let path: Vec<Point3<f64>> = record
+        .iter()
+        .map(|t| Point3::from(t.links[ee].translation.vector))
+        .collect();
+    // Framing: the robot's root and the gripper's path, seen from the front left and above
+    // the root's heading, far enough for all of it.
+    let root = Point3::from(first.root.translation.vector);
+    let mut target = path.iter().fold(root.coords, |s, p| s + p.coords);
+    target /= (path.len() + 1) as f64;
+    let target = Point3::from(target);
+    let radius = path
+        .iter()
+        .chain(std::iter::once(&root))
+        .map(|p| (p - target).norm())
+        .fold(0.3, f64::max);
+    let heading = first.root.rotation * Vector3::x();
+    let left = first.root.rotation * Vector3::y();
+    let dir = (heading * 0.75 + left * 0.65 + Vector3::z() * 0.6).normalize();
+    let eye = target + dir * (2.0 * radius + 0.35);
+    let f = 0.9 * f64::from(WIDTH);
+    let camera = PinholeCamera {
+        width: WIDTH,
+        height: HEIGHT,
+        fx: f,
+        fy: f,
+        cx: f64::from(WIDTH) / 2.0,
+        cy: f64::from(HEIGHT) / 2.0,
+        pose: look_at(eye, target),
+    };
+    let is_robot = |img: &RenderedImage, i: usize| {
+        renderer
+            .label_name(img.labels[i])
+            .is_some_and(|n| n.starts_with("robot/"))
+    };
+    let pick = |k: usize| &record[k * (record.len() - 1) / (POSES - 1)];
+    let mut out = RenderedImage::new(WIDTH, HEIGHT);
+    let last = pick(POSES - 1);
+    renderer.render(&camera, &last.bodies, &last.links, &mut out);
+    let mut ghost = RenderedImage::new(WIDTH, HEIGHT);
+    for k in 0..POSES - 1 {
+        let t = pick(k);
+        let f = k as f32 / (POSES - 2).max(1) as f32;
+        let tint: [f32; 3] = std::array::from_fn(|c| TINTS[0][c] + (TINTS[1][c] - TINTS[0][c]) * f);
+        renderer.render(&camera, &t.bodies, &t.links, &mut ghost);
+        for i in 0..out.depth.len() {
+            let in_front = out.depth[i] <= 0.0 || ghost.depth[i] < out.depth[i] - 1e-3;
+            if is_robot(&ghost, i) && in_front {
+                let px = 3 * i..3 * i + 3;
+                for ((o, &b), &t) in out.rgb[px.clone()]
+                    .iter_mut()
+                    .zip(&ghost.rgb[px])
+                    .zip(&tint)
+                {
+                    let g = 0.5 * f32::from(b) + 0.5 * t;
+                    *o = ((1.0 - GHOST) * f32::from(*o) + GHOST * g).round() as u8;
+                }
+            }
+        }
+    }
+    let pixels: Vec<[f64; 2]> = path
+        .iter()
+        .filter_map(|p| camera.project(p).map(|(c, r)| [c, r]))
+        .collect();
+    for w in pixels.windows(2) {
+        line(
+            &mut out.rgb,
+            WIDTH as usize,
+            HEIGHT as usize,
+            w[0],
+            w[1],
+            [214, 39, 40],
+        );
+    }
+    Ok(RgbImage::new(WIDTH, HEIGHT, out.rgb)?)
+}
+
+/// A line 3 px wide from `a` to `b` (column, row; px) on an RGB buffer.
+fn line(rgb: &mut [u8], w: usize, h: usize, a: [f64; 2], b: [f64; 2], colour: [u8; 3]) {
+    let n = ((b[0] - a[0]).abs().max((b[1] - a[1]).abs()).ceil() as usize).clamp(1, 10_000);
+    for s in 0..=n {
+        let f = s as f64 / n as f64;
+        let (c, r) = (a[0] + (b[0] - a[0]) * f, a[1] + (b[1] - a[1]) * f);
+        for dr in -1..=1i64 {
+            for dc in -1..=1i64 {
+                let (rr, cc) = (r.round() as i64 + dr, c.round() as i64 + dc);
+                if rr >= 0 && cc >= 0 && (rr as usize) < h && (cc as usize) < w {
+                    let i = 3 * (rr as usize * w + cc as usize);
+                    rgb[i..i + 3].copy_from_slice(&colour);
+                }
+            }
+        }
+    }
+}
