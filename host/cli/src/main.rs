@@ -611,7 +611,7 @@ struct ArmPlanCli {
     #[arg(long)]
     png: Option<std::path::PathBuf>,
     /// Print one JSON object: `{"contacts", "duration_s", "final_error_rad", "joints",
-    /// "path", "path_length_rad", "planning_ms", "scene_objects"}`.
+    /// "padding_m", "path", "path_length_rad", "planning_ms", "scene_objects"}`.
     #[arg(long)]
     json: bool,
 }

@@ -45,6 +45,9 @@ pub struct ArmTrajectory {
     pub trajectory: Trajectory,
     /// Time spent planning.
     pub planning_time: Duration,
+    /// Room kept between the arm and the scene's objects along the path, m
+    /// ([`PlanningOptions::padding`], less where an end is nearer).
+    pub padding: f64,
 }
 
 impl ArmTrajectory {
@@ -411,6 +414,7 @@ impl Arm {
             allowed.push((c.a, c.b));
             checker = self.checker_allowing(&allowed)?;
         }
+        let mut padding = 0.0;
         if opts.padding > 0.0 && checker.contact(&start).is_none() {
             let gap = checker
                 .world_gap(&start, 2.0 * opts.padding)
@@ -422,6 +426,7 @@ impl Arm {
                 // padding after all, plan without it rather than refuse the end.
                 if padded.contact(&start).is_none() && padded.contact(goal).is_none() {
                     checker = padded;
+                    padding = pad;
                 }
             }
         }
@@ -436,6 +441,7 @@ impl Arm {
             path: plan.path,
             trajectory,
             planning_time: plan.time,
+            padding,
         })
     }
 

@@ -42,6 +42,9 @@ struct ArmPlanJson {
     final_error_rad: f64,
     /// The planned joints, in the order of `path`.
     joints: Vec<String>,
+    /// Room the path keeps from the scene's objects, m (the padding asked for, less where an
+    /// end is nearer).
+    padding_m: f64,
     /// Joint-space length of the path, rad.
     path_length_rad: f64,
     /// The path's waypoints, rad.
@@ -194,6 +197,7 @@ pub fn run(a: &ArmPlanArgs) -> ferrobot::Result<()> {
             duration_s: plan.duration(),
             final_error_rad: final_error,
             joints: plan.joints.clone(),
+            padding_m: plan.padding,
             path_length_rad: length,
             path: plan.path.clone(),
             planning_ms: plan.planning_time.as_secs_f64() * 1e3,
@@ -201,10 +205,11 @@ pub fn run(a: &ArmPlanArgs) -> ferrobot::Result<()> {
         });
     } else {
         say!(
-            "{} in {}: planned in {:.1} ms around {objects} scene objects: {} waypoints, {:.3} rad, a {:.2} s trajectory",
+            "{} in {}: planned in {:.1} ms around {objects} scene objects, {:.1} mm from them at least: {} waypoints, {:.3} rad, a {:.2} s trajectory",
             cfg.name,
             a.scene,
             plan.planning_time.as_secs_f64() * 1e3,
+            plan.padding * 1e3,
             plan.path.len(),
             length,
             plan.duration()

@@ -412,6 +412,9 @@ fn arm_plan_executes_around_the_tabletop_without_contact_and_draws_it() {
     assert!(ok, "{v}");
     assert!(v["scene_objects"].as_u64().unwrap() > 5, "{v}");
     assert_eq!(v["contacts"].as_u64(), Some(0), "{v}");
+    // The default 1 cm, or half an end's gap: this start and goal are 1-2 cm from objects.
+    let padding = v["padding_m"].as_f64().unwrap();
+    assert!(padding > 0.005 && padding <= 0.01, "{v}");
     // The servos' arrival tolerance.
     assert!(v["final_error_rad"].as_f64().unwrap() < 0.02, "{v}");
     let path = v["path"].as_array().unwrap();
