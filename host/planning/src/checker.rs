@@ -1510,11 +1510,8 @@ mod tests {
         assert_eq!(got(1e9).len(), 1 << 16);
     }
 
-    /// With a padding, a state is free only where the world is farther than the padding
-    /// ([`Checker::world_gap`], unpadded, says how far), and every edge proven free keeps it:
-    /// states 1 mm apart along it are all at least the padding from the world.
-    #[test]
-    fn padding_keeps_room_from_the_world() {
+    /// The LoCoBot's model, and a scene of a table before it and a post over the table.
+    fn locobot_table_and_post() -> (Arc<CollisionModel>, PlanningScene) {
         let cfg = RobotConfig::bundled("locobot").expect("locobot");
         let model = Arc::new(CollisionModel::from_config(&cfg).expect("model"));
         let mut scene = PlanningScene::new();
@@ -1535,6 +1532,15 @@ mod tests {
                 Isometry3::translation(0.35, 0.1, 0.25),
             )
             .expect("post");
+        (model, scene)
+    }
+
+    /// With a padding, a state is free only where the world is farther than the padding
+    /// ([`Checker::world_gap`], unpadded, says how far), and every edge proven free keeps it:
+    /// states 1 mm apart along it are all at least the padding from the world.
+    #[test]
+    fn padding_keeps_room_from_the_world() {
+        let (model, scene) = locobot_table_and_post();
         let pad = 0.02;
         let plain = Checker::new(model.clone(), &scene, CheckOptions::default()).expect("plain");
         let padded = Checker::new(
@@ -1636,26 +1642,7 @@ mod tests {
     /// camera mast. Every refused edge the 1 mm samples find in contact counts.
     #[test]
     fn colliding_edges_are_refused_after_a_few_states() {
-        let cfg = RobotConfig::bundled("locobot").expect("locobot");
-        let model = Arc::new(CollisionModel::from_config(&cfg).expect("model"));
-        let mut scene = PlanningScene::new();
-        scene
-            .add_object(
-                "table",
-                Shape::Box([0.45, 0.8, 0.1]),
-                Isometry3::translation(0.5, 0.0, 0.05),
-            )
-            .expect("table");
-        scene
-            .add_object(
-                "post",
-                Shape::Cylinder {
-                    radius: 0.02,
-                    length: 0.3,
-                },
-                Isometry3::translation(0.35, 0.1, 0.25),
-            )
-            .expect("post");
+        let (model, scene) = locobot_table_and_post();
         let c = Checker::new(model.clone(), &scene, CheckOptions::default()).expect("checker");
         let limits = model.limits().to_vec();
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);

@@ -12,7 +12,9 @@ use std::path::Path;
 use ferrobot::arm_plan::PlanningOptions;
 use ferrobot::perception::{io, RgbImage};
 use ferrobot::Backend;
-use ferrobot_sim::lockstep::Truth;
+use ferrobot::Robot;
+use ferrobot_sim::body::RobotBody;
+use ferrobot_sim::lockstep::{LockstepSim, Truth};
 use ferrobot_sim::render::{PinholeCamera, RenderedImage, Renderer};
 use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
 use serde::Serialize;
@@ -107,12 +109,8 @@ pub fn run(a: &ArmPlanArgs) -> ferrobot::Result<()> {
         })?;
     // The links the arm's joints move, watched for contacts while the plan runs.
     let (arm_joints, watched, ee) = {
-        let sim = bot
-            .simulator()
-            .ok_or_else(|| ferrobot::Error::Usage("arm-plan needs the simulator".into()))?;
-        let body = sim
-            .body()
-            .ok_or_else(|| ferrobot::Error::Usage("the simulated robot has no body".into()))?;
+        let sim = simulator(&bot)?;
+        let body = body_of(&sim)?;
         let tree = &body.tree;
         let joints: Vec<usize> = arm_cfg
             .joints
@@ -133,8 +131,7 @@ pub fn run(a: &ArmPlanArgs) -> ferrobot::Result<()> {
         })?;
         (joints, watched, ee)
     };
-    bot.simulator()
-        .ok_or_else(|| ferrobot::Error::Usage("arm-plan needs the simulator".into()))?
+    simulator(&bot)?
         .hw
         .watch_robot_contacts(&watched)
         .map_err(|e| ferrobot::Error::Usage(e.to_string()))?;
@@ -142,10 +139,7 @@ pub fn run(a: &ArmPlanArgs) -> ferrobot::Result<()> {
         arm.set_joint_positions(q)?;
     }
     // Reaching the start is not part of the motion reported.
-    bot.simulator()
-        .ok_or_else(|| ferrobot::Error::Usage("arm-plan needs the simulator".into()))?
-        .hw
-        .take_robot_contacts();
+    simulator(&bot)?.hw.take_robot_contacts();
     let plan = arm.plan_to(
         a.to,
         &PlanningOptions {
@@ -167,11 +161,7 @@ pub fn run(a: &ArmPlanArgs) -> ferrobot::Result<()> {
     motion.poll();
     motion.wait()?;
     record.push(bot.truth()?);
-    let contacts = bot
-        .simulator()
-        .ok_or_else(|| ferrobot::Error::Usage("arm-plan needs the simulator".into()))?
-        .hw
-        .take_robot_contacts();
+    let contacts = simulator(&bot)?.hw.take_robot_contacts();
     let last = record.last().map(|t| t.joints.clone()).unwrap_or_default();
     let final_error = arm_joints
         .iter()
@@ -179,12 +169,8 @@ pub fn run(a: &ArmPlanArgs) -> ferrobot::Result<()> {
         .map(|(&j, &g)| (last[j] - g).abs())
         .fold(0.0, f64::max);
     if let Some(path) = a.png {
-        let sim = bot
-            .simulator()
-            .ok_or_else(|| ferrobot::Error::Usage("arm-plan needs the simulator".into()))?;
-        let body = sim
-            .body()
-            .ok_or_else(|| ferrobot::Error::Usage("the simulated robot has no body".into()))?;
+        let sim = simulator(&bot)?;
+        let body = body_of(&sim)?;
         let renderer = Renderer::new(sim.scene(), Some(body));
         let img = picture(&renderer, &record, ee)?;
         drop(sim);
@@ -234,6 +220,19 @@ pub fn run(a: &ArmPlanArgs) -> ferrobot::Result<()> {
         }
     }
     Ok(())
+}
+
+/// The simulator behind `bot` (its guard holds the robot's link: drop it before calling the
+/// robot again).
+fn simulator(bot: &Robot) -> ferrobot::Result<impl std::ops::DerefMut<Target = LockstepSim> + '_> {
+    bot.simulator()
+        .ok_or_else(|| ferrobot::Error::Usage("arm-plan needs the simulator".into()))
+}
+
+/// The simulated robot's body (links, meshes, link tree).
+fn body_of(sim: &LockstepSim) -> ferrobot::Result<&std::sync::Arc<RobotBody>> {
+    sim.body()
+        .ok_or_else(|| ferrobot::Error::Usage("the simulated robot has no body".into()))
 }
 
 /// The optical frame (x right, y down, z forward) of a camera at `eye` looking at `target`,
