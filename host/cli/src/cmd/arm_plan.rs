@@ -147,7 +147,7 @@ pub fn run(a: &ArmPlanArgs) -> ferrobot::Result<()> {
             ..PlanningOptions::default()
         },
     )?;
-    let mut motion = arm.execute(&plan)?;
+    let motion = arm.execute(&plan)?;
     let mut record: Vec<Truth> = vec![bot.truth()?];
     // The motion ends within its duration and the executor's timeout; this only bounds a
     // motion that would not.
@@ -158,7 +158,6 @@ pub fn run(a: &ArmPlanArgs) -> ferrobot::Result<()> {
         waited += RECORD_DT;
         record.push(bot.truth()?);
     }
-    motion.poll();
     motion.wait()?;
     record.push(bot.truth()?);
     let contacts = simulator(&bot)?.hw.take_robot_contacts();

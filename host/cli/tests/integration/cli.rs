@@ -434,6 +434,23 @@ fn arm_plan_executes_around_the_tabletop_without_contact_and_draws_it() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// Any robot in any scene: Sawyer's seven joints from high above its pedestal down beside the
+/// shelf (problem 6 of the shelf set), the whole 1 cm kept, no contact when executed.
+#[test]
+fn arm_plan_moves_sawyer_beside_the_shelf_keeping_its_padding() {
+    let (ok, v) = run(&[
+        "arm-plan", "sawyer", "--scene", "shelf", "--from", "1.7998", "-1.4818", "-0.4067",
+        "-0.6779", "-2.1953", "1.1502", "3.0342", "--to", "0.8502", "0.1147", "-2.2374", "0.2033",
+        "-1.636", "0.1789", "2.8987", "--json",
+    ]);
+    assert!(ok, "{v}");
+    assert_eq!(v["joints"].as_array().unwrap().len(), 7, "{v}");
+    assert_eq!(v["contacts"].as_u64(), Some(0), "{v}");
+    assert_eq!(v["padding_m"].as_f64(), Some(0.01), "{v}");
+    assert!(v["path"].as_array().unwrap().len() >= 3, "{v}");
+    assert!(v["final_error_rad"].as_f64().unwrap() < 0.02, "{v}");
+}
+
 #[test]
 fn cluster_prints_the_librarys_labels_in_file_order() {
     use ferrobot::perception::io::{read_ply, write_ply};
