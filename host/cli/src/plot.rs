@@ -22,6 +22,55 @@ pub const COLOURS: [(&str, [u8; 3]); 5] = [
     ("orange", [255, 127, 14]),
 ];
 
+/// Calls `plot` at pixel steps along the segment from `a` to `b` (column, row; px), clipped
+/// to the image of `size` (width, height; px) grown by `margin` px on every side: nothing for
+/// a non-finite end, and a cost bounded by the image's size however long the segment.
+pub fn segment_px(
+    a: (f64, f64),
+    b: (f64, f64),
+    size: (f64, f64),
+    margin: f64,
+    mut plot: impl FnMut(f64, f64),
+) {
+    if ![a.0, a.1, b.0, b.1].iter().all(|v| v.is_finite()) {
+        return;
+    }
+    // Liang-Barsky: the parameter range [t0, t1] inside the image (with the margin).
+    let (d0, d1) = (b.0 - a.0, b.1 - a.1);
+    let (mut t0, mut t1) = (0.0f64, 1.0f64);
+    for (p, q) in [
+        (-d0, a.0 + margin),
+        (d0, size.0 + margin - a.0),
+        (-d1, a.1 + margin),
+        (d1, size.1 + margin - a.1),
+    ] {
+        if p == 0.0 {
+            if q < 0.0 {
+                return;
+            }
+        } else {
+            let r = q / p;
+            if p < 0.0 {
+                t0 = t0.max(r);
+            } else {
+                t1 = t1.min(r);
+            }
+        }
+    }
+    if t0 > t1 {
+        return;
+    }
+    let (a, b) = (
+        (a.0 + d0 * t0, a.1 + d1 * t0),
+        (a.0 + d0 * t1, a.1 + d1 * t1),
+    );
+    let n = ((b.0 - a.0).abs().max((b.1 - a.1).abs()).ceil() as usize).max(1);
+    for k in 0..=n {
+        let t = k as f64 / n as f64;
+        plot(a.0 + (b.0 - a.0) * t, a.1 + (b.1 - a.1) * t);
+    }
+}
+
 /// An RGB canvas mapping a square world window (m) to pixels, y up.
 pub struct Canvas {
     size: usize,
@@ -97,50 +146,11 @@ impl Canvas {
     /// drawn (the segment is clipped first, so its cost is bounded by the canvas size).
     pub fn line(&mut self, a: [f64; 2], b: [f64; 2], colour: [u8; 3], width: usize) {
         let (pa, pb) = (self.to_px(a), self.to_px(b));
-        if ![pa.0, pa.1, pb.0, pb.1].iter().all(|v| v.is_finite()) {
-            return;
-        }
-        // Liang-Barsky: the parameter range [t0, t1] inside the canvas (with a margin).
-        let w = width.min(64) as f64;
-        let (lo, hi) = (-w - 1.0, self.size as f64 + w + 1.0);
-        let (d0, d1) = (pb.0 - pa.0, pb.1 - pa.1);
-        let (mut t0, mut t1) = (0.0f64, 1.0f64);
-        for (p, q) in [
-            (-d0, pa.0 - lo),
-            (d0, hi - pa.0),
-            (-d1, pa.1 - lo),
-            (d1, hi - pa.1),
-        ] {
-            if p == 0.0 {
-                if q < 0.0 {
-                    return;
-                }
-            } else {
-                let r = q / p;
-                if p < 0.0 {
-                    t0 = t0.max(r);
-                } else {
-                    t1 = t1.min(r);
-                }
-            }
-        }
-        if t0 > t1 {
-            return;
-        }
-        let (pa, pb) = (
-            (pa.0 + d0 * t0, pa.1 + d1 * t0),
-            (pa.0 + d0 * t1, pa.1 + d1 * t1),
-        );
-        let n = ((pb.0 - pa.0).abs().max((pb.1 - pa.1).abs()).ceil() as usize).max(1);
-        for k in 0..=n {
-            let t = k as f64 / n as f64;
-            self.dot(
-                pa.0 + (pb.0 - pa.0) * t,
-                pa.1 + (pb.1 - pa.1) * t,
-                colour,
-                width,
-            );
-        }
+        let side = self.size as f64;
+        let margin = width.min(64) as f64 + 1.0;
+        segment_px(pa, pb, (side, side), margin, |x, y| {
+            self.dot(x, y, colour, width)
+        });
     }
 
     /// The axis-aligned rectangle between world corners `lo` and `hi` (m) filled; the part off

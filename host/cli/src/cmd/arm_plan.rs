@@ -13,6 +13,7 @@ use ferrobot::arm_plan::PlanningOptions;
 use ferrobot::perception::{io, RgbImage};
 use ferrobot::Backend;
 use ferrobot::Robot;
+use ferrobot_cli::plot::{segment_px, COLOURS};
 use ferrobot_sim::body::RobotBody;
 use ferrobot_sim::lockstep::{LockstepSim, Truth};
 use ferrobot_sim::render::{PinholeCamera, RenderedImage, Renderer};
@@ -30,8 +31,10 @@ const WIDTH: u32 = 800;
 const HEIGHT: u32 = 600;
 /// Opacity of the earlier poses drawn over the last one.
 const GHOST: f32 = 0.55;
-/// Tints of the earlier poses, the first's and the last's (the plots' blue and orange).
-const TINTS: [[f32; 3]; 2] = [[31.0, 119.0, 180.0], [255.0, 127.0, 14.0]];
+/// The plots' colours ([`COLOURS`]) of the gripper's path (red), and the tints of the first
+/// and the last of the earlier poses (blue, orange).
+const PATH: [u8; 3] = COLOURS[1].1;
+const TINTS: [[u8; 3]; 2] = [COLOURS[2].1, COLOURS[4].1];
 
 /// `arm-plan --json`, fields in alphabetical order (see [`print_json`]).
 #[derive(Serialize)]
@@ -295,7 +298,10 @@ fn picture(renderer: &Renderer, record: &[Truth], ee: usize) -> ferrobot::Result
     for k in 0..POSES - 1 {
         let t = pick(k);
         let f = k as f32 / (POSES - 2).max(1) as f32;
-        let tint: [f32; 3] = std::array::from_fn(|c| TINTS[0][c] + (TINTS[1][c] - TINTS[0][c]) * f);
+        let tint: [f32; 3] = std::array::from_fn(|c| {
+            let (a, b) = (f32::from(TINTS[0][c]), f32::from(TINTS[1][c]));
+            a + (b - a) * f
+        });
         renderer.render(&camera, &t.bodies, &t.links, &mut ghost);
         for i in 0..out.depth.len() {
             let in_front = out.depth[i] <= 0.0 || ghost.depth[i] < out.depth[i] - 1e-3;
@@ -312,37 +318,19 @@ fn picture(renderer: &Renderer, record: &[Truth], ee: usize) -> ferrobot::Result
             }
         }
     }
-    let pixels: Vec<[f64; 2]> = path
-        .iter()
-        .filter_map(|p| camera.project(p).map(|(c, r)| [c, r]))
-        .collect();
-    for w in pixels.windows(2) {
-        line(
-            &mut out.rgb,
-            WIDTH as usize,
-            HEIGHT as usize,
-            w[0],
-            w[1],
-            [214, 39, 40],
-        );
-    }
-    Ok(RgbImage::new(WIDTH, HEIGHT, out.rgb)?)
-}
-
-/// A line 3 px wide from `a` to `b` (column, row; px) on an RGB buffer.
-fn line(rgb: &mut [u8], w: usize, h: usize, a: [f64; 2], b: [f64; 2], colour: [u8; 3]) {
-    let n = ((b[0] - a[0]).abs().max((b[1] - a[1]).abs()).ceil() as usize).clamp(1, 10_000);
-    for s in 0..=n {
-        let f = s as f64 / n as f64;
-        let (c, r) = (a[0] + (b[0] - a[0]) * f, a[1] + (b[1] - a[1]) * f);
-        for dr in -1..=1i64 {
-            for dc in -1..=1i64 {
+    let (w, h) = (WIDTH as usize, HEIGHT as usize);
+    let pixels: Vec<(f64, f64)> = path.iter().filter_map(|p| camera.project(p)).collect();
+    for s in pixels.windows(2) {
+        segment_px(s[0], s[1], (w as f64, h as f64), 2.0, |c, r| {
+            // A pen 3 px wide.
+            for (dr, dc) in (-1..=1i64).flat_map(|dr| (-1..=1i64).map(move |dc| (dr, dc))) {
                 let (rr, cc) = (r.round() as i64 + dr, c.round() as i64 + dc);
                 if rr >= 0 && cc >= 0 && (rr as usize) < h && (cc as usize) < w {
                     let i = 3 * (rr as usize * w + cc as usize);
-                    rgb[i..i + 3].copy_from_slice(&colour);
+                    out.rgb[i..i + 3].copy_from_slice(&PATH);
                 }
             }
-        }
+        });
     }
+    Ok(RgbImage::new(WIDTH, HEIGHT, out.rgb)?)
 }
