@@ -122,11 +122,6 @@ impl Arm {
 
     /// [`Arm::checker`] with link pairs `allowed` to touch besides the matrix's.
     fn checker_allowing(&self, allowed: &[(String, String)]) -> Result<Checker> {
-        self.checker_with(allowed, 0.0)
-    }
-
-    /// [`Arm::checker_allowing`] keeping `padding` (m) from the scene's objects.
-    fn checker_with(&self, allowed: &[(String, String)], padding: f64) -> Result<Checker> {
         let mut model = (*self.model()?).clone();
         for (a, b) in allowed {
             model.allow_pair(a, b);
@@ -157,10 +152,7 @@ impl Arm {
         Ok(Checker::new(
             Arc::new(model),
             &scene,
-            CheckOptions {
-                padding,
-                ..CheckOptions::default()
-            },
+            CheckOptions::default(),
         )?)
     }
 
@@ -421,12 +413,13 @@ impl Arm {
                 .min(checker.world_gap(goal, 2.0 * opts.padding));
             let pad = opts.padding.min(0.5 * gap);
             if pad > 0.0 {
-                let padded = self.checker_with(&allowed, pad)?;
+                checker.set_padding(pad)?;
                 // Gaps are lower bounds of more than one kind: should one put an end within the
                 // padding after all, plan without it rather than refuse the end.
-                if padded.contact(&start).is_none() && padded.contact(goal).is_none() {
-                    checker = padded;
+                if checker.contact(&start).is_none() && checker.contact(goal).is_none() {
                     padding = pad;
+                } else {
+                    checker.set_padding(0.0)?;
                 }
             }
         }

@@ -50,6 +50,17 @@ use crate::{Error, Result};
 /// Largest [`CheckOptions::padding`], m.
 pub const MAX_PADDING: f64 = 0.2;
 
+/// A [`CheckOptions::padding`] finite and within `[0, MAX_PADDING]`.
+fn check_padding(padding: f64) -> Result<()> {
+    if padding.is_finite() && (0.0..=MAX_PADDING).contains(&padding) {
+        return Ok(());
+    }
+    Err(Error::Invalid {
+        what: "check options".into(),
+        why: format!("padding {padding} m must be finite, within [0, {MAX_PADDING}]"),
+    })
+}
+
 /// Options of the checker.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CheckOptions {
@@ -514,15 +525,7 @@ impl Checker {
                 ),
             });
         }
-        if !(opts.padding.is_finite() && (0.0..=MAX_PADDING).contains(&opts.padding)) {
-            return Err(Error::Invalid {
-                what: "check options".into(),
-                why: format!(
-                    "padding {} m must be finite, within [0, {MAX_PADDING}]",
-                    opts.padding
-                ),
-            });
-        }
+        check_padding(opts.padding)?;
         let mut bodies: Vec<Body> = model
             .links()
             .iter()
@@ -791,6 +794,14 @@ impl Checker {
             None => &self.obstacles[k],
             Some(r) => &self.robot_obstacles[r],
         }
+    }
+
+    /// Keeps `padding` (m) from the world's objects and voxels from now on
+    /// ([`CheckOptions::padding`]); an error, and nothing changed, outside `[0, MAX_PADDING]`.
+    pub fn set_padding(&mut self, padding: f64) -> Result<()> {
+        check_padding(padding)?;
+        self.opts.padding = padding;
+        Ok(())
     }
 
     /// The padding (m) kept from obstacle `k` ([`Checker::obstacle`]'s numbering): the
@@ -1574,6 +1585,19 @@ mod tests {
                 beyond += 1;
                 assert!(padded.is_free(&q), "{g} m from the world: {q:?}");
             }
+        }
+        // Set on a built checker, the same padding gives the same answers; hostile values
+        // are refused and change nothing.
+        let mut reset =
+            Checker::new(model.clone(), &scene, CheckOptions::default()).expect("reset");
+        for bad in [f64::NAN, f64::INFINITY, -0.01, MAX_PADDING + 0.01] {
+            assert!(reset.set_padding(bad).is_err(), "{bad}");
+            assert_eq!(reset.options().padding, 0.0);
+        }
+        reset.set_padding(pad).expect("padding");
+        for _ in 0..200 {
+            let q = sample();
+            assert_eq!(reset.is_free(&q), padded.is_free(&q), "{q:?}");
         }
         let mut proven = 0;
         while proven < 15 {
