@@ -3,7 +3,7 @@
 
 use std::time::Instant;
 
-use rand::{Rng, SeedableRng};
+use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
 use crate::checker::Checker;
@@ -73,10 +73,7 @@ pub fn generate(
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let sample_free = |rng: &mut ChaCha8Rng| -> Option<Vec<f64>> {
         for _ in 0..20_000 {
-            let q: Vec<f64> = limits
-                .iter()
-                .map(|&(lo, hi)| rng.random_range(lo..=hi))
-                .collect();
+            let q = crate::planner::sample(rng, &limits);
             if checker.is_free(&q) && (near <= 0.0 || checker.near_world(&q, near)) {
                 return Some(q);
             }

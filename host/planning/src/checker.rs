@@ -1565,12 +1565,7 @@ mod tests {
         .expect("padded");
         let limits = model.limits().to_vec();
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
-        let mut sample = || -> Vec<f64> {
-            limits
-                .iter()
-                .map(|&(lo, hi)| rng.random_range(lo..=hi))
-                .collect()
-        };
+        let mut sample = || crate::planner::sample(&mut rng, &limits);
         let (mut within, mut beyond) = (0, 0);
         while within < 30 || beyond < 30 {
             let q = sample();
@@ -1644,11 +1639,7 @@ mod tests {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
         let mut states = 0;
         while states < 5 {
-            let q: Vec<f64> = model
-                .limits()
-                .iter()
-                .map(|&(lo, hi)| rng.random_range(lo..=hi))
-                .collect();
+            let q = crate::planner::sample(&mut rng, model.limits());
             let (e0, f0) = (checks(&empty), checks(&far));
             if !empty.is_free(&q) {
                 continue;
@@ -1674,12 +1665,7 @@ mod tests {
         let (mut refused, mut refused_states, mut free, mut free_states) = (0, 0, 0, 0);
         while refused < 60 || free < 20 {
             let q: Vec<Vec<f64>> = (0..2)
-                .map(|_| {
-                    limits
-                        .iter()
-                        .map(|&(lo, hi)| rng.random_range(lo..=hi))
-                        .collect()
-                })
+                .map(|_| crate::planner::sample(&mut rng, &limits))
                 .collect();
             let (a, b) = (&q[0], &q[1]);
             if !c.is_free(a) || !c.is_free(b) {
@@ -1722,12 +1708,7 @@ mod tests {
         assert!(c.pairs.len() > 5);
         let limits = model.limits().to_vec();
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
-        let sample = |rng: &mut rand_chacha::ChaCha8Rng| -> Vec<f64> {
-            limits
-                .iter()
-                .map(|&(lo, hi)| rng.random_range(lo..=hi))
-                .collect()
-        };
+        let sample = |rng: &mut rand_chacha::ChaCha8Rng| crate::planner::sample(rng, &limits);
         let (mut tight_pair, mut tight_body) = (0.0f64, 0.0f64);
         for _ in 0..300 {
             let (a, b) = (sample(&mut rng), sample(&mut rng));

@@ -257,7 +257,8 @@ fn extend(checker: &Checker, tree: &mut Tree, target: &[f64], range: f64) -> Gro
     }
 }
 
-fn sample(rng: &mut ChaCha8Rng, limits: &[(f64, f64)]) -> Vec<f64> {
+/// A configuration drawn uniformly within `limits` (rad).
+pub(crate) fn sample(rng: &mut ChaCha8Rng, limits: &[(f64, f64)]) -> Vec<f64> {
     limits
         .iter()
         .map(|&(lo, hi)| rng.random_range(lo..=hi))
