@@ -134,6 +134,11 @@ pub struct ArmConfig {
     /// respect. When absent, each joint's speed limit per 0.5 s (full speed in half a second).
     #[serde(default)]
     pub acceleration: Vec<f64>,
+    /// RRT-Connect's longest extension step for this arm, rad of joint-space distance (as
+    /// MoveIt's `range` in `ompl_planning.yaml`). When absent, a fifth of the diagonal of the
+    /// joint limits' box (OMPL's default).
+    #[serde(default)]
+    pub planning_range: Option<f64>,
 }
 
 fn default_ik_tol() -> f64 {
@@ -970,6 +975,9 @@ impl RobotConfig {
             }
             for (i, &a) in arm.acceleration.iter().enumerate() {
                 num(file, format!("arm.acceleration[{i}]"), a, 0.01, 1000.0)?;
+            }
+            if let Some(r) = arm.planning_range {
+                num(file, "arm.planning_range", r, 0.01, 10.0)?;
             }
             num(
                 file,

@@ -423,10 +423,13 @@ impl Arm {
                 }
             }
         }
+        // The arm's own extension step unless the caller gave one.
+        let mut plan_opts = opts.plan.clone();
+        plan_opts.range = plan_opts.range.or(self.cfg_arm().planning_range);
         let plan = if opts.optimise {
-            ferrobot_planning::InformedRrtStar.plan(&checker, &start, goal, &opts.plan)?
+            ferrobot_planning::InformedRrtStar.plan(&checker, &start, goal, &plan_opts)?
         } else {
-            RrtConnect.plan(&checker, &start, goal, &opts.plan)?
+            RrtConnect.plan(&checker, &start, goal, &plan_opts)?
         };
         let trajectory = self.time_path(&checker, &plan.path, opts.max_deviation)?;
         Ok(ArmTrajectory {

@@ -24,7 +24,8 @@ pub struct PlanOptions {
     /// Seed of the sampler: the same seed, problem and scene give the same path.
     pub seed: u64,
     /// Longest joint-space step of a tree extension, rad; `None`: a fifth of the diagonal of
-    /// the joint limits' box (OMPL's default).
+    /// the joint limits' box (OMPL's default). The API and `ferrobot bench plan` give the
+    /// arm's `planning_range` (`[arm]` of its configuration) where it has one.
     pub range: Option<f64>,
     /// Shortcut attempts after a path is found (0: none).
     pub shortcuts: usize,

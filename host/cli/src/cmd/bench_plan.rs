@@ -775,6 +775,7 @@ pub fn run(a: &PlanArgs) -> ferrobot::Result<()> {
     let opts = PlanOptions {
         time_limit: Duration::from_secs_f64(a.time_limit),
         seed: a.seed,
+        range: cfg.arm.as_ref().and_then(|arm| arm.planning_range),
         ..PlanOptions::default()
     };
     let (outcomes, summary) = bench::run(&checker, planner.as_ref(), &problems, &opts);

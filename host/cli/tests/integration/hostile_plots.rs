@@ -48,7 +48,18 @@ fn plots_and_config_overrides_refuse_hostile_values() {
                     absurd(&[v]) || v <= 0.0,
                     &r,
                 )?;
-                calls.set(calls.get() + 5);
+                // The planner's extension step: within [0.01, 10] rad.
+                let r = Robot::builder("locobot")
+                    .use_base(false)
+                    .set("arm.planning_range", v)
+                    .build()
+                    .map(|_| ());
+                judge(
+                    "RobotBuilder::set(arm.planning_range)",
+                    absurd(&[v]) || !(0.01..=10.0).contains(&v),
+                    &r,
+                )?;
+                calls.set(calls.get() + 6);
                 Ok(())
             },
         )

@@ -130,6 +130,44 @@ fn the_arm_plans_around_a_post_within_its_limits_and_follows_the_plan() {
     assert_path_free(&bot, &scene, &traj);
 }
 
+/// The arm's `planning_range` (`[arm]` of its configuration) is the planner's extension step
+/// unless the caller gives one: the same problem and seed give the same path as that range
+/// given explicitly, and another path with OMPL's default (a fifth of the joint box's
+/// diagonal).
+#[test]
+fn the_configured_planning_range_is_the_default_step() {
+    use ferrobot::arm_plan::PlanningOptions;
+    let bot = Robot::new("locobot").expect("robot");
+    let arm = bot.arm().expect("arm");
+    arm.add_world_object("post", [0.3, 0.0, 0.15], IDENTITY, [0.04, 0.04, 0.3])
+        .expect("post");
+    arm.set_joint_positions(&[0.9, 0.6, 0.3, 0.4, 0.0])
+        .expect("to the left");
+    let right = [-0.9, 0.6, 0.3, 0.4, 0.0];
+    let range = bot
+        .config()
+        .arm
+        .as_ref()
+        .and_then(|a| a.planning_range)
+        .expect("the LoCoBot's configuration sets one");
+    let with = |range: Option<f64>| {
+        let mut o = PlanningOptions::default();
+        o.plan.range = range;
+        arm.plan_to(&right, &o).expect("plan").path
+    };
+    let by_default = with(None);
+    assert_eq!(by_default, with(Some(range)));
+    let model = CollisionModel::from_config(bot.config()).expect("model");
+    let fifth = 0.2
+        * model
+            .limits()
+            .iter()
+            .map(|(lo, hi)| (hi - lo).powi(2))
+            .sum::<f64>()
+            .sqrt();
+    assert_ne!(by_default, with(Some(fifth)));
+}
+
 #[test]
 fn move_ee_xyz_down_from_home_as_pyrobots_moveit_example() {
     let bot = Robot::new("locobot").expect("robot");
