@@ -37,28 +37,22 @@ fn plots_and_config_overrides_refuse_hostile_values() {
                         c.text(x, y, "hostile", [0; 3]);
                     }
                 }
-                // A configuration override of any number is checked like the file.
-                let r = Robot::builder("locobot")
-                    .use_base(false)
-                    .set("arm.timeout", v)
-                    .build()
-                    .map(|_| ());
-                judge(
-                    "RobotBuilder::set(arm.timeout)",
-                    absurd(&[v]) || v <= 0.0,
-                    &r,
-                )?;
-                // The planner's extension step: within [0.01, 10] rad.
-                let r = Robot::builder("locobot")
-                    .use_base(false)
-                    .set("arm.planning_range", v)
-                    .build()
-                    .map(|_| ());
-                judge(
-                    "RobotBuilder::set(arm.planning_range)",
-                    absurd(&[v]) || !(0.01..=10.0).contains(&v),
-                    &r,
-                )?;
+                // A configuration override of any number is checked like the file: the
+                // arm's timeout (positive) and the planner's extension step ([0.01, 10] rad).
+                for (key, hostile) in [
+                    ("arm.timeout", absurd(&[v]) || v <= 0.0),
+                    (
+                        "arm.planning_range",
+                        absurd(&[v]) || !(0.01..=10.0).contains(&v),
+                    ),
+                ] {
+                    let r = Robot::builder("locobot")
+                        .use_base(false)
+                        .set(key, v)
+                        .build()
+                        .map(|_| ());
+                    judge(&format!("RobotBuilder::set({key})"), hostile, &r)?;
+                }
                 calls.set(calls.get() + 6);
                 Ok(())
             },
