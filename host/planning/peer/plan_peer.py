@@ -590,8 +590,9 @@ def ompl_version():
     return version("ompl")
 
 
-def make_setup(kin, scene, step):
-    """A SimpleSetup with RRTConnect over the planned joints' box; edges checked every `step`."""
+def make_setup(kin, scene, step, planner_range=0.0):
+    """A SimpleSetup with RRTConnect over the planned joints' box; edges checked every `step`;
+    RRTConnect's range `planner_range` (rad; 0: OMPL's default, a fifth of the extent)."""
     from ompl import base as ob, geometric as og
     lo, hi = kin.limits()
     lo, hi = np.where(np.isfinite(lo), lo, -math.pi), np.where(np.isfinite(hi), hi, math.pi)
@@ -606,7 +607,10 @@ def make_setup(kin, scene, step):
     ss = og.SimpleSetup(space)
     n = len(lo)
     ss.setStateValidityChecker(lambda s: scene.is_valid([s[j] for j in range(n)]))
-    ss.setPlanner(og.RRTConnect(ss.getSpaceInformation()))
+    planner = og.RRTConnect(ss.getSpaceInformation())
+    if planner_range > 0:
+        planner.setRange(planner_range)
+    ss.setPlanner(planner)
     ss.setup()
     return ss, space
 
@@ -646,7 +650,7 @@ def cmd_ompl(args):
     ex, kin, scene, reach = setup(args.export, args.urdf, args.object_mesh)
     # Any robot point moves at most sum_i reach_i |dq_i| <= |reach|_2 |dq|_2 (Cauchy-Schwarz).
     step = ex["resolution_m"] / float(np.linalg.norm(reach))
-    ss, space = make_setup(kin, scene, step)
+    ss, space = make_setup(kin, scene, step, args.range)
     per_problem, paths = [], []
     for problem in ex["problems"]:
         result, states = solve_one(ss, space, scene, problem, args.time_limit, args.simplify)
@@ -663,6 +667,7 @@ def cmd_ompl(args):
                     "max": max(times) if times else None},
         "path_length_rad": {"median": float(np.median(lengths)) if lengths else None},
         "simplify": args.simplify, "time_limit_s": args.time_limit, "seed": args.seed,
+        "range_rad": ss.getPlanner().getRange(),
         "motion_check": {"resolution_m": ex["resolution_m"], "step_rad": step,
                          "ompl_segment_rad": space.getLongestValidSegmentLength(),
                          "joint_reach_m": reach.round(6).tolist()},
@@ -706,6 +711,8 @@ def main(argv=None):
     ompl_p.add_argument("--time-limit", type=float, default=1.0, help="seconds per problem")
     ompl_p.add_argument("--simplify", action="store_true")
     ompl_p.add_argument("--seed", type=int, default=1)
+    ompl_p.add_argument("--range", type=float, default=0.0,
+                        help="RRTConnect's range, rad (0: OMPL's default, a fifth of the extent)")
     ompl_p.add_argument("--paths-out", help="write the export with OMPL's paths here")
     check_p.add_argument("--step", type=float, default=0.001,
                          help="largest link-point motion between checked states (m)")

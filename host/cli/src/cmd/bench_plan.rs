@@ -629,9 +629,15 @@ fn peer_preflight() -> ferrobot::Result<()> {
     Ok(())
 }
 
-/// Runs OMPL's RRTConnect (the peer, with simplification) on the export at `path`; its
+/// Runs OMPL's RRTConnect (the peer, with simplification) on the export at `path` with our
+/// time limit (s), seed and extension step (rad; `None`: OMPL's default, as ours); its
 /// summary.
-fn run_peer(path: &Path, time_limit: f64, seed: u64) -> ferrobot::Result<serde_json::Value> {
+fn run_peer(
+    path: &Path,
+    time_limit: f64,
+    seed: u64,
+    range: Option<f64>,
+) -> ferrobot::Result<serde_json::Value> {
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../planning/peer/plan_peer.py");
     if !script.is_file() {
         return Err(peer_error(format!("{} is missing", script.display())));
@@ -645,6 +651,7 @@ fn run_peer(path: &Path, time_limit: f64, seed: u64) -> ferrobot::Result<serde_j
         .args(["--time-limit", &time_limit.to_string()])
         // OMPL's seed is 32-bit.
         .args(["--seed", &(seed % (1 << 31)).to_string()])
+        .args(["--range", &range.unwrap_or(0.0).to_string()])
         .output()
         .map_err(|e| peer_error(format!("cannot run {}: {e}", python.display())))?;
     if !out.status.success() {
@@ -796,7 +803,7 @@ pub fn run(a: &PlanArgs) -> ferrobot::Result<()> {
     }
     let peer = match (&export_path, a.ompl) {
         (Some(p), true) => {
-            let mut v = run_peer(p, a.ompl_time_limit, a.seed)?;
+            let mut v = run_peer(p, a.ompl_time_limit, a.seed, opts.range)?;
             let theirs = v["time_ms"]["median"].as_f64();
             let ratio = theirs.map(|t| t / summary.time_ms[0]).and_then(finite);
             if let Some(o) = v.as_object_mut() {

@@ -220,6 +220,12 @@ fn ompl_runs_in_the_same_run() {
         peer["ratio_median"].as_f64().expect("ratio") > 0.0,
         "{peer}"
     );
+    // OMPL gets the same extension step as ours: the LoCoBot's configured one.
+    let range = ferrobot::RobotConfig::bundled("locobot")
+        .expect("locobot")
+        .arm
+        .and_then(|a| a.planning_range);
+    assert_eq!(peer["range_rad"].as_f64(), range, "{peer}");
 }
 
 #[test]
