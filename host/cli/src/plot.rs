@@ -22,6 +22,19 @@ pub const COLOURS: [(&str, [u8; 3]); 5] = [
     ("orange", [255, 127, 14]),
 ];
 
+/// The pixels `(column, row)` of a square pen `2·r + 1` px wide centred on pixel `centre`
+/// that lie on an image of `size` (columns, rows), passed to `put`.
+pub fn pen_px(centre: (i64, i64), r: i64, size: (usize, usize), mut put: impl FnMut(usize, usize)) {
+    for dy in -r..=r {
+        for dx in -r..=r {
+            let (i, j) = (centre.0 + dx, centre.1 + dy);
+            if i >= 0 && j >= 0 && (i as usize) < size.0 && (j as usize) < size.1 {
+                put(i as usize, j as usize);
+            }
+        }
+    }
+}
+
 /// Calls `plot` at pixel steps along the segment from `a` to `b` (column, row; px), clipped
 /// to the image of `size` (width, height; px) grown by `margin` px on every side: nothing for
 /// a non-finite end, and a cost bounded by the image's size however long the segment.
@@ -131,14 +144,10 @@ impl Canvas {
     fn dot(&mut self, x: f64, y: f64, colour: [u8; 3], width: usize) {
         // Pens wider than 64 px are drawn 64 px wide.
         let r = width.min(64) as i64 / 2;
-        for dy in -r..=r {
-            for dx in -r..=r {
-                let (i, j) = (x as i64 + dx, y as i64 + dy);
-                if i >= 0 && j >= 0 && (i as usize) < self.size && (j as usize) < self.size {
-                    self.px[j as usize * self.size + i as usize] = colour;
-                }
-            }
-        }
+        let size = self.size;
+        pen_px((x as i64, y as i64), r, (size, size), |i, j| {
+            self.px[j * size + i] = colour;
+        });
     }
 
     /// A straight segment between world points (m).

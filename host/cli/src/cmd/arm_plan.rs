@@ -13,7 +13,7 @@ use ferrobot::arm_plan::PlanningOptions;
 use ferrobot::perception::{io, RgbImage};
 use ferrobot::Backend;
 use ferrobot::Robot;
-use ferrobot_cli::plot::{segment_px, COLOURS};
+use ferrobot_cli::plot::{pen_px, segment_px, COLOURS};
 use ferrobot_sim::body::RobotBody;
 use ferrobot_sim::lockstep::{LockstepSim, Truth};
 use ferrobot_sim::render::{PinholeCamera, RenderedImage, Renderer};
@@ -323,13 +323,10 @@ fn picture(renderer: &Renderer, record: &[Truth], ee: usize) -> ferrobot::Result
     for s in pixels.windows(2) {
         segment_px(s[0], s[1], (w as f64, h as f64), 2.0, |c, r| {
             // A pen 3 px wide.
-            for (dr, dc) in (-1..=1i64).flat_map(|dr| (-1..=1i64).map(move |dc| (dr, dc))) {
-                let (rr, cc) = (r.round() as i64 + dr, c.round() as i64 + dc);
-                if rr >= 0 && cc >= 0 && (rr as usize) < h && (cc as usize) < w {
-                    let i = 3 * (rr as usize * w + cc as usize);
-                    out.rgb[i..i + 3].copy_from_slice(&PATH);
-                }
-            }
+            pen_px((c.round() as i64, r.round() as i64), 1, (w, h), |cc, rr| {
+                let i = 3 * (rr * w + cc);
+                out.rgb[i..i + 3].copy_from_slice(&PATH);
+            });
         });
     }
     Ok(RgbImage::new(WIDTH, HEIGHT, out.rgb)?)
