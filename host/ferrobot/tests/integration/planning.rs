@@ -11,6 +11,17 @@ const IDENTITY: Orientation = Orientation::Quaternion([0.0, 0.0, 0.0, 1.0]);
 /// The gripper pointing down.
 const DOWN: Orientation = Orientation::YawPitchRoll([0.0, std::f64::consts::FRAC_PI_2, 0.0]);
 
+/// A post in front of the LoCoBot's arm, between a left and a right reach: the arm moved to
+/// the left one; the right one returned.
+fn left_of_a_post(bot: &Robot) -> [f64; 5] {
+    let arm = bot.arm().expect("arm");
+    arm.add_world_object("post", [0.3, 0.0, 0.15], IDENTITY, [0.04, 0.04, 0.3])
+        .expect("post");
+    arm.set_joint_positions(&[0.9, 0.6, 0.3, 0.4, 0.0])
+        .expect("to the left");
+    [-0.9, 0.6, 0.3, 0.4, 0.0]
+}
+
 /// Every edge of the path re-checked at 1 mm of link motion against the exact geometry, in a
 /// checker built independently of the robot's.
 fn assert_path_free(bot: &Robot, scene: &planning::PlanningScene, traj: &ArmTrajectory) {
@@ -70,12 +81,7 @@ fn assert_within_limits(bot: &Robot, traj: &ArmTrajectory) {
 fn the_arm_plans_around_a_post_within_its_limits_and_follows_the_plan() {
     let bot = Robot::new("locobot").expect("robot");
     let arm = bot.arm().expect("arm");
-    // A post in front of the arm, between a left and a right reach.
-    arm.add_world_object("post", [0.3, 0.0, 0.15], IDENTITY, [0.04, 0.04, 0.3])
-        .expect("post");
-    let left = [0.9, 0.6, 0.3, 0.4, 0.0];
-    let right = [-0.9, 0.6, 0.3, 0.4, 0.0];
-    arm.set_joint_positions(&left).expect("to the left");
+    let right = left_of_a_post(&bot);
     let traj = arm.make_plan_joint_positions(&right).expect("plan");
     assert!(
         traj.path.len() >= 3,
@@ -139,11 +145,7 @@ fn the_configured_planning_range_is_the_default_step() {
     use ferrobot::arm_plan::PlanningOptions;
     let bot = Robot::new("locobot").expect("robot");
     let arm = bot.arm().expect("arm");
-    arm.add_world_object("post", [0.3, 0.0, 0.15], IDENTITY, [0.04, 0.04, 0.3])
-        .expect("post");
-    arm.set_joint_positions(&[0.9, 0.6, 0.3, 0.4, 0.0])
-        .expect("to the left");
-    let right = [-0.9, 0.6, 0.3, 0.4, 0.0];
+    let right = left_of_a_post(&bot);
     let range = bot
         .config()
         .arm
