@@ -27,8 +27,8 @@
 //! edge their clearances are states measured ahead.
 //!
 //! Along one edge, what was far at one state stays far for a while: each body's candidates
-//! are those that may come near it anywhere on the edge, and each keeps the interval of the
-//! edge over which its last gap proves it cannot limit a step ([`Near`]).
+//! are those that may come near it anywhere on the edge, and each keeps its last gap, which
+//! bounds its gap at every other state of the edge ([`Near`]).
 
 use std::cell::RefCell;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -279,26 +279,27 @@ impl Placed {
 /// the largest step, so it can never limit a step.
 ///
 /// Along the edge, a body's points move at most its speed times the change of the edge
-/// parameter `t`, so a gap measured at `t₀` holds (shrunk by that motion) at every `t` nearby:
-/// each candidate keeps the interval `|t − t₀| ≤ δ` over which it cannot limit a step and is
-/// not measured again there.
+/// parameter `t`, so a gap measured at `t₀` holds (shrunk by that motion) at every `t`: each
+/// candidate keeps its last gap over its speed, `g` (in units of `t`), and is not measured
+/// again at a state while `g − |t − t₀|` is no less than the state's clearance found so far
+/// (which only shrinks as the state's candidates are measured).
 #[derive(Debug, Default)]
 struct Near {
     on: bool,
     /// The edge parameter of the state being checked.
     t: f64,
     obstacles: Vec<Vec<usize>>,
-    /// For each body's candidate obstacle: `(t₀, δ)`.
+    /// For each body's candidate obstacle: `(t₀, g)`.
     obstacle_far: Vec<Vec<(f64, f64)>>,
     pairs: Vec<usize>,
-    /// For each candidate pair: `(t₀, δ)`.
+    /// For each candidate pair: `(t₀, g)`.
     pair_far: Vec<(f64, f64)>,
 }
 
-/// Whether candidate `n` of an edge's [`Near`] list (its `(t₀, δ)` in `far`) is known far at
-/// edge parameter `t`.
-fn still_far(far: Option<&[(f64, f64)]>, n: usize, t: f64) -> bool {
-    far.is_some_and(|f| (t - f[n].0).abs() <= f[n].1)
+/// Whether candidate `n` of an edge's [`Near`] list (its `(t₀, g)` in `far`) is known not to
+/// limit the step at edge parameter `t` below `clear` (in units of `t`).
+fn still_far(far: Option<&[(f64, f64)]>, n: usize, t: f64, clear: f64) -> bool {
+    far.is_some_and(|f| f[n].1 - (t - f[n].0).abs() >= clear)
 }
 
 /// How far (m) each body's points, and each moving pair's points relative to each other, move
@@ -957,13 +958,13 @@ impl Checker {
             };
             for (n, &k) in list.iter().enumerate() {
                 // Far enough at a nearby state to be far here ([`Near`]).
-                if still_far(far.as_deref(), n, t) {
+                if still_far(far.as_deref(), n, t, clear) {
                     continue;
                 }
-                // Remember a gap that no step of this edge from within δ of here can close.
+                // Remember the gap, in units of the edge parameter.
                 let mut keep = |gap: f64| {
                     if let Some(f) = far.as_deref_mut() {
-                        f[n] = (t, (gap - cap * m) / m);
+                        f[n] = (t, gap / m);
                     }
                 };
                 let o = self.obstacle(k);
@@ -1030,14 +1031,14 @@ impl Checker {
         };
         for (n, &p) in pairs.iter().enumerate() {
             let (i, j) = self.pairs[p];
-            if still_far(far.as_deref(), n, t) {
+            if still_far(far.as_deref(), n, t, clear) {
                 continue;
             }
             let (bi, bj) = (&s.bounds[i], &s.bounds[j]);
             let m = speed.map_or(2.0, |v| v.pair[p].max(1e-9));
             let mut keep = |gap: f64| {
                 if let Some(f) = far.as_deref_mut() {
-                    f[n] = (t, (gap - cap * m) / m);
+                    f[n] = (t, gap / m);
                 }
             };
             checks += 1;
