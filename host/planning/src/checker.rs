@@ -957,7 +957,7 @@ impl Checker {
                 (&self.all_of[bi][..], None)
             };
             for (n, &k) in list.iter().enumerate() {
-                // Far enough at a nearby state to be far here ([`Near`]).
+                // Its gap at another state of the edge still clears this step ([`Near`]).
                 if still_far(far.as_deref(), n, t, clear) {
                     continue;
                 }
