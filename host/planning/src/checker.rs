@@ -1349,22 +1349,27 @@ impl Checker {
             self.measure_at(&mut q, (a, b), t, &speed, cap, exact_below)
                 .ok()
         };
+        // States measured ahead (the nearest on top once sorted): the rake's next `n` into
+        // `ahead`, false at a contact.
+        let mut ahead: Vec<(f64, f64)> = Vec::new();
+        let mut states = rake(total);
+        let mut measure = |n: usize, ahead: &mut Vec<(f64, f64)>| {
+            for t in states.by_ref().take(n) {
+                let Some(c) = clearance(t) else {
+                    return false;
+                };
+                ahead.push((t, c));
+            }
+            true
+        };
         // The rake's first states (its end, middle and quarters) before the edge's limits are
         // set up (they cost more than a state): most edges that collide are in contact there.
-        let mut ahead: Vec<(f64, f64)> = Vec::new();
-        for t in rake(total).take(BEFORE_LIMITS) {
-            let Some(c) = clearance(t) else {
-                return false;
-            };
-            ahead.push((t, c));
+        if !measure(BEFORE_LIMITS, &mut ahead) {
+            return false;
         }
         let _near = self.begin_edge(a, &speed);
-        // States measured ahead, the nearest on top once sorted.
-        for t in rake(total).skip(BEFORE_LIMITS) {
-            let Some(c) = clearance(t) else {
-                return false;
-            };
-            ahead.push((t, c));
+        if !measure(usize::MAX, &mut ahead) {
+            return false;
         }
         ahead.sort_by(|x, y| y.0.total_cmp(&x.0));
         let Some(mut clear) = clearance(0.0) else {
