@@ -314,8 +314,7 @@ impl RrtConnect {
             let target = sample(rng, &limits);
             let new = match extend(checker, &mut a, &target, range) {
                 Grow::Trapped => {
-                    std::mem::swap(&mut a, &mut b);
-                    a_is_start = !a_is_start;
+                    smaller_first(&mut a, &mut b, &mut a_is_start);
                     continue;
                 }
                 Grow::Reached(i) | Grow::Advanced(i) => i,
@@ -346,9 +345,21 @@ impl RrtConnect {
                     Grow::Trapped => break,
                 }
             }
-            std::mem::swap(&mut a, &mut b);
-            a_is_start = !a_is_start;
+            smaller_first(&mut a, &mut b, &mut a_is_start);
         }
+    }
+}
+
+/// Makes `a` the tree that grows next: the smaller one (on a tie, the one that did not grow
+/// last), LaValle's balanced bidirectional search (*Planning Algorithms*, §5.5: "new
+/// exploration is always performed for the smaller tree", by its number of vertices).
+/// Plain alternation let one tree grow far larger where the other was mostly trapped: balanced,
+/// the LoCoBot's four sets took 16–18 % fewer instructions, Sawyer's shelf 17 % and its
+/// clutter 70 % (its hardest problem's 660 ms became 190 ms), for paths as long (BENCHMARKS).
+fn smaller_first(a: &mut Tree, b: &mut Tree, a_is_start: &mut bool) {
+    if b.q.len() <= a.q.len() {
+        std::mem::swap(a, b);
+        *a_is_start = !*a_is_start;
     }
 }
 
