@@ -341,7 +341,6 @@ pub struct Checker {
     all_pairs: Vec<usize>,
     /// Where each body's world spheres go in [`Placed`]: `lo..hi`, padded to `lo..end`.
     layout: Vec<(usize, usize, usize)>,
-    /// Each planned joint's reach: how far (m) a robot point moves at most per rad of it.
     reach: Vec<f64>,
     /// Each body's reach per planned joint ([`CollisionModel::link_reach`]); 0 when fixed.
     body_reach: Vec<Vec<f64>>,
@@ -860,12 +859,6 @@ impl Checker {
             }
         }
         gap
-    }
-
-    /// Each planned joint's reach, in path order: how far (m) a robot point moves at most
-    /// per rad of that joint alone ([`Checker::motion_bound`] sums them over a step).
-    pub fn joint_reach(&self) -> &[f64] {
-        &self.reach
     }
 
     /// A bound on how far any robot point moves from `a` to `b` (rad), m.

@@ -184,31 +184,20 @@ fn check_ends(checker: &Checker, start: &[f64], goal: &[f64]) -> Result<()> {
 struct Tree {
     q: Vec<Vec<f64>>,
     parent: Vec<usize>,
-    /// Each joint's weight in the distance [`Tree::nearest`] minimises.
-    weights: Vec<f64>,
 }
 
 impl Tree {
-    /// A tree of `root` alone, whose nearest node is found by the joint-space distance with
-    /// `weights` (one per joint; all 1: the Euclidean distance).
-    fn new(root: &[f64], weights: &[f64]) -> Self {
+    fn new(root: &[f64]) -> Self {
         Tree {
             q: vec![root.to_vec()],
             parent: vec![usize::MAX],
-            weights: weights.to_vec(),
         }
     }
 
-    /// The node nearest to `q` by `√(Σ wᵢ·Δqᵢ²)`.
     fn nearest(&self, q: &[f64]) -> usize {
         let mut best = (f64::INFINITY, 0);
         for (i, n) in self.q.iter().enumerate() {
-            let d: f64 = n
-                .iter()
-                .zip(q)
-                .zip(&self.weights)
-                .map(|((a, b), w)| (a - b) * (a - b) * w)
-                .sum();
+            let d: f64 = n.iter().zip(q).map(|(a, b)| (a - b) * (a - b)).sum();
             if d < best.0 {
                 best = (d, i);
             }
@@ -297,13 +286,8 @@ impl RrtConnect {
         }
         let limits = checker.model().limits().to_vec();
         let range = opts.range_for(checker);
-        // Nearest nodes by each joint's reach: the node whose edge to a sample moves the robot
-        // least is cheaper to check and more often free. Weights of reachᵢ took 5 % (LoCoBot,
-        // four sets) to 13 % (Sawyer's clutter) fewer instructions than the Euclidean
-        // distance, for paths as long; reachᵢ² and √reachᵢ did not pay (BENCHMARKS).
-        let weights = checker.joint_reach();
-        let mut a = Tree::new(start, weights);
-        let mut b = Tree::new(goal, weights);
+        let mut a = Tree::new(start);
+        let mut b = Tree::new(goal);
         let mut a_is_start = true;
         loop {
             if t0.elapsed() > opts.time_limit {
@@ -354,8 +338,8 @@ impl RrtConnect {
 /// last), LaValle's balanced bidirectional search (*Planning Algorithms*, §5.5: "new
 /// exploration is always performed for the smaller tree", by its number of vertices).
 /// Plain alternation let one tree grow far larger where the other was mostly trapped: balanced,
-/// the LoCoBot's four sets took 16–18 % fewer instructions, Sawyer's shelf 17 % and its
-/// clutter 70 % (its hardest problem's 660 ms became 190 ms), for paths as long (BENCHMARKS).
+/// four sets of the LoCoBot's took 17–25 % fewer instructions, Sawyer's shelf 22 % and its
+/// clutter 74 % (its hardest problem's 660 ms became 190 ms), for paths as long (BENCHMARKS).
 fn smaller_first(a: &mut Tree, b: &mut Tree, a_is_start: &mut bool) {
     if b.q.len() <= a.q.len() {
         std::mem::swap(a, b);
@@ -560,8 +544,7 @@ fn improve(
     let mut best_cost = path_length(&first);
     let mut best = first.clone();
     // The tree starts as the first path (a chain), so it only gets better.
-    // Euclidean, the distance whose path cost it minimises.
-    let mut tree = Tree::new(start, &vec![1.0; start.len()]);
+    let mut tree = Tree::new(start);
     let mut cost = vec![0.0];
     let mut goal_node = None;
     for q in first.iter().skip(1) {
@@ -661,18 +644,25 @@ mod tests {
     use super::*;
 
     #[test]
-    fn nearest_weighs_each_joint() {
-        // From the root, one node 1 rad along a slow joint, one 0.5 rad along a fast one.
-        let nodes = |w: &[f64]| {
-            let mut t = Tree::new(&[5.0, 5.0], w);
-            t.add(vec![1.0, 0.0], 0);
-            t.add(vec![0.0, 0.5], 0);
-            t.nearest(&[0.0, 0.0])
+    fn the_smaller_tree_grows_next() {
+        let tree = |n: usize| {
+            let mut t = Tree::new(&[0.0]);
+            for i in 1..n {
+                t.add(vec![i as f64], i - 1);
+            }
+            t
         };
-        // Euclidean: 0.5 rad is nearer; a fast joint's 0.5 rad moves the robot more.
-        assert_eq!(nodes(&[1.0, 1.0]), 2);
-        assert_eq!(nodes(&[1.0, 2.0]), 2);
-        // Weighted: 1 against 10 × 0.25.
-        assert_eq!(nodes(&[1.0, 10.0]), 1);
+        // The tree that just grew is still the smaller: it grows again, ends unchanged.
+        let (mut a, mut b, mut a_is_start) = (tree(2), tree(5), true);
+        smaller_first(&mut a, &mut b, &mut a_is_start);
+        assert_eq!((a.q.len(), b.q.len(), a_is_start), (2, 5, true));
+        // It is now the larger: the other grows next.
+        let (mut a, mut b, mut a_is_start) = (tree(6), tree(5), true);
+        smaller_first(&mut a, &mut b, &mut a_is_start);
+        assert_eq!((a.q.len(), b.q.len(), a_is_start), (5, 6, false));
+        // A tie: the other one.
+        let (mut a, mut b, mut a_is_start) = (tree(5), tree(5), false);
+        smaller_first(&mut a, &mut b, &mut a_is_start);
+        assert!(a_is_start);
     }
 }
