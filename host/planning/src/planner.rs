@@ -339,7 +339,7 @@ impl RrtConnect {
 /// exploration is always performed for the smaller tree", by its number of vertices).
 /// Plain alternation let one tree grow far larger where the other was mostly trapped: balanced,
 /// four sets of the LoCoBot's took 17–25 % fewer instructions, Sawyer's shelf 22 % and its
-/// clutter 74 % (its hardest problem's 660 ms became 190 ms), for paths as long (BENCHMARKS).
+/// clutter 74 % (its hardest problem's 1.5 s became 62 ms), for paths as long (BENCHMARKS).
 fn smaller_first(a: &mut Tree, b: &mut Tree, a_is_start: &mut bool) {
     if b.q.len() <= a.q.len() {
         std::mem::swap(a, b);
