@@ -178,3 +178,43 @@ fn shortcuts_that_save_too_little_are_not_checked() {
         assert!(err.to_string().contains("shortcut_min_gain"), "{err}");
     }
 }
+
+/// Shortcutting's last pass goes from each waypoint it keeps to the farthest one it sees: on a
+/// free path of seven waypoints, with no random shortcuts, one edge is checked (dropping one
+/// waypoint at a time checked five) and the path becomes that edge.
+#[test]
+fn the_last_pass_goes_to_the_farthest_waypoint_seen() {
+    use ferrobot_planning::planner::shortcut;
+    use rand::SeedableRng;
+    use std::sync::atomic::Ordering;
+    let cfg = RobotConfig::bundled("locobot").expect("robot");
+    let model = Arc::new(CollisionModel::from_config(&cfg).expect("model"));
+    let checker =
+        Checker::new(model, &PlanningScene::new(), CheckOptions::default()).expect("checker");
+    let (a, b) = ([0.0, 0.2, 0.3, 0.1, 0.0], [0.6, -0.2, 0.3, 0.4, 0.2]);
+    let path: Vec<Vec<f64>> = (0..=6)
+        .map(|k| {
+            a.iter()
+                .zip(&b)
+                .map(|(x, y)| x + (y - x) * f64::from(k) / 6.0 + 0.01 * f64::from(k % 2))
+                .collect()
+        })
+        .collect();
+    let opts = PlanOptions {
+        shortcuts: 0,
+        time_limit: std::time::Duration::from_secs(30),
+        ..PlanOptions::default()
+    };
+    let before = checker.counters().edges.load(Ordering::Relaxed);
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
+    let out = shortcut(
+        &checker,
+        path.clone(),
+        &opts,
+        &mut rng,
+        std::time::Instant::now(),
+    );
+    let checked = checker.counters().edges.load(Ordering::Relaxed) - before;
+    assert_eq!(out, [path[0].clone(), path[6].clone()]);
+    assert_eq!(checked, 1, "{checked} edges checked");
+}
