@@ -1,6 +1,7 @@
-//! Ferrobot's geometry layer, below every host crate: the one angle wrap and the validation of
-//! numbers ([`validate`]). Units are SI; angles in rad.
+//! Ferrobot's geometry layer, below every host crate: the one angle wrap, the validation of
+//! numbers ([`validate`]) and an inlined sine and cosine ([`trig`]). Units are SI; angles in rad.
 
+pub mod trig;
 pub mod validate;
 
 pub use validate::ValueError;

@@ -203,7 +203,7 @@ impl LinkTree {
         let joint = &self.joints[j];
         match joint.kind {
             JointType::Revolute => {
-                let (s, c) = (0.5 * v).sin_cos();
+                let (s, c) = ferrobot_geometry::trig::sin_cos(0.5 * v);
                 let a = joint.axis * s;
                 let motion =
                     UnitQuaternion::new_unchecked(nalgebra::Quaternion::new(c, a.x, a.y, a.z));
