@@ -217,6 +217,10 @@ struct Scratch {
     near: Near,
     /// A body's coarse gaps to each of its obstacles, m.
     gaps: Vec<f32>,
+    /// Outside an edge, where each body's candidates (all its obstacles) and the pairs write
+    /// the gaps they keep: read at edge parameter NaN, they skip nothing.
+    unlimited: Vec<Vec<(f64, f64)>>,
+    unlimited_pairs: Vec<(f64, f64)>,
 }
 
 /// World spheres of every body: x, y, z, radius (`f32`), at the checker's layout (each
@@ -296,10 +300,11 @@ struct Near {
     pair_far: Vec<(f64, f64)>,
 }
 
-/// Whether candidate `n` of an edge's [`Near`] list (its `(t₀, g)` in `far`) is known not to
-/// limit the step at edge parameter `t` below `clear` (in units of `t`).
-fn still_far(far: Option<&[(f64, f64)]>, n: usize, t: f64, clear: f64) -> bool {
-    far.is_some_and(|f| f[n].1 - (t - f[n].0).abs() >= clear)
+/// Whether a candidate of an edge's [`Near`] list that kept `(t₀, g)` is known not to limit
+/// the step at edge parameter `t` below `clear` (in units of `t`); never at `t` NaN.
+#[inline(always)]
+fn still_far((t0, g): (f64, f64), t: f64, clear: f64) -> bool {
+    g - (t - t0).abs() >= clear
 }
 
 /// How far (m) each body's points, and each moving pair's points relative to each other, move
@@ -730,6 +735,15 @@ impl Checker {
             scratch: RefCell::new(Scratch::default()),
             counters: Counters::default(),
         };
+        {
+            let mut s = checker.scratch.borrow_mut();
+            s.unlimited = checker
+                .all_of
+                .iter()
+                .map(|list| vec![(f64::NAN, 0.0); list.len()])
+                .collect();
+            s.unlimited_pairs = vec![(f64::NAN, 0.0); checker.all_pairs.len()];
+        }
         // Through `Checker::obstacle`, which numbers them as `all_of` does.
         checker.all_boxes = checker
             .all_of
@@ -947,26 +961,22 @@ impl Checker {
             let m = speed_of(bi);
             let bound = s.bounds[bi];
             let (lo, hi, end) = self.layout[bi];
-            let t = s.near.t;
-            let (list, mut far) = if s.near.on {
+            let (list, far, t) = if s.near.on {
                 (
                     &s.near.obstacles[bi][..],
-                    Some(&mut s.near.obstacle_far[bi][..]),
+                    &mut s.near.obstacle_far[bi][..],
+                    s.near.t,
                 )
             } else {
-                (&self.all_of[bi][..], None)
+                (&self.all_of[bi][..], &mut s.unlimited[bi][..], f64::NAN)
             };
-            for (n, &k) in list.iter().enumerate() {
+            for (&k, far) in list.iter().zip(far.iter_mut()) {
                 // Its gap at another state of the edge still clears this step ([`Near`]).
-                if still_far(far.as_deref(), n, t, clear) {
+                if still_far(*far, t, clear) {
                     continue;
                 }
                 // Remember the gap, in units of the edge parameter.
-                let mut keep = |gap: f64| {
-                    if let Some(f) = far.as_deref_mut() {
-                        f[n] = (t, gap / m);
-                    }
-                };
+                let mut keep = |gap: f64| *far = (t, gap / m);
                 let o = self.obstacle(k);
                 let pad = self.padding_of(k);
                 checks += 1;
@@ -1023,24 +1033,19 @@ impl Checker {
             }
         }
         // Moving bodies against each other: their relative speed.
-        let t = s.near.t;
-        let (pairs, mut far) = if s.near.on {
-            (&s.near.pairs[..], Some(&mut s.near.pair_far[..]))
+        let (pairs, far, t) = if s.near.on {
+            (&s.near.pairs[..], &mut s.near.pair_far[..], s.near.t)
         } else {
-            (&self.all_pairs[..], None)
+            (&self.all_pairs[..], &mut s.unlimited_pairs[..], f64::NAN)
         };
-        for (n, &p) in pairs.iter().enumerate() {
+        for (&p, far) in pairs.iter().zip(far.iter_mut()) {
             let (i, j) = self.pairs[p];
-            if still_far(far.as_deref(), n, t, clear) {
+            if still_far(*far, t, clear) {
                 continue;
             }
             let (bi, bj) = (&s.bounds[i], &s.bounds[j]);
             let m = speed.map_or(2.0, |v| v.pair[p].max(1e-9));
-            let mut keep = |gap: f64| {
-                if let Some(f) = far.as_deref_mut() {
-                    f[n] = (t, gap / m);
-                }
-            };
+            let mut keep = |gap: f64| *far = (t, gap / m);
             checks += 1;
             let gap = (bi.centre - bj.centre).norm() - bi.radius - bj.radius;
             if gap >= m * clear {
