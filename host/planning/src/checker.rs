@@ -347,6 +347,8 @@ pub struct Checker {
     /// Where each body's world spheres go in [`Placed`]: `lo..hi`, padded to `lo..end`.
     layout: Vec<(usize, usize, usize)>,
     reach: Vec<f64>,
+    /// [`rake`]'s spacing, m ([`RAKE_SPACING_PER_REACH`]).
+    rake_spacing: f64,
     /// Each body's reach per planned joint ([`CollisionModel::link_reach`]); 0 when fixed.
     body_reach: Vec<Vec<f64>>,
     /// Each moving pair's reach per planned joint: a joint that moves both moves them
@@ -730,6 +732,8 @@ impl Checker {
             fixed_of,
             grid,
             pairs,
+            rake_spacing: (RAKE_SPACING_PER_REACH * reach.iter().fold(0.0f64, |a, &r| a.max(r)))
+                .max(opts.max_step),
             reach,
             opts,
             scratch: RefCell::new(Scratch::default()),
@@ -1357,7 +1361,7 @@ impl Checker {
         // States measured ahead (the nearest on top once sorted): the rake's next `n` into
         // `ahead`, false at a contact.
         let mut ahead: Vec<(f64, f64)> = Vec::new();
-        let mut states = rake(total);
+        let mut states = rake(total, self.rake_spacing);
         let mut measure = |n: usize, ahead: &mut Vec<(f64, f64)>| {
             for t in states.by_ref().take(n) {
                 let Some(c) = clearance(t) else {
@@ -1430,16 +1434,20 @@ impl Checker {
 /// more (BENCHMARKS).
 const BEFORE_LIMITS: usize = 4;
 
-/// Spacing (m of the fastest point's motion) below which [`rake`] stops adding states: 0.1
-/// and 0.5 were slower on the benchmark's sets (seed 1; seed 2 agreed).
-const RAKE_SPACING: f64 = 0.3;
+/// Spacing below which [`rake`] stops adding states, as a fraction of the arm's reach (the
+/// largest distance of a moving point from the first planned joint's axis; m of the fastest
+/// point's motion), and at least [`CheckOptions::max_step`]. Obstacles and links scale with
+/// the arm: at a fixed 0.3 m, the LoCoBot (0.62 m of reach) was fastest at 0.15–0.2 m and
+/// Sawyer (1.40 m) at 0.4–0.6 m, for the same paths; this fraction falls on both plateaus
+/// (BENCHMARKS).
+const RAKE_SPACING_PER_REACH: f64 = 0.3;
 
 /// The edge parameters of states spread over an edge of `total` m of motion, in the order
 /// they are measured: its end, its middle, its quarters and so on while they are more than
-/// [`RAKE_SPACING`] apart.
-fn rake(total: f64) -> impl Iterator<Item = f64> {
+/// `spacing` (m) apart.
+fn rake(total: f64, spacing: f64) -> impl Iterator<Item = f64> {
     let levels = (0..16u32)
-        .take_while(move |&l| total / f64::from(2u32 << l) > RAKE_SPACING)
+        .take_while(move |&l| total / f64::from(2u32 << l) > spacing)
         .count() as u32;
     std::iter::once(1.0).chain((0..levels).flat_map(|l| {
         let n = 2u32 << l;
@@ -1530,15 +1538,32 @@ mod tests {
     use rand::{Rng, SeedableRng};
 
     /// The rake's states: the end, then each level's odd multiples while they are more than
-    /// [`RAKE_SPACING`] apart.
+    /// the spacing apart.
     #[test]
     fn the_rake_spreads_states_coarse_to_fine() {
-        let got = |total: f64| rake(total).collect::<Vec<f64>>();
+        let got = |total: f64| rake(total, 0.3).collect::<Vec<f64>>();
         assert_eq!(got(0.0), [1.0]);
         assert_eq!(got(0.5), [1.0]);
         assert_eq!(got(0.7), [1.0, 0.5]);
         assert_eq!(got(1.3), [1.0, 0.5, 0.25, 0.75]);
         assert_eq!(got(1e9).len(), 1 << 16);
+        assert_eq!(rake(0.7, 0.1).count(), 4);
+    }
+
+    /// The rake's spacing follows the arm's size: the LoCoBot's and Sawyer's on the plateaus
+    /// measured for each (BENCHMARKS), and never below the step cap.
+    #[test]
+    fn the_rake_spacing_follows_the_arm() {
+        let spacing = |robot: &str| {
+            let cfg = RobotConfig::bundled(robot).expect("robot");
+            let model = Arc::new(CollisionModel::from_config(&cfg).expect("model"));
+            Checker::new(model, &PlanningScene::new(), CheckOptions::default())
+                .expect("checker")
+                .rake_spacing
+        };
+        let (locobot, sawyer) = (spacing("locobot"), spacing("sawyer"));
+        assert!((0.15..=0.2).contains(&locobot), "LoCoBot {locobot} m");
+        assert!((0.4..=0.6).contains(&sawyer), "Sawyer {sawyer} m");
     }
 
     /// The LoCoBot's model, and a scene of a table before it and a post over the table.
