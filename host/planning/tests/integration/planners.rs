@@ -115,27 +115,56 @@ fn problems_reach_the_hub() {
     assert!(bench::generate(&checker, 1, 5, 0.05, Some(&inside)).is_err());
 }
 
+/// The LoCoBot alone (no scene).
+fn locobot_alone() -> Checker {
+    let cfg = RobotConfig::bundled("locobot").expect("robot");
+    let model = Arc::new(CollisionModel::from_config(&cfg).expect("model"));
+    Checker::new(model, &PlanningScene::new(), CheckOptions::default()).expect("checker")
+}
+
+/// Seven waypoints evenly spaced from `a` to `b` (rad).
+fn seven_waypoints(a: &[f64], b: &[f64]) -> Vec<Vec<f64>> {
+    (0..=6)
+        .map(|k| {
+            a.iter()
+                .zip(b)
+                .map(|(x, y)| x + (y - x) * f64::from(k) / 6.0)
+                .collect()
+        })
+        .collect()
+}
+
+/// `path` shortcut with `opts` (sampler seed 1), and how many edges that checked.
+fn shortcut_counted(
+    checker: &Checker,
+    path: &[Vec<f64>],
+    opts: &PlanOptions,
+) -> (Vec<Vec<f64>>, u64) {
+    use rand::SeedableRng;
+    use std::sync::atomic::Ordering;
+    let before = checker.counters().edges.load(Ordering::Relaxed);
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
+    let out = ferrobot_planning::planner::shortcut(
+        checker,
+        path.to_vec(),
+        opts,
+        &mut rng,
+        std::time::Instant::now(),
+    );
+    (
+        out,
+        checker.counters().edges.load(Ordering::Relaxed) - before,
+    )
+}
+
 /// Shortcutting checks only shortcuts that save at least `shortcut_min_gain`: on a straight
 /// path with a 1 mrad kink, a gain of 0.01 rad checks no shortcut edge (only the final pass's
 /// few), none checks dozens; both end on the straight path. Hostile gains are refused.
 #[test]
 fn shortcuts_that_save_too_little_are_not_checked() {
-    use ferrobot_planning::planner::shortcut;
-    use rand::SeedableRng;
-    use std::sync::atomic::Ordering;
-    let cfg = RobotConfig::bundled("locobot").expect("robot");
-    let model = Arc::new(CollisionModel::from_config(&cfg).expect("model"));
-    let checker =
-        Checker::new(model, &PlanningScene::new(), CheckOptions::default()).expect("checker");
+    let checker = locobot_alone();
     let (a, b) = ([0.0, 0.2, 0.3, 0.1, 0.0], [0.6, 0.2, 0.3, 0.1, 0.0]);
-    let mut path: Vec<Vec<f64>> = (0..=6)
-        .map(|k| {
-            a.iter()
-                .zip(&b)
-                .map(|(x, y)| x + (y - x) * f64::from(k) / 6.0)
-                .collect()
-        })
-        .collect();
+    let mut path = seven_waypoints(&a, &b);
     // A kink of 1 mrad sideways at the middle: a shortcut saves about 3e-6 rad.
     path[3][1] += 0.001;
     let straight = ferrobot_planning::planner::path_length(&[a.to_vec(), b.to_vec()]);
@@ -145,21 +174,13 @@ fn shortcuts_that_save_too_little_are_not_checked() {
             time_limit: std::time::Duration::from_secs(30),
             ..PlanOptions::default()
         };
-        let before = checker.counters().edges.load(Ordering::Relaxed);
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
-        let out = shortcut(
-            &checker,
-            path.clone(),
-            &opts,
-            &mut rng,
-            std::time::Instant::now(),
-        );
+        let (out, checked) = shortcut_counted(&checker, &path, &opts);
         let len = ferrobot_planning::planner::path_length(&out);
         assert!(
             (len - straight).abs() < 1e-9,
             "{min_gain}: {len} rad, straight {straight}"
         );
-        checker.counters().edges.load(Ordering::Relaxed) - before
+        checked
     };
     let (skipping, checking) = (edges(0.01), edges(0.0));
     assert!(
@@ -184,37 +205,18 @@ fn shortcuts_that_save_too_little_are_not_checked() {
 /// waypoint at a time checked five) and the path becomes that edge.
 #[test]
 fn the_last_pass_goes_to_the_farthest_waypoint_seen() {
-    use ferrobot_planning::planner::shortcut;
-    use rand::SeedableRng;
-    use std::sync::atomic::Ordering;
-    let cfg = RobotConfig::bundled("locobot").expect("robot");
-    let model = Arc::new(CollisionModel::from_config(&cfg).expect("model"));
-    let checker =
-        Checker::new(model, &PlanningScene::new(), CheckOptions::default()).expect("checker");
-    let (a, b) = ([0.0, 0.2, 0.3, 0.1, 0.0], [0.6, -0.2, 0.3, 0.4, 0.2]);
-    let path: Vec<Vec<f64>> = (0..=6)
-        .map(|k| {
-            a.iter()
-                .zip(&b)
-                .map(|(x, y)| x + (y - x) * f64::from(k) / 6.0 + 0.01 * f64::from(k % 2))
-                .collect()
-        })
-        .collect();
+    let checker = locobot_alone();
+    let mut path = seven_waypoints(&[0.0, 0.2, 0.3, 0.1, 0.0], &[0.6, -0.2, 0.3, 0.4, 0.2]);
+    // Every other waypoint 0.01 rad off in every joint: no two edges in line.
+    for q in path.iter_mut().skip(1).step_by(2) {
+        q.iter_mut().for_each(|v| *v += 0.01);
+    }
     let opts = PlanOptions {
         shortcuts: 0,
         time_limit: std::time::Duration::from_secs(30),
         ..PlanOptions::default()
     };
-    let before = checker.counters().edges.load(Ordering::Relaxed);
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
-    let out = shortcut(
-        &checker,
-        path.clone(),
-        &opts,
-        &mut rng,
-        std::time::Instant::now(),
-    );
-    let checked = checker.counters().edges.load(Ordering::Relaxed) - before;
+    let (out, checked) = shortcut_counted(&checker, &path, &opts);
     assert_eq!(out, [path[0].clone(), path[6].clone()]);
     assert_eq!(checked, 1, "{checked} edges checked");
 }
