@@ -1435,8 +1435,8 @@ impl Checker {
 const BEFORE_LIMITS: usize = 4;
 
 /// Spacing below which [`rake`] stops adding states, as a fraction of the arm's reach (the
-/// largest distance of a moving point from the first planned joint's axis; m of the fastest
-/// point's motion), and at least [`CheckOptions::max_step`]. Obstacles and links scale with
+/// largest of [`CollisionModel::reach`]'s bounds on a moving point's distance from a planned
+/// joint's origin; m of the fastest point's motion), and at least [`CheckOptions::max_step`]. Obstacles and links scale with
 /// the arm: at a fixed 0.3 m, the LoCoBot (0.62 m of reach) was fastest at 0.15–0.2 m and
 /// Sawyer (1.40 m) at 0.4–0.6 m, for the same paths; this fraction falls on both plateaus
 /// (BENCHMARKS).

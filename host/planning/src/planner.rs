@@ -438,8 +438,11 @@ pub fn shortcut(
         }
     }
     // From each waypoint kept, the farthest later one it sees (within [`LOOK_AHEAD`]).
+    let Some(first) = path.first() else {
+        return path;
+    };
     let mut out = Vec::with_capacity(path.len());
-    out.push(path[0].clone());
+    out.push(first.clone());
     let mut i = 0;
     while i + 1 < path.len() {
         let mut j = (path.len() - 1).min(i + LOOK_AHEAD);

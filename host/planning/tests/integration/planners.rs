@@ -202,7 +202,8 @@ fn shortcuts_that_save_too_little_are_not_checked() {
 
 /// Shortcutting's last pass goes from each waypoint it keeps to the farthest one it sees: on a
 /// free path of seven waypoints, with no random shortcuts, one edge is checked (dropping one
-/// waypoint at a time checked five) and the path becomes that edge.
+/// waypoint at a time checked five) and the path becomes that edge. Empty and one-edge paths
+/// come back unchanged.
 #[test]
 fn the_last_pass_goes_to_the_farthest_waypoint_seen() {
     let checker = locobot_alone();
@@ -219,4 +220,11 @@ fn the_last_pass_goes_to_the_farthest_waypoint_seen() {
     let (out, checked) = shortcut_counted(&checker, &path, &opts);
     assert_eq!(out, [path[0].clone(), path[6].clone()]);
     assert_eq!(checked, 1, "{checked} edges checked");
+    // Paths too short to shorten come back as they are, with nothing checked.
+    for short in [&path[..0], &path[..1], &path[..2]] {
+        assert_eq!(
+            shortcut_counted(&checker, short, &opts),
+            (short.to_vec(), 0)
+        );
+    }
 }
