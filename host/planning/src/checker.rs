@@ -710,6 +710,14 @@ impl Checker {
             })
             .collect();
         let all_pairs = (0..pairs.len()).collect();
+        let scratch = Scratch {
+            unlimited: all_of
+                .iter()
+                .map(|list| vec![(f64::NAN, 0.0); list.len()])
+                .collect(),
+            unlimited_pairs: vec![(f64::NAN, 0.0); pairs.len()],
+            ..Scratch::default()
+        };
         let mut layout = Vec::with_capacity(bodies.len());
         let mut at = 0;
         for b in &bodies {
@@ -736,18 +744,9 @@ impl Checker {
                 .max(opts.max_step),
             reach,
             opts,
-            scratch: RefCell::new(Scratch::default()),
+            scratch: RefCell::new(scratch),
             counters: Counters::default(),
         };
-        {
-            let mut s = checker.scratch.borrow_mut();
-            s.unlimited = checker
-                .all_of
-                .iter()
-                .map(|list| vec![(f64::NAN, 0.0); list.len()])
-                .collect();
-            s.unlimited_pairs = vec![(f64::NAN, 0.0); checker.all_pairs.len()];
-        }
         // Through `Checker::obstacle`, which numbers them as `all_of` does.
         checker.all_boxes = checker
             .all_of
@@ -1436,8 +1435,8 @@ const BEFORE_LIMITS: usize = 4;
 
 /// Spacing below which [`rake`] stops adding states, as a fraction of the arm's reach (the
 /// largest of [`CollisionModel::reach`]'s bounds on a moving point's distance from a planned
-/// joint's origin; m of the fastest point's motion), and at least [`CheckOptions::max_step`]. Obstacles and links scale with
-/// the arm: at a fixed 0.3 m, the LoCoBot (0.62 m of reach) was fastest at 0.15–0.2 m and
+/// joint's origin; m of the fastest point's motion), and at least [`CheckOptions::max_step`].
+/// Obstacles and links scale with the arm: at a fixed 0.3 m, the LoCoBot (0.62 m of reach) was fastest at 0.15–0.2 m and
 /// Sawyer (1.40 m) at 0.4–0.6 m, for the same paths; this fraction falls on both plateaus
 /// (BENCHMARKS).
 const RAKE_SPACING_PER_REACH: f64 = 0.3;

@@ -11,9 +11,7 @@ use ferrobot_planning::{CheckOptions, Checker, CollisionModel, PlanningScene};
 /// FCL (`plan_peer.py check`) found the contact in an exported path.
 #[test]
 fn an_edge_grazing_a_fixed_link_is_not_proven() {
-    let cfg = RobotConfig::bundled("locobot").expect("locobot");
-    let model = Arc::new(CollisionModel::from_config(&cfg).expect("model"));
-    let c = Checker::new(model, &PlanningScene::new(), CheckOptions::default()).expect("checker");
+    let c = crate::locobot_alone();
     let a = [0.48181393, -0.57703693, 0.2663449, 0.38923935, 0.26541771];
     let b = [0.32535412, -0.33525868, 0.0118354, 0.10592515, 0.39710595];
     let at = |t: f64| -> Vec<f64> { a.iter().zip(&b).map(|(x, y)| x + (y - x) * t).collect() };
@@ -34,9 +32,7 @@ fn an_edge_grazing_a_fixed_link_is_not_proven() {
 /// exported path. Steps near contact now need the clearances at both ends to cover them.
 #[test]
 fn a_contact_shorter_than_min_step_is_not_stepped_over() {
-    let cfg = RobotConfig::bundled("locobot").expect("locobot");
-    let model = Arc::new(CollisionModel::from_config(&cfg).expect("model"));
-    let c = Checker::new(model, &PlanningScene::new(), CheckOptions::default()).expect("checker");
+    let c = crate::locobot_alone();
     let a = [
         -0.9596562766769012,
         -0.9364069903152136,

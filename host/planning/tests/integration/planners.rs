@@ -115,13 +115,6 @@ fn problems_reach_the_hub() {
     assert!(bench::generate(&checker, 1, 5, 0.05, Some(&inside)).is_err());
 }
 
-/// The LoCoBot alone (no scene).
-fn locobot_alone() -> Checker {
-    let cfg = RobotConfig::bundled("locobot").expect("robot");
-    let model = Arc::new(CollisionModel::from_config(&cfg).expect("model"));
-    Checker::new(model, &PlanningScene::new(), CheckOptions::default()).expect("checker")
-}
-
 /// Seven waypoints evenly spaced from `a` to `b` (rad).
 fn seven_waypoints(a: &[f64], b: &[f64]) -> Vec<Vec<f64>> {
     (0..=6)
@@ -162,7 +155,7 @@ fn shortcut_counted(
 /// few), none checks dozens; both end on the straight path. Hostile gains are refused.
 #[test]
 fn shortcuts_that_save_too_little_are_not_checked() {
-    let checker = locobot_alone();
+    let checker = crate::locobot_alone();
     let (a, b) = ([0.0, 0.2, 0.3, 0.1, 0.0], [0.6, 0.2, 0.3, 0.1, 0.0]);
     let mut path = seven_waypoints(&a, &b);
     // A kink of 1 mrad sideways at the middle: a shortcut saves about 3e-6 rad.
@@ -206,7 +199,7 @@ fn shortcuts_that_save_too_little_are_not_checked() {
 /// come back unchanged.
 #[test]
 fn the_last_pass_goes_to_the_farthest_waypoint_seen() {
-    let checker = locobot_alone();
+    let checker = crate::locobot_alone();
     let mut path = seven_waypoints(&[0.0, 0.2, 0.3, 0.1, 0.0], &[0.6, -0.2, 0.3, 0.4, 0.2]);
     // Every other waypoint 0.01 rad off in every joint: no two edges in line.
     for q in path.iter_mut().skip(1).step_by(2) {
