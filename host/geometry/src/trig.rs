@@ -1,7 +1,7 @@
 //! The sine and cosine of one angle, inlined: forward kinematics computes one pair per joint
 //! and state, the planner's checker millions of them, and the C library's `sincos` behind
 //! [`f64::sin_cos`] is a call of about 108 instructions there (callgrind). Inlined, the
-//! LoCoBot's planning took 1.0 % fewer instructions, Sawyer's 1.4–1.7 %, for bit-identical
+//! LoCoBot's planning took 1.1 % fewer instructions, Sawyer's 1.4–1.8 %, for bit-identical
 //! paths (`BENCHMARKS.md`). Hand-written rather than the `libm` crate's: that one reduces
 //! arguments of any size (Payne–Hanek), which joint angles never need.
 //!
