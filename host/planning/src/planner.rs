@@ -782,7 +782,7 @@ mod tests {
         assert_eq!(tree.domain[0], domain.radius);
         // Beyond the domain: drawn again, nothing checked.
         let checked = edges();
-        // Joints 1 and 5 turned (within their ±1.57 rad), 5 cm beyond the domain.
+        // Joints 1 and 5 turned (within their ±1.57 rad), 0.05 rad beyond the domain.
         let a = (domain.radius + 0.05) / 2f64.sqrt();
         let far = [a, 0.0, 0.0, 0.0, a];
         let grow = extend(&checker, &mut tree, &far, 100.0, Some(&domain));
