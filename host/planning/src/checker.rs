@@ -1436,9 +1436,9 @@ const BEFORE_LIMITS: usize = 4;
 /// Spacing below which [`rake`] stops adding states, as a fraction of the arm's reach (the
 /// largest of [`CollisionModel::reach`]'s bounds on a moving point's distance from a planned
 /// joint's origin; m of the fastest point's motion), and at least [`CheckOptions::max_step`].
-/// Obstacles and links scale with the arm: at a fixed 0.3 m, the LoCoBot (0.62 m of reach) was fastest at 0.15–0.2 m and
-/// Sawyer (1.40 m) at 0.4–0.6 m, for the same paths; this fraction falls on both plateaus
-/// (BENCHMARKS).
+/// Obstacles and links scale with the arm: at a fixed 0.3 m, the LoCoBot (0.62 m of reach)
+/// was fastest at 0.15–0.2 m and Sawyer (1.40 m) at 0.4–0.6 m, for the same paths; this
+/// fraction falls on both plateaus (BENCHMARKS).
 const RAKE_SPACING_PER_REACH: f64 = 0.3;
 
 /// The edge parameters of states spread over an edge of `total` m of motion, in the order
@@ -1530,6 +1530,14 @@ fn sphere_spheres_gap(a: (f32, f32, f32, f32), b: SphereSlices<'_>) -> f32 {
     lanes_min(m)
 }
 
+/// A bundled robot's checker with no scene and the default options, for the crate's tests.
+#[cfg(test)]
+pub(crate) fn alone(robot: &str) -> Checker {
+    let cfg = ferrobot_description::RobotConfig::bundled(robot).expect("robot");
+    let model = Arc::new(CollisionModel::from_config(&cfg).expect("model"));
+    Checker::new(model, &PlanningScene::new(), CheckOptions::default()).expect("checker")
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -1553,13 +1561,7 @@ mod tests {
     /// measured for each (BENCHMARKS), and never below the step cap.
     #[test]
     fn the_rake_spacing_follows_the_arm() {
-        let spacing = |robot: &str| {
-            let cfg = RobotConfig::bundled(robot).expect("robot");
-            let model = Arc::new(CollisionModel::from_config(&cfg).expect("model"));
-            Checker::new(model, &PlanningScene::new(), CheckOptions::default())
-                .expect("checker")
-                .rake_spacing
-        };
+        let spacing = |robot: &str| alone(robot).rake_spacing;
         let (locobot, sawyer) = (spacing("locobot"), spacing("sawyer"));
         assert!((0.15..=0.2).contains(&locobot), "LoCoBot {locobot} m");
         assert!((0.4..=0.6).contains(&sawyer), "Sawyer {sawyer} m");

@@ -761,14 +761,8 @@ mod tests {
     #[test]
     fn a_trapped_node_keeps_its_samples_near() {
         use std::sync::atomic::Ordering;
-        use std::sync::Arc;
 
-        use crate::{CheckOptions, CollisionModel, PlanningScene};
-
-        let cfg = ferrobot_description::RobotConfig::bundled("locobot").expect("locobot");
-        let model = Arc::new(CollisionModel::from_config(&cfg).expect("model"));
-        let checker =
-            Checker::new(model, &PlanningScene::new(), CheckOptions::default()).expect("checker");
+        let checker = crate::checker::alone("locobot");
         let domain = Domain::for_checker(&checker);
         // A quarter of the LoCoBot's 7 rad diagonal.
         assert!((1.6..1.9).contains(&domain.radius), "{domain:?}");
