@@ -12,6 +12,17 @@ pub(crate) fn distance(
     p2: &Point3<f64>,
     q2: &Point3<f64>,
 ) -> f64 {
+    let (a, b) = closest(p1, q1, p2, q2);
+    (a - b).norm()
+}
+
+/// The closest points of segments `p1`–`q1` and `p2`–`q2`: one on each.
+pub(crate) fn closest(
+    p1: &Point3<f64>,
+    q1: &Point3<f64>,
+    p2: &Point3<f64>,
+    q2: &Point3<f64>,
+) -> (Point3<f64>, Point3<f64>) {
     let d1 = q1 - p1;
     let d2 = q2 - p2;
     let r = p1 - p2;
@@ -46,7 +57,7 @@ pub(crate) fn distance(
             (s, t)
         }
     };
-    ((p1 + d1 * s) - (p2 + d2 * t)).norm()
+    (p1 + d1 * s, p2 + d2 * t)
 }
 
 /// A lower bound (m, within a nanometre of the exact value) of the distance between segment
