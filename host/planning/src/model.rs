@@ -477,7 +477,7 @@ impl CollisionModel {
     }
 
     /// The arm's size (m): the largest bound on a moving point's distance from a planned
-    /// joint's origin ([`CollisionModel::origin_reach`]), with `extra` spheres as
+    /// joint's origin (`origin_reach`), with `extra` spheres as
     /// [`CollisionModel::reach`] takes them.
     pub fn span(&self, extra: &[(usize, Vec<Sphere>)]) -> f64 {
         self.largest(extra, |l, s| self.origin_reach(l, s))
@@ -519,8 +519,8 @@ impl CollisionModel {
     /// link above the joints.
     ///
     /// The smaller of two bounds: the distance from the joint's origin along the chain
-    /// ([`CollisionModel::origin_reach`]) and the distance from its axis
-    /// ([`CollisionModel::axis_reach`]), which is much smaller where the link lies along the
+    /// (`origin_reach`) and the distance from its axis
+    /// (`axis_reach`), which is much smaller where the link lies along the
     /// axis (a wrist's roll: the LoCoBot's gripper 0.103 → 0.055 m, its fingers 0.109 →
     /// 0.018 m) or beside it (Sawyer's `right_l1` about its own joint 0.300 → 0.117 m).
     pub fn link_reach(&self, link: usize, spheres: &[Sphere]) -> Vec<f64> {
