@@ -393,7 +393,8 @@ pub(crate) fn links_touch(
 /// support points, which no direction can overstate, less a micrometre for `f32` rounding.
 /// Where none of them separates the shapes but GJK found them apart, the direction is
 /// improved by ascent (for two of Sawyer's cylinders 1.57 mm apart, GJK's line left them
-/// overlapping by 2 mm; 1.569 mm after the ascent, against 1.575 mm by brute force); 0 when still none separates them.
+/// overlapping by 2 mm; 1.569 mm after the ascent, against 1.575 mm by brute force); 0 when
+/// still none separates them.
 fn shape_distance(
     pa: &parry3d::math::Pose,
     a: &dyn parry3d::shape::Shape,
@@ -517,10 +518,15 @@ fn exact_gap(
                     p * nalgebra::Point3::from(-h),
                 )
             };
+            // Where both have axes (cylinders, capsules), directions for GJK's stage below:
+            // the line of the axes' closest points, and each axis (a cap's normal).
+            let mut directions = None;
             if let (Some((ha, ra, ca)), Some((hb, rb, cb))) = (&ea.capsule, &eb.capsule) {
                 // The capsules that hold them: exact for capsules and spheres.
                 let ((a0, a1), (b0, b1)) = (axis(&pa, ha), axis(pb, hb));
-                take(segments::distance(&a0, &a1, &b0, &b1) - ra - rb, *ca && *cb);
+                let (x, y) = segments::closest(&a0, &a1, &b0, &b1);
+                take((y - x).norm() - ra - rb, *ca && *cb);
+                directions = Some([y - x, a1 - a0, b1 - b0]);
             }
             // A box and a capsule (or what one holds): the capsule's axis against the box.
             for ((pbox, ebox), (pcap, ecap)) in [((&pa, ea), (pb, eb)), ((pb, eb), (&pa, ea))] {
@@ -535,20 +541,12 @@ fn exact_gap(
             let d = if exact || bound > 0.0 && bound >= exact_below {
                 bound
             } else {
-                // Where both have axes (cylinders, capsules): the line of the axes' closest
-                // points, and each axis (a cap's normal).
-                let mut extra = Vec::new();
-                if let (Some((ha, _, _)), Some((hb, _, _))) = (&ea.capsule, &eb.capsule) {
-                    let ((a0, a1), (b0, b1)) = (axis(&pa, ha), axis(pb, hb));
-                    let (x, y) = segments::closest(&a0, &a1, &b0, &b1);
-                    extra.extend([y - x, a1 - a0, b1 - b0]);
-                }
                 shape_distance(
                     &convert::pose(&pa),
                     ea.shape.as_ref(),
                     &convert::pose(pb),
                     eb.shape.as_ref(),
-                    &extra,
+                    directions.as_ref().map_or(&[][..], |d| &d[..]),
                 )
             };
             gap = gap.min(d);

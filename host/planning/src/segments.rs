@@ -5,18 +5,8 @@
 
 use nalgebra::{Isometry3, Point3, Vector3};
 
-/// The distance (m) between segments `p1`–`q1` and `p2`–`q2`.
-pub(crate) fn distance(
-    p1: &Point3<f64>,
-    q1: &Point3<f64>,
-    p2: &Point3<f64>,
-    q2: &Point3<f64>,
-) -> f64 {
-    let (a, b) = closest(p1, q1, p2, q2);
-    (a - b).norm()
-}
-
-/// The closest points of segments `p1`–`q1` and `p2`–`q2`: one on each.
+/// The closest points of segments `p1`–`q1` and `p2`–`q2`, one on each: their distance is
+/// the segments' (m).
 pub(crate) fn closest(
     p1: &Point3<f64>,
     q1: &Point3<f64>,
@@ -229,7 +219,8 @@ mod tests {
                 1 => p2,
                 _ => p(&mut rng),
             };
-            let ours = distance(&p1, &q1, &p2, &q2);
+            let (x, y) = closest(&p1, &q1, &p2, &q2);
+            let ours = (x - y).norm();
             let n = 400;
             let mut best = f64::INFINITY;
             for i in 0..=n {
