@@ -132,7 +132,7 @@ impl Arm {
         for name in fixed {
             if let Some(i) = cfg.joint_index(&name) {
                 if let Some(s) = t.joints.get(i) {
-                    model.set_value(&name, f64::from(s.position))?;
+                    model.set_measured_value(&name, f64::from(s.position))?;
                 }
             }
         }
@@ -143,7 +143,7 @@ impl Arm {
                         / f64::from(ferrobot_protocol::dxl::units::RAD_PER_TICK)
                         + f64::from(ferrobot_protocol::dxl::units::CENTER_TICK);
                     for (joint, v) in g.finger_positions(ticks) {
-                        model.set_value(&joint, v)?;
+                        model.set_measured_value(&joint, v)?;
                     }
                 }
             }
@@ -266,7 +266,10 @@ impl Arm {
     }
 
     /// Replaces the voxels from a point cloud (m, in the arm's base frame) with cubes of
-    /// `voxel` m; `None` removes them.
+    /// `voxel` m (within [`ferrobot_planning::scene::VOXEL_RANGE`]); `None` removes them.
+    /// Non-finite points, points beyond 1 km and more than
+    /// [`ferrobot_planning::scene::MAX_VOXELS`] cubes are errors that leave the voxels as they
+    /// were.
     pub fn set_point_cloud(&self, points: Option<&[[f64; 3]]>, voxel: f64) -> Result<()> {
         let v = match points {
             Some(p) => {
@@ -276,7 +279,7 @@ impl Arm {
             }
             None => None,
         };
-        self.planning().scene.set_voxels(v);
+        self.planning().scene.set_voxels(v)?;
         Ok(())
     }
 

@@ -62,6 +62,17 @@ pub fn generate(
         });
     }
     if let Some(r) = reach {
+        // Checked here: a plan refuses it, which would count every candidate as unreached.
+        let within = r.within.as_secs_f64();
+        if !(within > 0.0 && within <= crate::planner::MAX_TIME_LIMIT) {
+            return Err(Error::Invalid {
+                what: "hub reach time".into(),
+                why: format!(
+                    "{within} s is not in (0, {}] s",
+                    crate::planner::MAX_TIME_LIMIT
+                ),
+            });
+        }
         if !checker.is_free(&r.hub) {
             return Err(Error::Invalid {
                 what: "hub".into(),

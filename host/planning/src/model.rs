@@ -393,8 +393,46 @@ impl CollisionModel {
     }
 
     /// Sets the value (rad or m) a joint that is not planned keeps while planning (a finger,
-    /// the head); unknown names and planned joints are errors, as are non-finite values.
+    /// the head): within the joint's limits (a joint whose range is a whole turn, as a
+    /// continuous joint's, takes any angle, wrapped into it). Unknown names, planned joints,
+    /// non-finite values and values beyond the limits are errors that change nothing.
     pub fn set_value(&mut self, joint: &str, value: f64) -> Result<()> {
+        let i = self.unplanned(joint)?;
+        let (lo, hi) = self.all_limits[i];
+        let v = if Self::whole_turn((lo, hi)) && value.is_finite() && value.abs() <= 1e6 {
+            ferrobot_geometry::wrap(value)
+        } else {
+            value
+        };
+        if !(v.is_finite() && lo - 1e-9 <= v && v <= hi + 1e-9) {
+            return Err(invalid(
+                format!("value of {joint}"),
+                format!("{value} is not within its limits [{lo}, {hi}]"),
+            ));
+        }
+        self.values[i] = v.clamp(lo, hi);
+        Ok(())
+    }
+
+    /// [`CollisionModel::set_value`] for a measured value, which may sit a little past a
+    /// limit (a servo's overshoot, a finger's encoder): held to the limits rather than
+    /// refused. Only a non-finite value is an error.
+    pub fn set_measured_value(&mut self, joint: &str, value: f64) -> Result<()> {
+        let i = self.unplanned(joint)?;
+        if !value.is_finite() {
+            return Err(invalid(format!("value of {joint}"), format!("{value}")));
+        }
+        let (lo, hi) = self.all_limits[i];
+        let held = if Self::whole_turn((lo, hi)) {
+            ferrobot_geometry::wrap(value.clamp(-1e6, 1e6))
+        } else {
+            value.clamp(lo, hi)
+        };
+        self.set_value(joint, held)
+    }
+
+    /// The tree index of `joint`, a movable joint that is not planned.
+    fn unplanned(&self, joint: &str) -> Result<usize> {
         let i = self
             .tree
             .joint_index(joint)
@@ -402,11 +440,12 @@ impl CollisionModel {
         if self.planned.contains(&i) {
             return Err(invalid("joint", format!("{joint:?} is planned")));
         }
-        if !value.is_finite() || value.abs() > 4.0 * std::f64::consts::PI {
-            return Err(invalid(format!("value of {joint}"), format!("{value}")));
-        }
-        self.values[i] = value;
-        Ok(())
+        Ok(i)
+    }
+
+    /// Whether a range is a whole turn, [−π, π] (a continuous joint's here).
+    fn whole_turn((lo, hi): (f64, f64)) -> bool {
+        lo == -std::f64::consts::PI && hi == std::f64::consts::PI
     }
 
     /// The values of the joints that are not planned, by name.
@@ -715,6 +754,54 @@ mod tests {
                 assert!(reach[g][roll] < 0.6 * origin[roll], "{reach:?}");
             }
         }
+    }
+
+    /// A joint that is not planned takes values within its limits only, as the problems
+    /// files' `fixed_joints` give them (a LoCoBot finger at 12 m was accepted); a whole-turn
+    /// joint any angle, wrapped; measured values are held to the limits. Refusals change
+    /// nothing. Every bundled robot's unplanned joints start within their limits, so an
+    /// export's `fixed_joints` read back.
+    #[test]
+    fn unplanned_joints_keep_values_within_their_limits() {
+        for robot in ["locobot", "locobot_lite", "sawyer"] {
+            let cfg = RobotConfig::bundled(robot).expect(robot);
+            let mut model = CollisionModel::from_config(&cfg).expect("model");
+            let fixed = model.fixed_values();
+            assert!(!fixed.is_empty(), "{robot}");
+            for (name, v) in &fixed {
+                let i = model.tree.joint_index(name).expect("joint");
+                let (lo, hi) = model.all_limits[i];
+                assert!(
+                    lo <= *v && *v <= hi,
+                    "{robot} {name}: {v} not in [{lo}, {hi}]"
+                );
+                model.set_value(name, *v).expect("its own value");
+            }
+        }
+        let cfg = RobotConfig::bundled("locobot").expect("locobot");
+        let mut model = CollisionModel::from_config(&cfg).expect("model");
+        // A finger (prismatic, its URDF's range [0, 1] m).
+        let finger = "joint_7".to_string();
+        let i = model.tree.joint_index(&finger).expect("joint");
+        let (lo, hi) = model.all_limits[i];
+        assert_eq!((lo, hi), (0.0, 1.0));
+        model.set_value(&finger, hi).expect("its limit");
+        for bad in [12.0, hi + 1e-3, lo - 1e-3, f64::NAN, f64::INFINITY] {
+            let err = model.set_value(&finger, bad).expect_err("refused");
+            assert!(err.to_string().contains(&finger), "{err}");
+            assert_eq!(model.values[i], hi, "{bad}");
+        }
+        model.set_measured_value(&finger, hi + 1e-3).expect("held");
+        assert_eq!(model.values[i], hi);
+        model.set_measured_value(&finger, -5.0).expect("held");
+        assert_eq!(model.values[i], lo);
+        assert!(model.set_measured_value(&finger, f64::NAN).is_err());
+        assert!(model.set_value("joint_1", 0.0).is_err(), "planned");
+        assert!(model.set_value("no_such_joint", 0.0).is_err());
+        // A whole-turn range (the wheels are continuous) takes any angle, wrapped into it.
+        model.set_value("wheel_left_joint", 7.0).expect("any angle");
+        let w = model.tree.joint_index("wheel_left_joint").expect("wheel");
+        assert!((model.values[w] - (7.0 - 2.0 * std::f64::consts::PI)).abs() < 1e-12);
     }
 
     /// Poses into reused buffers equal poses computed afresh, whether the joint values change,

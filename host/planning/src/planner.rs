@@ -19,22 +19,24 @@ pub const MAX_MIN_GAIN: f64 = 100.0;
 /// Options of one plan.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PlanOptions {
-    /// Give up after this long (shortcutting included).
+    /// Give up after this long (shortcutting included), in (0, [`MAX_TIME_LIMIT`]] s.
     pub time_limit: Duration,
     /// Seed of the sampler: the same seed, problem and scene give the same path.
     pub seed: u64,
     /// Longest joint-space step of a tree extension, rad; `None`: a fifth of the diagonal of
-    /// the joint limits' box (OMPL's default). The API and `ferrobot bench plan` give the
+    /// the joint limits' box (OMPL's default). In (0.001, 10] rad. The API and `ferrobot bench plan` give the
     /// arm's `planning_range` (`[arm]` of its configuration) where it has one.
     pub range: Option<f64>,
-    /// Shortcut attempts after a path is found (0: none).
+    /// Shortcut attempts after a path is found (0: none), at most 100,000.
     pub shortcuts: usize,
     /// A shortcut is checked only when it would shorten the path by at least this much, rad:
     /// once the path is nearly straight, most attempts would save little and each costs an
     /// edge check. At 0.01 rad the benchmark's sets took 14 % (LoCoBot) to 25 % (Sawyer's
     /// shelf) fewer instructions for paths 0.1–0.25 % longer on average (`BENCHMARKS.md`).
+    /// In [0, [`MAX_MIN_GAIN`]] rad.
     pub shortcut_min_gain: f64,
-    /// Informed RRT*: time spent improving the first path (within the time limit).
+    /// Informed RRT*: time spent improving the first path (within the time limit), at most
+    /// [`MAX_TIME_LIMIT`] s.
     pub improve_for: Duration,
     /// Dynamic domains for RRT-Connect's samples (Yershova et al. 2005, on by default as in
     /// VAMP): a node whose extension was trapped keeps a domain, and a sample farther from
@@ -91,6 +93,15 @@ impl PlanOptions {
                 why: format!(
                     "shortcut_min_gain {} rad must be in [0, {MAX_MIN_GAIN}]",
                     self.shortcut_min_gain
+                ),
+            });
+        }
+        if self.improve_for.as_secs_f64() > MAX_TIME_LIMIT {
+            return Err(Error::Invalid {
+                what: "plan options".into(),
+                why: format!(
+                    "improve_for {} s must be at most {MAX_TIME_LIMIT} s",
+                    self.improve_for.as_secs_f64()
                 ),
             });
         }
@@ -566,7 +577,10 @@ impl Planner for InformedRrtStar {
         let first = RrtConnect::search(checker, start, goal, opts, &mut rng, t0)?;
         let raw_waypoints = first.len();
         let first = shortcut(checker, first, opts, &mut rng, t0);
-        let deadline = (t0.elapsed() + opts.improve_for).min(opts.time_limit);
+        let deadline = t0
+            .elapsed()
+            .saturating_add(opts.improve_for)
+            .min(opts.time_limit);
         let best = improve(checker, start, goal, first, opts, &mut rng, t0, deadline);
         let path = shortcut(checker, best, opts, &mut rng, t0);
         Ok(Plan {

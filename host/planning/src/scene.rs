@@ -83,13 +83,50 @@ impl Voxels {
         }
         cells.sort_unstable();
         cells.dedup();
-        if cells.len() > MAX_VOXELS {
+        let v = Voxels { size, cells };
+        v.validate()?;
+        Ok(v)
+    }
+
+    /// Checks what [`Voxels::from_points`] guarantees, for voxels built by hand: a size within
+    /// [`VOXEL_RANGE`], at most [`MAX_VOXELS`] cells, sorted without repeats, each cube within
+    /// [`MAX_DISTANCE`] of the root frame's origin.
+    pub fn validate(&self) -> Result<()> {
+        let size = self.size;
+        if !size.is_finite() || !(VOXEL_RANGE.0..=VOXEL_RANGE.1).contains(&size) {
             return Err(Error::Invalid {
-                what: "point cloud".into(),
-                why: format!("{} voxels, more than {MAX_VOXELS}", cells.len()),
+                what: "voxel size".into(),
+                why: format!(
+                    "{size} m is not within [{}, {}] m",
+                    VOXEL_RANGE.0, VOXEL_RANGE.1
+                ),
             });
         }
-        Ok(Voxels { size, cells })
+        if self.cells.len() > MAX_VOXELS {
+            return Err(Error::Invalid {
+                what: "point cloud".into(),
+                why: format!("{} voxels, more than {MAX_VOXELS}", self.cells.len()),
+            });
+        }
+        // A point within MAX_DISTANCE lies in a cell within this (rounded down or up).
+        let far = (MAX_DISTANCE / size).ceil() as i64 + 1;
+        if let Some(c) = self
+            .cells
+            .iter()
+            .find(|c| c.iter().any(|&v| i64::from(v).abs() > far))
+        {
+            return Err(Error::Invalid {
+                what: "voxels".into(),
+                why: format!("cell {c:?} of {size} m lies beyond {MAX_DISTANCE} m"),
+            });
+        }
+        if self.cells.windows(2).any(|w| w[0] >= w[1]) {
+            return Err(Error::Invalid {
+                what: "voxels".into(),
+                why: "cells are not sorted without repeats".into(),
+            });
+        }
+        Ok(())
     }
 }
 
@@ -228,9 +265,14 @@ impl PlanningScene {
         Ok(())
     }
 
-    /// Replaces the occupancy from a point cloud.
-    pub fn set_voxels(&mut self, voxels: Option<Voxels>) {
+    /// Replaces the occupancy from a point cloud; voxels that fail [`Voxels::validate`] are
+    /// an error and leave the scene as it was.
+    pub fn set_voxels(&mut self, voxels: Option<Voxels>) -> Result<()> {
+        if let Some(v) = &voxels {
+            v.validate()?;
+        }
         self.voxels = voxels;
+        Ok(())
     }
 
     /// Removes every object, attached or not, and the voxels.
@@ -258,5 +300,60 @@ impl PlanningScene {
     /// The occupancy, if any.
     pub fn voxels(&self) -> Option<&Voxels> {
         self.voxels.as_ref()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Voxels built by hand are checked as those from a cloud are: a bad size, a cell beyond
+    /// a kilometre (which once overflowed the checker's grid), unsorted or repeated cells are
+    /// errors that leave the scene's voxels as they were.
+    #[test]
+    fn voxels_built_by_hand_are_checked() {
+        let mut scene = PlanningScene::new();
+        let good = Voxels::from_points(&[Point3::new(0.3, 0.0, 0.2)], 0.01).expect("voxels");
+        scene.set_voxels(Some(good.clone())).expect("valid");
+        let bad = [
+            Voxels {
+                size: 0.0,
+                cells: vec![[0, 0, 0]],
+            },
+            Voxels {
+                size: f64::NAN,
+                cells: vec![[0, 0, 0]],
+            },
+            Voxels {
+                size: 0.01,
+                cells: vec![[i32::MIN; 3], [i32::MAX; 3]],
+            },
+            Voxels {
+                size: 1.0,
+                cells: vec![[0, 0, 1002]],
+            },
+            Voxels {
+                size: 0.01,
+                cells: vec![[1, 0, 0], [0, 0, 0]],
+            },
+            Voxels {
+                size: 0.01,
+                cells: vec![[0, 0, 0], [0, 0, 0]],
+            },
+        ];
+        for v in bad {
+            let err = scene.set_voxels(Some(v.clone())).expect_err("refused");
+            assert!(!err.to_string().is_empty(), "{v:?}");
+            assert_eq!(scene.voxels(), Some(&good), "{v:?}");
+        }
+        // A cloud's points a kilometre out are within reach of the check's rounding.
+        let edge = Voxels::from_points(
+            &[Point3::new(1000.0, -1000.0, 1000.0), Point3::origin()],
+            0.005,
+        )
+        .expect("voxels at a kilometre");
+        scene.set_voxels(Some(edge)).expect("valid");
+        scene.set_voxels(None).expect("none");
+        assert_eq!(scene.voxels(), None);
     }
 }

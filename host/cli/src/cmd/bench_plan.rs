@@ -11,8 +11,10 @@
 //!                 "fixed_joints": {name: value} (optional)}
 //! OBJECT:        {"id", "shape": box|cylinder|sphere|capsule|mesh, "size": box [x, y, z],
 //!                 cylinder and capsule [radius, length], sphere [radius], mesh its extents
-//!                 (ignored), "position": [x, y, z], "quaternion": [x, y, z, w],
-//!                 "mesh": OBJ/STL path relative to the file (its vertices' hull) or null}
+//!                 (ignored), "position": [x, y, z] (optional: the origin),
+//!                 "quaternion": [x, y, z, w] (optional: no rotation),
+//!                 "mesh": OBJ/STL path relative to the file (its vertices' hull) or null;
+//!                 other keys are errors, but for `scene --json`'s "colour" and "static"}
 //! export:        the problems file plus robot, urdf, root_link, moving_links, self_pairs,
 //!                attached, resolution_m and each problem's success, time_ms and path
 //! ```
@@ -98,7 +100,7 @@ struct SummaryJson {
     /// Time per problem (failures at their full time), ms.
     time_ms: TimeJson,
     /// Generated candidates dropped because an end did not reach the arm's home within
-    /// `REACH_FACTOR` times the time limit (absent for problems files and when home is not
+    /// `REACH_FACTOR` times the time limit, at most the planner's 600 s (absent for problems files and when home is not
     /// free).
     #[serde(skip_serializing_if = "Option::is_none")]
     unreached: Option<usize>,
@@ -219,7 +221,11 @@ struct ProblemsFile {
     attached: Vec<serde_json::Value>,
 }
 
+/// An object of a problems file. Unknown keys are errors (a misspelt `position` would leave
+/// the object at the origin); `colour` and `static`, which `ferrobot scene --json` prints, are
+/// read and ignored.
 #[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
 struct ObjectFile {
     id: String,
     shape: String,
@@ -231,6 +237,10 @@ struct ObjectFile {
     quaternion: Option<[f64; 4]>,
     #[serde(default)]
     mesh: Option<String>,
+    #[serde(default, rename = "colour")]
+    _colour: Option<serde::de::IgnoredAny>,
+    #[serde(default, rename = "static")]
+    _fixed: Option<serde::de::IgnoredAny>,
 }
 
 #[derive(Deserialize)]
@@ -767,7 +777,10 @@ pub fn run(a: &PlanArgs) -> ferrobot::Result<()> {
             .as_ref()
             .map(|arm| bench::Reach {
                 hub: arm.home.clone(),
-                within: Duration::from_secs_f64(REACH_FACTOR * a.time_limit),
+                // Within the planner's own bound, which a long `--time-limit` would pass.
+                within: Duration::from_secs_f64(
+                    (REACH_FACTOR * a.time_limit).min(planning::planner::MAX_TIME_LIMIT),
+                ),
             })
             .filter(|r| checker.is_free(&r.hub));
         let set =

@@ -264,6 +264,20 @@ fn point_cloud_voxels_are_obstacles() {
     }
     arm.set_point_cloud(None, 0.02).expect("no voxels");
     arm.make_plan_joint_positions(&goal).expect("free again");
+    // The same cube in 5 mm voxels with two points 900 m out (a box of about 10¹⁷ cells: the
+    // checker keeps the cells as a list) is still in the way.
+    cloud.push([900.0, -900.0, 900.0]);
+    cloud.push([-900.0, 900.0, -900.0]);
+    arm.set_point_cloud(Some(&cloud), 0.005)
+        .expect("voxels spread far");
+    match arm.make_plan_joint_positions(&goal) {
+        Err(Error::Planning(planning::Error::GoalInCollision { b, .. })) => {
+            assert!(b.starts_with("voxel"), "{b}")
+        }
+        other => panic!("{other:?}"),
+    }
+    assert!(arm.get_collision_state().expect("state").is_none());
+    arm.set_point_cloud(None, 0.02).expect("no voxels");
 }
 
 #[test]

@@ -221,3 +221,73 @@ fn the_last_pass_goes_to_the_farthest_waypoint_seen() {
         );
     }
 }
+
+/// Every option out of its range is refused with an error naming it, by both planners, before
+/// any planning: time limits, ranges, gains, shortcut counts and Informed RRT*'s improvement
+/// time (`Duration::MAX` once overflowed the deadline's sum and panicked).
+#[test]
+fn options_out_of_range_are_refused_by_both_planners() {
+    use std::time::Duration;
+    let checker = crate::locobot_alone();
+    let (a, b) = ([0.0, 0.2, 0.3, 0.1, 0.0], [0.6, 0.2, 0.3, 0.1, 0.0]);
+    let bad: Vec<(&str, PlanOptions)> = vec![
+        (
+            "time limit",
+            PlanOptions {
+                time_limit: Duration::ZERO,
+                ..PlanOptions::default()
+            },
+        ),
+        (
+            "time limit",
+            PlanOptions {
+                time_limit: Duration::MAX,
+                ..PlanOptions::default()
+            },
+        ),
+        (
+            "range",
+            PlanOptions {
+                range: Some(f64::NAN),
+                ..PlanOptions::default()
+            },
+        ),
+        (
+            "shortcut attempts",
+            PlanOptions {
+                shortcuts: usize::MAX,
+                ..PlanOptions::default()
+            },
+        ),
+        (
+            "improve_for",
+            PlanOptions {
+                improve_for: Duration::MAX,
+                ..PlanOptions::default()
+            },
+        ),
+        (
+            "improve_for",
+            PlanOptions {
+                improve_for: Duration::from_secs(601),
+                ..PlanOptions::default()
+            },
+        ),
+    ];
+    for (what, opts) in &bad {
+        for planner in [&RrtConnect as &dyn Planner, &InformedRrtStar] {
+            let err = planner.plan(&checker, &a, &b, opts).expect_err("refused");
+            assert!(err.to_string().contains(what), "{}: {err}", planner.name());
+        }
+    }
+    // The largest improvement time allowed plans (and stops at the time limit).
+    let opts = PlanOptions {
+        improve_for: Duration::from_secs(600),
+        time_limit: Duration::from_millis(200),
+        ..PlanOptions::default()
+    };
+    let plan = InformedRrtStar
+        .plan(&checker, &a, &b, &opts)
+        .expect("plans");
+    assert!(plan.time < Duration::from_secs(5), "{:?}", plan.time);
+}
