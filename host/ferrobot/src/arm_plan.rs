@@ -14,7 +14,7 @@ use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion};
 use parking_lot::Mutex;
 
 use crate::arm::{Arm, Orientation};
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::motion::{Claim, JointsGoal, Motion};
 use crate::robot::Io;
 
@@ -24,6 +24,17 @@ const MAX_KNOTS: usize = 14;
 const SETTLE_S: f64 = 0.25;
 /// Shortest time between knots, s.
 const MIN_KNOT_DT: f64 = 0.05;
+/// A measured start held to the limits, a checker from it, and the pairs of the robot's own
+/// links it is allowed to touch.
+type StartChecker = (Vec<f64>, Checker, Vec<(String, String)>);
+
+/// Largest difference of any joint between a trajectory's start and the arm's joints when it
+/// is executed, rad: the motion from where the arm is to the plan's start was never checked.
+/// Twice the arms' arrival tolerance (0.01 rad), for a start measured while the last motion
+/// settled.
+pub const STALE_START: f64 = 0.02;
+/// Longest trajectory [`Arm::execute`] runs, s.
+const MAX_DURATION: f64 = 3600.0;
 /// Joint-space step of the blended path's collision check, rad.
 const BLEND_CHECK_STEP: f64 = 0.01;
 
@@ -388,26 +399,12 @@ impl Arm {
             ferrobot_planning::MAX_PADDING,
         )?;
         let start = self.get_joint_angles()?;
-        let mut checker = self.checker()?;
-        // Measured angles may sit a hair outside a limit.
-        let start: Vec<f64> = start
-            .iter()
-            .zip(checker.model().limits())
-            .map(|(v, (lo, hi))| v.clamp(*lo, *hi))
-            .collect();
-        // A start where two of the robot's own links already touch (an arm that sagged while
-        // its servos were off) could never be left: those pairs go unchecked for this plan,
-        // as MoveIt's start-state fixing would move out of them. Contacts with objects stay
-        // errors.
-        let mut allowed: Vec<(String, String)> = Vec::new();
-        let model = self.model()?;
-        while let Some(c) = checker.contact(&start) {
-            let own = model.link_index(&c.a).is_some() && model.link_index(&c.b).is_some();
-            if !own || allowed.len() >= 8 || allowed.contains(&(c.a.clone(), c.b.clone())) {
-                break;
+        let (start, mut checker, allowed) = self.start_checker(&start)?;
+        // The pairs a start in self-contact was allowed may not touch at the goal.
+        if !allowed.is_empty() {
+            if let Some(c) = self.checker()?.contact(goal) {
+                return Err(ferrobot_planning::Error::GoalInCollision { a: c.a, b: c.b }.into());
             }
-            allowed.push((c.a, c.b));
-            checker = self.checker_allowing(&allowed)?;
         }
         let mut padding = 0.0;
         if opts.padding > 0.0 && checker.contact(&start).is_none() {
@@ -442,6 +439,98 @@ impl Arm {
             planning_time: plan.time,
             padding,
         })
+    }
+
+    /// The measured `start` held to the limits, a checker for planning from it, and the pairs
+    /// of the robot's own links it allows. A start where two of them already touch (an arm
+    /// that sagged while its servos were off) could never be left: those pairs go unchecked
+    /// (at most 8), as MoveIt's start-state fixing would move out of them; the goal must be
+    /// free of them ([`Arm::plan_to`]). Contacts with objects stay errors.
+    fn start_checker(&self, start: &[f64]) -> Result<StartChecker> {
+        let mut checker = self.checker()?;
+        // Measured angles may sit a hair outside a limit.
+        let start: Vec<f64> = start
+            .iter()
+            .zip(checker.model().limits())
+            .map(|(v, (lo, hi))| v.clamp(*lo, *hi))
+            .collect();
+        let mut allowed: Vec<(String, String)> = Vec::new();
+        let model = self.model()?;
+        while let Some(c) = checker.contact(&start) {
+            let own = model.link_index(&c.a).is_some() && model.link_index(&c.b).is_some();
+            if !own || allowed.len() >= 8 || allowed.contains(&(c.a.clone(), c.b.clone())) {
+                break;
+            }
+            allowed.push((c.a, c.b));
+            checker = self.checker_allowing(&allowed)?;
+        }
+        Ok((start, checker, allowed))
+    }
+
+    /// Whether `traj` may run now: its joints the arm's, its path and trajectory well formed
+    /// and ending alike, its start within [`STALE_START`] of the arm's joints, and its motion
+    /// free in the scene as it is now (checked as planning checked it).
+    fn check_trajectory(&self, traj: &ArmTrajectory) -> Result<()> {
+        let invalid = |why: String| -> Error {
+            ferrobot_planning::Error::Invalid {
+                what: "trajectory".into(),
+                why,
+            }
+            .into()
+        };
+        let names = self.joint_names();
+        if traj.joints != names {
+            return Err(invalid(format!(
+                "its joints {:?} are not the arm's {names:?}",
+                traj.joints
+            )));
+        }
+        let (Some(first), Some(last)) = (traj.path.first(), traj.path.last()) else {
+            return Err(invalid("its path is empty".into()));
+        };
+        for q in &traj.path {
+            self.check_goal(q)?;
+        }
+        let t = &traj.trajectory;
+        let total = t.duration();
+        if t.dof() != names.len() || !(0.0..=MAX_DURATION).contains(&total) {
+            return Err(invalid(format!(
+                "{} joints over {total} s (the arm has {}; at most {MAX_DURATION} s)",
+                t.dof(),
+                names.len()
+            )));
+        }
+        let off = |a: &[f64], b: &[f64]| {
+            a.iter()
+                .zip(b)
+                .map(|(x, y)| (x - y).abs())
+                .fold(
+                    0.0f64,
+                    |m, d| if d.is_nan() { f64::INFINITY } else { m.max(d) },
+                )
+        };
+        if off(&t.sample(0.0).position, first) > 1e-6 || off(&t.sample(total).position, last) > 1e-6
+        {
+            return Err(invalid(
+                "its trajectory does not start and end where its path does".into(),
+            ));
+        }
+        let here = self.get_joint_angles()?;
+        let gap = off(&here, first);
+        if gap > STALE_START {
+            return Err(Error::StalePlan {
+                why: format!(
+                    "it starts {gap:.3} rad from the arm's joints (at most {STALE_START} rad)"
+                ),
+            });
+        }
+        let (_, checker, _) = self.start_checker(&here)?;
+        if !blends_free(&checker, t) {
+            return Err(Error::StalePlan {
+                why: "its motion touches something in the scene as it is now".into(),
+            });
+        }
+        Ok(())
     }
 
     /// The joints' speed and acceleration limits.
@@ -483,7 +572,11 @@ impl Arm {
         }
     }
 
-    /// Starts executing a planned trajectory: knots (position and velocity) sent at once.
+    /// Starts executing a planned trajectory: knots (position and velocity, at most 14, at
+    /// least 0.05 s apart) sent at once, which the firmware joins by cubic Hermite curves.
+    /// Checked first: a malformed trajectory is an error, and one that starts more than
+    /// [`STALE_START`] from the arm's joints or touches something in the scene as it is now
+    /// (objects added, the gripper moved since planning) is [`Error::StalePlan`].
     pub fn execute(&self, traj: &ArmTrajectory) -> Result<Motion> {
         self.execute_with(traj, self.cfg_arm().joint_tolerance, None)
     }
@@ -496,6 +589,7 @@ impl Arm {
         tolerance: f64,
         timeout: Option<Duration>,
     ) -> Result<Motion> {
+        self.check_trajectory(traj)?;
         let total = traj.trajectory.duration();
         let n = ((total / MIN_KNOT_DT).ceil() as usize).clamp(1, MAX_KNOTS);
         let dt = total / n as f64;

@@ -178,6 +178,14 @@ pub enum Error {
     /// The firmware's joint table does not match the robot configuration.
     #[error("the firmware's joint table does not match the configuration: {0}")]
     JointTableMismatch(String),
+    /// A planned trajectory that no longer holds when it is to run: it starts away from where
+    /// the arm is, or it touches something in the scene as it is now (an object added, the
+    /// gripper opened since planning). Plan again.
+    #[error("the plan no longer holds: {why}; plan again")]
+    StalePlan {
+        /// What changed.
+        why: String,
+    },
     /// The link to the firmware is down.
     #[error("link to the firmware lost: {0}")]
     Link(String),

@@ -410,3 +410,99 @@ fn a_start_in_self_collision_is_left() {
     assert!(c.is_some(), "the sagged arm touches itself");
     arm.set_joint_positions(&[0.0; 5]).expect("plans out");
 }
+
+/// A goal where the start's self-contact persists is refused (the pairs a start in
+/// self-contact is allowed were once unchecked for the whole plan, goal included).
+#[test]
+fn a_start_in_self_collision_may_not_end_in_it() {
+    let bot = Robot::new("locobot").expect("robot");
+    let arm = bot.arm().expect("arm");
+    let sagged = [0.0, 1.55, 0.0, 0.0, 0.0];
+    arm.set_joint_positions_with(
+        &sagged,
+        ferrobot::MoveOptions {
+            plan: false,
+            ..Default::default()
+        },
+    )
+    .expect("sag");
+    let c = arm.get_collision_state().expect("state").expect("touching");
+    // Turning the base joint keeps the same two links touching.
+    match arm.make_plan_joint_positions(&[0.3, 1.55, 0.0, 0.0, 0.0]) {
+        Err(Error::Planning(planning::Error::GoalInCollision { a, b })) => {
+            assert_eq!((a.as_str(), b.as_str()), (c.a.as_str(), c.b.as_str()))
+        }
+        other => panic!("{other:?}"),
+    }
+    arm.make_plan_joint_positions(&[0.0; 5]).expect("plans out");
+}
+
+/// `execute` runs a trajectory only while it holds: one planned before the arm moved, or
+/// before an object was put on its path, is `StalePlan`; malformed ones (other joints, an
+/// empty path, 13 joints, ends that differ from the path's) are typed errors, never a panic;
+/// the same trajectory, fresh, runs.
+#[test]
+fn execute_refuses_stale_and_malformed_trajectories() {
+    let bot = Robot::new("locobot").expect("robot");
+    let arm = bot.arm().expect("arm");
+    let right = left_of_a_post(&bot);
+    let traj = arm.make_plan_joint_positions(&right).expect("plan");
+    // An object across the planned path (at its middle waypoint's gripper).
+    let mid = &traj.path[traj.path.len() / 2];
+    let p = arm
+        .compute_fk_position(mid, "gripper_link")
+        .expect("fk")
+        .position;
+    arm.add_world_object("dropped", p, IDENTITY, [0.08, 0.08, 0.08])
+        .expect("object");
+    match arm.execute(&traj) {
+        Err(Error::StalePlan { why }) => assert!(why.contains("touches"), "{why}"),
+        other => panic!("{other:?}"),
+    }
+    arm.remove_world_object("dropped").expect("removed");
+    // Malformed.
+    let mut other = traj.clone();
+    other.joints[0] = "joint_9".into();
+    let mut empty = traj.clone();
+    empty.path.clear();
+    let mut wide = traj.clone();
+    for q in &mut wide.path {
+        q.resize(13, 0.0);
+    }
+    let mut bent = traj.clone();
+    let n = bent.path.len();
+    bent.path[n - 1][0] += 0.1;
+    for (what, bad) in [
+        ("joints", other),
+        ("empty", empty),
+        ("13", wide),
+        ("ends", bent),
+    ] {
+        match arm.execute(&bad) {
+            Err(Error::Planning(planning::Error::Invalid { .. }) | Error::JointCount { .. }) => {}
+            other => panic!("{what}: {other:?}"),
+        }
+    }
+    // The arm moves elsewhere: the plan's start is stale.
+    arm.set_joint_positions_with(
+        &[0.9, 0.3, 0.3, 0.4, 0.0],
+        ferrobot::MoveOptions {
+            plan: false,
+            ..Default::default()
+        },
+    )
+    .expect("moved");
+    match arm.execute(&traj) {
+        Err(Error::StalePlan { why }) => assert!(why.contains("rad from"), "{why}"),
+        other => panic!("{other:?}"),
+    }
+    arm.set_joint_positions_with(
+        &traj.path[0],
+        ferrobot::MoveOptions {
+            plan: false,
+            ..Default::default()
+        },
+    )
+    .expect("back");
+    arm.execute(&traj).expect("fresh").wait().expect("runs");
+}
