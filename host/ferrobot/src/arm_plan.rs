@@ -180,7 +180,7 @@ impl Arm {
     }
 
     /// Adds (or replaces) an object `id` of any shape at `position` (m) with `orientation` in
-    /// the arm's base frame.
+    /// the arm's base frame. An id that names one of the robot's links is an error.
     pub fn add_world_shape(
         &self,
         id: &str,
@@ -189,6 +189,7 @@ impl Arm {
         orientation: Orientation,
     ) -> Result<()> {
         let q = orientation.to_quaternion()?;
+        ferrobot_planning::checker::check_not_a_link(&*self.model()?, id)?;
         let base = self.base_frame_in_root()?;
         self.planning()
             .scene
@@ -214,8 +215,8 @@ impl Arm {
         Ok(())
     }
 
-    /// Attaches a box `id` of full extents `size` (m) at `position` with `orientation` in the
-    /// end-effector frame: it moves with the gripper and is checked against the world and the
+    /// Attaches a box `id` of full extents `size` (m) at `position` (m) with `orientation` in
+    /// the end-effector frame: it moves with the gripper and is checked against the world and the
     /// arm; the gripper and its fingers may touch it (PyRobot's `attach_arm_object`).
     pub fn attach_arm_object(
         &self,
@@ -225,6 +226,7 @@ impl Arm {
         size: [f64; 3],
     ) -> Result<()> {
         let q = orientation.to_quaternion()?;
+        ferrobot_planning::checker::check_not_a_link(&*self.model()?, id)?;
         let cfg = self.robot.cfg();
         let ee = self.cfg_arm().ee_frame.clone();
         let mut touch: Vec<String> = cfg

@@ -419,6 +419,18 @@ impl Drop for EdgeGuard<'_> {
     }
 }
 
+/// An object id may not be the name of one of `model`'s links: a contact names its two
+/// bodies, and could not tell them apart.
+pub fn check_not_a_link(model: &CollisionModel, id: &str) -> Result<()> {
+    if model.link_index(id).is_some() {
+        return Err(Error::Invalid {
+            what: format!("object id {id:?}"),
+            why: format!("it is the name of a link of {}", model.name()),
+        });
+    }
+    Ok(())
+}
+
 /// Checks states and motions of one model in one scene.
 #[derive(Debug)]
 pub struct Checker {
@@ -677,6 +689,13 @@ impl Checker {
             });
         }
         check_padding(opts.padding)?;
+        let ids = scene
+            .objects()
+            .map(|o| &o.id)
+            .chain(scene.attached().map(|a| &a.id));
+        for id in ids {
+            check_not_a_link(&model, id)?;
+        }
         let mut bodies: Vec<Body> = model
             .links()
             .iter()

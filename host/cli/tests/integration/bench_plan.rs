@@ -356,6 +356,13 @@ fn problems_files_written_by_anyone_are_checked() {
             problem,
             "positon",
         ),
+        (
+            "link.json",
+            joints,
+            r#"[{"id": "gripper_link", "shape": "sphere", "size": [0.1], "position": [0.5, 0, 0.3]}]"#,
+            problem,
+            "gripper_link",
+        ),
         ("none.json", joints, "[]", "[]", "problems"),
     ];
     for (name, j, objects, problems, named) in bad {

@@ -506,3 +506,30 @@ fn execute_refuses_stale_and_malformed_trajectories() {
     .expect("back");
     arm.execute(&traj).expect("fresh").wait().expect("runs");
 }
+
+/// An object may not take a link's name (a contact names its two bodies): adding or attaching
+/// one is an error that adds nothing.
+#[test]
+fn objects_named_as_links_are_refused() {
+    let bot = Robot::new("locobot").expect("robot");
+    let arm = bot.arm().expect("arm");
+    for r in [
+        arm.add_world_object("gripper_link", [0.4, 0.0, 0.1], IDENTITY, [0.05; 3]),
+        arm.attach_arm_object("elbow_link", [0.0; 3], IDENTITY, [0.02; 3]),
+    ] {
+        match r {
+            Err(Error::Planning(planning::Error::Invalid { what, why })) => {
+                assert!(
+                    what.contains("_link") && why.contains("link"),
+                    "{what}: {why}"
+                )
+            }
+            other => panic!("{other:?}"),
+        }
+    }
+    assert!(arm.get_collision_state().expect("state").is_none());
+    assert!(
+        arm.remove_world_object("gripper_link").is_err(),
+        "nothing was added"
+    );
+}
