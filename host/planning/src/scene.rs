@@ -59,15 +59,7 @@ impl Voxels {
     /// The cubes occupied by `points` (root frame, m) with edge `size` (m); non-finite or far
     /// points and a size outside [`VOXEL_RANGE`] are errors.
     pub fn from_points(points: &[Point3<f64>], size: f64) -> Result<Self> {
-        if !size.is_finite() || !(VOXEL_RANGE.0..=VOXEL_RANGE.1).contains(&size) {
-            return Err(Error::Invalid {
-                what: "voxel size".into(),
-                why: format!(
-                    "{size} m is not within [{}, {}] m",
-                    VOXEL_RANGE.0, VOXEL_RANGE.1
-                ),
-            });
-        }
+        check_size(size)?;
         let mut cells = Vec::with_capacity(points.len().min(MAX_VOXELS));
         for (i, p) in points.iter().enumerate() {
             if p.coords
@@ -93,15 +85,7 @@ impl Voxels {
     /// [`MAX_DISTANCE`] of the root frame's origin.
     pub fn validate(&self) -> Result<()> {
         let size = self.size;
-        if !size.is_finite() || !(VOXEL_RANGE.0..=VOXEL_RANGE.1).contains(&size) {
-            return Err(Error::Invalid {
-                what: "voxel size".into(),
-                why: format!(
-                    "{size} m is not within [{}, {}] m",
-                    VOXEL_RANGE.0, VOXEL_RANGE.1
-                ),
-            });
-        }
+        check_size(size)?;
         if self.cells.len() > MAX_VOXELS {
             return Err(Error::Invalid {
                 what: "point cloud".into(),
@@ -128,6 +112,20 @@ impl Voxels {
         }
         Ok(())
     }
+}
+
+/// A voxel edge (m) within [`VOXEL_RANGE`].
+fn check_size(size: f64) -> Result<()> {
+    if !size.is_finite() || !(VOXEL_RANGE.0..=VOXEL_RANGE.1).contains(&size) {
+        return Err(Error::Invalid {
+            what: "voxel size".into(),
+            why: format!(
+                "{size} m is not within [{}, {}] m",
+                VOXEL_RANGE.0, VOXEL_RANGE.1
+            ),
+        });
+    }
+    Ok(())
 }
 
 /// What the planner plans around.

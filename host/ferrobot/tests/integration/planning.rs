@@ -391,21 +391,26 @@ fn planned_motions_in_the_tabletop_touch_nothing_in_the_physics_engine() {
     assert!(contacts.is_empty(), "{contacts:?}");
 }
 
-/// An arm that starts with two of its own links touching (as one that sagged while its servos
-/// were off) still plans out; a start touching an object stays an error (see above).
-#[test]
-fn a_start_in_self_collision_is_left() {
-    let bot = Robot::new("locobot").expect("robot");
-    let arm = bot.arm().expect("arm");
-    let sagged = [0.0, 1.55, 0.0, 0.0, 0.0];
+/// The LoCoBot's arm moved without planning to where two of its own links touch (as
+/// one that sagged while its servos were off).
+fn sag(arm: &ferrobot::arm::Arm) {
     arm.set_joint_positions_with(
-        &sagged,
+        &[0.0, 1.55, 0.0, 0.0, 0.0],
         ferrobot::MoveOptions {
             plan: false,
             ..Default::default()
         },
     )
     .expect("sag");
+}
+
+/// An arm that starts with two of its own links touching (as one that sagged while its servos
+/// were off) still plans out; a start touching an object stays an error (see above).
+#[test]
+fn a_start_in_self_collision_is_left() {
+    let bot = Robot::new("locobot").expect("robot");
+    let arm = bot.arm().expect("arm");
+    sag(&arm);
     let c = arm.get_collision_state().expect("state");
     assert!(c.is_some(), "the sagged arm touches itself");
     arm.set_joint_positions(&[0.0; 5]).expect("plans out");
@@ -417,15 +422,7 @@ fn a_start_in_self_collision_is_left() {
 fn a_start_in_self_collision_may_not_end_in_it() {
     let bot = Robot::new("locobot").expect("robot");
     let arm = bot.arm().expect("arm");
-    let sagged = [0.0, 1.55, 0.0, 0.0, 0.0];
-    arm.set_joint_positions_with(
-        &sagged,
-        ferrobot::MoveOptions {
-            plan: false,
-            ..Default::default()
-        },
-    )
-    .expect("sag");
+    sag(&arm);
     let c = arm.get_collision_state().expect("state").expect("touching");
     // Turning the base joint keeps the same two links touching.
     match arm.make_plan_joint_positions(&[0.3, 1.55, 0.0, 0.0, 0.0]) {
