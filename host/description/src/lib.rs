@@ -11,7 +11,7 @@
 pub mod camera_mount;
 pub use camera_mount::{CameraCalibration, CameraMount};
 
-use std::collections::BTreeSet;
+use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
 use ferrobot_firmware::config::{
@@ -720,6 +720,9 @@ impl RobotConfig {
         let urdf_text = read_urdf(&raw.urdf)?;
         let urdf = urdf_rs::read_from_string(&urdf_text)
             .map_err(|e| cfg_err(file, "urdf", format!("invalid URDF: {e}")))?;
+        // Names, links, axes and origins, then the tree: one root, no cycle, every link on it.
+        ferrobot_kinematics::LinkTree::from_urdf(&urdf)
+            .map_err(|e| cfg_err(file, "urdf", format!("invalid URDF: {e}")))?;
         Self::validate(raw, urdf, file)
     }
 
@@ -728,8 +731,18 @@ impl RobotConfig {
         // The joint table.
         let mut ids = BTreeSet::new();
         let mut joints = Vec::new();
+        let mut names = BTreeSet::new();
+        // Each table joint's limits as checked (before the table's `f32`), rad or m.
+        let mut checked: BTreeMap<&str, (f64, f64)> = BTreeMap::new();
         for (i, j) in raw.joints.iter().enumerate() {
             let key = |k: &str| format!("joint[{i}].{k}");
+            if !names.insert(j.name.as_str()) {
+                return Err(cfg_err(
+                    file,
+                    key("name"),
+                    format!("joint {:?} has two [[joint]] entries", j.name),
+                ));
+            }
             let model = match j.servo.model.as_str() {
                 "xm430-w350" => ServoModel::Xm430W350,
                 "xl430-w250" => ServoModel::Xl430W250,
@@ -836,6 +849,7 @@ impl RobotConfig {
             if let Some(k) = j.position_ki {
                 num(file, key("position_ki"), k, 0.0, gmax)?;
             }
+            checked.insert(j.name.as_str(), (min, max));
             let kind = match j.kind {
                 JointRole::Arm => JointKind::Arm,
                 JointRole::Head => JointKind::Head,
@@ -986,8 +1000,15 @@ impl RobotConfig {
                 0.1,
                 validate::MAX_DURATION_S,
             )?;
-            let chain = Chain::from_urdf(&urdf, &arm.base_frame, &arm.ee_frame)
+            let mut chain = Chain::from_urdf(&urdf, &arm.base_frame, &arm.ee_frame)
                 .map_err(|e| cfg_err(file, "arm.ee_frame", e.to_string()))?;
+            // The limits the table checked (and the configuration may override), not the
+            // URDF's: IK answers within what the arm is allowed.
+            for cj in &mut chain.joints {
+                if let Some(&(lo, hi)) = checked.get(cj.name.as_str()) {
+                    (cj.lower, cj.upper) = (lo, hi);
+                }
+            }
             let names: Vec<&str> = chain.joints.iter().map(|j| j.name.as_str()).collect();
             if names != arm.joints.iter().map(String::as_str).collect::<Vec<_>>() {
                 return Err(cfg_err(
@@ -996,6 +1017,17 @@ impl RobotConfig {
                     format!(
                         "the URDF chain {} -> {} moves {names:?}",
                         arm.base_frame, arm.ee_frame
+                    ),
+                ));
+            }
+            if arm.ik == IkKind::Numerical && names.len() > ferrobot_kinematics::ik::MAX_DOF {
+                return Err(cfg_err(
+                    file,
+                    "arm.ik",
+                    format!(
+                        "the numerical solver handles at most {} joints; the arm has {}",
+                        ferrobot_kinematics::ik::MAX_DOF,
+                        names.len()
                     ),
                 ));
             }

@@ -246,6 +246,18 @@ impl IkSolver for NumericalIk {
                 ),
             });
         }
+        if let Some(j) = chain
+            .joints
+            .iter()
+            .find(|j| !(j.lower.is_finite() && j.upper.is_finite() && j.lower <= j.upper))
+        {
+            return Err(Error::Unreachable {
+                why: format!(
+                    "joint {} has limits [{}, {}]: the solver needs finite limits, lower first",
+                    j.name, j.lower, j.upper
+                ),
+            });
+        }
         let start = Instant::now();
         let deadline = start + opts.timeout;
         let mut w = Work {

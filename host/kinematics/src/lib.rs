@@ -13,7 +13,7 @@ pub mod locobot_ik;
 pub mod tree;
 
 pub use error::{Error, Result};
-pub use tree::{LinkTree, TreeJoint};
+pub use tree::{check_urdf, LinkTree, TreeJoint};
 
 use nalgebra::{Isometry3, Matrix6xX, Translation3, UnitQuaternion, Vector3, Vector6};
 
@@ -107,7 +107,16 @@ impl Chain {
                     JointType::Revolute
                 }
                 urdf_rs::JointType::Prismatic => JointType::Prismatic,
-                _ => continue,
+                urdf_rs::JointType::Fixed => continue,
+                _ => {
+                    return Err(Error::Unreachable {
+                        why: format!(
+                            "joint {} between {base} and {tip} is {:?}: a chain holds revolute, \
+                             continuous, prismatic and fixed joints",
+                            j.name, j.joint_type
+                        ),
+                    })
+                }
             };
             let (lower, upper) = if j.joint_type == urdf_rs::JointType::Continuous {
                 (-std::f64::consts::TAU, std::f64::consts::TAU)
@@ -218,6 +227,45 @@ impl Chain {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A chain built straight from a URDF whose limits are absent (infinite) or inverted is
+    /// refused by the numerical IK with a typed error (the restarts' draw once panicked); a
+    /// floating joint between base and tip is refused when the chain is built.
+    #[test]
+    fn chains_with_unusable_joints_are_errors_not_panics() {
+        use crate::ik::{IkOptions, IkSolver, NumericalIk};
+        let text = include_str!("../../description/robots/sawyer.urdf");
+        let urdf = urdf_rs::read_from_string(text).expect("urdf");
+        let good = Chain::from_urdf(&urdf, "base", "right_hand").expect("chain");
+        // Out of reach: the solver restarts until its timeout.
+        let far = Isometry3::translation(5.0, 0.0, 0.0);
+        let opts = IkOptions {
+            timeout: std::time::Duration::from_millis(20),
+            ..IkOptions::default()
+        };
+        for (lo, hi) in [
+            (f64::NEG_INFINITY, f64::INFINITY),
+            (1.0, -1.0),
+            (f64::NAN, 1.0),
+        ] {
+            let mut chain = good.clone();
+            chain.joints[2].lower = lo;
+            chain.joints[2].upper = hi;
+            let err = NumericalIk
+                .solve(&chain, &far, None, &opts)
+                .expect_err("refused");
+            assert!(err.to_string().contains("limits"), "{err}");
+        }
+        let mut floating = urdf.clone();
+        let j = floating
+            .joints
+            .iter_mut()
+            .find(|j| j.name == "right_j3")
+            .expect("right_j3");
+        j.joint_type = urdf_rs::JointType::Floating;
+        let err = Chain::from_urdf(&floating, "base", "right_hand").expect_err("refused");
+        assert!(err.to_string().contains("right_j3"), "{err}");
+    }
 
     #[test]
     fn jacobian_matches_finite_differences() {

@@ -38,9 +38,69 @@ pub struct LinkTree {
     index: HashMap<String, usize>,
 }
 
+/// Checks what the tree and the planner rely on in `urdf` and its parser does not: link and
+/// joint names each used once, every joint's parent and child among the links, finite joint
+/// origins, finite non-zero axes of revolute, continuous and prismatic joints, and finite
+/// collision origins.
+pub fn check_urdf(urdf: &urdf_rs::Robot) -> Result<()> {
+    let bad = |why: String| Error::Unreachable { why };
+    let mut links = std::collections::HashSet::new();
+    for l in &urdf.links {
+        if !links.insert(l.name.as_str()) {
+            return Err(bad(format!("link {:?} is defined twice", l.name)));
+        }
+        if l.collision.iter().any(|c| !pose_finite(&c.origin)) {
+            return Err(bad(format!(
+                "link {:?} has a collision origin that is not finite",
+                l.name
+            )));
+        }
+    }
+    let mut joints = std::collections::HashSet::new();
+    for j in &urdf.joints {
+        if !joints.insert(j.name.as_str()) {
+            return Err(bad(format!("joint {:?} is defined twice", j.name)));
+        }
+        for (end, link) in [("parent", &j.parent.link), ("child", &j.child.link)] {
+            if !links.contains(link.as_str()) {
+                return Err(bad(format!(
+                    "joint {:?} names {end} link {link:?}, which the URDF does not define",
+                    j.name
+                )));
+            }
+        }
+        if !pose_finite(&j.origin) {
+            return Err(bad(format!(
+                "joint {:?} has an origin that is not finite",
+                j.name
+            )));
+        }
+        let movable = matches!(
+            j.joint_type,
+            urdf_rs::JointType::Revolute
+                | urdf_rs::JointType::Continuous
+                | urdf_rs::JointType::Prismatic
+        );
+        let a = Vector3::new(j.axis.xyz[0], j.axis.xyz[1], j.axis.xyz[2]);
+        if movable && !(a.iter().all(|v| v.is_finite()) && a.norm() > 1e-9) {
+            return Err(bad(format!(
+                "joint {:?} has axis {:?}: it needs a finite, non-zero one",
+                j.name, j.axis.xyz
+            )));
+        }
+    }
+    Ok(())
+}
+
+fn pose_finite(p: &urdf_rs::Pose) -> bool {
+    p.xyz.iter().chain(p.rpy.iter()).all(|v| v.is_finite())
+}
+
 impl LinkTree {
-    /// The tree of `urdf`, rooted at its one link without a parent joint.
+    /// The tree of `urdf`, rooted at its one link without a parent joint; `urdf` must pass
+    /// [`check_urdf`].
     pub fn from_urdf(urdf: &urdf_rs::Robot) -> Result<Self> {
+        check_urdf(urdf)?;
         let unreachable = |why: String| Error::Unreachable { why };
         let mut parent_joint: HashMap<&str, &urdf_rs::Joint> = HashMap::new();
         for j in &urdf.joints {
@@ -112,7 +172,7 @@ impl LinkTree {
         if tree.nodes.len() != urdf.links.len() {
             return Err(unreachable(format!(
                 "{} of the URDF's {} links hang from no joint path to the root",
-                urdf.links.len() - tree.nodes.len(),
+                urdf.links.len().saturating_sub(tree.nodes.len()),
                 urdf.links.len()
             )));
         }

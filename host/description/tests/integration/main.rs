@@ -2,3 +2,4 @@
 
 mod firmware_profiles;
 mod gravity_model;
+mod malformed;
