@@ -37,7 +37,8 @@ pub(crate) struct SlamRunner {
     frames: Frames,
     optical: String,
     last: Option<TrackReport>,
-    /// The last failure to feed a frame.
+    /// The last failure to take, place or track a frame, or to refresh the grid, since a
+    /// frame was last tracked (a passing hiccup does not stay an error for good).
     error: Option<String>,
     /// The occupancy grid of SLAM's map, kept up to date for the goals that plan on it (each
     /// refresh counts only the keyframes that are new or that a loop closure moved).
@@ -183,6 +184,7 @@ impl Io {
         }) {
             Ok(r) => {
                 runner.last = Some(r);
+                runner.error = None;
                 if r.state != TrackState::Lost {
                     let map = Pose2::from(optimise::to_planar(&r.pose));
                     self.sense

@@ -109,8 +109,14 @@ impl PointCloud {
     }
 }
 
+/// The images' sizes agree with the intrinsics and with each other, and their buffers with
+/// their sizes (their fields are public: an image need not come from its `new`).
 fn check_sizes(k: &Intrinsics, depth: &DepthImage, rgb: Option<&RgbImage>) -> Result<()> {
     k.validate()?;
+    depth.check()?;
+    if let Some(c) = rgb {
+        c.check()?;
+    }
     if depth.width != k.width || depth.height != k.height {
         return Err(PerceptionError::Size(format!(
             "depth image {}x{} but intrinsics for {}x{}",
@@ -209,6 +215,35 @@ mod tests {
 
     fn k() -> Intrinsics {
         Intrinsics::new(8, 6, 10.0, 10.0, 4.0, 3.0).unwrap()
+    }
+
+    /// Images built without their `new` (the fields are public) whose buffers do not hold
+    /// their sizes are size errors, not points of rows that do not exist or a panic.
+    #[test]
+    fn images_whose_buffers_lie_are_refused() {
+        let depth = |n: usize| DepthImage {
+            width: 8,
+            height: 6,
+            data: vec![1.0; n],
+        };
+        let rgb = |n: usize| RgbImage {
+            width: 8,
+            height: 6,
+            data: vec![9; n],
+        };
+        let range = DepthRange::PYROBOT;
+        for n in [0, 47, 49, 96] {
+            let r = backproject(&k(), &depth(n), None, range);
+            assert!(matches!(r, Err(PerceptionError::Size(_))), "{n}: {r:?}");
+            let r = pixels_to_points(&k(), &depth(n), None, &[5], &[7]);
+            assert!(matches!(r, Err(PerceptionError::Size(_))), "{n}: {r:?}");
+        }
+        for n in [0, 143, 145] {
+            let r = backproject(&k(), &depth(48), Some(&rgb(n)), range);
+            assert!(matches!(r, Err(PerceptionError::Size(_))), "{n}: {r:?}");
+        }
+        let cloud = backproject(&k(), &depth(48), Some(&rgb(144)), range).expect("good");
+        assert_eq!(cloud.len(), 48);
     }
 
     #[test]

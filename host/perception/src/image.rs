@@ -30,6 +30,21 @@ impl RgbImage {
         })
     }
 
+    /// Whether the buffer holds `width * height * 3` bytes, as [`RgbImage::new`] makes sure
+    /// (the fields are public, so an image built otherwise is checked before use).
+    pub fn check(&self) -> Result<()> {
+        let n = self.width as usize * self.height as usize * 3;
+        if self.data.len() != n {
+            return Err(PerceptionError::Size(format!(
+                "a {}x{} colour image holds {} bytes, not {n}",
+                self.width,
+                self.height,
+                self.data.len()
+            )));
+        }
+        Ok(())
+    }
+
     /// The colour of pixel (row, col); `None` outside the image.
     pub fn get(&self, row: usize, col: usize) -> Option<[u8; 3]> {
         if row >= self.height as usize || col >= self.width as usize {
@@ -75,6 +90,21 @@ impl DepthImage {
         })
     }
 
+    /// Whether the buffer holds `width * height` depths, as [`DepthImage::new`] makes sure
+    /// (the fields are public, so an image built otherwise is checked before use).
+    pub fn check(&self) -> Result<()> {
+        let n = self.width as usize * self.height as usize;
+        if self.data.len() != n {
+            return Err(PerceptionError::Size(format!(
+                "a {}x{} depth image holds {} values, not {n}",
+                self.width,
+                self.height,
+                self.data.len()
+            )));
+        }
+        Ok(())
+    }
+
     /// The depth of pixel (row, col), m (0 = invalid); `None` outside the image.
     pub fn get(&self, row: usize, col: usize) -> Option<f32> {
         if row >= self.height as usize || col >= self.width as usize {
@@ -87,12 +117,17 @@ impl DepthImage {
     /// `tolerance` (m) at the same pixel or at one within `radius` px: how alike two images of
     /// one scene are when their cameras differ by a pixel's worth of pose (silhouettes move by
     /// a pixel, surfaces do not). Invalid (0) matches only invalid. 0 for images of different
-    /// sizes.
+    /// sizes or buffers that do not hold their sizes; a radius beyond the image is the image.
     pub fn agreement(&self, other: &DepthImage, tolerance: f32, radius: usize) -> f64 {
-        if (self.width, self.height) != (other.width, other.height) || self.data.is_empty() {
+        if (self.width, self.height) != (other.width, other.height)
+            || self.data.is_empty()
+            || self.check().is_err()
+            || other.check().is_err()
+        {
             return 0.0;
         }
         let (w, h) = (self.width as usize, self.height as usize);
+        let radius = radius.min(w.max(h));
         let mut agree = 0usize;
         for r in 0..h {
             for c in 0..w {

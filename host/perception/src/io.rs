@@ -189,9 +189,19 @@ pub fn read_depth_png_scaled(path: impl AsRef<Path>, per_metre: f64) -> Result<D
     DepthImage::new(info.width, info.height, data)
 }
 
-/// Write a cloud as a binary little-endian PLY: `x y z` float (m), `red green blue` uchar.
+/// Write a cloud as a binary little-endian PLY: `x y z` float (m), `red green blue` uchar; a
+/// cloud whose colours are not one a point is an error, and no file is made.
 pub fn write_ply(path: impl AsRef<Path>, cloud: &PointCloud) -> Result<()> {
     let p = path.as_ref();
+    // Checked before the file is made: the header counts points, the body pairs them with
+    // colours.
+    if cloud.colours.len() != cloud.points.len() {
+        return Err(PerceptionError::Size(format!(
+            "a cloud of {} points has {} colours",
+            cloud.points.len(),
+            cloud.colours.len()
+        )));
+    }
     let file = std::fs::File::create(p).map_err(|e| io_err(p, e))?;
     let mut w = BufWriter::new(file);
     let header = format!(
@@ -357,12 +367,21 @@ pub fn read_ply(path: impl AsRef<Path>) -> Result<PointCloud> {
         (Some(a), Some(b), Some(c)) => Some([a, b, c]),
         _ => None,
     };
+    let stride: usize = props.iter().map(|q| q.kind.size()).sum();
+    // Every vertex takes at least its stride in binary, a character and a separator a value
+    // in text: a count the file cannot hold is refused before anything is reserved for it.
+    let least = if binary { stride } else { 2 * props.len() };
+    if n.checked_mul(least).is_none_or(|b| b as u64 > len) {
+        return Err(malformed(
+            p,
+            format!("{n} vertices of at least {least} bytes each in {len} bytes"),
+        ));
+    }
     let mut cloud = PointCloud {
         points: Vec::with_capacity(n),
         colours: Vec::with_capacity(n),
     };
     let mut vals = vec![0.0f64; props.len()];
-    let stride: usize = props.iter().map(|q| q.kind.size()).sum();
     let mut buf = vec![0u8; stride];
     let mut text = String::new();
     for v in 0..n {
@@ -464,6 +483,27 @@ mod tests {
                 "{name}: {e}"
             );
         }
+        // A count the file's bytes cannot hold (60 bytes of vertices claimed in a file of a
+        // few hundred): refused before anything is reserved for it (a 1 GiB file could ask
+        // for tens of gigabytes).
+        let p = tmp("count.ply");
+        let mut bytes = b"ply\nformat binary_little_endian 1.0\nelement vertex 20\nproperty float x\nproperty float y\nproperty float z\nend_header\n".to_vec();
+        bytes.extend_from_slice(&[0u8; 60]);
+        std::fs::write(&p, &bytes).unwrap();
+        let e = read_ply(&p).expect_err("count");
+        assert!(e.to_string().contains("20 vertices"), "{e}");
+        // A cloud with fewer colours than points is refused, and no file is made.
+        let p = tmp("uneven.ply");
+        let _ = std::fs::remove_file(&p);
+        let uneven = PointCloud {
+            points: vec![Point3::new(0.5, -0.25, 1.0), Point3::new(1.0, 2.0, 3.0)],
+            colours: vec![[1, 2, 3]],
+        };
+        assert!(matches!(
+            write_ply(&p, &uneven),
+            Err(PerceptionError::Size(_))
+        ));
+        assert!(!p.exists());
         let ok = tmp("ascii.ply");
         std::fs::write(&ok, b"ply\nformat ascii 1.0\nelement vertex 1\nproperty double x\nproperty double y\nproperty double z\nend_header\n1 2 3\n").unwrap();
         assert_eq!(read_ply(&ok).unwrap().points[0], Point3::new(1.0, 2.0, 3.0));

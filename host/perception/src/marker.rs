@@ -93,6 +93,13 @@ pub fn detect_square(
             range: "[1, 10000] px",
         });
     }
+    img.check()?;
+    if img.width < 2 || img.height < 2 {
+        return Err(PerceptionError::Size(format!(
+            "a {}x{} image is too small to find a marker in",
+            img.width, img.height
+        )));
+    }
     let grey = Grey::new(img);
     let (w, h) = (grey.w as f64, grey.h as f64);
     let not_seen = |why: String| Err(PerceptionError::MarkerNotSeen(why));
@@ -392,6 +399,25 @@ fn shoelace(p: &[[f64; 2]; 4]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// An empty or one-pixel image, or one whose buffer does not hold its size (built without
+    /// `new`), is a size error (the bilinear sample's `w - 1` underflowed on an empty one).
+    #[test]
+    fn images_too_small_or_lying_are_size_errors() {
+        let q = [[1.0, 1.0], [3.0, 1.0], [3.0, 3.0], [1.0, 3.0]];
+        for (w, h, n) in [(0, 0, 0), (1, 1, 3), (8, 8, 3), (8, 8, 0)] {
+            let img = RgbImage {
+                width: w,
+                height: h,
+                data: vec![200; n],
+            };
+            let r = detect_square(&img, &q, 5.0);
+            assert!(
+                matches!(r, Err(PerceptionError::Size(_))),
+                "{w}x{h} ({n}): {r:?}"
+            );
+        }
+    }
 
     /// A light image with a dark quadrilateral of corners `q`, each pixel the mean of 8 x 8
     /// samples over its area (as the simulator's camera renders its marker).

@@ -24,7 +24,9 @@ pub mod trajectory;
 pub use dataset::{Dataset, DatasetWriter};
 pub use error::{Error, Result};
 pub use map::{Keyframe, Map};
-pub use maps::{map_iou, map_iou_seen, reachable_part, GridSettings, MapIou, OccupancyGrid};
+pub use maps::{
+    map_iou, map_iou_seen, reachable_part, GridSettings, MapIou, OccupancyGrid, MAX_SLACK,
+};
 pub use optimise::Dof;
-pub use slam::{RgbdInput, Slam, SlamSettings, TrackReport, TrackState};
+pub use slam::{RgbdInput, Slam, SlamSettings, TrackReport, TrackState, MAX_INLIERS, MAX_LOOP_AGE};
 pub use trajectory::{ate, parse_tum, to_tum, write_tum, Ate, Stamped};

@@ -137,6 +137,24 @@ impl GridSettings {
                 ),
             });
         }
+        // A cell no ray reached would pass `min_hits = 0` and be occupied; a NaN ratio or
+        // floor would mark nothing, or drop every floor ray.
+        if s.min_hits == 0 || !(s.min_ratio.is_finite() && (0.0..=1.0).contains(&s.min_ratio)) {
+            return Err(Error::InvalidSettings {
+                why: format!(
+                    "min_hits {} must be at least 1 and min_ratio {} in [0, 1]",
+                    s.min_hits, s.min_ratio
+                ),
+            });
+        }
+        if !(s.floor.is_finite() && s.floor <= s.band[0]) {
+            return Err(Error::InvalidSettings {
+                why: format!(
+                    "the floor's height {} m must be finite and not above the band {:?} m",
+                    s.floor, s.band
+                ),
+            });
+        }
         Ok(slabs)
     }
 }
@@ -468,10 +486,14 @@ impl OccupancyGrid {
 /// Agreement of two maps of the same resolution: the intersection over union of their free
 /// cells and of their occupied cells, over the cells of `truth` (cells of `estimate` outside it,
 /// or `Unknown`, count as not free and not occupied). Occupied cells match within `slack`
-/// cells (a wall drawn one cell off still counts).
+/// cells (a wall drawn one cell off still counts), at most [`MAX_SLACK`].
 pub fn map_iou(estimate: &MapImage, truth: &MapImage, slack: usize) -> Result<MapIou> {
     map_iou_seen(estimate, truth, truth, slack)
 }
+
+/// Largest `slack` of [`map_iou`] and [`map_iou_seen`], cells: each occupied cell looks at
+/// (2·slack + 1)² cells.
+pub const MAX_SLACK: usize = 100;
 
 /// As [`map_iou`] against `must`, the part of the truth a map must hold (say the
 /// [`reachable_part`] of a floor plan: floor the robot can reach and the faces next to it),
@@ -485,6 +507,20 @@ pub fn map_iou_seen(
     slack: usize,
 ) -> Result<MapIou> {
     let truth = must;
+    for (what, m) in [
+        ("estimate", estimate),
+        ("truth", must),
+        ("whole truth", all),
+    ] {
+        m.check().map_err(|e| Error::Trajectory {
+            why: format!("{what} map: {e}"),
+        })?;
+    }
+    if slack > MAX_SLACK {
+        return Err(Error::Trajectory {
+            why: format!("a slack of {slack} cells is more than {MAX_SLACK}"),
+        });
+    }
     for m in [estimate, all] {
         if (m.resolution - truth.resolution).abs() > 1e-9 {
             return Err(Error::Trajectory {

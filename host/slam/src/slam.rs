@@ -91,9 +91,10 @@ pub struct SlamSettings {
     pub keyframe_distance: f64,
     /// ... or this much turn, rad.
     pub keyframe_angle: f64,
-    /// Fewest inlier matches that make a pose.
+    /// Fewest inlier matches that make a pose, 6 to [`MAX_INLIERS`].
     pub min_inliers: usize,
-    /// Keyframes older than this many are "old": seeing many of their landmarks closes a loop.
+    /// Keyframes older than this many are "old": seeing many of their landmarks closes a loop;
+    /// 1 to [`MAX_LOOP_AGE`].
     pub loop_age: usize,
     /// Odometry's error per metre driven (fraction) and per radian turned (fraction).
     pub odometry_drift: [f64; 2],
@@ -154,8 +155,18 @@ impl SlamSettings {
         if !(pos(self.keyframe_distance) && pos(self.keyframe_angle)) {
             return bad("keyframe spacing must be finite and positive".into());
         }
-        if self.min_inliers < 6 || self.cloud_stride == 0 || self.cloud_stride > 64 {
-            return bad("min_inliers must be at least 6 and cloud_stride in 1..=64".into());
+        if !(6..=MAX_INLIERS).contains(&self.min_inliers)
+            || self.cloud_stride == 0
+            || self.cloud_stride > 64
+        {
+            return bad(format!(
+                "min_inliers must be in 6..={MAX_INLIERS} and cloud_stride in 1..=64"
+            ));
+        }
+        // A loop needs keyframes older than the ones tracking sees: at 0 every keyframe would
+        // be old, and every frame would close a loop with its neighbours.
+        if !(1..=MAX_LOOP_AGE).contains(&self.loop_age) {
+            return bad(format!("loop_age must be in 1..={MAX_LOOP_AGE} keyframes"));
         }
         if !self.odometry_drift.iter().all(|&x| pos(x))
             || !self.odometry_agreement.iter().all(|&x| pos(x))
@@ -165,6 +176,12 @@ impl SlamSettings {
         Ok(())
     }
 }
+
+/// Largest [`SlamSettings::min_inliers`]: far more than any frame's features (a multiple of
+/// it is compared with feature counts).
+pub const MAX_INLIERS: usize = 100_000;
+/// Largest [`SlamSettings::loop_age`], keyframes.
+pub const MAX_LOOP_AGE: usize = 100_000;
 
 /// One RGB-D frame and what the robot knew when it was taken.
 #[derive(Debug, Clone, Copy)]

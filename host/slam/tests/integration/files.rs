@@ -231,6 +231,21 @@ fn maps_with_points_far_away_are_refused_or_too_large_to_grid_not_a_panic() {
             surface: -1.0,
             ..Default::default()
         },
+        // Cells no ray reached were occupied.
+        ferrobot_slam::GridSettings {
+            min_hits: 0,
+            ..Default::default()
+        },
+        // Nothing was ever occupied.
+        ferrobot_slam::GridSettings {
+            min_ratio: f64::NAN,
+            ..Default::default()
+        },
+        // Every floor ray was dropped.
+        ferrobot_slam::GridSettings {
+            floor: f64::NAN,
+            ..Default::default()
+        },
     ] {
         let e = ferrobot_slam::OccupancyGrid::new(s);
         assert!(matches!(e, Err(Error::InvalidSettings { .. })), "{s:?}");

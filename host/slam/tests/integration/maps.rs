@@ -73,4 +73,14 @@ fn a_bed_seen_from_above_is_right_and_an_obstacle_in_the_open_is_wrong() {
     // Truths on different grids are refused.
     let other = MapImage::from_occupied([0.1, 0.0], 0.1, 20, 12, &[false; 240]);
     assert!(map_iou_seen(&top, &part, &other, 0).is_err());
+    // A map whose cells do not fill it (a panic before), a NaN resolution, and a slack whose
+    // window would take billions of lookups a cell are errors.
+    let mut short = top.clone();
+    short.cells.truncate(10);
+    assert!(map_iou_seen(&short, &part, &plan, 0).is_err());
+    let mut nan = top.clone();
+    nan.resolution = f64::NAN;
+    assert!(map_iou_seen(&nan, &part, &plan, 0).is_err());
+    assert!(map_iou_seen(&top, &part, &plan, 10_000).is_err());
+    assert!(map_iou(&top, &part, ferrobot_slam::MAX_SLACK).is_ok());
 }

@@ -532,6 +532,16 @@ fn malformed_frames_and_settings_are_refused() {
             odometry_agreement: [0.0, 0.05],
             ..SlamSettings::handheld()
         },
+        // Every keyframe would be old, and every frame would close a loop.
+        SlamSettings {
+            loop_age: 0,
+            ..SlamSettings::handheld()
+        },
+        // Multiples of it overflowed.
+        SlamSettings {
+            min_inliers: usize::MAX,
+            ..SlamSettings::handheld()
+        },
     ] {
         assert!(matches!(
             Slam::new(s, k, Isometry3::identity()),
