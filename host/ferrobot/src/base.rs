@@ -1283,7 +1283,7 @@ impl Base {
         // The map and the circles are checked before the circles are stamped into it.
         grid.check()?;
         Obstacles::new(opts.obstacles.clone(), None)?;
-        let map = NavGoal::stamped(&grid, &opts.obstacles);
+        let map = NavGoal::stamped(&grid, &opts.obstacles)?;
         let mut nav = Navigator::new(&map, [goal[0], goal[1]], NavSettings::new(radius, lim))?;
         let scans = opts.live_obstacles && self.robot.config().camera.is_some();
         if scans {

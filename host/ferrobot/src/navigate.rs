@@ -69,13 +69,21 @@ pub(crate) struct NavGoal {
 }
 
 impl NavGoal {
-    /// `grid` with the round obstacles stamped in.
-    pub(crate) fn stamped(grid: &OccupancyGrid, circles: &[[f64; 3]]) -> OccupancyGrid {
-        let mut g = grid.clone();
+    /// `grid`, grown to hold every round obstacle (a circle beyond the map, or every circle
+    /// before SLAM has mapped anything, was lost), with them stamped in.
+    pub(crate) fn stamped(
+        grid: &OccupancyGrid,
+        circles: &[[f64; 3]],
+    ) -> ferrobot_nav::Result<OccupancyGrid> {
+        let corners: Vec<[f64; 2]> = circles
+            .iter()
+            .flat_map(|c| [[c[0] - c[2], c[1] - c[2]], [c[0] + c[2], c[1] + c[2]]])
+            .collect();
+        let mut g = grid.grown_to(&corners, 0.0)?;
         for &c in circles {
             g.fill_circle(c);
         }
-        g
+        Ok(g)
     }
 
     fn drive(&mut self, s: &mut Step<'_>, v: f64, w: f64) -> Option<Result<()>> {
@@ -126,7 +134,8 @@ impl Goal for NavGoal {
                     self.seen.1 = *n;
                     let set = g
                         .to_grid(false)
-                        .and_then(|g| self.nav.set_map(&Self::stamped(&g, &self.circles)));
+                        .and_then(|g| Self::stamped(&g, &self.circles))
+                        .and_then(|m| self.nav.set_map(&m));
                     if let Err(e) = set {
                         return Some(Err(e.into()));
                     }
@@ -457,5 +466,23 @@ impl Goal for ExploreGoal {
 
     fn halt(&mut self, link: &mut dyn crate::backend::Link) {
         crate::base::stop_base(link);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Round obstacles beyond the map (or on the one-cell map used before SLAM has mapped
+    /// anything) are kept: the map grows to hold them (they were clipped away before).
+    #[test]
+    fn circles_beyond_the_map_grow_it() {
+        let tiny = OccupancyGrid::new([0.0, 0.0], 0.02, 1, 1).expect("grid");
+        let map = NavGoal::stamped(&tiny, &[[1.0, 0.5, 0.1], [-0.6, -0.2, 0.05]]).expect("grown");
+        assert!(map.is_occupied([1.0, 0.5]) && map.is_occupied([-0.6, -0.2]));
+        assert!(!map.is_occupied([0.5, 0.5]));
+        assert_eq!(map.resolution, 0.02);
+        // Far beyond any map: an error, not a grid of 10¹⁸ cells.
+        assert!(NavGoal::stamped(&tiny, &[[1e12, 0.0, 0.1]]).is_err());
     }
 }

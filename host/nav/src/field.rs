@@ -10,6 +10,9 @@ use crate::obstacles::Obstacles;
 /// obstacles inflated by the robot radius (Dijkstra over a grid of [`NavField::CELL`] cells
 /// covering the start, the goal and the obstacles with a 2 m margin). Scoring the dynamic
 /// window on it instead of the straight-line distance removes the local minimum in front of an
+/// Most cells times round obstacles [`NavField::new`] takes (each a distance): a second or two.
+const MAX_WORK: f64 = 1e9;
+
 /// obstacle (Brock and Khatib's global dynamic window).
 #[derive(Debug, Clone)]
 pub struct NavField {
@@ -24,8 +27,9 @@ impl NavField {
     pub const CELL: f64 = 0.05;
 
     /// The field for `goal` from `start` among `obstacles` for a robot of `radius` (m); an
-    /// error when the points are not finite or the grid would have more than
-    /// [`ferrobot_geometry::validate::MAX_GRID_CELLS`] cells.
+    /// error when the points are not finite, the grid would have more than
+    /// [`ferrobot_geometry::validate::MAX_GRID_CELLS`] cells, or its cells times the round
+    /// obstacles would pass [`MAX_WORK`].
     pub fn new(
         start: [f64; 2],
         goal: [f64; 2],
@@ -55,14 +59,31 @@ impl NavField {
             }
             .into());
         }
+        // Each cell's clearance costs a distance to every circle: a budget on the product, so
+        // that many circles over a wide area are an error rather than hours of work.
+        let work = cells * (obstacles.circles.len() as f64 + 1.0);
+        if work > MAX_WORK {
+            return Err(ferrobot_geometry::ValueError::OutOfRange {
+                what: "navigation grid cells times round obstacles".into(),
+                value: work,
+                min: 1.0,
+                max: MAX_WORK,
+            }
+            .into());
+        }
         let (nx, ny) = (span(0) as usize, span(1) as usize);
-        let blocked = |i: usize, j: usize| {
-            let (x, y) = (
-                origin[0] + i as f64 * Self::CELL,
-                origin[1] + j as f64 * Self::CELL,
-            );
-            obstacles.clearance([x, y]) < radius
-        };
+        // Each cell's clearance once (a cell is reached from up to eight neighbours).
+        let closed: Vec<bool> = (0..nx * ny)
+            .map(|k| {
+                let (i, j) = (k % nx, k / nx);
+                let (x, y) = (
+                    origin[0] + i as f64 * Self::CELL,
+                    origin[1] + j as f64 * Self::CELL,
+                );
+                obstacles.clearance([x, y]) < radius
+            })
+            .collect();
+        let blocked = |i: usize, j: usize| closed[j * nx + i];
         let mut dist = vec![f64::INFINITY; nx * ny];
         let mut heap = std::collections::BinaryHeap::new();
         let gi = (((goal[0] - origin[0]) / Self::CELL).round() as usize).min(nx - 1);
@@ -337,6 +358,26 @@ impl Dwa {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Many round obstacles over a wide area (10,000 over 100 m, once about 10¹¹ distances,
+    /// eight times over) are refused at once; ten are planned round.
+    #[test]
+    fn many_obstacles_over_a_wide_area_are_refused_at_once() {
+        let circles: Vec<[f64; 3]> = (0..10_000)
+            .map(|k| [f64::from(k % 100), f64::from(k / 100), 0.05])
+            .collect();
+        let many = Obstacles::new(circles, None).expect("circles");
+        let t = std::time::Instant::now();
+        let r = NavField::new([-1.0, -1.0], [0.5, 0.5], &many, 0.2);
+        assert!(r.is_err(), "planned");
+        assert!(t.elapsed().as_secs_f64() < 1.0, "{:?}", t.elapsed());
+        let few = Obstacles::new(
+            (0..10).map(|k| [f64::from(k) * 0.5, 1.0, 0.1]).collect(),
+            None,
+        )
+        .expect("circles");
+        NavField::new([0.0, 0.0], [4.0, 2.0], &few, 0.2).expect("ten");
+    }
 
     /// A field whose grid would exceed the cell cap, or with a non-finite point, is refused
     /// before anything is allocated.

@@ -33,13 +33,15 @@ pub trait GlobalPlanner {
 }
 
 /// A* on the grid's cells, then the path pulled taut. A cell is open to the robot when its
-/// centre's clearance (exact Euclidean distance transform, to the nearest occupied cell's
-/// boundary) is at least the radius; straight lines of the pulled path are checked every
-/// quarter cell, and a step between neighbouring open cells (kept where no straight line is
-/// free) stays within 0.71 of a cell of an open cell's centre. So every point of the path keeps
-/// a clearance of at least `radius − 0.71 · resolution` (the distance field is 1-Lipschitz;
-/// between samples of a checked line its bilinear interpolation loses at most √2 times the
-/// eighth of a cell they are apart, less than the tolerance).
+/// centre's clearance (exact Euclidean distance transform to the nearest occupied cell's
+/// centre, less half a cell) is at least the radius; straight lines of the pulled path are
+/// checked every quarter cell, and a step between neighbouring open cells (kept where no
+/// straight line is free) stays within 0.71 of a cell of an open cell's centre. So every point
+/// of the path keeps a clearance of at least `radius − 0.71 · resolution` from the occupied
+/// cells' inscribed discs (the distance field is 1-Lipschitz; between samples of a checked line
+/// its bilinear interpolation loses at most √2 times the eighth of a cell they are apart, less
+/// than the tolerance), and of at least `radius − 0.92 · resolution` from their squares (a
+/// square's corner lies 0.21 of a cell beyond its inscribed disc).
 #[derive(Debug, Clone, Copy, Default)]
 pub struct GridAStar;
 

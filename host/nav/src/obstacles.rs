@@ -153,15 +153,24 @@ impl OccupancyGrid {
             .is_some_and(|(i, j)| self.occupied[j * self.width + i])
     }
 
-    /// Mark every cell whose centre lies within the circle `[x, y, r]` (m) occupied.
+    /// Mark every cell the circle `[x, y, r]` (m) overlaps occupied: the disc meets the cell's
+    /// square in more than its edge (a cell only touched stays as it was). A post thinner than
+    /// a cell marks the cells it stands in, wherever it stands; a cell-sized disc centred on a
+    /// cell marks that cell alone, and one centred on a corner the four around it. The part
+    /// of the circle outside the grid is not marked ([`OccupancyGrid::grown_to`] first).
     pub fn fill_circle(&mut self, c: Circle) {
         let r = c[2].max(0.0);
+        let h = 0.5 * self.resolution;
+        // Touching along an edge or at a corner, within rounding, is not overlapping.
+        let reach = r - 1e-9 * self.resolution;
         let lo = self.cell_clamped([c[0] - r, c[1] - r], f64::floor);
         let hi = self.cell_clamped([c[0] + r, c[1] + r], f64::ceil);
         for j in lo.1..=hi.1 {
             for i in lo.0..=hi.0 {
                 let [x, y] = self.centre(i, j);
-                if (x - c[0]).hypot(y - c[1]) <= r {
+                let dx = ((x - c[0]).abs() - h).max(0.0);
+                let dy = ((y - c[1]).abs() - h).max(0.0);
+                if dx.hypot(dy) < reach {
                     self.occupied[j * self.width + i] = true;
                 }
             }
@@ -325,9 +334,12 @@ impl DistanceField {
         }
     }
 
-    /// Distance (m) from `p` to the nearest occupied cell's boundary: the field bilinearly
-    /// interpolated (a distance field is 1-Lipschitz), less half a cell; outside the grid,
-    /// the nearest edge value plus the distance to the edge (the outside counts as free).
+    /// Distance (m) from `p` to the nearest occupied cell, taken as the disc inscribed in its
+    /// square: the field of distances between centres bilinearly interpolated (a distance
+    /// field is 1-Lipschitz), less half a cell. Towards a square's corner this is up to
+    /// (√2 − 1)/2 ≈ 0.21 of a cell more than the distance to the square itself. Outside the
+    /// grid, the nearest edge value plus the distance to the edge (the outside counts as
+    /// free).
     fn clearance(&self, p: [f64; 2]) -> f64 {
         let fx = (p[0] - self.origin[0]) / self.resolution;
         let fy = (p[1] - self.origin[1]) / self.resolution;
@@ -437,6 +449,31 @@ impl Obstacles {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A circle marks the cells it overlaps (cell (i, j) is the square of side `resolution`
+    /// about its centre): a 4 mm post off its cell's centre marks that cell (none before, when
+    /// only centres inside the circle counted); a cell-sized disc at a cell's centre marks that
+    /// cell alone, at a corner the four around it; one only touching a cell's edge leaves it.
+    #[test]
+    fn circles_mark_the_cells_they_overlap() {
+        let count = |g: &OccupancyGrid| g.occupied.iter().filter(|&&o| o).count();
+        let fresh = || OccupancyGrid::new([0.0, 0.0], 0.02, 10, 10).expect("grid");
+        let mut g = fresh();
+        g.fill_circle([0.055, 0.056, 0.004]);
+        assert_eq!(count(&g), 1);
+        assert!(g.is_occupied([0.06, 0.06]));
+        let mut g = fresh();
+        g.fill_circle([0.06, 0.06, 0.01]);
+        assert_eq!(count(&g), 1);
+        let mut g = fresh();
+        g.fill_circle([0.05, 0.05, 0.01]);
+        assert_eq!(count(&g), 4);
+        // Touching the edge x = 0.07 of the cells of column 3.
+        let mut g = fresh();
+        g.fill_circle([0.08, 0.06, 0.01]);
+        assert_eq!(count(&g), 1);
+        assert!(g.is_occupied([0.08, 0.06]));
+    }
 
     #[test]
     fn a_grid_line_runs_from_end_to_end_in_steps_of_one_cell() {

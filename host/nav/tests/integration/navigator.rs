@@ -289,3 +289,37 @@ fn boxed_in_fails_as_stalled_or_no_path() {
     assert!(d.time < 120.0, "{:.1} s", d.time);
     let _ = truth;
 }
+
+/// Seen obstacles count in the global plan on a map whose cell centres are the camera layer's
+/// cell corners, as SLAM's maps are (their corners on whole cells, centres half a cell in):
+/// a door the camera saw closed is no path (each seen cell was stamped as a disc about its
+/// centre, which on such a map holds no map cell's centre, so nothing was marked and the plan
+/// went through the door).
+#[test]
+fn a_door_seen_closed_is_no_path_on_a_map_half_a_cell_off() {
+    for origin in [-2.0, -2.01] {
+        let mut map = OccupancyGrid::new([origin, origin], 0.02, 201, 201).expect("grid");
+        for j in 0..map.height {
+            for i in 0..map.width {
+                let c = map.centre(i, j);
+                if c[0].abs() <= 0.05 && c[1].abs() > 0.45 {
+                    map.occupied[j * map.width + i] = true;
+                }
+            }
+        }
+        let mut nav = Navigator::new(&map, [0.8, 0.0], NavSettings::new(RADIUS, Limits::TRACKING))
+            .expect("navigator");
+        nav.plan(0.0, [-0.8, 0.0]).expect("open: through the door");
+        // The door's opening, seen from the start.
+        let door: Vec<[f64; 2]> = (-25..=25)
+            .flat_map(|k| [-0.04, -0.02, 0.0, 0.02, 0.04].map(|x| [x, 0.02 * f64::from(k)]))
+            .collect();
+        nav.observe(0.0, &scan([-0.8, 0.0, 0.0], door))
+            .expect("observe");
+        let r = nav.plan(0.1, [-0.8, 0.0]);
+        assert!(
+            matches!(r, Err(Error::NoPath { .. })),
+            "origin {origin}: {r:?}"
+        );
+    }
+}
