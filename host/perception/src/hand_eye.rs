@@ -169,6 +169,14 @@ impl HandEyeProblem {
                 range: "(0, 1000] px",
             });
         }
+        // A NaN would pass every sensitivity: the observability check silently off.
+        if !(self.min_sensitivity.is_finite() && self.min_sensitivity >= 0.0) {
+            return Err(PerceptionError::Parameter {
+                name: "minimum sensitivity",
+                value: self.min_sensitivity,
+                range: "[0, ∞) px per mm or mrad, finite",
+            });
+        }
         let finite = |p: &Isometry3<f64>| {
             p.translation.vector.iter().all(|v| v.is_finite())
                 && p.rotation.coords.iter().all(|v| v.is_finite())
@@ -343,5 +351,15 @@ mod tests {
         let mut p = problem(&t, 6);
         p.inlier_px = f64::NAN;
         assert!(matches!(p.solve(), Err(PerceptionError::Parameter { .. })));
+        // A NaN minimum turned the observability check off: one view then passed.
+        for bad in [f64::NAN, -1.0, f64::INFINITY] {
+            let mut p = problem(&t, 1);
+            p.min_views = 1;
+            p.min_sensitivity = bad;
+            assert!(
+                matches!(p.solve(), Err(PerceptionError::Parameter { .. })),
+                "{bad}"
+            );
+        }
     }
 }
