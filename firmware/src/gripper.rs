@@ -56,10 +56,18 @@ impl Gripper {
         };
     }
 
-    /// Stop where it is (watchdog, emergency stop): a closing gripper keeps what it holds.
+    /// Stop where it is (watchdog, emergency stop): a gripper opening, or closing on nothing
+    /// yet, stops (its servo goes back to its joint's control, which holds it); one closing on
+    /// an object it has felt keeps it, at the holding PWM. A closing gripper once kept closing
+    /// at full PWM through a stop.
     pub fn halt(&mut self) {
-        if self.state == GripperState::Opening {
-            self.state = GripperState::Unknown;
+        match self.state {
+            GripperState::Opening => self.state = GripperState::Unknown,
+            GripperState::Closing if self.load_since.is_some() => {
+                self.state = GripperState::Holding;
+            }
+            GripperState::Closing => self.state = GripperState::Unknown,
+            _ => {}
         }
     }
 

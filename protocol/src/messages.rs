@@ -381,7 +381,8 @@ pub enum RejectReason {
     Busy,
     /// A configuration value is invalid (sign not ±1, min > max, …).
     InvalidConfig,
-    /// A base safety sensor (bumper, cliff, wheel drop) is active.
+    /// A base safety sensor (bumper, cliff, wheel drop) is active, or the base's feedback
+    /// (which carries them) is lost.
     BaseSafety,
 }
 

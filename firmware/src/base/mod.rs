@@ -144,7 +144,8 @@ impl BaseDriver {
         }
     }
 
-    /// Command a body velocity (`v` m/s, `w` rad/s) for `duration`.
+    /// Command a body velocity (`v` m/s, `w` rad/s) for `duration`. Refused (but a stop) while
+    /// a safety sensor fires or the base's feedback is lost ([`RejectReason::BaseSafety`]).
     pub fn set_velocity(
         &mut self,
         now: Instant,
@@ -164,6 +165,10 @@ impl BaseDriver {
             return Err(RejectReason::BaseSafety);
         }
         if self.flags & base_flags::ANY_BUMPER != 0 && v > 0.0 {
+            return Err(RejectReason::BaseSafety);
+        }
+        // A base gone silent has no safety sensors: it may only be stopped.
+        if self.lost && (v != 0.0 || w != 0.0) {
             return Err(RejectReason::BaseSafety);
         }
         self.cmd = self.limit(v, w);
@@ -244,6 +249,12 @@ impl BaseDriver {
             if !self.lost && now >= t + self.cfg.feedback_timeout {
                 self.lost = true;
                 let _ = self.events.push_back(BaseEvent::Lost);
+                // Its bumper, cliff and wheel-drop sensors are no longer read: stop (the
+                // command was once repeated until its duration ran out, up to a minute).
+                if self.cmd != (0.0, 0.0) {
+                    self.cmd = (0.0, 0.0);
+                    self.next_send = now;
+                }
             }
         }
         if let Proto::Create2 { next_start, .. } = &mut self.proto {

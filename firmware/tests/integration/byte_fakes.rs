@@ -639,3 +639,82 @@ fn a_status_out_of_a_sync_reads_order_is_dropped() {
     assert!(fw.diagnostics().servo_stale > before);
     assert_eq!(fw.bus().servos[8].present.position, 3000);
 }
+
+/// The last wheel command queued for the Kobuki, `[speed, radius]` bytes.
+fn last_kobuki_command(fw: &mut Firmware) -> Option<Vec<u8>> {
+    let tx = fw.pending(Link::Base).to_vec();
+    fw.consume(Link::Base, tx.len());
+    let mut p = kobuki::Parser::new();
+    let mut last = None;
+    for b in tx {
+        if let Some(Ok(payload)) = p.push(b) {
+            if let Some(d) = kobuki::sub_payloads(payload)
+                .find(|(id, _)| *id == kobuki::CMD_BASE_CONTROL)
+                .map(|(_, d)| d.to_vec())
+            {
+                last = Some(d);
+            }
+        }
+    }
+    last
+}
+
+/// A base whose feedback stops (a cable pulled) is stopped at the feedback timeout, not when
+/// the command's duration runs out (its bumper and cliff sensors are no longer read), and is
+/// refused motion until it speaks again; a stop is always taken.
+#[test]
+fn a_base_gone_silent_is_stopped_and_refused_motion_until_it_speaks() {
+    let mut fw = Firmware::new(config::locobot(), "test", Instant::ZERO);
+    fw.on_host_bytes(Instant::ZERO, &hello());
+    let drive = |seq, v: f32| {
+        frame(
+            seq,
+            &HostMsg::BaseVelocity {
+                v,
+                w: 0.0,
+                duration_ms: 10_000,
+            },
+        )
+    };
+    for k in 0..5u64 {
+        fw.on_base_bytes(us(k * 20_000), &kobuki_feedback(0, 0, 0));
+    }
+    fw.on_host_bytes(us(80_000), &drive(1, 0.3));
+    fw.poll(us(80_000));
+    let cmd = last_kobuki_command(&mut fw).expect("a command");
+    assert_ne!(cmd, vec![0, 0, 0, 0], "driving");
+    // Silent since 80 ms; the host keeps talking (the watchdog stays fed).
+    fw.on_host_bytes(us(250_000), &frame(2, &HostMsg::GetDiagnostics));
+    fw.poll(us(270_000));
+    assert_ne!(
+        last_kobuki_command(&mut fw),
+        Some(vec![0, 0, 0, 0]),
+        "before the timeout"
+    );
+    fw.poll(us(290_000));
+    assert_eq!(
+        last_kobuki_command(&mut fw),
+        Some(vec![0, 0, 0, 0]),
+        "stopped at the timeout"
+    );
+    host_replies(&mut fw);
+    fw.on_host_bytes(us(300_000), &drive(3, 0.3));
+    fw.on_host_bytes(us(300_000), &drive(4, 0.0));
+    let rejects: Vec<_> = host_replies(&mut fw)
+        .into_iter()
+        .filter_map(|m| match m {
+            DeviceMsg::Ack { seq } => Some((seq, None)),
+            DeviceMsg::Reject { seq, reason } => Some((seq, Some(reason))),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(
+        rejects,
+        vec![(3, Some(RejectReason::BaseSafety)), (4, None)]
+    );
+    // It speaks again: motion is taken.
+    fw.on_base_bytes(us(320_000), &kobuki_feedback(0, 0, 0));
+    fw.on_host_bytes(us(330_000), &drive(5, 0.3));
+    fw.poll(us(330_000));
+    assert_ne!(last_kobuki_command(&mut fw), Some(vec![0, 0, 0, 0]));
+}

@@ -241,3 +241,69 @@ fn velocity_and_pwm_modes_move_the_joint_and_stop_at_its_limits() {
     let pan = s.telemetry.as_ref().expect("telemetry").joints[6].position;
     assert!((-2.71..=-2.6).contains(&pan), "pan at {pan}, limit -2.7");
 }
+
+/// The emergency stop stops the gripper in every state: closing on nothing (it kept closing at
+/// full PWM, a pinch), opening, and closing on an object, which it keeps holding.
+#[test]
+fn the_emergency_stop_stops_the_gripper_and_keeps_what_it_holds() {
+    let mut s = session("locobot");
+    let stop_mid = |s: &mut ferrobot_sim::lockstep::SimHost,
+                    cmd: GripperCommand,
+                    after_us: u64|
+     -> (i32, i32) {
+        s.command(&HostMsg::Gripper(cmd)).expect("gripper");
+        s.run_for(after_us);
+        s.command(&HostMsg::EmergencyStop).expect("stop");
+        // Let the servo brake (a few ticks), then it must stay put.
+        s.run_for(150_000);
+        let at_stop = gripper_ticks(s);
+        s.run_for(1_000_000);
+        let later = gripper_ticks(s);
+        s.command(&HostMsg::Resume).expect("resume");
+        (at_stop, later)
+    };
+    for (cmd, from) in [
+        (GripperCommand::Close, GripperCommand::Open),
+        (GripperCommand::Open, GripperCommand::Close),
+    ] {
+        s.command(&HostMsg::Gripper(from)).expect("from");
+        s.run_for(2_500_000);
+        let start = gripper_ticks(&s);
+        let (at_stop, later) = stop_mid(&mut s, cmd, 150_000);
+        assert!(
+            (later - at_stop).abs() <= 20,
+            "{cmd:?} from {start}: {at_stop} at the stop, {later} a second later"
+        );
+        assert!(
+            (at_stop - start).abs() >= 40
+                && (later
+                    - if cmd == GripperCommand::Close {
+                        1800
+                    } else {
+                        2800
+                    })
+                .abs()
+                    > 100,
+            "{cmd:?}: it had not moved, or it finished: {start} -> {at_stop} -> {later}"
+        );
+    }
+    // Holding an object: still held after the stop.
+    s.command(&HostMsg::Gripper(GripperCommand::Open))
+        .expect("open");
+    s.wait_telemetry(2_000_000, |t| t.gripper == GripperState::Open)
+        .expect("opens");
+    let at = ferrobot_protocol::dxl::units::tick_to_rad(2300) as f64;
+    s.sim.hw.chain.servo_mut(7).expect("gripper").obstacle = Some((at, true));
+    s.command(&HostMsg::Gripper(GripperCommand::Close))
+        .expect("close");
+    s.wait_telemetry(3_000_000, |t| t.gripper == GripperState::Holding)
+        .expect("holds");
+    s.command(&HostMsg::EmergencyStop).expect("stop");
+    s.run_for(1_000_000);
+    let g = gripper_ticks(&s);
+    assert!((2250..2350).contains(&g), "fingers at {g}");
+    assert_eq!(
+        s.telemetry.as_ref().expect("telemetry").gripper,
+        GripperState::Holding
+    );
+}
