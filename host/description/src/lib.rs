@@ -731,6 +731,23 @@ impl RobotConfig {
         // The joint table.
         let mut ids = BTreeSet::new();
         let mut joints = Vec::new();
+        // The firmware's bus drives at most this many servos, twins included; more were
+        // dropped without an error (a joint, or a twin's half of its torque, never driven).
+        let servos: usize = raw
+            .joints
+            .iter()
+            .map(|j| 1 + usize::from(j.servo.twin.is_some()))
+            .sum();
+        if servos > ferrobot_firmware::bus::MAX_SERVOS {
+            return Err(cfg_err(
+                file,
+                "joint",
+                format!(
+                    "{servos} servos (twins included); the firmware drives at most {}",
+                    ferrobot_firmware::bus::MAX_SERVOS
+                ),
+            ));
+        }
         let mut names = BTreeSet::new();
         // Each table joint's limits as checked (before the table's `f32`), rad or m.
         let mut checked: BTreeMap<&str, (f64, f64)> = BTreeMap::new();

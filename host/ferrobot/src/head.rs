@@ -63,8 +63,18 @@ impl Head {
                 let tel = io.link.telemetry()?;
                 let mut t = 0.2f64;
                 for &(j, v) in &sorted {
-                    let now = tel.joints.get(j).map(|s| s.position as f64).unwrap_or(v);
-                    t = t.max(1.5 * (v - now).abs() / (0.9 * cfg.joints[j].limits.velocity as f64));
+                    // A reported angle that is not a number within 0.1 rad of the joint's range
+                    // (hostile telemetry) is taken as the far end of the range from the target:
+                    // the slowest move, never an infinite duration.
+                    let c = &cfg.joints[j];
+                    let (lo, hi) = (c.limits.min as f64, c.limits.max as f64);
+                    let now = tel
+                        .joints
+                        .get(j)
+                        .map(|s| s.position as f64)
+                        .filter(|p| p.is_finite() && (lo - 0.1..=hi + 0.1).contains(p))
+                        .unwrap_or(if v - lo > hi - v { lo } else { hi });
+                    t = t.max(1.5 * (v - now).abs() / (0.9 * c.limits.velocity as f64));
                 }
                 io.send_rest_waypoint(mask, sorted.iter().map(|(_, v)| *v), t, "pan/tilt")?;
                 let started = io.link.now();

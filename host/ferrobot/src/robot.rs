@@ -242,6 +242,9 @@ impl std::fmt::Debug for Robot {
     }
 }
 
+/// How many times [`Robot::emergency_stop`] sends the stop before it gives up.
+pub const ESTOP_ATTEMPTS: usize = 3;
+
 impl Robot {
     /// A bundled robot (`locobot`, `locobot_lite`, `sawyer`) on the in-process simulator.
     pub fn new(name: &str) -> Result<Robot> {
@@ -451,7 +454,22 @@ impl Robot {
     ) -> Result<Motion> {
         let mut io = self.lock_io();
         io.prepare(self.cfg(), claim);
-        let (goal, timeout) = send(&mut io)?;
+        let (goal, timeout) = match send(&mut io) {
+            Ok(g) => g,
+            Err(e) => {
+                // Commands sent before the failure (a trajectory's first knots) would move
+                // the joints with no motion to follow them: cleared, best effort.
+                if claim.joints != 0 {
+                    let _ = io.link.command(
+                        &HostMsg::ClearQueue {
+                            joints: claim.joints,
+                        },
+                        "clear after a failed start",
+                    );
+                }
+                return Err(e);
+            }
+        };
         let id = io.start(goal, what, timeout);
         drop(io);
         Ok(Motion::new(self.clone(), id))
@@ -663,12 +681,21 @@ impl Robot {
     }
 
     /// Emergency stop: the firmware stops the base, holds the arm and refuses motion until
-    /// [`Robot::resume`]. Every motion under way ends with [`Error::EmergencyStop`].
+    /// [`Robot::resume`]. Every motion under way ends with [`Error::EmergencyStop`], even when
+    /// the firmware does not acknowledge the stop (the host's own base laws stop sending); the
+    /// stop is sent up to [`ESTOP_ATTEMPTS`] times, and the last error is returned when none
+    /// is acknowledged.
     pub fn emergency_stop(&self) -> Result<()> {
         let mut io = self.lock_io();
-        io.link.command(&HostMsg::EmergencyStop, "emergency stop")?;
+        let mut sent = io.link.command(&HostMsg::EmergencyStop, "emergency stop");
+        for _ in 1..ESTOP_ATTEMPTS {
+            if sent.is_ok() {
+                break;
+            }
+            sent = io.link.command(&HostMsg::EmergencyStop, "emergency stop");
+        }
         io.goals.end_all(|| Error::EmergencyStop);
-        Ok(())
+        sent
     }
 
     /// Leave the emergency stop.

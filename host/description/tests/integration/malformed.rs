@@ -108,3 +108,24 @@ fn the_arm_chain_has_the_configured_limits() {
     let j = &cfg.arm_chain.expect("chain").joints[0];
     assert_eq!((j.name.as_str(), j.lower, j.upper), ("joint_1", -1.0, 1.57));
 }
+
+/// More servos than the firmware's bus drives (twins count) are refused before anything
+/// else: the LoCoBot's nine servos and seven more joints with a twin each are 23, beyond 16.
+#[test]
+fn more_servos_than_the_bus_drives_are_refused() {
+    let edit = |t: &str| {
+        let mut t = t.to_string();
+        for k in 0..7 {
+            t.push_str(&format!(
+                "\n[[joint]]\nname = \"extra_{k}\"\nkind = \"head\"\nservo = {{ id = {}, model = \"xl430-w250\", twin = {} }}\neffort_limit = 1.0\nlimits = {{ min = -1.0, max = 1.0, velocity = 1.0 }}\n",
+                100 + 2 * k,
+                101 + 2 * k
+            ));
+        }
+        t
+    };
+    match load(edit, |t: &str| t.to_string()) {
+        Err(Error::Config { problem, .. }) => assert!(problem.contains("servos"), "{problem}"),
+        other => panic!("{other:?}"),
+    }
+}
