@@ -140,6 +140,19 @@ fn out_of_limit_and_malformed_commands_are_rejected() {
     );
 }
 
+/// Opens the gripper, puts an object 40 % of the way in (the fingers stop at 2300 ticks) and
+/// starts closing on it.
+fn close_on_an_object(s: &mut ferrobot_sim::lockstep::SimHost) {
+    s.command(&HostMsg::Gripper(GripperCommand::Open))
+        .expect("open");
+    s.wait_telemetry(2_000_000, |t| t.gripper == GripperState::Open)
+        .expect("opens");
+    let at = ferrobot_protocol::dxl::units::tick_to_rad(2300) as f64;
+    s.sim.hw.chain.servo_mut(7).expect("gripper").obstacle = Some((at, true));
+    s.command(&HostMsg::Gripper(GripperCommand::Close))
+        .expect("close");
+}
+
 #[test]
 fn gripper_closes_fully_without_an_object_and_holds_one() {
     let mut s = session("locobot");
@@ -163,15 +176,7 @@ fn gripper_closes_fully_without_an_object_and_holds_one() {
     assert_eq!(t.gripper, GripperState::Closed);
     assert!(gripper_ticks(&s) < 1800);
 
-    s.command(&HostMsg::Gripper(GripperCommand::Open))
-        .expect("open");
-    s.wait_telemetry(2_000_000, |t| t.gripper == GripperState::Open)
-        .expect("opens");
-    // An object 40 % of the way in: the fingers stop at 2300 ticks.
-    let at = ferrobot_protocol::dxl::units::tick_to_rad(2300) as f64;
-    s.sim.hw.chain.servo_mut(7).expect("gripper").obstacle = Some((at, true));
-    s.command(&HostMsg::Gripper(GripperCommand::Close))
-        .expect("close");
+    close_on_an_object(&mut s);
     let t = s
         .wait_telemetry(3_000_000, |t| {
             matches!(t.gripper, GripperState::Closed | GripperState::Holding)
@@ -288,14 +293,7 @@ fn the_emergency_stop_stops_the_gripper_and_keeps_what_it_holds() {
         );
     }
     // Holding an object: still held after the stop.
-    s.command(&HostMsg::Gripper(GripperCommand::Open))
-        .expect("open");
-    s.wait_telemetry(2_000_000, |t| t.gripper == GripperState::Open)
-        .expect("opens");
-    let at = ferrobot_protocol::dxl::units::tick_to_rad(2300) as f64;
-    s.sim.hw.chain.servo_mut(7).expect("gripper").obstacle = Some((at, true));
-    s.command(&HostMsg::Gripper(GripperCommand::Close))
-        .expect("close");
+    close_on_an_object(&mut s);
     s.wait_telemetry(3_000_000, |t| t.gripper == GripperState::Holding)
         .expect("holds");
     s.command(&HostMsg::EmergencyStop).expect("stop");
