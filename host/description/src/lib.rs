@@ -748,12 +748,12 @@ impl RobotConfig {
                 ),
             ));
         }
-        let mut names = BTreeSet::new();
-        // Each table joint's limits as checked (before the table's `f32`), rad or m.
+        // Each table joint's limits as checked (before the table's `f32`), rad or m; its keys
+        // are the names seen so far.
         let mut checked: BTreeMap<&str, (f64, f64)> = BTreeMap::new();
         for (i, j) in raw.joints.iter().enumerate() {
             let key = |k: &str| format!("joint[{i}].{k}");
-            if !names.insert(j.name.as_str()) {
+            if checked.contains_key(j.name.as_str()) {
                 return Err(cfg_err(
                     file,
                     key("name"),

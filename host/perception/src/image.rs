@@ -16,18 +16,13 @@ pub struct RgbImage {
 impl RgbImage {
     /// An image from its bytes; the length must be `width * height * 3`.
     pub fn new(width: u32, height: u32, data: Vec<u8>) -> Result<Self> {
-        let n = width as usize * height as usize * 3;
-        if data.len() != n {
-            return Err(PerceptionError::Size(format!(
-                "a {width}x{height} colour image needs {n} bytes, got {}",
-                data.len()
-            )));
-        }
-        Ok(RgbImage {
+        let img = RgbImage {
             width,
             height,
             data,
-        })
+        };
+        img.check()?;
+        Ok(img)
     }
 
     /// Whether the buffer holds `width * height * 3` bytes, as [`RgbImage::new`] makes sure
@@ -70,24 +65,19 @@ pub struct DepthImage {
 impl DepthImage {
     /// An image from its depths; the length must be `width * height`. Non-finite or negative
     /// depths become 0 (invalid), so every depth is either 0 or a positive finite distance.
-    pub fn new(width: u32, height: u32, mut data: Vec<f32>) -> Result<Self> {
-        let n = width as usize * height as usize;
-        if data.len() != n {
-            return Err(PerceptionError::Size(format!(
-                "a {width}x{height} depth image needs {n} values, got {}",
-                data.len()
-            )));
-        }
-        for d in &mut data {
+    pub fn new(width: u32, height: u32, data: Vec<f32>) -> Result<Self> {
+        let mut img = DepthImage {
+            width,
+            height,
+            data,
+        };
+        img.check()?;
+        for d in &mut img.data {
             if !d.is_finite() || *d < 0.0 {
                 *d = 0.0;
             }
         }
-        Ok(DepthImage {
-            width,
-            height,
-            data,
-        })
+        Ok(img)
     }
 
     /// Whether the buffer holds `width * height` depths, as [`DepthImage::new`] makes sure
