@@ -300,7 +300,9 @@ impl Arm {
     }
 
     /// Start moving to joint positions `q` (rad); returns the motion under way. An arm motion
-    /// still under way is preempted.
+    /// still under way is preempted. With planning, a plan the arm moved away from while it
+    /// was made (an older motion drove it, or it settled) is made again from where the arm
+    /// has come to rest ([`Arm::execute`] would refuse it as stale).
     pub fn move_joints(&self, q: &[f64], opts: MoveOptions) -> Result<Motion> {
         self.check_angles("joint positions", q)?;
         self.check_limits(q)?;
@@ -313,8 +315,7 @@ impl Arm {
         };
         let tolerance = opts.tolerance.unwrap_or(self.cfg().joint_tolerance);
         if opts.plan {
-            let traj = self.plan_to(q, &crate::arm_plan::PlanningOptions::default())?;
-            return self.execute_with(&traj, tolerance, opts.timeout.map(|_| timeout));
+            return self.plan_and_execute(q, tolerance, opts.timeout.map(|_| timeout));
         }
         let parts = self.parts();
         let claim = Claim {

@@ -33,6 +33,13 @@ type StartChecker = (Vec<f64>, Checker, Vec<(String, String)>);
 /// Twice the arms' arrival tolerance (0.01 rad), for a start measured while the last motion
 /// settled.
 pub const STALE_START: f64 = 0.02;
+/// Times a planned move is planned again when the arm moved while it was planned.
+const REPLANS: usize = 2;
+/// Joint speed under which a halted arm counts as at rest, rad/s (two of a Dynamixel's
+/// velocity units).
+const REST_SPEED: f64 = 0.05;
+/// Longest a halted arm is given to come to rest before it is planned from again, s.
+const REST_WAIT: f64 = 1.0;
 /// Longest trajectory [`Arm::execute`] runs, s.
 const MAX_DURATION: f64 = 3600.0;
 /// Joint-space step of the blended path's collision check, rad.
@@ -571,6 +578,66 @@ impl Arm {
                 return Ok(t);
             }
             dev = if dev > 0.002 { dev / 4.0 } else { 0.0 };
+        }
+    }
+
+    /// Plans from the current joints to `goal` and starts the motion. Time passes while a plan
+    /// is made (on a real robot always; on the simulator while another thread waits): should
+    /// the arm have moved more than [`STALE_START`] from the plan's start meanwhile (an older
+    /// motion drove it, or it was settling), or the scene changed, its older motions are
+    /// halted (they end [`Error::Preempted`], as the new motion would end them), the arm is
+    /// given up to [`REST_WAIT`] to come to rest, and the plan is made again from there, at
+    /// most [`REPLANS`] times.
+    pub(crate) fn plan_and_execute(
+        &self,
+        goal: &[f64],
+        tolerance: f64,
+        timeout: Option<Duration>,
+    ) -> Result<Motion> {
+        let opts = PlanningOptions::default();
+        let mut replans = 0;
+        loop {
+            let traj = self.plan_to(goal, &opts)?;
+            match self.execute_with(&traj, tolerance, timeout) {
+                Err(Error::StalePlan { .. }) if replans < REPLANS => {
+                    replans += 1;
+                    self.come_to_rest()?;
+                }
+                done => return done,
+            }
+        }
+    }
+
+    /// Halt the arm's motions under way and wait (the backend's time) until every joint is
+    /// slower than [`REST_SPEED`], or [`REST_WAIT`] has passed.
+    fn come_to_rest(&self) -> Result<()> {
+        let claim = Claim {
+            joints: crate::motion::joint_mask(self.parts_joints().iter().copied()),
+            ..Claim::default()
+        };
+        let cfg = self.robot.cfg();
+        let end = {
+            let mut io = self.robot.lock_io();
+            io.prepare(cfg, claim);
+            io.link
+                .now()
+                .saturating_add(Duration::from_secs_f64(REST_WAIT))
+        };
+        loop {
+            let still = self
+                .get_joint_velocities()?
+                .iter()
+                .all(|v| v.abs() < REST_SPEED);
+            let now = self.robot.lock_io().link.now();
+            if still || now >= end {
+                return Ok(());
+            }
+            self.robot.wait_for(crate::motion::POLL);
+            // A clock that does not move (a link that lost its firmware): the next plan's
+            // execution reports the link's state.
+            if self.robot.lock_io().link.now() <= now {
+                return Ok(());
+            }
         }
     }
 

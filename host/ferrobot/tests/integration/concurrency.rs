@@ -318,3 +318,45 @@ fn robots_and_handles_are_send_and_sync() {
     fn send<T: Send>() {}
     send::<ferrobot::Motion>();
 }
+
+#[test]
+fn a_plan_the_arm_outran_while_another_thread_let_time_pass_is_made_again() {
+    // While one thread plans, another lets the simulated time pass, as time passes on a real
+    // robot while it plans. The arm is driven by an older, unplanned motion meanwhile: the
+    // start the plan was made from is left behind before it could run. The planned motion
+    // must start from where the arm is, never refuse itself as stale nor run the old start.
+    let bot = Robot::new("locobot").expect("robot");
+    let arm = bot.arm().expect("arm");
+    let older = arm
+        .move_joints(
+            &ARM_TARGET,
+            MoveOptions {
+                plan: false,
+                ..MoveOptions::default()
+            },
+        )
+        .expect("older motion starts");
+    let done = Arc::new(AtomicBool::new(false));
+    let clock = {
+        let bot = bot.clone();
+        let done = done.clone();
+        thread::spawn(move || {
+            while !done.load(Ordering::SeqCst) {
+                bot.wait(0.002).expect("wait");
+            }
+        })
+    };
+    let t0 = bot.time();
+    let result = arm.set_joint_positions(&[0.0; 5]);
+    let elapsed = bot.time() - t0;
+    done.store(true, Ordering::SeqCst);
+    clock.join().expect("clock thread");
+    result.expect("the planned motion arrives");
+    // The older motion arrived before the planned one started, or was preempted by it.
+    let older = older.wait();
+    assert!(
+        matches!(older, Ok(()) | Err(Error::Preempted { .. })),
+        "the older motion ended {older:?}"
+    );
+    assert!(arm_error(&bot, &[0.0; 5]) < 0.01, "ended {elapsed} s later");
+}
