@@ -36,7 +36,12 @@ fn random_q(chain: &Chain, rng: &mut ChaCha8Rng) -> Vec<f64> {
 fn sawyer_ik_table() {
     let chain = arm("sawyer");
     let mut rng = ChaCha8Rng::seed_from_u64(42);
-    let opts = IkOptions::default();
+    // TRAC-IK's evaluation budget: 5 ms of wall-clock time per query.
+    let opts = IkOptions {
+        timeout: Duration::from_millis(5),
+        attempts: u32::MAX,
+        ..IkOptions::default()
+    };
     let mut times = Vec::with_capacity(10_000);
     let mut ok = 0;
     for k in 0..10_000u64 {

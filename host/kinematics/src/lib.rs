@@ -237,12 +237,9 @@ mod tests {
         let text = include_str!("../../description/robots/sawyer.urdf");
         let urdf = urdf_rs::read_from_string(text).expect("urdf");
         let good = Chain::from_urdf(&urdf, "base", "right_hand").expect("chain");
-        // Out of reach: the solver restarts until its timeout.
+        // Out of reach: the solver restarts until its budget runs out.
         let far = Isometry3::translation(5.0, 0.0, 0.0);
-        let opts = IkOptions {
-            timeout: std::time::Duration::from_millis(20),
-            ..IkOptions::default()
-        };
+        let opts = IkOptions::default();
         for (lo, hi) in [
             (f64::NEG_INFINITY, f64::INFINITY),
             (1.0, -1.0),
@@ -265,6 +262,34 @@ mod tests {
         j.joint_type = urdf_rs::JointType::Floating;
         let err = Chain::from_urdf(&floating, "base", "right_hand").expect_err("refused");
         assert!(err.to_string().contains("right_j3"), "{err}");
+    }
+
+    /// The default budget is a count of descents, not a time: an unreachable target ends
+    /// after exactly that many however fast the machine is (a 5 ms budget made 163 here, and
+    /// fewer on a busy machine), and no attempt at all is refused.
+    #[test]
+    fn the_default_budget_is_a_count_of_attempts() {
+        use crate::ik::{IkOptions, IkSolver, NumericalIk, DEFAULT_ATTEMPTS};
+        let text = include_str!("../../description/robots/sawyer.urdf");
+        let urdf = urdf_rs::read_from_string(text).expect("urdf");
+        let chain = Chain::from_urdf(&urdf, "base", "right_hand").expect("chain");
+        let far = Isometry3::translation(5.0, 0.0, 0.0);
+        let err = NumericalIk
+            .solve(&chain, &far, None, &IkOptions::default())
+            .expect_err("out of reach");
+        assert!(
+            err.to_string()
+                .contains(&format!("({DEFAULT_ATTEMPTS} made)")),
+            "{err}"
+        );
+        let none = IkOptions {
+            attempts: 0,
+            ..IkOptions::default()
+        };
+        let err = NumericalIk
+            .solve(&chain, &far, None, &none)
+            .expect_err("refused");
+        assert!(err.to_string().contains("IK attempts"), "{err}");
     }
 
     #[test]

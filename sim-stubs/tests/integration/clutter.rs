@@ -4,7 +4,6 @@
 //! ([`World::robot_contacts`]) with the arm placed by a fresh world.
 
 use std::sync::Arc;
-use std::time::Duration;
 
 use ferrobot_description::RobotConfig;
 use ferrobot_firmware::config;
@@ -81,8 +80,8 @@ impl Sawyer {
             let opts = IkOptions {
                 position_tolerance: 1e-4,
                 orientation_tolerance: 1e-3,
-                timeout: Duration::from_secs(2),
                 seed,
+                ..IkOptions::default()
             };
             let q = NumericalIk
                 .solve(&self.chain, &target, Some(home), &opts)
