@@ -46,6 +46,15 @@ def main():
             if abs(p - goal) <= 10:
                 arrived_after = time.monotonic() - t0
                 break
+    # Within 10 ticks it may still be moving: wait (3 s at most) until two reads in a row
+    # agree, so that the sync and single reads below compare a servo at rest.
+    t1 = time.monotonic()
+    while arrived_after is not None and time.monotonic() - t1 < 3.0:
+        p, res, err = pk.read4ByteTxRx(port, 8, ADDR_PRESENT_POSITION)
+        if res == COMM_SUCCESS:
+            if p == last:
+                break
+            last = p
     out["move"] = {
         "writes_ok": r1 == COMM_SUCCESS and r2 == COMM_SUCCESS and e1 == 0 and e2 == 0,
         "start": start,
