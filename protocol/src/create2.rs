@@ -143,6 +143,8 @@ pub enum StreamError {
     Checksum,
     /// A packet id this parser does not know, or a truncated packet.
     Malformed,
+    /// A well-formed packet without one of [`STREAM_IDS`].
+    Incomplete,
 }
 
 /// Streaming parser of sensor-stream packets. Never panics, never allocates.
@@ -227,9 +229,16 @@ impl StreamParser {
 
 fn parse_body(mut body: &[u8]) -> Result<Sensors, StreamError> {
     let mut s = Sensors::default();
+    // Bit k: STREAM_IDS[k] was in the packet.
+    const ALL: u8 = 0x7f;
+    const _: () = assert!(STREAM_IDS.len() == 7);
+    let mut seen = 0u8;
     while let Some((&id, rest)) = body.split_first() {
         let n = packet_len(id).ok_or(StreamError::Malformed)?;
         let d = rest.get(..n).ok_or(StreamError::Malformed)?;
+        if let Some(k) = STREAM_IDS.iter().position(|&x| x == id) {
+            seen |= 1u8.checked_shl(k as u32).unwrap_or(0);
+        }
         match (id, d) {
             (packet::BUMPS_WHEEL_DROPS, [v]) => s.bumps_drops = *v,
             (9..=12, [v]) => {
@@ -242,6 +251,10 @@ fn parse_body(mut body: &[u8]) -> Result<Sensors, StreamError> {
             _ => {}
         }
         body = rest.get(n..).unwrap_or(&[]);
+    }
+    // A value missing would read as zero: no bump, no cliff, an encoder jumped to 0.
+    if seen != ALL {
+        return Err(StreamError::Incomplete);
     }
     Ok(s)
 }
@@ -279,5 +292,46 @@ mod tests {
             }
         }
         assert_eq!(got, Some(s));
+    }
+
+    /// The stream's bytes for `body` (packet ids and data), with header, count and checksum.
+    fn packet(body: &[u8]) -> heapless::Vec<u8, 64> {
+        let mut out = heapless::Vec::new();
+        let _ = out.push(STREAM_HEADER);
+        let _ = out.push(body.len() as u8);
+        let _ = out.extend_from_slice(body);
+        let sum = out.iter().fold(0u8, |a, b| a.wrapping_add(*b));
+        let _ = out.push(0u8.wrapping_sub(sum));
+        out
+    }
+
+    /// A packet missing one of the requested sensors is refused, with a good checksum: its
+    /// value would read as zero (a bump or a cliff not seen, an encoder jumped to 0). Extra
+    /// known packets are allowed.
+    #[test]
+    fn a_packet_missing_a_requested_sensor_is_refused() {
+        let full = [7, 0, 9, 0, 10, 0, 11, 0, 12, 0, 43, 1, 2, 44, 3, 4];
+        let parse = |bytes: &[u8]| {
+            let mut p = StreamParser::new();
+            bytes.iter().filter_map(|&b| p.push(b)).last()
+        };
+        assert!(matches!(parse(&packet(&full)), Some(Ok(_))));
+        let mut extra = heapless::Vec::<u8, 32>::from_slice(&full).unwrap_or_default();
+        let _ = extra.extend_from_slice(&[13, 0]);
+        assert!(matches!(parse(&packet(&extra)), Some(Ok(_))));
+        // Without the bumps, a cliff, or the right encoder.
+        for cut in [0..2, 4..6, 13..16] {
+            let body: heapless::Vec<u8, 32> = full
+                .iter()
+                .enumerate()
+                .filter(|(i, _)| !cut.contains(i))
+                .map(|(_, &b)| b)
+                .collect();
+            assert_eq!(
+                parse(&packet(&body)),
+                Some(Err(StreamError::Incomplete)),
+                "{body:?}"
+            );
+        }
     }
 }
