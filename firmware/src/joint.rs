@@ -505,6 +505,13 @@ impl JointControl {
         let start = match self.queue.back() {
             Some(k) => k.t,
             None => {
+                // After a direct command (an effort, a PWM duty or a speed) the joint went
+                // where that took it: the trajectory starts from where it is measured, not
+                // from the hold point before (which would yank it back there).
+                if self.direct.is_some() && self.measured && self.state.position.is_finite() {
+                    self.cmd = self.state.position;
+                    self.integral = 0.0;
+                }
                 let r = self.reference(now);
                 self.seg_start = Knot {
                     t: now,
@@ -817,6 +824,23 @@ mod tests {
         assert!((mid.q - 0.5).abs() < 1e-6);
         assert!((mid.qd - 1.5).abs() < 1e-4, "{}", mid.qd); // peak speed of a cubic: 1.5·Δq/T
         assert!((mid.eff - 1.0).abs() < 1e-6);
+    }
+
+    /// A trajectory sent after a direct effort moved the joint starts where the joint is
+    /// (it started from the hold point before the effort: 0.6 rad away).
+    #[test]
+    fn a_trajectory_after_a_direct_command_starts_where_the_joint_is() {
+        let mut j = JointControl::new();
+        j.state.position = 0.0;
+        j.measured = true;
+        j.set_mode(Instant::ZERO, JointMode::Current);
+        j.set_direct(0.3);
+        // The effort took the joint here.
+        j.state.position = 0.6;
+        let now = Instant::from_millis(100);
+        assert!(j.push(now, Duration::from_secs(1), &JointPoint::at_rest(0.8)));
+        let r = j.reference(now);
+        assert!((r.q - 0.6).abs() < 1e-6, "starts at {}", r.q);
     }
 
     #[test]
