@@ -60,24 +60,109 @@ fn handshake_and_a_clear_error_on_version_mismatch() {
     assert_eq!(bot.name(), "locobot");
 }
 
+/// A camera whose capture holds the robot's link until the test lets it go, as a camera that
+/// stopped answering does until its read times out.
+struct StalledCamera {
+    entered: std::sync::mpsc::Sender<()>,
+    release: std::sync::mpsc::Receiver<()>,
+}
+
+impl ferrobot::CameraDevice for StalledCamera {
+    fn intrinsics(&self) -> ferrobot::perception::Intrinsics {
+        ferrobot::perception::Intrinsics {
+            width: 4,
+            height: 4,
+            fx: 2.0,
+            fy: 2.0,
+            cx: 2.0,
+            cy: 2.0,
+        }
+    }
+    fn rate(&self) -> f64 {
+        30.0
+    }
+    fn capture(
+        &mut self,
+        _link: &mut dyn ferrobot::backend::Link,
+    ) -> ferrobot::error::Result<ferrobot::camera::RawFrame> {
+        let _ = self.entered.send(());
+        let _ = self.release.recv_timeout(Duration::from_secs(60));
+        Err(Error::Link("the camera stopped answering".into()))
+    }
+}
+
+/// The arm reaches a joint target; then, on its way to another, an emergency stop halts it
+/// at once although a camera read holds the robot's link (the firmware runs a trajectory on
+/// its own: a stop that waited for the link let it run to its end).
 #[test]
-fn the_arm_reaches_a_joint_target() {
+fn the_arm_reaches_a_joint_target_and_the_emergency_stop_does_not_wait_for_the_camera() {
     let (_g, mut hil) = start();
-    let bot = robot(&hil);
+    let (entered_tx, entered) = std::sync::mpsc::channel();
+    let (release, release_rx) = std::sync::mpsc::channel();
+    let bot = Robot::builder("locobot")
+        .backend(Backend::Serial {
+            path: hil.host.clone(),
+        })
+        .camera_device(Box::new(StalledCamera {
+            entered: entered_tx,
+            release: release_rx,
+        }))
+        .build()
+        .unwrap_or_else(|e| panic!("connect to the firmware in QEMU: {e}"));
     let target = [0.3, 0.2, -0.2, 0.3, 0.1];
-    bot.arm()
-        .expect("arm")
-        .set_joint_positions(&target)
-        .expect("moves");
-    let q = bot.arm().expect("arm").get_joint_angles().expect("q");
+    let arm = bot.arm().expect("arm");
+    arm.set_joint_positions(&target).expect("moves");
+    let q = arm.get_joint_angles().expect("q");
     assert!(
         q.iter().zip(target).all(|(a, b)| (a - b).abs() < 0.01),
         "{q:?}"
     );
     // The simulated servo agrees (joint_1 is servo 1, sign +1).
-    let s = hil.plants("servo 1");
-    let angle = s["angle"].as_f64().expect("angle");
-    assert!((angle - 0.3).abs() < 0.01, "{s}");
+    let angle = |hil: &mut Hil| hil.plants("servo 1")["angle"].as_f64().expect("angle");
+    let a = angle(&mut hil);
+    assert!((a - 0.3).abs() < 0.01, "{a}");
+
+    // Joint 1 on its way to -0.9 rad.
+    let motion = arm
+        .move_joints(
+            &[-0.9, 0.2, -0.2, 0.3, 0.1],
+            ferrobot::MoveOptions::default(),
+        )
+        .expect("starts");
+    hil.eventually(Duration::from_secs(3), "joint 1 to move", |hil| {
+        (angle(hil) < 0.2).then_some(())
+    });
+    let camera = {
+        let bot = bot.clone();
+        std::thread::spawn(move || bot.camera().expect("camera").get_frame())
+    };
+    entered
+        .recv_timeout(Duration::from_secs(30))
+        .expect("the camera read began");
+    let stop = {
+        let bot = bot.clone();
+        std::thread::spawn(move || bot.emergency_stop())
+    };
+    // Still within 2 mrad over 0.1 s, short of the target, while the read holds the link.
+    let mut last = angle(&mut hil);
+    let held = hil.eventually(Duration::from_secs(3), "joint 1 to stop", |hil| {
+        hil.sleep(Duration::from_millis(100));
+        let a = angle(hil);
+        let still = (a - last).abs() < 0.002;
+        last = a;
+        still.then_some(a)
+    });
+    assert!(
+        held > -0.8,
+        "joint 1 ran on to {held} rad: the stop waited for the camera"
+    );
+    release.send(()).expect("release");
+    assert!(camera.join().expect("camera thread").is_err());
+    stop.join()
+        .expect("stop thread")
+        .expect("the stop is acknowledged");
+    assert!(matches!(motion.wait(), Err(Error::EmergencyStop)));
+    bot.resume().expect("resume");
 }
 
 #[test]

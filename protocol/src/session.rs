@@ -216,11 +216,14 @@ impl HostSession {
     }
 
     /// A new connection (a reopened port starts mid-stream): the decoder is reset, the
-    /// handshake waits anew, and what was pending will not be answered.
+    /// handshake waits anew, what was pending will not be answered, and the telemetry is
+    /// forgotten (what the last connection said is stale: the firmware may have rebooted, or
+    /// stopped, meanwhile).
     pub fn restart(&mut self) {
         self.decoder = FrameDecoder::new();
         self.handshake = Handshake::Waiting;
         self.pending.clear();
+        self.telemetry = None;
     }
 
     /// A Hello with our version and schema into `out`; the handshake waits for its answer.
@@ -250,6 +253,21 @@ impl HostSession {
         let (seq, n) = self.encode(msg, now_us, out)?;
         self.expect(seq, Expect::Ack, false);
         Ok((seq, n))
+    }
+
+    /// A command into `out` whose answer is dropped when it comes (an emergency stop sent
+    /// from beside the thread that waits on answers, which sends it again for its answer).
+    pub fn command_quiet(
+        &mut self,
+        msg: &HostMsg,
+        now_us: u64,
+        out: &mut [u8],
+    ) -> Result<usize, SessionError> {
+        let (seq, n) = self.command(msg, now_us, out)?;
+        if let Some(p) = self.pending.iter_mut().find(|p| p.seq == seq) {
+            p.quiet = true;
+        }
+        Ok(n)
     }
 
     /// A typed request into `out`; its reply is taken with [`HostSession::take_reply`].
@@ -418,11 +436,6 @@ impl HostSession {
         self.telemetry.as_ref()
     }
 
-    /// Forget the telemetry (a lost link: what it said is stale).
-    pub fn clear_telemetry(&mut self) {
-        self.telemetry = None;
-    }
-
     /// The oldest fault not yet taken.
     pub fn take_fault(&mut self) -> Option<Fault> {
         self.faults.pop_front()
@@ -505,6 +518,28 @@ mod tests {
             s.take_reply::<GetJoint>(j),
             Some(Err(RejectReason::UnknownJoint))
         );
+    }
+
+    /// A new connection forgets the old one's telemetry: the host must not take what a
+    /// firmware said before a reboot, or before its loop stopped, for its state now.
+    #[test]
+    fn a_restart_forgets_the_telemetry() {
+        let mut s = HostSession::new();
+        let t = Telemetry {
+            time_us: 5_000,
+            joints: heapless::Vec::new(),
+            queued: 0,
+            gripper: crate::GripperState::Unknown,
+            odometry: Default::default(),
+            wheels: Default::default(),
+            base_flags: 0,
+            faults: 0,
+            loop_stats: Default::default(),
+        };
+        s.on_bytes(&device(0, &DeviceMsg::Telemetry(t.clone())));
+        assert_eq!(s.telemetry(), Some(&t));
+        s.restart();
+        assert_eq!(s.telemetry(), None);
     }
 
     #[test]

@@ -261,6 +261,41 @@ pub enum LinkControl {
     Unplug,
     /// Make a new host PTY behind the same link path, as plugging the cable back in would.
     Plug,
+    /// Drop the firmware's telemetry frames from now on and pass the rest (handshakes,
+    /// acknowledgements, replies), as a firmware whose control loop stopped while its link
+    /// still answers would (fault injection).
+    Mute,
+    /// Pass the telemetry again.
+    Unmute,
+}
+
+/// `out` (frames of the firmware's host link, each ended by a `0x00`) without its telemetry
+/// frames; a partial frame at the end is kept in `partial` for the next call.
+fn without_telemetry(partial: &mut Vec<u8>, out: &[u8]) -> Vec<u8> {
+    use ferrobot_protocol::{DeviceMsg, FrameDecoder};
+    partial.extend_from_slice(out);
+    let mut kept = Vec::new();
+    let mut start = 0;
+    for (i, &b) in partial.iter().enumerate() {
+        if b != 0 {
+            continue;
+        }
+        let frame = &partial[start..=i];
+        let mut decoder = FrameDecoder::new();
+        // The frame ends at its one 0x00, the last byte: that is where a frame decodes.
+        let telemetry = frame.iter().any(|&b| {
+            matches!(
+                decoder.push::<DeviceMsg>(b),
+                Some(Ok(f)) if matches!(f.msg, DeviceMsg::Telemetry(_))
+            )
+        });
+        if !telemetry {
+            kept.extend_from_slice(frame);
+        }
+        start = i + 1;
+    }
+    partial.drain(..start);
+    kept
 }
 
 /// A firmware core with its simulated plants, paced to the wall clock, whose host link is a
@@ -381,10 +416,14 @@ pub fn serve_firmware(
         let start = Instant::now();
         let t0 = sim.now_us();
         let mut buf = [0u8; 1024];
+        // Muted: the end of the output not yet passed, up to a frame's delimiter.
+        let mut muted: Option<Vec<u8>> = None;
         loop {
             match rx.try_recv() {
                 Ok(LinkControl::Unplug) => unplug(&mut port, &path),
                 Ok(LinkControl::Plug) if port.is_none() => port = host_pty(&path).ok(),
+                Ok(LinkControl::Mute) => muted = muted.or(Some(Vec::new())),
+                Ok(LinkControl::Unmute) => muted = None,
                 Ok(_) => {}
                 Err(std::sync::mpsc::TryRecvError::Disconnected) => {
                     unplug(&mut port, &path);
@@ -401,7 +440,10 @@ pub fn serve_firmware(
             }
             sim.run_until(t0 + micros(start));
             crate::camera_server::answer_truth_requests(&truth_rx, || sim.truth());
-            let out = sim.take_host_output();
+            let mut out = sim.take_host_output();
+            if let Some(partial) = muted.as_mut() {
+                out = without_telemetry(partial, &out);
+            }
             if let Some((master, _, _)) = port.as_mut() {
                 if !out.is_empty() {
                     let _ = master.write_all(&out);
@@ -418,7 +460,8 @@ pub fn serve_firmware(
 }
 
 /// Serve `sim` behind the symlink `link` (see [`serve_firmware`]), announce it with one JSON
-/// line on standard output, then obey `unplug` and `plug` lines on standard input until it
+/// line on standard output, then obey `unplug`, `plug`, `mute` and `unmute` lines
+/// ([`LinkControl`]) on standard input until it
 /// closes. The body of `ferrobot sim-firmware` and of the HIL measurements.
 pub fn run_firmware_server(
     sim: crate::LockstepSim,
@@ -437,6 +480,8 @@ pub fn run_firmware_server(
         match line.as_deref().map(str::trim) {
             Ok("unplug") => server.control(LinkControl::Unplug),
             Ok("plug") => server.control(LinkControl::Plug),
+            Ok("mute") => server.control(LinkControl::Mute),
+            Ok("unmute") => server.control(LinkControl::Unmute),
             Ok(_) => {}
             Err(_) => break,
         }

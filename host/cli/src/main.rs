@@ -100,7 +100,8 @@ enum Cmd {
     /// Serve a simulated robot's firmware core (with its plants, in real time, in a scene) on a
     /// PTY behind the symlink LINK, and its camera on the Unix socket LINK.camera, for the
     /// Serial backend and outside tools. Prints one JSON line; reads
-    /// `unplug` and `plug` lines on standard input to drop and restore the link; exits when
+    /// `unplug` and `plug` lines on standard input to drop and restore the link, and `mute`
+    /// and `unmute` to drop and restore its telemetry (a stopped control loop); exits when
     /// standard input closes.
     SimFirmware {
         /// Robot name or configuration path.

@@ -213,6 +213,8 @@ struct Inner {
     body: std::sync::OnceLock<crate::sense::SelfBody>,
     /// The simulated world the robot started in (the empty one on hardware).
     scene: Arc<Scene>,
+    /// The link's line for the emergency stop beside the I/O lock ([`Link::stop_line`]).
+    stop_line: Option<Arc<dyn crate::backend::StopLine>>,
     io: Mutex<Io>,
 }
 
@@ -383,8 +385,10 @@ impl Robot {
         };
         let frames = Frames::new(&cfg).map_err(|e| e.to_string());
         let optical = cfg.camera.as_ref().map(|c| c.frame.clone());
+        let stop_line = link.stop_line();
         let robot = Robot {
             inner: Arc::new(Inner {
+                stop_line,
                 io: Mutex::new(Io {
                     link,
                     goals: Goals::default(),
@@ -681,11 +685,18 @@ impl Robot {
     }
 
     /// Emergency stop: the firmware stops the base, holds the arm and refuses motion until
-    /// [`Robot::resume`]. Every motion under way ends with [`Error::EmergencyStop`], even when
+    /// [`Robot::resume`]. On a serial link the stop goes on the wire at once, even while
+    /// another thread holds the link (a camera read); the call then waits for the link. Every motion under way ends with [`Error::EmergencyStop`], even when
     /// the firmware does not acknowledge the stop (the host's own base laws stop sending); the
     /// stop is sent up to [`ESTOP_ATTEMPTS`] times, and the last error is returned when none
     /// is acknowledged.
     pub fn emergency_stop(&self) -> Result<()> {
+        // At once, on a link whose firmware runs on while another thread holds the I/O lock
+        // (a camera read, SLAM, planning's telemetry): the stop must not wait behind them.
+        // Sent again below, under the lock, for its acknowledgement.
+        if let Some(line) = &self.inner.stop_line {
+            let _ = line.emergency_stop();
+        }
         let mut io = self.lock_io();
         let mut sent = io.link.command(&HostMsg::EmergencyStop, "emergency stop");
         for _ in 1..ESTOP_ATTEMPTS {

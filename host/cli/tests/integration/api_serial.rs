@@ -233,6 +233,62 @@ fn a_lost_link_gives_clear_errors_then_reconnects() {
     assert!((q[0] - 0.3).abs() < 0.01, "{q:?}");
 }
 
+/// After a reconnection, a firmware that answers the handshake and requests but sends no
+/// telemetry (its control loop stopped; `mute` in `ferrobot sim-firmware`) is not trusted:
+/// what it said before the link was lost is not read as its state now, a motion fails rather
+/// than waiting on stale joints, and once its telemetry flows again the robot moves.
+#[test]
+fn a_firmware_that_answers_but_sends_no_telemetry_after_a_reconnection_is_not_trusted() {
+    let mut fw = Firmware::start("locobot", "mute");
+    let bot = connect(&fw);
+    let arm = bot.arm().expect("arm");
+    arm.set_joint_positions(&[0.2, 0.0, 0.0, 0.0, 0.0])
+        .expect("moves");
+    fw.say("unplug");
+    let deadline = Instant::now() + Duration::from_secs(5);
+    while arm.get_joint_angles().is_ok() {
+        assert!(Instant::now() < deadline, "the link never failed");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    fw.say("mute");
+    fw.say("plug");
+    // Connected again: the firmware answers a request.
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while bot.diagnostics().is_err() {
+        assert!(Instant::now() < deadline, "never connected again");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    // Three seconds of reads (past the 2 s of silence after which the link is lost again):
+    // none returns the joints the firmware reported before the link was lost, and the
+    // silence is named.
+    let end = Instant::now() + Duration::from_secs(3);
+    let mut named = false;
+    while Instant::now() < end {
+        match arm.get_joint_angles() {
+            Ok(q) => panic!("the old telemetry was read as the state now: {q:?}"),
+            Err(Error::Link(why)) => named |= why.contains("no telemetry"),
+            Err(Error::Timeout { .. }) => {}
+            Err(e) => panic!("{e}"),
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    assert!(named, "the silent firmware was never reported lost");
+    assert!(arm.set_joint_positions(&[0.0; 5]).is_err(), "moved blind");
+    fw.say("unmute");
+    let deadline = Instant::now() + Duration::from_secs(10);
+    loop {
+        match arm.set_joint_positions(&[0.3, 0.0, 0.0, 0.0, 0.0]) {
+            Ok(()) => break,
+            Err(Error::Link(_)) | Err(Error::Timeout { .. }) if Instant::now() < deadline => {
+                std::thread::sleep(Duration::from_millis(50))
+            }
+            Err(e) => panic!("did not recover: {e}"),
+        }
+    }
+    let q = arm.get_joint_angles().expect("q");
+    assert!((q[0] - 0.3).abs() < 0.01, "{q:?}");
+}
+
 #[test]
 fn a_protocol_mismatch_is_refused_at_the_handshake() {
     let fw = Firmware::start("locobot", "mismatch");

@@ -301,6 +301,9 @@ impl Link for EmulatedLink {
     fn truth(&mut self) -> Option<ferrobot_sim::lockstep::Truth> {
         Some(self.board.server.truth())
     }
+    fn stop_line(&self) -> Option<std::sync::Arc<dyn super::StopLine>> {
+        self.serial.stop_line()
+    }
 }
 
 #[cfg(test)]

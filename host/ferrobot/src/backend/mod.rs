@@ -15,6 +15,7 @@ pub mod serial;
 pub mod sim;
 
 use std::path::PathBuf;
+use std::sync::Arc;
 use std::time::Duration;
 
 use ferrobot_protocol::{DeviceInfo, Diagnostics, Fault, HostMsg, JointConfig, Telemetry};
@@ -81,6 +82,19 @@ pub trait Link: Send {
     fn truth(&mut self) -> Option<ferrobot_sim::lockstep::Truth> {
         self.simulator().map(|s| s.truth())
     }
+    /// A line that sends the emergency stop without this link's owner, for a firmware whose
+    /// clock runs on while another thread holds the link (a camera read, SLAM): `None` where
+    /// time only passes while the link is driven (the in-process simulator).
+    fn stop_line(&self) -> Option<Arc<dyn StopLine>> {
+        None
+    }
+}
+
+/// Sends the emergency stop at once, beside whatever holds the [`Link`]
+/// ([`Link::stop_line`]); its acknowledgement is not waited for.
+pub trait StopLine: Send + Sync {
+    /// Put the emergency stop on the wire.
+    fn emergency_stop(&self) -> Result<()>;
 }
 
 /// Map a firmware rejection to the API's error.

@@ -24,7 +24,7 @@ use ferrobot_protocol::{
     SCHEMA_HASH,
 };
 
-use super::{acked, replied, Link};
+use super::{acked, replied, Link, StopLine};
 use crate::error::{Error, Result};
 
 /// How long a command waits for its acknowledgement.
@@ -135,8 +135,13 @@ fn io_thread(path: PathBuf, shared: Arc<Shared>, rx: Receiver<Vec<u8>>) {
                         if s.session.telemetry().map(|t| t.time_us) != before {
                             s.telemetry_at = Some(Instant::now());
                         }
-                        if matches!(s.session.handshake(), Handshake::Accepted(_)) {
-                            s.lost = None;
+                        if matches!(s.session.handshake(), Handshake::Accepted(_))
+                            && s.lost.take().is_some()
+                        {
+                            // Connected again: the silence is counted from the handshake, so
+                            // that a firmware that answers it but sends no telemetry is lost
+                            // again rather than trusted.
+                            s.telemetry_at = Some(Instant::now());
                         }
                     }
                     shared.cv.notify_all();
@@ -372,6 +377,35 @@ impl SerialLink {
     }
 }
 
+/// The serial link's [`StopLine`]: the frame is encoded under the session's lock (so frames
+/// leave in the order of their sequence numbers) and queued for the I/O thread, without the
+/// robot's I/O lock.
+struct SerialStopLine {
+    shared: Arc<Shared>,
+    tx: Sender<Vec<u8>>,
+}
+
+impl StopLine for SerialStopLine {
+    fn emergency_stop(&self) -> Result<()> {
+        let mut frame = [0u8; MAX_WIRE];
+        let mut s = self
+            .shared
+            .state
+            .lock()
+            .map_err(|_| Error::Link("I/O thread panicked".into()))?;
+        if let Some(why) = &s.lost {
+            return Err(Error::Link(format!("{why} (reconnecting)")));
+        }
+        let n = s
+            .session
+            .command_quiet(&HostMsg::EmergencyStop, self.shared.now_us(), &mut frame)
+            .map_err(|e| Error::Link(format!("emergency stop: {e:?}")))?;
+        self.tx
+            .send(frame[..n].to_vec())
+            .map_err(|_| Error::Link("the I/O thread has ended".into()))
+    }
+}
+
 impl Drop for SerialLink {
     fn drop(&mut self) {
         if let Ok(mut s) = self.shared.state.lock() {
@@ -408,6 +442,13 @@ impl Link for SerialLink {
             }
             s.session.telemetry().cloned().map(Ok)
         })
+    }
+
+    fn stop_line(&self) -> Option<Arc<dyn StopLine>> {
+        Some(Arc::new(SerialStopLine {
+            shared: self.shared.clone(),
+            tx: self.tx.clone(),
+        }))
     }
 
     fn wait(&mut self, dt: Duration) {
