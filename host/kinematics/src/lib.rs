@@ -118,6 +118,17 @@ impl Chain {
                     })
                 }
             };
+            if let Some(m) = &j.mimic {
+                // A chain's joints are independent values (IK's unknowns); one that follows
+                // another is not.
+                return Err(Error::Unreachable {
+                    why: format!(
+                        "joint {} between {base} and {tip} mimics joint {}: a chain's joints \
+                         move independently",
+                        j.name, m.joint
+                    ),
+                });
+            }
             let (lower, upper) = if j.joint_type == urdf_rs::JointType::Continuous {
                 (-std::f64::consts::TAU, std::f64::consts::TAU)
             } else {
@@ -228,15 +239,21 @@ impl Chain {
 mod tests {
     use super::*;
 
+    /// The bundled Sawyer's URDF and its arm chain, base to hand.
+    fn sawyer() -> (urdf_rs::Robot, Chain) {
+        let text = include_str!("../../description/robots/sawyer.urdf");
+        let urdf = urdf_rs::read_from_string(text).expect("urdf");
+        let chain = Chain::from_urdf(&urdf, "base", "right_hand").expect("chain");
+        (urdf, chain)
+    }
+
     /// A chain built straight from a URDF whose limits are absent (infinite) or inverted is
     /// refused by the numerical IK with a typed error (the restarts' draw once panicked); a
     /// floating joint between base and tip is refused when the chain is built.
     #[test]
     fn chains_with_unusable_joints_are_errors_not_panics() {
         use crate::ik::{IkOptions, IkSolver, NumericalIk};
-        let text = include_str!("../../description/robots/sawyer.urdf");
-        let urdf = urdf_rs::read_from_string(text).expect("urdf");
-        let good = Chain::from_urdf(&urdf, "base", "right_hand").expect("chain");
+        let (urdf, good) = sawyer();
         // Out of reach: the solver restarts until its budget runs out.
         let far = Isometry3::translation(5.0, 0.0, 0.0);
         let opts = IkOptions::default();
@@ -270,9 +287,7 @@ mod tests {
     #[test]
     fn the_default_budget_is_a_count_of_attempts() {
         use crate::ik::{IkOptions, IkSolver, NumericalIk, DEFAULT_ATTEMPTS};
-        let text = include_str!("../../description/robots/sawyer.urdf");
-        let urdf = urdf_rs::read_from_string(text).expect("urdf");
-        let chain = Chain::from_urdf(&urdf, "base", "right_hand").expect("chain");
+        let (_, chain) = sawyer();
         let far = Isometry3::translation(5.0, 0.0, 0.0);
         let err = NumericalIk
             .solve(&chain, &far, None, &IkOptions::default())
@@ -294,9 +309,7 @@ mod tests {
 
     #[test]
     fn jacobian_matches_finite_differences() {
-        let urdf = urdf_rs::read_from_string(include_str!("../../description/robots/sawyer.urdf"))
-            .expect("urdf");
-        let chain = Chain::from_urdf(&urdf, "base", "right_hand").expect("chain");
+        let (_, chain) = sawyer();
         let q = [0.3, -0.7, 0.4, 1.2, -0.5, 0.8, 2.0];
         let j = chain.jacobian(&q);
         let h = 1e-7;

@@ -28,6 +28,20 @@ pub struct TreeJoint {
     pub kind: JointType,
     /// Unit axis in the joint frame.
     pub axis: Vector3<f64>,
+    /// A URDF `<mimic>` joint follows another: its value is `multiplier · q[leader] + offset`
+    /// (the leader's index in [`LinkTree::joints`]), whatever value it is given itself.
+    pub mimic: Option<Mimic>,
+}
+
+/// How a mimic joint follows its leader ([`TreeJoint::mimic`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Mimic {
+    /// The leader's index in [`LinkTree::joints`].
+    pub leader: usize,
+    /// Its value per unit of the leader's (URDF default 1).
+    pub multiplier: f64,
+    /// Its value at the leader's zero, rad or m (URDF default 0).
+    pub offset: f64,
 }
 
 /// A URDF's links in parent-before-child order.
@@ -86,6 +100,38 @@ pub fn check_urdf(urdf: &urdf_rs::Robot) -> Result<()> {
             return Err(bad(format!(
                 "joint {:?} has axis {:?}: it needs a finite, non-zero one",
                 j.name, j.axis.xyz
+            )));
+        }
+    }
+    for j in &urdf.joints {
+        let Some(m) = &j.mimic else { continue };
+        let leader = urdf.joints.iter().find(|l| l.name == m.joint);
+        let why = match leader {
+            None => Some("which the URDF does not define".to_string()),
+            Some(l) if l.mimic.is_some() => Some("which mimics another joint itself".into()),
+            Some(l)
+                if !matches!(
+                    l.joint_type,
+                    urdf_rs::JointType::Revolute
+                        | urdf_rs::JointType::Continuous
+                        | urdf_rs::JointType::Prismatic
+                ) =>
+            {
+                Some("which does not move".into())
+            }
+            _ => None,
+        };
+        if let Some(why) = why {
+            return Err(bad(format!(
+                "joint {:?} mimics joint {:?}, {why}",
+                j.name, m.joint
+            )));
+        }
+        let (mult, off) = (m.multiplier.unwrap_or(1.0), m.offset.unwrap_or(0.0));
+        if !(mult.is_finite() && off.is_finite()) {
+            return Err(bad(format!(
+                "joint {:?} mimics with multiplier {mult} and offset {off}: they must be finite",
+                j.name
             )));
         }
     }
@@ -156,6 +202,8 @@ impl LinkTree {
                         name: j.name.clone(),
                         kind,
                         axis: a.try_normalize(1e-12).unwrap_or(Vector3::z()),
+                        // Its leader's index is known once every joint is in: below.
+                        mimic: None,
                     });
                     tree.joints.len() - 1
                 });
@@ -175,6 +223,19 @@ impl LinkTree {
                 urdf.links.len().saturating_sub(tree.nodes.len()),
                 urdf.links.len()
             )));
+        }
+        for j in &urdf.joints {
+            let (Some(m), Some(k)) = (&j.mimic, tree.joint_index(&j.name)) else {
+                continue;
+            };
+            // check_urdf: the leader exists and moves.
+            if let Some(leader) = tree.joint_index(&m.joint) {
+                tree.joints[k].mimic = Some(Mimic {
+                    leader,
+                    multiplier: m.multiplier.unwrap_or(1.0),
+                    offset: m.offset.unwrap_or(0.0),
+                });
+            }
         }
         Ok(tree)
     }
@@ -205,7 +266,8 @@ impl LinkTree {
     }
 
     /// Pose of every link in the root frame, in [`LinkTree::links`] order, for joint values
-    /// `q` (rad or m, in [`LinkTree::joints`] order; missing values count as 0).
+    /// `q` (rad or m, in [`LinkTree::joints`] order; missing values count as 0; a mimic
+    /// joint's follows its leader's).
     pub fn poses(&self, q: &[f64]) -> Vec<Isometry3<f64>> {
         let mut out = Vec::with_capacity(self.nodes.len());
         self.poses_into(q, &mut out);
@@ -225,9 +287,14 @@ impl LinkTree {
     /// `joints` (indices of [`LinkTree::joints`]), parents before children.
     pub fn links_moved_by(&self, joints: &[usize]) -> Vec<usize> {
         let mut moved = vec![false; self.nodes.len()];
+        let moves = |j: usize| {
+            joints.contains(&j)
+                || self.joints[j]
+                    .mimic
+                    .is_some_and(|m| joints.contains(&m.leader))
+        };
         for (i, n) in self.nodes.iter().enumerate() {
-            moved[i] =
-                n.joint.is_some_and(|j| joints.contains(&j)) || n.parent.is_some_and(|p| moved[p]);
+            moved[i] = n.joint.is_some_and(moves) || n.parent.is_some_and(|p| moved[p]);
         }
         (0..self.nodes.len()).filter(|&i| moved[i]).collect()
     }
@@ -259,8 +326,11 @@ impl LinkTree {
         let Some(j) = n.joint else {
             return joint_frame;
         };
-        let v = q.get(j).copied().unwrap_or(0.0);
         let joint = &self.joints[j];
+        let v = match joint.mimic {
+            Some(m) => m.multiplier * q.get(m.leader).copied().unwrap_or(0.0) + m.offset,
+            None => q.get(j).copied().unwrap_or(0.0),
+        };
         match joint.kind {
             JointType::Revolute => {
                 let (s, c) = ferrobot_geometry::trig::sin_cos(0.5 * v);
@@ -359,5 +429,77 @@ mod tests {
             assert!((a.translation.vector - b.translation.vector).norm() < 1e-15);
             assert!(a.rotation.angle_to(&b.rotation) < 1e-12);
         }
+    }
+
+    /// A two-finger gripper whose right finger mimics the left (multiplier −1, offset 1 cm),
+    /// on a wrist joint; `mimic` replaces the right finger's `<mimic>` element.
+    fn gripper(mimic: &str) -> String {
+        format!(
+            r#"<robot name="g">
+  <link name="base"/><link name="palm"/><link name="left"/><link name="right"/>
+  <joint name="wrist" type="revolute"><parent link="base"/><child link="palm"/>
+    <axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <joint name="finger_l" type="prismatic"><parent link="palm"/><child link="left"/>
+    <origin xyz="0.1 0 0"/><axis xyz="0 1 0"/><limit lower="0" upper="0.04" effort="1" velocity="1"/></joint>
+  <joint name="finger_r" type="prismatic"><parent link="palm"/><child link="right"/>
+    <origin xyz="0.1 0 0"/><axis xyz="0 1 0"/><limit lower="-0.04" upper="0.04" effort="1" velocity="1"/>
+    {mimic}</joint>
+</robot>"#
+        )
+    }
+
+    /// A `<mimic>` joint follows its leader, whatever value it is given, in the poses and in
+    /// the links a leader's change moves (the planner's incremental update); a mimic naming
+    /// no joint, mimicking a mimic or with a NaN multiplier is refused, and an arm chain
+    /// through one is an error.
+    #[test]
+    fn a_mimic_joint_follows_its_leader() {
+        let urdf = urdf_rs::read_from_string(&gripper(
+            r#"<mimic joint="finger_l" multiplier="-1" offset="0.01"/>"#,
+        ))
+        .unwrap();
+        let tree = LinkTree::from_urdf(&urdf).unwrap();
+        let (wrist, left, right) = (
+            tree.joint_index("wrist").unwrap(),
+            tree.joint_index("finger_l").unwrap(),
+            tree.joint_index("finger_r").unwrap(),
+        );
+        let mut q = vec![0.0; 3];
+        q[wrist] = 0.0;
+        q[left] = 0.03;
+        // Its own value is ignored.
+        q[right] = 0.5;
+        let poses = tree.poses(&q);
+        let at = |n: &str| poses[tree.link_index(n).unwrap()].translation.vector;
+        assert!((at("left").y - 0.03).abs() < 1e-12, "{}", at("left"));
+        assert!((at("right").y - (-0.03 + 0.01)).abs() < 1e-12, "{}", at("right"));
+        let moved = tree.links_moved_by(&[left]);
+        assert!(moved.contains(&tree.link_index("right").unwrap()));
+        let mut updated = poses.clone();
+        q[left] = 0.01;
+        tree.update_poses(&q, &moved, &mut updated);
+        assert_eq!(updated, tree.poses(&q));
+        assert!(Chain::from_urdf(&urdf, "base", "left").is_ok());
+        let err = Chain::from_urdf(&urdf, "base", "right").unwrap_err();
+        assert!(err.to_string().contains("mimics"), "{err}");
+        for (bad, why) in [
+            (r#"<mimic joint="thumb"/>"#, "does not define"),
+            (r#"<mimic joint="finger_l" multiplier="nan"/>"#, "finite"),
+            (r#"<mimic joint="wrist"/>"#, ""),
+        ] {
+            let urdf = urdf_rs::read_from_string(&gripper(bad)).unwrap();
+            match LinkTree::from_urdf(&urdf) {
+                Err(e) => assert!(!why.is_empty() && e.to_string().contains(why), "{bad}: {e}"),
+                Ok(_) => assert!(why.is_empty(), "{bad} was accepted"),
+            }
+        }
+        // A mimic of a mimic.
+        let chained = gripper(r#"<mimic joint="finger_l"/>"#).replace(
+            r#"<joint name="finger_l" type="prismatic">"#,
+            r#"<joint name="finger_l" type="prismatic"><mimic joint="finger_r"/>"#,
+        );
+        let urdf = urdf_rs::read_from_string(&chained).unwrap();
+        let err = LinkTree::from_urdf(&urdf).unwrap_err();
+        assert!(err.to_string().contains("mimics another"), "{err}");
     }
 }
