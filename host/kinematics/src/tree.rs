@@ -472,7 +472,11 @@ mod tests {
         let poses = tree.poses(&q);
         let at = |n: &str| poses[tree.link_index(n).unwrap()].translation.vector;
         assert!((at("left").y - 0.03).abs() < 1e-12, "{}", at("left"));
-        assert!((at("right").y - (-0.03 + 0.01)).abs() < 1e-12, "{}", at("right"));
+        assert!(
+            (at("right").y - (-0.03 + 0.01)).abs() < 1e-12,
+            "{}",
+            at("right")
+        );
         let moved = tree.links_moved_by(&[left]);
         assert!(moved.contains(&tree.link_index("right").unwrap()));
         let mut updated = poses.clone();

@@ -55,6 +55,18 @@ impl Shared {
     fn now_us(&self) -> u64 {
         self.start.elapsed().as_micros() as u64
     }
+
+    /// The state, locked, while the link is up; the reason it is lost otherwise.
+    fn connected(&self) -> Result<std::sync::MutexGuard<'_, State>> {
+        let s = self
+            .state
+            .lock()
+            .map_err(|_| Error::Link("I/O thread panicked".into()))?;
+        match &s.lost {
+            Some(why) => Err(Error::Link(format!("{why} (reconnecting)"))),
+            None => Ok(s),
+        }
+    }
 }
 
 /// The serial backend.
@@ -302,14 +314,7 @@ impl SerialLink {
     ) -> Result<Answer> {
         let mut frame = [0u8; MAX_WIRE];
         let seq = {
-            let mut s = self
-                .shared
-                .state
-                .lock()
-                .map_err(|_| Error::Link("I/O thread panicked".into()))?;
-            if let Some(why) = &s.lost {
-                return Err(Error::Link(format!("{why} (reconnecting)")));
-            }
+            let mut s = self.shared.connected()?;
             let (seq, n) = encode(&mut s.session, self.shared.now_us(), &mut frame)
                 .map_err(|e| Error::Link(format!("{what}: {e:?}")))?;
             // Sent under the lock, so frames leave in the order of their sequence numbers.
@@ -388,14 +393,7 @@ struct SerialStopLine {
 impl StopLine for SerialStopLine {
     fn emergency_stop(&self) -> Result<()> {
         let mut frame = [0u8; MAX_WIRE];
-        let mut s = self
-            .shared
-            .state
-            .lock()
-            .map_err(|_| Error::Link("I/O thread panicked".into()))?;
-        if let Some(why) = &s.lost {
-            return Err(Error::Link(format!("{why} (reconnecting)")));
-        }
+        let mut s = self.shared.connected()?;
         let n = s
             .session
             .command_quiet(&HostMsg::EmergencyStop, self.shared.now_us(), &mut frame)
