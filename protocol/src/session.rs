@@ -244,6 +244,18 @@ impl HostSession {
         now_us: u64,
         out: &mut [u8],
     ) -> Result<(u16, usize), SessionError> {
+        self.command_expecting(msg, now_us, out, false)
+    }
+
+    /// A command into `out`, its acknowledgement expected, and dropped when it comes if
+    /// `quiet`.
+    fn command_expecting(
+        &mut self,
+        msg: &HostMsg,
+        now_us: u64,
+        out: &mut [u8],
+        quiet: bool,
+    ) -> Result<(u16, usize), SessionError> {
         if matches!(
             msg,
             HostMsg::Hello { .. } | HostMsg::GetJoint { .. } | HostMsg::GetDiagnostics
@@ -251,7 +263,7 @@ impl HostSession {
             return Err(SessionError::NotACommand);
         }
         let (seq, n) = self.encode(msg, now_us, out)?;
-        self.expect(seq, Expect::Ack, false);
+        self.expect(seq, Expect::Ack, quiet);
         Ok((seq, n))
     }
 
@@ -263,11 +275,8 @@ impl HostSession {
         now_us: u64,
         out: &mut [u8],
     ) -> Result<usize, SessionError> {
-        let (seq, n) = self.command(msg, now_us, out)?;
-        if let Some(p) = self.pending.iter_mut().find(|p| p.seq == seq) {
-            p.quiet = true;
-        }
-        Ok(n)
+        self.command_expecting(msg, now_us, out, true)
+            .map(|(_, n)| n)
     }
 
     /// A typed request into `out`; its reply is taken with [`HostSession::take_reply`].
@@ -291,9 +300,7 @@ impl HostSession {
         {
             return None;
         }
-        let (seq, n) = self.encode(&HostMsg::Heartbeat, now_us, out).ok()?;
-        self.expect(seq, Expect::Ack, true);
-        Some(n)
+        self.command_quiet(&HostMsg::Heartbeat, now_us, out).ok()
     }
 
     /// A message sent without waiting for its answer (a test's or a hostile host's raw
