@@ -152,7 +152,7 @@ impl ArmParts {
     }
 
     /// The firmware joint mask of the arm.
-    fn mask(&self) -> u16 {
+    pub(crate) fn mask(&self) -> u16 {
         crate::motion::joint_mask(self.joints.iter().copied())
     }
 }

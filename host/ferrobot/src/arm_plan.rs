@@ -612,7 +612,7 @@ impl Arm {
     /// slower than [`REST_SPEED`], or [`REST_WAIT`] has passed.
     fn come_to_rest(&self) -> Result<()> {
         let claim = Claim {
-            joints: crate::motion::joint_mask(self.parts_joints().iter().copied()),
+            joints: self.parts().mask(),
             ..Claim::default()
         };
         let cfg = self.robot.cfg();
@@ -663,7 +663,7 @@ impl Arm {
         let n = ((total / MIN_KNOT_DT).ceil() as usize).clamp(1, MAX_KNOTS);
         let dt = total / n as f64;
         let idx = self.parts_joints().to_vec();
-        let mask = crate::motion::joint_mask(idx.iter().copied());
+        let mask = self.parts().mask();
         let target = traj.path.last().cloned().unwrap_or_default();
         let timeout = timeout
             .unwrap_or_else(|| Duration::from_secs_f64(self.cfg_arm().timeout.max(total + 5.0)));

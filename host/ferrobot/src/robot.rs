@@ -686,10 +686,10 @@ impl Robot {
 
     /// Emergency stop: the firmware stops the base, holds the arm and refuses motion until
     /// [`Robot::resume`]. On a serial link the stop goes on the wire at once, even while
-    /// another thread holds the link (a camera read); the call then waits for the link. Every motion under way ends with [`Error::EmergencyStop`], even when
-    /// the firmware does not acknowledge the stop (the host's own base laws stop sending); the
-    /// stop is sent up to [`ESTOP_ATTEMPTS`] times, and the last error is returned when none
-    /// is acknowledged.
+    /// another thread holds the link (a camera read); the call then waits for the link. Every
+    /// motion under way ends with [`Error::EmergencyStop`], even when the firmware does not
+    /// acknowledge the stop (the host's own base laws stop sending); the stop is sent up to
+    /// [`ESTOP_ATTEMPTS`] times, and the last error is returned when none is acknowledged.
     pub fn emergency_stop(&self) -> Result<()> {
         // At once, on a link whose firmware runs on while another thread holds the I/O lock
         // (a camera read, SLAM, planning's telemetry): the stop must not wait behind them.
