@@ -416,14 +416,16 @@ pub fn serve_firmware(
         let start = Instant::now();
         let t0 = sim.now_us();
         let mut buf = [0u8; 1024];
-        // Muted: the end of the output not yet passed, up to a frame's delimiter.
-        let mut muted: Option<Vec<u8>> = None;
+        // While muted, the end of the output not yet passed (a frame without its delimiter
+        // yet); passed on when the telemetry is unmuted.
+        let mut muted = false;
+        let mut held = Vec::new();
         loop {
             match rx.try_recv() {
                 Ok(LinkControl::Unplug) => unplug(&mut port, &path),
                 Ok(LinkControl::Plug) if port.is_none() => port = host_pty(&path).ok(),
-                Ok(LinkControl::Mute) => muted = muted.or(Some(Vec::new())),
-                Ok(LinkControl::Unmute) => muted = None,
+                Ok(LinkControl::Mute) => muted = true,
+                Ok(LinkControl::Unmute) => muted = false,
                 Ok(_) => {}
                 Err(std::sync::mpsc::TryRecvError::Disconnected) => {
                     unplug(&mut port, &path);
@@ -441,8 +443,11 @@ pub fn serve_firmware(
             sim.run_until(t0 + micros(start));
             crate::camera_server::answer_truth_requests(&truth_rx, || sim.truth());
             let mut out = sim.take_host_output();
-            if let Some(partial) = muted.as_mut() {
-                out = without_telemetry(partial, &out);
+            if muted {
+                out = without_telemetry(&mut held, &out);
+            } else if !held.is_empty() {
+                held.append(&mut out);
+                out = std::mem::take(&mut held);
             }
             if let Some((master, _, _)) = port.as_mut() {
                 if !out.is_empty() {
