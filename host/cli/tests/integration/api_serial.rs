@@ -189,6 +189,39 @@ fn a_configuration_refuses_firmware_of_another_robot() {
     assert!(e.to_string().contains("Create2"), "{e}");
 }
 
+/// Unplug `fw`'s link; the first error a read of `bot`'s arm then gives (within 5 s).
+fn unplug(fw: &mut Firmware, bot: &Robot) -> Error {
+    fw.say("unplug");
+    let deadline = Instant::now() + Duration::from_secs(5);
+    loop {
+        match bot.arm().expect("arm").get_joint_angles() {
+            Err(e) => return e,
+            Ok(_) => {
+                assert!(Instant::now() < deadline, "the link never failed");
+                std::thread::sleep(Duration::from_millis(20));
+            }
+        }
+    }
+}
+
+/// Move joint 1 to 0.3 rad, asking again while the link errs or times out (for 10 s: it is
+/// coming back), and check that it got there; `what` names a failure.
+fn moves_again(bot: &Robot, what: &str) {
+    let arm = bot.arm().expect("arm");
+    let deadline = Instant::now() + Duration::from_secs(10);
+    loop {
+        match arm.set_joint_positions(&[0.3, 0.0, 0.0, 0.0, 0.0]) {
+            Ok(()) => break,
+            Err(Error::Link(_)) | Err(Error::Timeout { .. }) if Instant::now() < deadline => {
+                std::thread::sleep(Duration::from_millis(50))
+            }
+            Err(e) => panic!("{what}: {e}"),
+        }
+    }
+    let q = arm.get_joint_angles().expect("q");
+    assert!((q[0] - 0.3).abs() < 0.01, "{q:?}");
+}
+
 #[test]
 fn a_lost_link_gives_clear_errors_then_reconnects() {
     let mut fw = Firmware::start("locobot", "unplug");
@@ -197,17 +230,7 @@ fn a_lost_link_gives_clear_errors_then_reconnects() {
         .expect("arm")
         .set_joint_positions(&[0.2, 0.0, 0.0, 0.0, 0.0])
         .expect("moves");
-    fw.say("unplug");
-    let deadline = Instant::now() + Duration::from_secs(5);
-    let err = loop {
-        match bot.arm().expect("arm").get_joint_angles() {
-            Err(e) => break e,
-            Ok(_) => {
-                assert!(Instant::now() < deadline, "the link never failed");
-                std::thread::sleep(Duration::from_millis(20));
-            }
-        }
-    };
+    let err = unplug(&mut fw, &bot);
     assert!(matches!(err, Error::Link(_)), "{err}");
     assert!(err.to_string().contains("reconnecting"), "{err}");
     assert!(matches!(
@@ -215,22 +238,7 @@ fn a_lost_link_gives_clear_errors_then_reconnects() {
         Err(Error::Link(_))
     ));
     fw.say("plug");
-    let deadline = Instant::now() + Duration::from_secs(10);
-    loop {
-        match bot
-            .arm()
-            .expect("arm")
-            .set_joint_positions(&[0.3, 0.0, 0.0, 0.0, 0.0])
-        {
-            Ok(()) => break,
-            Err(Error::Link(_)) | Err(Error::Timeout { .. }) if Instant::now() < deadline => {
-                std::thread::sleep(Duration::from_millis(50))
-            }
-            Err(e) => panic!("did not reconnect: {e}"),
-        }
-    }
-    let q = bot.arm().expect("arm").get_joint_angles().expect("q");
-    assert!((q[0] - 0.3).abs() < 0.01, "{q:?}");
+    moves_again(&bot, "did not reconnect");
 }
 
 /// After a reconnection, a firmware that answers the handshake and requests but sends no
@@ -244,12 +252,7 @@ fn a_firmware_that_answers_but_sends_no_telemetry_after_a_reconnection_is_not_tr
     let arm = bot.arm().expect("arm");
     arm.set_joint_positions(&[0.2, 0.0, 0.0, 0.0, 0.0])
         .expect("moves");
-    fw.say("unplug");
-    let deadline = Instant::now() + Duration::from_secs(5);
-    while arm.get_joint_angles().is_ok() {
-        assert!(Instant::now() < deadline, "the link never failed");
-        std::thread::sleep(Duration::from_millis(20));
-    }
+    unplug(&mut fw, &bot);
     fw.say("mute");
     fw.say("plug");
     // Connected again: the firmware answers a request.
@@ -275,18 +278,7 @@ fn a_firmware_that_answers_but_sends_no_telemetry_after_a_reconnection_is_not_tr
     assert!(named, "the silent firmware was never reported lost");
     assert!(arm.set_joint_positions(&[0.0; 5]).is_err(), "moved blind");
     fw.say("unmute");
-    let deadline = Instant::now() + Duration::from_secs(10);
-    loop {
-        match arm.set_joint_positions(&[0.3, 0.0, 0.0, 0.0, 0.0]) {
-            Ok(()) => break,
-            Err(Error::Link(_)) | Err(Error::Timeout { .. }) if Instant::now() < deadline => {
-                std::thread::sleep(Duration::from_millis(50))
-            }
-            Err(e) => panic!("did not recover: {e}"),
-        }
-    }
-    let q = arm.get_joint_angles().expect("q");
-    assert!((q[0] - 0.3).abs() < 0.01, "{q:?}");
+    moves_again(&bot, "did not recover");
 }
 
 #[test]
