@@ -296,8 +296,9 @@ impl Firmware {
         for &b in bytes {
             if let Some(Ok(frame)) = self.decoder.push::<HostMsg>(b) {
                 self.last_host_rx = now;
-                self.watchdog_tripped = false;
+                // A Hello's answer says whether the watchdog had tripped; the frame ends it.
                 self.handle(now, frame.seq, frame.msg);
+                self.watchdog_tripped = false;
             }
         }
         // A mode change starts at once when the bus is free.
@@ -892,6 +893,7 @@ impl Firmware {
             base: self.profile.base.kind,
             loop_period_us: u32::try_from(self.loop_period.as_micros()).unwrap_or(u32::MAX),
             accepted,
+            watchdog_tripped: self.watchdog_tripped,
         }
     }
 

@@ -407,6 +407,12 @@ pub struct DeviceInfo {
     pub loop_period_us: u32,
     /// Whether the host's version and schema match; if not, every other command is rejected.
     pub accepted: bool,
+    /// Whether the host watchdog had stopped the robot when this Hello arrived: the host had
+    /// sent nothing for longer than the watchdog period (a link that was down), so the base
+    /// was stopped and every joint held where it was. Any valid frame, this Hello too, ends
+    /// that state; the joints go on holding until commanded. (Last, so that an older host
+    /// still reads the fields before it and can report a schema mismatch.)
+    pub watchdog_tripped: bool,
 }
 
 /// Measured state of one joint.

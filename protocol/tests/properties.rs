@@ -203,10 +203,19 @@ fn device_msg() -> impl Strategy<Value = DeviceMsg> {
             name(),
             name(),
             vec(Just(JointKind::Arm), 0..=MAX_JOINTS),
+            any::<bool>(),
             any::<bool>()
         )
             .prop_map(
-                |(protocol_version, schema_hash, board, robot, joints, accepted)| {
+                |(
+                    protocol_version,
+                    schema_hash,
+                    board,
+                    robot,
+                    joints,
+                    accepted,
+                    watchdog_tripped,
+                )| {
                     DeviceMsg::Hello(DeviceInfo {
                         protocol_version,
                         schema_hash,
@@ -217,6 +226,7 @@ fn device_msg() -> impl Strategy<Value = DeviceMsg> {
                         base: BaseKind::Kobuki,
                         loop_period_us: 1000,
                         accepted,
+                        watchdog_tripped,
                     })
                 }
             ),

@@ -336,7 +336,7 @@ impl BoardServer {
     pub fn serve_camera(
         &self,
         path: &std::path::Path,
-        camera: &crate::serve::CameraOptions,
+        camera: &crate::camera_server::CameraOptions,
     ) -> Result<crate::camera_server::CameraServer, ServeError> {
         let body = self.body.clone().ok_or_else(|| {
             ServeError::Io(std::io::Error::other(

@@ -213,3 +213,35 @@ impl Served {
         out.flush()
     }
 }
+
+/// The robot's camera to serve beside a firmware server.
+#[derive(Debug, Clone)]
+pub struct CameraOptions {
+    /// The description's camera.
+    pub section: ferrobot_description::CameraSection,
+    /// Seed of the depth noise.
+    pub seed: u64,
+    /// Simulate the depth noise.
+    pub noise: bool,
+    /// How far the camera sits off its URDF mount, in the camera link's frame
+    /// ([`crate::camera::SimCamera::set_mount_error`]); identity for none.
+    pub mount_error: nalgebra::Isometry3<f64>,
+    /// Draw the description's hand-eye marker on the robot.
+    pub marker: bool,
+}
+
+impl CameraOptions {
+    /// The camera of `section` on `body` in `scene`, or `None` if the URDF has no such
+    /// optical frame.
+    pub fn camera(
+        &self,
+        scene: &crate::scene::Scene,
+        body: &crate::body::RobotBody,
+    ) -> Option<crate::camera::BandedCamera> {
+        let mut cam =
+            crate::camera::BandedCamera::new(scene, body, &self.section, self.seed, self.noise)?;
+        cam.set_mount_error(body, &self.mount_error);
+        cam.show_decals(self.marker);
+        Some(cam)
+    }
+}

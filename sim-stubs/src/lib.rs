@@ -27,6 +27,7 @@ pub mod chain;
 pub mod conductor;
 pub mod control;
 pub mod diff_drive;
+pub mod firmware_server;
 pub mod floor_plan;
 pub mod hardware;
 pub mod hostile;

@@ -8,7 +8,7 @@ fn main() {
             .unwrap_or_else(|| "/tmp/ferrobot-firmware".into()),
     );
     let sim = ferrobot_sim::LockstepSim::new(&robot, 1).unwrap_or_else(|e| panic!("{e}"));
-    if let Err(e) = ferrobot_sim::serve::run_firmware_server(sim, &robot, link, None) {
+    if let Err(e) = ferrobot_sim::firmware_server::run_firmware_server(sim, &robot, link, None) {
         eprintln!("error: {e}");
         std::process::exit(1);
     }

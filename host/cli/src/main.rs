@@ -99,10 +99,11 @@ enum Cmd {
     Ik(IkArgs),
     /// Serve a simulated robot's firmware core (with its plants, in real time, in a scene) on a
     /// PTY behind the symlink LINK, and its camera on the Unix socket LINK.camera, for the
-    /// Serial backend and outside tools. Prints one JSON line; reads
-    /// `unplug` and `plug` lines on standard input to drop and restore the link, and `mute`
-    /// and `unmute` to drop and restore its telemetry (a stopped control loop); exits when
-    /// standard input closes.
+    /// Serial backend and outside tools. Prints one JSON line, then reads control lines on
+    /// standard input until it closes: `unplug` and `plug` drop and restore the link (`unplug
+    /// MS` restores it after MS of the firmware's time), `mute` and `unmute` drop and restore
+    /// its telemetry (a stopped control loop), `freeze` and `thaw` stop and restart the
+    /// world's clock (the firmware still answers), `stall MS` stops the server for MS.
     SimFirmware {
         /// Robot name or configuration path.
         robot: String,

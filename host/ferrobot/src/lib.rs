@@ -52,7 +52,7 @@ pub mod base_control {
 }
 
 pub use arm::{MoveOptions, Orientation, Pose};
-pub use backend::Backend;
+pub use backend::{Backend, LinkEvent};
 pub use base::GoalOptions;
 pub use camera::{Camera, CameraDevice, Frame};
 pub use config::RobotConfig;

@@ -15,7 +15,7 @@ use std::time::Duration;
 
 use ferrobot_protocol::{Fault, FaultKind, Telemetry};
 
-use crate::backend::Link;
+use crate::backend::{Link, LinkEvent};
 use crate::config::RobotConfig;
 use crate::error::{Error, Result};
 use crate::robot::{Io, Robot};
@@ -38,6 +38,8 @@ pub const STALL_LAG: f64 = 0.15;
 pub const ARRIVAL_SPEED: f64 = 0.05;
 /// Faults kept for [`Robot::take_faults`]; older ones are dropped first.
 pub const FAULT_QUEUE: usize = 1024;
+/// Link events kept for [`Robot::take_link_events`]; older ones are dropped first.
+pub const LINK_EVENT_QUEUE: usize = 64;
 
 /// The firmware joint mask of joints (firmware indices, each below 16).
 pub(crate) fn joint_mask(joints: impl IntoIterator<Item = usize>) -> u16 {
@@ -134,6 +136,8 @@ pub(crate) struct Goals {
     detached: HashSet<u64>,
     /// Faults for [`Robot::take_faults`].
     faults: VecDeque<Fault>,
+    /// Link events for [`Robot::take_link_events`].
+    link_events: VecDeque<LinkEvent>,
 }
 
 impl Goals {
@@ -177,12 +181,29 @@ impl Goals {
     pub fn take_faults(&mut self) -> Vec<Fault> {
         self.faults.drain(..).collect()
     }
+
+    /// The link events collected since the last call.
+    pub fn take_link_events(&mut self) -> Vec<LinkEvent> {
+        self.link_events.drain(..).collect()
+    }
 }
 
 impl Io {
-    /// Collect the link's faults: each goal under way that one hits ends with its error; all
-    /// are kept for [`Robot::take_faults`].
+    /// Collect the link's events and faults. A link lost ends every goal under way with
+    /// [`Error::Link`] (a reconnection is a new session: nothing from before it goes on); each
+    /// goal a fault hits ends with its error. Both are kept for [`Robot::take_link_events`]
+    /// and [`Robot::take_faults`].
     pub(crate) fn collect_faults(&mut self, cfg: &RobotConfig) {
+        for e in self.link.take_events() {
+            if let LinkEvent::Lost { why } = &e {
+                let why = format!("{why} (reconnecting)");
+                self.end_where(|_| true, |_| Error::Link(why.clone()));
+            }
+            if self.goals.link_events.len() >= LINK_EVENT_QUEUE {
+                self.goals.link_events.pop_front();
+            }
+            self.goals.link_events.push_back(e);
+        }
         let faults = self.link.take_faults();
         if faults.is_empty() {
             return;

@@ -10,7 +10,7 @@ use parking_lot::{MappedMutexGuard, Mutex, MutexGuard};
 use crate::arm::{Arm, ArmParts, ArmState};
 use crate::backend::serial::SerialLink;
 use crate::backend::sim::SimLink;
-use crate::backend::{Backend, Link};
+use crate::backend::{Backend, Link, LinkEvent};
 use crate::base::{Base, BaseState};
 use crate::camera::{Camera, CameraDevice};
 use crate::config::{ConfigSource, RobotConfig};
@@ -338,7 +338,7 @@ impl Robot {
                     .camera
                     .clone()
                     .filter(|_| uses.camera && camera_device.is_none())
-                    .map(|section| ferrobot_sim::serve::CameraOptions {
+                    .map(|section| ferrobot_sim::camera_server::CameraOptions {
                         section,
                         seed: 1,
                         noise: depth_noise,
@@ -735,6 +735,15 @@ impl Robot {
         let mut io = self.lock_io();
         io.collect_faults(self.cfg());
         io.goals.take_faults()
+    }
+
+    /// What happened to the link since the last call, oldest first (the newest
+    /// [`crate::motion::LINK_EVENT_QUEUE`]): lost, and back with whether the firmware's watchdog
+    /// stopped the robot meanwhile ([`LinkEvent`]). Always empty on the in-process simulator.
+    pub fn take_link_events(&self) -> Vec<LinkEvent> {
+        let mut io = self.lock_io();
+        io.collect_faults(self.cfg());
+        io.goals.take_link_events()
     }
 
     /// Let `seconds` pass (simulated time on the simulator): finite, in

@@ -69,6 +69,39 @@ fn watchdog_stops_the_base_within_one_cycle_and_holds_the_arm() {
     );
 }
 
+/// A host that comes back says Hello again, and the answer tells it whether the watchdog
+/// stopped the robot while it was away: yes after a silence longer than the watchdog period
+/// (the joints held, the base stopped), no after a shorter one; either way the new session
+/// drives at once. Virtual time, so the silences are exact.
+#[test]
+fn a_returning_hello_says_whether_the_watchdog_tripped_while_the_host_was_away() {
+    let mut s = session("locobot");
+    s.keepalive = false;
+    let period = 500_000; // the LoCoBot profile's watchdog period, µs
+                          // Away for less than the period after a last frame: not tripped.
+    s.command(&HostMsg::Heartbeat).expect("heartbeat");
+    s.run_for(period - 50_000);
+    let info = s.handshake().expect("hello");
+    assert!(info.accepted && !info.watchdog_tripped, "{info:?}");
+    // Away for longer: tripped, and reported by the next Hello (and by no later one).
+    s.run_for(period + 50_000);
+    assert!(s
+        .take_faults()
+        .iter()
+        .any(|f| f.kind == FaultKind::Watchdog));
+    let info = s.handshake().expect("hello");
+    assert!(info.accepted && info.watchdog_tripped, "{info:?}");
+    let info = s.handshake().expect("hello");
+    assert!(!info.watchdog_tripped, "reported twice: {info:?}");
+    // The new session drives: the arm follows a waypoint.
+    s.keepalive = true;
+    s.command(&waypoint(ARM, 500_000, &[0.3, 0.0, 0.0, 0.0, 0.0]))
+        .expect("accepted");
+    s.run_for(1_500_000);
+    let q = true_arm(&s);
+    assert!((q[0] - 0.3).abs() < 0.02, "{q:?}");
+}
+
 #[test]
 fn a_servo_that_stops_answering_is_reported_and_does_not_stall_the_others() {
     let mut s = session("locobot");

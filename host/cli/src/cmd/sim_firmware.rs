@@ -29,15 +29,19 @@ pub fn run(
     let camera = cfg
         .camera
         .clone()
-        .map(|section| ferrobot_sim::serve::CameraOptions {
+        .map(|section| ferrobot_sim::camera_server::CameraOptions {
             section,
             seed,
             noise,
             mount_error: nalgebra::Isometry3::identity(),
             marker: false,
         });
-    ferrobot_sim::serve::run_firmware_server(sim, &cfg.name, link, camera).map_err(|e| match e {
-        ferrobot_sim::serve::ServeError::LinkExists(path) => ferrobot::Error::PathExists { path },
-        e => ferrobot::Error::Link(e.to_string()),
+    ferrobot_sim::firmware_server::run_firmware_server(sim, &cfg.name, link, camera).map_err(|e| {
+        match e {
+            ferrobot_sim::serve::ServeError::LinkExists(path) => {
+                ferrobot::Error::PathExists { path }
+            }
+            e => ferrobot::Error::Link(e.to_string()),
+        }
     })
 }

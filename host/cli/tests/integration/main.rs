@@ -1,6 +1,7 @@
 //! `ferrobot-cli`'s integration tests as one binary: a module per former test file.
 
 mod api_serial;
+mod api_serial_reconnect;
 mod bench_base;
 mod bench_grasp;
 mod bench_manipulation;

@@ -242,7 +242,7 @@ impl EmulatedLink {
         robot: &str,
         firmware: &Path,
         scene: std::sync::Arc<ferrobot_sim::scene::Scene>,
-        camera: Option<ferrobot_sim::serve::CameraOptions>,
+        camera: Option<ferrobot_sim::camera_server::CameraOptions>,
     ) -> Result<Self> {
         static NEXT: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
         let n = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
@@ -294,6 +294,10 @@ impl Link for EmulatedLink {
     }
     fn take_faults(&mut self) -> Vec<Fault> {
         self.serial.take_faults()
+    }
+
+    fn take_events(&mut self) -> Vec<super::LinkEvent> {
+        self.serial.take_events()
     }
     fn simulator(&mut self) -> Option<&mut ferrobot_sim::LockstepSim> {
         None

@@ -75,6 +75,11 @@ pub trait Link: Send {
     fn now(&self) -> Duration;
     /// Faults received since the last call.
     fn take_faults(&mut self) -> Vec<Fault>;
+    /// What happened to the link itself since the last call (lost, back), oldest first;
+    /// nothing on a link that cannot be lost (the in-process simulator).
+    fn take_events(&mut self) -> Vec<LinkEvent> {
+        Vec::new()
+    }
     /// The simulator, when this backend is one (ground truth, fault injection).
     fn simulator(&mut self) -> Option<&mut ferrobot_sim::LockstepSim>;
     /// The simulated world's ground truth now, when the plants are simulated (in-process or
@@ -88,6 +93,33 @@ pub trait Link: Send {
     fn stop_line(&self) -> Option<Arc<dyn StopLine>> {
         None
     }
+}
+
+/// What happened to a link that comes and goes (a serial port whose cable is pulled, a
+/// firmware that falls silent), in the order it happened ([`crate::Robot::take_link_events`]).
+///
+/// A reconnection is a new session with the firmware. Motions under way when the link was
+/// lost end with [`crate::Error::Link`], and so does every call made while it is down. When
+/// the link is back, the robot accepts motions again from where it stands; what the firmware's
+/// watchdog did meanwhile is said once, here, and never reaches a later motion as a fault.
+#[derive(Debug, Clone, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum LinkEvent {
+    /// The link was lost, for the reason given.
+    Lost {
+        /// Why: the port's error, or the firmware's silence.
+        why: String,
+    },
+    /// The firmware answered a new handshake, `down_for` (wall time) after the link was lost.
+    Reconnected {
+        /// How long the link was down, wall time.
+        down_for: Duration,
+        /// Whether the firmware's host watchdog had stopped the robot meanwhile (the link was
+        /// down for longer than its period, 500 ms on the bundled robots): the base stopped
+        /// and every joint held where it was. The handshake ended that state; the joints go on
+        /// holding until commanded.
+        watchdog_stopped: bool,
+    },
 }
 
 /// Sends the emergency stop at once, beside whatever holds the [`Link`]
@@ -120,6 +152,7 @@ pub(crate) fn placeholder_info() -> DeviceInfo {
         base: ferrobot_protocol::BaseKind::None,
         loop_period_us: 0,
         accepted: false,
+        watchdog_tripped: false,
     }
 }
 

@@ -9,7 +9,8 @@
 //! and the API's timings (motion deadlines, control periods) follow it either way. A firmware
 //! that sends no telemetry for [`TELEMETRY_SILENCE`] is reported lost.
 
-use std::io::{Read, Write};
+use std::collections::VecDeque;
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::mpsc::{channel, Receiver, Sender};
 use std::sync::{Arc, Condvar, Mutex};
@@ -24,7 +25,7 @@ use ferrobot_protocol::{
     SCHEMA_HASH,
 };
 
-use super::{acked, replied, Link, StopLine};
+use super::{acked, replied, Link, LinkEvent, StopLine};
 use crate::error::{Error, Result};
 
 /// How long a command waits for its acknowledgement.
@@ -35,13 +36,102 @@ pub const HEARTBEAT: Duration = Duration::from_millis(100);
 /// sends it every few tens of milliseconds of its own time).
 pub const TELEMETRY_SILENCE: Duration = Duration::from_secs(2);
 
+/// How often a lost port is opened again.
+pub const REOPEN_RETRY: Duration = Duration::from_millis(250);
+/// How often a Hello is said again until the firmware answers it (a firmware in QEMU drops
+/// what it sends before the port is open; a Hello can be lost on a line that just came back).
+pub const HELLO_RETRY: Duration = Duration::from_millis(300);
+/// Link events kept for [`Link::take_events`]; older ones are dropped first.
+pub const EVENT_QUEUE: usize = 64;
+
 struct State {
     /// The protocol's host session: sequence numbers, handshake, answers, telemetry, faults.
     session: HostSession,
     /// When the newest telemetry arrived (wall time).
     telemetry_at: Option<Instant>,
+    /// Why the link is down, while it is.
     lost: Option<String>,
+    /// When it went down.
+    lost_at: Option<Instant>,
+    /// The firmware of the first handshake: a reconnection must find the same one.
+    first: Option<DeviceInfo>,
+    /// Lost and back, for [`Link::take_events`].
+    events: VecDeque<LinkEvent>,
     quit: bool,
+}
+
+impl State {
+    fn push_event(&mut self, e: LinkEvent) {
+        if self.events.len() >= EVENT_QUEUE {
+            self.events.pop_front();
+        }
+        self.events.push_back(e);
+    }
+
+    /// The link went down (`why`): a new session will have to be made.
+    fn lose(&mut self, why: String) {
+        if self.lost.is_none() {
+            self.push_event(LinkEvent::Lost { why: why.clone() });
+            self.lost_at = Some(Instant::now());
+        }
+        self.lost = Some(why);
+        self.telemetry_at = None;
+        self.session.restart();
+    }
+
+    /// Bytes from the firmware.
+    fn on_bytes(&mut self, bytes: &[u8]) {
+        let before = self.session.telemetry().map(|t| t.time_us);
+        self.session.on_bytes(bytes);
+        if self.session.telemetry().map(|t| t.time_us) != before {
+            self.telemetry_at = Some(Instant::now());
+        }
+        if self.lost.is_some() {
+            self.reconnected();
+        }
+    }
+
+    /// While the link is down: once the firmware has answered the new handshake, the link is
+    /// back if it is the same firmware (robot, joints, base, board) and accepts us.
+    fn reconnected(&mut self) {
+        let info = match self.session.handshake() {
+            Handshake::Accepted(info) => info.clone(),
+            Handshake::Refused(info) => {
+                self.lost = Some(format!(
+                    "the firmware now behind the port refuses this host's protocol (version \
+                     {}, schema {:#010x}; ours {PROTOCOL_VERSION}, {SCHEMA_HASH:#010x})",
+                    info.protocol_version, info.schema_hash
+                ));
+                return;
+            }
+            Handshake::Waiting => return,
+        };
+        if let Some(first) = &self.first {
+            let same = |a: &DeviceInfo, b: &DeviceInfo| {
+                (&a.robot, &a.board, &a.joints, a.base) == (&b.robot, &b.board, &b.joints, b.base)
+            };
+            if !same(first, &info) {
+                self.lost = Some(format!(
+                    "another firmware answers behind the port: robot {} on board {} (was {} on \
+                     {})",
+                    info.robot.as_str(),
+                    info.board.as_str(),
+                    first.robot.as_str(),
+                    first.board.as_str()
+                ));
+                return;
+            }
+        }
+        self.lost = None;
+        // The silence is counted from the handshake, so that a firmware that answers it but
+        // sends no telemetry is lost again rather than trusted.
+        self.telemetry_at = Some(Instant::now());
+        let down_for = self.lost_at.take().map(|t| t.elapsed()).unwrap_or_default();
+        self.push_event(LinkEvent::Reconnected {
+            down_for,
+            watchdog_stopped: info.watchdog_tripped,
+        });
+    }
 }
 
 struct Shared {
@@ -56,12 +146,15 @@ impl Shared {
         self.start.elapsed().as_micros() as u64
     }
 
+    fn lock(&self) -> Result<std::sync::MutexGuard<'_, State>> {
+        self.state
+            .lock()
+            .map_err(|_| Error::Link("I/O thread panicked".into()))
+    }
+
     /// The state, locked, while the link is up; the reason it is lost otherwise.
     fn connected(&self) -> Result<std::sync::MutexGuard<'_, State>> {
-        let s = self
-            .state
-            .lock()
-            .map_err(|_| Error::Link("I/O thread panicked".into()))?;
+        let s = self.lock()?;
         match &s.lost {
             Some(why) => Err(Error::Link(format!("{why} (reconnecting)"))),
             None => Ok(s),
@@ -85,108 +178,102 @@ fn open(path: &Path) -> std::io::Result<Box<dyn serialport::SerialPort>> {
         .map_err(|e| std::io::Error::other(e.to_string()))
 }
 
-/// The I/O thread: owns the port, moves bytes between it and the session.
+/// The I/O thread: owns the port, moves bytes between it and the session, and when the port
+/// fails reports the link lost and opens it again until a new session is made.
 fn io_thread(path: PathBuf, shared: Arc<Shared>, rx: Receiver<Vec<u8>>) {
     let mut port: Option<Box<dyn serialport::SerialPort>> = None;
-    let mut buf = [0u8; 512];
-    let mut frame = [0u8; MAX_WIRE];
-    let mut next_retry = Instant::now();
+    let mut next_open = Instant::now();
+    let mut next_hello = Instant::now();
     loop {
         if shared.state.lock().map(|s| s.quit).unwrap_or(true) {
             return;
         }
-        // (Re)open, and start a session.
-        if port.is_none() {
-            if Instant::now() < next_retry {
+        let Some(p) = port.as_mut() else {
+            if Instant::now() < next_open {
                 thread::sleep(Duration::from_millis(10));
                 continue;
             }
-            next_retry = Instant::now() + Duration::from_millis(250);
-            match open(&path) {
-                Ok(mut p) => {
-                    let hello = shared.state.lock().ok().and_then(|mut s| {
-                        s.session.restart();
-                        s.session.hello(shared.now_us(), &mut frame).ok()
-                    });
-                    if let Some(n) = hello {
-                        let _ = p.write_all(&frame[..n]);
-                    }
-                    port = Some(p);
-                }
-                Err(_) => continue,
+            next_open = Instant::now() + REOPEN_RETRY;
+            if let Ok(p) = open(&path) {
+                // A Hello first, on a new port.
+                next_hello = Instant::now();
+                port = Some(p);
             }
-        }
-        let Some(p) = port.as_mut() else { continue };
-        // Outgoing: frames the API encoded, then a heartbeat when it has been quiet.
-        let mut failed = None;
-        while let Ok(bytes) = rx.try_recv() {
-            if let Err(e) = p.write_all(&bytes) {
-                failed = Some(e.to_string());
-                break;
-            }
-        }
-        if failed.is_none() {
-            let beat = shared.state.lock().ok().and_then(|mut s| {
-                s.session
-                    .heartbeat_due(shared.now_us(), HEARTBEAT.as_micros() as u64, &mut frame)
-            });
-            if let Some(n) = beat {
-                if let Err(e) = p.write_all(&frame[..n]) {
-                    failed = Some(e.to_string());
-                }
-            }
-        }
-        // Incoming.
-        if failed.is_none() {
-            match p.read(&mut buf) {
-                Ok(0) => {}
-                Ok(n) => {
-                    if let Ok(mut s) = shared.state.lock() {
-                        let before = s.session.telemetry().map(|t| t.time_us);
-                        s.session.on_bytes(&buf[..n]);
-                        if s.session.telemetry().map(|t| t.time_us) != before {
-                            s.telemetry_at = Some(Instant::now());
-                        }
-                        if matches!(s.session.handshake(), Handshake::Accepted(_))
-                            && s.lost.take().is_some()
-                        {
-                            // Connected again: the silence is counted from the handshake, so
-                            // that a firmware that answers it but sends no telemetry is lost
-                            // again rather than trusted.
-                            s.telemetry_at = Some(Instant::now());
-                        }
-                    }
-                    shared.cv.notify_all();
-                }
-                Err(e)
-                    if e.kind() == std::io::ErrorKind::TimedOut
-                        || e.kind() == std::io::ErrorKind::WouldBlock => {}
-                Err(e) => failed = Some(e.to_string()),
-            }
-        }
-        if failed.is_none() {
-            let silent = shared.state.lock().is_ok_and(|s| {
-                matches!(s.session.handshake(), Handshake::Accepted(_))
-                    && s.telemetry_at
-                        .is_some_and(|t| t.elapsed() > TELEMETRY_SILENCE)
-            });
-            if silent {
-                failed = Some(format!(
-                    "no telemetry from the firmware for {TELEMETRY_SILENCE:?}: its control loop \
-                     has stopped (for an emulated board: its plants and clock are no longer served)"
-                ));
-            }
-        }
-        if let Some(why) = failed {
+            continue;
+        };
+        if let Err(why) = turn(p.as_mut(), &shared, &rx, &mut next_hello) {
             port = None;
             if let Ok(mut s) = shared.state.lock() {
-                s.lost = Some(why);
-                s.telemetry_at = None;
-                s.session.restart();
+                s.lose(why);
             }
+            // Frames the API encoded for the lost session are not sent to the next one: their
+            // callers have their error (nothing new is encoded while the link is lost).
+            while rx.try_recv().is_ok() {}
             shared.cv.notify_all();
         }
     }
+}
+
+/// One turn of the I/O thread on an open port: a Hello while the handshake waits, the API's
+/// frames, a heartbeat when it has been quiet, what the firmware sent, and the firmware's
+/// silence. `Err` with the reason when the link is lost.
+fn turn(
+    p: &mut dyn serialport::SerialPort,
+    shared: &Shared,
+    rx: &Receiver<Vec<u8>>,
+    next_hello: &mut Instant,
+) -> std::result::Result<(), String> {
+    let mut frame = [0u8; MAX_WIRE + 1];
+    let hello = shared.state.lock().ok().and_then(|mut s| {
+        let due =
+            matches!(s.session.handshake(), Handshake::Waiting) && Instant::now() >= *next_hello;
+        if !due {
+            return None;
+        }
+        *next_hello = Instant::now() + HELLO_RETRY;
+        // After a leading delimiter (frame[0] stays 0), which ends whatever partial frame the
+        // firmware's decoder holds from before, so that the Hello is read whole.
+        s.session.hello(shared.now_us(), &mut frame[1..]).ok()
+    });
+    if let Some(n) = hello {
+        p.write_all(&frame[..=n]).map_err(|e| e.to_string())?;
+    }
+    while let Ok(bytes) = rx.try_recv() {
+        p.write_all(&bytes).map_err(|e| e.to_string())?;
+    }
+    let beat = shared.state.lock().ok().and_then(|mut s| {
+        s.session
+            .heartbeat_due(shared.now_us(), HEARTBEAT.as_micros() as u64, &mut frame)
+    });
+    if let Some(n) = beat {
+        p.write_all(&frame[..n]).map_err(|e| e.to_string())?;
+    }
+    let mut buf = [0u8; 512];
+    match p.read(&mut buf) {
+        Ok(0) => {}
+        Ok(n) => {
+            if let Ok(mut s) = shared.state.lock() {
+                s.on_bytes(&buf[..n]);
+            }
+            shared.cv.notify_all();
+        }
+        Err(e)
+            if e.kind() == std::io::ErrorKind::TimedOut
+                || e.kind() == std::io::ErrorKind::WouldBlock => {}
+        Err(e) => return Err(e.to_string()),
+    }
+    let silent = shared.state.lock().is_ok_and(|s| {
+        matches!(s.session.handshake(), Handshake::Accepted(_))
+            && s.telemetry_at
+                .is_some_and(|t| t.elapsed() > TELEMETRY_SILENCE)
+    });
+    if silent {
+        return Err(format!(
+            "no telemetry from the firmware for {TELEMETRY_SILENCE:?}: its control loop has \
+             stopped (for an emulated board: its plants and clock are no longer served)"
+        ));
+    }
+    Ok(())
 }
 
 impl SerialLink {
@@ -200,6 +287,9 @@ impl SerialLink {
                 session: HostSession::new(),
                 telemetry_at: None,
                 lost: None,
+                lost_at: None,
+                first: None,
+                events: VecDeque::new(),
                 quit: false,
             }),
             cv: Condvar::new(),
@@ -218,54 +308,32 @@ impl SerialLink {
             path,
             thread: Some(thread),
         };
-        // Wait for the firmware's answer to the thread's Hello; say Hello again now and then
-        // (a firmware in QEMU drops what it sends before the port is open).
-        let deadline = Instant::now() + timeout;
-        let mut next_hello = Instant::now() + Duration::from_millis(300);
-        loop {
-            let handshake = link
-                .shared
-                .state
-                .lock()
-                .ok()
-                .map(|s| s.session.handshake().clone());
-            match handshake {
-                Some(Handshake::Refused(info)) => {
-                    return Err(Error::VersionMismatch {
-                        host: PROTOCOL_VERSION,
-                        host_schema: SCHEMA_HASH,
-                        firmware: info.protocol_version,
-                        firmware_schema: info.schema_hash,
-                    });
+        // The I/O thread says Hello (again every HELLO_RETRY) until the firmware answers.
+        link.info = link
+            .wait_for(timeout, "handshake", |s| match s.session.handshake() {
+                Handshake::Refused(info) => Some(Err(Error::VersionMismatch {
+                    host: PROTOCOL_VERSION,
+                    host_schema: SCHEMA_HASH,
+                    firmware: info.protocol_version,
+                    firmware_schema: info.schema_hash,
+                })),
+                Handshake::Accepted(info) => {
+                    let info = info.clone();
+                    s.first = Some(info.clone());
+                    // What happened before the link was handed over is not the program's.
+                    s.events.clear();
+                    Some(Ok(info))
                 }
-                Some(Handshake::Accepted(info)) => {
-                    link.info = info;
-                    break;
-                }
-                _ => {}
-            }
-            if Instant::now() >= deadline {
-                return Err(Error::Link(format!(
+                Handshake::Waiting => None,
+            })
+            .map_err(|e| match e {
+                Error::Timeout { .. } => Error::Link(format!(
                     "nothing answered the handshake on {} within {timeout:?}: is the firmware \
                      running behind that port?",
                     link.path.display()
-                )));
-            }
-            if Instant::now() >= next_hello {
-                next_hello += Duration::from_millis(300);
-                let mut frame = [0u8; MAX_WIRE];
-                let n = link
-                    .shared
-                    .state
-                    .lock()
-                    .ok()
-                    .and_then(|mut s| s.session.hello(link.shared.now_us(), &mut frame).ok());
-                if let Some(n) = n {
-                    let _ = link.tx.send(frame[..n].to_vec());
-                }
-            }
-            thread::sleep(Duration::from_millis(5));
-        }
+                )),
+                e => e,
+            })?;
         // Hand the robot over once the firmware has configured its servos: within `timeout`
         // of the firmware's own time, which runs as long as telemetry comes.
         let first = link
@@ -482,6 +550,13 @@ impl Link for SerialLink {
             .state
             .lock()
             .map(|mut s| std::iter::from_fn(|| s.session.take_fault()).collect())
+            .unwrap_or_default()
+    }
+
+    fn take_events(&mut self) -> Vec<LinkEvent> {
+        self.shared
+            .lock()
+            .map(|mut s| s.events.drain(..).collect())
             .unwrap_or_default()
     }
 
