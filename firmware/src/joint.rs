@@ -331,6 +331,9 @@ pub struct JointControl {
     pub measured: bool,
     /// Whether a limit clamped the last command (reported once per episode).
     pub clamped: bool,
+    /// Whether the joint's being outside its limits has been reported
+    /// ([`ferrobot_protocol::FaultKind::OutsideLimits`], once per episode).
+    pub outside_reported: bool,
 }
 
 impl Default for JointControl {
@@ -362,6 +365,7 @@ impl JointControl {
             state: JointState::default(),
             measured: false,
             clamped: false,
+            outside_reported: false,
         }
     }
 

@@ -503,6 +503,7 @@ impl Firmware {
     fn finish_tick(&mut self, now: Instant) {
         let dt = self.loop_period.as_secs_f32();
         self.measure(now);
+        self.report_outside(now);
         self.model_gravity();
         let mut goals: Vec<Goal, { bus::MAX_SERVOS }> = Vec::new();
         for _ in 0..self.bus.servos.len() {
@@ -522,6 +523,35 @@ impl Firmware {
         if took > self.loop_period {
             s.overruns = s.overruns.saturating_add(1);
             self.overrun_since_telemetry = true;
+        }
+    }
+
+    /// Report each joint under control found more than [`ranges::OUTSIDE_FAULT`] outside its
+    /// limits, once until it is back within half that.
+    fn report_outside(&mut self, now: Instant) {
+        let gripper = self.gripper.as_ref().map(|(j, _)| *j);
+        for j in 0..self.joints.len() {
+            let (Some(jc), Some(cfg)) = (self.joints.get(j), self.profile.joints.get(j)) else {
+                continue;
+            };
+            let q = jc.state.position;
+            let l = cfg.limits;
+            let beyond = (l.min - q).max(q - l.max);
+            let watched = jc.measured && jc.mode != JointMode::Off && gripper != Some(j);
+            let report = watched && !jc.outside_reported && beyond > ranges::OUTSIDE_FAULT;
+            let clear = !watched || beyond < 0.5 * ranges::OUTSIDE_FAULT;
+            if let Some(jc) = self.joints.get_mut(j) {
+                if report {
+                    jc.outside_reported = true;
+                } else if clear {
+                    jc.outside_reported = false;
+                }
+            }
+            if report {
+                let mrad = (beyond * 1000.0).min(u16::MAX as f32) as u16;
+                let id = cfg.servo_id;
+                self.fault(now, FaultKind::OutsideLimits, Some(j as u8), Some(id), mrad);
+            }
         }
     }
 
@@ -1051,7 +1081,7 @@ impl Firmware {
                     .joints
                     .get_mut(joint as usize)
                     .ok_or(RejectReason::UnknownJoint)?;
-                if !ranges::gains_ok(&gains) {
+                if ranges::gains_beyond_servo(&gains, row).is_some() {
                     return Err(RejectReason::InvalidConfig);
                 }
                 row.pid = gains;
@@ -1077,19 +1107,23 @@ impl Firmware {
                     || limits.max > env.max
                     || limits.velocity > env.velocity
                     || limits.effort > env.effort
+                    || limits.effort < ranges::EFFORT_NARROW_MIN_SHARE * env.effort
                 {
                     return Err(RejectReason::OutOfLimits);
                 }
+                // Limits the joint is outside of now cannot hold at once: refused (the host
+                // moves it inside first).
+                let jc = self
+                    .joints
+                    .get_mut(joint as usize)
+                    .ok_or(RejectReason::UnknownJoint)?;
+                let q = jc.state.position;
+                if jc.measured && !(limits.min..=limits.max).contains(&q) {
+                    return Err(RejectReason::OutOfLimits);
+                }
+                jc.reset_anchor();
                 if let Some(r) = self.profile.joints.get_mut(joint as usize) {
                     *r = new;
-                }
-                // A joint the new limits leave outside stops where it is, then comes back.
-                if let Some(jc) = self.joints.get_mut(joint as usize) {
-                    let q = jc.state.position;
-                    jc.reset_anchor();
-                    if jc.measured && !(limits.min..=limits.max).contains(&q) {
-                        jc.hold_here(now);
-                    }
                 }
                 Ok(())
             }

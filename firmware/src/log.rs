@@ -43,6 +43,7 @@ pub(crate) fn fault_name(kind: ferrobot_protocol::FaultKind) -> defmt::Str {
         K::LimitClamped => defmt::intern!("LimitClamped"),
         K::UnsafeGoal => defmt::intern!("UnsafeGoal"),
         K::LimitStop => defmt::intern!("LimitStop"),
+        K::OutsideLimits => defmt::intern!("OutsideLimits"),
         _ => defmt::intern!("(another fault)"),
     }
 }

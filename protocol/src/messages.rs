@@ -230,7 +230,9 @@ pub enum HostMsg {
         /// The new row.
         config: JointConfig,
     },
-    /// Set the firmware PID gains of one joint, within [`crate::ranges::gains_ok`].
+    /// Set the firmware PID gains of one joint, within [`crate::ranges::gains_ok`] and within
+    /// what its servos can use ([`crate::ranges::gains_beyond_servo`]);
+    /// [`RejectReason::InvalidConfig`] otherwise.
     SetPid {
         /// Joint index.
         joint: u8,
@@ -239,8 +241,10 @@ pub enum HostMsg {
     },
     /// Set the limits of one joint, within [`crate::ranges::limits_ok`] and within the limits
     /// its row was configured with (at start or by [`HostMsg::ConfigureJoint`]): limits only
-    /// narrow at run time ([`RejectReason::OutOfLimits`] otherwise). A joint found outside its
-    /// new limits stops, then is brought back at its velocity limit.
+    /// narrow at run time ([`RejectReason::OutOfLimits`] otherwise), the effort limit to no
+    /// less than [`crate::ranges::EFFORT_NARROW_MIN_SHARE`] of its configured one, and only
+    /// around where the joint is: limits it is measured outside of are refused with
+    /// [`RejectReason::OutOfLimits`] (they could not hold at once).
     SetLimits {
         /// Joint index.
         joint: u8,
@@ -569,6 +573,11 @@ pub enum FaultKind {
     /// servo loop, a load, a slow control loop): it was switched to position mode and holds
     /// where it comes to rest.
     LimitStop,
+    /// A joint under control is more than [`crate::ranges::OUTSIDE_FAULT`] outside its
+    /// position limits (`code`: how far, mrad): a load carried it there faster than its servos
+    /// could brake (it fell while limp, or gravity outpulls its effort limit). The firmware
+    /// brings it back; reported once, again only after it has come back inside.
+    OutsideLimits,
 }
 
 /// A fault report.

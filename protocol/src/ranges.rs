@@ -27,6 +27,16 @@ pub const JOINT_SPEED_MAX: f32 = 20.0;
 /// Slowest velocity limit a joint may be given, rad/s: a joint found outside newly narrowed
 /// limits is brought back at its velocity limit, so that limit may not be near zero.
 pub const JOINT_SPEED_LIMIT_MIN: f32 = 0.05;
+/// How far outside its limits a joint under control may be before the firmware reports it
+/// ([`crate::FaultKind::OutsideLimits`]), rad: what a servo's position loop lets a loaded
+/// joint deflect, and the hostile-stream checkers' tolerance.
+pub const OUTSIDE_FAULT: f32 = 0.05;
+
+/// Narrowest effort limit `SetLimits` may give a joint, as a share of the effort limit its row
+/// was configured with: a joint held to less cannot be trusted to carry its own load (the
+/// LoCoBot's shoulder needs about 1.2 N·m of its 3.5 at full reach), and gravity would take it
+/// past its limits in the torque modes.
+pub const EFFORT_NARROW_MIN_SHARE: f32 = 0.5;
 /// Narrowest range a joint's position limits may span, rad: a servo holds a loaded joint
 /// some way off its goal, so a range much narrower than that deflection cannot be held.
 pub const JOINT_RANGE_MIN: f32 = 0.1;
@@ -63,7 +73,52 @@ pub fn gains_ok(g: &PidGains) -> bool {
         .all(|&v| within(v, 0.0, GAIN_MAX))
 }
 
-/// A joint row within range: sign ±1, limits and gains as above, offset within
+/// What a joint's servos can give, N·m: the model's stall torque, twice for a twin pair.
+pub fn strength(c: &JointConfig) -> f32 {
+    let servos = if c.twin_id.is_some() { 2.0 } else { 1.0 };
+    servos * c.model.spec().stall_torque
+}
+
+/// The joint PID's stiffness bound per N·m of the joint's strength, 1/rad: full strength at
+/// one encoder tick of error. A stiffer loop only turns the encoder's quantum into full torque
+/// back and forth.
+pub const KP_PER_STRENGTH: f32 = 1.0 / crate::dxl::units::RAD_PER_TICK;
+/// The derivative gain's bound per N·m of strength, s/rad: full strength at one quantum of the
+/// servo's velocity reading.
+pub const KD_PER_STRENGTH: f32 = 1.0 / crate::dxl::units::RAD_S_PER_VELOCITY_UNIT;
+/// The integral gain's bound per N·m of strength, 1/(rad·s): [`KP_PER_STRENGTH`]'s over an
+/// integral time of [`INTEGRAL_TIME_MIN`].
+pub const KI_PER_STRENGTH: f32 = KP_PER_STRENGTH / INTEGRAL_TIME_MIN;
+/// Shortest integral time (kp/ki) the bounds allow, s: ten periods of the servo loop.
+pub const INTEGRAL_TIME_MIN: f32 = 0.01;
+
+/// Which of the joint PID's gains, if any, exceeds what joint `c`'s servos can physically use
+/// ([`strength`]): kp over [`KP_PER_STRENGTH`], ki over [`KI_PER_STRENGTH`], kd over
+/// [`KD_PER_STRENGTH`] times the strength, or an integral limit over the strength itself.
+/// `None` when they fit (and are within [`gains_ok`]).
+pub fn gains_beyond_servo(g: &PidGains, c: &JointConfig) -> Option<&'static str> {
+    let s = strength(c);
+    if !gains_ok(g) {
+        return Some("a gain outside [0, GAIN_MAX] or not finite");
+    }
+    [
+        (g.kp, KP_PER_STRENGTH * s, "kp"),
+        (g.ki, KI_PER_STRENGTH * s, "ki"),
+        (g.kd, KD_PER_STRENGTH * s, "kd"),
+        (g.i_limit, s, "i_limit"),
+    ]
+    .into_iter()
+    .find(|(v, bound, _)| v > bound)
+    .map(|(_, _, name)| name)
+}
+
+/// Whether an effort limit (N·m) is more than joint `c`'s servos can give ([`strength`]).
+pub fn effort_beyond_servo(effort: f32, c: &JointConfig) -> bool {
+    effort > strength(c)
+}
+
+/// A joint row within range: sign ±1, limits and gains as above and within what its servos
+/// can give ([`gains_beyond_servo`], [`effort_beyond_servo`]), offset within
 /// ±[`JOINT_POSITION_MAX`], position integrator gain within [0, [`GAIN_MAX`]], servo IDs below
 /// the broadcast ID and a twin different from its primary.
 pub fn joint_config_ok(c: &JointConfig) -> bool {
@@ -74,6 +129,8 @@ pub fn joint_config_ok(c: &JointConfig) -> bool {
         && within(c.position_ki, 0.0, GAIN_MAX)
         && c.servo_id < 0xFD
         && c.twin_id.is_none_or(|t| t < 0xFD && t != c.servo_id)
+        && gains_beyond_servo(&c.pid, c).is_none()
+        && !effort_beyond_servo(c.limits.effort, c)
 }
 
 /// Why a knot is refused, if it is: not finite, or a speed or effort out of range, or a

@@ -905,6 +905,34 @@ impl RobotConfig {
             if let Some(k) = j.position_ki {
                 row.position_ki = k as f32;
             }
+            if let Some(gain) = ranges::gains_beyond_servo(&row.pid, &row) {
+                return Err(cfg_err(
+                    file,
+                    format!("joint[{i}].pid.{gain}"),
+                    format!(
+                        "more than its {:?} servo(s) can use ({:.1} N·m of strength: kp at most \
+                         {:.0} N·m/rad, ki {:.0} N·m/(rad·s), kd {:.0} N·m·s/rad, i_limit {:.1} N·m)",
+                        row.model,
+                        ranges::strength(&row),
+                        ranges::KP_PER_STRENGTH * ranges::strength(&row),
+                        ranges::KI_PER_STRENGTH * ranges::strength(&row),
+                        ranges::KD_PER_STRENGTH * ranges::strength(&row),
+                        ranges::strength(&row)
+                    ),
+                ));
+            }
+            if ranges::effort_beyond_servo(row.limits.effort, &row) {
+                return Err(cfg_err(
+                    file,
+                    key("effort_limit"),
+                    format!(
+                        "{} N·m is more than its {:?} servo(s) can give ({:.1} N·m)",
+                        row.limits.effort,
+                        row.model,
+                        ranges::strength(&row)
+                    ),
+                ));
+            }
             if !ranges::joint_config_ok(&row) {
                 return Err(cfg_err(
                     file,

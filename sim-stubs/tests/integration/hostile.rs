@@ -1,12 +1,22 @@
 //! The firmware against a hostile host ([`ferrobot_sim::hostile`]): 20,000 seeded hostile
-//! messages per LoCoBot profile through the lockstep simulator, with the invariants checked
-//! throughout, then an emergency stop and a recovery. `FERROBOT_HOSTILE_MESSAGES` sets the
+//! messages per LoCoBot profile through the lockstep simulator, and 10,000 of the pointed mix,
+//! with the invariants checked throughout by both checkers, then an emergency stop and a
+//! recovery. `FERROBOT_HOSTILE_MESSAGES` sets the
 //! messages per profile (CI: 20,000) and `FERROBOT_HOSTILE_SEED` shifts the seeds (CI: 0),
 //! for longer searches.
 
-use ferrobot_sim::hostile::hostile_stream;
+use ferrobot_sim::hostile::{hostile_stream, hostile_stream_of, Mix};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
+
+/// The mix `FERROBOT_HOSTILE_MIX` names (`broad`, `pointed`), or `default`.
+fn mix_or(default: Mix) -> Mix {
+    match std::env::var("FERROBOT_HOSTILE_MIX").as_deref() {
+        Ok("broad") => Mix::Broad,
+        Ok("pointed") => Mix::Pointed,
+        _ => default,
+    }
+}
 
 fn messages() -> usize {
     std::env::var("FERROBOT_HOSTILE_MESSAGES")
@@ -16,14 +26,17 @@ fn messages() -> usize {
 }
 
 fn assert_clean(robot: &str, seed: u64) {
-    let n = messages();
+    assert_clean_of(robot, seed, messages(), Mix::Broad);
+}
+
+fn assert_clean_of(robot: &str, seed: u64, n: usize, mix: Mix) {
     // FERROBOT_HOSTILE_SEED shifts the seeds, for longer searches than CI's.
     let seed = seed
         + std::env::var("FERROBOT_HOSTILE_SEED")
             .ok()
             .and_then(|v| v.parse::<u64>().ok())
             .unwrap_or(0);
-    let (c, t) = hostile_stream(&mut ChaCha8Rng::seed_from_u64(seed), robot, seed, n);
+    let (c, t) = hostile_stream_of(&mut ChaCha8Rng::seed_from_u64(seed), robot, seed, n, mix);
     eprintln!(
         "{robot}: {n} hostile messages over {:.1} s simulated, {} checks, {} violations; worst: {:.4} rad beyond a position limit, {:.3} rad/s over a velocity limit",
         t as f64 * 1e-6,
@@ -58,6 +71,18 @@ fn hostile_messages_never_drive_the_locobot_outside_its_limits() {
 #[test]
 fn hostile_messages_never_drive_the_locobot_lite_outside_its_limits() {
     assert_clean("locobot_lite", 2);
+}
+
+/// The pointed mix ([`Mix::Pointed`]: the holes issue 48's outside review found), half as
+/// long as the broad streams in CI.
+#[test]
+fn pointed_messages_never_drive_the_locobot_outside_its_limits() {
+    assert_clean_of("locobot", 3, messages() / 2, mix_or(Mix::Pointed));
+}
+
+#[test]
+fn pointed_messages_never_drive_the_locobot_lite_outside_its_limits() {
+    assert_clean_of("locobot_lite", 4, messages() / 2, mix_or(Mix::Pointed));
 }
 
 /// Streams that once found a violation (the survey's seeds, 5,000 messages each), kept as
@@ -112,10 +137,14 @@ fn survey() {
                     } else {
                         "locobot"
                     };
+                    let mix = mix_or(Mix::Broad);
                     let r = std::panic::catch_unwind(|| {
-                        hostile_stream(&mut ChaCha8Rng::seed_from_u64(seed), robot, seed, n)
+                        hostile_stream_of(&mut ChaCha8Rng::seed_from_u64(seed), robot, seed, n, mix)
                     });
                     let found = r.map(|(c, _)| {
+                        if let Some(v) = c.violations.first() {
+                            eprintln!("seed {seed} first: {}", &v[..v.len().min(400)]);
+                        }
                         let mut episodes: Vec<&str> = c
                             .violations
                             .iter()

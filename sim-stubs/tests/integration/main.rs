@@ -9,6 +9,7 @@ mod conductor;
 mod dynamixel_sdk;
 mod estop_states;
 mod hostile;
+mod hostile_cases;
 mod lockstep_arm;
 mod lockstep_base;
 mod lockstep_faults;
