@@ -3,7 +3,9 @@
 # official Dynamixel SDK); with `bench`, also those the benchmarks compare against (PyBullet,
 # benches/benches/requirements.txt); with `plan`, also those of the planning benchmark's peer
 # (OMPL and FCL, host/planning/peer/requirements.txt); with `cluster`, also the clustering
-# peer's (scikit-learn, host/perception/peer/requirements.txt). Idempotent: does nothing when
+# peer's (scikit-learn, host/perception/peer/requirements.txt); with `slam`, also the
+# renderer of SLAM's independent test sequences (PyBullet, host/slam/peer/requirements.txt).
+# Idempotent: does nothing when
 # they are already there.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -29,5 +31,6 @@ case "${1:-}" in
     bench) install benches/benches/requirements.txt .installed-bench-requirements pybullet ;;
     plan) install host/planning/peer/requirements.txt .installed-plan-requirements "ompl.geometric, fcl, scipy.spatial" ;;
     cluster) install host/perception/peer/requirements.txt .installed-cluster-requirements "sklearn.cluster" ;;
-    *) echo "usage: $0 [bench|plan|cluster]" >&2; exit 2 ;;
+    slam) install host/slam/peer/requirements.txt .installed-slam-requirements "pybullet, numpy" ;;
+    *) echo "usage: $0 [bench|plan|cluster|slam]" >&2; exit 2 ;;
 esac

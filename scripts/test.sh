@@ -61,8 +61,8 @@ rustup component add rustfmt clippy >/dev/null 2>&1 || true
 step "cross toolchain for the boards (Debian's rustc-web, lld, QEMU)"
 scripts/setup-cross.sh
 
-step "started: Python (dynamixel-sdk; OMPL and FCL for the planning peer; scikit-learn for the clustering peer) in target/py-venv, and the board builds (mps2-an386 for QEMU, opencr for OpenCR 1.0)"
-background python 'scripts/python-env.sh && scripts/python-env.sh plan && scripts/python-env.sh cluster'
+step "started: Python (dynamixel-sdk; OMPL and FCL for the planning peer; scikit-learn for the clustering peer; PyBullet for SLAM's independent sequences) in target/py-venv, and the board builds (mps2-an386 for QEMU, opencr for OpenCR 1.0)"
+background python 'scripts/python-env.sh && scripts/python-env.sh plan && scripts/python-env.sh cluster && scripts/python-env.sh slam'
 background boards 'scripts/build-boards.sh'
 
 step "cargo fmt --check"

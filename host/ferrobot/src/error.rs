@@ -192,6 +192,14 @@ pub enum Error {
     /// Arguments that do not make a request (a missing or conflicting choice).
     #[error("{0}")]
     Usage(String),
+    /// SLAM has no confirmed pose: lost for the last `frames` camera frames (matched to
+    /// nothing, with no odometry to carry it), or not yet found in the saved map it localises
+    /// in. It is found again by relocalisation once a mapped view returns.
+    #[error("SLAM is lost: no confirmed pose for the last {frames} frame(s) (it relocalises once a mapped view returns)")]
+    SlamLost {
+        /// Frames in a row without a confirmed pose.
+        frames: usize,
+    },
     /// A path the program would create already exists: nothing is removed or replaced.
     #[error("{} already exists; refusing to replace it", path.display())]
     PathExists {

@@ -285,6 +285,19 @@ impl Robot {
         Ok(r.grid.update(r.slam.map())?)
     }
 
+    /// How many frames in a row, up to the latest, SLAM has had no confirmed pose for (0 while
+    /// it tracks).
+    pub fn slam_lost_frames(&self) -> crate::Result<usize> {
+        let io = self.lock_io();
+        let r = io.slam.as_ref().ok_or_else(not_running)?;
+        let lost_now = r.last.is_some_and(|l| l.state == TrackState::Lost);
+        Ok(if lost_now {
+            r.slam.tracking_gaps().last().map_or(0, |g| g.2)
+        } else {
+            0
+        })
+    }
+
     /// The SLAM map so far (to save with [`Map::save`]).
     pub fn slam_map(&self) -> crate::Result<Map> {
         let io = self.lock_io();
@@ -306,10 +319,9 @@ impl crate::base::Base {
                     .slam_report()?
                     .ok_or_else(|| crate::Error::Usage("SLAM has taken no frame yet".into()))?;
                 if r.state == TrackState::Lost {
-                    return Err(crate::Error::Usage(
-                        "SLAM has no confirmed pose (lost, or not yet found in its saved map)"
-                            .into(),
-                    ));
+                    return Err(crate::Error::SlamLost {
+                        frames: self.robot.slam_lost_frames()?,
+                    });
                 }
                 Ok(optimise::to_planar(&r.pose))
             }

@@ -71,6 +71,23 @@ pub fn log(t: &Isometry3<f64>) -> Vector6<f64> {
     )
 }
 
+/// Whether every number of `t` is finite and its rotation a unit quaternion (to 1e-6): a
+/// pose a solver may keep.
+pub fn is_sound(t: &Isometry3<f64>) -> bool {
+    t.translation.vector.iter().all(|x| x.is_finite())
+        && t.rotation.coords.iter().all(|x| x.is_finite())
+        && (t.rotation.coords.norm() - 1.0).abs() < 1e-6
+}
+
+/// `t` with its rotation made a unit quaternion again: many compositions of unit quaternions
+/// drift from unit length (a pose composed with itself frame after frame shrinks to zero).
+pub fn renormalised(t: &Isometry3<f64>) -> Isometry3<f64> {
+    Isometry3::from_parts(
+        t.translation,
+        UnitQuaternion::new_normalize(*t.rotation.quaternion()),
+    )
+}
+
 /// A planar pose `[x, y, θ]` (m, rad) as an isometry at height 0.
 pub fn planar(p: [f64; 3]) -> Isometry3<f64> {
     Isometry3::from_parts(
@@ -284,15 +301,13 @@ pub fn optimise_pose(
             break;
         }
     }
-    let finite = t_wb.translation.vector.iter().all(|x| x.is_finite())
-        && t_wb.rotation.coords.iter().all(|x| x.is_finite());
-    if !finite {
+    // Keep the rotation a unit quaternion despite the rounding of many small steps.
+    *t_wb = renormalised(t_wb);
+    if !is_sound(t_wb) {
         *t_wb = start;
         inlier.iter_mut().for_each(|b| *b = false);
         return 0;
     }
-    // Keep the rotation a unit quaternion despite the rounding of many small steps.
-    t_wb.rotation = UnitQuaternion::new_normalize(*t_wb.rotation.quaternion());
     inlier.iter().filter(|&&b| b).count()
 }
 
@@ -336,13 +351,26 @@ fn edge_error(e: &Edge, ta: &Isometry3<f64>, tb: &Isometry3<f64>) -> Vector6<f64
 }
 
 /// Optimises the poses `nodes` of a pose graph (Gauss–Newton, numeric Jacobians, dense normal
-/// equations) with node 0 held; returns the final cost (sum of squared weighted errors).
+/// equations) with node 0 held; returns the final cost (sum of squared weighted errors), or
+/// `None`, with `nodes` as they were, when the solve is degenerate (a step or a pose not
+/// finite, or a cost that is not).
 pub fn optimise_graph(
     nodes: &mut [Isometry3<f64>],
     edges: &[Edge],
     dof: Dof,
     iterations: usize,
-) -> f64 {
+) -> Option<f64> {
+    let before = nodes.to_vec();
+    let cost = solve_graph(nodes, edges, dof, iterations);
+    if cost.is_finite() && nodes.iter().all(is_sound) {
+        Some(cost)
+    } else {
+        nodes.copy_from_slice(&before);
+        None
+    }
+}
+
+fn solve_graph(nodes: &mut [Isometry3<f64>], edges: &[Edge], dof: Dof, iterations: usize) -> f64 {
     let k = dof.count();
     let n = nodes.len();
     let cost = |nodes: &[Isometry3<f64>]| -> f64 {
@@ -406,8 +434,11 @@ pub fn optimise_graph(
         }
         let Some(ch) = h.cholesky() else { break };
         let d = ch.solve(&g);
+        if !d.iter().all(|x| x.is_finite()) {
+            return f64::NAN;
+        }
         for (node, s) in nodes[1..].iter_mut().zip(d.as_slice().chunks_exact(k)) {
-            *node = retract(node, &dof.twist(s));
+            *node = renormalised(&retract(node, &dof.twist(s)));
         }
         if d.amax() < 1e-9 {
             break;

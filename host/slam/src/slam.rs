@@ -27,8 +27,8 @@ use crate::error::{Error, Result};
 use crate::frame::{sample_cloud, DepthUse, FrameFeatures};
 use crate::map::{Keyframe, Landmark, Map};
 use crate::optimise::{
-    align, chi2, optimise_graph, optimise_pose, planar, to_planar, Dof, Edge, Observation, Pinhole,
-    PlanarPrior, CHI2_3,
+    align, chi2, is_sound, optimise_graph, optimise_pose, planar, renormalised, to_planar, Dof,
+    Edge, Observation, Pinhole, PlanarPrior, CHI2_3,
 };
 use crate::orb::{hamming, OrbExtractor, OrbSettings};
 
@@ -47,6 +47,10 @@ const LOOP_MATCHES: usize = 30;
 /// m and rad, to close a loop: farther is more likely a repeated texture matched wrongly than
 /// a drift.
 const LOOP_REACH: [f64; 2] = [0.3, 0.15];
+
+/// Farthest two consecutive relocalisations may lie apart to confirm each other, m and rad:
+/// a camera at 3 m/s and 6 rad/s between two frames at 30 Hz.
+const RELOCALISED_STEP: [f64; 2] = [0.1, 0.2];
 
 /// For this many frames after tracking is lost the wheels' pose is trusted over a
 /// relocalisation's (about a third of a second at 30 Hz).
@@ -225,6 +229,10 @@ pub struct TrackReport {
     pub features: usize,
     /// Landmarks matched and kept.
     pub inliers: usize,
+    /// How well the kept landmarks fit the pose: the root mean square of their reprojection
+    /// and disparity errors, in their standard deviations (about 1 when tracking is sound;
+    /// 0 when nothing was kept).
+    pub residual: f64,
     /// A keyframe was made of this frame.
     pub keyframe: bool,
     /// This frame closed a loop (the keyframes moved).
@@ -267,7 +275,11 @@ pub struct Slam {
     /// A saved map is loaded and the pose in it not yet found.
     localising: bool,
     /// Every frame: its time, the keyframe it was last tied to, and its pose relative to it.
-    frames_log: Vec<(f64, usize, Isometry3<f64>)>,
+    /// Per frame: time, the keyframe it was tracked after, its pose relative to that keyframe,
+    /// and whether the map confirmed it (not [`TrackState::Lost`]).
+    frames_log: Vec<(f64, usize, Isometry3<f64>, bool)>,
+    /// The pose of the last frame when it was a tentative relocalisation ([`Slam::confirm`]).
+    last_relocalised: Option<Isometry3<f64>>,
     /// Per landmark, the last search that considered it (to visit each once per search).
     stamp: Vec<usize>,
     searches: usize,
@@ -317,6 +329,7 @@ impl Slam {
             searches: 0,
             keyframe_wanted: false,
             frames_log: Vec::new(),
+            last_relocalised: None,
             localising: false,
         })
     }
@@ -395,18 +408,24 @@ impl Slam {
             }
             None => self.pose,
         };
+        // Composed frame after frame, a pose's quaternion drifts from unit length (and, while
+        // lost, a pose composed with itself shrank to zero, then NaN: issue 56).
+        let pred = Some(renormalised(&pred))
+            .filter(is_sound)
+            .unwrap_or(self.pose);
         if self.map.keyframes.is_empty() {
             self.pose = self.start;
             self.prev_pose = self.start;
             self.last_odometry = input.odometry;
             let n = feats.len();
             self.insert_keyframe(input, &feats, &[], n, false);
-            self.log_frame(input.time);
+            self.log_frame(input.time, true);
             return Ok(TrackReport {
                 pose: self.pose,
                 state: TrackState::Initialised,
                 features: n,
                 inliers: 0,
+                residual: 0.0,
                 keyframe: true,
                 loop_closed: false,
             });
@@ -541,18 +560,28 @@ impl Slam {
         } else {
             pose
         };
+        // Whatever a solve gave, the pose kept is a sound one: a degenerate one is refused and
+        // the last good pose kept, the frame lost.
+        let pose = renormalised(&pose);
+        let (pose, state) = if is_sound(&pose) {
+            (pose, state)
+        } else {
+            (self.pose, TrackState::Lost)
+        };
         if state == TrackState::Relocalised {
             self.rebase(pose, input.odometry, false);
         }
         self.pose = pose;
         self.last_odometry = input.odometry;
+        let tentative = input.odometry.is_none() && self.confirm(state, &pose);
         let mut keyframe = false;
         let mut loop_closed = false;
         if restart {
             keyframe = true;
             self.lost = 0;
             self.insert_keyframe(input, &feats, &[], feats.len(), true);
-        } else if matches!(state, TrackState::Tracking | TrackState::Relocalised) {
+        } else if state == TrackState::Tracking || (state == TrackState::Relocalised && !tentative)
+        {
             let last = self.map.keyframes.len() - 1;
             let d = self.map.keyframes[last].pose.inverse() * self.pose;
             let moved = d.translation.vector.norm();
@@ -562,10 +591,16 @@ impl Slam {
             let may_close = state == TrackState::Tracking
                 && last + 1 >= self.last_loop + self.settings.loop_age;
             let mut loop_due = may_close && old >= LOOP_MATCHES;
+            // Without odometry to bridge a view that is thinning out (a wall's edge seen at an
+            // angle), a keyframe is made while enough matches remain to anchor it (issue 56's
+            // loss; with odometry the wheels bridge it, and such keyframes of a view the robot
+            // carries along, a basket its arm holds, would drag the pose).
+            let thinning = input.odometry.is_none() && kept.len() < 2 * self.settings.min_inliers;
             if loop_due
                 || moved > self.settings.keyframe_distance
                 || turned > self.settings.keyframe_angle
                 || (kept.len() < self.last_keyframe_inliers * 6 / 10)
+                || thinning
                 || self.keyframe_wanted
             {
                 keyframe = true;
@@ -593,12 +628,31 @@ impl Slam {
         if self.lost == 0 {
             self.refused = None;
         }
-        self.log_frame(input.time);
+        self.log_frame(input.time, state != TrackState::Lost && !tentative);
+        let t_wc = self.pose;
+        let chi2_sum: f64 = kept
+            .iter()
+            .map(|&(f, l)| {
+                chi2(
+                    &self.cam,
+                    &t_wc,
+                    &input.camera,
+                    &self.observation(&feats, f, l),
+                )
+            })
+            .filter(|c| c.is_finite())
+            .sum();
+        let residual = if kept.is_empty() {
+            0.0
+        } else {
+            (chi2_sum / (3 * kept.len()) as f64).sqrt()
+        };
         Ok(TrackReport {
             pose: self.pose,
             state,
             features: feats.len(),
             inliers: kept.len(),
+            residual,
             keyframe,
             loop_closed,
         })
@@ -610,24 +664,46 @@ impl Slam {
         self.keyframe_wanted = true;
     }
 
-    /// Records the latest pose relative to the newest keyframe.
-    fn log_frame(&mut self, time: f64) {
+    /// Records the latest pose relative to the newest keyframe, and whether it is confirmed.
+    fn log_frame(&mut self, time: f64, confirmed: bool) {
         let k = self.map.keyframes.len() - 1;
         let rel = self.map.keyframes[k].pose.inverse() * self.pose;
-        self.frames_log.push((time, k, rel));
+        self.frames_log.push((time, k, rel, confirmed));
     }
 
-    /// Every frame's body pose as the map stands now: each frame's pose relative to the
-    /// keyframe it was tracked after, on that keyframe's current pose (so loop closures
-    /// correct the frames before them, as ORB-SLAM2 writes its trajectory).
+    /// Every confirmed frame's body pose as the map stands now: each frame's pose relative to
+    /// the keyframe it was tracked after, on that keyframe's current pose (so loop closures
+    /// correct the frames before them, as ORB-SLAM2 writes its trajectory). A lost frame
+    /// ([`TrackState::Lost`]: no match, no odometry) has no pose here rather than a made-up
+    /// one; [`Slam::tracking_gaps`] says where they were.
     pub fn trajectory(&self) -> Vec<crate::trajectory::Stamped> {
         self.frames_log
             .iter()
-            .map(|&(time, k, rel)| crate::trajectory::Stamped {
+            .filter(|f| f.3)
+            .map(|&(time, k, rel, _)| crate::trajectory::Stamped {
                 time,
                 pose: self.map.keyframes[k].pose * rel,
             })
             .collect()
+    }
+
+    /// The stretches of lost frames so far: (time of the first, of the last, frames), oldest
+    /// first.
+    pub fn tracking_gaps(&self) -> Vec<(f64, f64, usize)> {
+        let mut gaps: Vec<(f64, f64, usize)> = Vec::new();
+        let mut open = false;
+        for &(time, _, _, confirmed) in &self.frames_log {
+            match (confirmed, open, gaps.last_mut()) {
+                (false, true, Some(g)) => {
+                    g.1 = time;
+                    g.2 += 1;
+                }
+                (false, _, _) => gaps.push((time, time, 1)),
+                _ => {}
+            }
+            open = !confirmed;
+        }
+        gaps
     }
 
     fn check_input(&self, input: &RgbdInput<'_>) -> Result<()> {
@@ -814,6 +890,36 @@ impl Slam {
             .filter(|(_, b)| b.1 != usize::MAX)
             .map(|(f, b)| (f, b.1))
             .collect()
+    }
+
+    /// Whether this frame's pose is tentative (asked only without odometry: with it, the
+    /// wheels check a relocalisation): a relocalisation (matched against every keyframe, with
+    /// no prediction) is trusted only once the next frame agrees with it, by
+    /// tracking from it or by relocalising within [`RELOCALISED_STEP`] of it. A tentative pose
+    /// has no place in the trajectory and makes no keyframe: a wrong relocalisation (a repeated
+    /// texture, the few matches of a fast turn) made into a keyframe corrupts the map, which
+    /// then agrees with it. When the next frame confirms it, its frame gets its pose back.
+    fn confirm(&mut self, state: TrackState, pose: &Isometry3<f64>) -> bool {
+        let before = self.last_relocalised.take();
+        let agreed = match (state, before) {
+            (TrackState::Tracking, Some(_)) => true,
+            (TrackState::Relocalised, Some(p)) => {
+                let d = p.inverse() * pose;
+                d.translation.vector.norm() <= RELOCALISED_STEP[0]
+                    && d.rotation.angle() <= RELOCALISED_STEP[1]
+            }
+            _ => false,
+        };
+        if agreed {
+            if let Some(f) = self.frames_log.last_mut() {
+                f.3 = true;
+            }
+        }
+        if state == TrackState::Relocalised && !agreed {
+            self.last_relocalised = Some(*pose);
+            return true;
+        }
+        false
     }
 
     fn observations(&self, feats: &FrameFeatures, matches: &[(usize, usize)]) -> Vec<Observation> {
@@ -1143,20 +1249,22 @@ impl Slam {
         }
         let z_seq = self.map.keyframes[prev].pose.inverse() * t_new;
         let dist = z_seq.translation.vector.norm();
-        self.map.edges.push(Edge {
-            a: prev,
-            b: n,
-            z: z_seq,
-            sigma_t: looseness * (0.002 + 0.01 * dist),
-            sigma_r: looseness * (0.001 + 0.01 * z_seq.rotation.angle()),
-        });
-        self.map.edges.push(Edge {
-            a: anchor,
-            b: n,
-            z: self.map.keyframes[anchor].pose.inverse() * t_old,
-            sigma_t: 0.002,
-            sigma_r: 0.001,
-        });
+        let closing = [
+            Edge {
+                a: prev,
+                b: n,
+                z: z_seq,
+                sigma_t: looseness * (0.002 + 0.01 * dist),
+                sigma_r: looseness * (0.001 + 0.01 * z_seq.rotation.angle()),
+            },
+            Edge {
+                a: anchor,
+                b: n,
+                z: self.map.keyframes[anchor].pose.inverse() * t_old,
+                sigma_t: 0.002,
+                sigma_r: 0.001,
+            },
+        ];
         // The loop's keyframes move, from the anchor (held) to this one: the graph stays the
         // size of the loop, not of the map.
         let mut nodes: Vec<Isometry3<f64>> = self.map.keyframes[anchor..]
@@ -1168,6 +1276,7 @@ impl Slam {
             .map
             .edges
             .iter()
+            .chain(&closing)
             .filter(|e| e.a >= anchor && e.b >= anchor)
             .map(|e| Edge {
                 a: e.a - anchor,
@@ -1175,7 +1284,11 @@ impl Slam {
                 ..*e
             })
             .collect();
-        optimise_graph(&mut nodes, &edges, dof, 10);
+        // A degenerate solve closes nothing: the map stays as it was.
+        if optimise_graph(&mut nodes, &edges, dof, 10).is_none() {
+            return false;
+        }
+        self.map.edges.extend(closing);
         for (kf, p) in self.map.keyframes[anchor..].iter_mut().zip(&nodes) {
             kf.pose = *p;
         }

@@ -83,8 +83,19 @@ struct SlamJson {
     /// With a saved map: seconds of driving before the robot found itself in it.
     #[serde(skip_serializing_if = "Option::is_none")]
     localised_after_s: Option<f64>,
+    /// The longest stretch of frames SLAM had no pose for (lost, no odometry to carry it):
+    /// frames ...
+    longest_loss_frames: usize,
+    /// ... and seconds, from its first lost frame to its last.
+    longest_loss_s: f64,
+    /// Stretches of frames without a pose (each written to no output file).
+    losses: usize,
     /// Frames matched to nothing (carried by the odometry, or unconfirmed).
     lost_frames: usize,
+    /// Landmarks kept per frame matched to the map: the median ...
+    median_inliers: usize,
+    /// ... and the least (`tracking.tsv` has every frame's, with its residual).
+    min_inliers: usize,
     /// SLAM's processing time per frame on one core, ms.
     ms_per_frame: Ms,
     /// Intersection over union of the map's occupied cells with the ground-truth floor
@@ -102,6 +113,42 @@ struct SlamJson {
     relocalised_frames: usize,
 }
 
+impl Tally {
+    /// The inliers of the frames matched to the map: median and least (0 and 0 if none).
+    fn inliers(&self) -> (usize, usize) {
+        let mut n: Vec<usize> = self
+            .quality
+            .iter()
+            .filter(|q| matches!(q.1, TrackState::Tracking | TrackState::Relocalised))
+            .map(|q| q.3)
+            .collect();
+        n.sort_unstable();
+        (
+            n.get(n.len() / 2).copied().unwrap_or(0),
+            n.first().copied().unwrap_or(0),
+        )
+    }
+
+    /// `tracking.tsv`: a line per frame (time s, state, features, inliers, residual in
+    /// standard deviations).
+    fn write_quality(&self, path: &Path) -> ferrobot::Result<()> {
+        let mut text = String::from("# time_s\tstate\tfeatures\tinliers\tresidual_sigma\n");
+        for (t, s, f, i, r) in &self.quality {
+            text.push_str(&format!("{t:.6}\t{s:?}\t{f}\t{i}\t{r:.3}\n"));
+        }
+        std::fs::write(path, text)?;
+        Ok(())
+    }
+}
+
+/// The longest stretch of frames `slam` had no pose for: frames and seconds.
+fn longest_loss(slam: &Slam) -> (usize, f64) {
+    slam.tracking_gaps()
+        .iter()
+        .max_by_key(|g| g.2)
+        .map_or((0, 0.0), |g| (g.2, g.1 - g.0))
+}
+
 /// Per-frame bookkeeping of a run.
 #[derive(Default)]
 struct Tally {
@@ -111,6 +158,8 @@ struct Tally {
     lost: usize,
     relocalised: usize,
     online: Vec<Stamped>,
+    /// Per frame: time, state, features, inliers, residual (`tracking.tsv`).
+    quality: Vec<(f64, TrackState, usize, usize, f64)>,
 }
 
 impl Tally {
@@ -118,6 +167,8 @@ impl Tally {
         let clock = Instant::now();
         let r = slam.track(input)?;
         self.ms.push(clock.elapsed().as_secs_f64() * 1e3);
+        self.quality
+            .push((input.time, r.state, r.features, r.inliers, r.residual));
         match r.state {
             TrackState::Odometry | TrackState::Lost => self.lost += 1,
             TrackState::Relocalised => {
@@ -126,10 +177,13 @@ impl Tally {
             }
             _ => {}
         }
-        self.online.push(Stamped {
-            time: input.time,
-            pose: r.pose,
-        });
+        // A lost frame has no pose to score.
+        if r.state != TrackState::Lost {
+            self.online.push(Stamped {
+                time: input.time,
+                pose: r.pose,
+            });
+        }
         Ok(())
     }
 
@@ -244,11 +298,17 @@ fn drive(
     } else {
         0
     };
-    let est = slam.trajectory().split_off(from);
+    // Lost frames have no pose in the estimates: they are cut by time, the rest by frame.
+    let t_from = tally.quality.get(from).map_or(f64::NEG_INFINITY, |q| q.0);
+    let since = |poses: Vec<Stamped>| -> Vec<Stamped> {
+        poses.into_iter().filter(|s| s.time >= t_from).collect()
+    };
+    let est = since(slam.trajectory());
     let gt = gt.split_off(from);
     let odo = odo.split_off(from);
-    let online = tally.online.split_off(from);
+    let online = since(std::mem::take(&mut tally.online));
     write_tum(&out.join("estimate.tum"), &est)?;
+    tally.write_quality(&out.join("tracking.tsv"))?;
     write_tum(&out.join("ground_truth.tum"), &gt)?;
     write_tum(&out.join("odometry.tum"), &odo)?;
     let map = slam.map();
@@ -285,11 +345,16 @@ fn drive(
     Ok(SlamJson {
         ate_online_rmse_m: Some(ate(&online, &gt, 0.001)?.rmse),
         ate_rmse_m: Some(est_ate),
-        frames: est.len(),
+        frames: tally.ms.len(),
         keyframes: map.keyframes().len(),
         loops_closed: slam.loops_closed(),
         localised_after_s: saved.and(gt.first().zip(first_time).map(|(g, t0)| g.time - t0)),
+        longest_loss_frames: longest_loss(&slam).0,
+        longest_loss_s: longest_loss(&slam).1,
+        losses: slam.tracking_gaps().len(),
         lost_frames: tally.lost,
+        median_inliers: tally.inliers().0,
+        min_inliers: tally.inliers().1,
         ms_per_frame: tally.ms(),
         occupancy_iou: Some(iou.occupied),
         occupancy_iou_free: Some(iou.free),
@@ -329,6 +394,7 @@ fn dataset(dir: &Path, out: Option<&Path>) -> ferrobot::Result<SlamJson> {
     if let Some(out) = out {
         std::fs::create_dir_all(out)?;
         write_tum(&out.join("estimate.tum"), &est)?;
+        tally.write_quality(&out.join("tracking.tsv"))?;
         ferrobot::perception::io::write_ply(out.join("cloud.ply"), &slam.map().cloud(0.02)?)?;
     }
     // TUM's ground truth runs at its own rate: pair within 20 ms, as its tools do.
@@ -342,11 +408,16 @@ fn dataset(dir: &Path, out: Option<&Path>) -> ferrobot::Result<SlamJson> {
     Ok(SlamJson {
         ate_online_rmse_m: ate_of(&tally.online)?,
         ate_rmse_m: ate_of(&est)?,
-        frames: est.len(),
+        frames: tally.ms.len(),
         keyframes: slam.map().keyframes().len(),
         loops_closed: slam.loops_closed(),
         localised_after_s: None,
+        longest_loss_frames: longest_loss(&slam).0,
+        longest_loss_s: longest_loss(&slam).1,
+        losses: slam.tracking_gaps().len(),
         lost_frames: tally.lost,
+        median_inliers: tally.inliers().0,
+        min_inliers: tally.inliers().1,
         ms_per_frame: tally.ms(),
         occupancy_iou: None,
         occupancy_iou_free: None,

@@ -11,5 +11,6 @@ mod cli_hostile;
 mod hostile_plots;
 mod nav_plan;
 mod slam;
+mod slam_peer;
 mod support;
 mod teleop_pty;

@@ -89,6 +89,19 @@ fn slam_beside_the_robot_follows_it_within_a_centimetre() {
         "{found:?} vs {:?}",
         truth(&bot2)
     );
+    // In a world the map does not hold (the empty scene: no feature to match), it stays lost,
+    // and says so, typed: no made-up pose.
+    let bot3 = Robot::builder("locobot")
+        .scene("empty")
+        .build()
+        .expect("robot");
+    bot3.start_slam([0.0; 3], Some(Map::load(&file).expect("load")))
+        .expect("slam");
+    bot3.wait(0.5).expect("wait");
+    match bot3.base().expect("base").get_state_from(Source::Slam) {
+        Err(Error::SlamLost { frames }) => assert!(frames >= 10, "{frames} frames"),
+        other => panic!("{other:?}"),
+    }
 }
 
 #[test]

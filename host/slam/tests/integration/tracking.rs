@@ -253,6 +253,85 @@ fn two_seconds_of_blank_view_are_bridged_by_the_odometry() {
     assert!(end < 0.015, "{end} m at the end");
 }
 
+/// Hand-held, no odometry: the view goes blank mid-drive for 10 s (the camera held still
+/// meanwhile), then the drive goes on. Every pose stays finite with a unit rotation (issue 56:
+/// NaN poses on a sequence without odometry), every blank frame is lost and said to be, none
+/// of them has a pose in the trajectory, and the view back is found within a second.
+#[test]
+fn a_long_blank_view_without_odometry_is_lost_aloud_and_never_a_nan() {
+    let mut world = World::new();
+    let start = [-3.0, -2.0, 0.0];
+    let drive = path(start, 0.5, 0.6);
+    let (cut, blank) = (60, 300);
+    let mut poses: Vec<[f64; 3]> = drive[..cut].to_vec();
+    poses.extend(std::iter::repeat_n(drive[cut], blank));
+    poses.extend_from_slice(&drive[cut..]);
+    let cam = |p: &[f64; 3]| planar(*p) * camera_on_body();
+    let mut slam = Slam::new(SlamSettings::handheld(), intrinsics(), cam(&poses[0])).expect("slam");
+    let mut states = Vec::new();
+    for (i, p) in poses.iter().enumerate() {
+        let (mut rgb, mut depth) = world.frame(&planar(*p));
+        if (cut..cut + blank).contains(&i) {
+            rgb.data.fill(0);
+            depth.data.fill(0.0);
+        }
+        let rep = slam
+            .track(&RgbdInput {
+                time: i as f64 / 30.0,
+                rgb: &rgb,
+                depth: &depth,
+                camera: Isometry3::identity(),
+                odometry: None,
+            })
+            .expect("track");
+        let q = rep.pose.rotation.quaternion();
+        assert!(
+            rep.pose.translation.vector.iter().all(|x| x.is_finite())
+                && (q.norm() - 1.0).abs() < 1e-9,
+            "frame {i}: {:?}",
+            rep.pose
+        );
+        states.push(rep.state);
+    }
+    assert!(
+        states[cut..cut + blank]
+            .iter()
+            .all(|&s| s == TrackState::Lost),
+        "{:?}",
+        &states[cut..cut + blank]
+    );
+    let back = (cut + blank..poses.len())
+        .find(|&i| matches!(states[i], TrackState::Tracking | TrackState::Relocalised))
+        .expect("found again");
+    assert!(
+        back - (cut + blank) <= 30,
+        "found again {} frames late",
+        back - cut - blank
+    );
+    let gap = slam
+        .tracking_gaps()
+        .into_iter()
+        .max_by_key(|g| g.2)
+        .expect("a gap");
+    assert!(gap.2 >= blank, "{gap:?}");
+    let traj = slam.trajectory();
+    let lost_time = |t: f64| ((cut as f64 / 30.0)..((cut + blank) as f64 / 30.0)).contains(&t);
+    assert!(
+        !traj.iter().any(|s| lost_time(s.time)),
+        "a pose for a lost frame"
+    );
+    let truth: Vec<Stamped> = poses
+        .iter()
+        .enumerate()
+        .map(|(i, p)| Stamped {
+            time: i as f64 / 30.0,
+            pose: cam(p),
+        })
+        .collect();
+    let e = ate(&traj, &truth, 1e-3).expect("ate");
+    assert!(e.rmse < 0.02, "ATE {} m", e.rmse);
+}
+
 /// The base turns to face the apartment's laundry basket from 0.7 m (mapping the room
 /// around it), then turns by `turn` rad and drives `dist` m with the basket held before it
 /// (its arm caught it); returns how far SLAM's pose ends from the truth (m, rad).
