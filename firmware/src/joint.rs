@@ -303,6 +303,9 @@ pub struct JointControl {
     /// Position mode: consecutive ticks the joint has been measured too fast the same way
     /// (signed): one reading alone may be a motor rattling inside the backlash.
     fast_ticks: i8,
+    /// Position mode: the way (sign of the speed) the last brake stopped the joint, and
+    /// whether the brake before it stopped it the same way (a load, not momentum).
+    brake_way: (i8, bool),
 
     /// The gravity load the arm's model gives this joint at its measured pose (N·m, what
     /// gravity exerts), set by the core before every tick; `None` without a trusted model.
@@ -354,6 +357,7 @@ impl JointControl {
             integral: 0.0,
             sag: 0.0,
             braking: false,
+            brake_way: (0, false),
             fast_ticks: 0,
             gravity: None,
             feed_forward: 0.0,
@@ -491,11 +495,34 @@ impl JointControl {
 
     /// Switch mode; the joint holds where it is.
     pub fn set_mode(&mut self, now: Instant, mode: JointMode) {
+        // The mode it is in already: it holds where it is told to be now (the command in
+        // position mode, the reference of the joint PID in the others; where it is, when a
+        // direct command drove it), and keeps what it learned of its load
+        // (the load correction, the PID's integral, the effort ramp's start, the anchor of a
+        // joint outside its limits). Held where it was measured instead, with all that
+        // forgotten, a loaded joint sagged a little further at every repeated SetMode, out past
+        // its limits (issue 48's pointed streams: 0.96 rad).
+        if mode == self.mode {
+            let q = match mode {
+                _ if self.direct.is_some() || !self.measured => f32::NAN,
+                JointMode::Position => self.cmd,
+                _ => self.reference(now).q,
+            };
+            let integral = self.integral;
+            if q.is_finite() {
+                self.hold_at(now, q);
+            } else {
+                self.hold_measured(now);
+            }
+            self.integral = integral;
+            return;
+        }
         self.mode = mode;
         self.sag = 0.0;
         self.held_since = None;
         self.effort = None;
         self.braking = false;
+        self.brake_way = (0, false);
         self.anchor = None;
         self.hold_measured(now);
     }
@@ -634,6 +661,10 @@ impl JointControl {
                     } else {
                         self.cmd.max(behind)
                     };
+                    if !self.braking {
+                        let way = if qd > 0.0 { 1 } else { -1 };
+                        self.brake_way = (way, way == self.brake_way.0);
+                    }
                     self.braking = true;
                     clamped = true;
                 } else {
@@ -661,6 +692,18 @@ impl JointControl {
                         } else if outside {
                             kept
                         } else {
+                            // Without a model, a joint braked the same way twice in a row is
+                            // carried by a load, and the offset that stopped it may be all
+                            // that holds it: it becomes the load correction, which the
+                            // integrator then refines (a goal where the joint rests let a
+                            // loaded joint run on, brake after brake, at the brake's
+                            // threshold: twice the strict checker's bound at 0.05 rad/s).
+                            // Once only, or each way in turn, it was momentum: taking the
+                            // offset over would throw it back the other way, brake after
+                            // brake (1.28 rad/s against 0.77, broad seed 20064).
+                            if self.brake_way.1 {
+                                self.sag = kept - q;
+                            }
                             q
                         };
                     }

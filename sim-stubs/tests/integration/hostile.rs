@@ -5,7 +5,7 @@
 //! messages per profile (CI: 20,000) and `FERROBOT_HOSTILE_SEED` shifts the seeds (CI: 0),
 //! for longer searches.
 
-use ferrobot_sim::hostile::{hostile_stream, hostile_stream_of, Mix};
+use ferrobot_sim::hostile::{hostile_stream_of, Mix};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
@@ -85,18 +85,27 @@ fn pointed_messages_never_drive_the_locobot_lite_outside_its_limits() {
     assert_clean_of("locobot_lite", 4, messages() / 2, mix_or(Mix::Pointed));
 }
 
-/// Streams that once found a violation (the survey's seeds, 5,000 messages each), kept as
-/// regression cases: 560, a mode change counted done one bus answer ahead; 364, a joint
-/// rebooted after an overload thrown towards where it had been allowed before the fault.
+/// Streams that once found a violation (the survey's seeds), kept as regression cases, each
+/// as long as it took: 560, a mode change counted done one bus answer ahead; 364, a joint
+/// rebooted after an overload thrown towards where it had been allowed before the fault
+/// (5,000 messages each); pointed 10008, a loaded joint ratcheted out past its limit by
+/// repeated SetMode to the mode it was in (0.96 rad beyond); broad 20064, a brake's offset
+/// taken for a load after one brake, throwing the joint back, brake after brake (1.28 rad/s
+/// against 0.77).
 #[test]
 fn the_streams_that_found_violations_stay_clean() {
-    for seed in [364u64, 560] {
+    for (seed, n, mix) in [
+        (364u64, 5000, Mix::Broad),
+        (560, 5000, Mix::Broad),
+        (10008, 20_000, Mix::Pointed),
+        (20064, 18_000, Mix::Broad),
+    ] {
         let robot = if seed % 2 == 0 {
             "locobot_lite"
         } else {
             "locobot"
         };
-        let (c, _) = hostile_stream(&mut ChaCha8Rng::seed_from_u64(seed), robot, seed, 5000);
+        let (c, _) = hostile_stream_of(&mut ChaCha8Rng::seed_from_u64(seed), robot, seed, n, mix);
         assert!(
             c.violations.is_empty(),
             "seed {seed}: {} violations, first: {}",
@@ -143,7 +152,7 @@ fn survey() {
                     });
                     let found = r.map(|(c, _)| {
                         if let Some(v) = c.violations.first() {
-                            eprintln!("seed {seed} first: {}", &v[..v.len().min(400)]);
+                            eprintln!("seed {seed} first: {}", &v[v.len().saturating_sub(300)..]);
                         }
                         let mut episodes: Vec<&str> = c
                             .violations
