@@ -86,6 +86,25 @@ fn an_independently_rendered_sequence_with_its_hard_cases_is_tracked_or_reported
         let p = s.pose.to_homogeneous();
         assert!(p.iter().all(|x| x.is_finite()), "t = {}: {p}", s.time);
     }
+    // The map's cloud and every frame's quality line: finite too.
+    let cloud = ferrobot::perception::io::read_ply(out.join("cloud.ply")).expect("ply");
+    assert!(cloud.len() > 1000, "{} points", cloud.len());
+    assert!(cloud
+        .points
+        .iter()
+        .all(|p| p.coords.iter().all(|x| x.is_finite())));
+    let quality = std::fs::read_to_string(out.join("tracking.tsv")).expect("tracking.tsv");
+    let rows: Vec<&str> = quality.lines().filter(|l| !l.starts_with('#')).collect();
+    assert_eq!(rows.len(), 600);
+    for row in &rows {
+        let residual: f64 = row
+            .split('\t')
+            .nth(4)
+            .expect("residual")
+            .parse()
+            .expect("number");
+        assert!(residual.is_finite() && residual >= 0.0, "{row}");
+    }
     let tracked: Vec<usize> = est
         .iter()
         .map(|s| (s.time * RATE).round() as usize)
