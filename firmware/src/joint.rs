@@ -503,16 +503,15 @@ impl JointControl {
         // forgotten, a loaded joint sagged a little further at every repeated SetMode, out past
         // its limits (issue 48's pointed streams: 0.96 rad).
         if mode == self.mode {
-            let q = match mode {
-                _ if self.direct.is_some() || !self.measured => f32::NAN,
-                JointMode::Position => self.cmd,
-                _ => self.reference(now).q,
+            let told = match mode {
+                _ if self.direct.is_some() || !self.measured => None,
+                JointMode::Position => Some(self.cmd),
+                _ => Some(self.reference(now).q),
             };
             let integral = self.integral;
-            if q.is_finite() {
-                self.hold_at(now, q);
-            } else {
-                self.hold_measured(now);
+            match told.filter(|q| q.is_finite()) {
+                Some(q) => self.hold_at(now, q),
+                None => self.hold_measured(now),
             }
             self.integral = integral;
             return;
