@@ -15,11 +15,14 @@ use parking_lot::Mutex;
 
 use crate::config::{IkKind, RobotConfig};
 use crate::error::{check_finite, Error, Result};
+use crate::goals::Claim;
+use crate::hub::Hub;
+use crate::joints_goal::JointsGoal;
 use crate::kinematics::ik::{IkOptions, IkSolver, NumericalIk};
 use crate::kinematics::locobot_ik::LocobotIk;
 use crate::kinematics::Chain;
-use crate::motion::{Claim, JointsGoal, Motion};
-use crate::robot::{Io, Robot};
+use crate::motion::Motion;
+use crate::robot::Robot;
 use crate::validate;
 
 /// A pose: position (m), rotation matrix and quaternion `[x, y, z, w]` of a frame.
@@ -153,7 +156,7 @@ impl ArmParts {
 
     /// The firmware joint mask of the arm.
     pub(crate) fn mask(&self) -> u16 {
-        crate::motion::joint_mask(self.joints.iter().copied())
+        crate::goals::joint_mask(self.joints.iter().copied())
     }
 }
 
@@ -209,7 +212,7 @@ impl Arm {
     }
 
     /// Switch the arm's joints to position mode unless they are in it.
-    pub(crate) fn ensure_position_mode(&self, io: &mut Io) -> Result<()> {
+    pub(crate) fn ensure_position_mode(&self, io: &mut Hub) -> Result<()> {
         self.ensure_mode(io, JointMode::Position)
     }
 
@@ -277,7 +280,7 @@ impl Arm {
     }
 
     /// Switch the arm's joints to `mode` unless they are in it.
-    fn ensure_mode(&self, io: &mut Io, mode: JointMode) -> Result<()> {
+    fn ensure_mode(&self, io: &mut Hub, mode: JointMode) -> Result<()> {
         if io.arm.mode.unwrap_or(JointMode::Position) != mode {
             io.set_mode(&self.parts().joints, mode)?;
             io.arm.mode = Some(mode);
@@ -285,7 +288,7 @@ impl Arm {
         Ok(())
     }
 
-    fn states_in(&self, io: &mut Io) -> Result<Vec<JointState>> {
+    fn states_in(&self, io: &mut Hub) -> Result<Vec<JointState>> {
         let t = io.link.telemetry()?;
         Ok(self
             .parts()
@@ -296,7 +299,7 @@ impl Arm {
     }
 
     fn states(&self) -> Result<Vec<JointState>> {
-        self.states_in(&mut self.robot.lock_io())
+        self.states_in(&mut self.robot.lock_hub())
     }
 
     /// Start moving to joint positions `q` (rad); returns the motion under way. An arm motion
@@ -323,7 +326,7 @@ impl Arm {
             ..Claim::default()
         };
         self.robot
-            .start_motion(claim, "arm joint motion", |io: &mut Io| {
+            .start_motion(claim, "arm joint motion", |io: &mut Hub| {
                 self.ensure_mode(io, JointMode::Position)?;
                 let now = self.states_in(io)?;
                 // A cubic between rest states peaks at 1.5·Δq/T: choose T so that no joint
@@ -348,7 +351,7 @@ impl Arm {
                     started,
                     started + Duration::from_secs_f64(duration),
                 );
-                Ok((Box::new(goal) as Box<dyn crate::motion::Goal>, timeout))
+                Ok((Box::new(goal) as Box<dyn crate::goals::Goal>, timeout))
             })
     }
 
@@ -386,7 +389,7 @@ impl Arm {
         }
         let joints = self.parts().mask();
         let values = values.iter().map(|&v| v as f32).collect();
-        let mut io = self.robot.lock_io();
+        let mut io = self.robot.lock_hub();
         // Direct commands take the joints over from any arm motion under way.
         io.prepare(
             self.robot.cfg(),
@@ -406,9 +409,9 @@ impl Arm {
     /// let a knot play out and send again, for at most `timeout` without progress.
     fn send_when_queued(&self, q: &[f64], seconds: f64, timeout: Duration) -> Result<()> {
         let mask = self.parts().mask();
-        let since = self.robot.lock_io().link.now();
+        let since = self.robot.lock_hub().link.now();
         loop {
-            let mut io = self.robot.lock_io();
+            let mut io = self.robot.lock_hub();
             // Keep the firmware queue short: send while telemetry shows it not nearly full, and
             // after the timeout in any case (its rejection is then the answer).
             let waited_out = io.link.now().saturating_sub(since) > timeout;
@@ -778,7 +781,7 @@ impl Arm {
         };
         let motion = self
             .robot
-            .start_motion(claim, "Cartesian motion", |io: &mut Io| {
+            .start_motion(claim, "Cartesian motion", |io: &mut Hub| {
                 self.ensure_mode(io, JointMode::Position)?;
                 let started = io.link.now();
                 // Streaming may fall behind the knots' timing (a full queue): then the
@@ -790,7 +793,7 @@ impl Arm {
                     started,
                     started + Duration::from_secs_f64(total),
                 );
-                Ok((Box::new(goal) as Box<dyn crate::motion::Goal>, timeout))
+                Ok((Box::new(goal) as Box<dyn crate::goals::Goal>, timeout))
             })?;
         for (q, &t) in path.iter().zip(&durations) {
             if motion.is_finished() {

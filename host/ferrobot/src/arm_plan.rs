@@ -15,8 +15,10 @@ use parking_lot::Mutex;
 
 use crate::arm::{Arm, Orientation};
 use crate::error::{Error, Result};
-use crate::motion::{Claim, JointsGoal, Motion};
-use crate::robot::Io;
+use crate::goals::Claim;
+use crate::hub::Hub;
+use crate::joints_goal::JointsGoal;
+use crate::motion::Motion;
 
 /// Knots of a planned trajectory sent to the firmware at once (its queue holds 16 per joint).
 const MAX_KNOTS: usize = 14;
@@ -617,7 +619,7 @@ impl Arm {
         };
         let cfg = self.robot.cfg();
         let end = {
-            let mut io = self.robot.lock_io();
+            let mut io = self.robot.lock_hub();
             io.prepare(cfg, claim);
             io.link
                 .now()
@@ -628,14 +630,14 @@ impl Arm {
                 .get_joint_velocities()?
                 .iter()
                 .all(|v| v.abs() < REST_SPEED);
-            let now = self.robot.lock_io().link.now();
+            let now = self.robot.lock_hub().link.now();
             if still || now >= end {
                 return Ok(());
             }
-            self.robot.wait_for(crate::motion::POLL);
+            self.robot.wait_for(crate::goals::POLL);
             // A clock that does not move (a link that lost its firmware): the next plan's
             // execution reports the link's state.
-            if self.robot.lock_io().link.now() <= now {
+            if self.robot.lock_hub().link.now() <= now {
                 return Ok(());
             }
         }
@@ -672,7 +674,7 @@ impl Arm {
             ..Claim::default()
         };
         self.robot
-            .start_motion(claim, "planned arm motion", |io: &mut Io| {
+            .start_motion(claim, "planned arm motion", |io: &mut Hub| {
                 self.ensure_position_mode(io)?;
                 // The knots as sent, from the start: what the joints follow.
                 let mut reference = vec![(0.0, traj.trajectory.sample(0.0).position)];
@@ -708,7 +710,7 @@ impl Arm {
                     started + Duration::from_secs_f64(total + SETTLE_S),
                 )
                 .following(reference);
-                Ok((Box::new(goal) as Box<dyn crate::motion::Goal>, timeout))
+                Ok((Box::new(goal) as Box<dyn crate::goals::Goal>, timeout))
             })
     }
 

@@ -3,15 +3,18 @@
 //! clockwise). A bumper, cliff or wheel-drop event aborts a motion with an error that names the
 //! sensor.
 
-use std::collections::VecDeque;
 use std::time::Duration;
 
 use ferrobot_protocol::{HostMsg, Telemetry};
 
-use crate::base_control::{ilqr, wrap, Dwa, Limits, LqrTracker, NavField, Reference};
+use crate::base_control::{ilqr, Dwa, Limits, LqrTracker, NavField, Reference};
 use crate::config::BaseController;
 use crate::error::{check_finite, Error, Result};
 use crate::validate;
+pub use ferrobot_control::laws::{
+    gains, CONTROL_PERIOD as BASE_CONTROL_PERIOD, FINISH_TOL_LATERAL, FINISH_TOL_TH, FINISH_TOL_XY,
+};
+use ferrobot_control::laws::{Finisher, Proportional, Tracking, FINISH_TIME};
 use ferrobot_geometry::Pose2;
 
 /// A relative base goal: finite, at most [`validate::MAX_BASE_GOAL_DISTANCE`] away, a turn
@@ -28,59 +31,15 @@ fn check_relative(delta: [f64; 3]) -> Result<()> {
 }
 use crate::backend::Link;
 use crate::config::RobotConfig;
-use crate::motion::{Claim, Goal, Motion, Step};
+use crate::goals::{Claim, Goal, Step};
+use crate::hub::Hub;
+use crate::motion::Motion;
 use crate::navigate::NavGoal;
 use crate::obstacles::{Circle, Obstacles, OccupancyGrid};
 use crate::odometry_calibration::WheelGeometry;
-use crate::robot::{Io, Robot};
+use crate::robot::Robot;
 use crate::slam::Source;
 use ferrobot_nav::{NavSettings, Navigator};
-
-/// Control period of the host-side base controllers.
-pub const BASE_CONTROL_PERIOD: Duration = Duration::from_millis(50);
-
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Phase {
-    TurnToGoal,
-    Drive,
-    TurnToHeading,
-}
-
-/// The proportional position controller, as PyRobot's: turn towards the goal, drive to it
-/// (backwards when it lies behind), turn to the goal heading. Speeds are proportional to the
-/// remaining error, bounded by the limits, ramped at bounded acceleration, and kept above the
-/// base's deadband until within tolerance.
-#[derive(Debug, Clone)]
-pub struct BaseGoal {
-    goal: [f64; 3],
-    phase: Phase,
-    backwards: bool,
-    v: f64,
-    w: f64,
-    next: Duration,
-    max_v: f64,
-    max_w: f64,
-    min_w: f64,
-    tol_xy: f64,
-    tol_th: f64,
-}
-
-/// Gains and limits of the proportional controller.
-pub mod gains {
-    /// Forward speed per metre of remaining distance, 1/s.
-    pub const K_V: f64 = 1.0;
-    /// Yaw rate per radian of heading error, 1/s.
-    pub const K_W: f64 = 2.0;
-    /// Forward acceleration bound, m/s².
-    pub const ACCEL_V: f64 = 0.5;
-    /// Yaw acceleration bound, rad/s².
-    pub const ACCEL_W: f64 = 2.0;
-    /// Smallest forward speed while not yet within tolerance, m/s.
-    pub const MIN_V: f64 = 0.02;
-    /// Smallest wheel speed while turning and not yet within tolerance, m/s: above the
-    /// deadband of the bases' wheel controllers (Kobuki 5 mm/s, Create 2 10 mm/s).
-    pub const MIN_WHEEL: f64 = 0.015;
-}
 
 /// A host-side position controller run by a [`Motion`] every time the motions are stepped.
 pub(crate) trait BaseLaw: Send {
@@ -95,102 +54,28 @@ pub(crate) trait BaseLaw: Send {
     }
 }
 
-impl BaseLaw for BaseGoal {
+/// A law's view of the odometry in telemetry `t`: the pose `[x, y, θ]` (m, m, rad).
+pub(crate) fn odometry_pose(t: &Telemetry) -> [f64; 3] {
+    let o = t.odometry;
+    [o.x as f64, o.y as f64, o.theta as f64]
+}
+
+/// A law's view of the odometry's twist in telemetry `t`: `[v, ω]` (m/s, rad/s).
+fn odometry_twist(t: &Telemetry) -> [f64; 2] {
+    let o = t.odometry;
+    [o.v as f64, o.w as f64]
+}
+
+impl BaseLaw for Proportional {
     fn step(&mut self, now: Duration, t: &Telemetry) -> Result<Option<(f64, f64)>> {
-        Ok(self.step_inner(now, t))
+        Ok(Proportional::step(self, now, odometry_pose(t)))
     }
 }
 
-impl BaseGoal {
-    /// Heading error (rad) from `th` to the direction of driving towards the goal offset
-    /// `(dx, dy)`: its bearing, or the opposite when driving backwards.
-    fn drive_heading_error(&self, dx: f64, dy: f64, th: f64) -> f64 {
-        let back = if self.backwards {
-            std::f64::consts::PI
-        } else {
-            0.0
-        };
-        wrap(dy.atan2(dx) + back - th)
-    }
-
-    /// Aims at `goal` (the odometry's frame) from `now` on, keeping the present speeds.
-    pub(crate) fn retarget(&mut self, goal: [f64; 3], now: Duration) {
-        self.goal = goal;
-        self.phase = Phase::TurnToGoal;
-        self.next = now;
-    }
-
-    pub(crate) fn step_inner(&mut self, now: Duration, t: &Telemetry) -> Option<(f64, f64)> {
-        if now < self.next {
-            return Some((self.v, self.w));
-        }
-        self.next = now + BASE_CONTROL_PERIOD;
-        let dt = BASE_CONTROL_PERIOD.as_secs_f64();
-        let o = t.odometry;
-        let (x, y, th) = (o.x as f64, o.y as f64, o.theta as f64);
-        let (dx, dy) = (self.goal[0] - x, self.goal[1] - y);
-        let dist = dx.hypot(dy);
-        let mut v = 0.0;
-        let w;
-        loop {
-            match self.phase {
-                Phase::TurnToGoal => {
-                    if dist < self.tol_xy {
-                        self.phase = Phase::TurnToHeading;
-                        continue;
-                    }
-                    self.backwards = wrap(dy.atan2(dx) - th).abs() > std::f64::consts::FRAC_PI_2;
-                    let e = self.drive_heading_error(dx, dy, th);
-                    if e.abs() < self.tol_th {
-                        self.phase = Phase::Drive;
-                        continue;
-                    }
-                    let p = (gains::K_W * e).clamp(-self.max_w, self.max_w);
-                    w = p.signum() * p.abs().max(self.min_w);
-                }
-                Phase::Drive => {
-                    let e = self.drive_heading_error(dx, dy, th);
-                    // Distance along the heading; past the goal it turns negative.
-                    let along = dist * e.cos();
-                    if dist < self.tol_xy {
-                        self.phase = Phase::TurnToHeading;
-                        continue;
-                    }
-                    if along < 0.0 {
-                        // Passed wide of the tolerance (an overshoot, a slip, a push): aim at
-                        // the goal again (backwards when it lies behind), never call it reached.
-                        self.phase = Phase::TurnToGoal;
-                        continue;
-                    }
-                    let speed = (gains::K_V * along).clamp(gains::MIN_V, self.max_v);
-                    v = if self.backwards { -speed } else { speed };
-                    w = (gains::K_W * e).clamp(-self.max_w, self.max_w);
-                }
-                Phase::TurnToHeading => {
-                    let e = wrap(self.goal[2] - th);
-                    if e.abs() < self.tol_th {
-                        self.v = 0.0;
-                        self.w = 0.0;
-                        return None;
-                    }
-                    let p = (gains::K_W * e).clamp(-self.max_w, self.max_w);
-                    w = p.signum() * p.abs().max(self.min_w);
-                }
-            }
-            break;
-        }
-        // Ramp: bounded acceleration (braking to zero is never slower than the bound either).
-        self.v += (v - self.v).clamp(-gains::ACCEL_V * dt, gains::ACCEL_V * dt);
-        self.w += (w - self.w).clamp(-gains::ACCEL_W * dt, gains::ACCEL_W * dt);
-        Some((self.v, self.w))
-    }
-}
-
-/// A [`Dwa`] position goal: the window steers to the goal position among the obstacles, then
 /// the proportional controller turns to the goal heading.
 struct DwaGoal {
     dwa: Dwa,
-    finish: BaseGoal,
+    finish: Proportional,
     reached: bool,
     next: Duration,
     last: (f64, f64),
@@ -215,14 +100,13 @@ const DWA_HANDOVER: f64 = 0.1;
 impl BaseLaw for DwaGoal {
     fn step(&mut self, now: Duration, t: &Telemetry) -> Result<Option<(f64, f64)>> {
         if self.reached {
-            return Ok(self.finish.step_inner(now, t));
+            return Ok(self.finish.step(now, odometry_pose(t)));
         }
         if now < self.next {
             return Ok(Some(self.last));
         }
         self.next = now + Duration::from_secs_f64(self.dwa.dt);
-        let o = t.odometry;
-        let x = [o.x as f64, o.y as f64, o.theta as f64];
+        let x = odometry_pose(t);
         let dist = (self.dwa.goal[0] - x[0]).hypot(self.dwa.goal[1] - x[1]);
         if dist < self.progress.0 - 0.01 {
             self.progress = (dist, now);
@@ -235,10 +119,8 @@ impl BaseLaw for DwaGoal {
         }
         if dist < DWA_HANDOVER {
             self.reached = true;
-            self.finish.next = now;
-            self.finish.v = self.last.0;
-            self.finish.w = self.last.1;
-            return Ok(self.finish.step_inner(now, t));
+            self.finish.take_over(now, self.last);
+            return Ok(self.finish.step(now, x));
         }
         // The window is built around what was commanded (odometry velocity lags it).
         let (v0, w0) = self.last;
@@ -257,343 +139,17 @@ impl BaseLaw for DwaGoal {
     }
 }
 
-/// Longest the [`Finish`] stage may add to a motion's timeout.
-const FINISH_TIME: Duration = Duration::from_secs(30);
-
-/// Residual position error (m) along the heading that the finisher leaves.
-pub const FINISH_TOL_XY: f64 = 0.0005;
-/// Residual position error (m) across the heading above which the finisher backs up and
-/// re-approaches.
-pub const FINISH_TOL_LATERAL: f64 = 0.0005;
-/// Residual heading error (rad) that the finisher aims for (0.05°), unless the odometry's
-/// resolution is coarser (see [`Finish`]).
-pub const FINISH_TOL_TH: f64 = 0.05 * std::f64::consts::PI / 180.0;
-/// How far (m) the finisher backs up before re-approaching to remove a lateral error.
-const FINISH_BACKUP: f64 = 0.05;
-/// Lateral re-approaches the finisher tries before it settles for what it has.
-const FINISH_ATTEMPTS: u32 = 3;
-/// The finisher's speed caps (m/s, rad/s) and its proportional gain (1/s).
-const FINISH_V_MAX: f64 = 0.05;
-const FINISH_W_MAX: f64 = 0.3;
-const FINISH_GAIN: f64 = 1.5;
-/// Errors a creep-speed pulse of up to this long (s) would cover are removed by pulses.
-const FINISH_PULSE_SPAN: f64 = 0.5;
-/// First guess of the wheels' dead time (s): a pulse of length T at creep speed moves about
-/// speed · (T − dead time). Learned from every pulse.
-const FINISH_DEAD_TIME: f64 = 0.05;
-
-/// One step of the finisher's plan.
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum FinishStep {
-    /// Look at the remaining error and plan the next steps.
-    Decide,
-    /// Drive straight along the current heading until the point's projection on it is
-    /// within `tol` (m).
-    Drive { to: [f64; 2], tol: f64 },
-    /// Turn in place to face the goal position (or away from it, whichever is nearer).
-    Face,
-    /// Turn in place to the heading (rad).
-    Turn { to: f64 },
-}
-
-/// A creep-speed pulse the firmware times.
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct Pulse {
-    end: Duration,
-    cmd: (f64, f64),
-    /// The error (m or rad) when it started.
-    e0: f64,
-    speed: f64,
-    /// Its length, s.
-    len: f64,
-    /// Whether the stop after it has been commanded.
-    stopped: bool,
-}
-
-/// A command of the finisher: `(v, ω)`, how long the firmware holds it (ms), and whether it
-/// is ramped within the accelerations.
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct FinishCmd {
-    u: (f64, f64),
-    hold_ms: u16,
-    ramp: bool,
-}
-
-impl FinishCmd {
-    const STOP: FinishCmd = FinishCmd {
-        u: (0.0, 0.0),
-        hold_ms: 250,
-        ramp: false,
-    };
-}
-
-/// The finisher after closed-loop tracking (our deadband compensation): the LQR's feedback
-/// on millimetre errors asks for wheel speeds below the wheels' deadband, which do nothing.
-/// Checked at every odometry sample (50 Hz), it removes the error by odometry in straight
-/// drives and turns in place: an error across the heading above [`FINISH_TOL_LATERAL`] by
-/// backing up [`FINISH_BACKUP`], facing the goal and driving to it; the error along the
-/// heading to [`FINISH_TOL_XY`]; then the heading to [`FINISH_TOL_TH`] or, when one encoder
-/// tick turns the odometry by more than twice that, to 0.55 tick (the Create 2: 0.06°).
-/// Large errors are driven at speeds proportional to them, ramped within the tracking
-/// accelerations; small ones by pulses at creep speed (`[base] min_wheel_speed`, just above
-/// the deadband and below one tracking period's acceleration) whose length the firmware
-/// times to the millisecond, corrected for the wheels' dead time, which each pulse measures;
-/// the last heading pulses pivot about one wheel so that the odometry can change by a single
-/// encoder tick. It waits for the base to stand still before each pulse and after each step.
-#[derive(Debug, Clone)]
-struct Finish {
-    goal: [f64; 3],
-    v_min: f64,
-    w_min: f64,
-    /// Odometry heading change of one encoder tick of one wheel, rad.
-    tick: f64,
-    limits: Limits,
-    /// The last command, when it was sent, and its hold.
-    last: (f64, f64),
-    last_t: Option<Duration>,
-    hold_ms: u16,
-    step: FinishStep,
-    /// Steps after the current one.
-    plan: VecDeque<FinishStep>,
-    attempts: u32,
-    pulse: Option<Pulse>,
-    /// Learned dead time (s) of linear and angular pulses.
-    dead_time: [f64; 2],
-}
-
-impl Finish {
-    /// A finisher to `goal` with creep speeds `v_min` (m/s) and `w_min` (rad/s), for
-    /// odometry whose heading changes by `tick` (rad) per encoder tick.
-    fn new(goal: [f64; 3], v_min: f64, w_min: f64, tick: f64, limits: Limits) -> Self {
-        Finish {
-            goal,
-            v_min,
-            w_min,
-            tick,
-            limits,
-            last: (0.0, 0.0),
-            last_t: None,
-            hold_ms: 250,
-            step: FinishStep::Decide,
-            plan: VecDeque::new(),
-            attempts: 0,
-            pulse: None,
-            dead_time: [FINISH_DEAD_TIME; 2],
-        }
-    }
-
-    /// The heading tolerance (rad): [`FINISH_TOL_TH`], or 0.55 tick where one encoder tick
-    /// turns the odometry by more than twice that.
-    fn tol_th(&self) -> f64 {
-        FINISH_TOL_TH.max(0.55 * self.tick)
-    }
-
-    /// The next command, `None` when done.
-    fn step(&mut self, now: Duration, t: &Telemetry) -> Option<(f64, f64)> {
-        let c = self.want(now, t)?;
-        let (v, w) = if c.ramp {
-            // Ramp within the accelerations, over the time since the last command (at most
-            // one tracking period).
-            let dt = self
-                .last_t
-                .map_or(0.1, |l| now.saturating_sub(l).as_secs_f64().min(0.1));
-            let l = &self.limits;
-            (
-                self.last.0 + (c.u.0 - self.last.0).clamp(-l.accel_v * dt, l.accel_v * dt),
-                self.last.1 + (c.u.1 - self.last.1).clamp(-l.accel_w * dt, l.accel_w * dt),
-            )
-        } else {
-            c.u
-        };
-        self.last = (v, w);
-        self.last_t = Some(now);
-        self.hold_ms = c.hold_ms;
-        Some((v, w))
-    }
-
-    /// Creep towards a signed error `e` (m along the heading, or rad) within `tol`; `None`
-    /// once within it and standing still. Angular pulses within 1.5 ticks of the goal pivot
-    /// about one wheel, so that one encoder tick at a time can change (turning in place moves both, a two-tick step
-    /// that can jump over the tolerance); `pivot_forward` picks the wheel: the base's centre
-    /// then moves forward (true) or back by half the track times the turn.
-    fn creep(
-        &mut self,
-        now: Duration,
-        e: f64,
-        tol: f64,
-        angular: Option<bool>,
-        still: bool,
-    ) -> Option<FinishCmd> {
-        let k = angular.is_some() as usize;
-        let (speed, cap) = if angular.is_some() {
-            (self.w_min, FINISH_W_MAX)
-        } else {
-            (self.v_min, FINISH_V_MAX)
-        };
-        let axis = |s: f64| match angular {
-            Some(_) => (0.0, s),
-            None => (s, 0.0),
-        };
-        if let Some(p) = self.pulse {
-            if now < p.end {
-                let left = (p.end - now).as_millis().clamp(1, 1000) as u16;
-                return Some(FinishCmd {
-                    u: p.cmd,
-                    hold_ms: left,
-                    ramp: false,
-                });
-            }
-            // The firmware has stopped the base at the pulse's end; say so on the command
-            // stream too, and wait for it to stand still.
-            if !still || !p.stopped {
-                self.pulse = Some(Pulse { stopped: true, ..p });
-                return Some(FinishCmd::STOP);
-            }
-            // moved = speed · (len − dead time).
-            let moved = (p.e0 - e) * p.e0.signum();
-            let dead = (p.len - moved / p.speed).clamp(0.0, 0.2);
-            self.dead_time[k] = 0.5 * (self.dead_time[k] + dead);
-            self.pulse = None;
-        }
-        if e.abs() <= tol {
-            return (!still).then_some(FinishCmd::STOP);
-        }
-        if e.abs() > speed * FINISH_PULSE_SPAN {
-            let s = (FINISH_GAIN * e.abs()).clamp(speed, cap);
-            return Some(FinishCmd {
-                u: axis(e.signum() * s),
-                hold_ms: 250,
-                ramp: true,
-            });
-        }
-        if !still {
-            return Some(FinishCmd::STOP);
-        }
-        let (speed, cmd) = match angular {
-            // Within 1.5 ticks: one wheel at creep speed, the other still (ω = ±w_min / 2,
-            // v = ±v_min / 2); the centre moves by at most 0.75 tick of wheel travel.
-            Some(forward) if e.abs() <= 1.5 * self.tick => {
-                let w = 0.5 * self.w_min;
-                let v = if forward { 0.5 } else { -0.5 } * self.v_min;
-                (w, (v, e.signum() * w))
-            }
-            _ => (speed, axis(e.signum() * speed)),
-        };
-        let len = (e.abs() / speed + self.dead_time[k]).clamp(0.001, 1.0);
-        self.pulse = Some(Pulse {
-            end: now + Duration::from_secs_f64(len),
-            cmd,
-            e0: e,
-            speed,
-            len,
-            stopped: false,
-        });
-        Some(FinishCmd {
-            u: cmd,
-            hold_ms: (len * 1000.0).round().max(1.0) as u16,
-            ramp: false,
-        })
-    }
-
-    /// The command the current step wants; `None` when done.
-    fn want(&mut self, now: Duration, t: &Telemetry) -> Option<FinishCmd> {
-        let o = t.odometry;
-        let (x, y, th) = (o.x as f64, o.y as f64, o.theta as f64);
-        let still = (o.v as f64).abs() < 1e-3 && (o.w as f64).abs() < 1e-2;
-        let (c, s) = (th.cos(), th.sin());
-        // A bounded number of plan changes per sample; each returns or advances.
-        for _ in 0..8 {
-            match self.step {
-                FinishStep::Decide => {
-                    let (dx, dy) = (self.goal[0] - x, self.goal[1] - y);
-                    let along = dx * c + dy * s;
-                    let lateral = -dx * s + dy * c;
-                    self.plan.clear();
-                    if lateral.abs() > FINISH_TOL_LATERAL && self.attempts < FINISH_ATTEMPTS {
-                        // Back up to a point behind the goal on the current heading line,
-                        // face the goal, drive to it, look again.
-                        self.attempts += 1;
-                        let back = along - FINISH_BACKUP;
-                        self.step = FinishStep::Drive {
-                            to: [x + back * c, y + back * s],
-                            tol: 0.002,
-                        };
-                        self.plan.extend([
-                            FinishStep::Face,
-                            FinishStep::Drive {
-                                to: [self.goal[0], self.goal[1]],
-                                tol: FINISH_TOL_XY,
-                            },
-                            FinishStep::Decide,
-                        ]);
-                    } else if along.abs() > FINISH_TOL_XY {
-                        self.step = FinishStep::Drive {
-                            to: [self.goal[0], self.goal[1]],
-                            tol: FINISH_TOL_XY,
-                        };
-                        self.plan.push_back(FinishStep::Decide);
-                    } else {
-                        self.step = FinishStep::Turn { to: self.goal[2] };
-                    }
-                }
-                FinishStep::Drive { to, tol } => {
-                    let along = (to[0] - x) * c + (to[1] - y) * s;
-                    match self.creep(now, along, tol, None, still) {
-                        Some(cmd) => return Some(cmd),
-                        None => self.advance(),
-                    }
-                }
-                FinishStep::Face => {
-                    let (dx, dy) = (self.goal[0] - x, self.goal[1] - y);
-                    let d = dx.hypot(dy);
-                    let mut to = dy.atan2(dx);
-                    if wrap(to - th).abs() > std::f64::consts::FRAC_PI_2 {
-                        to = wrap(to + std::f64::consts::PI);
-                    }
-                    // Close enough when driving there leaves less than half the lateral
-                    // tolerance.
-                    let tol = (0.5 * FINISH_TOL_LATERAL / d.max(1e-9))
-                        .min(1.0)
-                        .asin()
-                        .max(self.tol_th());
-                    let forward = dx * c + dy * s >= 0.0;
-                    match self.creep(now, wrap(to - th), tol, Some(forward), still) {
-                        Some(cmd) => return Some(cmd),
-                        None => self.advance(),
-                    }
-                }
-                FinishStep::Turn { to } => {
-                    let tol = self.tol_th();
-                    let forward = (self.goal[0] - x) * c + (self.goal[1] - y) * s >= 0.0;
-                    match self.creep(now, wrap(to - th), tol, Some(forward), still) {
-                        Some(cmd) => return Some(cmd),
-                        None if self.plan.is_empty() => return None,
-                        None => self.advance(),
-                    }
-                }
-            }
-        }
-        Some(FinishCmd::STOP)
-    }
-
-    fn advance(&mut self) {
-        self.pulse = None;
-        self.step = self.plan.pop_front().unwrap_or(FinishStep::Decide);
-    }
-}
-
-/// Closed-loop tracking, then the [`Finish`]er.
 struct TrackThenFinish {
     track: Tracking,
     tracking: bool,
     last: (f64, f64),
-    finish: Finish,
+    finish: Finisher,
 }
 
 impl BaseLaw for TrackThenFinish {
     fn step(&mut self, now: Duration, t: &Telemetry) -> Result<Option<(f64, f64)>> {
         if self.tracking {
-            match self.track.step(now, t) {
+            match self.track.step(now, odometry_pose(t)) {
                 Some(Some(u)) => {
                     self.last = u;
                     return Ok(Some(u));
@@ -601,18 +157,18 @@ impl BaseLaw for TrackThenFinish {
                 Some(None) => return Ok(Some(self.last)),
                 None => {
                     self.tracking = false;
-                    self.finish.last = self.last;
+                    self.finish.take_over(self.last);
                 }
             }
         }
-        Ok(self.finish.step(now, t))
+        Ok(self.finish.step(now, odometry_pose(t), odometry_twist(t)))
     }
 
     fn hold_ms(&self) -> u16 {
         if self.tracking {
             250
         } else {
-            self.finish.hold_ms
+            self.finish.hold_ms()
         }
     }
 }
@@ -660,49 +216,6 @@ impl Default for GoalOptions {
         }
     }
 }
-
-/// A reference being tracked: the LQR gains, the clock, and the rate limiter of the commands.
-#[derive(Debug, Clone)]
-pub struct Tracking {
-    tracker: LqrTracker,
-    closed_loop: bool,
-    start: Option<Duration>,
-    next: Duration,
-    last: (f64, f64),
-    limits: Limits,
-}
-
-impl Tracking {
-    /// `None` when finished; `Some(None)` to keep waiting; `Some(Some((v, w)))` to send.
-    pub(crate) fn step(&mut self, now: Duration, t: &Telemetry) -> Option<Option<(f64, f64)>> {
-        let start = *self.start.get_or_insert(now);
-        if now < self.next {
-            return Some(None);
-        }
-        let dt = self.tracker.reference.dt;
-        // `dt` is validated in `validate::REFERENCE_DT`.
-        self.next = now + Duration::from_secs_f64(dt);
-        let k = ((now - start).as_secs_f64() / dt).floor() as usize;
-        if k >= self.tracker.reference.controls.len() {
-            return None;
-        }
-        let o = t.odometry;
-        let [v, w] = self.tracker.control(
-            k,
-            [o.x as f64, o.y as f64, o.theta as f64],
-            self.closed_loop,
-        );
-        // Limits hold on what is commanded: bound, then rate-limit.
-        let l = &self.limits;
-        let v = v.clamp(-l.v, l.v);
-        let w = w.clamp(-l.w, l.w);
-        let v = self.last.0 + (v - self.last.0).clamp(-l.accel_v * dt, l.accel_v * dt);
-        let w = self.last.1 + (w - self.last.1).clamp(-l.accel_w * dt, l.accel_w * dt);
-        self.last = (v, w);
-        Some(Some((v, w)))
-    }
-}
-
 /// What the base remembers between calls.
 #[derive(Debug, Default)]
 pub(crate) struct BaseState {
@@ -855,7 +368,7 @@ impl Goal for TrackGoal {
     }
 
     fn step(&mut self, s: &mut Step<'_>) -> Option<Result<()>> {
-        match self.0.step(s.now, s.telemetry) {
+        match self.0.step(s.now, odometry_pose(s.telemetry)) {
             None => {
                 stop_base(s.link);
                 Some(Ok(()))
@@ -888,12 +401,12 @@ impl Base {
     /// Put a base goal under way (preempting a base motion under way).
     fn start(&self, goal: Box<dyn Goal>, what: &str, timeout: Duration) -> Result<Motion> {
         self.robot
-            .start_motion(BASE, what, |_io: &mut Io| Ok((goal, timeout)))
+            .start_motion(BASE, what, |_io: &mut Hub| Ok((goal, timeout)))
     }
 
     /// The backend's clock.
     fn now(&self) -> Duration {
-        self.robot.lock_io().link.now()
+        self.robot.lock_hub().link.now()
     }
 
     /// The tracking limits, capped by the configuration's speeds.
@@ -907,21 +420,16 @@ impl Base {
     }
 
     /// A proportional controller for `goal`, starting now.
-    pub(crate) fn proportional(&self, goal: [f64; 3]) -> BaseGoal {
+    pub(crate) fn proportional(&self, goal: [f64; 3]) -> Proportional {
         let s = self.section();
-        BaseGoal {
+        Proportional::new(
             goal,
-            phase: Phase::TurnToGoal,
-            backwards: false,
-            v: 0.0,
-            w: 0.0,
-            next: Duration::ZERO,
-            max_v: s.max_linear,
-            max_w: s.max_angular,
-            min_w: gains::MIN_WHEEL / (0.5 * s.track),
-            tol_xy: s.translation_tolerance,
-            tol_th: s.rotation_tolerance,
-        }
+            s.max_linear,
+            s.max_angular,
+            gains::MIN_WHEEL / (0.5 * s.track),
+            s.translation_tolerance,
+            s.rotation_tolerance,
+        )
     }
 
     fn section(&self) -> &crate::config::BaseSection {
@@ -940,7 +448,7 @@ impl Base {
     pub fn odometry_geometry(&self) -> WheelGeometry {
         let s = self.section();
         self.robot
-            .lock_io()
+            .lock_hub()
             .base
             .odometry
             .or(s.odometry)
@@ -959,7 +467,7 @@ impl Base {
                 ),
             });
         }
-        let mut io = self.robot.lock_io();
+        let mut io = self.robot.lock_hub();
         io.link.command(
             &HostMsg::SetBaseGeometry {
                 left_radius: g.left_radius as f32,
@@ -981,7 +489,7 @@ impl Base {
     /// Start logging the wheel angles of every telemetry frame that motions see (for odometry
     /// calibration), beginning with the current ones; replaces an earlier log.
     pub fn start_wheel_log(&self) -> Result<()> {
-        let mut io = self.robot.lock_io();
+        let mut io = self.robot.lock_hub();
         let t = io.link.telemetry()?;
         io.base.wheel_log = Some(Vec::new());
         io.base.log_wheels(&t);
@@ -991,7 +499,7 @@ impl Base {
     /// Stop logging and return the wheel angles `[left, right]` (rad) logged since
     /// [`Base::start_wheel_log`], ending with the current ones.
     pub fn take_wheel_log(&self) -> Result<Vec<[f64; 2]>> {
-        let mut io = self.robot.lock_io();
+        let mut io = self.robot.lock_hub();
         let t = io.link.telemetry()?;
         io.base.log_wheels(&t);
         let log = io.base.wheel_log.take().unwrap_or_default();
@@ -1001,7 +509,7 @@ impl Base {
     /// Zero the odometry pose.
     pub fn reset_odometry(&self) -> Result<()> {
         self.robot
-            .lock_io()
+            .lock_hub()
             .link
             .command(&HostMsg::ResetOdometry, "odometry reset")?;
         // Let the reset show in telemetry.
@@ -1011,7 +519,7 @@ impl Base {
 
     /// Stop now; a base motion under way ends ([`Error::Preempted`]).
     pub fn stop(&self) -> Result<()> {
-        let mut io = self.robot.lock_io();
+        let mut io = self.robot.lock_hub();
         io.prepare(self.robot.cfg(), BASE);
         io.link.command(
             &HostMsg::BaseVelocity {
@@ -1080,14 +588,12 @@ impl Base {
         let limits = self.tracking_limits();
         let duration = reference.dt * reference.controls.len() as f64;
         let now = self.now();
-        let tr = Tracking {
-            tracker: LqrTracker::new(reference, [3.0, 3.0, 4.0], 0.2),
-            closed_loop: close_loop,
-            start: None,
-            next: now,
-            last: (0.0, 0.0),
+        let tr = Tracking::new(
+            LqrTracker::new(reference, [3.0, 3.0, 4.0], 0.2),
+            close_loop,
+            now,
             limits,
-        };
+        );
         let timeout = Duration::from_secs_f64(duration + 5.0);
         if let Some(goal) = finish {
             // One encoder tick of one wheel turns the odometry by this much (rad).
@@ -1098,7 +604,7 @@ impl Base {
                 track: tr,
                 tracking: true,
                 last: (0.0, 0.0),
-                finish: Finish::new(
+                finish: Finisher::new(
                     goal,
                     s.min_wheel_speed,
                     s.min_wheel_speed / (0.5 * s.track),
@@ -1188,9 +694,7 @@ impl Base {
                 // Room for a detour of half the distance again, at half speed.
                 let timeout = Duration::from_secs_f64(15.0 + 3.0 * dist / lim.v);
                 // The last stretch stays within the window's (tracking) limits too.
-                let mut finish = self.proportional(goal);
-                finish.max_v = lim.v;
-                finish.max_w = lim.w;
+                let finish = self.proportional(goal).with_speed_limits(lim.v, lim.w);
                 let now = self.now();
                 let g = DwaGoal {
                     dwa,
@@ -1237,8 +741,7 @@ impl Base {
         let turn = std::f64::consts::TAU;
         let timeout =
             Duration::from_secs_f64(10.0 + 3.0 * (dist / s.max_linear + turn / s.max_angular));
-        let mut g = self.proportional(goal);
-        g.next = now;
+        let g = self.proportional(goal).starting_at(now);
         self.start(
             Box::new(LawGoal(Box::new(g))),
             "base position goal",
@@ -1294,7 +797,7 @@ impl Base {
         let scans = opts.live_obstacles && self.robot.config().camera.is_some();
         if scans {
             // What the last goal's camera saw counts from the start.
-            if let Some(live) = self.robot.lock_io().sense.live_for(slam) {
+            if let Some(live) = self.robot.lock_hub().sense.live_for(slam) {
                 nav.set_live(&live)?;
             }
         }
@@ -1314,12 +817,10 @@ impl Base {
         }
         if scans {
             let eyes = self.robot.eyes()?;
-            self.robot.lock_io().sense.camera = Some(eyes);
+            self.robot.lock_hub().sense.camera = Some(eyes);
         }
         // The heading stage's controller within the window's (tracking) limits.
-        let mut finish = self.proportional(goal);
-        finish.max_v = lim.v;
-        finish.max_w = lim.w;
+        let finish = self.proportional(goal).with_speed_limits(lim.v, lim.w);
         let g = NavGoal {
             nav,
             goal,
@@ -1356,9 +857,9 @@ impl Base {
             return Err(self.robot.missing("camera"));
         }
         let eyes = self.robot.eyes()?;
-        self.robot.lock_io().sense.camera = Some(eyes);
+        self.robot.lock_hub().sense.camera = Some(eyes);
         let radius = self.nav_radius()?;
-        let live = self.robot.lock_io().sense.live_for(true);
+        let live = self.robot.lock_hub().sense.live_for(true);
         let g = crate::navigate::ExploreGoal::new(
             NavSettings::new(radius, self.tracking_limits()),
             ferrobot_nav::FrontierSettings::new(radius),

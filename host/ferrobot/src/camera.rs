@@ -115,7 +115,7 @@ impl Camera {
     pub(crate) fn frame_with_telemetry(&self) -> Result<(Frame, Telemetry)> {
         let frame = self.robot.optical_frame()?;
         let until = {
-            let io = self.robot.lock_io();
+            let io = self.robot.lock_hub();
             let device = io
                 .camera
                 .as_ref()
@@ -126,7 +126,7 @@ impl Camera {
             self.robot.wait_for(until);
         }
         let (intrinsics, tel, raw) = {
-            let mut guard = self.robot.lock_io();
+            let mut guard = self.robot.lock_hub();
             let io = &mut *guard;
             let device = io
                 .camera
@@ -173,7 +173,7 @@ impl Camera {
 
     /// The camera's intrinsics.
     pub fn intrinsics(&self) -> Result<Intrinsics> {
-        let io = self.robot.lock_io();
+        let io = self.robot.lock_hub();
         let device = io
             .camera
             .as_ref()

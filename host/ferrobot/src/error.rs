@@ -232,7 +232,7 @@ pub enum Error {
     Grasp(#[from] crate::grasp::GraspFailure),
     /// An I/O error.
     #[error("I/O error: {0}")]
-    Io(#[from] std::io::Error),
+    Hub(#[from] std::io::Error),
 }
 
 /// Result with [`Error`].

@@ -7,8 +7,10 @@ use ferrobot_protocol::{GripperCommand, GripperState, HostMsg};
 
 use crate::backend::Link;
 use crate::error::Result;
-use crate::motion::{Claim, Goal, Motion, Step};
-use crate::robot::{Io, Robot};
+use crate::goals::{Claim, Goal, Step};
+use crate::hub::Hub;
+use crate::motion::Motion;
+use crate::robot::Robot;
 
 /// How long open and close may take.
 pub const GRIPPER_TIMEOUT: Duration = Duration::from_secs(5);
@@ -54,7 +56,7 @@ impl Gripper {
             gripper: true,
             ..Claim::default()
         };
-        self.robot.start_motion(claim, what, |io: &mut Io| {
+        self.robot.start_motion(claim, what, |io: &mut Hub| {
             io.link.command(&HostMsg::Gripper(cmd), what)?;
             Ok((
                 Box::new(GripperGoal(want)) as Box<dyn Goal>,

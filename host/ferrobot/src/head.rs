@@ -3,8 +3,11 @@
 use std::time::Duration;
 
 use crate::error::{check_finite, Error, Result};
-use crate::motion::{Claim, Goal, JointsGoal, Motion};
-use crate::robot::{Io, Robot};
+use crate::goals::{Claim, Goal};
+use crate::hub::Hub;
+use crate::joints_goal::JointsGoal;
+use crate::motion::Motion;
+use crate::robot::Robot;
 
 /// The pan-tilt head of a [`Robot`]'s camera: a handle (clone of the robot's). Angles in rad;
 /// pan about the head's z axis (positive left), tilt about its y axis (positive down).
@@ -53,13 +56,13 @@ impl Head {
         }
         let mut sorted = targets.to_vec();
         sorted.sort_by_key(|(j, _)| *j);
-        let mask = crate::motion::joint_mask(sorted.iter().map(|(j, _)| *j));
+        let mask = crate::goals::joint_mask(sorted.iter().map(|(j, _)| *j));
         let claim = Claim {
             joints: mask,
             ..Claim::default()
         };
         self.robot
-            .start_motion(claim, "pan/tilt motion", |io: &mut Io| {
+            .start_motion(claim, "pan/tilt motion", |io: &mut Hub| {
                 let tel = io.link.telemetry()?;
                 let mut t = 0.2f64;
                 for &(j, v) in &sorted {

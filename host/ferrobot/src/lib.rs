@@ -23,10 +23,13 @@ pub mod base;
 pub mod camera;
 pub mod error;
 mod frames;
+mod goals;
 pub mod grasp;
 pub mod gripper;
 pub mod hand_eye;
 pub mod head;
+mod hub;
+mod joints_goal;
 pub mod motion;
 pub mod navigate;
 pub mod planning;
@@ -34,7 +37,8 @@ pub mod push;
 pub mod robot;
 mod sense;
 pub mod slam;
-pub mod stance;
+/// Where to stand at a table (pure geometry, in `ferrobot-nav`).
+pub use ferrobot_nav::stance;
 
 pub use ferrobot_control::odometry_calibration;
 pub use ferrobot_description as config;

@@ -21,9 +21,10 @@ use ferrobot_nav::{
     Navigator, OccupancyGrid,
 };
 
-use crate::base::{BaseGoal, BASE_CONTROL_PERIOD};
+use crate::base::{odometry_pose, BASE_CONTROL_PERIOD};
 use crate::error::{Error, Result};
-use crate::motion::{Goal, Step};
+use crate::goals::{Goal, Step};
+use ferrobot_control::laws::Proportional;
 
 /// How long a SLAM-steered goal may go without a SLAM pose before it fails.
 pub const SLAM_PATIENCE: Duration = Duration::from_secs(10);
@@ -61,7 +62,7 @@ pub(crate) struct NavGoal {
     /// The last scan and grid taken in.
     pub(crate) seen: (u64, u64),
     /// The heading stage, once the position is reached (its goal in the odometry's frame).
-    pub(crate) finish: BaseGoal,
+    pub(crate) finish: Proportional,
     pub(crate) finishing: bool,
     /// Since when SLAM has had no pose.
     pub(crate) lost_since: Option<Duration>,
@@ -92,7 +93,7 @@ impl NavGoal {
 }
 
 impl Goal for NavGoal {
-    fn claim(&self) -> crate::motion::Claim {
+    fn claim(&self) -> crate::goals::Claim {
         crate::base::BASE
     }
 
@@ -108,7 +109,7 @@ impl Goal for NavGoal {
         let o = s.telemetry.odometry;
         let odometry = [o.x as f64, o.y as f64, o.theta as f64];
         if self.finishing {
-            return match self.finish.step_inner(s.now, s.telemetry) {
+            return match self.finish.step(s.now, odometry_pose(s.telemetry)) {
                 Some((v, w)) => self.drive(s, v, w),
                 None => {
                     crate::base::stop_base(s.link);
@@ -297,7 +298,7 @@ impl ExploreGoal {
 }
 
 impl Goal for ExploreGoal {
-    fn claim(&self) -> crate::motion::Claim {
+    fn claim(&self) -> crate::goals::Claim {
         crate::base::BASE
     }
 

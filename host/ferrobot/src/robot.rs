@@ -4,7 +4,7 @@ use std::path::Path;
 use std::sync::Arc;
 use std::time::Duration;
 
-use ferrobot_protocol::{Fault, HostMsg, JointLimits, JointMode, JointPoint, PidGains, Telemetry};
+use ferrobot_protocol::{Fault, HostMsg, JointLimits, PidGains, Telemetry};
 use parking_lot::{MappedMutexGuard, Mutex, MutexGuard};
 
 use crate::arm::{Arm, ArmParts, ArmState};
@@ -16,9 +16,11 @@ use crate::camera::{Camera, CameraDevice};
 use crate::config::{ConfigSource, RobotConfig};
 use crate::error::{Error, Result};
 use crate::frames::Frames;
+use crate::goals::{Claim, Goal, Goals};
 use crate::gripper::Gripper;
 use crate::head::Head;
-use crate::motion::{Claim, Goal, Goals, Motion};
+use crate::hub::Hub;
+use crate::motion::Motion;
 use ferrobot_sim::scene::{Scene, SceneSource};
 
 /// Which components to use.
@@ -215,26 +217,11 @@ struct Inner {
     scene: Arc<Scene>,
     /// The link's line for the emergency stop beside the I/O lock ([`Link::stop_line`]).
     stop_line: Option<Arc<dyn crate::backend::StopLine>>,
-    io: Mutex<Io>,
+    io: Mutex<Hub>,
 }
 
-/// The link and what changes with it: the goals under way and each component's state.
-pub(crate) struct Io {
-    /// The link to the firmware.
-    pub(crate) link: Box<dyn Link>,
-    /// The goals under way, their results, the faults.
-    pub(crate) goals: Goals,
-    /// The arm's state.
-    pub(crate) arm: ArmState,
-    /// The base's state.
-    pub(crate) base: BaseState,
-    /// The RGB-D camera, when the robot has and uses one.
-    pub(crate) camera: Option<Box<dyn CameraDevice>>,
-    /// SLAM beside the robot, once started.
-    pub(crate) slam: Option<crate::slam::SlamRunner>,
-    /// What the camera and SLAM tell the base's goals.
-    pub(crate) sense: crate::sense::Sense,
-}
+/// How many times [`Robot::emergency_stop`] sends the stop before it gives up.
+pub const ESTOP_ATTEMPTS: usize = 3;
 
 impl std::fmt::Debug for Robot {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -243,9 +230,6 @@ impl std::fmt::Debug for Robot {
             .finish_non_exhaustive()
     }
 }
-
-/// How many times [`Robot::emergency_stop`] sends the stop before it gives up.
-pub const ESTOP_ATTEMPTS: usize = 3;
 
 impl Robot {
     /// A bundled robot (`locobot`, `locobot_lite`, `sawyer`) on the in-process simulator.
@@ -389,7 +373,7 @@ impl Robot {
         let robot = Robot {
             inner: Arc::new(Inner {
                 stop_line,
-                io: Mutex::new(Io {
+                io: Mutex::new(Hub {
                     link,
                     goals: Goals::default(),
                     arm: ArmState::default(),
@@ -443,7 +427,7 @@ impl Robot {
 
     /// The link, the goals and the components' state, locked. Never held across a call that
     /// locks again.
-    pub(crate) fn lock_io(&self) -> MutexGuard<'_, Io> {
+    pub(crate) fn lock_hub(&self) -> MutexGuard<'_, Hub> {
         self.inner.io.lock()
     }
 
@@ -454,9 +438,9 @@ impl Robot {
         &self,
         claim: Claim,
         what: &str,
-        send: impl FnOnce(&mut Io) -> Result<(Box<dyn Goal>, Duration)>,
+        send: impl FnOnce(&mut Hub) -> Result<(Box<dyn Goal>, Duration)>,
     ) -> Result<Motion> {
-        let mut io = self.lock_io();
+        let mut io = self.lock_hub();
         io.prepare(self.cfg(), claim);
         let (goal, timeout) = match send(&mut io) {
             Ok(g) => g,
@@ -483,7 +467,7 @@ impl Robot {
     /// limits and gains.
     fn check_joint_table(&self) -> Result<()> {
         let cfg = self.cfg();
-        let mut io = self.lock_io();
+        let mut io = self.lock_hub();
         let info = io.link.info().clone();
         if info.robot.as_str() != cfg.firmware_profile().robot.as_str()
             || info.base != cfg.base_kind()
@@ -590,7 +574,7 @@ impl Robot {
     /// The RGB-D camera: PyRobot's camera API. An error naming the robot when it has no
     /// camera, was built without it, or its backend serves no images.
     pub fn camera(&self) -> Result<Camera> {
-        if !self.inner.uses.camera || self.lock_io().camera.is_none() {
+        if !self.inner.uses.camera || self.lock_hub().camera.is_none() {
             return Err(self.missing("camera"));
         }
         Ok(Camera::new(self.clone()))
@@ -697,7 +681,7 @@ impl Robot {
         if let Some(line) = &self.inner.stop_line {
             let _ = line.emergency_stop();
         }
-        let mut io = self.lock_io();
+        let mut io = self.lock_hub();
         let mut sent = io.link.command(&HostMsg::EmergencyStop, "emergency stop");
         for _ in 1..ESTOP_ATTEMPTS {
             if sent.is_ok() {
@@ -711,28 +695,28 @@ impl Robot {
 
     /// Leave the emergency stop.
     pub fn resume(&self) -> Result<()> {
-        self.lock_io().link.command(&HostMsg::Resume, "resume")
+        self.lock_hub().link.command(&HostMsg::Resume, "resume")
     }
 
     /// The firmware's link and bus counters.
     pub fn diagnostics(&self) -> Result<ferrobot_protocol::Diagnostics> {
-        self.lock_io().link.diagnostics()
+        self.lock_hub().link.diagnostics()
     }
 
     /// The base commands that host-side base laws have sent: (time s, v m/s, ω rad/s).
     pub fn base_commands(&self) -> Vec<(f64, f64, f64)> {
-        self.lock_io().base.log.clone()
+        self.lock_hub().base.log.clone()
     }
 
     /// The newest telemetry.
     pub fn telemetry(&self) -> Result<Telemetry> {
-        self.lock_io().link.telemetry()
+        self.lock_hub().link.telemetry()
     }
 
     /// Faults reported since the last call (the newest [`crate::motion::FAULT_QUEUE`]),
     /// including those that ended motions.
     pub fn take_faults(&self) -> Vec<Fault> {
-        let mut io = self.lock_io();
+        let mut io = self.lock_hub();
         io.collect_faults(self.cfg());
         io.goals.take_faults()
     }
@@ -741,7 +725,7 @@ impl Robot {
     /// [`crate::motion::LINK_EVENT_QUEUE`]): lost, and back with whether the firmware's watchdog
     /// stopped the robot meanwhile ([`LinkEvent`]). Always empty on the in-process simulator.
     pub fn take_link_events(&self) -> Vec<LinkEvent> {
-        let mut io = self.lock_io();
+        let mut io = self.lock_hub();
         io.collect_faults(self.cfg());
         io.goals.take_link_events()
     }
@@ -754,20 +738,20 @@ impl Robot {
         Ok(())
     }
 
-    /// Let `dt` pass in steps of at most [`crate::motion::POLL`], stepping the motions under
+    /// Let `dt` pass in steps of at most [`crate::goals::POLL`], stepping the motions under
     /// way, and let other threads at the link between steps.
     pub(crate) fn wait_for(&self, dt: Duration) {
         let cfg = self.cfg();
-        let start = self.lock_io().link.now();
+        let start = self.lock_hub().link.now();
         let end = start.saturating_add(dt);
         loop {
-            let mut io = self.lock_io();
+            let mut io = self.lock_hub();
             let now = io.link.now();
             if now >= end {
                 break;
             }
             // At least the links' resolution (1 µs), so that a sub-microsecond rest ends.
-            let step = (end - now).clamp(Duration::from_micros(1), crate::motion::POLL);
+            let step = (end - now).clamp(Duration::from_micros(1), crate::goals::POLL);
             io.pump(cfg, step);
             if io.link.now() <= now {
                 // A clock that does not move (a link that has lost its firmware): the wait is
@@ -780,14 +764,14 @@ impl Robot {
 
     /// The backend's clock, s.
     pub fn time(&self) -> f64 {
-        self.lock_io().link.now().as_secs_f64()
+        self.lock_hub().link.now().as_secs_f64()
     }
 
     /// The simulated world's ground truth now (the servos' true angles, the base's true pose,
     /// every scene body's pose in the world), on the simulator and on the emulated board; an
     /// error on hardware, which has none.
     pub fn truth(&self) -> Result<ferrobot_sim::lockstep::Truth> {
-        self.lock_io()
+        self.lock_hub()
             .link
             .truth()
             .ok_or_else(|| self.missing("ground truth (a simulated world)"))
@@ -797,38 +781,6 @@ impl Robot {
     /// The guard holds the robot's link: drop it before calling the robot again (from this
     /// thread or waiting on another).
     pub fn simulator(&self) -> Option<MappedMutexGuard<'_, ferrobot_sim::LockstepSim>> {
-        MutexGuard::try_map(self.lock_io(), |io| io.link.simulator()).ok()
-    }
-}
-
-impl Io {
-    /// Switch joints to a mode.
-    pub(crate) fn set_mode(&mut self, joints: &[usize], mode: JointMode) -> Result<()> {
-        let mask = crate::motion::joint_mask(joints.iter().copied());
-        self.link
-            .command(&HostMsg::SetMode { joints: mask, mode }, "mode change")
-    }
-
-    /// Queue one trajectory knot at rest (zero velocity and effort) for the joints in `mask`,
-    /// at `positions` (rad, lowest joint first), `seconds` after the previous knot.
-    pub(crate) fn send_rest_waypoint(
-        &mut self,
-        mask: u16,
-        positions: impl IntoIterator<Item = f64>,
-        seconds: f64,
-        what: &str,
-    ) -> Result<()> {
-        let points = positions
-            .into_iter()
-            .map(|p| JointPoint::at_rest(p as f32))
-            .collect();
-        self.link.command(
-            &HostMsg::Waypoint {
-                joints: mask,
-                duration_us: (seconds * 1e6) as u32,
-                points,
-            },
-            what,
-        )
+        MutexGuard::try_map(self.lock_hub(), |io| io.link.simulator()).ok()
     }
 }

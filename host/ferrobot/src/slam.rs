@@ -20,7 +20,8 @@ use ferrobot_perception::PointCloud;
 
 use crate::camera::RawFrame;
 use crate::frames::Frames;
-use crate::robot::{Io, Robot};
+use crate::hub::Hub;
+use crate::robot::Robot;
 
 /// Where a base's pose comes from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -70,7 +71,7 @@ pub fn odometry_at(tel: &ferrobot_protocol::Telemetry, t: f64) -> [f64; 3] {
     ]
 }
 
-impl Io {
+impl Hub {
     /// Takes the frame whose instant time has just passed, if anyone wants it: SLAM, when it
     /// runs, gets every frame; the base's goals that want obstacle scans or SLAM's occupancy
     /// grid get them (see [`crate::sense`]). The pump calls this after every wait. A failure
@@ -144,7 +145,7 @@ impl Io {
         };
         let camera_pose = optimise::planar(base.to_array()) * on_base;
         let body = eyes.body.placed(&poses);
-        let scan = crate::sense::obstacle_scan(
+        let scan = ferrobot_nav::depth_scan::obstacle_scan(
             &raw.depth,
             &camera.intrinsics(),
             &camera_pose,
@@ -218,7 +219,7 @@ impl Robot {
             .clone();
         let frames = self.frames()?.clone();
         let settings = SlamSettings::ground_robot(radius.max(SELF_RADIUS));
-        let mut io = self.lock_io();
+        let mut io = self.lock_hub();
         let simulated = io.link.simulator().is_some();
         let now = io.link.now();
         let k = {
@@ -250,7 +251,7 @@ impl Robot {
 
     /// Stops SLAM; its map is returned.
     pub fn stop_slam(&self) -> Option<Map> {
-        let mut io = self.lock_io();
+        let mut io = self.lock_hub();
         io.sense.forget_slam();
         io.slam.take().map(|r| r.slam.map().clone())
     }
@@ -258,7 +259,7 @@ impl Robot {
     /// SLAM's latest report (the base's pose in the map and how it was found); `None` before
     /// the first frame. An error when SLAM is not running.
     pub fn slam_report(&self) -> crate::Result<Option<TrackReport>> {
-        let io = self.lock_io();
+        let io = self.lock_hub();
         let r = io.slam.as_ref().ok_or_else(not_running)?;
         if let Some(e) = &r.error {
             return Err(crate::Error::Link(format!(
@@ -271,7 +272,7 @@ impl Robot {
     /// The dense coloured map so far: keyframes' depth averaged in voxels of `voxel` m, in the
     /// map's frame.
     pub fn slam_map_3d(&self, voxel: f64) -> crate::Result<PointCloud> {
-        let io = self.lock_io();
+        let io = self.lock_hub();
         let r = io.slam.as_ref().ok_or_else(not_running)?;
         Ok(r.slam.map().cloud(voxel)?)
     }
@@ -279,7 +280,7 @@ impl Robot {
     /// The occupancy grid so far (PyRobot's 0.02 m cells, obstacles 0.1-0.8 m above the floor),
     /// in the map's frame; `None` before the first keyframe.
     pub fn slam_occupancy_map(&self) -> crate::Result<Option<MapImage>> {
-        let mut io = self.lock_io();
+        let mut io = self.lock_hub();
         let r = io.slam.as_mut().ok_or_else(not_running)?;
         // The grid the goals plan on, brought up to date (the same image as a fresh one).
         Ok(r.grid.update(r.slam.map())?)
@@ -288,7 +289,7 @@ impl Robot {
     /// How many frames in a row, up to the latest, SLAM has had no confirmed pose for (0 while
     /// it tracks).
     pub fn slam_lost_frames(&self) -> crate::Result<usize> {
-        let io = self.lock_io();
+        let io = self.lock_hub();
         let r = io.slam.as_ref().ok_or_else(not_running)?;
         let lost_now = r.last.is_some_and(|l| l.state == TrackState::Lost);
         Ok(if lost_now {
@@ -300,7 +301,7 @@ impl Robot {
 
     /// The SLAM map so far (to save with [`Map::save`]).
     pub fn slam_map(&self) -> crate::Result<Map> {
-        let io = self.lock_io();
+        let io = self.lock_hub();
         let r = io.slam.as_ref().ok_or_else(not_running)?;
         Ok(r.slam.map().clone())
     }

@@ -5,6 +5,7 @@
 //! dynamic window approach ([`field`]), frontiers for exploration ([`frontier`]).
 #![warn(missing_docs)]
 
+pub mod depth_scan;
 pub mod error;
 pub mod field;
 pub mod frontier;
@@ -13,6 +14,7 @@ pub mod live;
 pub mod map_file;
 pub mod navigator;
 pub mod obstacles;
+pub mod stance;
 
 pub use error::{Error, Result};
 pub use field::{Dwa, NavField};

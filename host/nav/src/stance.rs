@@ -12,7 +12,7 @@
 //! every turn is made on it.
 //!
 //! What the camera did not see of the table (a far edge or an end beyond the image) is not in
-//! `[lo, hi]`: the robot looks again where it stands (see [`crate::push`]), and the caller
+//! `[lo, hi]`: the robot looks again where it stands (the push skill), and the caller
 //! bounds the table by what it saw.
 
 /// A side of the table, named as seen from where the robot looked (facing the near side).
