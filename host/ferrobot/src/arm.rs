@@ -8,18 +8,14 @@ use std::time::Duration;
 use ferrobot_protocol::{HostMsg, JointMode, JointState};
 use nalgebra::{Isometry3, Matrix3, Matrix6xX, Rotation3, Translation3, UnitQuaternion, Vector3};
 
-use std::collections::HashMap;
 use std::sync::Arc;
 
-use parking_lot::Mutex;
-
-use crate::config::{IkKind, RobotConfig};
+use crate::arm_parts::ArmParts;
 use crate::error::{check_finite, Error, Result};
 use crate::goals::Claim;
 use crate::hub::Hub;
 use crate::joints_goal::JointsGoal;
-use crate::kinematics::ik::{IkOptions, IkSolver, NumericalIk};
-use crate::kinematics::locobot_ik::LocobotIk;
+use crate::kinematics::ik::IkOptions;
 use crate::kinematics::Chain;
 use crate::motion::Motion;
 use crate::robot::Robot;
@@ -115,57 +111,6 @@ impl Default for MoveOptions {
             timeout: None,
         }
     }
-}
-
-/// The arm's kinematics, fixed once the robot is connected: its joints, its IK solvers and
-/// the chains to its frames.
-pub(crate) struct ArmParts {
-    /// Firmware indices of the arm's joints, base to tip.
-    joints: Vec<usize>,
-    /// The solver the configuration chose.
-    ik: Box<dyn IkSolver>,
-    /// The closed-form pitch-roll solver, on LoCoBot-type arms.
-    locobot_ik: Option<LocobotIk>,
-    /// Chains from the arm's base frame to other frames, built when first asked for.
-    chains: Mutex<HashMap<String, Arc<Chain>>>,
-    /// The planning scene and collision model.
-    pub(crate) planning: Mutex<crate::arm_plan::ArmPlanning>,
-}
-
-impl ArmParts {
-    /// The arm of `cfg`; `None` when it has none.
-    pub(crate) fn new(cfg: &RobotConfig) -> Result<Option<ArmParts>> {
-        let (Some(a), Some(chain)) = (&cfg.arm, &cfg.arm_chain) else {
-            return Ok(None);
-        };
-        let (ik, locobot_ik): (Box<dyn IkSolver>, Option<LocobotIk>) = match a.ik {
-            IkKind::LocobotPitchRoll => {
-                let l = LocobotIk::from_chain(chain)?;
-                (Box::new(l), Some(l))
-            }
-            IkKind::Numerical => (Box::new(NumericalIk), None),
-        };
-        Ok(Some(ArmParts {
-            joints: a.joints.iter().filter_map(|n| cfg.joint_index(n)).collect(),
-            ik,
-            locobot_ik,
-            chains: Mutex::new(HashMap::new()),
-            planning: Mutex::new(Default::default()),
-        }))
-    }
-
-    /// The firmware joint mask of the arm.
-    pub(crate) fn mask(&self) -> u16 {
-        crate::goals::joint_mask(self.joints.iter().copied())
-    }
-}
-
-/// What the arm remembers between calls.
-#[derive(Debug, Default)]
-pub(crate) struct ArmState {
-    /// The mode the arm's joints were last switched to (`None`: as the firmware started,
-    /// position mode).
-    mode: Option<JointMode>,
 }
 
 /// The arm of a [`Robot`]: a handle (clone of the robot's), so arm motions run while other
@@ -281,9 +226,10 @@ impl Arm {
 
     /// Switch the arm's joints to `mode` unless they are in it.
     fn ensure_mode(&self, io: &mut Hub, mode: JointMode) -> Result<()> {
-        if io.arm.mode.unwrap_or(JointMode::Position) != mode {
+        let mut current = self.parts().mode.lock();
+        if current.unwrap_or(JointMode::Position) != mode {
             io.set_mode(&self.parts().joints, mode)?;
-            io.arm.mode = Some(mode);
+            *current = Some(mode);
         }
         Ok(())
     }

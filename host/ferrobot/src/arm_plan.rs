@@ -6,14 +6,14 @@ use std::time::Duration;
 
 use ferrobot_planning::timing::{self, Limits, TimingOptions, Trajectory};
 use ferrobot_planning::{
-    CheckOptions, Checker, CollisionModel, Contact, PlanOptions, Planner, PlanningScene,
-    RrtConnect, Shape, Voxels,
+    CheckOptions, Checker, CollisionModel, Contact, PlanOptions, Planner, RrtConnect, Shape, Voxels,
 };
 use ferrobot_protocol::JointPoint;
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion};
 use parking_lot::Mutex;
 
 use crate::arm::{Arm, Orientation};
+use crate::arm_parts::ArmPlanning;
 use crate::error::{Error, Result};
 use crate::goals::Claim;
 use crate::hub::Hub;
@@ -46,13 +46,6 @@ const REST_WAIT: f64 = 1.0;
 const MAX_DURATION: f64 = 3600.0;
 /// Joint-space step of the blended path's collision check, rad.
 const BLEND_CHECK_STEP: f64 = 0.01;
-
-/// The arm's planning state: the collision model (built when first needed) and the scene.
-#[derive(Default)]
-pub(crate) struct ArmPlanning {
-    model: Option<Arc<CollisionModel>>,
-    scene: PlanningScene,
-}
 
 /// A planned arm motion: the collision-free path and its time-optimal trajectory.
 #[derive(Debug, Clone)]

@@ -30,7 +30,6 @@ fn check_relative(delta: [f64; 3]) -> Result<()> {
     Ok(validate::angles("base goal heading", &delta[2..])?)
 }
 use crate::backend::Link;
-use crate::config::RobotConfig;
 use crate::goals::{Claim, Goal, Step};
 use crate::hub::Hub;
 use crate::motion::Motion;
@@ -38,7 +37,7 @@ use crate::navigate::NavGoal;
 use crate::obstacles::{Circle, Obstacles, OccupancyGrid};
 use crate::odometry_calibration::WheelGeometry;
 use crate::robot::Robot;
-use crate::slam::Source;
+use crate::slam_runner::Source;
 use ferrobot_nav::{NavSettings, Navigator};
 
 /// A host-side position controller run by a [`Motion`] every time the motions are stepped.
@@ -213,34 +212,6 @@ impl Default for GoalOptions {
             frame: Source::Odometry,
             use_map: false,
             live_obstacles: true,
-        }
-    }
-}
-/// What the base remembers between calls.
-#[derive(Debug, Default)]
-pub(crate) struct BaseState {
-    /// Base commands sent by host-side laws: (time s, v m/s, ω rad/s).
-    pub(crate) log: Vec<(f64, f64, f64)>,
-    /// While recording: the wheel angles `[left, right]` (rad) of each telemetry frame the
-    /// motions have seen, with the frame's firmware time (µs).
-    wheel_log: Option<Vec<(u64, [f64; 2])>>,
-    /// The geometry the firmware's odometry uses, when set (calibrated).
-    odometry: Option<WheelGeometry>,
-}
-
-impl BaseState {
-    /// The base state of a robot of `cfg`, before its odometry geometry is pushed.
-    pub(crate) fn new(_cfg: &RobotConfig) -> Self {
-        BaseState::default()
-    }
-
-    /// While a wheel log is kept, add the wheel angles of telemetry frame `t` unless it is the
-    /// frame logged last.
-    pub(crate) fn log_wheels(&mut self, t: &Telemetry) {
-        if let Some(log) = &mut self.wheel_log {
-            if log.last().map(|l| l.0) != Some(t.time_us) {
-                log.push((t.time_us, [t.wheels.left as f64, t.wheels.right as f64]));
-            }
         }
     }
 }
@@ -872,76 +843,5 @@ impl Base {
     /// As [`Base::explore_async`], waiting until it is done.
     pub fn explore(&self) -> Result<()> {
         self.explore_async()?.wait()
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// Telemetry whose odometry is at `[x, y, θ]`.
-    fn at(pose: [f64; 3]) -> Telemetry {
-        Telemetry {
-            time_us: 0,
-            joints: heapless::Vec::new(),
-            queued: 0,
-            gripper: ferrobot_protocol::GripperState::Absent,
-            odometry: ferrobot_protocol::Odometry {
-                x: pose[0] as f32,
-                y: pose[1] as f32,
-                theta: pose[2] as f32,
-                ..Default::default()
-            },
-            wheels: Default::default(),
-            base_flags: 0,
-            faults: 0,
-            loop_stats: Default::default(),
-        }
-    }
-
-    /// A goal at (1, 0) heading 0, being driven to at 0.2 m/s (the Kobuki's limits and
-    /// tolerances).
-    fn driving() -> BaseGoal {
-        BaseGoal {
-            goal: [1.0, 0.0, 0.0],
-            phase: Phase::Drive,
-            backwards: false,
-            v: 0.2,
-            w: 0.0,
-            next: Duration::ZERO,
-            max_v: 0.5,
-            max_w: 1.0,
-            min_w: gains::MIN_WHEEL / (0.5 * 0.23),
-            tol_xy: 0.02,
-            tol_th: 0.05,
-        }
-    }
-
-    /// Past the goal and 0.3 m to its side, with the goal's heading: the goal is driven to
-    /// again, not reached (it was reported reached 0.32 m away), and a unicycle following the
-    /// commands ends within the tolerances.
-    #[test]
-    fn a_goal_passed_wide_of_its_tolerance_is_driven_to_again() {
-        let mut g = driving();
-        let mut pose = [1.1, 0.3, 0.0];
-        let dt = BASE_CONTROL_PERIOD.as_secs_f64();
-        let mut now = Duration::ZERO;
-        let mut steps = 0;
-        while let Some((v, w)) = g.step_inner(now, &at(pose)) {
-            pose[0] += v * pose[2].cos() * dt;
-            pose[1] += v * pose[2].sin() * dt;
-            pose[2] = wrap(pose[2] + w * dt);
-            now += BASE_CONTROL_PERIOD;
-            steps += 1;
-            assert!(steps < 1200, "not reached in 60 s: at {pose:?}");
-        }
-        assert!(steps > 0, "reported reached at {pose:?}");
-        let dist = (pose[0] - 1.0).hypot(pose[1]);
-        assert!(dist < 0.02 && pose[2].abs() < 0.05, "ended at {pose:?}");
-        // Within the tolerances it is reached at once.
-        assert_eq!(
-            driving().step_inner(Duration::ZERO, &at([1.01, 0.0, 0.0])),
-            None
-        );
     }
 }

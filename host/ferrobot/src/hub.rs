@@ -6,10 +6,9 @@ use std::time::Duration;
 
 use ferrobot_protocol::{HostMsg, JointMode, JointPoint};
 
-use crate::arm::ArmState;
 use crate::backend::{Link, LinkEvent};
-use crate::base::BaseState;
-use crate::camera::CameraDevice;
+use crate::base_state::BaseState;
+use crate::backend::device::CameraDevice;
 use crate::config::RobotConfig;
 use crate::error::{Error, Result};
 use crate::goals::{fault_error, Claim, Goal, Goals, Running, Step, FAULT_QUEUE, LINK_EVENT_QUEUE};
@@ -20,14 +19,12 @@ pub(crate) struct Hub {
     pub(crate) link: Box<dyn Link>,
     /// The goals under way, their results, the faults.
     pub(crate) goals: Goals,
-    /// The arm's state.
-    pub(crate) arm: ArmState,
     /// The base's state.
     pub(crate) base: BaseState,
     /// The RGB-D camera, when the robot has and uses one.
     pub(crate) camera: Option<Box<dyn CameraDevice>>,
     /// SLAM beside the robot, once started.
-    pub(crate) slam: Option<crate::slam::SlamRunner>,
+    pub(crate) slam: Option<crate::slam_runner::SlamRunner>,
     /// What the camera and SLAM tell the base's goals.
     pub(crate) sense: crate::sense::Sense,
 }

@@ -17,10 +17,14 @@
 #![warn(missing_docs)]
 
 pub mod arm;
+mod arm_parts;
 pub mod arm_plan;
 pub mod backend;
 pub mod base;
+mod base_state;
+mod builder;
 pub mod camera;
+mod components;
 pub mod error;
 mod frames;
 mod goals;
@@ -36,7 +40,9 @@ pub mod planning;
 pub mod push;
 pub mod robot;
 mod sense;
+mod sensing;
 pub mod slam;
+mod slam_runner;
 /// Where to stand at a table (pure geometry, in `ferrobot-nav`).
 pub use ferrobot_nav::stance;
 
@@ -58,6 +64,7 @@ pub mod base_control {
 pub use arm::{MoveOptions, Orientation, Pose};
 pub use backend::{Backend, LinkEvent};
 pub use base::GoalOptions;
+pub use builder::{RobotBuilder, MAX_CAMERA_MOUNT_ERROR};
 pub use camera::{Camera, CameraDevice, Frame};
 pub use config::RobotConfig;
 pub use error::{Error, Result};
@@ -67,7 +74,7 @@ pub use ferrobot_sim::scene;
 pub use hand_eye::{HandEyeOptions, HandEyeReport};
 pub use motion::Motion;
 pub use push::{PushOptions, Pushed};
-pub use robot::{Robot, RobotBuilder};
+pub use robot::Robot;
 pub use slam::Source;
 
 #[cfg(test)]

@@ -189,3 +189,56 @@ impl Proportional {
         self.w = last.1;
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The odometry pose `[x, y, θ]` as the wire carries it (f32).
+    fn at(pose: [f64; 3]) -> [f64; 3] {
+        pose.map(|x| x as f32 as f64)
+    }
+
+    /// A goal at (1, 0) heading 0, being driven to at 0.2 m/s (the Kobuki's limits and
+    /// tolerances).
+    fn driving() -> Proportional {
+        Proportional {
+            goal: [1.0, 0.0, 0.0],
+            phase: Phase::Drive,
+            backwards: false,
+            v: 0.2,
+            w: 0.0,
+            next: Duration::ZERO,
+            max_v: 0.5,
+            max_w: 1.0,
+            min_w: gains::MIN_WHEEL / (0.5 * 0.23),
+            tol_xy: 0.02,
+            tol_th: 0.05,
+        }
+    }
+
+    /// Past the goal and 0.3 m to its side, with the goal's heading: the goal is driven to
+    /// again, not reached (it was reported reached 0.32 m away), and a unicycle following the
+    /// commands ends within the tolerances.
+    #[test]
+    fn a_goal_passed_wide_of_its_tolerance_is_driven_to_again() {
+        let mut g = driving();
+        let mut pose = [1.1, 0.3, 0.0];
+        let dt = CONTROL_PERIOD.as_secs_f64();
+        let mut now = Duration::ZERO;
+        let mut steps = 0;
+        while let Some((v, w)) = g.step(now, at(pose)) {
+            pose[0] += v * pose[2].cos() * dt;
+            pose[1] += v * pose[2].sin() * dt;
+            pose[2] = wrap(pose[2] + w * dt);
+            now += CONTROL_PERIOD;
+            steps += 1;
+            assert!(steps < 1200, "not reached in 60 s: at {pose:?}");
+        }
+        assert!(steps > 0, "reported reached at {pose:?}");
+        let dist = (pose[0] - 1.0).hypot(pose[1]);
+        assert!(dist < 0.02 && pose[2].abs() < 0.05, "ended at {pose:?}");
+        // Within the tolerances it is reached at once.
+        assert_eq!(driving().step(Duration::ZERO, at([1.01, 0.0, 0.0])), None);
+    }
+}

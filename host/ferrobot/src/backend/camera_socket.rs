@@ -11,8 +11,8 @@ use std::time::Duration;
 use ferrobot_perception::{DepthImage, Intrinsics, RgbImage};
 use serde::Deserialize;
 
+use super::device::{CameraDevice, RawFrame};
 use super::Link;
-use crate::camera::{CameraDevice, RawFrame};
 use crate::error::{Error, Result};
 
 /// How long a frame may take to arrive (wall time).

@@ -10,6 +10,7 @@
 //!   in one call, over the serial backend.
 
 pub mod camera_socket;
+pub mod device;
 pub mod emulated;
 pub mod serial;
 pub mod sim;

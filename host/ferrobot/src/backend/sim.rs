@@ -178,7 +178,7 @@ impl SimCameraDevice {
     }
 }
 
-impl crate::camera::CameraDevice for SimCameraDevice {
+impl super::device::CameraDevice for SimCameraDevice {
     fn intrinsics(&self) -> ferrobot_perception::Intrinsics {
         self.intrinsics
     }
@@ -192,7 +192,7 @@ impl crate::camera::CameraDevice for SimCameraDevice {
         Duration::from_micros(self.clock.peek(now_us).saturating_sub(now_us))
     }
 
-    fn capture(&mut self, link: &mut dyn Link) -> Result<crate::camera::RawFrame> {
+    fn capture(&mut self, link: &mut dyn Link) -> Result<super::device::RawFrame> {
         // The next frame instant not yet captured.
         let now = link.now().as_micros() as u64;
         let next = self.clock.next(now);
@@ -205,7 +205,7 @@ impl crate::camera::CameraDevice for SimCameraDevice {
         let truth = sim.truth();
         let (rgb, depth) = self.camera.capture(&truth);
         let (w, h) = self.camera.width_height();
-        Ok(crate::camera::RawFrame {
+        Ok(super::device::RawFrame {
             rgb: ferrobot_perception::RgbImage::new(w, h, rgb)?,
             depth: ferrobot_perception::DepthImage::new(w, h, depth)?,
             time: Duration::from_micros(truth.time_us),

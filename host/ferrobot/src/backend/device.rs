@@ -1,0 +1,39 @@
+//! Camera devices: a host-side source of colour and depth frames ([`CameraDevice`]) and the
+//! frames it gives ([`RawFrame`]), stamped with the robot's clock. A device is built with the
+//! world it looks at (the simulator's, a socket, a driver).
+
+use std::time::Duration;
+
+use ferrobot_perception::{DepthImage, Intrinsics, RgbImage};
+
+use super::Link;
+use crate::error::Result;
+
+/// One picture from a [`CameraDevice`], before the API adds the camera's pose.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RawFrame {
+    /// Colour, H x W x 3.
+    pub rgb: RgbImage,
+    /// Depth aligned to colour, m (0 = invalid).
+    pub depth: DepthImage,
+    /// Capture time on the robot's clock (the link's [`Link::now`]).
+    pub time: Duration,
+}
+
+/// A source of colour and depth frames on the host: the simulated world's renderer, or (later)
+/// a RealSense or UVC driver. `capture` gets the robot's link so that a simulated camera can
+/// let simulated time reach its next frame and look at the world; a real driver ignores it
+/// and stamps frames with the link's clock.
+pub trait CameraDevice: Send {
+    /// The camera's intrinsics (depth is aligned to colour, so one set).
+    fn intrinsics(&self) -> Intrinsics;
+    /// Frames per second.
+    fn rate(&self) -> f64;
+    /// How long after `now` (the link's clock) the next frame is taken, when the device can
+    /// tell (a simulated camera); zero for a device that only knows by capturing.
+    fn until_next(&self, _now: Duration) -> Duration {
+        Duration::ZERO
+    }
+    /// The next frame: waits for it (at most one frame period).
+    fn capture(&mut self, link: &mut dyn Link) -> Result<RawFrame>;
+}
