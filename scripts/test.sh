@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
-# The project's one test command: formatting, clippy, both board builds, every test of the
-# workspace (unit, property, lockstep acceptance and fault tests, the API on the simulator and
-# over serial ports, the Dynamixel conformance test against ROBOTIS' official SDK, the
-# planning benchmark's exports re-checked by FCL, and the hardware-in-the-loop tests with the
-# firmware in QEMU). Installs what it needs by itself, idempotently.
+# The project's one test command: formatting, clippy, the docs (rustdoc's warnings as errors),
+# both board builds, every test of the workspace (unit, property, lockstep acceptance and fault
+# tests, the API on the simulator and over serial ports, the Dynamixel conformance test against
+# ROBOTIS' official SDK, the planning benchmark's exports re-checked by FCL, and the
+# hardware-in-the-loop tests with the firmware in QEMU). Installs what it needs by itself,
+# idempotently.
 #
 # Work that does not need all of the machine runs beside the rest: the Python setup and the
 # board builds while the workspace's tests compile, and the HIL tests (QEMU paced at real
@@ -100,6 +101,12 @@ cargo test "${tested[@]}" --no-run --timings
 # replay inputs), so they are linted here too.
 step "cargo clippy --all-targets -D warnings (workspace)"
 check clippy cargo clippy --workspace --all-targets -- -D warnings
+
+# The workspace's docs, every rustdoc warning an error (a broken intra-doc link fails here).
+# Right after clippy, whose dependency metadata cargo doc reuses where the features agree (the
+# same selection as the tests: the benchmarks' crate left out).
+step "cargo doc -D warnings (workspace)"
+check doc env RUSTDOCFLAGS="-D warnings" cargo doc "${tested[@]}" --no-deps
 
 # Both boards share one target directory (boards/target), so the second reuses the host-side
 # build dependencies the first checked.
