@@ -3,6 +3,7 @@
 //! on observed state within a span of simulated time; every test kills its processes when it
 //! ends, and prints the harness's diagnosis when it fails.
 
+use ferrobot_skills::Skills;
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
@@ -991,7 +992,7 @@ fn a_push_through_the_firmware_moves_one_object_5_cm() {
         .expect("drives up to the table");
     let before = bot.truth().expect("truth");
     let pushed = bot
-        .push_object(&ferrobot::PushOptions::default())
+        .push_object(&ferrobot_skills::PushOptions::default())
         .expect("pushes");
     bot.wait(2.0).expect("settles");
     let after = bot.truth().expect("truth");
@@ -1043,10 +1044,10 @@ fn hand_eye_calibration_through_the_firmware() {
         .build()
         .expect("emulated robot");
     let report = bot
-        .calibrate_camera(&ferrobot::HandEyeOptions::with_counts(1, 2).expect("options"))
+        .calibrate_camera(&ferrobot_skills::HandEyeOptions::with_counts(1, 2).expect("options"))
         .expect("calibrates");
     let nominal = bot.config().camera_mount().expect("mount").pose;
-    let truth = nominal * ferrobot::hand_eye::mount_error_pose(&perturb);
+    let truth = nominal * ferrobot::mount_error_pose(&perturb);
     let fitted = report.calibration.pose();
     let dt = (fitted.translation.vector - truth.translation.vector).norm();
     let dr = truth.rotation.angle_to(&fitted.rotation).to_degrees();

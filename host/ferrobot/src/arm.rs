@@ -456,7 +456,7 @@ impl Arm {
     /// folds the arm across the base, above it. Turned straight to the look pose, a hanging
     /// arm swept the table's near edge; from the stow pose the turn stays within 0.2 m of the
     /// base's centre and 0.2 m above the floor.)
-    pub(crate) fn clear_view(&self) -> Result<()> {
+    pub fn clear_view(&self) -> Result<()> {
         let cfg = self.cfg();
         let (stow, look) = (cfg.stow.clone(), cfg.look.clone());
         if let Some(q) = stow {

@@ -7,6 +7,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use ferrobot_protocol::{HostMsg, JointLimits, PidGains};
+use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 use parking_lot::Mutex;
 
 use crate::arm_parts::ArmParts;
@@ -157,7 +158,7 @@ impl RobotBuilder {
         let [tmax, rmax] = MAX_CAMERA_MOUNT_ERROR;
         crate::validate::all_in_range("camera mount error (m)", &e[..3], -tmax, tmax)?;
         crate::validate::all_in_range("camera mount error (rad)", &e[3..], -rmax, rmax)?;
-        let mount_error = crate::hand_eye::mount_error_pose(&e);
+        let mount_error = mount_error_pose(&e);
         let mut scene = match self.loaded_scene {
             Some(s) => s,
             None => Scene::load(&self.scene)?,
@@ -414,4 +415,14 @@ impl Robot {
         }
         Ok(())
     }
+}
+
+/// The pose of a camera mount error `[dx, dy, dz, droll, dpitch, dyaw]` (m and rad; the
+/// rotation roll-pitch-yaw as in a URDF): the true camera link is the URDF's times this pose
+/// ([`RobotBuilder::camera_mount_error`]).
+pub fn mount_error_pose(e: &[f64; 6]) -> Isometry3<f64> {
+    Isometry3::from_parts(
+        Translation3::new(e[0], e[1], e[2]),
+        UnitQuaternion::from_euler_angles(e[3], e[4], e[5]),
+    )
 }

@@ -83,7 +83,7 @@ impl Camera {
     }
 
     /// [`Camera::get_frame`] and the telemetry whose joints placed the camera.
-    pub(crate) fn frame_with_telemetry(&self) -> Result<(Frame, Telemetry)> {
+    pub fn frame_with_telemetry(&self) -> Result<(Frame, Telemetry)> {
         let frame = self.robot.optical_frame()?;
         let until = {
             let io = self.robot.lock_hub();

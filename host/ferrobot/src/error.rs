@@ -226,13 +226,9 @@ pub enum Error {
     /// SLAM refused its input: settings, a frame, a trajectory or dataset file.
     #[error("SLAM: {0}")]
     Slam(#[from] ferrobot_slam::Error),
-    /// A grasp could not be made: no object on the table, no feasible or reachable grasp,
-    /// the gripper closed on nothing.
-    #[error("grasp: {0}")]
-    Grasp(#[from] crate::grasp::GraspFailure),
     /// An I/O error.
     #[error("I/O error: {0}")]
-    Hub(#[from] std::io::Error),
+    Io(#[from] std::io::Error),
 }
 
 /// Result with [`Error`].

@@ -11,11 +11,11 @@ use crate::error::Result;
 
 /// The mobile base's frame: its centre on the floor, x ahead (the navigator's footprint is a
 /// circle round it).
-pub(crate) const BASE_FRAME: &str = "base_link";
+pub const BASE_FRAME: &str = "base_link";
 
 /// The URDF's link tree and how the joint table's measured positions set its joints.
 #[derive(Debug, Clone)]
-pub(crate) struct Frames {
+pub struct Frames {
     tree: LinkTree,
     /// For each joint-table entry, the tree joint it sets.
     joints: Vec<Option<usize>>,
@@ -66,7 +66,7 @@ impl Frames {
     /// The tree's joint values for the joint positions of `tel` (rad or m). The gripper's
     /// position (its servo's angle from the centre tick, rad) sets the fingers through the
     /// description's finger travel.
-    pub(crate) fn joint_values(&self, tel: &Telemetry) -> Vec<f64> {
+    pub fn joint_values(&self, tel: &Telemetry) -> Vec<f64> {
         let mut q = vec![0.0; self.tree.joints().len()];
         for (i, t) in self.joints.iter().enumerate() {
             if let (Some(t), Some(s)) = (t, tel.joints.get(i)) {
@@ -88,19 +88,14 @@ impl Frames {
 
     /// Pose of frame `src` in frame `dst` (maps points of `src` into `dst`) for the joints of
     /// `tel`.
-    pub(crate) fn transform_at(
-        &self,
-        tel: &Telemetry,
-        src: &str,
-        dst: &str,
-    ) -> Result<Isometry3<f64>> {
+    pub fn transform_at(&self, tel: &Telemetry, src: &str, dst: &str) -> Result<Isometry3<f64>> {
         let poses = self.tree.poses(&self.joint_values(tel));
         Ok(self.tree.transform(&poses, src, dst)?)
     }
 
     /// The links (URDF tree indices) that the joints named `joints` move: each joint's child
     /// and everything beyond it. Unknown names move nothing.
-    pub(crate) fn links_moved_by(&self, joints: &[String]) -> Vec<usize> {
+    pub fn links_moved_by(&self, joints: &[String]) -> Vec<usize> {
         let idx: Vec<usize> = joints
             .iter()
             .filter_map(|j| self.tree.joint_index(j))
@@ -109,12 +104,12 @@ impl Frames {
     }
 
     /// Index of link `name` in the URDF tree's order.
-    pub(crate) fn link_index(&self, name: &str) -> Option<usize> {
+    pub fn link_index(&self, name: &str) -> Option<usize> {
         self.tree.link_index(name)
     }
 
     /// Pose of every link (in the URDF tree's order) in frame `dst` for the joints of `tel`.
-    pub(crate) fn poses_in(&self, tel: &Telemetry, dst: &str) -> Result<Vec<Isometry3<f64>>> {
+    pub fn poses_in(&self, tel: &Telemetry, dst: &str) -> Result<Vec<Isometry3<f64>>> {
         let poses = self.tree.poses(&self.joint_values(tel));
         let root = self.tree.root().to_string();
         let to_dst = self.tree.transform(&poses, &root, dst)?;

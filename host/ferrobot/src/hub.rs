@@ -6,9 +6,9 @@ use std::time::Duration;
 
 use ferrobot_protocol::{HostMsg, JointMode, JointPoint};
 
+use crate::backend::device::CameraDevice;
 use crate::backend::{Link, LinkEvent};
 use crate::base_state::BaseState;
-use crate::backend::device::CameraDevice;
 use crate::config::RobotConfig;
 use crate::error::{Error, Result};
 use crate::goals::{fault_error, Claim, Goal, Goals, Running, Step, FAULT_QUEUE, LINK_EVENT_QUEUE};

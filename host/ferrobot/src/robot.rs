@@ -146,7 +146,7 @@ impl Robot {
     }
 
     /// The URDF's frames.
-    pub(crate) fn frames(&self) -> Result<&Frames> {
+    pub fn frames(&self) -> Result<&Frames> {
         self.inner.frames.as_ref().map_err(|e| Error::Config {
             file: "robot description".into(),
             key: "urdf".into(),
@@ -185,11 +185,11 @@ impl Robot {
         Ok(self.self_body()?.reach(&poses, &links))
     }
 
-    /// How far the robot's body reaches ahead of the base's centre now, m (see
-    /// [`crate::sense::SelfBody::ahead`]): the largest x in the base's frame of its links'
+    /// How far the robot's body reaches ahead of the base's centre now, m (from
+    /// its body's covering spheres): the largest x in the base's frame of its links'
     /// covering spheres that come down below `below` (m, the base's z): the base, its plates,
     /// the arm as it stands.
-    pub(crate) fn body_ahead(&self, below: f64) -> Result<f64> {
+    pub fn body_ahead(&self, below: f64) -> Result<f64> {
         let frames = self.frames()?;
         let poses = frames.poses_in(&self.telemetry()?, crate::frames::BASE_FRAME)?;
         Ok(self.self_body()?.ahead(&poses, None, below))
@@ -198,7 +198,7 @@ impl Robot {
     /// The radius of the circle the robot's body sweeps as the base turns in place, m, in
     /// the pose it holds now: the footprint, and every link's covering spheres that come down
     /// below `below` (m, `base_link`'s z).
-    pub(crate) fn body_radius(&self, below: f64) -> Result<f64> {
+    pub fn body_radius(&self, below: f64) -> Result<f64> {
         let frames = self.frames()?;
         let poses = frames.poses_in(&self.telemetry()?, crate::frames::BASE_FRAME)?;
         let footprint = self
@@ -210,7 +210,7 @@ impl Robot {
     }
 
     /// The camera's optical frame.
-    pub(crate) fn optical_frame(&self) -> Result<String> {
+    pub fn optical_frame(&self) -> Result<String> {
         self.inner
             .optical
             .clone()

@@ -11,11 +11,11 @@
 //! them with the fingertips 1 cm above the table; the others are left out of the trials' world.
 //! They are placed on the part of the table the arm reaches pointing down ([`REACH`]).
 
-use ferrobot::grasp::{gripper_geometry, GraspOptions};
 use ferrobot::perception::AnalyticScorer;
 use ferrobot::scene::{Scene, SceneSource};
 use ferrobot::{Backend, Robot};
 use ferrobot_sim::placement::{scatter, standing_half_extents, Region};
+use ferrobot_skills::grasp::{gripper_geometry, GraspOptions};
 use serde::Serialize;
 
 use super::bench_nav::{median, Median};
@@ -123,7 +123,7 @@ fn trial(
         .build()?;
     let before = heights(&bot, &world)?;
     let t0 = bot.time();
-    let picked = ferrobot::grasp::pick(&bot, &GraspOptions::default());
+    let picked = ferrobot_skills::grasp::pick(&bot, &GraspOptions::default());
     let t = bot.time() - t0;
     let lifted = heights(&bot, &world)?;
     bot.wait(HOLD_S)?;

@@ -9,7 +9,8 @@
 //! object more than [`OTHERS_STILL`].
 
 use ferrobot::scene::{Scene, SceneSource};
-use ferrobot::{PushOptions, Robot};
+use ferrobot::Robot;
+use ferrobot_skills::{PushOptions, Skills};
 use nalgebra::{Isometry3, Point3, Vector3};
 use serde::Serialize;
 

@@ -7,7 +7,8 @@
 use std::path::Path;
 
 use ferrobot::config::CameraCalibration;
-use ferrobot::{HandEyeOptions, RobotBuilder};
+use ferrobot::RobotBuilder;
+use ferrobot_skills::{HandEyeOptions, Skills};
 use serde::Serialize;
 
 use super::common::{print_json, robot_builder, BackendArgs};
@@ -78,7 +79,7 @@ pub fn run(a: &CalibrateArgs) -> ferrobot::Result<()> {
             component: "camera mount",
         })?;
     let report = bot.calibrate_camera(&opts)?;
-    let truth = nominal.pose * ferrobot::hand_eye::mount_error_pose(&a.perturb);
+    let truth = nominal.pose * ferrobot::mount_error_pose(&a.perturb);
     let fitted = report.calibration.pose();
     let error = truth.inverse() * fitted;
     if let Some(out) = a.out {

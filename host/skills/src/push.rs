@@ -1,5 +1,5 @@
 //! Pushing an object on a table: PyRobot's pushing example through the public API. The robot
-//! folds its arm out of the camera's view ([`crate::Arm`]'s look pose: the stow pose hides the
+//! folds its arm out of the camera's view ([`ferrobot::Arm`]'s look pose: the stow pose hides the
 //! table's near middle) and looks at the table, fits its plane, finds the objects above it (DBSCAN, eps 0.02 m, 15
 //! samples), lets [`ferrobot_perception::push`] choose the object and the direction, then
 //! moves its gripper, closed and pointing down (pitch π/2), its broad side facing the push,
@@ -18,9 +18,8 @@ use ferrobot_perception::{
 };
 use nalgebra::{Point3, Vector3};
 
-use crate::error::{Error, Result};
-use crate::stance::{stance, Side, Stance};
-use crate::{Orientation, Robot};
+use ferrobot::{Error, Orientation, Result, Robot};
+use ferrobot_nav::stance::{stance, Side, Stance};
 
 /// How the robot looks and pushes.
 #[derive(Debug, Clone, PartialEq)]
@@ -118,20 +117,37 @@ pub struct Pushed {
     pub side: Side,
 }
 
-impl Robot {
+/// The skill's steps, on the robot it drives.
+struct Push<'a>(&'a Robot);
+
+impl std::ops::Deref for Push<'_> {
+    type Target = Robot;
+    fn deref(&self) -> &Robot {
+        self.0
+    }
+}
+
+impl Push<'_> {
+    /// The error for a component the robot lacks.
+    fn missing(&self, component: &'static str) -> Error {
+        Error::NoComponent {
+            robot: self.name().to_string(),
+            component,
+        }
+    }
     /// Push one object on the table in front of the robot (see [`crate::push`]): look, choose,
     /// push, lift clear. Errors: a robot without arm, gripper or camera, no table or no object
     /// on it ([`ferrobot_perception::PerceptionError::NoObjectOnTable`]), no object that can
     /// be pushed clear of the others within reach
     /// ([`ferrobot_perception::PerceptionError::NoPush`]), bad options, and the arm's errors.
-    pub fn push_object(&self, opts: &PushOptions) -> Result<Pushed> {
-        crate::validate::angles("tilt", &[opts.tilt])?;
-        crate::validate::in_range("object margin", opts.object_margin, 0.0, 0.1)?;
-        crate::validate::all_in_range("approach lifts", &opts.lifts, 0.0, 0.5)?;
-        crate::validate::all_in_range("base shifts", &opts.base_shifts, -0.5, 0.5)?;
-        crate::validate::in_range("table clearance", opts.table_clearance, 0.0, 0.5)?;
+    fn push_object(&self, opts: &PushOptions) -> Result<Pushed> {
+        ferrobot::validate::angles("tilt", &[opts.tilt])?;
+        ferrobot::validate::in_range("object margin", opts.object_margin, 0.0, 0.1)?;
+        ferrobot::validate::all_in_range("approach lifts", &opts.lifts, 0.0, 0.5)?;
+        ferrobot::validate::all_in_range("base shifts", &opts.base_shifts, -0.5, 0.5)?;
+        ferrobot::validate::in_range("table clearance", opts.table_clearance, 0.0, 0.5)?;
         if let Some(c) = opts.route_clearance {
-            crate::validate::in_range("route clearance", c, 0.0, 0.5)?;
+            ferrobot::validate::in_range("route clearance", c, 0.0, 0.5)?;
         }
         if opts.lifts.is_empty() {
             return Err(Error::Usage("push: give at least one approach lift".into()));
@@ -247,7 +263,7 @@ impl Robot {
         Ok(None)
     }
 
-    /// The table's extent and which of its edges are seen (see [`crate::stance::edges_seen`]):
+    /// The table's extent and which of its edges are seen (see [`ferrobot_nav::stance::edges_seen`]):
     /// the region seen in `seen`, grown by what looks with the head turned
     /// [`LOOK_ROUND_PAN`] to either side show on the table's plane; the head is left turned
     /// back. Points within `body` (m) of the base's axis are the robot's own (the LoCoBot's
@@ -294,7 +310,7 @@ impl Robot {
         head.set_pan_tilt(0.0, opts.tilt)?;
         let mut edges = [false; 4];
         for (eye, points) in &looks {
-            let e = crate::stance::edges_seen(points, *eye, lo, hi, EDGE_BAND, EDGE_DROP);
+            let e = ferrobot_nav::stance::edges_seen(points, *eye, lo, hi, EDGE_BAND, EDGE_DROP);
             for k in 0..4 {
                 edges[k] |= e[k];
             }
@@ -585,7 +601,7 @@ impl Robot {
     /// How far the closed fingers reach beyond the end-effector frame along its x axis (the
     /// gripper's pointing axis), m: from the URDF's finger joints and their links' collision
     /// boxes.
-    pub(crate) fn finger_tip_depth(&self) -> Result<f64> {
+    fn finger_tip_depth(&self) -> Result<f64> {
         let cfg = self.config();
         let g = cfg
             .gripper
@@ -596,13 +612,13 @@ impl Robot {
             let Some(j) = cfg.urdf.joints.iter().find(|j| j.name == f.joint) else {
                 continue;
             };
-            let at = ferrobot_kinematics::pose_from_urdf(&j.origin);
+            let at = ferrobot::kinematics::pose_from_urdf(&j.origin);
             let Some(link) = cfg.urdf.links.iter().find(|l| l.name == j.child.link) else {
                 continue;
             };
             for c in &link.collision {
                 if let urdf_rs::Geometry::Box { size } = &c.geometry {
-                    let pose = at * ferrobot_kinematics::pose_from_urdf(&c.origin);
+                    let pose = at * ferrobot::kinematics::pose_from_urdf(&c.origin);
                     let h = Vector3::new(size[0], size[1], size[2]) / 2.0;
                     for k in 0..8 {
                         let s = |b: usize| if k & (1 << b) == 0 { -1.0 } else { 1.0 };
@@ -625,7 +641,7 @@ impl Robot {
 const LOOK_ROUND_PAN: f64 = 0.6;
 
 /// An edge of the table is seen when the camera saw past it within this, m (see
-/// [`crate::stance::edges_seen`]).
+/// [`ferrobot_nav::stance::edges_seen`]).
 const EDGE_BAND: f64 = 0.05;
 
 /// Depth below the table's plane from which a point is the floor's, m (the tabletop's top is
@@ -660,4 +676,10 @@ fn table_bounds(table: &TableRegion) -> (Point3<f64>, Point3<f64>) {
         hi = hi.sup(&p);
     }
     (lo, hi)
+}
+
+/// Pushes one object on the table in front of `robot`: look, choose, push (see the module's
+/// documentation); the outcome, or why not.
+pub fn push_object(robot: &Robot, opts: &PushOptions) -> Result<Pushed> {
+    Push(robot).push_object(opts)
 }

@@ -4,15 +4,14 @@
 //! image ([`ferrobot_perception::marker`]) and the camera's mount
 //! (`head_tilt_link -> camera_link`) is fitted to them ([`ferrobot_perception::hand_eye`]).
 //! The result is a [`CameraCalibration`] to save and to build robots with
-//! ([`crate::RobotBuilder::camera_calibration`]).
+//! ([`ferrobot::RobotBuilder::camera_calibration`]).
 
-use ferrobot_description::{CameraCalibration, RobotConfig};
+use ferrobot::config::{CameraCalibration, RobotConfig};
 use ferrobot_perception::{HandEyeProblem, MarkerView, PerceptionError};
-use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion};
+use nalgebra::{Isometry3, Point3};
 
-use crate::error::{Error, Result};
-use crate::robot::Robot;
-use crate::validate;
+use ferrobot::validate;
+use ferrobot::{Error, Result, Robot};
 
 /// How the calibration moves the robot and judges the images.
 #[derive(Debug, Clone, PartialEq)]
@@ -99,16 +98,6 @@ impl HandEyeOptions {
     }
 }
 
-/// The pose of a camera mount error `[dx, dy, dz, droll, dpitch, dyaw]` (m and rad; the
-/// rotation roll-pitch-yaw as in a URDF): the true camera link is the URDF's times this pose
-/// ([`crate::RobotBuilder::camera_mount_error`]).
-pub fn mount_error_pose(e: &[f64; 6]) -> Isometry3<f64> {
-    Isometry3::from_parts(
-        Translation3::new(e[0], e[1], e[2]),
-        UnitQuaternion::from_euler_angles(e[3], e[4], e[5]),
-    )
-}
-
 /// Least change of the marker corners, px (root-sum-square over all corners), for 1 mm or
 /// 1 mrad of the mount along its worst-observed direction: corners found to 0.1 px then pin
 /// every direction of the mount within about 1 mm or 1 mrad.
@@ -138,7 +127,7 @@ struct Setup {
     parent: String,
     nominal: Isometry3<f64>,
     link_to_optical: Isometry3<f64>,
-    mount: ferrobot_description::CameraMount,
+    mount: ferrobot::config::CameraMount,
 }
 
 fn setup(cfg: &RobotConfig) -> Result<Setup> {
@@ -169,7 +158,7 @@ fn setup(cfg: &RobotConfig) -> Result<Setup> {
         corners: marker.corners().map(|[x, y, z]| Point3::new(x, y, z)),
         parent: mount.parent.clone(),
         nominal: mount.pose,
-        link_to_optical: ferrobot_kinematics::pose_from_urdf(&optical_joint.origin),
+        link_to_optical: ferrobot::kinematics::pose_from_urdf(&optical_joint.origin),
         mount,
     })
 }
@@ -182,7 +171,17 @@ const SETTLE_STEP: f64 = 0.05;
 /// Longest wait for the joints to come to rest, s.
 const SETTLE_LIMIT: f64 = 3.0;
 
-impl Robot {
+/// The skill's steps, on the robot it drives.
+struct Calibration<'a>(&'a Robot);
+
+impl std::ops::Deref for Calibration<'_> {
+    type Target = Robot;
+    fn deref(&self) -> &Robot {
+        self.0
+    }
+}
+
+impl Calibration<'_> {
     /// Wait until every joint has come to rest (two reports [`SETTLE_STEP`] apart within
     /// [`STILL`]), at most [`SETTLE_LIMIT`]: a motion ends within its tolerance while the
     /// joints still creep, and a view must be taken of joints that stay where they were
@@ -209,7 +208,7 @@ impl Robot {
 
     /// Calibrate the camera's mount against the description's marker (see the module's
     /// documentation; a simulated robot shows it when built with
-    /// [`crate::RobotBuilder::calibration_marker`]): moves the arm and the head, so the arm's workspace before the robot
+    /// [`ferrobot::RobotBuilder::calibration_marker`]): moves the arm and the head, so the arm's workspace before the robot
     /// must be clear. The host's current belief about the mount (the URDF's, or a
     /// calibration the robot was built with) is where the search starts.
     ///
@@ -217,7 +216,7 @@ impl Robot {
     /// shows the marker, [`PerceptionError::HandEye`] when too few do or they leave the mount
     /// poorly observed; [`Error::Config`] for a robot without a camera or a marker; value
     /// errors for options out of range; the arm's and head's errors as they come.
-    pub fn calibrate_camera(&self, opts: &HandEyeOptions) -> Result<HandEyeReport> {
+    fn calibrate_camera(&self, opts: &HandEyeOptions) -> Result<HandEyeReport> {
         opts.check()?;
         let s = setup(self.config())?;
         let arm = self.arm()?;
@@ -237,7 +236,7 @@ impl Robot {
             arm.set_joint_positions(q)?;
             // Pan and tilt that centre the marker, seen from the tilt link's origin (on both
             // axes).
-            let poses = frames.poses_in(&self.telemetry()?, crate::frames::BASE_FRAME)?;
+            let poses = frames.poses_in(&self.telemetry()?, ferrobot::frames::BASE_FRAME)?;
             let d = poses[marker_link].translation.vector - poses[parent].translation.vector;
             let pan = d.y.atan2(d.x);
             let tilt = (-d.z).atan2(d.xy().norm());
@@ -252,7 +251,7 @@ impl Robot {
                     self.settle()?;
                     let (frame, tel) = camera.frame_with_telemetry()?;
                     captured += 1;
-                    let poses = frames.poses_in(&tel, crate::frames::BASE_FRAME)?;
+                    let poses = frames.poses_in(&tel, ferrobot::frames::BASE_FRAME)?;
                     let (hp, mp) = (poses[parent], poses[marker_link]);
                     // Where the current belief puts the corners.
                     let to_cam = frame.camera_pose.inverse() * mp;
@@ -314,4 +313,10 @@ impl Robot {
             rms_px: fit.rms_px,
         })
     }
+}
+
+/// Calibrates `robot`'s head camera mount against the marker its gripper carries (see the
+/// module's documentation): the fitted mount and how well the images pin it.
+pub fn calibrate_camera(robot: &Robot, opts: &HandEyeOptions) -> Result<HandEyeReport> {
+    Calibration(robot).calibrate_camera(opts)
 }

@@ -3,16 +3,17 @@
 //! robot built with the calibration file sees the table where it is (and not before).
 
 use ferrobot::config::CameraCalibration;
-use ferrobot::{Error, HandEyeOptions, Robot};
+use ferrobot::{Error, Robot};
 use ferrobot_sim::camera::BandedCamera;
 use ferrobot_sim::render::RenderedImage;
+use ferrobot_skills::{HandEyeOptions, Skills};
 use nalgebra::{Isometry3, Point3, Vector3};
 
 /// A 19.7 mm, 2.98° mount error (m, rad).
 const PERTURB: [f64; 6] = [0.012, -0.01, 0.012, 0.03, -0.03, 0.03];
 
 fn perturbation() -> Isometry3<f64> {
-    ferrobot::hand_eye::mount_error_pose(&PERTURB)
+    ferrobot::mount_error_pose(&PERTURB)
 }
 
 /// In `tabletop` with the arm aside and the head down 0.8 rad, exact depth: the median and

@@ -8,17 +8,17 @@
 
 use std::f64::consts::{FRAC_PI_2, PI};
 
+use ferrobot::GripperState;
 use ferrobot_perception::{
     detect_grasps, segment_objects, AnalyticScorer, Dbscan, Grasp, GraspModel, GraspParams,
     GripperGeometry, Plane, PlaneFit, RansacParams, SegmentParams, SegmentedObject, TableRegion,
 };
-use ferrobot_protocol::GripperState;
 use nalgebra::{Point3, Vector3};
 
-use crate::error::{Error, Result};
-use crate::robot::Robot;
-use crate::validate;
-use crate::RobotConfig;
+use ferrobot::validate;
+use ferrobot::{Error, Robot, RobotConfig};
+
+use crate::error::Result;
 
 /// Why a grasp could not be made (the world's fault, not the caller's).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -154,7 +154,7 @@ pub struct Grasped {
 /// URDF (length along the gripper's x, which points down in a top-down grasp; thickness along
 /// the closing line; width across it). Returns it and the height of the fingertips below the
 /// end-effector frame's origin, m.
-pub fn gripper_geometry(cfg: &RobotConfig) -> Result<(GripperGeometry, f64)> {
+pub fn gripper_geometry(cfg: &RobotConfig) -> ferrobot::Result<(GripperGeometry, f64)> {
     let missing = |component| Error::NoComponent {
         robot: cfg.name.clone(),
         component,
@@ -381,7 +381,7 @@ pub fn pick_with(robot: &Robot, opts: &GraspOptions, model: &dyn GraspModel) -> 
 /// fingers closing along `yaw` (rad about z): the fingers' line with no roll, read on the
 /// forward kinematics (the arm's yaw axis is not base_link's origin), turned onto `yaw` by the
 /// roll, whose sign is checked on the forward kinematics too.
-fn top_down(robot: &Robot, position: [f64; 3], yaw: f64) -> Result<Vec<f64>> {
+fn top_down(robot: &Robot, position: [f64; 3], yaw: f64) -> ferrobot::Result<Vec<f64>> {
     let arm = robot.arm()?;
     let ee = robot
         .config()
@@ -391,14 +391,14 @@ fn top_down(robot: &Robot, position: [f64; 3], yaw: f64) -> Result<Vec<f64>> {
         .unwrap_or_default();
     let fold = |a: f64| (a + FRAC_PI_2).rem_euclid(PI) - FRAC_PI_2;
     // The gripper's y axis (the fingers' line) about z in base_link.
-    let line = |q: &[f64]| -> Result<f64> {
+    let line = |q: &[f64]| -> ferrobot::Result<f64> {
         let r = arm.compute_fk_position(q, &ee)?.rotation;
         Ok(r[1][1].atan2(r[0][1]))
     };
-    let q0 = arm.ik_pitch_roll(position, FRAC_PI_2, Some(0.0), None)?;
+    let q0 = arm.compute_ik_pitch_roll(position, FRAC_PI_2, Some(0.0), None)?;
     let turn = fold(yaw - line(&q0)?);
     for r in [turn, -turn] {
-        let q = arm.ik_pitch_roll(position, FRAC_PI_2, Some(r), Some(q0.clone()))?;
+        let q = arm.compute_ik_pitch_roll(position, FRAC_PI_2, Some(r), Some(&q0))?;
         if fold(line(&q)? - yaw).abs() < 0.05 {
             return Ok(q);
         }

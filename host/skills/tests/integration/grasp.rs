@@ -1,12 +1,13 @@
-//! Grasping through the public API on the simulator backend ([`ferrobot::grasp::pick`]): in
+//! Grasping through the public API on the simulator backend ([`ferrobot_skills::grasp::pick`]): in
 //! the `tabletop` scene the robot looks, chooses a graspable object, plans, descends, closes
 //! and lifts it (judged from the simulator's ground truth); an empty table and a table of
 //! objects too wide for the gripper are typed errors. (The same tool against the firmware in
 //! QEMU: `hil-tests/tests/hil.rs`; many seeded trials: `ferrobot bench grasp`.)
 
-use ferrobot::grasp::{pick, GraspFailure, GraspOptions};
 use ferrobot::scene::Scene;
-use ferrobot::{Error, GripperState, Robot};
+use ferrobot::{GripperState, Robot};
+use ferrobot_skills::grasp::{pick, GraspFailure, GraspOptions};
+use ferrobot_skills::Error;
 
 /// The heights of the scene's movable bodies now (world, m), by the simulator's ground truth.
 fn heights(bot: &Robot) -> Vec<f64> {

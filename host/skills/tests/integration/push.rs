@@ -6,7 +6,8 @@
 
 use ferrobot::perception::PerceptionError;
 use ferrobot::scene::Scene;
-use ferrobot::{Error, PushOptions, Robot};
+use ferrobot::{Error, Robot};
+use ferrobot_skills::{PushOptions, Skills};
 use nalgebra::Vector3;
 
 #[test]

@@ -1,0 +1,7 @@
+//! `ferrobot-skills`' integration tests as one binary: a module per skill, and the skills
+//! under hostile values.
+
+mod grasp;
+mod hand_eye;
+mod hostile;
+mod push;
