@@ -2,7 +2,8 @@
 //! checked, parameters destuffed; bad packets are dropped and counted, and the decoder
 //! resynchronises at the next header. Never panics, never allocates.
 
-use super::{crc16, inst, DxlError};
+use super::codes::inst;
+use super::{crc16, DxlError};
 
 /// A decoded packet, borrowing the decoder's buffer; parameters are destuffed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

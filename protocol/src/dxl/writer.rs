@@ -2,7 +2,8 @@
 //! length and CRC, and one builder per instruction (and the status a servo sends), each
 //! writing into a caller's buffer and returning the packet's length in bytes.
 
-use super::{crc16, inst, DxlError, BROADCAST_ID, HEADER};
+use super::codes::inst;
+use super::{crc16, DxlError, BROADCAST_ID, HEADER};
 
 /// Builds one packet in a caller's buffer, stuffing the body as it goes.
 pub struct PacketWriter<'a> {

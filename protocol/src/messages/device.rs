@@ -6,8 +6,10 @@ use heapless::{String, Vec};
 use postcard_schema::Schema;
 use serde::{Deserialize, Serialize};
 
-use super::{BaseKind, JointConfig, JointKind, Name, Telemetry};
-use crate::MAX_JOINTS;
+use super::config::{BaseKind, JointConfig, JointKind};
+use super::telemetry::Telemetry;
+use super::Name;
+use super::MAX_JOINTS;
 
 /// Why the firmware rejected a command.
 #[derive(Serialize, Deserialize, Schema, Debug, Clone, Copy, PartialEq, Eq)]

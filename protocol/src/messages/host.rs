@@ -5,8 +5,9 @@ use heapless::Vec;
 use postcard_schema::Schema;
 use serde::{Deserialize, Serialize};
 
-use super::{JointConfig, JointLimits, JointMask, JointMode, PidGains};
-use crate::MAX_JOINTS;
+use super::config::{JointConfig, JointLimits, JointMode, PidGains};
+use super::JointMask;
+use super::MAX_JOINTS;
 
 /// Gripper commands.
 #[derive(Serialize, Deserialize, Schema, Debug, Clone, Copy, PartialEq, Eq)]

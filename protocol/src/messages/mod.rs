@@ -15,6 +15,9 @@
 
 use heapless::String;
 
+// The bound of every joint list, for the message files.
+use crate::MAX_JOINTS;
+
 mod config;
 mod device;
 mod host;

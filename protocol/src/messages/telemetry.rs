@@ -6,7 +6,7 @@ use heapless::Vec;
 use postcard_schema::Schema;
 use serde::{Deserialize, Serialize};
 
-use crate::MAX_JOINTS;
+use super::MAX_JOINTS;
 
 /// Gripper state as PyRobot reports it (its numeric codes in brackets), plus `Opening`.
 #[derive(Serialize, Deserialize, Schema, Debug, Clone, Copy, PartialEq, Eq)]
