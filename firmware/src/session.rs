@@ -19,7 +19,7 @@ pub(crate) enum Session {
     None,
     /// The host's version and schema match.
     Accepted,
-    /// The host's version or schema differs: every command is refused.
+    /// The host's version or schema differs: every command but the emergency stop is refused.
     Refused,
 }
 
