@@ -4,9 +4,7 @@
 //!
 //! No operation overflows, wraps or panics: an instant plus or minus a duration saturates at
 //! the ends of the clock, the span from a later instant to an earlier one is zero, and sums
-//! and multiples of durations saturate. `firmware/clippy.toml` lists both types as free of
-//! arithmetic side effects, so the crate's `clippy::arithmetic_side_effects` denial lets their
-//! operators through.
+//! and multiples of durations saturate.
 
 use core::ops::{Add, AddAssign, Sub};
 

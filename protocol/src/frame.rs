@@ -3,11 +3,7 @@
 //! On the wire a frame is `COBS(body ‖ CRC-32C(body)) ‖ 0x00`, where `body` is the postcard
 //! encoding of [`Frame`] (a sequence number and the message; the message's enum tag is its
 //! kind). For bodies of at most [`MAX_BODY`] bytes the framing adds exactly
-//! [`FRAME_OVERHEAD`] = 6 bytes: 4 CRC, 1 COBS code byte, 1 delimiter.
-//!
-//! COBS is written here rather than taken from the `cobs` crate because the decoder works in
-//! place on a fixed buffer while bytes stream in, and keeps per-cause drop counters; the codec
-//! is twenty lines and its round trip and corruption behaviour are property-tested.
+//! [`FRAME_OVERHEAD`](crate::FRAME_OVERHEAD) = 6 bytes: 4 CRC, 1 COBS code byte, 1 delimiter.
 
 use crc::{Crc, CRC_32_ISCSI};
 use serde::{de::DeserializeOwned, Deserialize, Serialize};
