@@ -19,14 +19,17 @@
 
 pub mod arm;
 pub mod bases;
+#[cfg(feature = "serve")]
 pub mod board;
 pub mod body;
 pub mod camera;
+#[cfg(feature = "serve")]
 pub mod camera_server;
 pub mod chain;
 pub mod conductor;
 pub mod control;
 pub mod diff_drive;
+#[cfg(feature = "serve")]
 pub mod firmware_server;
 pub mod floor_plan;
 pub mod hardware;
@@ -40,6 +43,7 @@ pub mod render;
 pub mod rng;
 pub mod robots;
 pub mod scene;
+#[cfg(feature = "serve")]
 pub mod serve;
 pub mod servo;
 pub mod world;

@@ -265,6 +265,7 @@ impl Arm {
         Ok(())
     }
 
+    #[cfg(feature = "sim")]
     /// Adds the bodies of the world the robot was built in ([`crate::Robot::scene`]), posed
     /// for the robot at the scene's start pose (objects moved since, or a base that drove
     /// away, are not followed). Returns how many.

@@ -206,6 +206,7 @@ pub enum Error {
         /// The path.
         path: PathBuf,
     },
+    #[cfg(feature = "sim")]
     /// A scene that cannot be loaded or placed (unknown name, malformed file, an object where
     /// the robot stands).
     #[error("scene: {0}")]
@@ -251,11 +252,22 @@ impl Error {
                 | Error::UnknownName { .. }
                 | Error::PathExists { .. }
                 | Error::Usage(_)
-                | Error::Scene(_)
                 | Error::Planning(ferrobot_planning::Error::Invalid { .. })
                 | Error::Slam(_)
-        ) || matches!(self, Error::Navigation(e) if e.is_input())
+        ) || self.is_scene_error()
+            || matches!(self, Error::Navigation(e) if e.is_input())
             || matches!(self, Error::Perception(e) if e.is_input())
+    }
+}
+
+impl Error {
+    /// Whether this is a scene's error (a simulated world's file or name: the caller's input).
+    fn is_scene_error(&self) -> bool {
+        #[cfg(feature = "sim")]
+        if matches!(self, Error::Scene(_)) {
+            return true;
+        }
+        false
     }
 }
 

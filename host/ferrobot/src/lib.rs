@@ -16,6 +16,9 @@
 //! Units are SI (m, rad, s, N·m); frames are right-handed; quaternions are `[x, y, z, w]`.
 #![warn(missing_docs)]
 
+#[cfg(not(any(feature = "sim", feature = "serial")))]
+compile_error!("ferrobot needs a backend: enable `sim` (the default) or `serial`");
+
 pub mod arm;
 mod arm_parts;
 pub mod arm_plan;
@@ -25,6 +28,7 @@ mod base_state;
 mod builder;
 pub mod camera;
 mod components;
+mod connect;
 pub mod error;
 pub mod frames;
 mod goals;
@@ -38,8 +42,12 @@ pub mod planning;
 pub mod robot;
 mod sense;
 mod sensing;
+#[cfg(feature = "sim")]
+mod simulated;
 pub mod slam;
 mod slam_runner;
+#[cfg(feature = "sim")]
+pub mod world_options;
 /// Where to stand at a table (pure geometry, in `ferrobot-nav`).
 pub use ferrobot_nav::stance;
 
@@ -61,16 +69,19 @@ pub mod base_control {
 pub use arm::{MoveOptions, Orientation, Pose};
 pub use backend::{Backend, LinkEvent};
 pub use base::GoalOptions;
-pub use builder::{mount_error_pose, RobotBuilder, MAX_CAMERA_MOUNT_ERROR};
+pub use builder::RobotBuilder;
 pub use camera::{Camera, CameraDevice, Frame};
 pub use config::RobotConfig;
 pub use error::{Error, Result};
 pub use ferrobot_perception as perception;
 pub use ferrobot_protocol::GripperState;
+#[cfg(feature = "sim")]
 pub use ferrobot_sim::scene;
 pub use motion::Motion;
 pub use robot::Robot;
 pub use slam::Source;
+#[cfg(feature = "sim")]
+pub use world_options::{mount_error_pose, MAX_CAMERA_MOUNT_ERROR};
 
 #[cfg(test)]
 mod tests {

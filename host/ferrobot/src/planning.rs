@@ -3,10 +3,14 @@
 
 pub use ferrobot_planning::*;
 
+#[cfg(feature = "sim")]
 use ferrobot_sim::body::RobotBody;
+#[cfg(feature = "sim")]
 use ferrobot_sim::scene::{self as world, Scene};
+#[cfg(feature = "sim")]
 use nalgebra::Isometry3;
 
+#[cfg(feature = "sim")]
 /// A scene body's shape as the planner's (meshes as the convex hull of their vertices).
 pub fn shape_of(shape: &world::Shape) -> Shape {
     match shape {
@@ -24,11 +28,13 @@ pub fn shape_of(shape: &world::Shape) -> Shape {
     }
 }
 
+#[cfg(feature = "sim")]
 /// The pose of the robot's root link in the world of `scene` at its start.
 pub fn root_in_world(scene: &Scene) -> Isometry3<f64> {
     RobotBody::root_pose(scene.robot_pose, scene.robot_height)
 }
 
+#[cfg(feature = "sim")]
 /// Every body of `scene` as a planning-scene object, posed in the frame of the robot's root
 /// link when the robot's root is at `root` (world frame).
 pub fn scene_objects(scene: &Scene, root: &Isometry3<f64>) -> Vec<WorldObject> {

@@ -4,7 +4,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use ferrobot_protocol::{Fault, HostMsg, Telemetry};
-use parking_lot::{MappedMutexGuard, Mutex, MutexGuard};
+use parking_lot::{Mutex, MutexGuard};
 
 use crate::arm_parts::ArmParts;
 use crate::backend::LinkEvent;
@@ -14,7 +14,6 @@ use crate::frames::Frames;
 use crate::goals::{Claim, Goal};
 use crate::hub::Hub;
 use crate::motion::Motion;
-use ferrobot_sim::scene::Scene;
 
 /// Which components to use.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -51,7 +50,8 @@ pub(crate) struct Inner {
     /// The robot's own body (its links' covering spheres), built on first use.
     pub(crate) body: std::sync::OnceLock<crate::sense::SelfBody>,
     /// The simulated world the robot started in (the empty one on hardware).
-    pub(crate) scene: Arc<Scene>,
+    #[cfg(feature = "sim")]
+    pub(crate) scene: Arc<ferrobot_sim::scene::Scene>,
     /// The link's line for the emergency stop beside the I/O lock ([`Link::stop_line`]).
     pub(crate) stop_line: Option<Arc<dyn crate::backend::StopLine>>,
     pub(crate) io: Mutex<Hub>,
@@ -69,12 +69,6 @@ impl std::fmt::Debug for Robot {
 }
 
 impl Robot {
-    /// The world the robot was built in (a bundled or file scene; `empty` unless
-    /// [`RobotBuilder::scene`] named one), with its start pose.
-    pub fn scene(&self) -> Arc<Scene> {
-        self.inner.scene.clone()
-    }
-
     /// The configuration (immutable once connected).
     pub(crate) fn cfg(&self) -> &RobotConfig {
         &self.inner.cfg
@@ -322,22 +316,5 @@ impl Robot {
     /// The backend's clock, s.
     pub fn time(&self) -> f64 {
         self.lock_hub().link.now().as_secs_f64()
-    }
-
-    /// The simulated world's ground truth now (the servos' true angles, the base's true pose,
-    /// every scene body's pose in the world), on the simulator and on the emulated board; an
-    /// error on hardware, which has none.
-    pub fn truth(&self) -> Result<ferrobot_sim::lockstep::Truth> {
-        self.lock_hub()
-            .link
-            .truth()
-            .ok_or_else(|| self.missing("ground truth (a simulated world)"))
-    }
-
-    /// The simulator behind this robot, when it is simulated (ground truth, fault injection).
-    /// The guard holds the robot's link: drop it before calling the robot again (from this
-    /// thread or waiting on another).
-    pub fn simulator(&self) -> Option<MappedMutexGuard<'_, ferrobot_sim::LockstepSim>> {
-        MutexGuard::try_map(self.lock_hub(), |io| io.link.simulator()).ok()
     }
 }

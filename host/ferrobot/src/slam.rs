@@ -44,7 +44,10 @@ impl Robot {
         let frames = self.frames()?.clone();
         let settings = SlamSettings::ground_robot(radius.max(SELF_RADIUS));
         let mut io = self.lock_hub();
-        let simulated = io.link.simulator().is_some();
+        #[cfg(feature = "sim")]
+        let simulated = crate::backend::world::simulator_of(io.link.as_mut()).is_some();
+        #[cfg(not(feature = "sim"))]
+        let simulated = false;
         let now = io.link.now();
         let k = {
             let camera = io.camera.as_ref().ok_or_else(|| self.missing("camera"))?;

@@ -15,6 +15,14 @@ use super::device::{CameraDevice, RawFrame};
 use super::Link;
 use crate::error::{Error, Result};
 
+/// The socket path of the camera served beside the serial link `link`: `LINK.camera` (as
+/// `ferrobot sim-firmware` serves it).
+pub fn socket_beside(link: &Path) -> PathBuf {
+    let mut s = link.as_os_str().to_owned();
+    s.push(".camera");
+    PathBuf::from(s)
+}
+
 /// How long a frame may take to arrive (wall time).
 pub const FRAME_TIMEOUT: Duration = Duration::from_secs(10);
 /// Longest header line accepted, bytes.

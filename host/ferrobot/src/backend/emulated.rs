@@ -270,6 +270,13 @@ impl EmulatedLink {
     }
 }
 
+impl EmulatedLink {
+    /// The simulated plants' ground truth now.
+    pub fn truth(&self) -> ferrobot_sim::lockstep::Truth {
+        self.board.server.truth()
+    }
+}
+
 impl Link for EmulatedLink {
     fn info(&self) -> &DeviceInfo {
         self.serial.info()
@@ -299,11 +306,8 @@ impl Link for EmulatedLink {
     fn take_events(&mut self) -> Vec<super::LinkEvent> {
         self.serial.take_events()
     }
-    fn simulator(&mut self) -> Option<&mut ferrobot_sim::LockstepSim> {
-        None
-    }
-    fn truth(&mut self) -> Option<ferrobot_sim::lockstep::Truth> {
-        Some(self.board.server.truth())
+    fn as_any_mut(&mut self) -> &mut dyn std::any::Any {
+        self
     }
     fn stop_line(&self) -> Option<std::sync::Arc<dyn super::StopLine>> {
         self.serial.stop_line()

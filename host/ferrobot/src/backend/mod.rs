@@ -9,12 +9,19 @@
 //! * [`Backend::Emulated`]: the real board firmware in QEMU with the simulated plants, started
 //!   in one call, over the serial backend.
 
+#[cfg(feature = "serial")]
 pub mod camera_socket;
 pub mod device;
+#[cfg(feature = "emulated")]
 pub mod emulated;
+#[cfg(feature = "serial")]
 pub mod serial;
+#[cfg(feature = "sim")]
 pub mod sim;
+#[cfg(feature = "sim")]
+pub mod world;
 
+#[cfg(feature = "serial")]
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Duration;
@@ -27,27 +34,31 @@ use crate::error::Result;
 #[derive(Debug, Clone, PartialEq)]
 #[non_exhaustive]
 pub enum Backend {
-    /// In-process lockstep simulation.
+    /// In-process lockstep simulation (cargo feature `sim`, on by default).
+    #[cfg(feature = "sim")]
     Sim {
         /// Seed of the plants' noise.
         seed: u64,
         /// Pace simulated time to the wall clock.
         realtime: bool,
     },
-    /// A serial port (PTY or USB).
+    /// A serial port (PTY or USB; cargo feature `serial`).
+    #[cfg(feature = "serial")]
     Serial {
         /// Port path, e.g. `/dev/ttyACM0` or `/dev/pts/3`.
         path: PathBuf,
     },
     /// The real firmware for the `mps2-an386` board in QEMU, with the simulated plants behind
     /// pseudo-terminals, over the serial backend: one call. `firmware` is the board's release
-    /// ELF (`scripts/build-boards.sh` builds it).
+    /// ELF (`scripts/build-boards.sh` builds it; cargo feature `emulated`).
+    #[cfg(feature = "emulated")]
     Emulated {
         /// Path of the board's ELF, e.g. [`emulated::DEFAULT_FIRMWARE`].
         firmware: PathBuf,
     },
 }
 
+#[cfg(feature = "sim")]
 impl Default for Backend {
     fn default() -> Self {
         Backend::Sim {
@@ -81,13 +92,9 @@ pub trait Link: Send {
     fn take_events(&mut self) -> Vec<LinkEvent> {
         Vec::new()
     }
-    /// The simulator, when this backend is one (ground truth, fault injection).
-    fn simulator(&mut self) -> Option<&mut ferrobot_sim::LockstepSim>;
-    /// The simulated world's ground truth now, when the plants are simulated (in-process or
-    /// behind an emulated board); `None` on a real robot.
-    fn truth(&mut self) -> Option<ferrobot_sim::lockstep::Truth> {
-        self.simulator().map(|s| s.truth())
-    }
+    /// The link as [`std::any::Any`], for what only one backend has (the simulator's world:
+    /// [`world`]), so that `Link` itself names no backend's types.
+    fn as_any_mut(&mut self) -> &mut dyn std::any::Any;
     /// A line that sends the emergency stop without this link's owner, for a firmware whose
     /// clock runs on while another thread holds the link (a camera read, SLAM): `None` where
     /// time only passes while the link is driven (the in-process simulator).
@@ -141,6 +148,7 @@ pub(crate) fn rejection(what: &str, reason: ferrobot_protocol::RejectReason) -> 
     }
 }
 
+#[cfg(feature = "serial")]
 /// A device description until the handshake brings the real one.
 pub(crate) fn placeholder_info() -> DeviceInfo {
     DeviceInfo {
@@ -157,6 +165,7 @@ pub(crate) fn placeholder_info() -> DeviceInfo {
     }
 }
 
+#[cfg(feature = "serial")]
 /// A command's answer as the API's result.
 pub(crate) fn acked(what: &str, answer: ferrobot_protocol::session::Answer) -> Result<()> {
     use ferrobot_protocol::session::Answer;
@@ -170,6 +179,7 @@ pub(crate) fn acked(what: &str, answer: ferrobot_protocol::session::Answer) -> R
     }
 }
 
+#[cfg(feature = "serial")]
 /// A typed request's answer as its reply.
 pub(crate) fn replied<R: ferrobot_protocol::session::Request>(
     what: &str,

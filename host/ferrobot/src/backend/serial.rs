@@ -560,8 +560,8 @@ impl Link for SerialLink {
             .unwrap_or_default()
     }
 
-    fn simulator(&mut self) -> Option<&mut ferrobot_sim::LockstepSim> {
-        None
+    fn as_any_mut(&mut self) -> &mut dyn std::any::Any {
+        self
     }
 }
 

@@ -68,6 +68,13 @@ impl SimLink {
     }
 }
 
+impl SimLink {
+    /// The lockstep simulator this link drives.
+    pub fn simulator_mut(&mut self) -> &mut LockstepSim {
+        &mut self.session.sim
+    }
+}
+
 impl Link for SimLink {
     fn info(&self) -> &DeviceInfo {
         &self.info
@@ -113,8 +120,8 @@ impl Link for SimLink {
         self.session.take_faults()
     }
 
-    fn simulator(&mut self) -> Option<&mut LockstepSim> {
-        Some(&mut self.session.sim)
+    fn as_any_mut(&mut self) -> &mut dyn std::any::Any {
+        self
     }
 }
 
@@ -199,7 +206,7 @@ impl super::device::CameraDevice for SimCameraDevice {
         if next > now {
             link.wait(Duration::from_micros(next - now));
         }
-        let sim = link.simulator().ok_or_else(|| {
+        let sim = super::world::simulator_of(link).ok_or_else(|| {
             Error::Link("the simulated camera needs the simulator backend".into())
         })?;
         let truth = sim.truth();
