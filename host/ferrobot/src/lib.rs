@@ -74,7 +74,9 @@ pub use camera::{Camera, CameraDevice, Frame};
 pub use config::RobotConfig;
 pub use error::{Error, Result};
 pub use ferrobot_perception as perception;
-pub use ferrobot_protocol::GripperState;
+/// The firmware's reports as the API hands them on: faults ([`Robot::take_faults`]), their
+/// kinds and flags, the gripper's state, telemetry ([`Robot::telemetry`]) and diagnostics.
+pub use ferrobot_protocol::{fault_flags, Diagnostics, Fault, FaultKind, GripperState, Telemetry};
 #[cfg(feature = "sim")]
 pub use ferrobot_sim::scene;
 pub use motion::Motion;

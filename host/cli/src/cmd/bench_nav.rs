@@ -196,7 +196,7 @@ fn explore(
     let bumps = bot
         .take_faults()
         .iter()
-        .filter(|f| f.kind == ferrobot_protocol::FaultKind::Bumper)
+        .filter(|f| f.kind == ferrobot::FaultKind::Bumper)
         .count();
     let map = bot
         .slam_occupancy_map()?
@@ -376,7 +376,7 @@ pub fn run(a: &NavArgs<'_>) -> ferrobot::Result<()> {
         let bumped = bot
             .take_faults()
             .iter()
-            .filter(|f| f.kind == ferrobot_protocol::FaultKind::Bumper)
+            .filter(|f| f.kind == ferrobot::FaultKind::Bumper)
             .count();
         hits += bumped;
         let miss = (now[0] - g[0]).hypot(now[1] - g[1]);

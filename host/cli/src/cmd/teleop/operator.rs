@@ -446,7 +446,7 @@ fn describe(c: &Command, map: &KeyMap) -> String {
 
 /// The names of the firmware's fault flags that are set.
 fn fault_names(flags: u16) -> Vec<String> {
-    use ferrobot_protocol::fault_flags::*;
+    use ferrobot::fault_flags::*;
     [
         (ESTOP, "emergency stop"),
         (WATCHDOG, "host watchdog"),
