@@ -435,15 +435,15 @@ impl BoardServer {
         f(hw, now)
     }
 
-    /// Carry out one control line ([`crate::control`]); returns the JSON answer.
+    /// Carry out one control line ([`crate::console`]); returns the JSON answer.
     pub fn command(&self, line: &str) -> serde_json::Value {
         self.with_hardware(|hw, now| {
             if line.trim() == "bodies" {
-                return crate::control::bodies(hw.world());
+                return crate::console::bodies(hw.world());
             }
             let mut noise = Vec::new();
             let answer =
-                crate::control::command(&mut hw.chain, hw.base.as_mut(), now, line, &mut |b| {
+                crate::console::command(&mut hw.chain, hw.base.as_mut(), now, line, &mut |b| {
                     noise.extend_from_slice(&b)
                 });
             hw.inject_to_firmware(Link::Servo, now, &noise);

@@ -18,9 +18,9 @@ use ferrobot_firmware::Link;
 use crate::bases::BasePlant;
 use crate::chain::ServoChain;
 use crate::diff_drive::Pose;
-use crate::pipe::Pipe;
 use crate::robots::{BaseModel, SimRobot};
 use crate::scene::{Scene, SceneError};
+use crate::serial_line::SerialLine;
 use crate::world::{ContactError, RobotContact, RobotContactRecord, World};
 
 /// Base serial line rate, bit/s.
@@ -32,10 +32,10 @@ pub struct Hardware {
     pub chain: ServoChain,
     /// The base, if any.
     pub base: Option<BasePlant>,
-    to_servo: Pipe,
-    from_servo: Pipe,
-    to_base: Pipe,
-    from_base: Pipe,
+    to_servo: SerialLine,
+    from_servo: SerialLine,
+    to_base: SerialLine,
+    from_base: SerialLine,
     world: Option<World>,
     /// The base's pose when there is no base (a pedestal): x, y (m), heading (rad).
     fixed_pose: Pose,
@@ -61,10 +61,10 @@ impl Hardware {
         Self {
             chain: ServoChain::new(&desc.servos, &desc.arm, seed),
             base,
-            to_servo: Pipe::new(desc.bus_baud),
-            from_servo: Pipe::new(desc.bus_baud),
-            to_base: Pipe::new(BASE_BAUD),
-            from_base: Pipe::new(BASE_BAUD),
+            to_servo: SerialLine::new(desc.bus_baud),
+            from_servo: SerialLine::new(desc.bus_baud),
+            to_base: SerialLine::new(BASE_BAUD),
+            from_base: SerialLine::new(BASE_BAUD),
             world: None,
             fixed_pose: [0.0; 3],
         }

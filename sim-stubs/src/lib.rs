@@ -27,7 +27,7 @@ pub mod camera;
 pub mod camera_server;
 pub mod chain;
 pub mod conductor;
-pub mod control;
+pub mod console;
 pub mod diff_drive;
 #[cfg(feature = "serve")]
 pub mod firmware_server;
@@ -37,12 +37,12 @@ pub mod hostile;
 pub mod hull;
 pub mod lockstep;
 pub mod mesh;
-pub mod pipe;
 pub mod placement;
 pub mod render;
 pub mod rng;
 pub mod robots;
 pub mod scene;
+pub mod serial_line;
 #[cfg(feature = "serve")]
 pub mod serve;
 pub mod servo;

@@ -236,19 +236,19 @@ pub fn serve_in(robot: &str, seed: u64, scene: &Scene) -> Result<(Served, Plants
 }
 
 impl Plants {
-    /// Carry out one line of the control protocol ([`crate::control`]); returns the JSON
+    /// Carry out one line of the control protocol ([`crate::console`]); returns the JSON
     /// answer.
     pub fn command(&self, line: &str) -> serde_json::Value {
         if line.trim() == "bodies" {
             let w = self.world.as_ref().and_then(|w| w.lock().ok());
-            return crate::control::bodies(w.as_deref());
+            return crate::console::bodies(w.as_deref());
         }
         let (Ok(mut chain), Ok(mut noise)) = (self.chain.lock(), self.servo_noise.lock()) else {
             return serde_json::json!({"error": "plants lock"});
         };
         let mut base = self.base.as_ref().and_then(|b| b.lock().ok());
         let now = chain.time_us();
-        crate::control::command(&mut chain, base.as_deref_mut(), now, line, &mut |bytes| {
+        crate::console::command(&mut chain, base.as_deref_mut(), now, line, &mut |bytes| {
             noise.extend_from_slice(&bytes)
         })
     }

@@ -55,7 +55,6 @@ pub use ferrobot_control::odometry_calibration;
 pub use ferrobot_description as config;
 pub use ferrobot_geometry::validate;
 pub use ferrobot_kinematics as kinematics;
-pub use ferrobot_nav as obstacles;
 /// Navigation: maps on disk, the global planner on occupancy grids, obstacles.
 pub use ferrobot_nav as nav;
 

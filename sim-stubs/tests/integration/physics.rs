@@ -615,7 +615,7 @@ colour = [0.9, 0.2, 0.2]
     println!("ball at rest at {p:?}");
     assert!((p.z - 0.05).abs() < 0.001, "ball at {p:?}");
     // The plant servers' `bodies` line says the same.
-    let j = ferrobot_sim::control::bodies(s.hw.world());
+    let j = ferrobot_sim::console::bodies(s.hw.world());
     let ball = j["bodies"]
         .as_array()
         .unwrap()

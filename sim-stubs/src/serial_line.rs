@@ -3,9 +3,9 @@
 
 use std::collections::VecDeque;
 
-/// A timed byte pipe.
+/// A timed one-way serial line.
 #[derive(Debug, Clone)]
-pub struct Pipe {
+pub struct SerialLine {
     byte_ns: u64,
     busy_until_ns: u64,
     queue: VecDeque<(u64, Vec<u8>)>,
@@ -13,7 +13,7 @@ pub struct Pipe {
     pub bytes: u64,
 }
 
-impl Pipe {
+impl SerialLine {
     /// A line at `baud` bit/s (10 bits per byte); 0 means instantaneous.
     pub fn new(baud: u32) -> Self {
         Self {
