@@ -37,7 +37,7 @@ pub fn run(
     json: bool,
 ) -> ferrobot::Result<()> {
     let controller = controller.map(str::parse::<BaseController>).transpose()?;
-    let bot = ferrobot_cli::bench_base::base_robot(robot, seed, None)?;
+    let bot = ferrobot_cli::base_trials::base_robot(robot, seed, None)?;
     let opts = GoalOptions {
         controller,
         smooth,

@@ -5,7 +5,7 @@ use std::path::Path;
 
 use ferrobot::config::BaseController;
 use ferrobot::{validate, GoalOptions};
-use ferrobot_cli::bench_base::RowJson;
+use ferrobot_cli::base_trials::RowJson;
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -60,7 +60,9 @@ pub fn run(
     calibrate: bool,
 ) -> ferrobot::Result<()> {
     validate::count("trials", trials, 1..=MAX_TRIALS)?;
-    use ferrobot_cli::bench_base::{self as bb, Category, CircleRun};
+    use ferrobot_cli::base_trials::{self as bb, Category};
+    use ferrobot_cli::circle_tracking::{circle_path, paper_circle, CircleRun};
+    use ferrobot_cli::odometry_calibration::calibrate_odometry;
     use ferrobot_cli::plot::{Canvas, COLOURS};
     let robots = if robots.is_empty() {
         vec!["locobot".to_string(), "locobot_lite".to_string()]
@@ -70,7 +72,7 @@ pub fn run(
     std::fs::create_dir_all(plot_dir)?;
     for robot in robots {
         let calibration = if calibrate {
-            Some(bb::calibrate_odometry(&robot, seed + 1000)?)
+            Some(calibrate_odometry(&robot, seed + 1000)?)
         } else {
             None
         };
@@ -107,11 +109,7 @@ pub fn run(
         let trials_done = results.into_iter().collect::<ferrobot::Result<Vec<_>>>()?;
         let rows = bb::summarize(&trials_done);
         // The circle comparison: the whole lap, and a zoom on its end (±6 cm).
-        let reference: Vec<[f64; 2]> = bb::paper_circle()
-            .states
-            .iter()
-            .map(|s| [s[0], s[1]])
-            .collect();
+        let reference: Vec<[f64; 2]> = paper_circle().states.iter().map(|s| [s[0], s[1]]).collect();
         let end_ref = reference.last().copied().unwrap_or([0.0; 2]);
         let mut canvas = Canvas::new(800, [0.0, 0.4], 1.2, 0.1)?;
         let mut zoom = Canvas::new(800, end_ref, 0.12, 0.01)?;
@@ -120,7 +118,7 @@ pub fn run(
         let mut ends = Vec::new();
         let runs = CircleRun::ALL.len();
         for (k, run) in CircleRun::ALL.into_iter().enumerate() {
-            let (path, end) = bb::circle_path(&robot, run, seed, geometry)?;
+            let (path, end) = circle_path(&robot, run, seed, geometry)?;
             // Earlier series wider, so that identical paths stay visible.
             let width = 2 + 2 * (runs - 1 - k);
             canvas.polyline(&path, COLOURS[k + 1].1, width);

@@ -2,7 +2,7 @@
 //! truth; also the calibration's JSON and text for `bench base --calibrate`.
 
 use ferrobot::odometry_calibration::WheelGeometry;
-use ferrobot_cli::bench_base::OdometryCalibration;
+use ferrobot_cli::odometry_calibration::OdometryCalibration;
 use serde::Serialize;
 
 use super::common::print_json;
@@ -130,7 +130,7 @@ pub fn calibration_text(c: &OdometryCalibration) -> String {
 /// Calibrate the odometry of the simulated `robot` (plants seeded by `seed`) and print the
 /// estimate.
 pub fn run(robot: &str, seed: u64, json: bool) -> ferrobot::Result<()> {
-    let c = ferrobot_cli::bench_base::calibrate_odometry(robot, seed)?;
+    let c = ferrobot_cli::odometry_calibration::calibrate_odometry(robot, seed)?;
     if json {
         let c = CalibrationJson::new(&c);
         print_json(&CalibrateOdometryJson {
