@@ -67,16 +67,7 @@ pub fn run(a: &Args) -> ferrobot::Result<()> {
     let out_file = a.out.as_deref();
     let opts = HandEyeOptions::with_counts(a.poses, a.grid)?;
     if let Some(out) = out_file {
-        // Refused before the robot moves: a directory, or a file in no directory.
-        let dir = out.parent().filter(|d| !d.as_os_str().is_empty());
-        if out.is_dir() || dir.is_some_and(|d| !d.is_dir()) {
-            return Err(ferrobot::Error::Config {
-                file: out.to_path_buf(),
-                key: "-".into(),
-                problem: "cannot write the calibration there (a directory, or no such directory)"
-                    .into(),
-            });
-        }
+        check_out(out)?;
     }
     let builder: RobotBuilder = robot_builder(&a.robot)
         .backend(a.backend.backend()?)
@@ -145,6 +136,22 @@ pub fn run(a: &Args) -> ferrobot::Result<()> {
     Ok(())
 }
 
+/// Refuses, before the robot moves, to write the calibration to a directory or to a file in
+/// no directory.
+fn check_out(out: &Path) -> ferrobot::Result<()> {
+    let dir = out.parent().filter(|d| !d.as_os_str().is_empty());
+    if out.is_dir() || dir.is_some_and(|d| !d.is_dir()) {
+        return Err(ferrobot::Error::Config {
+            file: out.to_path_buf(),
+            key: "-".into(),
+            problem: "cannot write the calibration there (a directory, or no such directory)"
+                .into(),
+        });
+    }
+    Ok(())
+}
+
+/// Writes the calibration file.
 fn write(c: &CameraCalibration, out: &Path) -> ferrobot::Result<()> {
     c.save(out).map_err(|e| ferrobot::Error::Config {
         file: out.to_path_buf(),

@@ -281,15 +281,7 @@ fn drive(a: &DriveArgs, out: &Path) -> ferrobot::Result<SlamJson> {
         mut odo,
         first_time,
     } = rec;
-    // Each frame's pose as the final map has it (loop closures correct what came before);
-    // in a saved map, from the frame that found it.
-    let from = if a.saved.is_some() {
-        tally.first_found.ok_or_else(|| {
-            ferrobot::Error::Usage("the robot never found itself in the saved map".into())
-        })?
-    } else {
-        0
-    };
+    let from = first_frame(a.saved, &tally)?;
     // Lost frames have no pose in the estimates: they are cut by time, the rest by frame.
     let t_from = tally.quality.get(from).map_or(f64::NEG_INFINITY, |q| q.0);
     let since = |poses: Vec<Stamped>| -> Vec<Stamped> {
@@ -350,6 +342,18 @@ fn drive(a: &DriveArgs, out: &Path) -> ferrobot::Result<SlamJson> {
         occupancy_iou_free: Some(iou.free),
         odometry_ate_rmse_m: Some(odo_ate),
         relocalised_frames: tally.relocalised,
+    })
+}
+
+/// The first frame scored: each frame's pose is taken as the final map has it (loop closures
+/// correct what came before); in a saved map, from the frame that found it.
+fn first_frame(saved: Option<&Path>, tally: &Tally) -> ferrobot::Result<usize> {
+    Ok(if saved.is_some() {
+        tally.first_found.ok_or_else(|| {
+            ferrobot::Error::Usage("the robot never found itself in the saved map".into())
+        })?
+    } else {
+        0
     })
 }
 
