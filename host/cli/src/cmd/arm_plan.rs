@@ -1,11 +1,9 @@
 //! `ferrobot arm-plan`: one planned arm motion on the simulator, around the scene's objects.
 //! The arm plans from where it starts (or from `--from`, reached by a planned motion first) to
-//! `--to`, executes the trajectory, and the command prints what the planner found and what the
-//! executed motion did in the physics engine: contacts between the arm's links and anything,
-//! and how far the arm ended from the goal. With `--png`, a picture of the executed motion
-//! seen from beside the robot: the arm where it ends, its earlier poses at evenly spaced times
-//! drawn over it translucent and tinted from blue (the start) to orange, the gripper's path
-//! traced in red.
+//! `--to` (rad), executes the trajectory, and the command prints what the planner found and
+//! what the executed motion did in the physics engine: contacts between the arm's links and
+//! anything, and how far the arm ended from the goal; `--png` draws the motion (its picture:
+//! `docs/design/cli.md`).
 
 use ferrobot::arm_plan::PlanningOptions;
 use ferrobot::perception::{io, RgbImage};

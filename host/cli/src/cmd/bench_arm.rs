@@ -1,19 +1,8 @@
 //! `ferrobot bench arm ROBOT [--cycles N] [--json] [--out DIR] [--backend ...]`: the arm
-//! measured in the manner of ISO 9283.
-//!
-//! * **Pose repeatability and accuracy.** Five poses in a cube in the workspace as the
-//!   standard places them: P1 at the cube's centre, P2-P5 on the corners of one of its
-//!   diagonal planes, each 10 % of the diagonal in from its corner; the gripper pointing down.
-//!   Every cycle visits P1 to P5 in order (each approached from the previous pose, the same
-//!   way each cycle). Attained positions come from the simulated world's ground truth: the
-//!   servos' true angles through the URDF's kinematics, never the robot's telemetry. Per
-//!   pose, with the barycentre of the n attained positions: accuracy AP = the barycentre's
-//!   distance from the commanded position; repeatability RP = l̄ + 3 S_l, where l_j is the
-//!   distance of attempt j from the barycentre and S_l their sample standard deviation.
-//! * **Joint tracking.** A planned trajectory through the five poses (time-optimal under the
-//!   joints' limits) streamed as knots; the commanded joint angles (the trajectory at each
-//!   instant) against the measured ones (telemetry) every 10 ms: max and RMS error per joint.
-//!   With `--out`, one PNG per joint: commanded (black) and measured (red) over time.
+//! measured in the manner of ISO 9283: pose accuracy AP and repeatability RP (mm) over five
+//! poses in a cube, attained positions by ground truth in the arm's base frame, and the joint
+//! tracking (rad) of a planned trajectory through them, commanded against measured every
+//! 10 ms, with one plot per joint. The method: `docs/design/cli.md`.
 
 use std::path::Path;
 

@@ -3,13 +3,8 @@
 //! table (seed K + trial), starts the robot there, and runs [`ferrobot::grasp::pick`] (look,
 //! choose, plan to the pregrasp, descend, close, lift). Success is judged from the simulator's
 //! ground truth, never from the robot's belief: some object rose at least [`LIFT`] above where
-//! it lay, and is still that high [`HOLD_S`] later.
-//!
-//! The graspable objects are the scene's movable bodies that could fit between the fingers
-//! standing as they are (their narrowest horizontal width, tilt kept, within the opening less
-//! the scorer's side gaps) and stand high enough for the fingers to reach 1 cm down beside
-//! them with the fingertips 1 cm above the table; the others are left out of the trials' world.
-//! They are placed on the part of the table the arm reaches pointing down ([`REACH`]).
+//! it lay, and is still that high [`HOLD_S`] later. Which objects are graspable:
+//! `docs/design/cli.md`.
 
 use ferrobot::grasp::{gripper_geometry, GraspOptions};
 use ferrobot::perception::AnalyticScorer;

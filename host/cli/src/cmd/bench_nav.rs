@@ -2,17 +2,8 @@
 //! N random reachable goals with `go_to_absolute_with` on the scene's ground-truth floor plan
 //! (PyRobot's 2 cm map, obstacles 0.1-0.8 m above the floor). Per goal: success (the base
 //! truly within [`GOAL_TOLERANCE`] of the goal), bumper hits, the true path's length against
-//! the shortest path on the floor plan (A*, the robot's radius), and the time taken.
-//!
-//! A goal counts as missed when its motion fails, ends farther than the tolerance, or bumps;
-//! when no path leaves the robot's place (stuck against an obstacle), the goals left are
-//! missed too.
-//!
-//! With `--localise slam` (the default) SLAM runs beside the robot from the true start pose, so
-//! its map's frame is the floor plan's: goals and map are given in it and the base steers by
-//! SLAM's pose. With `--localise odometry` the goals are given in the odometry's frame, which
-//! starts at the scene's start pose (the floor plan is resampled into it), and the odometry's
-//! drift is not corrected.
+//! the shortest path on the floor plan (A*, the robot's radius), and the time taken. Missed
+//! goals and the frames of `--localise`: `docs/design/cli.md`.
 
 use ferrobot::nav::{GlobalPlanner, GridAStar, MapImage, Obstacles, OccupancyGrid};
 use ferrobot::slam::optimise::{planar, to_planar};

@@ -1,12 +1,10 @@
 //! `ferrobot bench push ROBOT --scene tabletop --trials N --seed K [--backend ...]`: PyRobot's
 //! pushing example, measured. Trial k places the scene's objects at random on the table (seed
 //! K + k; `ferrobot_sim::placement::scatter_on`), starts the robot [`APPROACH`] back from its
-//! start pose and drives it up (an emulated board's arm hangs unpowered while QEMU boots: from
-//! there it cannot sweep the table), then pushes one object with [`ferrobot::Robot::push_object`].
-//! Judged by the simulated world's ground truth, never by what the robot believes: how far the
-//! chosen object moved along the intended direction, and how far every other object moved.
-//! A trial succeeds when the target moved at least [`GOAL_MOVE`] along the push and no other
-//! object more than [`OTHERS_STILL`].
+//! start pose and drives it up, then pushes one object with [`ferrobot::Robot::push_object`].
+//! Judged by the simulated world's ground truth, never by what the robot believes: a trial
+//! succeeds when the target moved at least [`GOAL_MOVE`] along the push and no other object
+//! more than [`OTHERS_STILL`] (m).
 
 use ferrobot::scene::{Scene, SceneSource};
 use ferrobot::{PushOptions, Robot};

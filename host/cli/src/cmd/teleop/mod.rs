@@ -1,18 +1,9 @@
 //! `ferrobot teleop ROBOT`: drive a robot from the keyboard in a terminal, with PyRobot's key
-//! map and steps (`ferrobot_teleop::KeyMap::pyrobot`).
-//!
-//! The shell around the sans-IO core ([`ferrobot_teleop::Teleop`]): the terminal
-//! ([`terminal`]) gives key events, the robot ([`operator`]) executes the core's commands and
-//! reports its state, the screen shows it, and one loop lets the robot's time pass.
-//!
-//! Time: each turn of the loop reads the keys that came, stamps them with the robot's clock,
-//! executes the commands, then lets [`Pace::tick`] of robot time pass ([`TICK_S`], 10 ms,
-//! unless `--step-ms` says otherwise). On the simulator the
-//! default is real time (simulated time paced to the wall clock, catching up after a stall);
-//! `--step-ms` instead advances simulated time by exactly that step per turn, each turn
-//! collecting keys for the same span of wall time, with no catching up: a loaded machine slows
-//! the robot rather than stretching the gaps between a held key's auto-repeats (the tests use
-//! it). On the firmware (serial, emulated) the robot's clock is the firmware's.
+//! map and steps (`ferrobot_teleop::KeyMap::pyrobot`): the shell around the sans-IO core
+//! ([`ferrobot_teleop::Teleop`]), the terminal ([`terminal`]) giving keys, the robot
+//! ([`operator`]) executing the core's commands, each turn of the loop letting [`Pace::tick`]
+//! of robot time pass ([`TICK_S`] in real time, or `--step-ms` of simulated time). How time
+//! passes: `docs/design/cli.md`.
 
 mod operator;
 mod screen;
