@@ -1,13 +1,9 @@
 //! `ferrobot arm-plan`: one planned arm motion on the simulator, around the scene's objects.
 //! The arm plans from where it starts (or from `--from`, reached by a planned motion first) to
-//! `--to`, executes the trajectory, and the command prints what the planner found and what the
-//! executed motion did in the physics engine: contacts between the arm's links and anything,
-//! and how far the arm ended from the goal. With `--png`, a picture of the executed motion
-//! seen from beside the robot: the arm where it ends, its earlier poses at evenly spaced times
-//! drawn over it translucent and tinted from blue (the start) to orange, the gripper's path
-//! traced in red.
-
-use std::path::Path;
+//! `--to` (rad), executes the trajectory, and the command prints what the planner found and
+//! what the executed motion did in the physics engine: contacts between the arm's links and
+//! anything, and how far the arm ended from the goal; `--png` draws the motion (its picture:
+//! `docs/design/cli.md`).
 
 use ferrobot::arm_plan::PlanningOptions;
 use ferrobot::perception::{io, RgbImage};
@@ -60,41 +56,49 @@ struct ArmPlanJson {
     scene_objects: usize,
 }
 
-/// What to plan.
-pub struct ArmPlanArgs<'a> {
+/// `ferrobot arm-plan`'s arguments: what to plan.
+#[derive(clap::Args)]
+pub struct Args {
     /// Robot name or configuration path.
-    pub robot: &'a str,
+    pub robot: String,
     /// Scene name or path.
-    pub scene: &'a str,
-    /// Start configuration (reached first by a planned motion), rad; `None`: as it starts.
-    pub from: Option<&'a [f64]>,
+    #[arg(long, default_value = "tabletop")]
+    pub scene: String,
+    /// Start configuration, rad (reached first by a planned motion; default: as the robot
+    /// starts).
+    #[arg(long, num_args = 1.., allow_negative_numbers = true)]
+    pub from: Option<Vec<f64>>,
     /// Goal configuration, rad.
-    pub to: &'a [f64],
-    /// Room kept from the scene's objects, m ([`PlanningOptions::padding`]).
+    #[arg(long, num_args = 1.., allow_negative_numbers = true, required = true)]
+    pub to: Vec<f64>,
+    /// Room kept between the arm and the scene's objects along the motion, m.
+    #[arg(long, default_value_t = ferrobot::arm_plan::DEFAULT_PADDING)]
     pub padding: f64,
     /// Seed of the plants.
+    #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Where the picture goes.
-    pub png: Option<&'a Path>,
-    /// Print JSON.
+    /// Draw the executed motion into this PNG.
+    #[arg(long)]
+    pub png: Option<std::path::PathBuf>,
+    /// Print one JSON object: `{"contacts", "duration_s", "final_error_rad", "joints",
+    /// "padding_m", "path", "path_length_rad", "planning_ms", "scene_objects"}`.
+    #[arg(long)]
     pub json: bool,
 }
 
+/// The arm's joints (indices in the URDF's tree), the links they move (watched for
+/// contacts) and the end effector's link.
+struct ArmLinks {
+    joints: Vec<usize>,
+    watched: Vec<String>,
+    ee: usize,
+}
+
 /// Plan, execute, report, draw.
-pub fn run(a: &ArmPlanArgs) -> ferrobot::Result<()> {
-    // Refused before the simulator starts.
-    ferrobot::validate::in_range(
-        "padding (m)",
-        a.padding,
-        0.0,
-        ferrobot::planning::MAX_PADDING,
-    )?;
-    ferrobot::validate::angles("--to", a.to)?;
-    if let Some(q) = a.from {
-        ferrobot::validate::angles("--from", q)?;
-    }
-    let bot = super::common::robot_builder(a.robot)
-        .scene(a.scene)
+pub fn run(a: &Args) -> ferrobot::Result<()> {
+    check(a)?;
+    let bot = super::common::robot_builder(&a.robot)
+        .scene(&a.scene)
         .backend(Backend::Sim {
             seed: a.seed,
             realtime: false,
@@ -110,118 +114,169 @@ pub fn run(a: &ArmPlanArgs) -> ferrobot::Result<()> {
             robot: cfg.name.clone(),
             component: "arm",
         })?;
-    // The links the arm's joints move, watched for contacts while the plan runs.
-    let (arm_joints, watched, ee) = {
-        let sim = simulator(&bot)?;
-        let body = body_of(&sim)?;
-        let tree = &body.tree;
-        let joints: Vec<usize> = arm_cfg
-            .joints
-            .iter()
-            .map(|j| {
-                tree.joint_index(j)
-                    .ok_or_else(|| ferrobot::Error::Usage(format!("no joint {j} in the URDF")))
-            })
-            .collect::<ferrobot::Result<_>>()?;
-        let names: Vec<String> = tree.links().map(str::to_string).collect();
-        let watched: Vec<String> = tree
-            .links_moved_by(&joints)
-            .into_iter()
-            .map(|l| names[l].clone())
-            .collect();
-        let ee = tree.link_index(&arm_cfg.ee_frame).ok_or_else(|| {
-            ferrobot::Error::Usage(format!("no link {} in the URDF", arm_cfg.ee_frame))
-        })?;
-        (joints, watched, ee)
-    };
+    let links = arm_links(&bot, &arm_cfg.joints, &arm_cfg.ee_frame)?;
     simulator(&bot)?
         .hw
-        .watch_robot_contacts(&watched)
+        .watch_robot_contacts(&links.watched)
         .map_err(|e| ferrobot::Error::Usage(e.to_string()))?;
-    if let Some(q) = a.from {
+    if let Some(q) = a.from.as_deref() {
         arm.set_joint_positions(q)?;
     }
     // Reaching the start is not part of the motion reported.
     simulator(&bot)?.hw.take_robot_contacts();
     let plan = arm.plan_to(
-        a.to,
+        &a.to,
         &PlanningOptions {
             padding: a.padding,
             ..PlanningOptions::default()
         },
     )?;
     let motion = arm.execute(&plan)?;
-    let mut record: Vec<Truth> = vec![bot.truth()?];
-    // The motion ends within its duration and the executor's timeout; this only bounds a
-    // motion that would not.
-    let limit = plan.duration() + 30.0;
-    let mut waited = 0.0;
-    while !motion.is_finished() && waited < limit {
-        bot.wait(RECORD_DT)?;
-        waited += RECORD_DT;
-        record.push(bot.truth()?);
-    }
+    let mut record = record_motion(&bot, plan.duration(), || motion.is_finished())?;
     motion.wait()?;
     record.push(bot.truth()?);
-    let contacts = simulator(&bot)?.hw.take_robot_contacts();
-    let last = record.last().map(|t| t.joints.clone()).unwrap_or_default();
-    let final_error = arm_joints
+    let contacts: Vec<String> = simulator(&bot)?
+        .hw
+        .take_robot_contacts()
         .iter()
-        .zip(a.to)
-        .map(|(&j, &g)| (last[j] - g).abs())
-        .fold(0.0, f64::max);
-    if let Some(path) = a.png {
-        let sim = simulator(&bot)?;
-        let body = body_of(&sim)?;
-        let renderer = Renderer::new(sim.scene(), Some(body));
-        let img = picture(&renderer, &record, ee)?;
-        drop(sim);
-        io::write_rgb_png(path, &img)?;
-    }
-    let length = ferrobot::planning::planner::path_length(&plan.path);
-    if a.json {
-        print_json(&ArmPlanJson {
-            contacts: contacts.len(),
-            duration_s: plan.duration(),
-            final_error_rad: final_error,
-            joints: plan.joints.clone(),
-            padding_m: plan.padding,
-            path_length_rad: length,
-            path: plan.path.clone(),
-            planning_ms: plan.planning_time.as_secs_f64() * 1e3,
-            scene_objects: objects,
-        });
-    } else {
-        say!(
-            "{} in {}: planned in {:.1} ms around {objects} scene objects, {:.1} mm from them at least: {} waypoints, {:.3} rad, a {:.2} s trajectory",
-            cfg.name,
-            a.scene,
-            plan.planning_time.as_secs_f64() * 1e3,
-            plan.padding * 1e3,
-            plan.path.len(),
-            length,
-            plan.duration()
-        );
-        say!(
-            "executed: {} contacts of the arm in the physics engine; ended {:.4} rad from the goal",
-            contacts.len(),
-            final_error
-        );
-        for c in &contacts {
-            say!(
+        .map(|c| {
+            format!(
                 "  {} touched {} from {:.3} s to {:.3} s, {:.1} mm deep at most",
                 c.link,
                 c.body,
                 c.first_us as f64 * 1e-6,
                 c.last_us as f64 * 1e-6,
                 c.max_depth * 1e3
-            );
-        }
-        if let Some(p) = a.png {
-            say!("wrote {}", p.display());
-        }
+            )
+        })
+        .collect();
+    let final_error = largest_error(&links.joints, &a.to, &record);
+    if let Some(path) = a.png.as_deref() {
+        let sim = simulator(&bot)?;
+        let body = body_of(&sim)?;
+        let renderer = Renderer::new(sim.scene(), Some(body));
+        let img = picture(&renderer, &record, links.ee)?;
+        drop(sim);
+        io::write_rgb_png(path, &img)?;
+    }
+    let j = ArmPlanJson {
+        contacts: contacts.len(),
+        duration_s: plan.duration(),
+        final_error_rad: final_error,
+        joints: plan.joints.clone(),
+        padding_m: plan.padding,
+        path_length_rad: ferrobot::planning::planner::path_length(&plan.path),
+        path: plan.path.clone(),
+        planning_ms: plan.planning_time.as_secs_f64() * 1e3,
+        scene_objects: objects,
+    };
+    report(a, &cfg.name, &j, &contacts);
+    Ok(())
+}
+
+/// The arguments refused before the simulator starts.
+fn check(a: &Args) -> ferrobot::Result<()> {
+    ferrobot::validate::in_range(
+        "padding (m)",
+        a.padding,
+        0.0,
+        ferrobot::planning::MAX_PADDING,
+    )?;
+    ferrobot::validate::angles("--to", &a.to)?;
+    if let Some(q) = a.from.as_deref() {
+        ferrobot::validate::angles("--from", q)?;
     }
     Ok(())
+}
+
+/// The arm's joints (`joints`), the links they move and the end effector's link (`ee_frame`)
+/// in the simulated body.
+fn arm_links(bot: &Robot, joints: &[String], ee_frame: &str) -> ferrobot::Result<ArmLinks> {
+    let sim = simulator(bot)?;
+    let body = body_of(&sim)?;
+    let tree = &body.tree;
+    let joints: Vec<usize> = joints
+        .iter()
+        .map(|j| {
+            tree.joint_index(j)
+                .ok_or_else(|| ferrobot::Error::Usage(format!("no joint {j} in the URDF")))
+        })
+        .collect::<ferrobot::Result<_>>()?;
+    let names: Vec<String> = tree.links().map(str::to_string).collect();
+    let watched: Vec<String> = tree
+        .links_moved_by(&joints)
+        .into_iter()
+        .map(|l| names[l].clone())
+        .collect();
+    let ee = tree
+        .link_index(ee_frame)
+        .ok_or_else(|| ferrobot::Error::Usage(format!("no link {ee_frame} in the URDF")))?;
+    Ok(ArmLinks {
+        joints,
+        watched,
+        ee,
+    })
+}
+
+/// The world's ground truth now and every [`RECORD_DT`] until `finished` says so (at most
+/// the plan's `duration` and 30 s more).
+fn record_motion(
+    bot: &Robot,
+    duration: f64,
+    finished: impl Fn() -> bool,
+) -> ferrobot::Result<Vec<Truth>> {
+    let mut record: Vec<Truth> = vec![bot.truth()?];
+    // The motion ends within its duration and the executor's timeout; this only bounds a
+    // motion that would not.
+    let limit = duration + 30.0;
+    let mut waited = 0.0;
+    while !finished() && waited < limit {
+        bot.wait(RECORD_DT)?;
+        waited += RECORD_DT;
+        record.push(bot.truth()?);
+    }
+    Ok(record)
+}
+
+/// The largest error of the arm's `joints` from the goal `to` in the last recorded state, rad.
+fn largest_error(joints: &[usize], to: &[f64], record: &[Truth]) -> f64 {
+    let last = record.last().map(|t| t.joints.clone()).unwrap_or_default();
+    joints
+        .iter()
+        .zip(to)
+        .map(|(&j, &g)| (last[j] - g).abs())
+        .fold(0.0, f64::max)
+}
+
+/// Print what the planner found and what the executed motion did (`contacts`, one line
+/// each), or the JSON object with `--json`.
+fn report(a: &Args, robot: &str, j: &ArmPlanJson, contacts: &[String]) {
+    if a.json {
+        print_json(j);
+        return;
+    }
+    say!(
+        "{} in {}: planned in {:.1} ms around {} scene objects, {:.1} mm from them at least: {} waypoints, {:.3} rad, a {:.2} s trajectory",
+        robot,
+        a.scene,
+        j.planning_ms,
+        j.scene_objects,
+        j.padding_m * 1e3,
+        j.path.len(),
+        j.path_length_rad,
+        j.duration_s
+    );
+    say!(
+        "executed: {} contacts of the arm in the physics engine; ended {:.4} rad from the goal",
+        j.contacts,
+        j.final_error_rad
+    );
+    for c in contacts {
+        say!("{c}");
+    }
+    if let Some(p) = a.png.as_deref() {
+        say!("wrote {}", p.display());
+    }
 }
 
 /// The simulator behind `bot` (its guard holds the robot's link: drop it before calling the

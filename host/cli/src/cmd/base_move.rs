@@ -23,25 +23,47 @@ struct BaseMoveJson {
     target: [f64; 3],
 }
 
-/// Drive the simulated `robot` (plants seeded by `seed`) from rest at the origin to `target`
+/// `ferrobot base-move`'s arguments.
+#[derive(clap::Args)]
+pub struct Args {
+    /// Robot name or configuration path.
+    pub robot: String,
+    /// Relative target X Y THETA (m, m, rad) in the start pose's frame.
+    #[arg(long, num_args = 3, allow_negative_numbers = true, required = true, value_names = ["X", "Y", "THETA"])]
+    pub relative: Vec<f64>,
+    /// proportional, lqr, ilqr or dwa (default: the configuration's).
+    #[arg(long)]
+    pub controller: Option<String>,
+    /// LQR/ILQR: a smooth (Bézier) reference.
+    #[arg(long)]
+    pub smooth: bool,
+    /// LQR/ILQR: play the reference open loop.
+    #[arg(long)]
+    pub open_loop: bool,
+    /// Seed of the plants' noise.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Print one JSON object.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Drive the simulated robot (plants seeded by `--seed`) from rest at the origin to the target
 /// `[x, y, θ]` (m, m, rad) relative to its start, and print the target, the odometry and the
-/// ground truth. In text mode a failed motion is the error; with `json` it is reported in
+/// ground truth. In text mode a failed motion is the error; with `--json` it is reported in
 /// the object.
-pub fn run(
-    robot: &str,
-    target: [f64; 3],
-    controller: Option<&str>,
-    smooth: bool,
-    open_loop: bool,
-    seed: u64,
-    json: bool,
-) -> ferrobot::Result<()> {
-    let controller = controller.map(str::parse::<BaseController>).transpose()?;
-    let bot = ferrobot_cli::bench_base::base_robot(robot, seed, None)?;
+pub fn run(a: &Args) -> ferrobot::Result<()> {
+    let target = [a.relative[0], a.relative[1], a.relative[2]];
+    let controller = a
+        .controller
+        .as_deref()
+        .map(str::parse::<BaseController>)
+        .transpose()?;
+    let bot = ferrobot_cli::base_trials::base_robot(&a.robot, a.seed, None)?;
     let opts = GoalOptions {
         controller,
-        smooth,
-        close_loop: !open_loop,
+        smooth: a.smooth,
+        close_loop: !a.open_loop,
         ..Default::default()
     };
     let r = bot.base()?.go_to_relative_with(target, opts)?.wait();
@@ -50,7 +72,7 @@ pub fn run(
         .simulator()
         .and_then(|s| s.base_truth())
         .unwrap_or([f64::NAN; 3]);
-    if json {
+    if a.json {
         print_json(&BaseMoveJson {
             error: r.as_ref().err().map(ToString::to_string),
             ground_truth: truth,

@@ -1,19 +1,8 @@
 //! `ferrobot bench arm ROBOT [--cycles N] [--json] [--out DIR] [--backend ...]`: the arm
-//! measured in the manner of ISO 9283.
-//!
-//! * **Pose repeatability and accuracy.** Five poses in a cube in the workspace as the
-//!   standard places them: P1 at the cube's centre, P2-P5 on the corners of one of its
-//!   diagonal planes, each 10 % of the diagonal in from its corner; the gripper pointing down.
-//!   Every cycle visits P1 to P5 in order (each approached from the previous pose, the same
-//!   way each cycle). Attained positions come from the simulated world's ground truth: the
-//!   servos' true angles through the URDF's kinematics, never the robot's telemetry. Per
-//!   pose, with the barycentre of the n attained positions: accuracy AP = the barycentre's
-//!   distance from the commanded position; repeatability RP = l̄ + 3 S_l, where l_j is the
-//!   distance of attempt j from the barycentre and S_l their sample standard deviation.
-//! * **Joint tracking.** A planned trajectory through the five poses (time-optimal under the
-//!   joints' limits) streamed as knots; the commanded joint angles (the trajectory at each
-//!   instant) against the measured ones (telemetry) every 10 ms: max and RMS error per joint.
-//!   With `--out`, one PNG per joint: commanded (black) and measured (red) over time.
+//! measured in the manner of ISO 9283: pose accuracy AP and repeatability RP (mm) over five
+//! poses in a cube, attained positions by ground truth in the arm's base frame, and the joint
+//! tracking (rad) of a planned trajectory through them, commanded against measured every
+//! 10 ms, with one plot per joint. The method: `docs/design/cli.md`.
 
 use std::path::Path;
 
@@ -32,17 +21,24 @@ const CUBE_CENTRE: [f64; 3] = [0.3, 0.0, 0.25];
 /// Sampling period of the tracking record, s.
 const TRACK_DT: f64 = 0.01;
 
-/// What `bench arm` is asked.
-pub struct ArmArgs<'a> {
+/// `ferrobot bench arm`'s arguments.
+#[derive(clap::Args)]
+pub struct Args {
     /// Robot name or configuration path.
-    pub robot: &'a str,
+    pub robot: String,
     /// Cycles through the five poses (ISO 9283: 30).
+    #[arg(long, default_value_t = 30)]
     pub cycles: usize,
-    /// The backend.
-    pub backend: &'a BackendArgs,
-    /// Where the tracking plots go.
-    pub out: Option<&'a Path>,
-    /// One JSON object instead of text.
+    /// Where the robot runs.
+    #[command(flatten)]
+    pub backend: BackendArgs,
+    /// Write one PNG per joint (commanded and measured angle over time) here.
+    #[arg(long)]
+    pub out: Option<std::path::PathBuf>,
+    /// Print one JSON object: `{"accuracy_mm_max", "cycles", "poses": [{"accuracy_mm",
+    /// "commanded_m", "repeatability_mm"}], "repeatability_mm_max", "tracking": [{"max_rad",
+    /// "name", "rms_rad"}], "tracking_duration_s"}`.
+    #[arg(long)]
     pub json: bool,
 }
 
@@ -96,29 +92,17 @@ pub fn iso_poses(c: [f64; 3], side: f64) -> [[f64; 3]; 5] {
     out
 }
 
+/// Commanded (the trajectory) and measured joint angles over time: (s, rad, rad).
+type TrackRecord = Vec<(f64, Vec<f64>, Vec<f64>)>;
+
 /// Run the benchmark and print it.
-pub fn run(a: &ArmArgs) -> ferrobot::Result<()> {
+pub fn run(a: &Args) -> ferrobot::Result<()> {
     ferrobot::validate::count("cycles", a.cycles, 1..=1000)?;
-    let bot = robot_builder(a.robot)
+    let bot = robot_builder(&a.robot)
         .backend(a.backend.backend()?)
         .build()?;
     let arm = bot.arm()?;
-    let cfg = bot.config();
-    let ee = cfg
-        .arm
-        .as_ref()
-        .map(|s| s.ee_frame.clone())
-        .ok_or_else(|| missing_arm(&bot))?;
-    let base = cfg
-        .arm
-        .as_ref()
-        .map(|s| s.base_frame.clone())
-        .unwrap_or_default();
-    let tree = LinkTree::from_urdf(&cfg.urdf)?;
-    let (ie, ib) = match (tree.link_index(&ee), tree.link_index(&base)) {
-        (Some(e), Some(b)) => (e, b),
-        _ => return Err(missing_arm(&bot)),
-    };
+    let (ie, ib) = arm_links(&bot)?;
     let poses = iso_poses(CUBE_CENTRE, CUBE_SIDE);
     let pitch = std::f64::consts::FRAC_PI_2;
     // Joint targets of the five poses (IK, from the previous one).
@@ -139,6 +123,56 @@ pub fn run(a: &ArmArgs) -> ferrobot::Result<()> {
             attained[k].push(p.coords);
         }
     }
+    let pose_json = pose_figures(&attained, &poses);
+    // Tracking: a planned trajectory through the five poses and back to the first.
+    let names = arm.joint_names();
+    let (record, duration) = track(&bot, &arm, &targets)?;
+    let tracking = tracking_errors(&names, &record);
+    if let Some(dir) = a.out.as_deref() {
+        plot_tracking(dir, &names, &record, duration)?;
+    }
+    let out = ArmJson {
+        cycles: a.cycles,
+        accuracy_mm_max: pose_json.iter().map(|p| p.accuracy_mm).fold(0.0, f64::max),
+        repeatability_mm_max: pose_json
+            .iter()
+            .map(|p| p.repeatability_mm)
+            .fold(0.0, f64::max),
+        poses: pose_json,
+        tracking,
+        tracking_duration_s: duration,
+    };
+    if a.json {
+        print_json(&out);
+    } else {
+        print_text(bot.name(), &out);
+    }
+    Ok(())
+}
+
+/// The indices of the arm's end-effector and base links in the URDF's link tree.
+fn arm_links(bot: &Robot) -> ferrobot::Result<(usize, usize)> {
+    let cfg = bot.config();
+    let ee = cfg
+        .arm
+        .as_ref()
+        .map(|s| s.ee_frame.clone())
+        .ok_or_else(|| missing_arm(bot))?;
+    let base = cfg
+        .arm
+        .as_ref()
+        .map(|s| s.base_frame.clone())
+        .unwrap_or_default();
+    let tree = LinkTree::from_urdf(&cfg.urdf)?;
+    match (tree.link_index(&ee), tree.link_index(&base)) {
+        (Some(e), Some(b)) => Ok((e, b)),
+        _ => Err(missing_arm(bot)),
+    }
+}
+
+/// Accuracy AP and repeatability RP of each pose from its `attained` positions (m, base
+/// frame) against the commanded `poses`.
+fn pose_figures(attained: &[Vec<Vector3<f64>>], poses: &[[f64; 3]; 5]) -> Vec<PoseJson> {
     let mut pose_json = Vec::new();
     for (k, pts) in attained.iter().enumerate() {
         let n = pts.len() as f64;
@@ -156,9 +190,17 @@ pub fn run(a: &ArmArgs) -> ferrobot::Result<()> {
             repeatability_mm: 1e3 * (mean + 3.0 * s),
         });
     }
-    // Tracking: a planned trajectory through the five poses and back to the first.
-    let names = arm.joint_names();
-    let mut record: Vec<(f64, Vec<f64>, Vec<f64>)> = Vec::new();
+    pose_json
+}
+
+/// Planned motions through `targets` and back to the first, the commanded and measured
+/// angles recorded every [`TRACK_DT`]; the record and its duration (s).
+fn track(
+    bot: &Robot,
+    arm: &ferrobot::arm::Arm,
+    targets: &[Vec<f64>],
+) -> ferrobot::Result<(TrackRecord, f64)> {
+    let mut record: TrackRecord = Vec::new();
     let mut duration = 0.0;
     for q in targets.iter().skip(1).chain(std::iter::once(&targets[0])) {
         let plan = arm.make_plan_joint_positions(q)?;
@@ -173,7 +215,12 @@ pub fn run(a: &ArmArgs) -> ferrobot::Result<()> {
         motion.wait()?;
         duration += bot.time() - t0;
     }
-    let tracking: Vec<JointJson> = names
+    Ok((record, duration))
+}
+
+/// Max and RMS error of each joint (`names`) over the record, rad.
+fn tracking_errors(names: &[String], record: &TrackRecord) -> Vec<JointJson> {
+    names
         .iter()
         .enumerate()
         .map(|(j, name)| {
@@ -184,52 +231,37 @@ pub fn run(a: &ArmArgs) -> ferrobot::Result<()> {
                 rms_rad: (e.iter().map(|v| v * v).sum::<f64>() / e.len().max(1) as f64).sqrt(),
             }
         })
-        .collect();
-    if let Some(dir) = a.out {
-        plot_tracking(dir, &names, &record, duration)?;
-    }
-    let out = ArmJson {
-        cycles: a.cycles,
-        accuracy_mm_max: pose_json.iter().map(|p| p.accuracy_mm).fold(0.0, f64::max),
-        repeatability_mm_max: pose_json
-            .iter()
-            .map(|p| p.repeatability_mm)
-            .fold(0.0, f64::max),
-        poses: pose_json,
-        tracking,
-        tracking_duration_s: duration,
-    };
-    if a.json {
-        print_json(&out);
-    } else {
+        .collect()
+}
+
+/// The figures as text.
+fn print_text(robot: &str, out: &ArmJson) {
+    say!(
+        "ISO 9283 on {} ({} cycles of 5 poses, ground truth):",
+        robot,
+        out.cycles
+    );
+    for (k, p) in out.poses.iter().enumerate() {
         say!(
-            "ISO 9283 on {} ({} cycles of 5 poses, ground truth):",
-            bot.name(),
-            a.cycles
+            "  P{}  at {:?} m: accuracy AP {:.2} mm, repeatability RP {:.3} mm",
+            k + 1,
+            p.commanded_m,
+            p.accuracy_mm,
+            p.repeatability_mm
         );
-        for (k, p) in out.poses.iter().enumerate() {
-            say!(
-                "  P{}  at {:?} m: accuracy AP {:.2} mm, repeatability RP {:.3} mm",
-                k + 1,
-                p.commanded_m,
-                p.accuracy_mm,
-                p.repeatability_mm
-            );
-        }
-        say!(
-            "tracking a {:.1} s planned trajectory (commanded vs measured):",
-            out.tracking_duration_s
-        );
-        for j in &out.tracking {
-            say!(
-                "  {:<8} max {:.4} rad, RMS {:.4} rad",
-                j.name,
-                j.max_rad,
-                j.rms_rad
-            );
-        }
     }
-    Ok(())
+    say!(
+        "tracking a {:.1} s planned trajectory (commanded vs measured):",
+        out.tracking_duration_s
+    );
+    for j in &out.tracking {
+        say!(
+            "  {:<8} max {:.4} rad, RMS {:.4} rad",
+            j.name,
+            j.max_rad,
+            j.rms_rad
+        );
+    }
 }
 
 /// One PNG per joint in `dir`: commanded (black) and measured (red) angle over time, the time

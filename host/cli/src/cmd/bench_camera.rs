@@ -46,14 +46,35 @@ fn drive(scene: &str, seconds: f64, camera: bool) -> ferrobot::Result<(usize, f6
     Ok((n, bot.time() - s0, t0.elapsed().as_secs_f64()))
 }
 
-/// Run the benchmark for `scenes`, `seconds` of simulated time each.
-pub fn run(scenes: &[String], seconds: f64, json: bool) -> ferrobot::Result<()> {
+/// `ferrobot bench camera`'s arguments.
+#[derive(clap::Args)]
+pub struct Args {
+    /// Scenes (repeatable; default tabletop and apartment).
+    #[arg(long)]
+    pub scene: Vec<String>,
+    /// Simulated seconds per run.
+    #[arg(long, default_value_t = 10.0)]
+    pub seconds: f64,
+    /// Print one JSON object per scene, one per line, instead of Markdown.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Run the benchmark for the scenes (default: tabletop and apartment), `--seconds` of
+/// simulated time each.
+pub fn run(a: &Args) -> ferrobot::Result<()> {
+    let scenes = if a.scene.is_empty() {
+        vec!["tabletop".to_string(), "apartment".to_string()]
+    } else {
+        a.scene.clone()
+    };
+    let (seconds, json) = (a.seconds, a.json);
     ferrobot::validate::in_range("seconds", seconds, 0.1, 600.0)?;
     if !json {
         say!("| scene | simulated s | frames | wall ms per frame | real-time factor (camera at 30 Hz) | real-time factor (no camera) |");
         say!("|---|---|---|---|---|---|");
     }
-    for scene in scenes {
+    for scene in &scenes {
         let (frames, sim, wall) = drive(scene, seconds, true)?;
         let (_, sim_blind, blind) = drive(scene, seconds, false)?;
         let row = RowJson {

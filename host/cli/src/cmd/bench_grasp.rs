@@ -3,13 +3,8 @@
 //! table (seed K + trial), starts the robot there, and runs [`ferrobot::grasp::pick`] (look,
 //! choose, plan to the pregrasp, descend, close, lift). Success is judged from the simulator's
 //! ground truth, never from the robot's belief: some object rose at least [`LIFT`] above where
-//! it lay, and is still that high [`HOLD_S`] later.
-//!
-//! The graspable objects are the scene's movable bodies that could fit between the fingers
-//! standing as they are (their narrowest horizontal width, tilt kept, within the opening less
-//! the scorer's side gaps) and stand high enough for the fingers to reach 1 cm down beside
-//! them with the fingertips 1 cm above the table; the others are left out of the trials' world.
-//! They are placed on the part of the table the arm reaches pointing down ([`REACH`]).
+//! it lay, and is still that high [`HOLD_S`] later. Which objects are graspable:
+//! `docs/design/cli.md`.
 
 use ferrobot::perception::AnalyticScorer;
 use ferrobot::scene::{Scene, SceneSource};
@@ -19,7 +14,7 @@ use ferrobot_skills::grasp::{gripper_geometry, GraspOptions};
 use serde::Serialize;
 
 use super::bench_nav::{median, Median};
-use super::common::{load, print_json, TableTrials};
+use super::common::{load, print_json, BackendArgs};
 
 /// An object counts as lifted when it rose this far above where it lay, m.
 pub const LIFT: f64 = 0.05;
@@ -35,6 +30,26 @@ pub const REACH: f64 = 0.42;
 const GAP: f64 = 0.02;
 /// Most trials.
 const MAX_TRIALS: usize = 10_000;
+
+/// `ferrobot bench grasp`'s arguments.
+#[derive(clap::Args)]
+pub struct Args {
+    /// Robot name or configuration path.
+    pub robot: String,
+    /// Scene name or path (with a fixed body `table`).
+    #[arg(long, default_value = "tabletop")]
+    pub scene: String,
+    /// Trials.
+    #[arg(long, default_value_t = 10)]
+    pub trials: usize,
+    /// The backend; --seed seeds the placements (and the plants' noise on the sim).
+    #[command(flatten)]
+    pub backend: BackendArgs,
+    /// Print one JSON object: `{"failures", "objects", "success_rate", "time_s":
+    /// {"median"}, "trials"}` (the failures' reasons, the objects placed).
+    #[arg(long)]
+    pub json: bool,
+}
 
 /// `bench grasp --json`, fields in alphabetical order (see [`print_json`]).
 #[derive(Serialize)]
@@ -112,12 +127,12 @@ fn heights(bot: &Robot, scene: &Scene) -> ferrobot::Result<Vec<(String, f64)>> {
 /// One trial: `Ok(Some(simulated seconds))` on success, `Ok(None)` with the reason pushed
 /// into `why` on failure.
 fn trial(
-    args: &TableTrials<'_>,
+    args: &Args,
     backend: Backend,
     world: Scene,
     why: &mut String,
 ) -> ferrobot::Result<Option<f64>> {
-    let bot = Robot::builder(args.robot)
+    let bot = Robot::builder(&args.robot)
         .with_scene(world.clone())
         .backend(backend)
         .build()?;
@@ -151,14 +166,14 @@ fn trial(
 }
 
 /// Run the bench.
-pub fn run(args: &TableTrials<'_>) -> ferrobot::Result<()> {
+pub fn run(args: &Args) -> ferrobot::Result<()> {
     ferrobot::validate::count("trials", args.trials, 1..=MAX_TRIALS)?;
     let backend = args.backend.backend()?;
-    let scene = Scene::load(&SceneSource::from_arg(args.scene))?;
+    let scene = Scene::load(&SceneSource::from_arg(&args.scene))?;
     let seed = args.backend.seed;
     let mut times = Vec::new();
     let mut failures = Vec::new();
-    let (world, region) = trial_world(&load(args.robot)?, &scene)?;
+    let (world, region) = trial_world(&load(&args.robot)?, &scene)?;
     for k in 0..args.trials {
         let s = seed.wrapping_add(k as u64);
         let placed = scatter(&world, &[], region, s, GAP)?;

@@ -2,17 +2,8 @@
 //! N random reachable goals with `go_to_absolute_with` on the scene's ground-truth floor plan
 //! (PyRobot's 2 cm map, obstacles 0.1-0.8 m above the floor). Per goal: success (the base
 //! truly within [`GOAL_TOLERANCE`] of the goal), bumper hits, the true path's length against
-//! the shortest path on the floor plan (A*, the robot's radius), and the time taken.
-//!
-//! A goal counts as missed when its motion fails, ends farther than the tolerance, or bumps;
-//! when no path leaves the robot's place (stuck against an obstacle), the goals left are
-//! missed too.
-//!
-//! With `--localise slam` (the default) SLAM runs beside the robot from the true start pose, so
-//! its map's frame is the floor plan's: goals and map are given in it and the base steers by
-//! SLAM's pose. With `--localise odometry` the goals are given in the odometry's frame, which
-//! starts at the scene's start pose (the floor plan is resampled into it), and the odometry's
-//! drift is not corrected.
+//! the shortest path on the floor plan (A*, the robot's radius), and the time taken. Missed
+//! goals and the frames of `--localise`: `docs/design/cli.md`.
 
 use ferrobot::nav::{GlobalPlanner, GridAStar, MapImage, Obstacles, OccupancyGrid};
 use ferrobot::slam::optimise::{planar, to_planar};
@@ -111,25 +102,40 @@ fn resample(world: &OccupancyGrid, frame: [f64; 3]) -> ferrobot::Result<Occupanc
     Ok(g)
 }
 
-/// What `bench nav` is asked.
-pub struct NavArgs<'a> {
+/// `ferrobot bench nav`'s arguments.
+#[derive(clap::Args)]
+pub struct Args {
     /// Robot name or configuration path.
-    pub robot: &'a str,
+    pub robot: String,
     /// Scene name or path.
-    pub scene: &'a str,
+    #[arg(long, default_value = "apartment")]
+    pub scene: String,
     /// Goals.
+    #[arg(long, default_value_t = 50)]
     pub goals: usize,
-    /// Seed of the goals and the plants.
+    /// Seed of the goals and the plants' noise.
+    #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// `slam` or `odometry`.
-    pub localise: &'a str,
+    /// Where the base's pose comes from: `slam` (SLAM beside the robot, started at the
+    /// true start on the floor plan's frame) or `odometry` (the wheels alone).
+    #[arg(long, default_value = "slam")]
+    pub localise: String,
     /// One line per goal on standard error.
+    #[arg(long)]
     pub trace: bool,
-    /// Explore first, then drive on SLAM's map.
+    /// Explore the scene first (SLAM, frontiers), then drive to the goals on SLAM's map;
+    /// the JSON gains `exploration`: `{"bumper_hits", "distance_m", "occupancy_iou",
+    /// "occupancy_iou_free", "occupancy_iou_occupied", "time_s"}`.
+    #[arg(long)]
     pub explore: bool,
-    /// Where to write the explored map (`map.yaml`, `map.png`) and its picture.
-    pub out: Option<&'a std::path::Path>,
-    /// JSON out.
+    /// With --explore: write the explored map (`map.yaml`, `map.png`), the part of the
+    /// floor plan it is judged against (`truth.yaml`, `truth.png`) and a picture of the
+    /// map with the SLAM, true and wheel-odometry paths (`exploration.png`) here.
+    #[arg(long)]
+    pub out: Option<std::path::PathBuf>,
+    /// Print one JSON object: `{"bumper_hits", "goals", "path_length_ratio": {"median"},
+    /// "success_rate", "time_s": {"median"}}`.
+    #[arg(long)]
     pub json: bool,
 }
 
@@ -231,34 +237,86 @@ fn explore(
     })
 }
 
+/// The course the goals are driven on: the robot, the floor plan, and the frame of the goals.
+struct Course {
+    bot: ferrobot::Robot,
+    /// The floor plan as a grid, the world's frame.
+    world: OccupancyGrid,
+    /// Clearance on the floor plan.
+    clear: Obstacles,
+    /// The robot's footprint radius, m.
+    radius: f64,
+    /// The goals' frame in the world `[x, y, θ]`.
+    frame: [f64; 3],
+    /// How the base drives to a goal.
+    opts: GoalOptions,
+    /// One line per goal on standard error.
+    trace: bool,
+}
+
+/// The goals driven: reached, bumper hits, path length ratios and times of those reached.
+#[derive(Default)]
+struct Tally {
+    ok: usize,
+    hits: usize,
+    ratios: Vec<f64>,
+    times: Vec<f64>,
+}
+
 /// Drive to the goals and print the figures.
-pub fn run(a: &NavArgs<'_>) -> ferrobot::Result<()> {
-    let (robot, scene, goals, seed, json) = (a.robot, a.scene, a.goals, a.seed, a.json);
-    if !(1..=10_000).contains(&goals) {
-        return Err(ferrobot::Error::Usage(format!(
-            "--goals {goals}: ask for 1-10000"
-        )));
+pub fn run(a: &Args) -> ferrobot::Result<()> {
+    let (robot, scene, goals, json) = (a.robot.as_str(), a.scene.as_str(), a.goals, a.json);
+    let slam = check(a)?;
+    let (course, exploration) = set_up(a, slam)?;
+    let mut rng = Rng(a.seed ^ 0x6E61_765F_6265_6E63);
+    let mut tally = Tally::default();
+    for _ in 0..goals {
+        // None: the robot is stuck where no path leaves (a failed goal left it against an
+        // obstacle); the goals left count as missed.
+        if !course.next_goal(&mut rng, &mut tally)? {
+            break;
+        }
     }
-    let slam = match a.localise {
-        "slam" => true,
-        "odometry" if a.explore => {
-            return Err(ferrobot::Error::Usage(
-                "--explore needs --localise slam: exploration maps with SLAM".into(),
-            ))
-        }
-        "odometry" => false,
-        other => {
-            return Err(ferrobot::Error::Usage(format!(
-                "--localise {other}: say slam or odometry"
-            )))
-        }
+    let Tally {
+        ok,
+        hits,
+        ratios,
+        times,
+    } = tally;
+    let out = NavJson {
+        bumper_hits: hits + exploration.as_ref().map_or(0, |e| e.bumper_hits),
+        exploration,
+        goals,
+        path_length_ratio: Median {
+            median: median(ratios),
+        },
+        success_rate: ok as f64 / goals as f64,
+        time_s: Median {
+            median: median(times),
+        },
     };
-    let b = super::common::robot_builder(robot);
+    if json {
+        print_json(&out);
+    } else {
+        say!(
+            "{robot} in {scene}: {ok}/{goals} goals reached ({:.0} %), {hits} bumper hits, median path {:.3}x the shortest, median {:.1} s per goal",
+            100.0 * out.success_rate,
+            out.path_length_ratio.median,
+            out.time_s.median
+        );
+    }
+    Ok(())
+}
+
+/// The robot in the scene, localised by SLAM (`slam`) or odometry, on the floor plan; the
+/// exploration first with `--explore`.
+fn set_up(a: &Args, slam: bool) -> ferrobot::Result<(Course, Option<ExploreJson>)> {
+    let b = super::common::robot_builder(&a.robot);
     let bot = b
-        .scene(scene)
+        .scene(&a.scene)
         .use_camera(slam)
         .backend(Backend::Sim {
-            seed,
+            seed: a.seed,
             realtime: false,
         })
         .build()?;
@@ -297,7 +355,13 @@ pub fn run(a: &NavArgs<'_>) -> ferrobot::Result<()> {
         to_planar(&(planar(start) * planar(odo0).inverse()))
     };
     let exploration = if a.explore {
-        Some(explore(&bot, &plan_image, start, a.out, a.trace)?)
+        Some(explore(
+            &bot,
+            &plan_image,
+            start,
+            a.out.as_deref(),
+            a.trace,
+        )?)
     } else {
         None
     };
@@ -313,75 +377,111 @@ pub fn run(a: &NavArgs<'_>) -> ferrobot::Result<()> {
         frame: if slam { Source::Slam } else { Source::Odometry },
         ..Default::default()
     };
-    let mut rng = Rng(seed ^ 0x6E61_765F_6265_6E63);
-    let (mut ok, mut hits, mut ratios, mut times) = (0usize, 0usize, Vec::new(), Vec::new());
-    for _ in 0..goals {
-        let here = truth(&bot)?;
-        // A goal: free with clearance, reachable, not too near.
-        let mut goal = None;
+    let course = Course {
+        bot,
+        world,
+        clear,
+        radius,
+        frame,
+        opts,
+        trace: a.trace,
+    };
+    Ok((course, exploration))
+}
+
+/// The goal count and `--localise` checked; whether SLAM localises.
+fn check(a: &Args) -> ferrobot::Result<bool> {
+    let goals = a.goals;
+    if !(1..=10_000).contains(&goals) {
+        return Err(ferrobot::Error::Usage(format!(
+            "--goals {goals}: ask for 1-10000"
+        )));
+    }
+    match a.localise.as_str() {
+        "slam" => Ok(true),
+        "odometry" if a.explore => Err(ferrobot::Error::Usage(
+            "--explore needs --localise slam: exploration maps with SLAM".into(),
+        )),
+        "odometry" => Ok(false),
+        other => Err(ferrobot::Error::Usage(format!(
+            "--localise {other}: say slam or odometry"
+        ))),
+    }
+}
+
+impl Course {
+    /// A goal drawn from `rng`: free with clearance, reachable, not too near `here`; its
+    /// centre and the shortest path's length (m). `None` after 10,000 draws.
+    fn pick_goal(&self, rng: &mut Rng, here: [f64; 3]) -> Option<([f64; 2], f64)> {
+        let world = &self.world;
         for _ in 0..10_000 {
             let i = (rng.uniform() * world.width as f64) as usize;
             let j = (rng.uniform() * world.height as f64) as usize;
             let c = world.centre(i.min(world.width - 1), j.min(world.height - 1));
-            if clear.clearance(c) < radius + GOAL_CLEARANCE
+            if self.clear.clearance(c) < self.radius + GOAL_CLEARANCE
                 || (c[0] - here[0]).hypot(c[1] - here[1]) < MIN_GOAL_DISTANCE
             {
                 continue;
             }
-            if let Ok(p) = GridAStar.plan(&world, [here[0], here[1]], c, radius) {
-                goal = Some((c, p.length));
-                break;
+            if let Ok(p) = GridAStar.plan(world, [here[0], here[1]], c, self.radius) {
+                return Some((c, p.length));
             }
         }
-        // None: the robot is stuck where no path leaves (a failed goal left it against an
-        // obstacle); the goals left count as missed.
-        let Some((g, shortest)) = goal else {
-            break;
+        None
+    }
+
+    /// Pick the next goal and drive to it, counting the result into `tally`; false when no
+    /// goal can be reached from where the robot is.
+    fn next_goal(&self, rng: &mut Rng, tally: &mut Tally) -> ferrobot::Result<bool> {
+        let (bot, base) = (&self.bot, self.bot.base()?);
+        let here = truth(bot)?;
+        let Some((g, shortest)) = self.pick_goal(rng, here) else {
+            return Ok(false);
         };
         // The goal in the odometry's frame, facing along the way there.
         let th = (g[1] - here[1]).atan2(g[0] - here[0]);
-        let go = to_planar(&(planar(frame).inverse() * planar([g[0], g[1], th])));
+        let go = to_planar(&(planar(self.frame).inverse() * planar([g[0], g[1], th])));
         let t0 = bot.time();
         let mut travelled = 0.0;
         let mut last = here;
         // A goal refused at once (the base's place seen as blocked on a drifted map) is a miss.
-        let mut motion = match base.go_to_absolute_with(go, opts.clone()) {
+        let mut motion = match base.go_to_absolute_with(go, self.opts.clone()) {
             Ok(m) => m,
             Err(e) => {
-                if a.trace {
+                if self.trace {
                     eprintln!("goal {g:.2?} from {here:.2?}: refused: {e}");
                 }
-                continue;
+                return Ok(true);
             }
         };
         let result = loop {
             if let Some(r) = motion.poll() {
-                if a.trace {
+                if self.trace {
                     if let Err(e) = &r {
                         eprintln!(
                             "goal {g:.2?} from {here:.2?}: {e}; truly at {:.3?}, SLAM says {:.3?}",
-                            truth(&bot)?,
+                            truth(bot)?,
                             base.get_state_from(Source::Slam).ok()
                         );
                     }
                 }
                 break r.is_ok();
             }
-            let now = truth(&bot)?;
+            let now = truth(bot)?;
             travelled += (now[0] - last[0]).hypot(now[1] - last[1]);
             last = now;
         };
-        let now = truth(&bot)?;
+        let now = truth(bot)?;
         travelled += (now[0] - last[0]).hypot(now[1] - last[1]);
         let bumped = bot
             .take_faults()
             .iter()
             .filter(|f| f.kind == ferrobot::FaultKind::Bumper)
             .count();
-        hits += bumped;
+        tally.hits += bumped;
         let miss = (now[0] - g[0]).hypot(now[1] - g[1]);
         let reached = miss <= GOAL_TOLERANCE;
-        if a.trace {
+        if self.trace {
             eprintln!(
                 "goal {g:.2?} from {here:.2?}: {} {miss:.3} m off, {bumped} bumps, {:.1} s, {travelled:.2} m for {shortest:.2} m",
                 if result { "ok" } else { "failed" },
@@ -389,35 +489,13 @@ pub fn run(a: &NavArgs<'_>) -> ferrobot::Result<()> {
             );
         }
         if result && reached && bumped == 0 {
-            ok += 1;
-            ratios.push(travelled / shortest);
-            times.push(bot.time() - t0);
+            tally.ok += 1;
+            tally.ratios.push(travelled / shortest);
+            tally.times.push(bot.time() - t0);
         } else if bumped > 0 {
             // Back off a little so the next goal starts free.
             let _ = base.go_to_relative([-0.1, 0.0, 0.0]);
         }
+        Ok(true)
     }
-    let out = NavJson {
-        bumper_hits: hits + exploration.as_ref().map_or(0, |e| e.bumper_hits),
-        exploration,
-        goals,
-        path_length_ratio: Median {
-            median: median(ratios),
-        },
-        success_rate: ok as f64 / goals as f64,
-        time_s: Median {
-            median: median(times),
-        },
-    };
-    if json {
-        print_json(&out);
-    } else {
-        say!(
-            "{robot} in {scene}: {ok}/{goals} goals reached ({:.0} %), {hits} bumper hits, median path {:.3}x the shortest, median {:.1} s per goal",
-            100.0 * out.success_rate,
-            out.path_length_ratio.median,
-            out.time_s.median
-        );
-    }
-    Ok(())
 }

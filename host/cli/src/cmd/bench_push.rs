@@ -1,12 +1,10 @@
 //! `ferrobot bench push ROBOT --scene tabletop --trials N --seed K [--backend ...]`: PyRobot's
 //! pushing example, measured. Trial k places the scene's objects at random on the table (seed
 //! K + k; `ferrobot_sim::placement::scatter_on`), starts the robot [`APPROACH`] back from its
-//! start pose and drives it up (an emulated board's arm hangs unpowered while QEMU boots: from
-//! there it cannot sweep the table), then pushes one object with [`ferrobot::Robot::push_object`].
-//! Judged by the simulated world's ground truth, never by what the robot believes: how far the
-//! chosen object moved along the intended direction, and how far every other object moved.
-//! A trial succeeds when the target moved at least [`GOAL_MOVE`] along the push and no other
-//! object more than [`OTHERS_STILL`].
+//! start pose and drives it up, then pushes one object with [`ferrobot::Robot::push_object`].
+//! Judged by the simulated world's ground truth, never by what the robot believes: a trial
+//! succeeds when the target moved at least [`GOAL_MOVE`] along the push and no other object
+//! more than [`OTHERS_STILL`] (m).
 
 use ferrobot::scene::{Scene, SceneSource};
 use ferrobot::Robot;
@@ -15,7 +13,28 @@ use nalgebra::{Isometry3, Point3, Vector3};
 use serde::Serialize;
 
 use super::bench_nav::{median, Median};
-use super::common::{print_json, robot_builder, TableTrials};
+use super::common::{print_json, robot_builder, BackendArgs};
+
+/// `ferrobot bench push`'s arguments.
+#[derive(clap::Args)]
+pub struct Args {
+    /// Robot name or configuration path.
+    pub robot: String,
+    /// Scene name or path (movable objects on a static body `table`).
+    #[arg(long, default_value = "tabletop")]
+    pub scene: String,
+    /// Trials.
+    #[arg(long, default_value_t = 10)]
+    pub trials: usize,
+    /// Where the robot runs; --seed is the first trial's (placement and plants).
+    #[command(flatten)]
+    pub backend: BackendArgs,
+    /// Print one JSON object: `{"others_moved", "per_trial": [...], "pushes",
+    /// "success_rate", "success_rate_of_pushes", "target_moved_m": {"median", "min"},
+    /// "time_s": {"median"}, "trials"}`.
+    #[arg(long)]
+    pub json: bool,
+}
 
 /// The robot starts this far behind the scene's start pose and drives up to it, m.
 pub const APPROACH: f64 = 0.4;
@@ -78,10 +97,10 @@ struct MinMedian {
 }
 
 /// Run the benchmark and print it.
-pub fn run(a: &TableTrials) -> ferrobot::Result<()> {
+pub fn run(a: &Args) -> ferrobot::Result<()> {
     ferrobot::validate::count("trials", a.trials, 1..=10_000)?;
     // Input errors before any trial: the robot, the scene, the backend.
-    let base_scene = Scene::load(&SceneSource::from_arg(a.scene))?;
+    let base_scene = Scene::load(&SceneSource::from_arg(&a.scene))?;
     a.backend.backend()?;
     let mut trials = Vec::with_capacity(a.trials);
     for k in 0..a.trials {
@@ -136,14 +155,14 @@ pub fn run(a: &TableTrials) -> ferrobot::Result<()> {
 
 /// One trial with seed `seed`. Errors: only the input's and the robot's start (a failed push
 /// is a failed trial).
-fn trial(a: &TableTrials, base_scene: &Scene, seed: u64) -> ferrobot::Result<Trial> {
+fn trial(a: &Args, base_scene: &Scene, seed: u64) -> ferrobot::Result<Trial> {
     let mut scene = base_scene.clone();
     ferrobot_sim::placement::scatter_on(&mut scene, "table", seed, PLACEMENT_GAP)?;
     let start = scene.robot_pose;
     let (s, c) = start[2].sin_cos();
     let mut backend = a.backend.clone();
     backend.seed = seed;
-    let bot = robot_builder(a.robot)
+    let bot = robot_builder(&a.robot)
         .with_scene(scene)
         .start_pose([start[0] - APPROACH * c, start[1] - APPROACH * s, start[2]])
         .backend(backend.backend()?)

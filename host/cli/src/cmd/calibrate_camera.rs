@@ -30,45 +30,50 @@ struct CalibrateJson {
     translation_error_m: f64,
 }
 
-/// What to calibrate, and how.
-pub struct CalibrateArgs<'a> {
+/// `ferrobot calibrate-camera`'s arguments: what to calibrate, and how.
+#[derive(clap::Args)]
+pub struct Args {
     /// Robot name or configuration path.
-    pub robot: &'a str,
-    /// The simulated camera's mount error `[dx, dy, dz, droll, dpitch, dyaw]`, m and rad.
-    pub perturb: [f64; 6],
-    /// Arm poses (1-6).
+    pub robot: String,
+    /// The simulated camera's mount error DX DY DZ DROLL DPITCH DYAW (m and rad, in the camera
+    /// link's frame; each within 0.1 m and 0.5 rad).
+    #[arg(long, num_args = 6, allow_negative_numbers = true,
+          value_names = ["DX", "DY", "DZ", "DROLL", "DPITCH", "DYAW"])]
+    pub perturb: Option<Vec<f64>>,
+    /// Arm poses holding the marker (1-6).
+    #[arg(long, default_value_t = 6)]
     pub poses: usize,
-    /// Head grid side (1-5).
+    /// Head grid side: GRID x GRID pan/tilt views per arm pose (1-5).
+    #[arg(long, default_value_t = 3)]
     pub grid: usize,
     /// Scene name or path.
-    pub scene: &'a str,
+    #[arg(long, default_value = "empty")]
+    pub scene: String,
     /// Where the robot runs.
-    pub backend: &'a BackendArgs,
-    /// The calibration file to write.
-    pub out: Option<&'a Path>,
-    /// Print JSON.
+    #[command(flatten)]
+    pub backend: BackendArgs,
+    /// Write the calibration (TOML) here, for `RobotBuilder::camera_calibration`.
+    #[arg(long)]
+    pub out: Option<std::path::PathBuf>,
+    /// Print one JSON object.
+    #[arg(long)]
     pub json: bool,
 }
 
 /// Calibrate and report.
-pub fn run(a: &CalibrateArgs) -> ferrobot::Result<()> {
+pub fn run(a: &Args) -> ferrobot::Result<()> {
+    let p = a.perturb.as_deref().unwrap_or(&[0.0; 6]);
+    // The simulated camera's mount error `[dx, dy, dz, droll, dpitch, dyaw]`, m and rad.
+    let perturb = [p[0], p[1], p[2], p[3], p[4], p[5]];
+    let out_file = a.out.as_deref();
     let opts = HandEyeOptions::with_counts(a.poses, a.grid)?;
-    if let Some(out) = a.out {
-        // Refused before the robot moves: a directory, or a file in no directory.
-        let dir = out.parent().filter(|d| !d.as_os_str().is_empty());
-        if out.is_dir() || dir.is_some_and(|d| !d.is_dir()) {
-            return Err(ferrobot::Error::Config {
-                file: out.to_path_buf(),
-                key: "-".into(),
-                problem: "cannot write the calibration there (a directory, or no such directory)"
-                    .into(),
-            });
-        }
+    if let Some(out) = out_file {
+        check_out(out)?;
     }
-    let builder: RobotBuilder = robot_builder(a.robot)
+    let builder: RobotBuilder = robot_builder(&a.robot)
         .backend(a.backend.backend()?)
-        .scene(a.scene)
-        .camera_mount_error(a.perturb)
+        .scene(&a.scene)
+        .camera_mount_error(perturb)
         .calibration_marker(true);
     let bot = builder.build()?;
     let nominal = bot
@@ -79,10 +84,10 @@ pub fn run(a: &CalibrateArgs) -> ferrobot::Result<()> {
             component: "camera mount",
         })?;
     let report = bot.calibrate_camera(&opts)?;
-    let truth = nominal.pose * ferrobot::mount_error_pose(&a.perturb);
+    let truth = nominal.pose * ferrobot::mount_error_pose(&perturb);
     let fitted = report.calibration.pose();
     let error = truth.inverse() * fitted;
-    if let Some(out) = a.out {
+    if let Some(out) = out_file {
         write(&report.calibration, out)?;
     }
     let j = CalibrateJson {
@@ -125,13 +130,29 @@ pub fn run(a: &CalibrateArgs) -> ferrobot::Result<()> {
         for why in &report.missed {
             say!("marker not seen: {why}");
         }
-        if let Some(out) = a.out {
+        if let Some(out) = out_file {
             say!("calibration written to {}", out.display());
         }
     }
     Ok(())
 }
 
+/// Refuses, before the robot moves, to write the calibration to a directory or to a file in
+/// no directory.
+fn check_out(out: &Path) -> ferrobot::Result<()> {
+    let dir = out.parent().filter(|d| !d.as_os_str().is_empty());
+    if out.is_dir() || dir.is_some_and(|d| !d.is_dir()) {
+        return Err(ferrobot::Error::Config {
+            file: out.to_path_buf(),
+            key: "-".into(),
+            problem: "cannot write the calibration there (a directory, or no such directory)"
+                .into(),
+        });
+    }
+    Ok(())
+}
+
+/// Writes the calibration file.
 fn write(c: &CameraCalibration, out: &Path) -> ferrobot::Result<()> {
     c.save(out).map_err(|e| ferrobot::Error::Config {
         file: out.to_path_buf(),

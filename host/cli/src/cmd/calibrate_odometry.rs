@@ -2,7 +2,7 @@
 //! truth; also the calibration's JSON and text for `bench base --calibrate`.
 
 use ferrobot::odometry_calibration::WheelGeometry;
-use ferrobot_cli::bench_base::OdometryCalibration;
+use ferrobot_cli::odometry_calibration::OdometryCalibration;
 use serde::Serialize;
 
 use super::common::print_json;
@@ -127,11 +127,25 @@ pub fn calibration_text(c: &OdometryCalibration) -> String {
     )
 }
 
-/// Calibrate the odometry of the simulated `robot` (plants seeded by `seed`) and print the
+/// `ferrobot calibrate-odometry`'s arguments.
+#[derive(clap::Args)]
+pub struct Args {
+    /// Robot name or configuration path.
+    pub robot: String,
+    /// Seed of the plants' noise.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Print one JSON object.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Calibrate the odometry of the simulated robot (plants seeded by `--seed`) and print the
 /// estimate.
-pub fn run(robot: &str, seed: u64, json: bool) -> ferrobot::Result<()> {
-    let c = ferrobot_cli::bench_base::calibrate_odometry(robot, seed)?;
-    if json {
+pub fn run(a: &Args) -> ferrobot::Result<()> {
+    let (robot, seed) = (a.robot.as_str(), a.seed);
+    let c = ferrobot_cli::odometry_calibration::calibrate_odometry(robot, seed)?;
+    if a.json {
         let c = CalibrationJson::new(&c);
         print_json(&CalibrateOdometryJson {
             estimate: c.estimate,

@@ -20,10 +20,29 @@ struct LabelsJson {
     labels: Vec<i32>,
 }
 
-/// Cluster the cloud in `input` (PLY; its points in metres) with DBSCAN (`eps` m,
-/// `min_samples` points counting the point itself) and print the labels (`json`) or a summary.
-/// The parameters are checked before the file is read.
-pub fn run(input: &Path, eps: f64, min_samples: usize, json: bool) -> ferrobot::Result<()> {
+/// `ferrobot cluster`'s arguments.
+#[derive(clap::Args)]
+pub struct Args {
+    /// The cloud: a PLY file (ASCII or binary little-endian, vertices with x y z).
+    #[arg(long = "in", value_name = "CLOUD.ply")]
+    pub input: std::path::PathBuf,
+    /// Neighbourhood radius, m (finite, in (0, 100]).
+    #[arg(long, allow_negative_numbers = true)]
+    pub eps: f64,
+    /// Neighbours (the point itself included) that make a point core (1 to 1,000,000).
+    #[arg(long)]
+    pub min_samples: usize,
+    /// Print one JSON object: `{"labels": [...]}`, one label per point, -1 for noise.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Cluster the cloud in `--in` (PLY; its points in metres) with DBSCAN (`--eps` m,
+/// `--min-samples` points counting the point itself) and print the labels (`--json`) or a
+/// summary. The parameters are checked before the file is read.
+pub fn run(a: &Args) -> ferrobot::Result<()> {
+    let (input, eps, min_samples, json): (&Path, f64, usize, bool) =
+        (&a.input, a.eps, a.min_samples, a.json);
     let dbscan = Dbscan::new(eps, min_samples)?;
     let cloud = read_ply(input)?;
     let c = dbscan.cluster(&cloud.points)?;

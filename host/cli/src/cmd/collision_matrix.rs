@@ -36,9 +36,22 @@ pub fn section(robot: &str, samples: usize, seed: u64) -> ferrobot::Result<Strin
     Ok(matrix.to_toml(&comment))
 }
 
+/// `ferrobot collision-matrix`'s arguments.
+#[derive(clap::Args)]
+pub struct Args {
+    /// Robot name or configuration path.
+    pub robot: String,
+    /// Random configurations of every movable joint.
+    #[arg(long, default_value_t = ferrobot::planning::acm::DEFAULT_SAMPLES)]
+    pub samples: usize,
+    /// Seed of the sampler.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+}
+
 /// Print the section.
-pub fn run(robot: &str, samples: usize, seed: u64) -> ferrobot::Result<()> {
-    let text = section(robot, samples, seed)?;
+pub fn run(a: &Args) -> ferrobot::Result<()> {
+    let text = section(&a.robot, a.samples, a.seed)?;
     say!("{}", text.trim_end());
     Ok(())
 }

@@ -155,19 +155,3 @@ impl BackendArgs {
         })
     }
 }
-
-/// What a table-top manipulation benchmark (`bench grasp`, `bench push`) is asked: trials in a
-/// scene with movable objects on a static body `table`, trial k placing them with seed K + k
-/// (K the backend's seed).
-pub struct TableTrials<'a> {
-    /// Robot name or configuration path.
-    pub robot: &'a str,
-    /// Scene name or path (its movable objects on a static body `table`).
-    pub scene: &'a str,
-    /// Trials.
-    pub trials: usize,
-    /// The backend; its seed is the first trial's (placement and the plants' noise).
-    pub backend: &'a BackendArgs,
-    /// One JSON object instead of text.
-    pub json: bool,
-}

@@ -4,8 +4,17 @@ use ferrobot::Robot;
 
 use super::common::round;
 
-/// Run the quickstart on the simulated `robot`: arm, gripper, camera and base.
-pub fn run(robot: &str) -> ferrobot::Result<()> {
+/// `ferrobot demo`'s arguments.
+#[derive(clap::Args)]
+pub struct Args {
+    /// Robot (default locobot).
+    #[arg(long, default_value = "locobot")]
+    pub robot: String,
+}
+
+/// Run the quickstart on the simulated robot: arm, gripper, camera and base.
+pub fn run(a: &Args) -> ferrobot::Result<()> {
+    let robot = a.robot.as_str();
     let wall = std::time::Instant::now();
     let bot = Robot::new(robot)?; // the in-process simulator
     say!("Ferrobot demo: simulated {robot} (firmware core and simulated plants in lockstep)");

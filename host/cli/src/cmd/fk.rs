@@ -17,10 +17,27 @@ struct PoseJson {
     rotation: [[f64; 3]; 3],
 }
 
-/// Print the pose of the end effector (or of `frame`, a link of the arm's chain) in the
+/// `ferrobot fk`'s arguments.
+#[derive(clap::Args)]
+pub struct Args {
+    /// Robot name or configuration path.
+    pub robot: String,
+    /// Joint angles, rad, in arm order.
+    #[arg(allow_negative_numbers = true, required = true)]
+    pub q: Vec<f64>,
+    /// Frame of the arm's chain (default: the end effector).
+    #[arg(long)]
+    pub frame: Option<String>,
+    /// Print one JSON object.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Print the pose of the end effector (or of `--frame`, a link of the arm's chain) in the
 /// robot's root link at the arm's joint angles `q` (rad).
-pub fn run(robot: &str, q: &[f64], frame: Option<&str>, json: bool) -> ferrobot::Result<()> {
-    let cfg = load(robot)?;
+pub fn run(a: &Args) -> ferrobot::Result<()> {
+    let (q, frame) = (a.q.as_slice(), a.frame.as_deref());
+    let cfg = load(&a.robot)?;
     let arm = arm_chain(&cfg)?;
     check_q(&arm, q)?;
     let chain = match frame {
@@ -44,7 +61,7 @@ pub fn run(robot: &str, q: &[f64], frame: Option<&str>, json: bool) -> ferrobot:
         });
     }
     let p: Pose = chain.fk(&sub).into();
-    if json {
+    if a.json {
         print_json(&PoseJson {
             position: p.position,
             quaternion: p.quaternion,

@@ -8,7 +8,34 @@ use nalgebra::{Isometry3, Translation3};
 use serde::Serialize;
 
 use super::common::{arm_chain, check_q, load, print_json};
-use crate::IkArgs;
+
+/// `ferrobot ik`'s arguments: the target, its orientation one of three ways, and a seed.
+#[derive(clap::Args)]
+pub struct Args {
+    /// Robot name or configuration path.
+    pub robot: String,
+    /// Target position X Y Z, m, in the root link.
+    #[arg(long, num_args = 3, allow_negative_numbers = true, required = true, value_names = ["X", "Y", "Z"])]
+    pub position: Vec<f64>,
+    /// Orientation as a quaternion X Y Z W.
+    #[arg(long, num_args = 4, allow_negative_numbers = true, value_names = ["X", "Y", "Z", "W"], conflicts_with_all = ["rpy", "pitch"])]
+    pub quaternion: Option<Vec<f64>>,
+    /// Orientation as roll, pitch, yaw (R = Rz(yaw)·Ry(pitch)·Rx(roll)), rad.
+    #[arg(long, num_args = 3, allow_negative_numbers = true, value_names = ["R", "P", "Y"], conflicts_with = "pitch")]
+    pub rpy: Option<Vec<f64>>,
+    /// 5-DOF arms: gripper pitch below horizontal, rad.
+    #[arg(long, allow_negative_numbers = true)]
+    pub pitch: Option<f64>,
+    /// 5-DOF arms: gripper roll, rad (with --pitch; default 0).
+    #[arg(long, allow_negative_numbers = true, requires = "pitch")]
+    pub roll: Option<f64>,
+    /// Seed joint angles, rad.
+    #[arg(long, num_args = 1.., allow_negative_numbers = true)]
+    pub seed: Option<Vec<f64>>,
+    /// Print one JSON object.
+    #[arg(long)]
+    pub json: bool,
+}
 
 /// `ik --json` when solved (a failure is `main`'s error object), fields in alphabetical
 /// order (see [`print_json`]).
@@ -22,7 +49,7 @@ struct IkJson {
 
 /// Solve for the joint angles (rad) that put the end effector at the target of `a`: the
 /// pitch-roll solver with `--pitch`, else the robot's solver for a full orientation.
-pub fn run(a: &IkArgs) -> ferrobot::Result<()> {
+pub fn run(a: &Args) -> ferrobot::Result<()> {
     let cfg = load(&a.robot)?;
     let chain = arm_chain(&cfg)?;
     if let Some(s) = &a.seed {

@@ -139,11 +139,21 @@ impl<'a> InfoJson<'a> {
     }
 }
 
-/// Describe `robot` as one JSON line, or as indented JSON without `json`.
-pub fn run(robot: &str, json: bool) -> ferrobot::Result<()> {
-    let cfg = load(robot)?;
+/// `ferrobot info`'s arguments.
+#[derive(clap::Args)]
+pub struct Args {
+    /// Robot name, or a path to a TOML configuration.
+    pub robot: String,
+    /// Print one JSON object.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Describe the robot as one JSON line, or as indented JSON without `--json`.
+pub fn run(a: &Args) -> ferrobot::Result<()> {
+    let cfg = load(&a.robot)?;
     let info = InfoJson::new(&cfg);
-    if json {
+    if a.json {
         print_json(&info);
     } else {
         say!(

@@ -1,4 +1,5 @@
-//! One module per subcommand of `ferrobot`; each `run` does the work and prints, and returns
+//! One module per subcommand of `ferrobot`; each owns its arguments (`Args`, a
+//! `#[derive(clap::Args)]` struct), and its `run(&Args)` does the work and prints, and returns
 //! the API's error for `main` to print and turn into an exit code.
 
 pub mod arm_plan;

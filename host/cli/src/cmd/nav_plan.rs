@@ -8,21 +8,29 @@ use serde::Serialize;
 
 use super::common::print_json;
 
-/// The command's inputs.
-pub struct Args<'a> {
+/// `ferrobot nav-plan`'s arguments.
+#[derive(clap::Args)]
+pub struct Args {
     /// The map's YAML file.
-    pub map: &'a Path,
-    /// Start, m (map frame).
-    pub from: [f64; 2],
-    /// Goal, m (map frame).
-    pub to: [f64; 2],
+    #[arg(long)]
+    pub map: std::path::PathBuf,
+    /// Start x y, m (map frame).
+    #[arg(long, num_args = 2, allow_negative_numbers = true, value_names = ["X", "Y"], required = true)]
+    pub from: Vec<f64>,
+    /// Goal x y, m (map frame).
+    #[arg(long, num_args = 2, allow_negative_numbers = true, value_names = ["X", "Y"], required = true)]
+    pub to: Vec<f64>,
     /// Robot radius, m.
+    #[arg(long, allow_negative_numbers = true)]
     pub radius: f64,
-    /// Unknown cells are free (else occupied).
+    /// Treat unknown cells as free (default: occupied).
+    #[arg(long)]
     pub unknown_free: bool,
-    /// Where to draw the map and the path, if anywhere.
-    pub plot: Option<&'a Path>,
-    /// Print JSON.
+    /// Also draw the map and the path into this PNG file.
+    #[arg(long)]
+    pub plot: Option<std::path::PathBuf>,
+    /// Print one JSON object: `{"length_m", "path": [[x, y], ...]}`.
+    #[arg(long)]
     pub json: bool,
 }
 
@@ -37,10 +45,11 @@ struct PathJson {
 
 /// Plan and print the path (or draw it).
 pub fn run(a: &Args) -> ferrobot::Result<()> {
-    let map = MapImage::load(a.map)?;
+    let (from, to) = ([a.from[0], a.from[1]], [a.to[0], a.to[1]]);
+    let map = MapImage::load(&a.map)?;
     let grid = map.to_grid(!a.unknown_free)?;
-    let path = GridAStar.plan(&grid, a.from, a.to, a.radius)?;
-    if let Some(out) = a.plot {
+    let path = GridAStar.plan(&grid, from, to, a.radius)?;
+    if let Some(out) = a.plot.as_deref() {
         draw(&map, &path.points, a.radius, out)?;
     }
     if a.json {
@@ -58,7 +67,7 @@ pub fn run(a: &Args) -> ferrobot::Result<()> {
         for p in &path.points {
             say!("  {:.3} {:.3}", p[0], p[1]);
         }
-        if let Some(out) = a.plot {
+        if let Some(out) = a.plot.as_deref() {
             say!("drawn into {}", out.display());
         }
     }

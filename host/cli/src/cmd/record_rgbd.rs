@@ -13,8 +13,29 @@ use super::route::Drive;
 /// TUM RGB-D's depth units per metre.
 pub const TUM_DEPTH_FACTOR: f64 = 5000.0;
 
+/// `ferrobot record-rgbd`'s arguments.
+#[derive(clap::Args)]
+pub struct Args {
+    /// Robot name or configuration path.
+    pub robot: String,
+    /// Scene name or path.
+    #[arg(long, default_value = "apartment")]
+    pub scene: String,
+    /// Route of the scene to drive.
+    #[arg(long)]
+    pub route: String,
+    /// Seed of the plants' and the camera's noise.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Output directory (must be missing or empty).
+    #[arg(long)]
+    pub out: std::path::PathBuf,
+}
+
 /// Drive and record; prints how many frames went where.
-pub fn run(robot: &str, scene: &str, route: &str, seed: u64, out: &Path) -> ferrobot::Result<()> {
+pub fn run(a: &Args) -> ferrobot::Result<()> {
+    let (robot, scene, route, seed, out): (&str, &str, &str, u64, &Path) =
+        (&a.robot, &a.scene, &a.route, a.seed, &a.out);
     if out.exists() && std::fs::read_dir(out)?.next().is_some() {
         return Err(ferrobot::Error::PathExists {
             path: out.to_path_buf(),

@@ -11,9 +11,17 @@ struct RobotsJson {
     robots: &'static [&'static str],
 }
 
+/// `ferrobot robots`' arguments.
+#[derive(clap::Args)]
+pub struct Args {
+    /// Print one JSON object.
+    #[arg(long)]
+    pub json: bool,
+}
+
 /// Print the bundled robots' names, one a line or as one JSON object.
-pub fn run(json: bool) -> ferrobot::Result<()> {
-    if json {
+pub fn run(a: &Args) -> ferrobot::Result<()> {
+    if a.json {
         print_json(&RobotsJson {
             robots: &ferrobot::config::BUNDLED,
         });

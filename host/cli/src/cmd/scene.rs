@@ -69,58 +69,35 @@ fn object(b: &ferrobot::scene::Body) -> ObjectJson {
     }
 }
 
-/// Print the scene `name` (a bundled name or a scene file's path); with `map`, also write
-/// its ground-truth floor plan there in map_server's format (cells of `resolution` m,
-/// obstacles from [`OBSTACLE_BAND`]), refusing to write over existing files unless `force`.
-pub fn run(
-    name: &str,
-    json: bool,
-    map: Option<&Path>,
-    resolution: f64,
-    force: bool,
-) -> ferrobot::Result<()> {
-    let scene = Scene::load(&SceneSource::from_arg(name))?;
-    if let Some(yaml) = map {
-        let png = yaml.with_extension("png");
-        if !matches!(
-            yaml.extension().and_then(|e| e.to_str()),
-            Some("yaml" | "yml")
-        ) {
-            return Err(ferrobot::Error::Usage(format!(
-                "--map {}: name the map's YAML file (.yaml or .yml); its PNG goes beside it",
-                yaml.display()
-            )));
-        }
-        for path in [yaml, png.as_path()] {
-            if !force && path.exists() {
-                return Err(ferrobot::Error::PathExists {
-                    path: path.to_path_buf(),
-                });
-            }
-        }
-        let plan = scene.floor_plan(resolution, OBSTACLE_BAND, false)?;
-        let image = MapImage::from_occupied(
-            plan.origin,
-            plan.resolution,
-            plan.width,
-            plan.height,
-            &plan.occupied,
-        );
-        let png = image.save(yaml)?;
-        if !json {
-            say!(
-                "floor plan ({} × {} cells of {} m, obstacles {}–{} m above the floor): {} and {}",
-                plan.width,
-                plan.height,
-                plan.resolution,
-                OBSTACLE_BAND[0],
-                OBSTACLE_BAND[1],
-                yaml.display(),
-                png.display()
-            );
-        }
+/// `ferrobot scene`'s arguments.
+#[derive(clap::Args)]
+pub struct Args {
+    /// `empty`, `tabletop`, `apartment`, `shelf`, `clutter`, or a scene file's path.
+    pub name: String,
+    /// Also write the scene's ground-truth floor plan here (map_server's YAML, and a PNG
+    /// of the same name beside it): obstacles 0.1–0.8 m above the floor, as PyRobot maps.
+    #[arg(long)]
+    pub map: Option<std::path::PathBuf>,
+    /// Cell size of the floor plan, m (PyRobot's 0.02).
+    #[arg(long, default_value_t = 0.02)]
+    pub resolution: f64,
+    /// Write over an existing map file (and its PNG).
+    #[arg(long)]
+    pub force: bool,
+    /// Print one JSON object.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Print the scene (a bundled name or a scene file's path); with `--map`, also write its
+/// ground-truth floor plan there in map_server's format (cells of `--resolution` m, obstacles
+/// from [`OBSTACLE_BAND`]), refusing to write over existing files unless `--force`.
+pub fn run(a: &Args) -> ferrobot::Result<()> {
+    let scene = Scene::load(&SceneSource::from_arg(&a.name))?;
+    if let Some(yaml) = a.map.as_deref() {
+        write_floor_plan(&scene, yaml, a)?;
     }
-    if json {
+    if a.json {
         print_json(&SceneJson {
             objects: scene.bodies.iter().map(object).collect(),
             robot_pose: scene.robot_pose,
@@ -128,6 +105,55 @@ pub fn run(
         });
         return Ok(());
     }
+    print_text(&scene);
+    Ok(())
+}
+
+/// Write the floor plan of `scene` to `yaml` and the PNG beside it (said in text mode).
+fn write_floor_plan(scene: &Scene, yaml: &Path, a: &Args) -> ferrobot::Result<()> {
+    let png = yaml.with_extension("png");
+    if !matches!(
+        yaml.extension().and_then(|e| e.to_str()),
+        Some("yaml" | "yml")
+    ) {
+        return Err(ferrobot::Error::Usage(format!(
+            "--map {}: name the map's YAML file (.yaml or .yml); its PNG goes beside it",
+            yaml.display()
+        )));
+    }
+    for path in [yaml, png.as_path()] {
+        if !a.force && path.exists() {
+            return Err(ferrobot::Error::PathExists {
+                path: path.to_path_buf(),
+            });
+        }
+    }
+    let plan = scene.floor_plan(a.resolution, OBSTACLE_BAND, false)?;
+    let image = MapImage::from_occupied(
+        plan.origin,
+        plan.resolution,
+        plan.width,
+        plan.height,
+        &plan.occupied,
+    );
+    let png = image.save(yaml)?;
+    if !a.json {
+        say!(
+            "floor plan ({} × {} cells of {} m, obstacles {}–{} m above the floor): {} and {}",
+            plan.width,
+            plan.height,
+            plan.resolution,
+            OBSTACLE_BAND[0],
+            OBSTACLE_BAND[1],
+            yaml.display(),
+            png.display()
+        );
+    }
+    Ok(())
+}
+
+/// The scene as text: a line about it, then a table of its bodies.
+fn print_text(scene: &Scene) {
     say!(
         "scene {} ({}): robot at {:?} (x m, y m, θ rad), {} bodies",
         scene.name,
@@ -154,5 +180,4 @@ pub fn run(
             round(&o.size)
         );
     }
-    Ok(())
 }

@@ -28,33 +28,50 @@ use serde::Serialize;
 use super::common::print_json;
 use super::route::Drive;
 
-/// What to run SLAM on.
-pub enum Source<'a> {
-    /// A simulated drive.
-    Drive {
-        /// Robot name or configuration path.
-        robot: &'a str,
-        /// Scene name or path.
-        scene: &'a str,
-        /// Route name in the scene.
-        route: &'a str,
-        /// Seed of the plants' and the camera's noise.
-        seed: u64,
-        /// A map saved by an earlier drive to localise in (the start is then unknown).
-        map: Option<&'a Path>,
-    },
-    /// A recorded sequence in the TUM RGB-D layout.
-    Dataset(&'a Path),
+/// `ferrobot slam`'s arguments: a drive (ROBOT) or a sequence (`--dataset`).
+#[derive(clap::Args)]
+pub struct Args {
+    /// Robot name or configuration path (not with --dataset).
+    #[arg(required_unless_present = "dataset", conflicts_with = "dataset")]
+    pub robot: Option<String>,
+    /// A recorded RGB-D sequence in the TUM RGB-D layout (rgb.txt, depth.txt, PNGs,
+    /// camera.yaml, groundtruth.txt when present).
+    #[arg(long)]
+    pub dataset: Option<std::path::PathBuf>,
+    /// Scene name or path.
+    #[arg(long, default_value = "apartment", conflicts_with = "dataset")]
+    pub scene: String,
+    /// Route of the scene to drive.
+    #[arg(long, default_value = "loop", conflicts_with = "dataset")]
+    pub route: String,
+    /// Seed of the plants' and the camera's noise.
+    #[arg(long, default_value_t = 1, conflicts_with = "dataset")]
+    pub seed: u64,
+    /// Localise in this saved SLAM map (an earlier drive's map.slam) from a start SLAM is
+    /// not told.
+    #[arg(long, conflicts_with = "dataset")]
+    pub map: Option<std::path::PathBuf>,
+    /// Output directory (created if missing).
+    #[arg(long)]
+    pub out: Option<std::path::PathBuf>,
+    /// Print one JSON object: `{"ate_rmse_m", "frames", "ms_per_frame": {"mean", "p95"},
+    /// "occupancy_iou", ...}`.
+    #[arg(long)]
+    pub json: bool,
 }
 
-/// The command's inputs.
-pub struct Args<'a> {
-    /// What to run on.
-    pub source: Source<'a>,
-    /// Output directory (created if missing); a dataset run without it writes nothing.
-    pub out: Option<&'a Path>,
-    /// Print JSON.
-    pub json: bool,
+/// A simulated drive to run SLAM on.
+struct DriveArgs<'a> {
+    /// Robot name or configuration path.
+    robot: &'a str,
+    /// Scene name or path.
+    scene: &'a str,
+    /// Route name in the scene.
+    route: &'a str,
+    /// Seed of the plants' and the camera's noise.
+    seed: u64,
+    /// A map saved by an earlier drive to localise in (the start is then unknown).
+    saved: Option<&'a Path>,
 }
 
 /// Time statistics, ms.
@@ -203,20 +220,23 @@ impl Tally {
 
 /// Run SLAM and write the files.
 pub fn run(a: &Args) -> ferrobot::Result<()> {
-    let out = match &a.source {
-        Source::Drive {
-            robot,
-            scene,
-            route,
-            seed,
-            map,
-        } => {
+    let out = match (&a.robot, &a.dataset) {
+        (_, Some(dir)) => dataset(dir, a.out.as_deref())?,
+        (Some(robot), None) => {
             let out = a
                 .out
+                .as_deref()
                 .ok_or_else(|| ferrobot::Error::Usage("a drive needs --out DIR".into()))?;
-            drive(robot, scene, route, *seed, *map, out)?
+            let d = DriveArgs {
+                robot,
+                scene: &a.scene,
+                route: &a.route,
+                seed: a.seed,
+                saved: a.map.as_deref(),
+            };
+            drive(&d, out)?
         }
-        Source::Dataset(dir) => dataset(dir, a.out)?,
+        (None, None) => return Err(ferrobot::Error::Usage("name a ROBOT or a --dataset".into())),
     };
     if a.json {
         print_json(&out);
@@ -238,16 +258,108 @@ pub fn run(a: &Args) -> ferrobot::Result<()> {
     Ok(())
 }
 
-fn drive(
-    robot: &str,
-    scene: &str,
-    route: &str,
-    seed: u64,
-    saved: Option<&Path>,
-    out: &Path,
-) -> ferrobot::Result<SlamJson> {
-    let d = Drive::new(robot, scene, route, seed)?;
+/// What a drive recorded: SLAM after the last frame, the per-frame tally, and the true and
+/// odometry poses of `base_link` in the world per frame.
+struct Recorded {
+    slam: Slam,
+    tally: Tally,
+    gt: Vec<Stamped>,
+    odo: Vec<Stamped>,
+    /// The first frame's time, s.
+    first_time: Option<f64>,
+}
+
+/// Drive the route with SLAM on every frame; write the files to `out`.
+fn drive(a: &DriveArgs, out: &Path) -> ferrobot::Result<SlamJson> {
+    let d = Drive::new(a.robot, a.scene, a.route, a.seed)?;
     std::fs::create_dir_all(out)?;
+    let rec = record_drive(&d, a.saved)?;
+    let Recorded {
+        slam,
+        mut tally,
+        mut gt,
+        mut odo,
+        first_time,
+    } = rec;
+    let from = first_frame(a.saved, &tally)?;
+    // Lost frames have no pose in the estimates: they are cut by time, the rest by frame.
+    let t_from = tally.quality.get(from).map_or(f64::NEG_INFINITY, |q| q.0);
+    let since = |poses: Vec<Stamped>| -> Vec<Stamped> {
+        poses.into_iter().filter(|s| s.time >= t_from).collect()
+    };
+    let est = since(slam.trajectory());
+    let gt = gt.split_off(from);
+    let odo = odo.split_off(from);
+    let online = since(std::mem::take(&mut tally.online));
+    write_tum(&out.join("estimate.tum"), &est)?;
+    tally.write_quality(&out.join("tracking.tsv"))?;
+    write_tum(&out.join("ground_truth.tum"), &gt)?;
+    write_tum(&out.join("odometry.tum"), &odo)?;
+    let map = slam.map();
+    map.save(&out.join("map.slam"))?;
+    let grid = map
+        .occupancy(&GridSettings::default())?
+        .ok_or_else(|| ferrobot::Error::Usage("no keyframe: nothing was mapped".into()))?;
+    grid.save(&out.join("map.yaml"))?;
+    let iou = map_iou(&grid, &floor_plan(&d)?, 1)?;
+    ferrobot::perception::io::write_ply(out.join("cloud.ply"), &map.cloud(0.02)?)?;
+    let est_ate = ate(&est, &gt, 0.001)?.rmse;
+    let odo_ate = ate(&odo, &gt, 0.001)?.rmse;
+    let caption = format!(
+        "{} in {}, route {}, seed {}: ATE {:.2} cm (wheel odometry {:.2} cm)",
+        a.robot,
+        a.scene,
+        a.route,
+        a.seed,
+        100.0 * est_ate,
+        100.0 * odo_ate
+    );
+    draw(
+        &grid,
+        &est,
+        &gt,
+        &odo,
+        &caption,
+        &out.join("trajectory.png"),
+    )?;
+    Ok(SlamJson {
+        ate_online_rmse_m: Some(ate(&online, &gt, 0.001)?.rmse),
+        ate_rmse_m: Some(est_ate),
+        frames: tally.ms.len(),
+        keyframes: map.keyframes().len(),
+        loops_closed: slam.loops_closed(),
+        localised_after_s: a
+            .saved
+            .and(gt.first().zip(first_time).map(|(g, t0)| g.time - t0)),
+        longest_loss_frames: longest_loss(&slam).0,
+        longest_loss_s: longest_loss(&slam).1,
+        losses: slam.tracking_gaps().len(),
+        lost_frames: tally.lost,
+        median_inliers: tally.inliers().0,
+        min_inliers: tally.inliers().1,
+        ms_per_frame: tally.ms(),
+        occupancy_iou: Some(iou.occupied),
+        occupancy_iou_free: Some(iou.free),
+        odometry_ate_rmse_m: Some(odo_ate),
+        relocalised_frames: tally.relocalised,
+    })
+}
+
+/// The first frame scored: each frame's pose is taken as the final map has it (loop closures
+/// correct what came before); in a saved map, from the frame that found it.
+fn first_frame(saved: Option<&Path>, tally: &Tally) -> ferrobot::Result<usize> {
+    Ok(if saved.is_some() {
+        tally.first_found.ok_or_else(|| {
+            ferrobot::Error::Usage("the robot never found itself in the saved map".into())
+        })?
+    } else {
+        0
+    })
+}
+
+/// SLAM started (at the true start pose, or lost in the map `saved`) and run on every frame
+/// of the drive `d`, with the true and odometry poses of each frame.
+fn record_drive(d: &Drive, saved: Option<&Path>) -> ferrobot::Result<Recorded> {
     let radius = d
         .bot
         .config()
@@ -289,78 +401,25 @@ fn drive(
         });
         Ok(())
     })?;
-    // Each frame's pose as the final map has it (loop closures correct what came before);
-    // in a saved map, from the frame that found it.
-    let from = if saved.is_some() {
-        tally.first_found.ok_or_else(|| {
-            ferrobot::Error::Usage("the robot never found itself in the saved map".into())
-        })?
-    } else {
-        0
-    };
-    // Lost frames have no pose in the estimates: they are cut by time, the rest by frame.
-    let t_from = tally.quality.get(from).map_or(f64::NEG_INFINITY, |q| q.0);
-    let since = |poses: Vec<Stamped>| -> Vec<Stamped> {
-        poses.into_iter().filter(|s| s.time >= t_from).collect()
-    };
-    let est = since(slam.trajectory());
-    let gt = gt.split_off(from);
-    let odo = odo.split_off(from);
-    let online = since(std::mem::take(&mut tally.online));
-    write_tum(&out.join("estimate.tum"), &est)?;
-    tally.write_quality(&out.join("tracking.tsv"))?;
-    write_tum(&out.join("ground_truth.tum"), &gt)?;
-    write_tum(&out.join("odometry.tum"), &odo)?;
-    let map = slam.map();
-    map.save(&out.join("map.slam"))?;
-    let grid = map
-        .occupancy(&GridSettings::default())?
-        .ok_or_else(|| ferrobot::Error::Usage("no keyframe: nothing was mapped".into()))?;
-    grid.save(&out.join("map.yaml"))?;
+    Ok(Recorded {
+        slam,
+        tally,
+        gt,
+        odo,
+        first_time,
+    })
+}
+
+/// The scene's ground-truth floor plan (2 cm cells, [`OBSTACLE_BAND`]) as a map.
+fn floor_plan(d: &Drive) -> ferrobot::Result<MapImage> {
     let plan = d.bot.scene().floor_plan(0.02, OBSTACLE_BAND, false)?;
-    let truth_map = MapImage::from_occupied(
+    Ok(MapImage::from_occupied(
         plan.origin,
         plan.resolution,
         plan.width,
         plan.height,
         &plan.occupied,
-    );
-    let iou = map_iou(&grid, &truth_map, 1)?;
-    ferrobot::perception::io::write_ply(out.join("cloud.ply"), &map.cloud(0.02)?)?;
-    let est_ate = ate(&est, &gt, 0.001)?.rmse;
-    let odo_ate = ate(&odo, &gt, 0.001)?.rmse;
-    let caption = format!(
-        "{robot} in {scene}, route {route}, seed {seed}: ATE {:.2} cm (wheel odometry {:.2} cm)",
-        100.0 * est_ate,
-        100.0 * odo_ate
-    );
-    draw(
-        &grid,
-        &est,
-        &gt,
-        &odo,
-        &caption,
-        &out.join("trajectory.png"),
-    )?;
-    Ok(SlamJson {
-        ate_online_rmse_m: Some(ate(&online, &gt, 0.001)?.rmse),
-        ate_rmse_m: Some(est_ate),
-        frames: tally.ms.len(),
-        keyframes: map.keyframes().len(),
-        loops_closed: slam.loops_closed(),
-        localised_after_s: saved.and(gt.first().zip(first_time).map(|(g, t0)| g.time - t0)),
-        longest_loss_frames: longest_loss(&slam).0,
-        longest_loss_s: longest_loss(&slam).1,
-        losses: slam.tracking_gaps().len(),
-        lost_frames: tally.lost,
-        median_inliers: tally.inliers().0,
-        min_inliers: tally.inliers().1,
-        ms_per_frame: tally.ms(),
-        occupancy_iou: Some(iou.occupied),
-        occupancy_iou_free: Some(iou.free),
-        odometry_ate_rmse_m: Some(odo_ate),
-        relocalised_frames: tally.relocalised,
-    })
+    ))
 }
 
 fn dataset(dir: &Path, out: Option<&Path>) -> ferrobot::Result<SlamJson> {

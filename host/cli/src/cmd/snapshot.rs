@@ -2,10 +2,9 @@
 //! `depth.png` (16-bit millimetres, 0 invalid), `cloud.ply` (the frame's cloud in the world
 //! frame) and `snapshot.png` (colour and depth side by side, for people).
 
-use std::path::Path;
-
 use ferrobot::perception::{io, DepthImage, DepthRange, RgbImage};
 use ferrobot::Backend;
+use nalgebra::Isometry3;
 use serde::Serialize;
 
 use super::common::print_json;
@@ -25,29 +24,40 @@ struct SnapshotJson {
     width: u32,
 }
 
-/// What to take a picture of.
-pub struct SnapshotArgs<'a> {
+/// `ferrobot snapshot`'s arguments: what to take a picture of.
+#[derive(clap::Args)]
+pub struct Args {
     /// Robot name or configuration path.
-    pub robot: &'a str,
+    pub robot: String,
     /// Scene name or path.
-    pub scene: &'a str,
-    /// Head pan and tilt, rad.
+    #[arg(long, default_value = "tabletop")]
+    pub scene: String,
+    /// Head pan, rad (positive left).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub pan: f64,
-    /// Head tilt, rad (positive down).
+    /// Head tilt, rad (positive down; PyRobot's grasping view is 0.8).
+    #[arg(long, default_value_t = 0.8, allow_negative_numbers = true)]
     pub tilt: f64,
-    /// Arm joint angles, rad.
-    pub joints: Option<&'a [f64]>,
-    /// Base start pose `[x, y, θ]` in the world.
-    pub base: Option<[f64; 3]>,
-    /// Exact depth.
+    /// Arm joint angles, rad (default: as the robot starts).
+    #[arg(long, num_args = 1.., allow_negative_numbers = true)]
+    pub joints: Option<Vec<f64>>,
+    /// Base start pose X Y THETA in the world (default: the scene's).
+    #[arg(long, num_args = 3, allow_negative_numbers = true, value_names = ["X", "Y", "THETA"])]
+    pub base: Option<Vec<f64>>,
+    /// Exact depth (no stereo noise).
+    #[arg(long)]
     pub no_noise: bool,
-    /// Depth range of the cloud, m (default: the description's).
-    pub depth_range: Option<[f64; 2]>,
-    /// Where the files go (created if missing).
-    pub out: &'a Path,
+    /// Depth range of the cloud MIN MAX, m (default: the description's).
+    #[arg(long, num_args = 2, value_names = ["MIN", "MAX"])]
+    pub depth_range: Option<Vec<f64>>,
+    /// Output directory (created if missing).
+    #[arg(long)]
+    pub out: std::path::PathBuf,
     /// Seed of the plants' and the camera's noise.
+    #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Print JSON.
+    /// Print one JSON object.
+    #[arg(long)]
     pub json: bool,
 }
 
@@ -93,24 +103,26 @@ fn side_by_side(rgb: &RgbImage, depth: &DepthImage) -> ferrobot::Result<RgbImage
 }
 
 /// Take one frame and write the files.
-pub fn run(a: &SnapshotArgs) -> ferrobot::Result<()> {
-    let mut b = super::common::robot_builder(a.robot)
-        .scene(a.scene)
+pub fn run(a: &Args) -> ferrobot::Result<()> {
+    let mut b = super::common::robot_builder(&a.robot)
+        .scene(&a.scene)
         .depth_noise(!a.no_noise)
         .backend(Backend::Sim {
             seed: a.seed,
             realtime: false,
         });
-    if let Some(p) = a.base {
+    if let Some(p) = a.base.as_ref().map(|b| [b[0], b[1], b[2]]) {
         b = b.start_pose(p);
     }
     let range = a
         .depth_range
+        .as_ref()
+        .map(|r| [r[0], r[1]])
         .map(|[lo, hi]| DepthRange::new(lo, hi))
         .transpose()?;
     let bot = b.build()?;
     let cam = bot.camera()?;
-    if let Some(q) = a.joints {
+    if let Some(q) = a.joints.as_deref() {
         bot.arm()?.set_joint_positions(q)?;
     }
     bot.head()?.set_pan_tilt(a.pan, a.tilt)?;
@@ -121,28 +133,15 @@ pub fn run(a: &SnapshotArgs) -> ferrobot::Result<()> {
         Some(r) => r,
         None => cam.depth_range()?,
     };
-    // The optical frame's pose in the world: the simulator's ground truth at the frame.
-    let optical = bot.config().camera.as_ref().map(|c| c.frame.clone());
-    let world = {
-        let sim = bot
-            .simulator()
-            .ok_or_else(|| ferrobot::Error::Usage("snapshot needs the simulator".into()))?;
-        let body = sim
-            .body()
-            .ok_or_else(|| ferrobot::Error::Usage("the simulated robot has no body".into()))?;
-        let i = optical
-            .as_deref()
-            .and_then(|f| body.tree.link_index(f))
-            .ok_or_else(|| ferrobot::Error::Usage("the URDF has no optical frame".into()))?;
-        sim.truth().links[i]
-    };
-    std::fs::create_dir_all(a.out)?;
-    io::write_rgb_png(a.out.join("rgb.png"), &frame.rgb)?;
-    io::write_depth_png(a.out.join("depth.png"), &frame.depth)?;
+    let world = optical_in_world(&bot)?;
+    let out = a.out.as_path();
+    std::fs::create_dir_all(out)?;
+    io::write_rgb_png(out.join("rgb.png"), &frame.rgb)?;
+    io::write_depth_png(out.join("depth.png"), &frame.depth)?;
     let cloud = frame.cloud(range, true)?.transformed(&world);
-    io::write_ply(a.out.join("cloud.ply"), &cloud)?;
+    io::write_ply(out.join("cloud.ply"), &cloud)?;
     io::write_rgb_png(
-        a.out.join("snapshot.png"),
+        out.join("snapshot.png"),
         &side_by_side(&frame.rgb, &frame.depth)?,
     )?;
     let t = world.translation.vector;
@@ -171,8 +170,24 @@ pub fn run(a: &SnapshotArgs) -> ferrobot::Result<()> {
         );
         say!(
             "wrote {0}/rgb.png, {0}/depth.png, {0}/cloud.ply, {0}/snapshot.png",
-            a.out.display()
+            out.display()
         );
     }
     Ok(())
+}
+
+/// The optical frame's pose in the world: the simulator's ground truth now.
+fn optical_in_world(bot: &ferrobot::Robot) -> ferrobot::Result<Isometry3<f64>> {
+    let optical = bot.config().camera.as_ref().map(|c| c.frame.clone());
+    let sim = bot
+        .simulator()
+        .ok_or_else(|| ferrobot::Error::Usage("snapshot needs the simulator".into()))?;
+    let body = sim
+        .body()
+        .ok_or_else(|| ferrobot::Error::Usage("the simulated robot has no body".into()))?;
+    let i = optical
+        .as_deref()
+        .and_then(|f| body.tree.link_index(f))
+        .ok_or_else(|| ferrobot::Error::Usage("the URDF has no optical frame".into()))?;
+    Ok(sim.truth().links[i])
 }

@@ -10,7 +10,7 @@ use ferrobot::{GoalOptions, Robot};
 /// within 0.3°, and the gyro-less Create 2 drifts further than the Kobuki.
 #[test]
 fn odometry_drifts_like_the_real_bases() {
-    use ferrobot_cli::bench_base::{run_trial, Category};
+    use ferrobot_cli::base_trials::{run_trial, Category};
     let gap = |robot: &str| {
         let t = run_trial(
             robot,
@@ -45,7 +45,7 @@ fn odometry_drifts_like_the_real_bases() {
 /// on every target of the paper's protocol on both bases: within 1 mm and 0.1°.
 #[test]
 fn lqr_with_the_finisher_is_within_1_mm_and_0_1_deg_by_odometry() {
-    use ferrobot_cli::bench_base::{run_trial, Category};
+    use ferrobot_cli::base_trials::{run_trial, Category};
     for robot in ["locobot", "locobot_lite"] {
         for cat in Category::ALL {
             for target in cat.targets() {
@@ -75,7 +75,8 @@ fn lqr_with_the_finisher_is_within_1_mm_and_0_1_deg_by_odometry() {
 /// the truth, where the nominal geometry misses by 13-26 mm.
 #[test]
 fn odometry_calibration_recovers_the_wheel_geometry_and_removes_the_drift() {
-    use ferrobot_cli::bench_base::{calibrate_odometry, run_trial, Category};
+    use ferrobot_cli::base_trials::{run_trial, Category};
+    use ferrobot_cli::odometry_calibration::calibrate_odometry;
     use ferrobot_sim::bases::{create2_params, kobuki_params};
     for (robot, plant) in [
         ("locobot", kobuki_params()),

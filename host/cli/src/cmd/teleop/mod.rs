@@ -1,18 +1,9 @@
 //! `ferrobot teleop ROBOT`: drive a robot from the keyboard in a terminal, with PyRobot's key
-//! map and steps (`ferrobot_teleop::KeyMap::pyrobot`).
-//!
-//! The shell around the sans-IO core ([`ferrobot_teleop::Teleop`]): the terminal
-//! ([`terminal`]) gives key events, the robot ([`operator`]) executes the core's commands and
-//! reports its state, the screen shows it, and one loop lets the robot's time pass.
-//!
-//! Time: each turn of the loop reads the keys that came, stamps them with the robot's clock,
-//! executes the commands, then lets [`Pace::tick`] of robot time pass ([`TICK_S`], 10 ms,
-//! unless `--step-ms` says otherwise). On the simulator the
-//! default is real time (simulated time paced to the wall clock, catching up after a stall);
-//! `--step-ms` instead advances simulated time by exactly that step per turn, each turn
-//! collecting keys for the same span of wall time, with no catching up: a loaded machine slows
-//! the robot rather than stretching the gaps between a held key's auto-repeats (the tests use
-//! it). On the firmware (serial, emulated) the robot's clock is the firmware's.
+//! map and steps (`ferrobot_teleop::KeyMap::pyrobot`): the shell around the sans-IO core
+//! ([`ferrobot_teleop::Teleop`]), the terminal ([`terminal`]) giving keys, the robot
+//! ([`operator`]) executing the core's commands, each turn of the loop letting [`Pace::tick`]
+//! of robot time pass ([`TICK_S`] in real time, or `--step-ms` of simulated time). How time
+//! passes: `docs/design/cli.md`.
 
 mod operator;
 mod screen;
@@ -23,7 +14,6 @@ mod trace;
 mod gamepad;
 
 use std::io::IsTerminal;
-use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -65,21 +55,27 @@ pub const TICK_S: f64 = 0.01;
 pub const SETTLE_S: f64 = 0.3;
 
 /// The arguments of `ferrobot teleop`.
-#[derive(Debug)]
-pub struct Args<'a> {
+#[derive(clap::Args, Debug)]
+pub struct Args {
     /// Robot name or configuration path.
-    pub robot: &'a str,
+    pub robot: String,
     /// Scene name or path (the simulated world).
-    pub scene: &'a str,
+    #[arg(long, default_value = "empty")]
+    pub scene: String,
     /// Where the robot runs.
-    pub backend: &'a BackendArgs,
-    /// Simulator only: robot time per loop turn, ms, instead of real time.
+    #[command(flatten)]
+    pub backend: BackendArgs,
+    /// Simulator only: advance simulated time by this many ms per turn of the loop, each turn
+    /// reading keys for as long of wall time, never catching up (default: real time).
+    #[arg(long, allow_negative_numbers = true)]
     pub step_ms: Option<f64>,
-    /// The terminal's auto-repeat delay, s: how long a first press of a base key holds when
-    /// the terminal reports no releases.
+    /// The terminal's auto-repeat delay, s (0.05-2): how long a first press of an arrow
+    /// drives the base when the terminal does not report key releases.
+    #[arg(long, default_value_t = 0.5, allow_negative_numbers = true)]
     pub repeat_delay: f64,
-    /// Write one JSON line per loop turn here (a new file).
-    pub trace: Option<&'a Path>,
+    /// Write one JSON line per turn (time, keys, commands, state) to this new file.
+    #[arg(long)]
+    pub trace: Option<std::path::PathBuf>,
 }
 
 /// How the loop lets time pass.
@@ -106,43 +102,14 @@ pub enum QuitReason {
 
 /// Check the arguments, connect, drive, and leave the robot safe.
 pub fn run(a: &Args) -> ferrobot::Result<()> {
-    if let Some(ms) = a.step_ms {
-        validate::in_range("--step-ms", ms, 1.0, 1000.0)?;
-    }
-    validate::in_range("--repeat-delay", a.repeat_delay, 0.05, 2.0)?;
-    let cfg = common::load(a.robot)?;
-    let backend = match (a.backend.backend()?, a.step_ms) {
-        (Backend::Sim { seed, .. }, step) => Backend::Sim {
-            seed,
-            realtime: step.is_none(),
-        },
-        (_, Some(_)) => {
-            return Err(ferrobot::Error::Usage(
-                "--step-ms is for the simulator (--backend sim) only".into(),
-            ))
-        }
-        (b, None) => b,
-    };
-    if cfg.arm.is_none() && cfg.base.is_none() && cfg.camera.is_none() {
-        return Err(ferrobot::Error::Usage(format!(
-            "{} has nothing to teleoperate",
-            cfg.name
-        )));
-    }
-    // The world, checked before the terminal is taken (the robot loads it again).
-    ferrobot::scene::Scene::load(&ferrobot::scene::SceneSource::from_arg(a.scene))?;
-    if !(std::io::stdin().is_terminal() && std::io::stdout().is_terminal()) {
-        return Err(ferrobot::Error::Usage(
-            "teleop needs a terminal on standard input and output".into(),
-        ));
-    }
-    let mut trace = a.trace.map(trace::Trace::create).transpose()?;
+    let backend = check(a)?;
+    let mut trace = a.trace.as_deref().map(trace::Trace::create).transpose()?;
     let pace = Pace {
         tick: a.step_ms.map_or(TICK_S, |ms| ms / 1000.0),
         lockstep: a.step_ms.is_some(),
     };
-    let bot = common::robot_builder(a.robot)
-        .scene(a.scene)
+    let bot = common::robot_builder(&a.robot)
+        .scene(&a.scene)
         .backend(backend.clone())
         .build()?;
     let mut op = Operator::new(bot)?;
@@ -154,16 +121,7 @@ pub fn run(a: &Args) -> ferrobot::Result<()> {
         ..HoldTiming::default()
     };
     let mut core = Teleop::new(map, timing);
-    let stop = Arc::new(AtomicBool::new(false));
-    let hangup = Arc::new(AtomicBool::new(false));
-    for (sig, flag) in [
-        (signal_hook::consts::SIGHUP, &hangup),
-        (signal_hook::consts::SIGTERM, &stop),
-        (signal_hook::consts::SIGINT, &stop),
-    ] {
-        signal_hook::flag::register(sig, flag.clone())
-            .map_err(|e| ferrobot::Error::Link(format!("cannot watch signal {sig}: {e}")))?;
-    }
+    let (stop, hangup) = watch_signals()?;
     let term = terminal::Terminal::open()?;
     let (pad, input) = open_pad();
     let header = screen::Header {
@@ -200,6 +158,57 @@ pub fn run(a: &Args) -> ferrobot::Result<()> {
         let _ = writeln!(std::io::stdout(), "{}", report.summary(reason));
     }
     Ok(())
+}
+
+/// The arguments, the robot and the world checked before the terminal is taken; the backend
+/// to drive (the simulator in real time unless `--step-ms`).
+fn check(a: &Args) -> ferrobot::Result<Backend> {
+    if let Some(ms) = a.step_ms {
+        validate::in_range("--step-ms", ms, 1.0, 1000.0)?;
+    }
+    validate::in_range("--repeat-delay", a.repeat_delay, 0.05, 2.0)?;
+    let cfg = common::load(&a.robot)?;
+    let backend = match (a.backend.backend()?, a.step_ms) {
+        (Backend::Sim { seed, .. }, step) => Backend::Sim {
+            seed,
+            realtime: step.is_none(),
+        },
+        (_, Some(_)) => {
+            return Err(ferrobot::Error::Usage(
+                "--step-ms is for the simulator (--backend sim) only".into(),
+            ))
+        }
+        (b, None) => b,
+    };
+    if cfg.arm.is_none() && cfg.base.is_none() && cfg.camera.is_none() {
+        return Err(ferrobot::Error::Usage(format!(
+            "{} has nothing to teleoperate",
+            cfg.name
+        )));
+    }
+    // The world, checked before the terminal is taken (the robot loads it again).
+    ferrobot::scene::Scene::load(&ferrobot::scene::SceneSource::from_arg(&a.scene))?;
+    if !(std::io::stdin().is_terminal() && std::io::stdout().is_terminal()) {
+        return Err(ferrobot::Error::Usage(
+            "teleop needs a terminal on standard input and output".into(),
+        ));
+    }
+    Ok(backend)
+}
+
+/// Flags raised by SIGTERM or SIGINT (the first) and SIGHUP (the second).
+fn watch_signals() -> ferrobot::Result<(Arc<AtomicBool>, Arc<AtomicBool>)> {
+    let stop = Arc::new(AtomicBool::new(false));
+    let hangup = Arc::new(AtomicBool::new(false));
+    for (sig, flag) in [
+        (signal_hook::consts::SIGHUP, &hangup),
+        (signal_hook::consts::SIGTERM, &stop),
+        (signal_hook::consts::SIGINT, &stop),
+    ] {
+        signal_hook::flag::register(sig, flag.clone())
+            .map_err(|e| ferrobot::Error::Link(format!("cannot watch signal {sig}: {e}")))?;
+    }
+    Ok((stop, hangup))
 }
 
 /// Where keys and requests to leave come from.

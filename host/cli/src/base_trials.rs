@@ -1,12 +1,12 @@
-//! The base accuracy benchmark of PyRobot's Table 1 on the simulated bases: each controller
+//! The base accuracy trials of PyRobot's Table 1 on the simulated bases: each controller
 //! drives to the paper's relative targets; errors are measured against the simulator's ground
-//! truth (the paper's motion capture) and against odometry (the controller's own view).
-//! Translation errors are in mm, rotation errors in degrees.
+//! truth (the paper's motion capture) and against odometry (the controller's own view), and
+//! summed up in the table's rows. Translation errors are in mm, rotation errors in degrees.
 
-use ferrobot::base_control::{wrap, Reference};
+use ferrobot::base_control::wrap;
 use ferrobot::config::BaseController;
 use ferrobot::error::{Error, Result};
-use ferrobot::odometry_calibration::{self as cal, CalibrationRun, WheelGeometry};
+use ferrobot::odometry_calibration::WheelGeometry;
 use ferrobot::{Backend, GoalOptions, Robot};
 use serde::Serialize;
 
@@ -91,7 +91,7 @@ pub fn base_robot(robot: &str, seed: u64, geometry: Option<WheelGeometry>) -> Re
 }
 
 /// The simulator's ground-truth base pose `[x, y, θ]` (the paper's motion capture).
-fn truth(bot: &Robot) -> Result<[f64; 3]> {
+pub(crate) fn truth(bot: &Robot) -> Result<[f64; 3]> {
     bot.simulator()
         .and_then(|s| s.base_truth())
         .ok_or_else(|| Error::Link("the benchmark needs the simulated backend".into()))
@@ -269,132 +269,4 @@ impl Row {
             translation_mm: self.translation_mm,
         }
     }
-}
-
-/// How the circle is executed in the tracking comparison.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum CircleRun {
-    /// The reference's controls played open loop.
-    OpenLoop,
-    /// LQR closed loop on the reference.
-    Lqr,
-    /// LQR closed loop on the ILQR-optimised reference.
-    Ilqr,
-}
-
-impl CircleRun {
-    /// Every run, in the plot's order.
-    pub const ALL: [CircleRun; 3] = [CircleRun::OpenLoop, CircleRun::Lqr, CircleRun::Ilqr];
-
-    /// Name in legends.
-    pub fn name(self) -> &'static str {
-        match self {
-            CircleRun::OpenLoop => "open loop",
-            CircleRun::Lqr => "LQR",
-            CircleRun::Ilqr => "ILQR + LQR",
-        }
-    }
-}
-
-/// The paper's circle: radius 0.4 m at 0.1 m/s and 0.25 rad/s for one lap, dt 0.1 s.
-pub fn paper_circle() -> Reference {
-    Reference::circle([0.0; 3], 0.1, 0.25, std::f64::consts::TAU / 0.25, 0.1)
-        .expect("the paper's circle is a valid reference")
-}
-
-/// The executed ground-truth path `[x, y]` (m) of `run` on the circle, and its final
-/// distance from the reference's end (m).
-pub fn circle_path(
-    robot: &str,
-    run: CircleRun,
-    seed: u64,
-    geometry: Option<WheelGeometry>,
-) -> Result<(Vec<[f64; 2]>, f64)> {
-    let bot = base_robot(robot, seed, geometry)?;
-    let mut r = paper_circle();
-    if run == CircleRun::Ilqr {
-        let lim = ferrobot::base_control::Limits::TRACKING;
-        r = ferrobot::base_control::ilqr([0.0; 3], &r, [3.0, 3.0, 4.0], 0.2, &lim)?.reference;
-    }
-    let end = r.end();
-    if let Some(b) = bot
-        .simulator()
-        .as_deref_mut()
-        .and_then(|s| s.hw.base.as_mut())
-    {
-        b.drive.trace = Some(Vec::new());
-    }
-    bot.base()?
-        .track_trajectory(r, run != CircleRun::OpenLoop)?;
-    let trace = bot
-        .simulator()
-        .as_deref_mut()
-        .and_then(|s| s.hw.base.as_mut())
-        .and_then(|b| b.drive.trace.take())
-        .ok_or_else(|| Error::Link("the circle plot needs the simulated backend".into()))?;
-    let last = trace.last().copied().unwrap_or([0.0; 3]);
-    let path = trace.iter().step_by(20).map(|p| [p[0], p[1]]).collect();
-    Ok((path, (last[0] - end[0]).hypot(last[1] - end[1])))
-}
-
-/// The result of calibrating a simulated base's odometry.
-#[derive(Debug, Clone, PartialEq)]
-pub struct OdometryCalibration {
-    /// The nominal geometry of the configuration.
-    pub nominal: WheelGeometry,
-    /// The least-squares estimate.
-    pub estimate: WheelGeometry,
-    /// The runs it was estimated from.
-    pub runs: usize,
-    /// RMS misfit over the runs of odometry with the nominal geometry: position (m),
-    /// heading (rad).
-    pub residual_nominal: (f64, f64),
-    /// The same with the estimate.
-    pub residual: (f64, f64),
-}
-
-/// The calibration protocol's moves, relative `[x, y, θ]`: UMBmark's 1 m square
-/// counter-clockwise and clockwise, one run per leg, then 2 m out and back.
-pub const CALIBRATION_MOVES: [[f64; 3]; 10] = {
-    use std::f64::consts::FRAC_PI_2;
-    [
-        [1.0, 0.0, FRAC_PI_2],
-        [1.0, 0.0, FRAC_PI_2],
-        [1.0, 0.0, FRAC_PI_2],
-        [1.0, 0.0, FRAC_PI_2],
-        [1.0, 0.0, -FRAC_PI_2],
-        [1.0, 0.0, -FRAC_PI_2],
-        [1.0, 0.0, -FRAC_PI_2],
-        [1.0, 0.0, -FRAC_PI_2],
-        [2.0, 0.0, 0.0],
-        [-2.0, 0.0, 0.0],
-    ]
-};
-
-/// Calibrate the odometry of the simulated `robot` (plants seeded by `seed`): drive
-/// [`CALIBRATION_MOVES`] with the configuration's controller on nominal odometry, log the
-/// wheel angles of each, measure its start and end with the simulator's ground truth (a
-/// motion-capture system on a real base), and fit the geometry by least squares
-/// ([`ferrobot::odometry_calibration`]).
-pub fn calibrate_odometry(robot: &str, seed: u64) -> Result<OdometryCalibration> {
-    let bot = base_robot(robot, seed, None)?;
-    let nominal = bot.base()?.odometry_geometry();
-    let mut runs = Vec::new();
-    for m in CALIBRATION_MOVES {
-        let start = truth(&bot)?;
-        let base = bot.base()?;
-        base.start_wheel_log()?;
-        base.go_to_relative(m)?;
-        let wheels = base.take_wheel_log()?;
-        let end = truth(&bot)?;
-        runs.push(CalibrationRun { wheels, start, end });
-    }
-    let estimate = cal::estimate(&runs, &nominal)?;
-    Ok(OdometryCalibration {
-        nominal,
-        estimate,
-        runs: runs.len(),
-        residual_nominal: cal::residuals(&runs, &nominal),
-        residual: cal::residuals(&runs, &estimate),
-    })
 }
