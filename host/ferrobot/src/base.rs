@@ -5,7 +5,7 @@
 
 use std::time::Duration;
 
-use ferrobot_protocol::{HostMsg, Telemetry};
+use ferrobot_protocol::HostMsg;
 
 use crate::base_control::{ilqr, Dwa, Limits, LqrTracker, NavField, Reference};
 use crate::config::BaseController;
@@ -29,148 +29,16 @@ fn check_relative(delta: [f64; 3]) -> Result<()> {
     )?;
     Ok(validate::angles("base goal heading", &delta[2..])?)
 }
-use crate::backend::Link;
-use crate::goals::{Claim, Goal, Step};
+use crate::base_goals::{
+    DwaGoal, LawGoal, TrackGoal, TrackThenFinish, VelocityGoal, BASE, DWA_PATH_MARGIN,
+};
+use crate::goals::Goal;
 use crate::hub::Hub;
 use crate::motion::Motion;
 use crate::nav::{Circle, Obstacles, OccupancyGrid};
-use crate::navigate::NavGoal;
 use crate::odometry_calibration::WheelGeometry;
 use crate::robot::Robot;
 use crate::slam_runner::Source;
-use ferrobot_nav::{NavSettings, Navigator};
-
-/// A host-side position controller run by a [`Motion`] every time the motions are stepped.
-pub(crate) trait BaseLaw: Send {
-    /// The next command `(v, ω)` (m/s, rad/s) from odometry at `now`, `Ok(None)` when the goal
-    /// is reached, or an error when it cannot be.
-    fn step(&mut self, now: Duration, t: &Telemetry) -> Result<Option<(f64, f64)>>;
-
-    /// How long (ms) the firmware holds the command `step` just returned before it stops the
-    /// base by itself.
-    fn hold_ms(&self) -> u16 {
-        250
-    }
-}
-
-/// A law's view of the odometry in telemetry `t`: the pose `[x, y, θ]` (m, m, rad).
-pub(crate) fn odometry_pose(t: &Telemetry) -> [f64; 3] {
-    let o = t.odometry;
-    [o.x as f64, o.y as f64, o.theta as f64]
-}
-
-/// A law's view of the odometry's twist in telemetry `t`: `[v, ω]` (m/s, rad/s).
-fn odometry_twist(t: &Telemetry) -> [f64; 2] {
-    let o = t.odometry;
-    [o.v as f64, o.w as f64]
-}
-
-impl BaseLaw for Proportional {
-    fn step(&mut self, now: Duration, t: &Telemetry) -> Result<Option<(f64, f64)>> {
-        Ok(Proportional::step(self, now, odometry_pose(t)))
-    }
-}
-
-/// the proportional controller turns to the goal heading.
-struct DwaGoal {
-    dwa: Dwa,
-    finish: Proportional,
-    reached: bool,
-    next: Duration,
-    last: (f64, f64),
-    /// Closest distance to the goal so far, m, and when it was last bettered by a centimetre.
-    progress: (f64, Duration),
-}
-
-/// How long the dynamic window may go without getting 1 cm closer to the goal before the goal
-/// is declared unreachable (a local minimum, or boxed in).
-const DWA_NO_PROGRESS: Duration = Duration::from_secs(8);
-
-/// Extra clearance (m) the global path keeps from obstacles beyond the footprint radius, so the
-/// window can follow it at speed and still be able to brake.
-const DWA_PATH_MARGIN: f64 = 0.1;
-
-/// Within this distance of the goal (m) the dynamic window hands over to the proportional
-/// controller, which drives the last stretch straight and turns to the goal heading. The
-/// stretch starts inside the footprint the robot will occupy at the goal (both footprint radii
-/// exceed it), which the caller's goal must leave free anyway.
-const DWA_HANDOVER: f64 = 0.1;
-
-impl BaseLaw for DwaGoal {
-    fn step(&mut self, now: Duration, t: &Telemetry) -> Result<Option<(f64, f64)>> {
-        if self.reached {
-            return Ok(self.finish.step(now, odometry_pose(t)));
-        }
-        if now < self.next {
-            return Ok(Some(self.last));
-        }
-        self.next = now + Duration::from_secs_f64(self.dwa.dt);
-        let x = odometry_pose(t);
-        let dist = (self.dwa.goal[0] - x[0]).hypot(self.dwa.goal[1] - x[1]);
-        if dist < self.progress.0 - 0.01 {
-            self.progress = (dist, now);
-        } else if now.saturating_sub(self.progress.1) > DWA_NO_PROGRESS {
-            return Err(Error::Unreachable {
-                why: format!(
-                    "the dynamic window made no progress for {DWA_NO_PROGRESS:?}, {dist:.3} m from the goal"
-                ),
-            });
-        }
-        if dist < DWA_HANDOVER {
-            self.reached = true;
-            self.finish.take_over(now, self.last);
-            return Ok(self.finish.step(now, x));
-        }
-        // The window is built around what was commanded (odometry velocity lags it).
-        let (v0, w0) = self.last;
-        match self.dwa.command(x, v0, w0) {
-            Some(u) => {
-                self.last = u;
-                Ok(Some(u))
-            }
-            None => Err(Error::Unreachable {
-                why: format!(
-                    "the dynamic window found no collision-free velocity at [{:.3}, {:.3}, {:.3}]",
-                    x[0], x[1], x[2]
-                ),
-            }),
-        }
-    }
-}
-
-struct TrackThenFinish {
-    track: Tracking,
-    tracking: bool,
-    last: (f64, f64),
-    finish: Finisher,
-}
-
-impl BaseLaw for TrackThenFinish {
-    fn step(&mut self, now: Duration, t: &Telemetry) -> Result<Option<(f64, f64)>> {
-        if self.tracking {
-            match self.track.step(now, odometry_pose(t)) {
-                Some(Some(u)) => {
-                    self.last = u;
-                    return Ok(Some(u));
-                }
-                Some(None) => return Ok(Some(self.last)),
-                None => {
-                    self.tracking = false;
-                    self.finish.take_over(self.last);
-                }
-            }
-        }
-        Ok(self.finish.step(now, odometry_pose(t), odometry_twist(t)))
-    }
-
-    fn hold_ms(&self) -> u16 {
-        if self.tracking {
-            250
-        } else {
-            self.finish.hold_ms()
-        }
-    }
-}
 
 /// How a position goal is reached.
 #[derive(Debug, Clone, PartialEq)]
@@ -216,147 +84,6 @@ impl Default for GoalOptions {
     }
 }
 
-/// Stop the base now (best effort: the motion is over either way).
-pub(crate) fn stop_base(link: &mut dyn Link) {
-    let _ = link.command(
-        &HostMsg::BaseVelocity {
-            v: 0.0,
-            w: 0.0,
-            duration_ms: 0,
-        },
-        "stop",
-    );
-}
-
-/// Send a base velocity `(v, ω)` (m/s, rad/s) held for `duration_ms`; `Some(Err)` when the
-/// link refuses it, which ends the motion.
-pub(crate) fn send_base_velocity(
-    link: &mut dyn Link,
-    v: f64,
-    w: f64,
-    duration_ms: u16,
-) -> Option<Result<()>> {
-    link.command(
-        &HostMsg::BaseVelocity {
-            v: v as f32,
-            w: w as f32,
-            duration_ms,
-        },
-        "base velocity",
-    )
-    .err()
-    .map(Err)
-}
-
-/// Send a base velocity `(v, ω)` held for `duration_ms` from a goal's step, noting it in the
-/// base's command log when it differs from the last one noted.
-pub(crate) fn send_logged(
-    s: &mut Step<'_>,
-    v: f64,
-    w: f64,
-    duration_ms: u16,
-) -> Option<Result<()>> {
-    if s.base_log.last().map(|l| (l.1, l.2)) != Some((v, w)) {
-        s.base_log.push((s.now.as_secs_f64(), v, w));
-    }
-    send_base_velocity(s.link, v, w, duration_ms)
-}
-
-/// What every base goal claims.
-pub(crate) const BASE: Claim = Claim {
-    joints: 0,
-    base: true,
-    gripper: false,
-};
-
-/// A base velocity held until a time.
-struct VelocityGoal {
-    v: f64,
-    w: f64,
-    until: Duration,
-    next_send: Duration,
-}
-
-impl Goal for VelocityGoal {
-    fn claim(&self) -> Claim {
-        BASE
-    }
-
-    fn step(&mut self, s: &mut Step<'_>) -> Option<Result<()>> {
-        let now = s.now;
-        if now >= self.until {
-            stop_base(s.link);
-            return Some(Ok(()));
-        }
-        if now >= self.next_send {
-            self.next_send = now + Duration::from_millis(100);
-            let left = (self.until - now).as_millis().min(250) as u16;
-            return send_base_velocity(s.link, self.v, self.w, left);
-        }
-        None
-    }
-
-    fn halt(&mut self, link: &mut dyn Link) {
-        stop_base(link);
-    }
-}
-
-/// A base position goal run by a host-side law.
-struct LawGoal(Box<dyn BaseLaw>);
-
-impl Goal for LawGoal {
-    fn claim(&self) -> Claim {
-        BASE
-    }
-
-    fn step(&mut self, s: &mut Step<'_>) -> Option<Result<()>> {
-        match self.0.step(s.now, s.telemetry) {
-            // Stop explicitly either way: otherwise the firmware would hold the last command
-            // (up to 250 ms) after the law has declared the goal reached.
-            Err(e) => {
-                stop_base(s.link);
-                Some(Err(e))
-            }
-            Ok(None) => {
-                stop_base(s.link);
-                Some(Ok(()))
-            }
-            Ok(Some((v, w))) => send_logged(s, v, w, self.0.hold_ms()),
-        }
-    }
-
-    fn halt(&mut self, link: &mut dyn Link) {
-        stop_base(link);
-    }
-}
-
-/// A base reference tracked by LQR (closed loop) or played open loop.
-struct TrackGoal(Box<Tracking>);
-
-impl Goal for TrackGoal {
-    fn claim(&self) -> Claim {
-        BASE
-    }
-
-    fn step(&mut self, s: &mut Step<'_>) -> Option<Result<()>> {
-        match self.0.step(s.now, odometry_pose(s.telemetry)) {
-            None => {
-                stop_base(s.link);
-                Some(Ok(()))
-            }
-            Some(None) => None,
-            Some(Some((v, w))) => {
-                s.base_log.push((s.now.as_secs_f64(), v, w));
-                send_base_velocity(s.link, v, w, 200)
-            }
-        }
-    }
-
-    fn halt(&mut self, link: &mut dyn Link) {
-        stop_base(link);
-    }
-}
-
 /// The base of a [`Robot`]: a handle (clone of the robot's), so base motions run while other
 /// components move.
 #[derive(Clone, Debug)]
@@ -370,18 +97,23 @@ impl Base {
     }
 
     /// Put a base goal under way (preempting a base motion under way).
-    fn start(&self, goal: Box<dyn Goal>, what: &str, timeout: Duration) -> Result<Motion> {
+    pub(crate) fn start(
+        &self,
+        goal: Box<dyn Goal>,
+        what: &str,
+        timeout: Duration,
+    ) -> Result<Motion> {
         self.robot
             .start_motion(BASE, what, |_io: &mut Hub| Ok((goal, timeout)))
     }
 
     /// The backend's clock.
-    fn now(&self) -> Duration {
+    pub(crate) fn now(&self) -> Duration {
         self.robot.lock_hub().link.now()
     }
 
     /// The tracking limits, capped by the configuration's speeds.
-    fn tracking_limits(&self) -> Limits {
+    pub(crate) fn tracking_limits(&self) -> Limits {
         let s = self.section();
         Limits {
             v: Limits::TRACKING.v.min(s.max_linear),
@@ -403,7 +135,7 @@ impl Base {
         )
     }
 
-    fn section(&self) -> &crate::config::BaseSection {
+    pub(crate) fn section(&self) -> &crate::config::BaseSection {
         // Present: `Robot::base` checks it.
         self.robot.cfg().base.as_ref().expect("base config")
     }
@@ -735,113 +467,5 @@ impl Base {
     /// Move by `[x, y, θ]` relative to the current pose and wait.
     pub fn go_to_relative(&self, delta: [f64; 3]) -> Result<()> {
         self.go_to_relative_async(delta)?.wait()
-    }
-}
-
-impl Base {
-    /// The robot's radius for the navigator, m: the base's footprint radius, or how far the arm
-    /// reaches across the floor now ([`crate::Arm::reach`]) where it sticks out further.
-    fn nav_radius(&self) -> Result<f64> {
-        Ok(self.section().footprint_radius.max(self.robot.arm_reach()?))
-    }
-
-    /// A goal on a map, driven by the navigator (see [`GoalOptions::map`]).
-    fn navigate(&self, goal: [f64; 3], opts: &GoalOptions) -> Result<Motion> {
-        let slam = opts.use_map || opts.frame == Source::Slam;
-        let here = self.get_state_from(if slam { Source::Slam } else { Source::Odometry })?;
-        validate::base_goal(goal, here)?;
-        let radius = self.nav_radius()?;
-        let lim = self.tracking_limits();
-        let grid = match (&opts.map, opts.use_map) {
-            (Some(m), _) => m.clone(),
-            (None, _) => match self.robot.slam_occupancy_map()? {
-                Some(image) => image.to_grid(false)?,
-                // Nothing mapped yet: all unknown, hence free.
-                None => OccupancyGrid::new([here[0], here[1]], 0.02, 1, 1)?,
-            },
-        };
-        // The map and the circles are checked before the circles are stamped into it.
-        grid.check()?;
-        Obstacles::new(opts.obstacles.clone(), None)?;
-        let map = NavGoal::stamped(&grid, &opts.obstacles)?;
-        let mut nav = Navigator::new(&map, [goal[0], goal[1]], NavSettings::new(radius, lim))?;
-        let scans = opts.live_obstacles && self.robot.config().camera.is_some();
-        if scans {
-            // What the last goal's camera saw counts from the start.
-            if let Some(live) = self.robot.lock_hub().sense.live_for(slam) {
-                nav.set_live(&live)?;
-            }
-        }
-        // A goal no path reaches (another room behind closed doors, an island) is a typed
-        // error now, not a failure later: the navigator's first plan, made here. Beyond the
-        // map's edge is unknown, so free (as move_base's allow_unknown). When what blocks the
-        // way is only what the camera saw before, the navigator looks again first.
-        let now = self.now().as_secs_f64();
-        match nav.plan(now, [here[0], here[1]]) {
-            Err(ferrobot_nav::Error::NoPath { .. }) if nav.live_cells() > 0 => {
-                // Blocked by the map itself: refused now.
-                let mut bare = nav.clone();
-                bare.set_live(&ferrobot_nav::LiveObstacles::new(map.resolution)?)?;
-                bare.plan(now, [here[0], here[1]])?;
-            }
-            r => r?,
-        }
-        if scans {
-            let eyes = self.robot.eyes()?;
-            self.robot.lock_hub().sense.camera = Some(eyes);
-        }
-        // The heading stage's controller within the window's (tracking) limits.
-        let finish = self.proportional(goal).with_speed_limits(lim.v, lim.w);
-        let g = NavGoal {
-            nav,
-            goal,
-            slam,
-            slam_grid: opts.use_map && opts.map.is_none(),
-            circles: opts.obstacles.clone(),
-            scans,
-            seen: (0, 0),
-            finish,
-            finishing: false,
-            lost_since: None,
-            hold_ms: 250,
-        };
-        let dist = (goal[0] - here[0]).hypot(goal[1] - here[1]);
-        // Room for detours and every recovery.
-        let timeout = Duration::from_secs_f64(120.0 + 6.0 * dist / lim.v);
-        self.start(Box::new(g), "base position goal (navigator)", timeout)
-    }
-}
-
-/// Longest an exploration may take, s of the robot's clock.
-pub const EXPLORE_TIMEOUT: Duration = Duration::from_secs(1800);
-
-impl Base {
-    /// Explores with SLAM until no reachable frontier is left (see [`crate::navigate`]): the
-    /// base looks all round, then drives to the nearest frontier of SLAM's occupancy grid and
-    /// faces it, again and again, avoiding what the depth camera sees. Needs SLAM running
-    /// ([`Robot::start_slam`]); the map is then [`Robot::slam_occupancy_map`]. Fails after
-    /// [`EXPLORE_TIMEOUT`], or when SLAM has no pose for [`crate::navigate::SLAM_PATIENCE`].
-    pub fn explore_async(&self) -> Result<Motion> {
-        // SLAM must run (its pose may come with the first frames).
-        self.robot.slam_report()?;
-        if self.robot.config().camera.is_none() {
-            return Err(self.robot.missing("camera"));
-        }
-        let eyes = self.robot.eyes()?;
-        self.robot.lock_hub().sense.camera = Some(eyes);
-        let radius = self.nav_radius()?;
-        let live = self.robot.lock_hub().sense.live_for(true);
-        let g = crate::navigate::ExploreGoal::new(
-            NavSettings::new(radius, self.tracking_limits()),
-            ferrobot_nav::FrontierSettings::new(radius),
-            ferrobot_slam::GridSettings::default().resolution,
-            live,
-        )?;
-        self.start(Box::new(g), "exploration", EXPLORE_TIMEOUT)
-    }
-
-    /// As [`Base::explore_async`], waiting until it is done.
-    pub fn explore(&self) -> Result<()> {
-        self.explore_async()?.wait()
     }
 }

@@ -24,6 +24,8 @@ mod arm_parts;
 pub mod arm_plan;
 pub mod backend;
 pub mod base;
+mod base_goals;
+mod base_navigation;
 mod base_state;
 mod builder;
 pub mod camera;

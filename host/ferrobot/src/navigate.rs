@@ -21,7 +21,8 @@ use ferrobot_nav::{
     Navigator, OccupancyGrid,
 };
 
-use crate::base::{odometry_pose, BASE_CONTROL_PERIOD};
+use crate::base::BASE_CONTROL_PERIOD;
+use crate::base_goals::odometry_pose;
 use crate::error::{Error, Result};
 use crate::goals::{Goal, Step};
 use ferrobot_control::laws::Proportional;
@@ -39,7 +40,7 @@ fn out_of_patience(
 ) -> Option<Error> {
     let since = *lost_since.get_or_insert(s.now);
     (s.now.saturating_sub(since) > SLAM_PATIENCE).then(|| {
-        crate::base::stop_base(s.link);
+        crate::base_goals::stop_base(s.link);
         Error::Usage(format!(
             "SLAM has had no pose for {SLAM_PATIENCE:?}: {what}"
         ))
@@ -88,13 +89,13 @@ impl NavGoal {
     }
 
     fn drive(&mut self, s: &mut Step<'_>, v: f64, w: f64) -> Option<Result<()>> {
-        crate::base::send_logged(s, v, w, self.hold_ms)
+        crate::base_goals::send_logged(s, v, w, self.hold_ms)
     }
 }
 
 impl Goal for NavGoal {
     fn claim(&self) -> crate::goals::Claim {
-        crate::base::BASE
+        crate::base_goals::BASE
     }
 
     fn wants_scans(&self) -> bool {
@@ -112,7 +113,7 @@ impl Goal for NavGoal {
             return match self.finish.step(s.now, odometry_pose(s.telemetry)) {
                 Some((v, w)) => self.drive(s, v, w),
                 None => {
-                    crate::base::stop_base(s.link);
+                    crate::base_goals::stop_base(s.link);
                     Some(Ok(()))
                 }
             };
@@ -170,14 +171,14 @@ impl Goal for NavGoal {
                 if self.scans {
                     s.sense.keep_live(self.slam, self.nav.live());
                 }
-                crate::base::stop_base(s.link);
+                crate::base_goals::stop_base(s.link);
                 Some(Err(e.into()))
             }
         }
     }
 
     fn halt(&mut self, link: &mut dyn crate::backend::Link) {
-        crate::base::stop_base(link);
+        crate::base_goals::stop_base(link);
     }
 }
 
@@ -257,7 +258,7 @@ impl ExploreGoal {
     fn end(&mut self, s: &mut Step<'_>, result: Result<()>) -> Option<Result<()>> {
         self.drop_nav();
         s.sense.keep_live(true, &self.live);
-        crate::base::stop_base(s.link);
+        crate::base_goals::stop_base(s.link);
         Some(result)
     }
 
@@ -277,7 +278,7 @@ impl ExploreGoal {
         let v = self.last.0 + (v - self.last.0).clamp(-l.accel_v * dt, l.accel_v * dt);
         let w = self.last.1 + (w - self.last.1).clamp(-l.accel_w * dt, l.accel_w * dt);
         self.last = (v, w);
-        crate::base::send_logged(s, v, w, 250)
+        crate::base_goals::send_logged(s, v, w, 250)
     }
 
     /// The nearest frontier on `map` from `at`, with a navigator to its view point; `None`
@@ -299,7 +300,7 @@ impl ExploreGoal {
 
 impl Goal for ExploreGoal {
     fn claim(&self) -> crate::goals::Claim {
-        crate::base::BASE
+        crate::base_goals::BASE
     }
 
     fn wants_scans(&self) -> bool {
@@ -313,7 +314,7 @@ impl Goal for ExploreGoal {
     fn step(&mut self, s: &mut Step<'_>) -> Option<Result<()>> {
         // Between control periods the last command holds (the navigator keeps its own).
         if s.now < self.next && self.nav.is_none() {
-            return crate::base::send_logged(s, self.last.0, self.last.1, 250);
+            return crate::base_goals::send_logged(s, self.last.0, self.last.1, 250);
         }
         let o = s.telemetry.odometry;
         let odometry = [o.x as f64, o.y as f64, o.theta as f64];
@@ -412,7 +413,7 @@ impl Goal for ExploreGoal {
                     Ok(NavCommand::Drive(v, w)) => {
                         // The navigator limits its own commands.
                         self.last = (v, w);
-                        crate::base::send_logged(s, v, w, 250)
+                        crate::base_goals::send_logged(s, v, w, 250)
                     }
                     Ok(NavCommand::Arrived) => {
                         self.visited += 1;
@@ -466,7 +467,7 @@ impl Goal for ExploreGoal {
     }
 
     fn halt(&mut self, link: &mut dyn crate::backend::Link) {
-        crate::base::stop_base(link);
+        crate::base_goals::stop_base(link);
     }
 }
 

@@ -1,6 +1,6 @@
 //! `ferrobot bench grasp ROBOT --scene tabletop --trials N --seed K`: PyRobot's grasping
 //! example as a benchmark. Each trial places the scene's graspable objects at random on the
-//! table (seed K + trial), starts the robot there, and runs [`ferrobot::grasp::pick`] (look,
+//! table (seed K + trial), starts the robot there, and runs [`ferrobot_skills::grasp::pick`] (look,
 //! choose, plan to the pregrasp, descend, close, lift). Success is judged from the simulator's
 //! ground truth, never from the robot's belief: some object rose at least [`LIFT`] above where
 //! it lay, and is still that high [`HOLD_S`] later. Which objects are graspable:

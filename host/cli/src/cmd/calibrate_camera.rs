@@ -1,5 +1,5 @@
 //! `ferrobot calibrate-camera`: hand-eye calibration of the head camera against the marker on
-//! the gripper ([`ferrobot::hand_eye`]), with the simulated camera mounted off its URDF pose
+//! the gripper ([`ferrobot_skills::hand_eye`]), with the simulated camera mounted off its URDF pose
 //! by `--perturb`; prints how far the fitted mount lies from the true one and writes the
 //! calibration file (`--out`) that robots are then built with
 //! (`RobotBuilder::camera_calibration`).
