@@ -76,7 +76,7 @@ impl Clusterer for Dbscan {
     /// (a camera's surfaces, hundreds of neighbours per point) costs little more than a
     /// sparse one, and the labels stay exact. Neighbours are found on a grid of cells `eps`
     /// wide, the points sorted by cell (a cloud too spread for a grid of
-    /// [`GRID_CELLS_PER_POINT`] cells per point: kiddo's k-d tree); the steps below work on
+    /// `GRID_CELLS_PER_POINT` cells per point: kiddo's k-d tree); the steps below work on
     /// the points in that order.
     ///
     /// 1. *Leaders.* Scanning the points, a point whose grid cells around hold fewer than
