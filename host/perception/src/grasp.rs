@@ -255,11 +255,69 @@ pub fn detect_grasps(
         })
         .collect();
     let reach = gripper.opening / 2.0 + gripper.finger_thickness + gripper.finger_width + 0.01;
+    let frame = PlaneFrame { e1, e2, n, plane };
     let mut out = Vec::new();
     for (k, object) in objects.iter().enumerate() {
         if object.indices.is_empty() {
             continue;
         }
+        let view = ObjectView::new(points, &frame, object, &standing, reach);
+        for j in 0..params.yaws {
+            let yaw = fold(
+                view.long
+                    + std::f64::consts::FRAC_PI_2
+                    + j as f64 * std::f64::consts::PI / params.yaws as f64,
+            );
+            let Some(mut grasp) = view.measure(k, yaw, &frame, gripper, params) else {
+                continue;
+            };
+            let candidate = GraspCandidate {
+                grasp: &grasp,
+                object,
+                points,
+                plane,
+                gripper,
+            };
+            if let Some(score) = model.score(&candidate).filter(|s| s.is_finite()) {
+                grasp.score = score;
+                out.push(grasp);
+            }
+        }
+    }
+    out.sort_by(|a, b| b.score.total_cmp(&a.score));
+    Ok(out)
+}
+
+/// The table's plane with its in-plane axes `e1`, `e2` ([`plane_axes`]) and normal `n`.
+struct PlaneFrame<'a> {
+    e1: Vector3<f64>,
+    e2: Vector3<f64>,
+    n: Vector3<f64>,
+    plane: &'a Plane,
+}
+
+/// One object as its finger lines see it, in plane coordinates `(a, b, height)` (m): its
+/// points, the centre of its top, its long axis (rad from `e1`), and the standing points near
+/// it (that a finger may meet).
+struct ObjectView {
+    own: Vec<(f64, f64, f64)>,
+    ca: f64,
+    cb: f64,
+    long: f64,
+    near: Vec<(f64, f64, f64)>,
+}
+
+impl ObjectView {
+    /// `object` of `points` seen on `frame`'s plane; `standing` are every point above the
+    /// fingertips' lowest height, kept within `reach + 0.1` m of the top's centre.
+    fn new(
+        points: &[Point3<f64>],
+        frame: &PlaneFrame<'_>,
+        object: &SegmentedObject,
+        standing: &[(f64, f64, f64)],
+        reach: f64,
+    ) -> Self {
+        let (e1, e2, plane) = (frame.e1, frame.e2, frame.plane);
         let own: Vec<(f64, f64, f64)> = object
             .indices
             .iter()
@@ -294,76 +352,78 @@ pub fn detect_grasps(
             .copied()
             .filter(|p| (p.0 - ca).hypot(p.1 - cb) < reach + 0.1)
             .collect();
-        for j in 0..params.yaws {
-            let yaw = fold(
-                long + std::f64::consts::FRAC_PI_2
-                    + j as f64 * std::f64::consts::PI / params.yaws as f64,
-            );
-            let (sy, cy) = yaw.sin_cos();
-            let to_st = |a: f64, b: f64| {
-                let (da, db) = (a - ca, b - cb);
-                (da * cy + db * sy, -da * sy + db * cy)
-            };
-            // The object's points in the fingers' band.
-            let half = gripper.finger_width / 2.0;
-            let band: Vec<(f64, f64)> = own
-                .iter()
-                .map(|p| (to_st(p.0, p.1), p.2))
-                .filter(|&((_, t), _)| t.abs() <= half)
-                .map(|((s, _), h)| (s, h))
-                .collect();
-            if band.is_empty() {
-                continue;
-            }
-            let (smin, smax, top) = band.iter().fold(
-                (f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY),
-                |(lo, hi, top), &(s, h)| (lo.min(s), hi.max(s), top.max(h)),
-            );
-            let width = smax - smin;
-            let mid = (smin + smax) / 2.0;
-            let tip = (top - params.target_depth).max(params.table_gap);
-            let depth = (top - tip).min(gripper.finger_length);
-            let inner = gripper.opening / 2.0;
-            let outer = inner + gripper.finger_thickness;
-            let clearance = near
-                .iter()
-                .filter(|p| p.2 > tip)
-                .map(|p| {
-                    let (s, t) = to_st(p.0, p.1);
-                    let s = s - mid;
-                    rect_distance(s, t, inner, outer, half)
-                        .min(rect_distance(s, t, -outer, -inner, half))
-                })
-                .fold(f64::INFINITY, f64::min)
-                .min(1.0);
-            let (a, b) = (ca + mid * cy, cb + mid * sy);
-            let position = Point3::from(e1 * a + e2 * b + n * (plane.offset + tip));
-            let mut grasp = Grasp {
-                object: k,
-                position,
-                closing: Unit::new_normalize(e1 * cy + e2 * sy),
-                yaw,
-                width,
-                top,
-                depth,
-                clearance,
-                score: 0.0,
-            };
-            let candidate = GraspCandidate {
-                grasp: &grasp,
-                object,
-                points,
-                plane,
-                gripper,
-            };
-            if let Some(score) = model.score(&candidate).filter(|s| s.is_finite()) {
-                grasp.score = score;
-                out.push(grasp);
-            }
+        ObjectView {
+            own,
+            ca,
+            cb,
+            long,
+            near,
         }
     }
-    out.sort_by(|a, b| b.score.total_cmp(&a.score));
-    Ok(out)
+
+    /// The grasp of object `k` with the fingers closing along `yaw`, measured (its score 0);
+    /// `None` when none of the object's points lies in the fingers' band.
+    fn measure(
+        &self,
+        k: usize,
+        yaw: f64,
+        frame: &PlaneFrame<'_>,
+        gripper: &GripperGeometry,
+        params: &GraspParams,
+    ) -> Option<Grasp> {
+        let (own, near, ca, cb) = (&self.own, &self.near, self.ca, self.cb);
+        let (e1, e2, n, plane) = (frame.e1, frame.e2, frame.n, frame.plane);
+        let (sy, cy) = yaw.sin_cos();
+        let to_st = |a: f64, b: f64| {
+            let (da, db) = (a - ca, b - cb);
+            (da * cy + db * sy, -da * sy + db * cy)
+        };
+        // The object's points in the fingers' band.
+        let half = gripper.finger_width / 2.0;
+        let band: Vec<(f64, f64)> = own
+            .iter()
+            .map(|p| (to_st(p.0, p.1), p.2))
+            .filter(|&((_, t), _)| t.abs() <= half)
+            .map(|((s, _), h)| (s, h))
+            .collect();
+        if band.is_empty() {
+            return None;
+        }
+        let (smin, smax, top) = band.iter().fold(
+            (f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY),
+            |(lo, hi, top), &(s, h)| (lo.min(s), hi.max(s), top.max(h)),
+        );
+        let width = smax - smin;
+        let mid = (smin + smax) / 2.0;
+        let tip = (top - params.target_depth).max(params.table_gap);
+        let depth = (top - tip).min(gripper.finger_length);
+        let inner = gripper.opening / 2.0;
+        let outer = inner + gripper.finger_thickness;
+        let clearance = near
+            .iter()
+            .filter(|p| p.2 > tip)
+            .map(|p| {
+                let (s, t) = to_st(p.0, p.1);
+                let s = s - mid;
+                rect_distance(s, t, inner, outer, half)
+                    .min(rect_distance(s, t, -outer, -inner, half))
+            })
+            .fold(f64::INFINITY, f64::min)
+            .min(1.0);
+        let (a, b) = (ca + mid * cy, cb + mid * sy);
+        let position = Point3::from(e1 * a + e2 * b + n * (plane.offset + tip));
+        Some(Grasp {
+            object: k,
+            position,
+            closing: Unit::new_normalize(e1 * cy + e2 * sy),
+            yaw,
+            width,
+            top,
+            depth,
+            clearance,
+            score: 0.0,
+        })
+    }
 }
 
 #[cfg(test)]

@@ -13,10 +13,7 @@
 //! the weakest direction of the normal equations must move the corners by at least
 //! [`HandEyeProblem::min_sensitivity`] px per mm (or mrad).
 //!
-//! Why our own Levenberg-Marquardt and not tiny-solver or factrs: six unknowns and a few
-//! hundred residuals, solved densely with nalgebra in a millisecond; the crates build on
-//! faer, whose compile time would dominate this crate's (the SLAM crate's optimiser made the
-//! same choice).
+//! Why a solver of our own: `docs/design/perception.md`.
 
 use nalgebra::{DMatrix, DVector, Isometry3, Point3, Translation3, UnitQuaternion, Vector6};
 
@@ -162,68 +159,12 @@ impl HandEyeProblem {
     /// unobserved, a non-finite input; [`PerceptionError::Parameter`] for an inlier threshold
     /// out of (0, 1000] px.
     pub fn solve(&self) -> Result<HandEyeSolution> {
-        if !(self.inlier_px.is_finite() && self.inlier_px > 0.0 && self.inlier_px <= 1000.0) {
-            return Err(PerceptionError::Parameter {
-                name: "inlier threshold",
-                value: self.inlier_px,
-                range: "(0, 1000] px",
-            });
-        }
-        // A NaN would pass every sensitivity: the observability check silently off.
-        if !(self.min_sensitivity.is_finite() && self.min_sensitivity >= 0.0) {
-            return Err(PerceptionError::Parameter {
-                name: "minimum sensitivity",
-                value: self.min_sensitivity,
-                range: "[0, ∞) px per mm or mrad, finite",
-            });
-        }
-        let finite = |p: &Isometry3<f64>| {
-            p.translation.vector.iter().all(|v| v.is_finite())
-                && p.rotation.coords.iter().all(|v| v.is_finite())
-        };
-        if !self.views.iter().all(|v| {
-            finite(&v.head)
-                && finite(&v.marker)
-                && v.corners.iter().flatten().all(|c| c.is_finite())
-        }) || !finite(&self.initial)
-        {
-            return Err(PerceptionError::HandEye("a view is not finite".into()));
-        }
+        self.check()?;
         let need = self.min_views.max(1);
-        let too_few = |got: usize, what: &str| {
-            PerceptionError::HandEye(format!("{got} {what} of the marker, need at least {need}"))
-        };
         if self.views.len() < need {
-            return Err(too_few(self.views.len(), "images"));
+            return Err(too_few(self.views.len(), "images", need));
         }
-        let mut x = self.fit(self.initial, &self.views)?;
-        let mut kept: Vec<MarkerView> = self.views.clone();
-        loop {
-            let r = self
-                .residuals(&x, &kept)
-                .ok_or_else(|| PerceptionError::HandEye("a corner behind the camera".into()))?;
-            let keep: Vec<bool> = (0..kept.len())
-                .map(|i| {
-                    (0..4).all(|j| {
-                        (r[i * 8 + 2 * j].powi(2) + r[i * 8 + 2 * j + 1].powi(2)).sqrt()
-                            <= self.inlier_px
-                    })
-                })
-                .collect();
-            if keep.iter().all(|&k| k) {
-                break;
-            }
-            kept = kept
-                .iter()
-                .zip(&keep)
-                .filter(|(_, &k)| k)
-                .map(|(v, _)| *v)
-                .collect();
-            if kept.len() < need {
-                return Err(too_few(kept.len(), "images within the inlier threshold"));
-            }
-            x = self.fit(x, &kept)?;
-        }
+        let (x, kept) = self.fit_inliers(need)?;
         let r = self
             .residuals(&x, &kept)
             .ok_or_else(|| PerceptionError::HandEye("a corner behind the camera".into()))?;
@@ -256,6 +197,81 @@ impl HandEyeProblem {
             sensitivity,
         })
     }
+
+    /// Checks the thresholds' ranges and that every view and the initial mount are finite.
+    fn check(&self) -> Result<()> {
+        if !(self.inlier_px.is_finite() && self.inlier_px > 0.0 && self.inlier_px <= 1000.0) {
+            return Err(PerceptionError::Parameter {
+                name: "inlier threshold",
+                value: self.inlier_px,
+                range: "(0, 1000] px",
+            });
+        }
+        // A NaN would pass every sensitivity: the observability check silently off.
+        if !(self.min_sensitivity.is_finite() && self.min_sensitivity >= 0.0) {
+            return Err(PerceptionError::Parameter {
+                name: "minimum sensitivity",
+                value: self.min_sensitivity,
+                range: "[0, ∞) px per mm or mrad, finite",
+            });
+        }
+        let finite = |p: &Isometry3<f64>| {
+            p.translation.vector.iter().all(|v| v.is_finite())
+                && p.rotation.coords.iter().all(|v| v.is_finite())
+        };
+        if !self.views.iter().all(|v| {
+            finite(&v.head)
+                && finite(&v.marker)
+                && v.corners.iter().flatten().all(|c| c.is_finite())
+        }) || !finite(&self.initial)
+        {
+            return Err(PerceptionError::HandEye("a view is not finite".into()));
+        }
+        Ok(())
+    }
+
+    /// The mount fitted to every view, then again to the views within the inlier threshold
+    /// until all are; the mount and the views kept (at least `need`).
+    fn fit_inliers(&self, need: usize) -> Result<(Isometry3<f64>, Vec<MarkerView>)> {
+        let mut x = self.fit(self.initial, &self.views)?;
+        let mut kept: Vec<MarkerView> = self.views.clone();
+        loop {
+            let r = self
+                .residuals(&x, &kept)
+                .ok_or_else(|| PerceptionError::HandEye("a corner behind the camera".into()))?;
+            let keep: Vec<bool> = (0..kept.len())
+                .map(|i| {
+                    (0..4).all(|j| {
+                        (r[i * 8 + 2 * j].powi(2) + r[i * 8 + 2 * j + 1].powi(2)).sqrt()
+                            <= self.inlier_px
+                    })
+                })
+                .collect();
+            if keep.iter().all(|&k| k) {
+                break;
+            }
+            kept = kept
+                .iter()
+                .zip(&keep)
+                .filter(|(_, &k)| k)
+                .map(|(v, _)| *v)
+                .collect();
+            if kept.len() < need {
+                return Err(too_few(
+                    kept.len(),
+                    "images within the inlier threshold",
+                    need,
+                ));
+            }
+            x = self.fit(x, &kept)?;
+        }
+        Ok((x, kept))
+    }
+}
+
+/// `got` views (`what`) where at least `need` are needed.
+fn too_few(got: usize, what: &str, need: usize) -> PerceptionError {
+    PerceptionError::HandEye(format!("{got} {what} of the marker, need at least {need}"))
 }
 
 /// The pose of a perturbation: translation `d[0..3]` (m) and rotation vector `d[3..6]` (rad).

@@ -1,8 +1,7 @@
 //! Files of images and clouds: 8-bit RGB PNG, 16-bit depth PNG in millimetres (0 = invalid,
 //! as a RealSense publishes it), and PLY point clouds (written binary little-endian; read
 //! ASCII or binary little-endian, `x y z` as float or double, optional `red green blue`
-//! uchar). The PLY reader is ours (about 150 lines): the crates on crates.io for PLY are
-//! unmaintained or pull in a generic property model larger than the format we need.
+//! uchar). Why a PLY reader of our own: `docs/design/perception.md`.
 
 use std::io::{BufRead, BufWriter, Read, Write};
 use std::path::Path;
@@ -294,6 +293,75 @@ pub fn read_ply(path: impl AsRef<Path>) -> Result<PointCloud> {
         ));
     }
     let mut r = std::io::BufReader::new(file);
+    let PlyHeader {
+        binary,
+        count: n,
+        props,
+    } = read_ply_header(&mut r, p, len)?;
+    let find = |name: &str| props.iter().position(|q| q.name == name);
+    let (Some(ix), Some(iy), Some(iz)) = (find("x"), find("y"), find("z")) else {
+        return Err(malformed(p, "vertices need x, y and z"));
+    };
+    let rgb = match (find("red"), find("green"), find("blue")) {
+        (Some(a), Some(b), Some(c)) => Some([a, b, c]),
+        _ => None,
+    };
+    let stride: usize = props.iter().map(|q| q.kind.size()).sum();
+    // Every vertex takes at least its stride in binary, a character and a separator a value
+    // in text: a count the file cannot hold is refused before anything is reserved for it.
+    let least = if binary { stride } else { 2 * props.len() };
+    if n.checked_mul(least).is_none_or(|b| b as u64 > len) {
+        return Err(malformed(
+            p,
+            format!("{n} vertices of at least {least} bytes each in {len} bytes"),
+        ));
+    }
+    let mut cloud = PointCloud {
+        points: Vec::with_capacity(n),
+        colours: Vec::with_capacity(n),
+    };
+    let mut vals = vec![0.0f64; props.len()];
+    let mut buf = vec![0u8; stride];
+    let mut text = String::new();
+    for v in 0..n {
+        if binary {
+            r.read_exact(&mut buf)
+                .map_err(|_| malformed(p, format!("data ends at vertex {v} of {n}")))?;
+            let mut o = 0;
+            for (k, q) in props.iter().enumerate() {
+                vals[k] = q.kind.decode(&buf[o..o + q.kind.size()]);
+                o += q.kind.size();
+            }
+        } else {
+            read_text_vertex(&mut r, p, &mut text, &mut vals, v, n)?;
+        }
+        let pt = Point3::new(vals[ix], vals[iy], vals[iz]);
+        if !(pt.x.is_finite() && pt.y.is_finite() && pt.z.is_finite()) {
+            return Err(malformed(p, format!("vertex {v} is not finite: {pt:?}")));
+        }
+        cloud.points.push(pt);
+        cloud.colours.push(match rgb {
+            Some([a, b, c]) => [vals[a], vals[b], vals[c]].map(|x| x.clamp(0.0, 255.0) as u8),
+            None => [128; 3],
+        });
+    }
+    Ok(cloud)
+}
+
+/// What a PLY header says of its vertices: binary (little-endian) or ASCII, how many, and
+/// their properties in order.
+struct PlyHeader {
+    binary: bool,
+    count: usize,
+    props: Vec<Prop>,
+}
+
+/// Reads the header of the PLY file `p` (`len` bytes) from its start, through `end_header`.
+fn read_ply_header(
+    r: &mut std::io::BufReader<std::fs::File>,
+    p: &Path,
+    len: u64,
+) -> Result<PlyHeader> {
     let mut line = String::new();
     let mut next = |r: &mut std::io::BufReader<std::fs::File>| -> Result<String> {
         line.clear();
@@ -307,7 +375,7 @@ pub fn read_ply(path: impl AsRef<Path>) -> Result<PointCloud> {
         }
         Ok(line.trim().to_string())
     };
-    if next(&mut r)? != "ply" {
+    if next(r)? != "ply" {
         return Err(malformed(p, "not a PLY file (no 'ply' magic)"));
     }
     let mut binary = None;
@@ -315,7 +383,7 @@ pub fn read_ply(path: impl AsRef<Path>) -> Result<PointCloud> {
     let mut props: Vec<Prop> = Vec::new();
     let mut in_vertex = false;
     for _ in 0..1000 {
-        let l = next(&mut r)?;
+        let l = next(r)?;
         let words: Vec<&str> = l.split_whitespace().collect();
         match words.as_slice() {
             ["end_header"] => break,
@@ -358,75 +426,46 @@ pub fn read_ply(path: impl AsRef<Path>) -> Result<PointCloud> {
         }
     }
     let binary = binary.ok_or_else(|| malformed(p, "no format line"))?;
-    let n = count.ok_or_else(|| malformed(p, "no vertex element"))?;
-    let find = |name: &str| props.iter().position(|q| q.name == name);
-    let (Some(ix), Some(iy), Some(iz)) = (find("x"), find("y"), find("z")) else {
-        return Err(malformed(p, "vertices need x, y and z"));
-    };
-    let rgb = match (find("red"), find("green"), find("blue")) {
-        (Some(a), Some(b), Some(c)) => Some([a, b, c]),
-        _ => None,
-    };
-    let stride: usize = props.iter().map(|q| q.kind.size()).sum();
-    // Every vertex takes at least its stride in binary, a character and a separator a value
-    // in text: a count the file cannot hold is refused before anything is reserved for it.
-    let least = if binary { stride } else { 2 * props.len() };
-    if n.checked_mul(least).is_none_or(|b| b as u64 > len) {
+    let count = count.ok_or_else(|| malformed(p, "no vertex element"))?;
+    Ok(PlyHeader {
+        binary,
+        count,
+        props,
+    })
+}
+
+/// Reads ASCII vertex `v` of `n` of the PLY file `p` into `vals` (one per property), through
+/// the line buffer `text`.
+fn read_text_vertex(
+    r: &mut std::io::BufReader<std::fs::File>,
+    p: &Path,
+    text: &mut String,
+    vals: &mut [f64],
+    v: usize,
+    n: usize,
+) -> Result<()> {
+    text.clear();
+    let got = r
+        .by_ref()
+        .take(4096)
+        .read_line(text)
+        .map_err(|e| malformed(p, format!("vertex {v}: {e}")))?;
+    if got == 0 {
+        return Err(malformed(p, format!("data ends at vertex {v} of {n}")));
+    }
+    let words: Vec<&str> = text.split_whitespace().collect();
+    if words.len() != vals.len() {
         return Err(malformed(
             p,
-            format!("{n} vertices of at least {least} bytes each in {len} bytes"),
+            format!("vertex {v} has {} values, not {}", words.len(), vals.len()),
         ));
     }
-    let mut cloud = PointCloud {
-        points: Vec::with_capacity(n),
-        colours: Vec::with_capacity(n),
-    };
-    let mut vals = vec![0.0f64; props.len()];
-    let mut buf = vec![0u8; stride];
-    let mut text = String::new();
-    for v in 0..n {
-        if binary {
-            r.read_exact(&mut buf)
-                .map_err(|_| malformed(p, format!("data ends at vertex {v} of {n}")))?;
-            let mut o = 0;
-            for (k, q) in props.iter().enumerate() {
-                vals[k] = q.kind.decode(&buf[o..o + q.kind.size()]);
-                o += q.kind.size();
-            }
-        } else {
-            text.clear();
-            let got = r
-                .by_ref()
-                .take(4096)
-                .read_line(&mut text)
-                .map_err(|e| malformed(p, format!("vertex {v}: {e}")))?;
-            if got == 0 {
-                return Err(malformed(p, format!("data ends at vertex {v} of {n}")));
-            }
-            let words: Vec<&str> = text.split_whitespace().collect();
-            if words.len() != props.len() {
-                return Err(malformed(
-                    p,
-                    format!("vertex {v} has {} values, not {}", words.len(), props.len()),
-                ));
-            }
-            for (k, w) in words.iter().enumerate() {
-                vals[k] = w
-                    .parse()
-                    .map_err(|_| malformed(p, format!("vertex {v}: value {w:?}")))?;
-            }
-        }
-        let pt = Point3::new(vals[ix], vals[iy], vals[iz]);
-        if !(pt.x.is_finite() && pt.y.is_finite() && pt.z.is_finite()) {
-            return Err(malformed(p, format!("vertex {v} is not finite: {pt:?}")));
-        }
-        cloud.points.push(pt);
-        cloud.colours.push(match rgb {
-            Some([a, b, c]) => [vals[a], vals[b], vals[c]].map(|x| x.clamp(0.0, 255.0) as u8),
-            None => [128; 3],
-        });
+    for (k, w) in words.iter().enumerate() {
+        vals[k] = w
+            .parse()
+            .map_err(|_| malformed(p, format!("vertex {v}: value {w:?}")))?;
     }
-    Ok(cloud)
+    Ok(())
 }
 
 #[cfg(test)]

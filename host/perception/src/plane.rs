@@ -190,6 +190,39 @@ pub fn fit_plane(points: &[Point3<f64>], params: &RansacParams) -> Result<PlaneF
             got: n,
         });
     }
+    let t = params.threshold;
+    let (best, drawn, scored) = ransac(points, params);
+    let no_plane = |best_inliers| PerceptionError::NoPlane {
+        hypotheses: scored,
+        best_inliers,
+        threshold: t,
+        min_inliers: params.min_inliers,
+    };
+    let Some((count, plane)) = best else {
+        return Err(no_plane(0));
+    };
+    if count < params.min_inliers {
+        return Err(no_plane(count));
+    }
+    let (plane, inliers) = refine(points, plane, t, params.min_inliers);
+    let rms = (inliers
+        .iter()
+        .map(|&i| plane.signed_distance(&points[i]).powi(2))
+        .sum::<f64>()
+        / inliers.len() as f64)
+        .sqrt();
+    Ok(PlaneFit {
+        plane,
+        inliers,
+        rms,
+        hypotheses: drawn,
+    })
+}
+
+/// RANSAC on `points` (at least 3): the plane with the most inliers and their count (`None`
+/// when no hypothesis was scored), the hypotheses drawn, and those scored.
+fn ransac(points: &[Point3<f64>], params: &RansacParams) -> (Option<(usize, Plane)>, usize, usize) {
+    let n = points.len();
     let up = params.up.map(Unit::new_normalize);
     // Any tilt at pi/2 (a wall's normal is exactly perpendicular to up, and cos(pi/2) > 0).
     let min_cos = if params.max_tilt >= std::f64::consts::FRAC_PI_2 {
@@ -205,39 +238,11 @@ pub fn fit_plane(points: &[Point3<f64>], params: &RansacParams) -> Result<PlaneF
     let mut scored = 0;
     while drawn < needed {
         drawn += 1;
-        let i = rng.random_range(0..n);
-        let mut j = rng.random_range(0..n - 1);
-        if j >= i {
-            j += 1;
-        }
-        let mut k = rng.random_range(0..n - 2);
-        for lower in [i.min(j), i.max(j)] {
-            if k >= lower {
-                k += 1;
-            }
-        }
-        let (a, b, c) = (points[i], points[j], points[k]);
-        let (ab, ac) = (b - a, c - a);
-        let cross = ab.cross(&ac);
-        let scale = ab.norm() * ac.norm();
-        let spans = cross.norm() > 1e-9 * scale;
-        if !spans {
-            continue; // collinear or coincident: no plane
-        }
-        let mut normal = Unit::new_normalize(cross);
-        if let Some(up) = up {
-            if normal.dot(&up) < 0.0 {
-                normal = -normal;
-            }
-            if normal.dot(&up) < min_cos {
-                continue;
-            }
-        }
-        scored += 1;
-        let plane = Plane {
-            normal,
-            offset: normal.dot(&a.coords),
+        let (i, j, k) = draw_three(&mut rng, n);
+        let Some(plane) = through(&points[i], &points[j], &points[k], up, min_cos) else {
+            continue;
         };
+        scored += 1;
         let count = points
             .iter()
             .filter(|p| plane.signed_distance(p).abs() <= t)
@@ -245,31 +250,86 @@ pub fn fit_plane(points: &[Point3<f64>], params: &RansacParams) -> Result<PlaneF
         if best.is_none_or(|(c, _)| count > c) {
             best = Some((count, plane));
             if params.confidence < 1.0 {
-                let w = count as f64 / n as f64;
-                let miss = 1.0 - w * w * w;
-                if miss <= 0.0 {
-                    needed = drawn;
-                } else {
-                    let k = ((1.0 - params.confidence).ln() / miss.ln()).ceil();
-                    if k.is_finite() && k >= 0.0 {
-                        needed = needed.min((k as usize).max(drawn));
-                    }
-                }
+                needed = still_needed(needed, drawn, count as f64 / n as f64, params.confidence);
             }
         }
     }
-    let no_plane = |best_inliers| PerceptionError::NoPlane {
-        hypotheses: scored,
-        best_inliers,
-        threshold: t,
-        min_inliers: params.min_inliers,
-    };
-    let Some((count, mut plane)) = best else {
-        return Err(no_plane(0));
-    };
-    if count < params.min_inliers {
-        return Err(no_plane(count));
+    (best, drawn, scored)
+}
+
+/// Three distinct indices below `n` (at least 3), uniformly drawn from `rng`.
+fn draw_three(rng: &mut ChaCha8Rng, n: usize) -> (usize, usize, usize) {
+    let i = rng.random_range(0..n);
+    let mut j = rng.random_range(0..n - 1);
+    if j >= i {
+        j += 1;
     }
+    let mut k = rng.random_range(0..n - 2);
+    for lower in [i.min(j), i.max(j)] {
+        if k >= lower {
+            k += 1;
+        }
+    }
+    (i, j, k)
+}
+
+/// The plane through `a`, `b` and `c`, its normal turned along `up` when given; `None` when
+/// they span no plane or its normal is farther from `up` than `min_cos` allows.
+fn through(
+    a: &Point3<f64>,
+    b: &Point3<f64>,
+    c: &Point3<f64>,
+    up: Option<Unit<Vector3<f64>>>,
+    min_cos: f64,
+) -> Option<Plane> {
+    let (ab, ac) = (b - a, c - a);
+    let cross = ab.cross(&ac);
+    let scale = ab.norm() * ac.norm();
+    let spans = cross.norm() > 1e-9 * scale;
+    if !spans {
+        return None; // collinear or coincident: no plane
+    }
+    let mut normal = Unit::new_normalize(cross);
+    if let Some(up) = up {
+        if normal.dot(&up) < 0.0 {
+            normal = -normal;
+        }
+        if normal.dot(&up) < min_cos {
+            return None;
+        }
+    }
+    Some(Plane {
+        normal,
+        offset: normal.dot(&a.coords),
+    })
+}
+
+/// The adaptive count of hypotheses, `needed` so far, once `drawn` have been drawn and the best
+/// plane holds the fraction `w` of the points: enough to draw a plane as good with probability
+/// `confidence`.
+fn still_needed(needed: usize, drawn: usize, w: f64, confidence: f64) -> usize {
+    let miss = 1.0 - w * w * w;
+    if miss <= 0.0 {
+        return drawn;
+    }
+    let k = ((1.0 - confidence).ln() / miss.ln()).ceil();
+    if k.is_finite() && k >= 0.0 {
+        needed.min((k as usize).max(drawn))
+    } else {
+        needed
+    }
+}
+
+/// `plane` refitted by least squares to its inliers (within `t` of it) and the inliers taken
+/// again, until they stop changing (at most 5 rounds; a refit with fewer than `min_inliers`
+/// is not taken). Returns the plane and its inliers, ascending.
+fn refine(
+    points: &[Point3<f64>],
+    mut plane: Plane,
+    t: f64,
+    min_inliers: usize,
+) -> (Plane, Vec<usize>) {
+    let n = points.len();
     let within = |plane: &Plane| -> Vec<usize> {
         (0..n)
             .filter(|&i| plane.signed_distance(&points[i]).abs() <= t)
@@ -284,7 +344,7 @@ pub fn fit_plane(points: &[Point3<f64>], params: &RansacParams) -> Result<PlaneF
             refit = refit.flipped();
         }
         let again = within(&refit);
-        if again.len() < params.min_inliers {
+        if again.len() < min_inliers {
             break;
         }
         plane = refit;
@@ -293,18 +353,7 @@ pub fn fit_plane(points: &[Point3<f64>], params: &RansacParams) -> Result<PlaneF
         }
         inliers = again;
     }
-    let rms = (inliers
-        .iter()
-        .map(|&i| plane.signed_distance(&points[i]).powi(2))
-        .sum::<f64>()
-        / inliers.len() as f64)
-        .sqrt();
-    Ok(PlaneFit {
-        plane,
-        inliers,
-        rms,
-        hypotheses: drawn,
-    })
+    (plane, inliers)
 }
 
 #[cfg(test)]

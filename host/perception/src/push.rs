@@ -111,8 +111,13 @@ impl Default for PushParams {
 impl PushParams {
     /// Checks the ranges (see each field).
     pub fn check(&self) -> Result<()> {
-        let bad = |name, value, range| Err(PerceptionError::Parameter { name, value, range });
-        let within = |v: f64, lo: f64, hi: f64| v.is_finite() && v >= lo && v <= hi;
+        self.check_stroke()?;
+        self.check_reach()?;
+        self.check_objects()
+    }
+
+    /// The stroke and the pusher: distances, sizes, clearance.
+    fn check_stroke(&self) -> Result<()> {
         if !(within(self.distance, 0.0, 0.5) && self.distance > 0.0) {
             return bad("distance", self.distance, "a finite distance in (0, 0.5] m");
         }
@@ -147,6 +152,11 @@ impl PushParams {
                 "a finite distance in [0, 0.2] m",
             );
         }
+        Ok(())
+    }
+
+    /// Where the arm reaches, the directions, the tip's height fraction and the viewpoint.
+    fn check_reach(&self) -> Result<()> {
         let [lo, hi] = self.reach;
         if !(within(lo, 0.0, 2.0) && within(hi, 0.0, 2.0) && lo < hi) {
             return bad("reach", hi, "finite [min, max] with 0 <= min < max <= 2 m");
@@ -176,6 +186,11 @@ impl PushParams {
         {
             return bad("viewpoint", v, "finite coordinates within +-1 km");
         }
+        Ok(())
+    }
+
+    /// How objects are told apart: flat tops, tip heights, low and elongated objects.
+    fn check_objects(&self) -> Result<()> {
         if !within(self.flat_share, 0.0, 1.0) {
             return bad("flat_share", self.flat_share, "a finite share in [0, 1]");
         }
@@ -212,6 +227,16 @@ impl PushParams {
         }
         Ok(())
     }
+}
+
+/// Whether `v` is finite and within `[lo, hi]`.
+fn within(v: f64, lo: f64, hi: f64) -> bool {
+    v.is_finite() && v >= lo && v <= hi
+}
+
+/// Parameter `name`'s `value` is out of its `range`.
+fn bad(name: &'static str, value: f64, range: &'static str) -> Result<()> {
+    Err(PerceptionError::Parameter { name, value, range })
 }
 
 /// The push chosen: which object, which way, and the pusher's stroke, in the cloud's frame.
@@ -379,57 +404,117 @@ fn candidate(
     // The pusher's centre: its contact (the fingers) `gap` before the object, then on.
     let a = s0 - params.gap - params.contact_offset;
     let b = a + params.gap + params.distance;
-    let start = d * a + n * tc;
-    let end = d * b + n * tc;
-    // Reach: the farthest point of a segment from the axis is an end, the nearest may lie
-    // between.
-    let [rmin, rmax] = params.reach;
-    let axis = Vector2::from(params.reach_centre);
-    let (from, to) = (start - axis, end - axis);
-    let nearest = {
-        let len = (to - from).norm();
-        let u = ((-from).dot(&d)).clamp(0.0, len);
-        (from + d * u).norm()
+    let stroke = Stroke {
+        d,
+        n,
+        extent: [s0, s1, t0, t1],
+        run: [a, b],
+        tc,
     };
-    if from.norm() > rmax || to.norm() > rmax || nearest < rmin {
+    let (start, end) = (d * a + n * tc, d * b + n * tc);
+    if stroke.out_of_reach(params, start, end) {
         return None;
     }
-    // The swept corridor: the pusher's (from its back at the start to its front at the end)
-    // and the object's (from its back to its front driven on), grown by the clearance.
-    let w = params.pusher_width / 2.0 + params.clearance;
-    let pusher = (
-        a - params.pusher_depth / 2.0 - params.clearance,
-        b + params.pusher_depth / 2.0 + params.clearance,
-        tc - w,
-        tc + w,
-    );
-    let object = (
-        s0 - params.clearance,
-        s1 + params.distance + params.clearance,
-        t0 - params.clearance,
-        t1 + params.clearance,
-    );
-    let inside =
-        |r: &(f64, f64, f64, f64), s: f64, t: f64| s >= r.0 && s <= r.1 && t >= r.2 && t <= r.3;
-    // The run ahead: the nearest other point in the object's lane beyond its front.
-    let lane = (
-        t0.min(tc - w + params.clearance),
-        t1.max(tc + w - params.clearance),
-    );
-    let mut room = MAX_ROOM;
-    for (i, &who) in owner.iter().enumerate() {
-        if who == usize::MAX || who == k {
-            continue;
-        }
-        let p = xy(i);
-        let (s, t) = (p.dot(&d), p.dot(&n));
-        if inside(&pusher, s, t) || inside(&object, s, t) {
-            return None;
-        }
-        if t >= lane.0 - params.clearance && t <= lane.1 + params.clearance && s > s1 {
-            room = room.min(s - s1 - params.clearance);
-        }
+    let mut room = stroke.room(points, owner, k, params)?;
+    let e = edge_run(table, o, c, d);
+    let front = s1 - c.dot(&d);
+    let edge = e - front;
+    // An object that rolls runs on after the push: its whole lane to the edge must be free.
+    if !flat && room < edge {
+        return None;
     }
+    room = room.min(edge);
+    (room >= params.distance + params.clearance).then_some(Candidate { start, end, room })
+}
+
+/// One object pushed one way, in the push's coordinates (m): along the unit direction `d` and
+/// across it along `n`.
+struct Stroke {
+    d: Vector2<f64>,
+    n: Vector2<f64>,
+    /// The object's extent: from `s0` to `s1` along, from `t0` to `t1` across.
+    extent: [f64; 4],
+    /// The pusher centre's run along, from its start to its end ...
+    run: [f64; 2],
+    /// ... at this offset across (the object's centroid's).
+    tc: f64,
+}
+
+impl Stroke {
+    /// Whether the pusher's path from `start` to `end` leaves the arm's reach.
+    fn out_of_reach(&self, params: &PushParams, start: Vector2<f64>, end: Vector2<f64>) -> bool {
+        let d = self.d;
+        // Reach: the farthest point of a segment from the axis is an end, the nearest may lie
+        // between.
+        let [rmin, rmax] = params.reach;
+        let axis = Vector2::from(params.reach_centre);
+        let (from, to) = (start - axis, end - axis);
+        let nearest = {
+            let len = (to - from).norm();
+            let u = ((-from).dot(&d)).clamp(0.0, len);
+            (from + d * u).norm()
+        };
+        from.norm() > rmax || to.norm() > rmax || nearest < rmin
+    }
+
+    /// The free run ahead of object `k` (to the nearest point of another object in its lane
+    /// beyond its front, at most [`MAX_ROOM`]), or `None` when another object's point lies in
+    /// the corridor the pusher and the object sweep.
+    fn room(
+        &self,
+        points: &[Point3<f64>],
+        owner: &[usize],
+        k: usize,
+        params: &PushParams,
+    ) -> Option<f64> {
+        let (d, n, tc) = (self.d, self.n, self.tc);
+        let [s0, s1, t0, t1] = self.extent;
+        let [a, b] = self.run;
+        let xy = |i: usize| Vector2::new(points[i].x, points[i].y);
+        // The swept corridor: the pusher's (from its back at the start to its front at the
+        // end) and the object's (from its back to its front driven on), grown by the
+        // clearance.
+        let w = params.pusher_width / 2.0 + params.clearance;
+        let pusher = (
+            a - params.pusher_depth / 2.0 - params.clearance,
+            b + params.pusher_depth / 2.0 + params.clearance,
+            tc - w,
+            tc + w,
+        );
+        let object = (
+            s0 - params.clearance,
+            s1 + params.distance + params.clearance,
+            t0 - params.clearance,
+            t1 + params.clearance,
+        );
+        let inside =
+            |r: &(f64, f64, f64, f64), s: f64, t: f64| s >= r.0 && s <= r.1 && t >= r.2 && t <= r.3;
+        // The run ahead: the nearest other point in the object's lane beyond its front.
+        let lane = (
+            t0.min(tc - w + params.clearance),
+            t1.max(tc + w - params.clearance),
+        );
+        let mut room = MAX_ROOM;
+        for (i, &who) in owner.iter().enumerate() {
+            if who == usize::MAX || who == k {
+                continue;
+            }
+            let p = xy(i);
+            let (s, t) = (p.dot(&d), p.dot(&n));
+            if inside(&pusher, s, t) || inside(&object, s, t) {
+                return None;
+            }
+            if t >= lane.0 - params.clearance && t <= lane.1 + params.clearance && s > s1 {
+                room = room.min(s - s1 - params.clearance);
+            }
+        }
+        Some(room)
+    }
+}
+
+/// How far object `o`'s centroid `c` (x, y) marches along `d` and stays on the table, in steps
+/// of [`EDGE_STEP`] up to [`MAX_ROOM`], m.
+fn edge_run(table: &TableRegion, o: &SegmentedObject, c: Vector2<f64>, d: Vector2<f64>) -> f64 {
     // The table's edge ahead of the object's front (its centre marched out).
     let z = o.features.centroid.z;
     let mut e = 0.0;
@@ -440,14 +525,7 @@ fn candidate(
         }
         e += EDGE_STEP;
     }
-    let front = s1 - c.dot(&d);
-    let edge = e - front;
-    // An object that rolls runs on after the push: its whole lane to the edge must be free.
-    if !flat && room < edge {
-        return None;
-    }
-    room = room.min(edge);
-    (room >= params.distance + params.clearance).then_some(Candidate { start, end, room })
+    e
 }
 
 #[cfg(test)]

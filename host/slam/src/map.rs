@@ -30,6 +30,10 @@ impl Keyframe {
     }
 }
 
+/// A landmark's position is never trusted beyond this, m (its fused measurements' errors are
+/// not all independent).
+pub(crate) const MIN_LANDMARK_SIGMA: f64 = 0.001;
+
 /// A landmark: a 3-D point with the descriptor it was first seen with.
 #[derive(Debug, Clone)]
 pub(crate) struct Landmark {

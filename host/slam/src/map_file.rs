@@ -9,7 +9,7 @@ use std::path::Path;
 use nalgebra::{Isometry3, Point3, Quaternion, Translation3, UnitQuaternion};
 
 use crate::error::{Error, Result};
-use crate::map::{Keyframe, Landmark, Map};
+use crate::map::{Keyframe, Landmark, Map, MIN_LANDMARK_SIGMA};
 use crate::optimise::Edge;
 
 const MAGIC: &[u8] = b"FERROBOT-SLAM-MAP 1\n";
@@ -186,74 +186,12 @@ impl Map {
         let mut map = Map::default();
         let nk = r.count(8 + 2 * 56 + 8, "keyframes")?;
         for _ in 0..nk {
-            let time = r.f64()?;
-            let pose = r.pose()?;
-            let camera = r.pose()?;
-            if pose.translation.vector.norm() > MAX_COORDINATE
-                || camera.translation.vector.norm() > MAX_COORDINATE
-            {
-                return Err(format!("a keyframe more than {MAX_COORDINATE} m away"));
-            }
-            let nf = r.count(36, "features")?;
-            let mut descriptors = Vec::with_capacity(nf);
-            let mut landmarks = Vec::with_capacity(nf);
-            for _ in 0..nf {
-                descriptors.push(r.descriptor()?);
-                landmarks.push(r.u32()?.checked_sub(1));
-            }
-            let nc = r.count(15, "cloud points")?;
-            let mut cloud = Vec::with_capacity(nc);
-            for _ in 0..nc {
-                let p = Point3::new(r.f32()?, r.f32()?, r.f32()?);
-                if p.coords.norm() as f64 > MAX_COORDINATE {
-                    return Err(format!("a depth point more than {MAX_COORDINATE} m away"));
-                }
-                let c = r.take(3)?;
-                cloud.push((p, [c[0], c[1], c[2]]));
-            }
-            map.keyframes.push(Keyframe {
-                time,
-                pose,
-                camera,
-                descriptors,
-                landmarks,
-                cloud,
-            });
+            map.keyframes.push(r.keyframe()?);
         }
         let nl = r.count(4 + 32 + 32 + 1 + 8, "landmarks")?;
         for i in 0..nl {
-            let keyframe = r.u32()?;
-            if keyframe >= nk {
-                return Err(format!(
-                    "landmark {i} is anchored to keyframe {keyframe} of {nk}"
-                ));
-            }
-            let local = Point3::new(r.f64()?, r.f64()?, r.f64()?);
-            let sigma = r.f64()?;
-            if !(crate::slam::MIN_LANDMARK_SIGMA..=100.0).contains(&sigma) {
-                return Err(format!("landmark {i} has a position sigma of {sigma} m"));
-            }
-            if local.coords.norm() > MAX_COORDINATE {
-                return Err(format!("landmark {i} lies {local} m from its keyframe"));
-            }
-            let descriptor = r.descriptor()?;
-            let level = r.take(1)?[0];
-            if level > 11 {
-                return Err(format!("landmark {i} is on pyramid level {level}"));
-            }
-            let found = r.u32()? as u32;
-            let visible = r.u32()? as u32;
-            let world = map.keyframes[keyframe].camera_pose() * local;
-            map.landmarks.push(Landmark {
-                keyframe,
-                local,
-                world,
-                descriptor,
-                level,
-                sigma,
-                found,
-                visible,
-            });
+            let landmark = r.landmark(i, &map.keyframes)?;
+            map.landmarks.push(landmark);
         }
         for (k, kf) in map.keyframes.iter().enumerate() {
             if let Some(&l) = kf.landmarks.iter().flatten().find(|&&l| l >= nl) {
@@ -262,26 +200,114 @@ impl Map {
         }
         let ne = r.count(8 + 56 + 16, "edges")?;
         for i in 0..ne {
-            let (a, b) = (r.u32()?, r.u32()?);
-            if a >= nk || b >= nk {
-                return Err(format!("edge {i} joins keyframes {a} and {b} of {nk}"));
-            }
-            let z = r.pose()?;
-            let (sigma_t, sigma_r) = (r.f64()?, r.f64()?);
-            if sigma_t <= 0.0 || sigma_r <= 0.0 {
-                return Err(format!("edge {i} has sigmas {sigma_t}, {sigma_r}"));
-            }
-            map.edges.push(Edge {
-                a,
-                b,
-                z,
-                sigma_t,
-                sigma_r,
-            });
+            map.edges.push(r.edge(i, nk)?);
         }
         if r.at != r.data.len() {
             return Err(format!("{} bytes after the map", r.data.len() - r.at));
         }
         Ok(map)
+    }
+}
+
+impl Reader<'_> {
+    /// A keyframe: time, poses, features with their landmark ties, depth sample.
+    fn keyframe(&mut self) -> std::result::Result<Keyframe, String> {
+        let r = self;
+        let time = r.f64()?;
+        let pose = r.pose()?;
+        let camera = r.pose()?;
+        if pose.translation.vector.norm() > MAX_COORDINATE
+            || camera.translation.vector.norm() > MAX_COORDINATE
+        {
+            return Err(format!("a keyframe more than {MAX_COORDINATE} m away"));
+        }
+        let nf = r.count(36, "features")?;
+        let mut descriptors = Vec::with_capacity(nf);
+        let mut landmarks = Vec::with_capacity(nf);
+        for _ in 0..nf {
+            descriptors.push(r.descriptor()?);
+            landmarks.push(r.u32()?.checked_sub(1));
+        }
+        let nc = r.count(15, "cloud points")?;
+        let mut cloud = Vec::with_capacity(nc);
+        for _ in 0..nc {
+            let p = Point3::new(r.f32()?, r.f32()?, r.f32()?);
+            if p.coords.norm() as f64 > MAX_COORDINATE {
+                return Err(format!("a depth point more than {MAX_COORDINATE} m away"));
+            }
+            let c = r.take(3)?;
+            cloud.push((p, [c[0], c[1], c[2]]));
+        }
+        Ok(Keyframe {
+            time,
+            pose,
+            camera,
+            descriptors,
+            landmarks,
+            cloud,
+        })
+    }
+
+    /// Landmark `i`, anchored to one of `keyframes`.
+    fn landmark(
+        &mut self,
+        i: usize,
+        keyframes: &[Keyframe],
+    ) -> std::result::Result<Landmark, String> {
+        let r = self;
+        let nk = keyframes.len();
+        let keyframe = r.u32()?;
+        if keyframe >= nk {
+            return Err(format!(
+                "landmark {i} is anchored to keyframe {keyframe} of {nk}"
+            ));
+        }
+        let local = Point3::new(r.f64()?, r.f64()?, r.f64()?);
+        let sigma = r.f64()?;
+        if !(MIN_LANDMARK_SIGMA..=100.0).contains(&sigma) {
+            return Err(format!("landmark {i} has a position sigma of {sigma} m"));
+        }
+        if local.coords.norm() > MAX_COORDINATE {
+            return Err(format!("landmark {i} lies {local} m from its keyframe"));
+        }
+        let descriptor = r.descriptor()?;
+        let level = r.take(1)?[0];
+        if level > 11 {
+            return Err(format!("landmark {i} is on pyramid level {level}"));
+        }
+        let found = r.u32()? as u32;
+        let visible = r.u32()? as u32;
+        let world = keyframes[keyframe].camera_pose() * local;
+        Ok(Landmark {
+            keyframe,
+            local,
+            world,
+            descriptor,
+            level,
+            sigma,
+            found,
+            visible,
+        })
+    }
+
+    /// Edge `i` of the pose graph, between two of `nk` keyframes.
+    fn edge(&mut self, i: usize, nk: usize) -> std::result::Result<Edge, String> {
+        let r = self;
+        let (a, b) = (r.u32()?, r.u32()?);
+        if a >= nk || b >= nk {
+            return Err(format!("edge {i} joins keyframes {a} and {b} of {nk}"));
+        }
+        let z = r.pose()?;
+        let (sigma_t, sigma_r) = (r.f64()?, r.f64()?);
+        if sigma_t <= 0.0 || sigma_r <= 0.0 {
+            return Err(format!("edge {i} has sigmas {sigma_t}, {sigma_r}"));
+        }
+        Ok(Edge {
+            a,
+            b,
+            z,
+            sigma_t,
+            sigma_r,
+        })
     }
 }

@@ -5,9 +5,7 @@
 //! sequence) in the world; perturbations act on the right, in the body's frame, through a
 //! [`Dof`] basis: the three planar ones of a ground robot (x, y, yaw) or all six.
 //!
-//! Why our own solver and not tiny-solver or factrs: both build on faer, whose compile time
-//! would double this crate's share of CI, and the problems here are tiny (6 unknowns per frame;
-//! a few hundred keyframes in a graph, solved densely in milliseconds).
+//! Why a solver of our own: `docs/design/slam.md`.
 
 use nalgebra::{
     DMatrix, DVector, Isometry3, Matrix3, Point3, Translation3, UnitQuaternion, Vector3, Vector6,
@@ -220,73 +218,9 @@ pub fn optimise_pose(
         return 0;
     }
     let start = *t_wb;
-    let cols = dof.columns();
-    let huber = CHI2_3.sqrt();
     for round in 0..4 {
         for _ in 0..if round == 0 { 10 } else { 5 } {
-            let mut h = DMatrix::<f64>::zeros(n, n);
-            let mut g = DVector::<f64>::zeros(n);
-            for (o, &ok) in obs.iter().zip(inlier.iter()) {
-                if !ok {
-                    continue;
-                }
-                let Some((pred, j6)) = project(cam, t_wb, t_bc, &o.point) else {
-                    continue;
-                };
-                let s = Vector3::new(o.sigma_px, o.sigma_px, o.sigma_disparity);
-                let r = (o.measured - pred).component_div(&s);
-                let e = r.norm();
-                let w = if e <= huber { 1.0 } else { huber / e };
-                for a in 0..3 {
-                    let ja: Vec<f64> = cols.iter().map(|&c| j6[(a, c)] / s[a]).collect();
-                    for i in 0..n {
-                        g[i] += w * ja[i] * r[a];
-                        for k in 0..n {
-                            h[(i, k)] += w * ja[i] * ja[k];
-                        }
-                    }
-                }
-            }
-            if let Some(p) = prior {
-                // Error of the pose in the prior's frame: (x, y, yaw) of T_p⁻¹ T.
-                let e = p.pose.inverse() * *t_wb;
-                let [ex, ey, eth] = to_planar(&e);
-                let (s, c) = eth.sin_cos();
-                // d(error)/d(x, y, yaw) of the right perturbation.
-                let j = Matrix3::new(c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0);
-                let r = [ex, ey, eth];
-                let pc = dof.columns();
-                for (a, (&ra, &sa)) in r.iter().zip(&p.sigma).enumerate() {
-                    // The prior's a-th error moves with the planar unknowns only.
-                    for (i, &ci) in pc.iter().enumerate() {
-                        let ji = planar_entry(&j, a, ci) / sa;
-                        if ji == 0.0 {
-                            continue;
-                        }
-                        g[i] -= ji * ra / sa;
-                        for (k, &ck) in pc.iter().enumerate() {
-                            h[(i, k)] += ji * planar_entry(&j, a, ck) / sa;
-                        }
-                    }
-                }
-            }
-            for i in 0..n {
-                h[(i, i)] *= 1.0 + 1e-6;
-                h[(i, i)] += 1e-9;
-            }
-            let Some(ch) = h.cholesky() else { break };
-            let mut d = ch.solve(&g);
-            // A step beyond 0.5 (m or rad) is an ill-posed system's, not a correction: cap it.
-            let norm = d.norm();
-            if !norm.is_finite() {
-                break;
-            }
-            if norm > 0.5 {
-                d *= 0.5 / norm;
-            }
-            // r = z - h(x) and J is of h: the step is +H⁻¹ Jᵀ r.
-            *t_wb = retract(t_wb, &dof.twist(d.as_slice()));
-            if d.norm() < 1e-9 {
+            if !pose_step(cam, t_wb, t_bc, obs, dof, prior, inlier) {
                 break;
             }
         }
@@ -309,6 +243,115 @@ pub fn optimise_pose(
         return 0;
     }
     inlier.iter().filter(|&&b| b).count()
+}
+
+/// One Gauss-Newton step of [`optimise_pose`] on the observations marked `inlier` (and the
+/// `prior`), capped at 0.5 m or rad; false when none can be taken or it was below 1e-9.
+fn pose_step(
+    cam: &Pinhole,
+    t_wb: &mut Isometry3<f64>,
+    t_bc: &Isometry3<f64>,
+    obs: &[Observation],
+    dof: Dof,
+    prior: Option<&PlanarPrior>,
+    inlier: &[bool],
+) -> bool {
+    let n = dof.count();
+    let mut h = DMatrix::<f64>::zeros(n, n);
+    let mut g = DVector::<f64>::zeros(n);
+    add_observations(cam, t_wb, t_bc, obs, dof, inlier, &mut h, &mut g);
+    if let Some(p) = prior {
+        add_prior(p, t_wb, dof, &mut h, &mut g);
+    }
+    for i in 0..n {
+        h[(i, i)] *= 1.0 + 1e-6;
+        h[(i, i)] += 1e-9;
+    }
+    let Some(ch) = h.cholesky() else {
+        return false;
+    };
+    let mut d = ch.solve(&g);
+    // A step beyond 0.5 (m or rad) is an ill-posed system's, not a correction: cap it.
+    let norm = d.norm();
+    if !norm.is_finite() {
+        return false;
+    }
+    if norm > 0.5 {
+        d *= 0.5 / norm;
+    }
+    // r = z - h(x) and J is of h: the step is +H⁻¹ Jᵀ r.
+    *t_wb = retract(t_wb, &dof.twist(d.as_slice()));
+    d.norm() >= 1e-9
+}
+
+/// Adds the Huber-weighted normal equations `h`, `g` of the observations marked `inlier` at
+/// `t_wb`.
+#[allow(clippy::too_many_arguments)]
+fn add_observations(
+    cam: &Pinhole,
+    t_wb: &Isometry3<f64>,
+    t_bc: &Isometry3<f64>,
+    obs: &[Observation],
+    dof: Dof,
+    inlier: &[bool],
+    h: &mut DMatrix<f64>,
+    g: &mut DVector<f64>,
+) {
+    let n = dof.count();
+    let cols = dof.columns();
+    let huber = CHI2_3.sqrt();
+    for (o, &ok) in obs.iter().zip(inlier.iter()) {
+        if !ok {
+            continue;
+        }
+        let Some((pred, j6)) = project(cam, t_wb, t_bc, &o.point) else {
+            continue;
+        };
+        let s = Vector3::new(o.sigma_px, o.sigma_px, o.sigma_disparity);
+        let r = (o.measured - pred).component_div(&s);
+        let e = r.norm();
+        let w = if e <= huber { 1.0 } else { huber / e };
+        for a in 0..3 {
+            let ja: Vec<f64> = cols.iter().map(|&c| j6[(a, c)] / s[a]).collect();
+            for i in 0..n {
+                g[i] += w * ja[i] * r[a];
+                for k in 0..n {
+                    h[(i, k)] += w * ja[i] * ja[k];
+                }
+            }
+        }
+    }
+}
+
+/// Adds the normal equations `h`, `g` of the odometry's prior `p` at `t_wb`.
+fn add_prior(
+    p: &PlanarPrior,
+    t_wb: &Isometry3<f64>,
+    dof: Dof,
+    h: &mut DMatrix<f64>,
+    g: &mut DVector<f64>,
+) {
+    // Error of the pose in the prior's frame: (x, y, yaw) of T_p⁻¹ T.
+    let e = p.pose.inverse() * *t_wb;
+    let [ex, ey, eth] = to_planar(&e);
+    let (s, c) = eth.sin_cos();
+    // d(error)/d(x, y, yaw) of the right perturbation.
+    let j = Matrix3::new(c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0);
+    let r = [ex, ey, eth];
+    let pc = dof.columns();
+    for (a, (&ra, &sa)) in r.iter().zip(&p.sigma).enumerate() {
+        // The prior's a-th error moves with the planar unknowns only.
+        for (i, &ci) in pc.iter().enumerate() {
+            let ji = planar_entry(&j, a, ci) / sa;
+            if ji == 0.0 {
+                continue;
+            }
+            g[i] -= ji * ra / sa;
+            for (k, &ck) in pc.iter().enumerate() {
+                h[(i, k)] += ji * planar_entry(&j, a, ck) / sa;
+            }
+        }
+    }
 }
 
 /// Entry of the planar error Jacobian `j` (rows x, y, yaw; columns of the twist 0, 1, 5).
