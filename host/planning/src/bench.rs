@@ -84,7 +84,7 @@ pub fn generate(
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let sample_free = |rng: &mut ChaCha8Rng| -> Option<Vec<f64>> {
         for _ in 0..20_000 {
-            let q = crate::planner::sample(rng, &limits);
+            let q = crate::joint_space::sample(rng, &limits);
             if checker.is_free(&q) && (near <= 0.0 || checker.near_world(&q, near)) {
                 return Some(q);
             }

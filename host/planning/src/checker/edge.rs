@@ -326,7 +326,7 @@ mod tests {
         assert!(c.pairs.len() > 5);
         let limits = model.limits().to_vec();
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
-        let sample = |rng: &mut rand_chacha::ChaCha8Rng| crate::planner::sample(rng, &limits);
+        let sample = |rng: &mut rand_chacha::ChaCha8Rng| crate::joint_space::sample(rng, &limits);
         let (mut tight_pair, mut tight_body) = (0.0f64, 0.0f64);
         for _ in 0..300 {
             let (a, b) = (sample(&mut rng), sample(&mut rng));

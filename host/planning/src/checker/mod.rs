@@ -391,7 +391,7 @@ mod tests {
         .expect("padded");
         let limits = model.limits().to_vec();
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
-        let mut sample = || crate::planner::sample(&mut rng, &limits);
+        let mut sample = || crate::joint_space::sample(&mut rng, &limits);
         let (mut within, mut beyond) = (0, 0);
         while within < 30 || beyond < 30 {
             let q = sample();
@@ -483,7 +483,7 @@ mod tests {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
         let (mut hits, mut free) = (0, 0);
         for _ in 0..300 {
-            let q = crate::planner::sample(&mut rng, &limits);
+            let q = crate::joint_space::sample(&mut rng, &limits);
             let c = dense.contact(&q);
             assert_eq!(c, sparse.contact(&q), "{q:?}");
             if c.is_some() {
@@ -498,8 +498,8 @@ mod tests {
         let (mut refused, mut proven) = (0, 0);
         while refused < 3 || proven < 3 {
             let (a, b) = (
-                crate::planner::sample(&mut rng, &limits),
-                crate::planner::sample(&mut rng, &limits),
+                crate::joint_space::sample(&mut rng, &limits),
+                crate::joint_space::sample(&mut rng, &limits),
             );
             if !(dense.is_free(&a) && dense.is_free(&b)) {
                 continue;
@@ -539,7 +539,7 @@ mod tests {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
         let mut states = 0;
         while states < 5 {
-            let q = crate::planner::sample(&mut rng, model.limits());
+            let q = crate::joint_space::sample(&mut rng, model.limits());
             let (e0, f0) = (checks(&empty), checks(&far));
             if !empty.is_free(&q) {
                 continue;
@@ -565,7 +565,7 @@ mod tests {
         let (mut refused, mut refused_states, mut free, mut free_states) = (0, 0, 0, 0);
         while refused < 60 || free < 20 {
             let q: Vec<Vec<f64>> = (0..2)
-                .map(|_| crate::planner::sample(&mut rng, &limits))
+                .map(|_| crate::joint_space::sample(&mut rng, &limits))
                 .collect();
             let (a, b) = (&q[0], &q[1]);
             if !c.is_free(a) || !c.is_free(b) {
