@@ -211,7 +211,7 @@ impl Checker {
             return false;
         }
         ahead.sort_by(|x, y| y.0.total_cmp(&x.0));
-        let Some(mut clear) = clearance(0.0) else {
+        let Some(clear) = clearance(0.0) else {
             return false;
         };
         if total <= 0.0 {
@@ -219,43 +219,57 @@ impl Checker {
         }
         // About 8 µm of point motion with the default `min_step`.
         let smallest = self.opts.min_step / total / 128.0;
-        // A step from `t` to `u` is free when the clearances at its ends add up to more than
-        // its length: a point x into it is at least max(c − x, cᵤ − (u − t − x)) > 0 from
-        // anything (for each body, as each clearance is the smallest over bodies). A step
-        // that is not proven is halved, keeping its far end.
-        let mut t = 0.0f64;
-        while t < 1.0 {
-            let (u, cu) = match ahead.last() {
-                Some(&p) => p,
-                None => {
-                    // Nothing measured ahead: guess that the clearance grows (a step of three
-                    // times it; two and four were slower), and at least `min_step` near
-                    // contact.
-                    let u = (t + (3.0 * clear).max(min_dt)).min(1.0);
-                    let Some(cu) = clearance(u) else {
-                        return false;
-                    };
-                    ahead.push((u, cu));
-                    (u, cu)
-                }
-            };
-            if clear + cu > u - t {
-                ahead.pop();
-                t = u;
-                clear = cu;
-                continue;
-            }
-            if u - t < 2.0 * smallest {
-                return false;
-            }
-            let m = 0.5 * (t + u);
-            let Some(cm) = clearance(m) else {
-                return false;
-            };
-            ahead.push((m, cm));
-        }
-        true
+        walk(&mut clearance, ahead, clear, min_dt, smallest)
     }
+}
+
+/// The steps of conservative advancement from the edge's start (of clearance `clear`) to its
+/// end, given `clearance` (how far along the edge, in its parameter, nothing can be reached
+/// from a state, or `None` at a contact) and the states measured `ahead` (the nearest last):
+/// whether every step is proven free, none shorter than `2 · smallest` needed.
+fn walk(
+    clearance: &mut impl FnMut(f64) -> Option<f64>,
+    mut ahead: Vec<(f64, f64)>,
+    mut clear: f64,
+    min_dt: f64,
+    smallest: f64,
+) -> bool {
+    // A step from `t` to `u` is free when the clearances at its ends add up to more than
+    // its length: a point x into it is at least max(c − x, cᵤ − (u − t − x)) > 0 from
+    // anything (for each body, as each clearance is the smallest over bodies). A step
+    // that is not proven is halved, keeping its far end.
+    let mut t = 0.0f64;
+    while t < 1.0 {
+        let (u, cu) = match ahead.last() {
+            Some(&p) => p,
+            None => {
+                // Nothing measured ahead: guess that the clearance grows (a step of three
+                // times it; two and four were slower), and at least `min_step` near
+                // contact.
+                let u = (t + (3.0 * clear).max(min_dt)).min(1.0);
+                let Some(cu) = clearance(u) else {
+                    return false;
+                };
+                ahead.push((u, cu));
+                (u, cu)
+            }
+        };
+        if clear + cu > u - t {
+            ahead.pop();
+            t = u;
+            clear = cu;
+            continue;
+        }
+        if u - t < 2.0 * smallest {
+            return false;
+        }
+        let m = 0.5 * (t + u);
+        let Some(cm) = clearance(m) else {
+            return false;
+        };
+        ahead.push((m, cm));
+    }
+    true
 }
 
 /// How many of the [`rake`]'s states are measured before an edge's [`Near`] limits are set

@@ -83,31 +83,41 @@ fn shape_distance(
             }
         }
     }
-    // Where no direction separates them yet: ascend the gap over directions (a concave
-    // function whose supergradient is the witness points' difference), in damped steps.
+    // Where no direction separates them yet: ascend the gap over directions.
     if best <= 0.0 && along != Vector::ZERO {
-        let mut n = along;
-        let mut step = 0.5f32;
-        for _ in 0..64 {
-            let (g, w) = gap(n);
-            let tangent = w - n * w.dot(n);
-            let len = tangent.length();
-            if !(len > 1e-12 && len.is_finite()) {
-                break;
-            }
-            let m = (n + tangent * (step / len)).normalize();
-            let (gm, _) = gap(m);
-            if gm > g {
-                n = m;
-                best = best.max(gm);
-            } else if step < 1e-3 {
-                break;
-            } else {
-                step *= 0.5;
-            }
-        }
+        best = ascend(gap, along, best);
     }
     (f64::from(best) - 1e-6).max(0.0)
+}
+
+/// The best of `best` and the gaps (m) found by ascending `gap` (a concave function of the
+/// direction, whose supergradient is its witness points' difference) from direction `n`, in
+/// damped steps.
+fn ascend(
+    gap: impl Fn(parry3d::math::Vector) -> (f32, parry3d::math::Vector),
+    mut n: parry3d::math::Vector,
+    mut best: f32,
+) -> f32 {
+    let mut step = 0.5f32;
+    for _ in 0..64 {
+        let (g, w) = gap(n);
+        let tangent = w - n * w.dot(n);
+        let len = tangent.length();
+        if !(len > 1e-12 && len.is_finite()) {
+            break;
+        }
+        let m = (n + tangent * (step / len)).normalize();
+        let (gm, _) = gap(m);
+        if gm > g {
+            n = m;
+            best = best.max(gm);
+        } else if step < 1e-3 {
+            break;
+        } else {
+            step *= 0.5;
+        }
+    }
+    best
 }
 
 /// A lower bound (m; 0 when touching) of the distance between the exact shapes `a` (on

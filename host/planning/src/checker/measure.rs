@@ -6,7 +6,7 @@ use std::sync::atomic::Ordering;
 
 use nalgebra::Isometry3;
 
-use super::broad::{sphere_spheres_gap, spheres_gap};
+use super::broad::{sphere_spheres_gap, spheres_gap, Placed};
 use super::exact::exact_gap;
 use super::obstacle::Grid;
 use super::{still_far, Body, Checker, Contact, Scratch, Speeds};
@@ -93,91 +93,118 @@ impl Checker {
         let mut clear = cap;
         // Counted here and added once: an atomic add per obstacle costs more than the test.
         let mut checks = 0u64;
-        let flush = |checks: u64| {
-            self.counters
-                .sphere_checks
-                .fetch_add(checks, Ordering::Relaxed)
-        };
         let speed_of = |b: usize| speed.map_or(1.0, |v| v.body[b]).max(1e-9);
+        let mut found = Ok(());
         for (bi, b) in self.bodies.iter().enumerate() {
             if !b.moving {
                 continue;
             }
-            let m = speed_of(bi);
-            let bound = s.bounds[bi];
-            let (lo, hi, end) = self.layout[bi];
-            let (list, far, t) = if s.near.on {
-                (
-                    &s.near.obstacles[bi][..],
-                    &mut s.near.obstacle_far[bi][..],
-                    s.near.t,
-                )
-            } else {
-                (&self.all_of[bi][..], &mut s.unlimited[bi][..], f64::NAN)
-            };
-            for (&k, far) in list.iter().zip(far.iter_mut()) {
-                // Its gap at another state of the edge still clears this step ([`Near`]).
-                if still_far(*far, t, clear) {
-                    continue;
-                }
-                // Remember the gap, in units of the edge parameter.
-                let mut keep = |gap: f64| *far = (t, gap / m);
-                let o = self.obstacle(k);
-                let pad = self.padding_of(k);
-                checks += 1;
-                let coarse = o.coarse_gap(&bound.centre, bound.radius) - pad;
-                if coarse >= clear * m {
-                    keep(coarse);
-                    continue;
-                }
-                checks += (hi - lo) as u64;
-                let w = &mut s.spheres;
-                w.place(bi, &b.spheres, &s.poses[b.link], self.layout[bi]);
-                let lb = f64::from(spheres_gap(
-                    &o.sdf,
-                    &o.inv,
-                    &w.x[lo..end],
-                    &w.y[lo..end],
-                    &w.z[lo..end],
-                    &w.r[lo..end],
-                )) - pad;
-                if lb >= clear * m {
-                    keep(lb);
-                    continue;
-                }
-                // The spheres limit the step: the shapes' own bound, tighter.
-                let d = exact_gap(
-                    &b.exact,
-                    &s.poses[b.link],
-                    &o.placed,
-                    &Isometry3::identity(),
-                    exact_below + pad,
-                    &self.counters,
-                ) - pad;
-                if d <= 0.0 {
-                    flush(checks);
-                    return Err(Contact {
-                        a: b.name.clone(),
-                        b: o.id.clone(),
-                    });
-                }
-                let d = d.max(lb);
-                keep(d);
-                clear = clear.min(d / m);
-            }
-            if let Some(g) = &self.grid {
-                s.spheres
-                    .place(bi, &b.spheres, &s.poses[b.link], self.layout[bi]);
-                match self.grid_gap(g, b, bi, s, clear * m, self.opts.padding) {
-                    Ok(gap) => clear = clear.min(gap / m),
-                    Err(c) => {
-                        flush(checks);
-                        return Err(c);
-                    }
-                }
+            found = self.measure_body(s, bi, speed_of(bi), exact_below, &mut clear, &mut checks);
+            if found.is_err() {
+                break;
             }
         }
-        // Moving bodies against each other: their relative speed.
+        if found.is_ok() {
+            found = self.measure_pairs(s, speed, exact_below, &mut clear, &mut checks);
+        }
+        self.counters
+            .sphere_checks
+            .fetch_add(checks, Ordering::Relaxed);
+        found.map(|()| clear.max(0.0))
+    }
+
+    /// [`Checker::measure_with`] for moving body `bi` (moving at `m`) against its obstacles
+    /// and the voxels: lowers `clear` (in units of the speed) and counts its sphere-level
+    /// tests into `checks`; the first contact is an error.
+    fn measure_body(
+        &self,
+        s: &mut Scratch,
+        bi: usize,
+        m: f64,
+        exact_below: f64,
+        clear: &mut f64,
+        checks: &mut u64,
+    ) -> std::result::Result<(), Contact> {
+        let b = &self.bodies[bi];
+        let bound = s.bounds[bi];
+        let (lo, hi, end) = self.layout[bi];
+        let (list, far, t) = if s.near.on {
+            (
+                &s.near.obstacles[bi][..],
+                &mut s.near.obstacle_far[bi][..],
+                s.near.t,
+            )
+        } else {
+            (&self.all_of[bi][..], &mut s.unlimited[bi][..], f64::NAN)
+        };
+        for (&k, far) in list.iter().zip(far.iter_mut()) {
+            // Its gap at another state of the edge still clears this step ([`Near`]).
+            if still_far(*far, t, *clear) {
+                continue;
+            }
+            // Remember the gap, in units of the edge parameter.
+            let mut keep = |gap: f64| *far = (t, gap / m);
+            let o = self.obstacle(k);
+            let pad = self.padding_of(k);
+            *checks += 1;
+            let coarse = o.coarse_gap(&bound.centre, bound.radius) - pad;
+            if coarse >= *clear * m {
+                keep(coarse);
+                continue;
+            }
+            *checks += (hi - lo) as u64;
+            let w = &mut s.spheres;
+            w.place(bi, &b.spheres, &s.poses[b.link], self.layout[bi]);
+            let lb = f64::from(spheres_gap(
+                &o.sdf,
+                &o.inv,
+                &w.x[lo..end],
+                &w.y[lo..end],
+                &w.z[lo..end],
+                &w.r[lo..end],
+            )) - pad;
+            if lb >= *clear * m {
+                keep(lb);
+                continue;
+            }
+            // The spheres limit the step: the shapes' own bound, tighter.
+            let d = exact_gap(
+                &b.exact,
+                &s.poses[b.link],
+                &o.placed,
+                &Isometry3::identity(),
+                exact_below + pad,
+                &self.counters,
+            ) - pad;
+            if d <= 0.0 {
+                return Err(Contact {
+                    a: b.name.clone(),
+                    b: o.id.clone(),
+                });
+            }
+            let d = d.max(lb);
+            keep(d);
+            *clear = clear.min(d / m);
+        }
+        if let Some(g) = &self.grid {
+            s.spheres
+                .place(bi, &b.spheres, &s.poses[b.link], self.layout[bi]);
+            let gap = self.grid_gap(g, b, bi, s, *clear * m, self.opts.padding)?;
+            *clear = clear.min(gap / m);
+        }
+        Ok(())
+    }
+
+    /// [`Checker::measure_with`] for the moving pairs, at their relative speed: lowers
+    /// `clear` and counts into `checks`; the first contact is an error.
+    fn measure_pairs(
+        &self,
+        s: &mut Scratch,
+        speed: Option<&Speeds>,
+        exact_below: f64,
+        clear: &mut f64,
+        checks: &mut u64,
+    ) -> std::result::Result<(), Contact> {
         let (pairs, far, t) = if s.near.on {
             (&s.near.pairs[..], &mut s.near.pair_far[..], s.near.t)
         } else {
@@ -185,55 +212,22 @@ impl Checker {
         };
         for (&p, far) in pairs.iter().zip(far.iter_mut()) {
             let (i, j) = self.pairs[p];
-            if still_far(*far, t, clear) {
+            if still_far(*far, t, *clear) {
                 continue;
             }
             let (bi, bj) = (&s.bounds[i], &s.bounds[j]);
             let m = speed.map_or(2.0, |v| v.pair[p].max(1e-9));
             let mut keep = |gap: f64| *far = (t, gap / m);
-            checks += 1;
+            *checks += 1;
             let gap = (bi.centre - bj.centre).norm() - bi.radius - bj.radius;
-            if gap >= m * clear {
+            if gap >= m * *clear {
                 keep(gap);
                 continue;
             }
-            let (li, hi_, _) = self.layout[i];
-            let (lj, hj, ej) = self.layout[j];
+            let reach = (m * *clear) as f32;
             let w = &mut s.spheres;
-            w.place(
-                i,
-                &self.bodies[i].spheres,
-                &s.poses[self.bodies[i].link],
-                self.layout[i],
-            );
-            w.place(
-                j,
-                &self.bodies[j].spheres,
-                &s.poses[self.bodies[j].link],
-                self.layout[j],
-            );
-            let reach = (m * clear) as f32;
-            let (cx, cy, cz) = (bj.centre.x as f32, bj.centre.y as f32, bj.centre.z as f32);
-            let rj = bj.radius as f32;
-            let mut lb = f32::INFINITY;
-            for k in li..hi_ {
-                let (x, y, z, r) = (w.x[k], w.y[k], w.z[k], w.r[k]);
-                // This sphere against the other body's bound first.
-                checks += 1;
-                let far = ((cx - x).powi(2) + (cy - y).powi(2) + (cz - z).powi(2)).sqrt() - rj - r;
-                if far >= reach {
-                    lb = lb.min(far);
-                    continue;
-                }
-                checks += (hj - lj) as u64;
-                let g = sphere_spheres_gap(
-                    (x, y, z, r),
-                    (&w.x[lj..ej], &w.y[lj..ej], &w.z[lj..ej], &w.r[lj..ej]),
-                );
-                lb = lb.min(g);
-            }
-            let lb = f64::from(lb);
-            if lb >= m * clear {
+            let lb = f64::from(self.pair_spheres_gap(w, &s.poses, (i, j), bj, reach, checks));
+            if lb >= m * *clear {
                 keep(lb);
                 continue;
             }
@@ -248,7 +242,6 @@ impl Checker {
                 &self.counters,
             );
             if d <= 0.0 {
-                flush(checks);
                 return Err(Contact {
                     a: a.name.clone(),
                     b: b.name.clone(),
@@ -256,10 +249,57 @@ impl Checker {
             }
             let d = d.max(lb);
             keep(d);
-            clear = clear.min(d / m);
+            *clear = clear.min(d / m);
         }
-        flush(checks);
-        Ok(clear.max(0.0))
+        Ok(())
+    }
+
+    /// A lower bound (m) of the gap between the spheres of moving bodies `i` and `j` (whose
+    /// bound is `bj`), each sphere of `i` first tested against `bj` and against `j`'s spheres
+    /// only where nearer than `reach`; counts the tests into `checks`.
+    fn pair_spheres_gap(
+        &self,
+        w: &mut Placed,
+        poses: &[Isometry3<f64>],
+        (i, j): (usize, usize),
+        bj: &Sphere,
+        reach: f32,
+        checks: &mut u64,
+    ) -> f32 {
+        let (li, hi_, _) = self.layout[i];
+        let (lj, hj, ej) = self.layout[j];
+        w.place(
+            i,
+            &self.bodies[i].spheres,
+            &poses[self.bodies[i].link],
+            self.layout[i],
+        );
+        w.place(
+            j,
+            &self.bodies[j].spheres,
+            &poses[self.bodies[j].link],
+            self.layout[j],
+        );
+        let (cx, cy, cz) = (bj.centre.x as f32, bj.centre.y as f32, bj.centre.z as f32);
+        let rj = bj.radius as f32;
+        let mut lb = f32::INFINITY;
+        for k in li..hi_ {
+            let (x, y, z, r) = (w.x[k], w.y[k], w.z[k], w.r[k]);
+            // This sphere against the other body's bound first.
+            *checks += 1;
+            let far = ((cx - x).powi(2) + (cy - y).powi(2) + (cz - z).powi(2)).sqrt() - rj - r;
+            if far >= reach {
+                lb = lb.min(far);
+                continue;
+            }
+            *checks += (hj - lj) as u64;
+            let g = sphere_spheres_gap(
+                (x, y, z, r),
+                (&w.x[lj..ej], &w.y[lj..ej], &w.z[lj..ej], &w.r[lj..ej]),
+            );
+            lb = lb.min(g);
+        }
+        lb
     }
 
     /// A lower bound of body `b`'s gap to the voxels less `pad` (at most `cap`), or the

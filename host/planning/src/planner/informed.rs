@@ -90,6 +90,8 @@ fn informed_sample(rng: &mut ChaCha8Rng, a: &[f64], b: &[f64], c: f64) -> Vec<f6
         .collect()
 }
 
+/// Informed RRT*'s improvement of the `first` path from `start` to `goal`, until `deadline`
+/// (counted from `t0`): the shortest path found.
 #[allow(clippy::too_many_arguments)]
 fn improve(
     checker: &Checker,
@@ -106,30 +108,13 @@ fn improve(
     let dof = start.len() as f64;
     let mut best_cost = path_length(&first);
     let mut best = first.clone();
-    // The tree starts as the first path (a chain), so it only gets better.
-    let mut tree = Tree::new(start);
-    let mut cost = vec![0.0];
-    let mut goal_node = None;
-    for q in first.iter().skip(1) {
-        let p = tree.q.len() - 1;
-        let c = cost[p] + dist(&tree.q[p], q);
-        let i = tree.add(q.clone(), p);
-        cost.push(c);
-        goal_node = Some(i);
-    }
+    let mut star = Star::from_path(start, &first);
     while t0.elapsed() < deadline {
-        let target = loop {
-            let s = informed_sample(rng, start, goal, best_cost);
-            if s.iter()
-                .zip(&limits)
-                .all(|(v, (lo, hi))| v >= lo && v <= hi)
-            {
-                break s;
-            }
-            if t0.elapsed() >= deadline {
-                return best;
-            }
+        let Some(target) = informed_target(rng, (start, goal), best_cost, &limits, t0, deadline)
+        else {
+            return best;
         };
+        let tree = &star.tree;
         let near = tree.nearest(&target);
         let d = dist(&tree.q[near], &target);
         let q: Vec<f64> = if d <= range {
@@ -148,33 +133,118 @@ fn improve(
         let neighbours: Vec<usize> = (0..tree.q.len())
             .filter(|&i| dist(&tree.q[i], &q) <= radius)
             .collect();
-        // Cheapest free parent.
-        let mut parent = None;
-        let mut c_new = f64::INFINITY;
+        let Some((parent, c_new)) = star.cheapest_parent(checker, &q, &neighbours, goal, best_cost)
+        else {
+            continue;
+        };
+        let new = star.tree.add(q.clone(), parent);
+        star.cost.push(c_new);
+        star.rewire(checker, &q, new, c_new, &neighbours);
+        // Reach the goal from the new node.
+        let to_goal = c_new + dist(&q, goal);
+        if to_goal + 1e-9 < best_cost && checker.motion_free(&q, goal) {
+            let g = star.tree.add(goal.to_vec(), new);
+            star.cost.push(to_goal);
+            star.goal_node = Some(g);
+        }
+        if let Some(g) = star.goal_node {
+            if star.cost[g] + 1e-9 < best_cost {
+                best_cost = star.cost[g];
+                best = star.tree.branch(g);
+            }
+        }
+    }
+    best
+}
+
+/// A sample of the informed set of paths shorter than `best_cost` between `ends`, within
+/// `limits`; `None` once `deadline` (from `t0`) has passed.
+fn informed_target(
+    rng: &mut ChaCha8Rng,
+    (start, goal): (&[f64], &[f64]),
+    best_cost: f64,
+    limits: &[(f64, f64)],
+    t0: Instant,
+    deadline: Duration,
+) -> Option<Vec<f64>> {
+    loop {
+        let s = informed_sample(rng, start, goal, best_cost);
+        if s.iter().zip(limits).all(|(v, (lo, hi))| v >= lo && v <= hi) {
+            return Some(s);
+        }
+        if t0.elapsed() >= deadline {
+            return None;
+        }
+    }
+}
+
+/// Informed RRT*'s tree: each node's cost from the start (rad) and the node at the goal.
+struct Star {
+    tree: Tree,
+    cost: Vec<f64>,
+    goal_node: Option<usize>,
+}
+
+impl Star {
+    /// The tree as the chain of `first`'s waypoints from `start`, so it only gets better.
+    fn from_path(start: &[f64], first: &[Vec<f64>]) -> Self {
+        let mut tree = Tree::new(start);
+        let mut cost = vec![0.0];
+        let mut goal_node = None;
+        for q in first.iter().skip(1) {
+            let p = tree.q.len() - 1;
+            let c = cost[p] + dist(&tree.q[p], q);
+            let i = tree.add(q.clone(), p);
+            cost.push(c);
+            goal_node = Some(i);
+        }
+        Star {
+            tree,
+            cost,
+            goal_node,
+        }
+    }
+
+    /// The cheapest of `neighbours` with a free edge to `q` through which a path to `goal`
+    /// may still beat `best_cost`, and the cost of `q` through it.
+    fn cheapest_parent(
+        &self,
+        checker: &Checker,
+        q: &[f64],
+        neighbours: &[usize],
+        goal: &[f64],
+        best_cost: f64,
+    ) -> Option<(usize, f64)> {
         let mut order: Vec<(f64, usize)> = neighbours
             .iter()
-            .map(|&i| (cost[i] + dist(&tree.q[i], &q), i))
+            .map(|&i| (self.cost[i] + dist(&self.tree.q[i], q), i))
             .collect();
         order.sort_by(|x, y| x.0.total_cmp(&y.0));
         for (c, i) in order {
-            if c + dist(&q, goal) >= best_cost {
+            if c + dist(q, goal) >= best_cost {
                 break;
             }
-            if checker.motion_free(&tree.q[i], &q) {
-                parent = Some(i);
-                c_new = c;
-                break;
+            if checker.motion_free(&self.tree.q[i], q) {
+                return Some((i, c));
             }
         }
-        let Some(parent) = parent else {
-            continue;
-        };
-        let new = tree.add(q.clone(), parent);
-        cost.push(c_new);
-        // Rewire neighbours through the new node.
-        for &i in &neighbours {
-            let c = c_new + dist(&q, &tree.q[i]);
-            if c + 1e-12 < cost[i] && checker.motion_free(&q, &tree.q[i]) {
+        None
+    }
+
+    /// Rewires `neighbours` through node `new` (at `q`, of cost `c_new`) where that is
+    /// cheaper and free, lowering the cost of their subtrees.
+    fn rewire(
+        &mut self,
+        checker: &Checker,
+        q: &[f64],
+        new: usize,
+        c_new: f64,
+        neighbours: &[usize],
+    ) {
+        let (tree, cost) = (&mut self.tree, &mut self.cost);
+        for &i in neighbours {
+            let c = c_new + dist(q, &tree.q[i]);
+            if c + 1e-12 < cost[i] && checker.motion_free(q, &tree.q[i]) {
                 let delta = cost[i] - c;
                 tree.parent[i] = new;
                 // Lower the cost of the subtree.
@@ -185,19 +255,5 @@ fn improve(
                 }
             }
         }
-        // Reach the goal from the new node.
-        let to_goal = c_new + dist(&q, goal);
-        if to_goal + 1e-9 < best_cost && checker.motion_free(&q, goal) {
-            let g = tree.add(goal.to_vec(), new);
-            cost.push(to_goal);
-            goal_node = Some(g);
-        }
-        if let Some(g) = goal_node {
-            if cost[g] + 1e-9 < best_cost {
-                best_cost = cost[g];
-                best = tree.branch(g);
-            }
-        }
     }
-    best
 }
