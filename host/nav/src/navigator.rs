@@ -18,9 +18,7 @@
 //!   [`STREAK_DISTANCE`] from where it began) the goal fails with [`Error::Stalled`]. A goal no path reaches fails with [`Error::NoPath`] once the live
 //!   base has turned all round (so the camera has looked again at what it remembers: what has gone is cleared) and it still has none.
 //!
-//! Why not the dynamic window here: sampled arcs scored against a path cut corners with the
-//! body still between a door's jambs, and stalled there (the apartment's doors, see
-//! `tests/integration/doorway.rs`); a follower of a path that keeps its margin does not.
+//! Why a path follower and not the dynamic window: `docs/design/nav.md`.
 
 use ferrobot_control::trajectory::{step, Limits};
 use ferrobot_geometry::{validate, wrap};
