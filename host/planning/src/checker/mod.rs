@@ -193,7 +193,7 @@ pub struct Checker {
     /// Where each body's world spheres go in [`Placed`]: `lo..hi`, padded to `lo..end`.
     layout: Vec<(usize, usize, usize)>,
     reach: Vec<f64>,
-    /// [`rake`]'s spacing, m ([`RAKE_SPACING_PER_REACH`]).
+    /// [`edge::rake`]'s spacing, m ([`edge::RAKE_SPACING_PER_REACH`]).
     rake_spacing: f64,
     /// Each body's reach per planned joint ([`CollisionModel::link_reach`]); 0 when fixed.
     body_reach: Vec<Vec<f64>>,
