@@ -3,9 +3,7 @@
 //! [`NumericalIk`] works for any chain: damped least squares with Levenberg-Marquardt damping
 //! on the full 6-D pose error (position in m, orientation as the rotation vector of the
 //! remaining rotation, rad), joint limits enforced by clamping, random restarts within the
-//! limits until a time budget runs out. It is written here rather than taken from a crate
-//! because no maintained Rust crate offers restarts under limits with a time budget (the
-//! closest, `k`, has neither), and the inner loop must not allocate to reach 0.1 ms.
+//! limits until a time budget runs out; why it is written here: `docs/design/kinematics.md`.
 
 use std::time::{Duration, Instant};
 

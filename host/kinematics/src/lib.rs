@@ -65,6 +65,84 @@ pub fn pose_from_urdf(p: &urdf_rs::Pose) -> Isometry3<f64> {
     Isometry3::from_parts(Translation3::new(p.xyz[0], p.xyz[1], p.xyz[2]), r)
 }
 
+/// The joints from `base` down to `tip` in `urdf`, base first: walked up from the tip.
+fn path_between<'a>(
+    urdf: &'a urdf_rs::Robot,
+    base: &str,
+    tip: &str,
+) -> Result<Vec<&'a urdf_rs::Joint>> {
+    let mut path = Vec::new();
+    let mut link = tip.to_string();
+    while link != base {
+        let j = urdf
+            .joints
+            .iter()
+            .find(|j| j.child.link == link)
+            .ok_or_else(|| Error::Unreachable {
+                why: format!("{base} is not an ancestor of {tip} in the URDF"),
+            })?;
+        path.push(j);
+        link = j.parent.link.clone();
+        if path.len() > urdf.joints.len() {
+            return Err(Error::Unreachable {
+                why: "the URDF has a cycle".into(),
+            });
+        }
+    }
+    path.reverse();
+    Ok(path)
+}
+
+/// The chain joint of URDF joint `j` with `origin` from the previous chain joint's frame (or
+/// the base's), or `None` for a fixed joint; an error for a joint a chain cannot hold.
+fn chain_joint(
+    j: &urdf_rs::Joint,
+    origin: Isometry3<f64>,
+    base: &str,
+    tip: &str,
+) -> Result<Option<ChainJoint>> {
+    let kind = match j.joint_type {
+        urdf_rs::JointType::Revolute | urdf_rs::JointType::Continuous => JointType::Revolute,
+        urdf_rs::JointType::Prismatic => JointType::Prismatic,
+        urdf_rs::JointType::Fixed => return Ok(None),
+        _ => {
+            return Err(Error::Unreachable {
+                why: format!(
+                    "joint {} between {base} and {tip} is {:?}: a chain holds revolute, \
+                         continuous, prismatic and fixed joints",
+                    j.name, j.joint_type
+                ),
+            })
+        }
+    };
+    if let Some(m) = &j.mimic {
+        // A chain's joints are independent values (IK's unknowns); one that follows
+        // another is not.
+        return Err(Error::Unreachable {
+            why: format!(
+                "joint {} between {base} and {tip} mimics joint {}: a chain's joints \
+                     move independently",
+                j.name, m.joint
+            ),
+        });
+    }
+    let (lower, upper) = if j.joint_type == urdf_rs::JointType::Continuous {
+        (-std::f64::consts::TAU, std::f64::consts::TAU)
+    } else {
+        (j.limit.lower, j.limit.upper)
+    };
+    let a = Vector3::new(j.axis.xyz[0], j.axis.xyz[1], j.axis.xyz[2]);
+    Ok(Some(ChainJoint {
+        name: j.name.clone(),
+        kind,
+        axis: a.try_normalize(1e-12).unwrap_or(Vector3::z()),
+        origin,
+        lower,
+        upper,
+        velocity: j.limit.velocity,
+    }))
+}
+
 impl Chain {
     /// The chain from `base` to `tip` in `urdf`.
     pub fn from_urdf(urdf: &urdf_rs::Robot, base: &str, tip: &str) -> Result<Self> {
@@ -78,72 +156,15 @@ impl Chain {
         if !urdf.links.iter().any(|l| l.name == tip) {
             return Err(unknown(tip));
         }
-        // Walk up from the tip to the base.
-        let mut path = Vec::new();
-        let mut link = tip.to_string();
-        while link != base {
-            let j = urdf
-                .joints
-                .iter()
-                .find(|j| j.child.link == link)
-                .ok_or_else(|| Error::Unreachable {
-                    why: format!("{base} is not an ancestor of {tip} in the URDF"),
-                })?;
-            path.push(j);
-            link = j.parent.link.clone();
-            if path.len() > urdf.joints.len() {
-                return Err(Error::Unreachable {
-                    why: "the URDF has a cycle".into(),
-                });
-            }
-        }
-        path.reverse();
+        let path = path_between(urdf, base, tip)?;
         let mut joints = Vec::new();
         let mut acc = Isometry3::identity();
         for j in path {
             acc *= pose_from_urdf(&j.origin);
-            let kind = match j.joint_type {
-                urdf_rs::JointType::Revolute | urdf_rs::JointType::Continuous => {
-                    JointType::Revolute
-                }
-                urdf_rs::JointType::Prismatic => JointType::Prismatic,
-                urdf_rs::JointType::Fixed => continue,
-                _ => {
-                    return Err(Error::Unreachable {
-                        why: format!(
-                            "joint {} between {base} and {tip} is {:?}: a chain holds revolute, \
-                             continuous, prismatic and fixed joints",
-                            j.name, j.joint_type
-                        ),
-                    })
-                }
+            let Some(joint) = chain_joint(j, acc, base, tip)? else {
+                continue;
             };
-            if let Some(m) = &j.mimic {
-                // A chain's joints are independent values (IK's unknowns); one that follows
-                // another is not.
-                return Err(Error::Unreachable {
-                    why: format!(
-                        "joint {} between {base} and {tip} mimics joint {}: a chain's joints \
-                         move independently",
-                        j.name, m.joint
-                    ),
-                });
-            }
-            let (lower, upper) = if j.joint_type == urdf_rs::JointType::Continuous {
-                (-std::f64::consts::TAU, std::f64::consts::TAU)
-            } else {
-                (j.limit.lower, j.limit.upper)
-            };
-            let a = Vector3::new(j.axis.xyz[0], j.axis.xyz[1], j.axis.xyz[2]);
-            joints.push(ChainJoint {
-                name: j.name.clone(),
-                kind,
-                axis: a.try_normalize(1e-12).unwrap_or(Vector3::z()),
-                origin: acc,
-                lower,
-                upper,
-                velocity: j.limit.velocity,
-            });
+            joints.push(joint);
             acc = Isometry3::identity();
         }
         Ok(Chain {

@@ -2,7 +2,7 @@
 //! for given joint values, and the transform between any two frames (PyRobot's
 //! `get_link_transform`).
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 
@@ -57,8 +57,15 @@ pub struct LinkTree {
 /// origins, finite non-zero axes of revolute, continuous and prismatic joints, and finite
 /// collision origins.
 pub fn check_urdf(urdf: &urdf_rs::Robot) -> Result<()> {
+    let links = check_links(urdf)?;
+    check_joints(urdf, &links)?;
+    check_mimics(urdf)
+}
+
+/// [`check_urdf`]'s links: each name once, finite collision origins. Returns their names.
+fn check_links(urdf: &urdf_rs::Robot) -> Result<HashSet<&str>> {
     let bad = |why: String| Error::Unreachable { why };
-    let mut links = std::collections::HashSet::new();
+    let mut links = HashSet::new();
     for l in &urdf.links {
         if !links.insert(l.name.as_str()) {
             return Err(bad(format!("link {:?} is defined twice", l.name)));
@@ -70,7 +77,14 @@ pub fn check_urdf(urdf: &urdf_rs::Robot) -> Result<()> {
             )));
         }
     }
-    let mut joints = std::collections::HashSet::new();
+    Ok(links)
+}
+
+/// [`check_urdf`]'s joints: each name once, between `links`, finite origins, finite non-zero
+/// axes where they move.
+fn check_joints(urdf: &urdf_rs::Robot, links: &HashSet<&str>) -> Result<()> {
+    let bad = |why: String| Error::Unreachable { why };
+    let mut joints = HashSet::new();
     for j in &urdf.joints {
         if !joints.insert(j.name.as_str()) {
             return Err(bad(format!("joint {:?} is defined twice", j.name)));
@@ -103,6 +117,13 @@ pub fn check_urdf(urdf: &urdf_rs::Robot) -> Result<()> {
             )));
         }
     }
+    Ok(())
+}
+
+/// [`check_urdf`]'s mimic joints: each follows a joint that moves and mimics none, with a
+/// finite multiplier and offset.
+fn check_mimics(urdf: &urdf_rs::Robot) -> Result<()> {
+    let bad = |why: String| Error::Unreachable { why };
     for j in &urdf.joints {
         let Some(m) = &j.mimic else { continue };
         let leader = urdf.joints.iter().find(|l| l.name == m.joint);
@@ -142,52 +163,76 @@ fn pose_finite(p: &urdf_rs::Pose) -> bool {
     p.xyz.iter().chain(p.rpy.iter()).all(|v| v.is_finite())
 }
 
+/// The one link of `urdf` without a parent joint; an error when a link has two parents or
+/// there is not one such link.
+fn root_of(urdf: &urdf_rs::Robot) -> Result<&str> {
+    let unreachable = |why: String| Error::Unreachable { why };
+    let mut parent_joint: HashMap<&str, &urdf_rs::Joint> = HashMap::new();
+    for j in &urdf.joints {
+        if parent_joint.insert(j.child.link.as_str(), j).is_some() {
+            return Err(unreachable(format!(
+                "link {} has two parents",
+                j.child.link
+            )));
+        }
+    }
+    let roots: Vec<&str> = urdf
+        .links
+        .iter()
+        .map(|l| l.name.as_str())
+        .filter(|n| !parent_joint.contains_key(n))
+        .collect();
+    if roots.len() != 1 {
+        return Err(unreachable(format!(
+            "the URDF has {} root links ({roots:?}), not one",
+            roots.len()
+        )));
+    }
+    Ok(roots[0])
+}
+
 impl LinkTree {
     /// The tree of `urdf`, rooted at its one link without a parent joint; `urdf` must pass
     /// [`check_urdf`].
     pub fn from_urdf(urdf: &urdf_rs::Robot) -> Result<Self> {
         check_urdf(urdf)?;
-        let unreachable = |why: String| Error::Unreachable { why };
-        let mut parent_joint: HashMap<&str, &urdf_rs::Joint> = HashMap::new();
-        for j in &urdf.joints {
-            if parent_joint.insert(j.child.link.as_str(), j).is_some() {
-                return Err(unreachable(format!(
-                    "link {} has two parents",
-                    j.child.link
-                )));
-            }
-        }
-        let roots: Vec<&str> = urdf
-            .links
-            .iter()
-            .map(|l| l.name.as_str())
-            .filter(|n| !parent_joint.contains_key(n))
-            .collect();
-        if roots.len() != 1 {
-            return Err(unreachable(format!(
-                "the URDF has {} root links ({roots:?}), not one",
-                roots.len()
-            )));
-        }
+        let root = root_of(urdf)?;
         let mut tree = LinkTree {
             nodes: Vec::new(),
             joints: Vec::new(),
             index: HashMap::new(),
         };
-        tree.index.insert(roots[0].to_string(), 0);
+        tree.index.insert(root.to_string(), 0);
         tree.nodes.push(Node {
-            name: roots[0].to_string(),
+            name: root.to_string(),
             parent: None,
             origin: Isometry3::identity(),
             joint: None,
         });
-        // Breadth first from the root, so parents come before children.
+        tree.add_descendants(urdf)?;
+        if tree.nodes.len() != urdf.links.len() {
+            return Err(Error::Unreachable {
+                why: format!(
+                    "{} of the URDF's {} links hang from no joint path to the root",
+                    urdf.links.len().saturating_sub(tree.nodes.len()),
+                    urdf.links.len()
+                ),
+            });
+        }
+        tree.link_mimics(urdf);
+        Ok(tree)
+    }
+
+    /// Adds the links below the root, breadth first from it, so parents come before children.
+    fn add_descendants(&mut self, urdf: &urdf_rs::Robot) -> Result<()> {
         let mut k = 0;
-        while k < tree.nodes.len() {
-            let parent = tree.nodes[k].name.clone();
+        while k < self.nodes.len() {
+            let parent = self.nodes[k].name.clone();
             for j in urdf.joints.iter().filter(|j| j.parent.link == parent) {
-                if tree.index.contains_key(&j.child.link) {
-                    return Err(unreachable("the URDF has a cycle".into()));
+                if self.index.contains_key(&j.child.link) {
+                    return Err(Error::Unreachable {
+                        why: "the URDF has a cycle".into(),
+                    });
                 }
                 let kind = match j.joint_type {
                     urdf_rs::JointType::Revolute | urdf_rs::JointType::Continuous => {
@@ -198,17 +243,17 @@ impl LinkTree {
                 };
                 let joint = kind.map(|kind| {
                     let a = Vector3::new(j.axis.xyz[0], j.axis.xyz[1], j.axis.xyz[2]);
-                    tree.joints.push(TreeJoint {
+                    self.joints.push(TreeJoint {
                         name: j.name.clone(),
                         kind,
                         axis: a.try_normalize(1e-12).unwrap_or(Vector3::z()),
-                        // Its leader's index is known once every joint is in: below.
+                        // Its leader's index is known once every joint is in: `link_mimics`.
                         mimic: None,
                     });
-                    tree.joints.len() - 1
+                    self.joints.len() - 1
                 });
-                tree.index.insert(j.child.link.clone(), tree.nodes.len());
-                tree.nodes.push(Node {
+                self.index.insert(j.child.link.clone(), self.nodes.len());
+                self.nodes.push(Node {
                     name: j.child.link.clone(),
                     parent: Some(k),
                     origin: pose_from_urdf(&j.origin),
@@ -217,27 +262,24 @@ impl LinkTree {
             }
             k += 1;
         }
-        if tree.nodes.len() != urdf.links.len() {
-            return Err(unreachable(format!(
-                "{} of the URDF's {} links hang from no joint path to the root",
-                urdf.links.len().saturating_sub(tree.nodes.len()),
-                urdf.links.len()
-            )));
-        }
+        Ok(())
+    }
+
+    /// Sets each mimic joint's leader, once every joint is in.
+    fn link_mimics(&mut self, urdf: &urdf_rs::Robot) {
         for j in &urdf.joints {
-            let (Some(m), Some(k)) = (&j.mimic, tree.joint_index(&j.name)) else {
+            let (Some(m), Some(k)) = (&j.mimic, self.joint_index(&j.name)) else {
                 continue;
             };
             // check_urdf: the leader exists and moves.
-            if let Some(leader) = tree.joint_index(&m.joint) {
-                tree.joints[k].mimic = Some(Mimic {
+            if let Some(leader) = self.joint_index(&m.joint) {
+                self.joints[k].mimic = Some(Mimic {
                     leader,
                     multiplier: m.multiplier.unwrap_or(1.0),
                     offset: m.offset.unwrap_or(0.0),
                 });
             }
         }
-        Ok(tree)
     }
 
     /// The root link.

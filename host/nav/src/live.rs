@@ -7,8 +7,22 @@ use std::collections::HashMap;
 use ferrobot_geometry::{validate, wrap};
 
 use crate::error::Result;
-use crate::navigator::Scan;
 use crate::obstacles::OccupancyGrid;
+
+/// What a range sensor (a depth camera's obstacle band, cut to the plane) saw.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Scan {
+    /// The sensor's place and heading `[x, y, yaw]` in the map's frame, m and rad.
+    pub sensor: [f64; 3],
+    /// Half its horizontal field of view, rad.
+    pub half_fov: f64,
+    /// Nearer than this it does not see (its blind zone, or the robot's own body), m.
+    pub near: f64,
+    /// Farther than this it does not report, m.
+    pub range: f64,
+    /// The obstacle points it saw, `[x, y]` m in the map's frame.
+    pub points: Vec<[f64; 2]>,
+}
 
 /// Live obstacle cells, keyed by their index at the layer's resolution.
 #[derive(Debug, Clone)]

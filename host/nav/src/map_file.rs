@@ -44,13 +44,22 @@ pub struct MapImage {
 const OCCUPIED_THRESH: f64 = 0.65;
 const FREE_THRESH: f64 = 0.196;
 
-impl MapImage {
-    /// Reads the map named by the YAML file at `yaml` (its `image` relative to the YAML's
-    /// folder). Errors name the file and what is wrong with it: a missing or mistyped key, a
-    /// resolution outside [0.001, 10] m, an origin that is not finite or has a non-zero yaw
-    /// (rotated maps are not supported), thresholds outside [0, 1] or in the wrong order, the
-    /// `raw` mode, an unreadable or oversized image.
-    pub fn load(yaml: &Path) -> Result<Self> {
+/// A map's YAML file, checked: what [`MapImage::load`] reads before the image.
+struct Header {
+    /// The PNG's path, relative to the YAML's folder.
+    image: String,
+    resolution: f64,
+    origin: [f64; 2],
+    negate: bool,
+    occupied: f64,
+    free: f64,
+    /// `scale` mode (rather than `trinary`).
+    scale: bool,
+}
+
+impl Header {
+    /// Reads and checks the YAML file at `yaml`; errors name it and what is wrong.
+    fn read(yaml: &Path) -> Result<Self> {
         let bad = |why: String| Error::MapFile {
             path: yaml.to_path_buf(),
             why,
@@ -77,23 +86,7 @@ impl MapImage {
                 "`resolution` {resolution} m is not in [0.001, 10]"
             )));
         }
-        let origin = match doc["origin"].as_vec() {
-            Some(v) if v.len() == 3 => v.iter().map(as_number).collect::<Option<Vec<f64>>>(),
-            _ => None,
-        }
-        .ok_or_else(|| bad("`origin` is not a list of three numbers [x, y, yaw]".into()))?;
-        let lim = validate::MAX_BASE_COORDINATE;
-        if !origin.iter().all(|x| x.is_finite() && x.abs() <= lim) {
-            return Err(bad(format!(
-                "`origin` {origin:?} is not finite within ±{lim}"
-            )));
-        }
-        if origin[2].abs() > 1e-9 {
-            return Err(bad(format!(
-                "`origin` has a yaw of {} rad: rotated maps are not supported",
-                origin[2]
-            )));
-        }
+        let origin = read_origin(doc).map_err(bad)?;
         // map_server reads an integer: any but 0 negates.
         let negate = match &doc["negate"] {
             Yaml::Integer(v) => *v != 0,
@@ -120,33 +113,84 @@ impl MapImage {
                 )))
             }
         };
-        let png_path = yaml.parent().unwrap_or(Path::new(".")).join(image);
-        let (width, height, grey) = read_grey(&png_path, !scale).map_err(|why| Error::MapFile {
-            path: png_path.clone(),
-            why,
-        })?;
+        Ok(Header {
+            image: image.to_string(),
+            resolution,
+            origin,
+            negate,
+            occupied,
+            free,
+            scale,
+        })
+    }
+
+    /// The cells of a `width` × `height` grey image (rows from the top) under these
+    /// thresholds, rows from the bottom.
+    fn cells(&self, width: usize, height: usize, grey: &[f64]) -> Vec<Cell> {
         // map_server: occupancy = (255 − colour) / 255, colour negated first when asked.
         let mut cells = vec![Cell::Unknown; width * height];
         for (row, line) in grey.chunks_exact(width).enumerate() {
             let j = height - 1 - row;
             for (i, &value) in line.iter().enumerate() {
-                let c = if negate { 255.0 - value } else { value };
+                let c = if self.negate { 255.0 - value } else { value };
                 let occ = (255.0 - c) / 255.0;
-                cells[j * width + i] = if occ > occupied {
+                cells[j * width + i] = if occ > self.occupied {
                     Cell::Occupied
-                } else if occ < free {
+                } else if occ < self.free {
                     Cell::Free
                 } else {
                     Cell::Unknown
                 };
             }
         }
+        cells
+    }
+}
+
+/// A map's `origin` `[x, y]`, m: three finite numbers within the base's range, with no yaw.
+fn read_origin(doc: &Yaml) -> std::result::Result<[f64; 2], String> {
+    let origin = match doc["origin"].as_vec() {
+        Some(v) if v.len() == 3 => v.iter().map(as_number).collect::<Option<Vec<f64>>>(),
+        _ => None,
+    }
+    .ok_or_else(|| "`origin` is not a list of three numbers [x, y, yaw]".to_string())?;
+    let lim = validate::MAX_BASE_COORDINATE;
+    if !origin.iter().all(|x| x.is_finite() && x.abs() <= lim) {
+        return Err(format!("`origin` {origin:?} is not finite within ±{lim}"));
+    }
+    if origin[2].abs() > 1e-9 {
+        return Err(format!(
+            "`origin` has a yaw of {} rad: rotated maps are not supported",
+            origin[2]
+        ));
+    }
+    Ok([origin[0], origin[1]])
+}
+
+impl MapImage {
+    /// Reads the map named by the YAML file at `yaml` (its `image` relative to the YAML's
+    /// folder). Errors name the file and what is wrong with it: a missing or mistyped key, a
+    /// resolution outside [0.001, 10] m, an origin that is not finite or has a non-zero yaw
+    /// (rotated maps are not supported), thresholds outside [0, 1] or in the wrong order, the
+    /// `raw` mode, an unreadable or oversized image.
+    pub fn load(yaml: &Path) -> Result<Self> {
+        let bad = |why: String| Error::MapFile {
+            path: yaml.to_path_buf(),
+            why,
+        };
+        let header = Header::read(yaml)?;
+        let png_path = yaml.parent().unwrap_or(Path::new(".")).join(&header.image);
+        let (width, height, grey) =
+            read_grey(&png_path, !header.scale).map_err(|why| Error::MapFile {
+                path: png_path.clone(),
+                why,
+            })?;
         let map = MapImage {
-            origin: [origin[0], origin[1]],
-            resolution,
+            origin: header.origin,
+            resolution: header.resolution,
             width,
             height,
-            cells,
+            cells: header.cells(width, height, &grey),
         };
         map.check().map_err(|e| bad(e.to_string()))?;
         Ok(map)

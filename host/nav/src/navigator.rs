@@ -18,9 +18,7 @@
 //!   [`STREAK_DISTANCE`] from where it began) the goal fails with [`Error::Stalled`]. A goal no path reaches fails with [`Error::NoPath`] once the live
 //!   base has turned all round (so the camera has looked again at what it remembers: what has gone is cleared) and it still has none.
 //!
-//! Why not the dynamic window here: sampled arcs scored against a path cut corners with the
-//! body still between a door's jambs, and stalled there (the apartment's doors, see
-//! `tests/integration/doorway.rs`); a follower of a path that keeps its margin does not.
+//! Why a path follower and not the dynamic window: `docs/design/nav.md`.
 
 use ferrobot_control::trajectory::{step, Limits};
 use ferrobot_geometry::{validate, wrap};
@@ -28,6 +26,7 @@ use ferrobot_geometry::{validate, wrap};
 use crate::error::{Error, Result};
 use crate::global::GridAStar;
 use crate::live::LiveObstacles;
+pub use crate::live::Scan;
 use crate::obstacles::{Obstacles, OccupancyGrid};
 
 /// Progress that counts, m: the way left to the goal must shorten by this much.
@@ -120,21 +119,6 @@ impl NavSettings {
         })?;
         Ok(())
     }
-}
-
-/// What a range sensor (a depth camera's obstacle band, cut to the plane) saw.
-#[derive(Debug, Clone, PartialEq, Default)]
-pub struct Scan {
-    /// The sensor's place and heading `[x, y, yaw]` in the map's frame, m and rad.
-    pub sensor: [f64; 3],
-    /// Half its horizontal field of view, rad.
-    pub half_fov: f64,
-    /// Nearer than this it does not see (its blind zone, or the robot's own body), m.
-    pub near: f64,
-    /// Farther than this it does not report, m.
-    pub range: f64,
-    /// The obstacle points it saw, `[x, y]` m in the map's frame.
-    pub points: Vec<[f64; 2]>,
 }
 
 /// What to command now.

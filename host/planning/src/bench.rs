@@ -55,36 +55,12 @@ pub fn generate(
     near: f64,
     reach: Option<&Reach>,
 ) -> Result<ProblemSet> {
-    if n > MAX_PROBLEMS {
-        return Err(Error::Invalid {
-            what: "problem count".into(),
-            why: format!("{n} is more than {MAX_PROBLEMS}"),
-        });
-    }
-    if let Some(r) = reach {
-        // Checked here: a plan refuses it, which would count every candidate as unreached.
-        let within = r.within.as_secs_f64();
-        if !(within > 0.0 && within <= crate::planner::MAX_TIME_LIMIT) {
-            return Err(Error::Invalid {
-                what: "hub reach time".into(),
-                why: format!(
-                    "{within} s is not in (0, {}] s",
-                    crate::planner::MAX_TIME_LIMIT
-                ),
-            });
-        }
-        if !checker.is_free(&r.hub) {
-            return Err(Error::Invalid {
-                what: "hub".into(),
-                why: format!("{:?} is not free in the scene", r.hub),
-            });
-        }
-    }
+    check_request(checker, n, reach)?;
     let limits = checker.model().limits().to_vec();
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let sample_free = |rng: &mut ChaCha8Rng| -> Option<Vec<f64>> {
         for _ in 0..20_000 {
-            let q = crate::planner::sample(rng, &limits);
+            let q = crate::joint_space::sample(rng, &limits);
             if checker.is_free(&q) && (near <= 0.0 || checker.near_world(&q, near)) {
                 return Some(q);
             }
@@ -142,6 +118,37 @@ pub fn generate(
         set.problems.push(Problem { start, goal });
     }
     Ok(set)
+}
+
+/// [`generate`]'s request: at most [`MAX_PROBLEMS`] problems; with `reach`, a time within
+/// (0, [`crate::planner::MAX_TIME_LIMIT`]] s and a hub free in the scene.
+fn check_request(checker: &Checker, n: usize, reach: Option<&Reach>) -> Result<()> {
+    if n > MAX_PROBLEMS {
+        return Err(Error::Invalid {
+            what: "problem count".into(),
+            why: format!("{n} is more than {MAX_PROBLEMS}"),
+        });
+    }
+    if let Some(r) = reach {
+        // Checked here: a plan refuses it, which would count every candidate as unreached.
+        let within = r.within.as_secs_f64();
+        if !(within > 0.0 && within <= crate::planner::MAX_TIME_LIMIT) {
+            return Err(Error::Invalid {
+                what: "hub reach time".into(),
+                why: format!(
+                    "{within} s is not in (0, {}] s",
+                    crate::planner::MAX_TIME_LIMIT
+                ),
+            });
+        }
+        if !checker.is_free(&r.hub) {
+            return Err(Error::Invalid {
+                what: "hub".into(),
+                why: format!("{:?} is not free in the scene", r.hub),
+            });
+        }
+    }
+    Ok(())
 }
 
 /// One problem's outcome.

@@ -1,14 +1,7 @@
 //! Two oriented boxes: whether they touch, and a lower bound of their distance, by the
 //! separating-axis test (Gottschalk et al. 1996, OBBTree) instead of GJK.
 //!
-//! Along any unit axis the gap between the two boxes' projections is at most their distance
-//! (a projection never lengthens a vector), so the largest gap over the fifteen candidate
-//! axes (three face normals of each box and the nine crosses of their edges) is a lower bound
-//! that is exact when the nearest features are faces, the common case of a link beside a
-//! wall, a table or a post. When no axis separates them the boxes intersect (the separating
-//! axis theorem for convex polyhedra). Conservative advancement needs exactly this: a
-//! contact test that is right and a distance never too large, and it is about ten times
-//! cheaper than GJK on two cuboids.
+//! Why the separating axes: `docs/design/planning.md`.
 
 use nalgebra::{Isometry3, Matrix3, Vector3};
 

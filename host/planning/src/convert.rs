@@ -5,6 +5,7 @@ use parry3d::math::{Pose, Rotation, Vector};
 use parry3d::shape::SharedShape;
 
 use crate::shape::Shape;
+use crate::{Error, Result};
 
 /// An exact shape for parry3d and the pose of parry's shape frame in ours (parry's cylinders
 /// run along y, ours along z).
@@ -97,4 +98,15 @@ pub(crate) fn shape(s: &Shape) -> Option<Exact> {
             _ => None,
         },
     })
+}
+
+impl Shape {
+    /// The exact shape for parry3d, in the shape's frame (cylinders turned from parry's y
+    /// axis to our z axis by [`shape`]).
+    pub(crate) fn to_parry(&self) -> Result<Exact> {
+        shape(self).ok_or_else(|| Error::Invalid {
+            what: "shape".into(),
+            why: "no convex hull".into(),
+        })
+    }
 }

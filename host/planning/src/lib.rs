@@ -8,6 +8,7 @@
 //! - [`checker`]: state and motion (edge) validity against the scene and the robot itself.
 //! - [`planner`]: planners behind one trait (RRT-Connect with shortcutting, an informed
 //!   asymptotically optimal planner).
+//! - [`joint_space`]: the distance between joint vectors.
 //! - [`timing`]: time-optimal parameterisation of a path under velocity and acceleration
 //!   limits.
 //!
@@ -21,6 +22,7 @@ pub mod checker;
 mod coarse;
 mod convert;
 pub mod error;
+pub mod joint_space;
 pub mod model;
 pub mod planner;
 pub mod scene;

@@ -1,8 +1,7 @@
 //! Collision shapes in their own frame, as the description and the planning scene give them,
 //! with the two things the checker needs of each: a signed distance from a point (the broad
-//! check, `f32`) and the exact shape for parry3d (through [`crate::convert`]).
+//! check, `f32`) and the exact shape for parry3d (made in the `convert` module).
 
-use crate::convert;
 use crate::{Error, Result};
 use nalgebra::{Point3, Vector3};
 
@@ -136,15 +135,6 @@ impl Shape {
                 lo.abs().sup(&hi.abs()).norm()
             }
         }
-    }
-
-    /// The exact shape for parry3d, in the shape's frame (cylinders turned from parry's y
-    /// axis to our z axis by [`convert::shape`]).
-    pub(crate) fn to_parry(&self) -> Result<convert::Exact> {
-        convert::shape(self).ok_or_else(|| Error::Invalid {
-            what: "shape".into(),
-            why: "no convex hull".into(),
-        })
     }
 
     /// The broad-check form of the shape: enough to compute a signed distance from a point

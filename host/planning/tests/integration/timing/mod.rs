@@ -2,6 +2,7 @@
 //! the analytic profile of a straight segment, the end points, the geometry of the blends,
 //! the gain from blending, degenerate and hostile inputs; random paths in [`random`].
 
+use ferrobot_planning::joint_space::dist;
 use ferrobot_planning::timing::{time_optimal, Limits, TimingOptions, Trajectory};
 use ferrobot_planning::Error;
 
@@ -72,14 +73,6 @@ fn assert_rest_to_rest(traj: &Trajectory, path: &[Vec<f64>]) {
     assert!(a.velocity.iter().all(|&v| v == 0.0), "at rest at the start");
     assert!(b.velocity.iter().all(|&v| v == 0.0), "at rest at the end");
     assert_eq!(b.time, traj.duration());
-}
-
-fn dist(a: &[f64], b: &[f64]) -> f64 {
-    a.iter()
-        .zip(b)
-        .map(|(x, y)| (x - y) * (x - y))
-        .sum::<f64>()
-        .sqrt()
 }
 
 /// Distance from `p` to the polyline through `path`.

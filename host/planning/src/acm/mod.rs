@@ -5,9 +5,7 @@
 
 use std::collections::BTreeMap;
 
-use rand::{Rng, SeedableRng};
-
-use crate::model::CollisionModel;
+mod sampling;
 
 /// Random configurations sampled by default (MoveIt's setup assistant's default).
 pub const DEFAULT_SAMPLES: usize = 10_000;
@@ -105,81 +103,5 @@ impl SelfCollisionMatrix {
         }
         s.push_str("]\n");
         s
-    }
-
-    /// Computes the matrix of `model` from `samples` random configurations of every movable
-    /// joint (seeded with `seed`).
-    pub fn compute(model: &CollisionModel, samples: usize, seed: u64) -> Self {
-        let tree = model.tree();
-        let links = model.links();
-        let n = links.len();
-        let mut disabled = BTreeMap::new();
-        // Adjacent: each link with geometry and its nearest ancestor with geometry.
-        for l in 0..n {
-            if links[l].is_empty() {
-                continue;
-            }
-            let mut at = tree.parent(l);
-            while let Some(p) = at {
-                if !links[p].is_empty() {
-                    disabled.insert(key(&links[l].name, &links[p].name), Reason::Adjacent);
-                    break;
-                }
-                at = tree.parent(p);
-            }
-        }
-        let pairs: Vec<(usize, usize)> = (0..n)
-            .flat_map(|a| (a + 1..n).map(move |b| (a, b)))
-            .filter(|&(a, b)| {
-                !links[a].is_empty()
-                    && !links[b].is_empty()
-                    && !disabled.contains_key(&key(&links[a].name, &links[b].name))
-            })
-            .collect();
-        let ranges = model.all_limits();
-        let default: Vec<f64> = ranges
-            .iter()
-            .map(|&(lo, hi)| 0.0f64.clamp(lo, hi))
-            .collect();
-        let poses = tree.poses(&default);
-        for &(a, b) in &pairs {
-            if crate::checker::links_touch(model, a, &poses[a], b, &poses[b]) {
-                disabled.insert(key(&links[a].name, &links[b].name), Reason::Default);
-            }
-        }
-        let pairs: Vec<(usize, usize)> = pairs
-            .into_iter()
-            .filter(|&(a, b)| !disabled.contains_key(&key(&links[a].name, &links[b].name)))
-            .collect();
-        let mut hits = vec![0usize; pairs.len()];
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
-        let mut q = vec![0.0; ranges.len()];
-        let mut poses = Vec::new();
-        for _ in 0..samples {
-            for (v, &(lo, hi)) in q.iter_mut().zip(&ranges) {
-                *v = if hi > lo {
-                    rng.random_range(lo..=hi)
-                } else {
-                    lo
-                };
-            }
-            tree.poses_into(&q, &mut poses);
-            for (h, &(a, b)) in hits.iter_mut().zip(&pairs) {
-                if crate::checker::links_touch(model, a, &poses[a], b, &poses[b]) {
-                    *h += 1;
-                }
-            }
-        }
-        for (&h, &(a, b)) in hits.iter().zip(&pairs) {
-            let reason = if h == 0 {
-                Reason::Never
-            } else if h as f64 >= ALWAYS_FRACTION * samples as f64 {
-                Reason::Always
-            } else {
-                continue;
-            };
-            disabled.insert(key(&links[a].name, &links[b].name), reason);
-        }
-        SelfCollisionMatrix { disabled }
     }
 }
