@@ -298,6 +298,160 @@ impl ExploreGoal {
     }
 }
 
+impl ExploreGoal {
+    /// What the camera sees goes to the navigator under way, else to the layer kept.
+    fn take_scan(&mut self, s: &mut Step<'_>) {
+        if let Some((n, t, scan)) = &s.sense.scan {
+            if *n != self.seen.0 {
+                self.seen.0 = *n;
+                let _ = match self.nav.as_mut() {
+                    Some(nav) => nav.observe(*t, scan),
+                    None => self
+                        .live
+                        .observe(*t, scan, self.settings.live_memory, None)
+                        .map(|_| ()),
+                };
+            }
+        }
+    }
+
+    /// Turning in place once round, looking.
+    fn look(
+        &mut self,
+        s: &mut Step<'_>,
+        turned: f64,
+        last: f64,
+        x: [f64; 3],
+    ) -> Option<Result<()>> {
+        // Signed: the pose's jitter cancels out.
+        let turned = if last.is_nan() {
+            0.0
+        } else {
+            turned + ferrobot_geometry::wrap(x[2] - last)
+        };
+        if turned.abs() >= 2.0 * std::f64::consts::PI {
+            self.state = Explore::Choose {
+                after: s.sense.grid.as_ref().map_or(0, |g| g.0),
+            };
+            return self.send(s, 0.0, 0.0);
+        }
+        self.state = Explore::Look { turned, last: x[2] };
+        self.send(s, 0.0, LOOK_RATE.min(self.settings.limits.w))
+    }
+
+    /// Choosing the next frontier once SLAM's grid is newer than `after`.
+    fn choose_next(&mut self, s: &mut Step<'_>, after: u64, x: [f64; 3]) -> Option<Result<()>> {
+        let Some((n, map)) = s.sense.grid.as_ref().filter(|g| g.0 > after) else {
+            return self.send(s, 0.0, 0.0);
+        };
+        self.seen.1 = *n;
+        let map = map.clone();
+        if self.visited >= MAX_FRONTIERS {
+            return self.end(s, Ok(()));
+        }
+        match self.choose(&map, [x[0], x[1]]) {
+            Ok(Some((f, mut nav))) => {
+                if let Err(e) = nav.set_live(&self.live) {
+                    return self.end(s, Err(e.into()));
+                }
+                self.target = Some(f);
+                self.nav = Some(nav);
+                self.state = Explore::Go;
+                self.send(s, 0.0, 0.0)
+            }
+            // Nothing left to see: done.
+            Ok(None) => self.end(s, Ok(())),
+            Err(e) => self.end(s, Err(e)),
+        }
+    }
+
+    /// Driving to the frontier's view point with the navigator, following newer maps.
+    fn go(&mut self, s: &mut Step<'_>, x: [f64; 3], now: f64) -> Option<Result<()>> {
+        let (Some(nav), Some(target)) = (self.nav.as_mut(), self.target.clone()) else {
+            self.state = Explore::Choose { after: 0 };
+            return self.send(s, 0.0, 0.0);
+        };
+        // A newer map: follow it, and give the frontier up when it is seen already.
+        if let Some((n, map)) = &s.sense.grid {
+            if *n != self.seen.1 {
+                self.seen.1 = *n;
+                let still = frontiers(map, [x[0], x[1]], &self.frontier)
+                    .map(|fs| {
+                        fs.iter().any(|f| {
+                            (f.centroid[0] - target.centroid[0])
+                                .hypot(f.centroid[1] - target.centroid[1])
+                                < 0.5
+                        })
+                    })
+                    .unwrap_or(false);
+                if !still {
+                    self.drop_nav();
+                    self.state = Explore::Choose { after: *n - 1 };
+                    return self.send(s, 0.0, 0.0);
+                }
+                if let Ok(g) = map.to_grid(false) {
+                    let _ = nav.set_map(&g);
+                }
+            }
+        }
+        match nav.step(now, x) {
+            Ok(NavCommand::Drive(v, w)) => {
+                // The navigator limits its own commands.
+                self.last = (v, w);
+                crate::base_goals::send_logged(s, v, w, 250)
+            }
+            Ok(NavCommand::Arrived) => {
+                self.visited += 1;
+                self.drop_nav();
+                self.state = Explore::Face {
+                    heading: target.heading,
+                };
+                self.send(s, 0.0, 0.0)
+            }
+            Err(_) => {
+                // This frontier cannot be reached from here: the next one.
+                self.frontier.failed.push(target.view_point);
+                self.drop_nav();
+                self.state = Explore::Choose { after: 0 };
+                self.send(s, 0.0, 0.0)
+            }
+        }
+    }
+
+    /// Facing the frontier from its view point, then choosing again.
+    fn face(&mut self, s: &mut Step<'_>, heading: f64, x: [f64; 3]) -> Option<Result<()>> {
+        let e = ferrobot_geometry::wrap(heading - x[2]);
+        if e.abs() < 0.1 {
+            // Looked: what the camera sees now enters the map. A frontier looked at
+            // three times and still there (beyond what the camera can tell) is left.
+            s.sense.want_keyframe.set(true);
+            if let Some(t) = &self.target {
+                self.frontier.failed.push(t.view_point);
+                let c = t.centroid;
+                match self
+                    .looked
+                    .iter_mut()
+                    .find(|(p, _)| (p[0] - c[0]).hypot(p[1] - c[1]) < 0.5)
+                {
+                    Some((_, n)) => {
+                        *n += 1;
+                        if *n >= 3 {
+                            self.frontier.done.push(c);
+                        }
+                    }
+                    None => self.looked.push((c, 1)),
+                }
+            }
+            self.state = Explore::Choose {
+                after: s.sense.grid.as_ref().map_or(0, |g| g.0),
+            };
+            return self.send(s, 0.0, 0.0);
+        }
+        let w = (1.5 * e).clamp(-LOOK_RATE, LOOK_RATE);
+        self.send(s, 0.0, w)
+    }
+}
+
 impl Goal for ExploreGoal {
     fn claim(&self) -> crate::goals::Claim {
         crate::base_goals::BASE
@@ -327,142 +481,12 @@ impl Goal for ExploreGoal {
         self.lost_since = None;
         let x = pose.to_array();
         let now = s.now.as_secs_f64();
-        // What the camera sees goes to the navigator under way, else to the layer kept.
-        if let Some((n, t, scan)) = &s.sense.scan {
-            if *n != self.seen.0 {
-                self.seen.0 = *n;
-                let _ = match self.nav.as_mut() {
-                    Some(nav) => nav.observe(*t, scan),
-                    None => self
-                        .live
-                        .observe(*t, scan, self.settings.live_memory, None)
-                        .map(|_| ()),
-                };
-            }
-        }
+        self.take_scan(s);
         match self.state {
-            Explore::Look { turned, last } => {
-                // Signed: the pose's jitter cancels out.
-                let turned = if last.is_nan() {
-                    0.0
-                } else {
-                    turned + ferrobot_geometry::wrap(x[2] - last)
-                };
-                if turned.abs() >= 2.0 * std::f64::consts::PI {
-                    self.state = Explore::Choose {
-                        after: s.sense.grid.as_ref().map_or(0, |g| g.0),
-                    };
-                    return self.send(s, 0.0, 0.0);
-                }
-                self.state = Explore::Look { turned, last: x[2] };
-                self.send(s, 0.0, LOOK_RATE.min(self.settings.limits.w))
-            }
-            Explore::Choose { after } => {
-                let Some((n, map)) = s.sense.grid.as_ref().filter(|g| g.0 > after) else {
-                    return self.send(s, 0.0, 0.0);
-                };
-                self.seen.1 = *n;
-                let map = map.clone();
-                if self.visited >= MAX_FRONTIERS {
-                    return self.end(s, Ok(()));
-                }
-                match self.choose(&map, [x[0], x[1]]) {
-                    Ok(Some((f, mut nav))) => {
-                        if let Err(e) = nav.set_live(&self.live) {
-                            return self.end(s, Err(e.into()));
-                        }
-                        self.target = Some(f);
-                        self.nav = Some(nav);
-                        self.state = Explore::Go;
-                        self.send(s, 0.0, 0.0)
-                    }
-                    // Nothing left to see: done.
-                    Ok(None) => self.end(s, Ok(())),
-                    Err(e) => self.end(s, Err(e)),
-                }
-            }
-            Explore::Go => {
-                let (Some(nav), Some(target)) = (self.nav.as_mut(), self.target.clone()) else {
-                    self.state = Explore::Choose { after: 0 };
-                    return self.send(s, 0.0, 0.0);
-                };
-                // A newer map: follow it, and give the frontier up when it is seen already.
-                if let Some((n, map)) = &s.sense.grid {
-                    if *n != self.seen.1 {
-                        self.seen.1 = *n;
-                        let still = frontiers(map, [x[0], x[1]], &self.frontier)
-                            .map(|fs| {
-                                fs.iter().any(|f| {
-                                    (f.centroid[0] - target.centroid[0])
-                                        .hypot(f.centroid[1] - target.centroid[1])
-                                        < 0.5
-                                })
-                            })
-                            .unwrap_or(false);
-                        if !still {
-                            self.drop_nav();
-                            self.state = Explore::Choose { after: *n - 1 };
-                            return self.send(s, 0.0, 0.0);
-                        }
-                        if let Ok(g) = map.to_grid(false) {
-                            let _ = nav.set_map(&g);
-                        }
-                    }
-                }
-                match nav.step(now, x) {
-                    Ok(NavCommand::Drive(v, w)) => {
-                        // The navigator limits its own commands.
-                        self.last = (v, w);
-                        crate::base_goals::send_logged(s, v, w, 250)
-                    }
-                    Ok(NavCommand::Arrived) => {
-                        self.visited += 1;
-                        self.drop_nav();
-                        self.state = Explore::Face {
-                            heading: target.heading,
-                        };
-                        self.send(s, 0.0, 0.0)
-                    }
-                    Err(_) => {
-                        // This frontier cannot be reached from here: the next one.
-                        self.frontier.failed.push(target.view_point);
-                        self.drop_nav();
-                        self.state = Explore::Choose { after: 0 };
-                        self.send(s, 0.0, 0.0)
-                    }
-                }
-            }
-            Explore::Face { heading } => {
-                let e = ferrobot_geometry::wrap(heading - x[2]);
-                if e.abs() < 0.1 {
-                    // Looked: what the camera sees now enters the map. A frontier looked at
-                    // three times and still there (beyond what the camera can tell) is left.
-                    s.sense.want_keyframe.set(true);
-                    if let Some(t) = &self.target {
-                        self.frontier.failed.push(t.view_point);
-                        let c = t.centroid;
-                        match self
-                            .looked
-                            .iter_mut()
-                            .find(|(p, _)| (p[0] - c[0]).hypot(p[1] - c[1]) < 0.5)
-                        {
-                            Some((_, n)) => {
-                                *n += 1;
-                                if *n >= 3 {
-                                    self.frontier.done.push(c);
-                                }
-                            }
-                            None => self.looked.push((c, 1)),
-                        }
-                    }
-                    self.state = Explore::Choose {
-                        after: s.sense.grid.as_ref().map_or(0, |g| g.0),
-                    };
-                    return self.send(s, 0.0, 0.0);
-                }
-                let w = (1.5 * e).clamp(-LOOK_RATE, LOOK_RATE);
-                self.send(s, 0.0, w)
-            }
+            Explore::Look { turned, last } => self.look(s, turned, last, x),
+            Explore::Choose { after } => self.choose_next(s, after, x),
+            Explore::Go => self.go(s, x, now),
+            Explore::Face { heading } => self.face(s, heading, x),
         }
     }
 
