@@ -118,7 +118,7 @@ impl Hil {
         })
     }
 
-    /// One control line to the plants ([`ferrobot_sim::control`]); their JSON answer.
+    /// One control line to the plants ([`ferrobot_sim::console`]); their JSON answer.
     pub fn plants(&mut self, cmd: &str) -> serde_json::Value {
         self.board.server.command(cmd)
     }

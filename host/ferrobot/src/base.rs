@@ -32,6 +32,7 @@ fn check_relative(delta: [f64; 3]) -> Result<()> {
 use crate::base_goals::{
     DwaGoal, LawGoal, TrackGoal, TrackThenFinish, VelocityGoal, BASE, DWA_PATH_MARGIN,
 };
+pub use crate::base_navigation::EXPLORE_TIMEOUT;
 use crate::goals::Goal;
 use crate::hub::Hub;
 use crate::motion::Motion;
@@ -55,8 +56,8 @@ pub struct GoalOptions {
     /// An occupancy-grid map (in the frame `frame` names). With a map the base is driven by
     /// the navigator ([`ferrobot_nav::Navigator`]: global plan, path following, re-planning,
     /// recovery), the round obstacles stamped into it. The navigator's robot radius is the
-    /// base's footprint radius, or the arm's reach ([`crate::Arm::reach`]) when the arm sticks
-    /// out further: [`crate::Arm::stow`] folds it in before a long drive.
+    /// base's footprint radius, or the arm's reach ([`crate::arm::Arm::reach`]) when the arm sticks
+    /// out further: [`crate::arm::Arm::stow`] folds it in before a long drive.
     pub map: Option<OccupancyGrid>,
     /// The frame of the goal, the map and the obstacles: the odometry's, or SLAM's map (the
     /// base then steers by SLAM's pose; SLAM must be running, see

@@ -94,8 +94,8 @@ impl Base {
     /// Explores with SLAM until no reachable frontier is left (see [`crate::navigate`]): the
     /// base looks all round, then drives to the nearest frontier of SLAM's occupancy grid and
     /// faces it, again and again, avoiding what the depth camera sees. Needs SLAM running
-    /// ([`Robot::start_slam`]); the map is then [`Robot::slam_occupancy_map`]. Fails after
-    /// [`EXPLORE_TIMEOUT`], or when SLAM has no pose for [`crate::navigate::SLAM_PATIENCE`].
+    /// ([`crate::Robot::start_slam`]); the map is then [`crate::Robot::slam_occupancy_map`]. Fails
+    /// after [`EXPLORE_TIMEOUT`], or when SLAM has no pose for [`crate::navigate::SLAM_PATIENCE`].
     pub fn explore_async(&self) -> Result<Motion> {
         // SLAM must run (its pose may come with the first frames).
         self.robot.slam_report()?;

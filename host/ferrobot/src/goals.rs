@@ -12,7 +12,7 @@ use crate::backend::{Link, LinkEvent};
 use crate::config::RobotConfig;
 use crate::error::{Error, Result};
 
-/// How long one [`Motion::poll`] lets pass.
+/// How long one [`crate::Motion::poll`] lets pass.
 pub const POLL: Duration = Duration::from_millis(10);
 /// Joint motions are not judged stalled during their first this long (they start at rest).
 pub const STALL_GRACE: Duration = Duration::from_millis(300);
@@ -28,9 +28,9 @@ pub const STALL_LAG: f64 = 0.15;
 /// A joint within tolerance may still be moving (the servo's last creep against its gear
 /// friction): returning then would leave the arm moving on.
 pub const ARRIVAL_SPEED: f64 = 0.05;
-/// Faults kept for [`Robot::take_faults`]; older ones are dropped first.
+/// Faults kept for [`crate::Robot::take_faults`]; older ones are dropped first.
 pub const FAULT_QUEUE: usize = 1024;
-/// Link events kept for [`Robot::take_link_events`]; older ones are dropped first.
+/// Link events kept for [`crate::Robot::take_link_events`]; older ones are dropped first.
 pub const LINK_EVENT_QUEUE: usize = 64;
 
 /// The firmware joint mask of joints (firmware indices, each below 16).

@@ -3,7 +3,7 @@
 //! pose when the goal is in SLAM's map. The last few centimetres and the goal's heading are the
 //! proportional controller's, in the odometry's frame.
 //!
-//! Exploration ([`ExploreGoal`]): look all round, then again and again drive to the nearest
+//! Exploration ([`crate::base::Base::explore`]): look all round, then again and again drive to the nearest
 //! frontier of SLAM's growing map ([`ferrobot_nav::frontiers`]) and face it, until no frontier
 //! the base can reach is left. A frontier seen from afar on the way is given up for the next;
 //! one the navigator cannot reach is marked failed and not offered again.
@@ -201,7 +201,7 @@ enum Explore {
     Face { heading: f64 },
 }
 
-/// Frontier-based exploration on SLAM's growing map (see [`crate::Base::explore`]).
+/// Frontier-based exploration on SLAM's growing map (see [`crate::base::Base::explore`]).
 pub(crate) struct ExploreGoal {
     pub(crate) settings: NavSettings,
     pub(crate) frontier: FrontierSettings,

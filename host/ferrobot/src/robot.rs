@@ -29,8 +29,8 @@ pub(crate) struct Use {
 /// A `Robot` is a handle: clones share one robot, and it is `Send + Sync`, so a teleoperation
 /// loop, a monitor and a program can each hold one. Its link sits behind one lock, taken for
 /// each call and for each step of time, so calls from several threads interleave and every
-/// reply reaches the call that asked for it. Component handles ([`Arm`], [`Base`], ...) and
-/// motions ([`Motion`](crate::Motion)) hold a clone too: nothing borrows the robot while it
+/// reply reaches the call that asked for it. Component handles ([`crate::arm::Arm`], [`crate::base::Base`], ...)
+/// and motions ([`crate::Motion`]) hold a clone too: nothing borrows the robot while it
 /// moves, and the arm, gripper, head and base move at the same time.
 #[derive(Clone)]
 pub struct Robot {

@@ -15,7 +15,7 @@ use crate::robot::Robot;
 
 impl Robot {
     /// The world the robot was built in (a bundled or file scene; `empty` unless
-    /// [`RobotBuilder::scene`] named one), with its start pose.
+    /// [`crate::RobotBuilder::scene`] named one), with its start pose.
     pub fn scene(&self) -> Arc<Scene> {
         self.inner.scene.clone()
     }

@@ -2,7 +2,7 @@
 //! passes over is fed to [`ferrobot_slam::Slam`] with the wheel odometry at its instant and the
 //! camera's pose on the body from the measured head joints, whoever lets the time pass (a
 //! motion's wait, [`Robot::wait`], [`crate::Camera::get_frame`]). The base's pose in the map is
-//! then [`crate::Base::get_state_from`]`(Source::Slam)`; the maps are [`Robot::slam_map_3d`]
+//! then [`crate::base::Base::get_state_from`]`(Source::Slam)`; the maps are [`Robot::slam_map_3d`]
 //! and [`Robot::slam_occupancy_map`].
 //!
 //! Frames are fed as the pump passes their instants, which a camera that knows its frame times
@@ -136,7 +136,7 @@ impl Robot {
 
 impl crate::base::Base {
     /// The base's pose `[x, y, θ]` (m, rad) from `source`: the odometry's (as
-    /// [`crate::Base::get_state`]) or SLAM's, in the map's frame. SLAM's is an error while it
+    /// [`crate::base::Base::get_state`]) or SLAM's, in the map's frame. SLAM's is an error while it
     /// has no confirmed pose (before the first frame, or still localising in a saved map).
     pub fn get_state_from(&self, source: Source) -> crate::Result<[f64; 3]> {
         match source {

@@ -11,7 +11,7 @@ use crate::frames::Frames;
 pub enum Source {
     /// The wheel odometry (its frame starts where the base started).
     Odometry,
-    /// SLAM's map (see [`Robot::start_slam`]).
+    /// SLAM's map (see [`crate::Robot::start_slam`]).
     Slam,
 }
 

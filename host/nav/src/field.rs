@@ -29,7 +29,7 @@ impl NavField {
     /// The field for `goal` from `start` among `obstacles` for a robot of `radius` (m); an
     /// error when the points are not finite, the grid would have more than
     /// [`ferrobot_geometry::validate::MAX_GRID_CELLS`] cells, or its cells times the round
-    /// obstacles would pass [`MAX_WORK`].
+    /// obstacles would pass `MAX_WORK`.
     pub fn new(
         start: [f64; 2],
         goal: [f64; 2],

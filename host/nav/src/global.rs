@@ -70,7 +70,7 @@ impl GlobalPlanner for GridAStar {
 impl GridAStar {
     /// As [`GlobalPlanner::plan`], and where there is room the path keeps `margin` m more than
     /// the radius: a step through a cell whose clearance falls short of `radius + margin` costs
-    /// up to [`MARGIN_PENALTY`] + 1 times as much, and a straight line of the pulled path keeps
+    /// up to `MARGIN_PENALTY` + 1 times as much, and a straight line of the pulled path keeps
     /// `radius + margin` of clearance, or as much as its ends have when that is less (never
     /// less than `radius`). So a path runs down the middle of a doorway and keeps off corners,
     /// and a narrow passage is still taken when it is the way.

@@ -6,7 +6,7 @@
 //! [`PointCloud`]s, and their files ([`io`]: PNG colour, 16-bit millimetre depth PNG, PLY).
 //! From clouds: the table's plane by RANSAC ([`plane`]), the objects above it
 //! ([`segment`]), DBSCAN clustering with scikit-learn's semantics ([`cluster`]) and each
-//! object's centroid, extent and principal axis ([`features`]); where to push an object
+//! object's centroid, extent and principal axis ([`mod@features`]); where to push an object
 //! ([`push`]); top-down antipodal grasps on the objects, scored by a replaceable model
 //! ([`grasp`]); seeded synthetic clouds for tests and benchmarks ([`synthetic`]). From
 //! images: a square fiducial's corners ([`marker`]) and the camera's mount from them

@@ -1,5 +1,5 @@
 //! Pushing an object on a table: PyRobot's pushing example through the public API. The robot
-//! folds its arm out of the camera's view ([`ferrobot::Arm`]'s look pose: the stow pose hides the
+//! folds its arm out of the camera's view ([`ferrobot::arm::Arm`]'s look pose: the stow pose hides the
 //! table's near middle) and looks at the table, fits its plane, finds the objects above it (DBSCAN, eps 0.02 m, 15
 //! samples), lets [`ferrobot_perception::push`] choose the object and the direction, then
 //! moves its gripper, closed and pointing down (pitch π/2), its broad side facing the push,
@@ -67,7 +67,7 @@ pub struct PushOptions {
     /// its middle, the shortest route first) from which one can, looks again there and
     /// pushes. The body is the circle it sweeps turning in place (footprint, plates and the
     /// folded arm, from the links' covering spheres); the route runs on the table's seen
-    /// rectangle grown by that radius and this clearance (see [`crate::stance`]). `None`:
+    /// rectangle grown by that radius and this clearance (see [`ferrobot_nav::stance`]). `None`:
     /// the robot stays at the near side.
     pub route_clearance: Option<f64>,
 }

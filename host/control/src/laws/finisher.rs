@@ -83,7 +83,7 @@ impl FinishCmd {
 /// on millimetre errors asks for wheel speeds below the wheels' deadband, which do nothing.
 /// Checked at every odometry sample (50 Hz), it removes the error by odometry in straight
 /// drives and turns in place: an error across the heading above [`FINISH_TOL_LATERAL`] by
-/// backing up [`FINISH_BACKUP`], facing the goal and driving to it; the error along the
+/// backing up `FINISH_BACKUP` (5 cm), facing the goal and driving to it; the error along the
 /// heading to [`FINISH_TOL_XY`]; then the heading to [`FINISH_TOL_TH`] or, when one encoder
 /// tick turns the odometry by more than twice that, to 0.55 tick (the Create 2: 0.06°).
 /// Large errors are driven at speeds proportional to them, ramped within the tracking
@@ -334,7 +334,7 @@ impl Finisher {
     }
 }
 
-/// Closed-loop tracking, then the [`Finish`]er.
+/// Closed-loop tracking, then the [`Finisher`].
 
 impl Finisher {
     /// How long (ms) the firmware should hold the command [`Finisher::step`] returned last.

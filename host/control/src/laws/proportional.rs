@@ -139,7 +139,7 @@ impl Proportional {
     }
 }
 
-/// A [`Dwa`] position goal: the window steers to the goal position among the obstacles, then
+/// A dynamic-window position goal: the window steers to the goal position among the obstacles, then
 
 impl Proportional {
     /// A law to `goal` `[x, y, θ]` (m, m, rad) starting at rest: speeds bounded by `max_v`

@@ -126,7 +126,7 @@ impl Link for SimLink {
 }
 
 /// The simulated world's RGB-D camera ([`ferrobot_sim::camera::BandedCamera`]: two bands of
-/// rows on two threads) as a [`CameraDevice`]: frames come at the description's rate, on the
+/// rows on two threads) as a [`super::device::CameraDevice`]: frames come at the description's rate, on the
 /// simulator's clock; a capture lets simulated time reach the next frame instant and renders
 /// the world's ground truth there (the true joint angles and base pose, the scene's bodies).
 pub struct SimCameraDevice {

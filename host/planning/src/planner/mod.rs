@@ -51,7 +51,7 @@ pub struct PlanOptions {
     pub improve_for: Duration,
     /// Dynamic domains for RRT-Connect's samples (Yershova et al. 2005, on by default as in
     /// VAMP): a node whose extension was trapped keeps a domain, and a sample farther from
-    /// its nearest node than that node's domain is drawn again without a check ([`Domain`]).
+    /// its nearest node than that node's domain is drawn again without a check (`Domain`).
     pub dynamic_domain: bool,
 }
 
