@@ -108,6 +108,11 @@ check clippy cargo clippy --workspace --all-targets -- -D warnings
 step "cargo doc -D warnings (workspace)"
 check doc env RUSTDOCFLAGS="-D warnings" cargo doc "${tested[@]}" --no-deps
 
+# A user's program with one backend: the simulator without serial-port libraries, the serial
+# port without the simulator (two small check builds of the API crate with other features).
+step "ferrobot with one backend each (sim without serialport, serial without the simulator)"
+check "backend builds" scripts/backend-builds.sh
+
 # Both boards share one target directory (boards/target), so the second reuses the host-side
 # build dependencies the first checked.
 step "cargo clippy -D warnings (both boards, Debian's clippy)"
