@@ -6,7 +6,7 @@
 use std::time::Duration;
 
 use ferrobot_protocol::{HostMsg, JointMode, JointState};
-use nalgebra::{Isometry3, Matrix3, Matrix6xX, Rotation3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Matrix3, Rotation3, UnitQuaternion, Vector3};
 
 use std::sync::Arc;
 
@@ -15,7 +15,6 @@ use crate::error::{check_finite, Error, Result};
 use crate::goals::Claim;
 use crate::hub::Hub;
 use crate::joints_goal::JointsGoal;
-use crate::kinematics::ik::IkOptions;
 use crate::kinematics::Chain;
 use crate::motion::Motion;
 use crate::robot::Robot;
@@ -131,7 +130,7 @@ impl Arm {
     }
 
     /// The arm's kinematic chain, base frame to end effector.
-    fn chain(&self) -> Result<&crate::kinematics::Chain> {
+    pub(crate) fn chain(&self) -> Result<&crate::kinematics::Chain> {
         self.robot
             .cfg()
             .arm_chain
@@ -161,13 +160,13 @@ impl Arm {
         self.ensure_mode(io, JointMode::Position)
     }
 
-    fn cfg(&self) -> &crate::config::ArmConfig {
+    pub(crate) fn cfg(&self) -> &crate::config::ArmConfig {
         // Present: `Robot::arm` checks it.
         self.robot.cfg().arm.as_ref().expect("arm config")
     }
 
     /// A chain from the arm's base frame to `frame`, cached.
-    fn chain_to(&self, frame: &str) -> Result<Arc<Chain>> {
+    pub(crate) fn chain_to(&self, frame: &str) -> Result<Arc<Chain>> {
         let mut chains = self.parts().chains.lock();
         if let Some(c) = chains.get(frame) {
             return Ok(c.clone());
@@ -191,7 +190,7 @@ impl Arm {
         self.cfg().joints.clone()
     }
 
-    fn check_count(&self, what: &'static str, v: &[f64]) -> Result<()> {
+    pub(crate) fn check_count(&self, what: &'static str, v: &[f64]) -> Result<()> {
         if v.len() != self.dof() {
             return Err(Error::JointCount {
                 what,
@@ -203,12 +202,12 @@ impl Arm {
     }
 
     /// Joint angles: the arm's count, each finite and within ±[`validate::MAX_ANGLE`].
-    fn check_angles(&self, what: &'static str, q: &[f64]) -> Result<()> {
+    pub(crate) fn check_angles(&self, what: &'static str, q: &[f64]) -> Result<()> {
         self.check_count(what, q)?;
         Ok(validate::angles(what, q)?)
     }
 
-    fn check_limits(&self, q: &[f64]) -> Result<()> {
+    pub(crate) fn check_limits(&self, q: &[f64]) -> Result<()> {
         for (&j, &v) in self.parts().joints.iter().zip(q) {
             let c = &self.robot.cfg().joints[j];
             let (lo, hi) = (c.limits.min as f64, c.limits.max as f64);
@@ -225,7 +224,7 @@ impl Arm {
     }
 
     /// Switch the arm's joints to `mode` unless they are in it.
-    fn ensure_mode(&self, io: &mut Hub, mode: JointMode) -> Result<()> {
+    pub(crate) fn ensure_mode(&self, io: &mut Hub, mode: JointMode) -> Result<()> {
         let mut current = self.parts().mode.lock();
         if current.unwrap_or(JointMode::Position) != mode {
             io.set_mode(&self.parts().joints, mode)?;
@@ -234,7 +233,7 @@ impl Arm {
         Ok(())
     }
 
-    fn states_in(&self, io: &mut Hub) -> Result<Vec<JointState>> {
+    pub(crate) fn states_in(&self, io: &mut Hub) -> Result<Vec<JointState>> {
         let t = io.link.telemetry()?;
         Ok(self
             .parts()
@@ -244,7 +243,7 @@ impl Arm {
             .collect())
     }
 
-    fn states(&self) -> Result<Vec<JointState>> {
+    pub(crate) fn states(&self) -> Result<Vec<JointState>> {
         self.states_in(&mut self.robot.lock_hub())
     }
 
@@ -313,7 +312,7 @@ impl Arm {
     }
 
     /// Send one direct value per arm joint in `mode`, each within ±`limit` of its joint.
-    fn direct(
+    pub(crate) fn direct(
         &self,
         what: &'static str,
         values: &[f64],
@@ -353,7 +352,12 @@ impl Arm {
     /// (the motions under way go on meanwhile). The queue's fill is known from telemetry,
     /// which lags the knots just sent, so a full queue shows as a `QueueFull` rejection: then
     /// let a knot play out and send again, for at most `timeout` without progress.
-    fn send_when_queued(&self, q: &[f64], seconds: f64, timeout: Duration) -> Result<()> {
+    pub(crate) fn send_when_queued(
+        &self,
+        q: &[f64],
+        seconds: f64,
+        timeout: Duration,
+    ) -> Result<()> {
         let mask = self.parts().mask();
         let since = self.robot.lock_hub().link.now();
         loop {
@@ -402,7 +406,7 @@ impl Arm {
         Ok(self.states()?.iter().map(|s| s.effort as f64).collect())
     }
 
-    fn by_name(&self, name: &str) -> Result<JointState> {
+    pub(crate) fn by_name(&self, name: &str) -> Result<JointState> {
         let k = self
             .cfg()
             .joints
@@ -477,96 +481,6 @@ impl Arm {
         self.robot.arm_reach()
     }
 
-    /// Pose of the end effector from the measured joint angles.
-    pub fn get_ee_pose(&self) -> Result<Pose> {
-        let q = self.get_joint_angles()?;
-        let ee = self.cfg().ee_frame.clone();
-        self.compute_fk_position(&q, &ee)
-    }
-
-    fn chain_q(&self, q: &[f64], frame: &str) -> Result<(crate::kinematics::Chain, Vec<f64>)> {
-        self.check_angles("joint positions", q)?;
-        let names = self.cfg().joints.clone();
-        let chain = (*self.chain_to(frame)?).clone();
-        // The frame's chain moves a prefix of the arm's joints (or other joints: not ours).
-        let mut sub = Vec::new();
-        for j in &chain.joints {
-            let k = names
-                .iter()
-                .position(|n| *n == j.name)
-                .ok_or_else(|| Error::UnknownName {
-                    what: "frame (its chain moves a joint that is not an arm joint)",
-                    name: frame.to_string(),
-                })?;
-            sub.push(q[k]);
-        }
-        Ok((chain, sub))
-    }
-
-    /// Pose of `frame` (any link of the arm's chain) in the base frame at joint angles `q`.
-    pub fn compute_fk_position(&self, q: &[f64], frame: &str) -> Result<Pose> {
-        let (chain, sub) = self.chain_q(q, frame)?;
-        Ok(chain.fk(&sub).into())
-    }
-
-    /// Geometric Jacobian at `q`: rows (vx, vy, vz, ωx, ωy, ωz) in the base frame at the
-    /// end effector's origin, one column per arm joint.
-    pub fn get_jacobian(&self, q: &[f64]) -> Result<Matrix6xX<f64>> {
-        let ee = self.cfg().ee_frame.clone();
-        let (chain, sub) = self.chain_q(q, &ee)?;
-        Ok(chain.jacobian(&sub))
-    }
-
-    /// Twist `[vx, vy, vz, ωx, ωy, ωz]` of the end effector (base frame) at `q` moving at `qd`.
-    pub fn compute_fk_velocity(&self, q: &[f64], qd: &[f64]) -> Result<[f64; 6]> {
-        self.check_count("joint velocities", qd)?;
-        validate::all_in_range(
-            "joint velocities",
-            qd,
-            -(ferrobot_protocol::ranges::JOINT_SPEED_MAX as f64),
-            ferrobot_protocol::ranges::JOINT_SPEED_MAX as f64,
-        )?;
-        let j = self.get_jacobian(q)?;
-        let v = j * nalgebra::DVector::from_column_slice(qd);
-        Ok([v[0], v[1], v[2], v[3], v[4], v[5]])
-    }
-
-    fn ik_options(&self) -> IkOptions {
-        let c = self.cfg();
-        IkOptions {
-            position_tolerance: c.ik_position_tolerance,
-            orientation_tolerance: c.ik_orientation_tolerance,
-            ..IkOptions::default()
-        }
-    }
-
-    /// Joint angles that put the end effector at `position` (m) with `orientation`, nearest to
-    /// `seed` (default: the current joint angles).
-    pub fn compute_ik(
-        &self,
-        position: [f64; 3],
-        orientation: Orientation,
-        seed: Option<&[f64]>,
-    ) -> Result<Vec<f64>> {
-        validate::arm_point("position", position)?;
-        let rot = orientation.to_quaternion()?;
-        let seed = match seed {
-            Some(s) => {
-                self.check_angles("IK seed", s)?;
-                s.to_vec()
-            }
-            None => self.get_joint_angles()?,
-        };
-        let target = Isometry3::from_parts(
-            Translation3::new(position[0], position[1], position[2]),
-            rot,
-        );
-        let opts = self.ik_options();
-        let chain = self.chain()?;
-        let ik = &self.parts().ik;
-        Ok(ik.solve(chain, &target, Some(&seed), &opts)?)
-    }
-
     /// Move the end effector to a pose (through IK and a planned joint move).
     /// The IK solution is the collision-free one nearest the current joints, from several
     /// seeds.
@@ -586,58 +500,6 @@ impl Arm {
     ) -> Result<()> {
         let q = self.ik_pitch_roll(position, pitch, roll, None)?;
         self.set_joint_positions(&q)
-    }
-
-    /// 5-DOF arms: joint angles that put the end effector at `position` (m) with gripper
-    /// pitch `pitch` (rad below horizontal) and roll `roll` (rad; the seed's when `None`),
-    /// nearest to `seed` (default: the current joint angles). The closed-form solver of
-    /// [`Arm::set_ee_pose_pitch_roll`], without moving.
-    pub fn compute_ik_pitch_roll(
-        &self,
-        position: [f64; 3],
-        pitch: f64,
-        roll: Option<f64>,
-        seed: Option<&[f64]>,
-    ) -> Result<Vec<f64>> {
-        let seed = match seed {
-            Some(s) => {
-                self.check_angles("IK seed", s)?;
-                Some(s.to_vec())
-            }
-            None => None,
-        };
-        self.ik_pitch_roll(position, pitch, roll, seed)
-    }
-
-    pub(crate) fn ik_pitch_roll(
-        &self,
-        position: [f64; 3],
-        pitch: f64,
-        roll: Option<f64>,
-        seed: Option<Vec<f64>>,
-    ) -> Result<Vec<f64>> {
-        validate::arm_point("position", position)?;
-        validate::angles("pitch", &[pitch])?;
-        let solver = self.parts().locobot_ik.ok_or_else(|| Error::Unreachable {
-            why: format!(
-                "{} has no pitch-roll solver (a 5-DOF LoCoBot-type arm has)",
-                self.robot.cfg().name
-            ),
-        })?;
-        let seed = match seed {
-            Some(s) => s,
-            None => self.get_joint_angles()?,
-        };
-        // Roll is joint 5 up to its sign (its axis is −x on the LoCoBot).
-        let chain = self.chain()?;
-        let sign = if chain.joints[4].axis.x < 0.0 {
-            -1.0
-        } else {
-            1.0
-        };
-        let roll = roll.unwrap_or(sign * seed[4]);
-        validate::angles("roll", &[roll])?;
-        Ok(solver.solve_pitch_roll(chain, &Vector3::from(position), pitch, roll, Some(&seed))?)
     }
 
     /// Move the end effector along a straight line by `displacement` (m, base frame), keeping

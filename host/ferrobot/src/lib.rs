@@ -20,6 +20,7 @@
 compile_error!("ferrobot needs a backend: enable `sim` (the default) or `serial`");
 
 pub mod arm;
+mod arm_kinematics;
 mod arm_parts;
 pub mod arm_plan;
 mod arm_scene;
