@@ -123,6 +123,8 @@ pub(crate) struct ArmParts {
     ik: Box<dyn IkSolver>,
     /// The closed-form pitch-roll solver, on LoCoBot-type arms.
     locobot_ik: Option<LocobotIk>,
+    /// The arm's chain, base frame to end effector.
+    chain: Chain,
     /// Chains from the arm's base frame to other frames, built when first asked for.
     chains: Mutex<HashMap<String, Arc<Chain>>>,
     /// The planning scene and collision model.
@@ -132,12 +134,12 @@ pub(crate) struct ArmParts {
 impl ArmParts {
     /// The arm of `cfg`; `None` when it has none.
     pub(crate) fn new(cfg: &RobotConfig) -> Result<Option<ArmParts>> {
-        let (Some(a), Some(chain)) = (&cfg.arm, &cfg.arm_chain) else {
+        let (Some(a), Some(chain)) = (&cfg.arm, ferrobot_profile::arm_chain(cfg)) else {
             return Ok(None);
         };
         let (ik, locobot_ik): (Box<dyn IkSolver>, Option<LocobotIk>) = match a.ik {
             IkKind::LocobotPitchRoll => {
-                let l = LocobotIk::from_chain(chain)?;
+                let l = LocobotIk::from_chain(&chain)?;
                 (Box::new(l), Some(l))
             }
             IkKind::Numerical => (Box::new(NumericalIk), None),
@@ -146,6 +148,7 @@ impl ArmParts {
             joints: a.joints.iter().filter_map(|n| cfg.joint_index(n)).collect(),
             ik,
             locobot_ik,
+            chain,
             chains: Mutex::new(HashMap::new()),
             planning: Mutex::new(Default::default()),
         }))
@@ -184,13 +187,7 @@ impl Arm {
 
     /// The arm's kinematic chain, base frame to end effector.
     fn chain(&self) -> Result<&crate::kinematics::Chain> {
-        self.robot
-            .cfg()
-            .arm_chain
-            .as_ref()
-            .ok_or_else(|| Error::Unreachable {
-                why: "no arm chain".into(),
-            })
+        Ok(&self.parts().chain)
     }
 
     pub(crate) fn cfg_arm(&self) -> &crate::config::ArmConfig {
@@ -368,7 +365,7 @@ impl Arm {
         &self,
         what: &'static str,
         values: &[f64],
-        limit: fn(&ferrobot_protocol::JointLimits) -> f32,
+        limit: fn(&crate::config::JointLimits) -> f32,
         mode: JointMode,
     ) -> Result<()> {
         self.check_count(what, values)?;

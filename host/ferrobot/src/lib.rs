@@ -38,6 +38,9 @@ pub mod stance;
 
 pub use ferrobot_control::odometry_calibration;
 pub use ferrobot_description as config;
+/// A described robot made whole: its checks against the wire, the firmware and its chain, and
+/// what derives from it (firmware profile, joint table, arm chain).
+pub use ferrobot_profile as profile;
 pub use ferrobot_geometry::validate;
 pub use ferrobot_kinematics as kinematics;
 pub use ferrobot_nav as obstacles;
