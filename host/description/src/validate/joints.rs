@@ -47,6 +47,42 @@ fn entry(
             format!("joint {:?} has two [[joint]] entries", j.name),
         ));
     }
+    let model = servo(i, j, ids, file)?;
+    let (min, max, velocity) = limits(i, j, urdf, file)?;
+    let joint = Joint {
+        name: j.name.clone(),
+        kind: j.kind,
+        model,
+        servo_id: j.servo.id,
+        twin_id: j.servo.twin,
+        sign: j.servo.sign,
+        offset: j.servo.offset as f32,
+        limits: JointLimits {
+            min: min as f32,
+            max: max as f32,
+            velocity: velocity as f32,
+            effort: j.effort_limit as f32,
+        },
+        bounds: (min, max),
+        pid: j.pid,
+        position_ki: j.position_ki,
+    };
+    let entry = JointEntry {
+        index: i,
+        section: j,
+        min,
+        max,
+        velocity,
+        joint: &joint,
+    };
+    checks.joint(file, &entry)?;
+    Ok(joint)
+}
+
+/// Entry `i`'s servo: a known model, a sign of ±1, Dynamixel IDs (0-252) not in `ids`, which
+/// they join.
+fn servo(i: usize, j: &JointSection, ids: &mut BTreeSet<u8>, file: &Path) -> Result<ServoModel> {
+    let key = |k: &str| format!("joint[{i}].{k}");
     let model = match j.servo.model.as_str() {
         "xm430-w350" => ServoModel::Xm430W350,
         "xl430-w250" => ServoModel::Xl430W250,
@@ -81,35 +117,7 @@ fn entry(
             ));
         }
     }
-    let (min, max, velocity) = limits(i, j, urdf, file)?;
-    let joint = Joint {
-        name: j.name.clone(),
-        kind: j.kind,
-        model,
-        servo_id: j.servo.id,
-        twin_id: j.servo.twin,
-        sign: j.servo.sign,
-        offset: j.servo.offset as f32,
-        limits: JointLimits {
-            min: min as f32,
-            max: max as f32,
-            velocity: velocity as f32,
-            effort: j.effort_limit as f32,
-        },
-        bounds: (min, max),
-        pid: j.pid,
-        position_ki: j.position_ki,
-    };
-    let entry = JointEntry {
-        index: i,
-        section: j,
-        min,
-        max,
-        velocity,
-        joint: &joint,
-    };
-    checks.joint(file, &entry)?;
-    Ok(joint)
+    Ok(model)
 }
 
 /// Entry `i`'s limits `(min, max, velocity)`: the URDF's, overridden per field (a gripper
