@@ -19,10 +19,7 @@ use rand_chacha::ChaCha8Rng;
 use std::hint::black_box;
 
 fn arm(robot: &str) -> Chain {
-    RobotConfig::bundled(robot)
-        .expect("robot")
-        .arm_chain
-        .expect("arm")
+    ferrobot::profile::arm_chain(&RobotConfig::bundled(robot).expect("robot")).expect("arm")
 }
 
 fn random_q(chain: &Chain, rng: &mut ChaCha8Rng) -> Vec<f64> {

@@ -39,7 +39,8 @@ pub mod clock;
 pub mod create2;
 pub mod dxl;
 pub mod frame;
-pub mod geometry;
+/// Plane geometry (the angle wrap and the exact-arc step): the crate `ferrobot-planar`.
+pub use ferrobot_planar as geometry;
 pub mod gravity;
 pub mod kobuki;
 pub mod messages;

@@ -49,7 +49,7 @@ pub const STOP_MARGIN: f64 = 0.1;
 
 /// A bundled robot by name.
 pub fn by_name(name: &str) -> Option<SimRobot> {
-    RobotConfig::bundled(name)
+    ferrobot_profile::bundled(name)
         .ok()
         .map(|cfg| from_description(&cfg))
 }
@@ -67,7 +67,7 @@ pub fn from_description(cfg: &RobotConfig) -> SimRobot {
     let tick = |t: i32| units::tick_to_rad(t) as f64;
     let mut servos = Vec::new();
     let mut joint_servos = Vec::new();
-    for j in &cfg.joints {
+    for j in &ferrobot_profile::joint_table(cfg) {
         // Servo angle = sign·q + offset (the twin: its negation).
         let s = j.sign as f64;
         let (a, b) = (

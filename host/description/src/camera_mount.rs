@@ -24,7 +24,9 @@ use std::path::Path;
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
 use serde::{Deserialize, Serialize};
 
-use crate::{cfg_err, read_text, Result, RobotConfig};
+use crate::error::{config_error as cfg_err, Result};
+use crate::files::read_text;
+use crate::RobotConfig;
 
 /// Largest calibration file read, bytes.
 pub const MAX_CALIBRATION_BYTES: u64 = 64 << 10;
@@ -133,7 +135,7 @@ impl RobotConfig {
             joint: joint.name.clone(),
             parent: joint.parent.link.clone(),
             child,
-            pose: ferrobot_kinematics::pose_from_urdf(&joint.origin),
+            pose: pose_from_urdf(&joint.origin),
         })
     }
 
@@ -179,4 +181,11 @@ impl RobotConfig {
         }
         Ok(())
     }
+}
+
+/// The pose a URDF origin gives (translation, then roll-pitch-yaw), m and rad: the same as
+/// `ferrobot_kinematics::pose_from_urdf`, which this crate does not depend on.
+fn pose_from_urdf(p: &urdf_rs::Pose) -> Isometry3<f64> {
+    let r = UnitQuaternion::from_euler_angles(p.rpy[0], p.rpy[1], p.rpy[2]);
+    Isometry3::from_parts(Translation3::new(p.xyz[0], p.xyz[1], p.xyz[2]), r)
 }

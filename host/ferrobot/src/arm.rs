@@ -131,13 +131,7 @@ impl Arm {
 
     /// The arm's kinematic chain, base frame to end effector.
     pub(crate) fn chain(&self) -> Result<&crate::kinematics::Chain> {
-        self.robot
-            .cfg()
-            .arm_chain
-            .as_ref()
-            .ok_or_else(|| Error::Unreachable {
-                why: "no arm chain".into(),
-            })
+        Ok(&self.parts().chain)
     }
 
     pub(crate) fn cfg_arm(&self) -> &crate::config::ArmConfig {
@@ -316,7 +310,7 @@ impl Arm {
         &self,
         what: &'static str,
         values: &[f64],
-        limit: fn(&ferrobot_protocol::JointLimits) -> f32,
+        limit: fn(&crate::config::JointLimits) -> f32,
         mode: JointMode,
     ) -> Result<()> {
         self.check_count(what, values)?;

@@ -23,6 +23,8 @@ pub(crate) struct ArmParts {
     pub(crate) ik: Box<dyn IkSolver>,
     /// The closed-form pitch-roll solver, on LoCoBot-type arms.
     pub(crate) locobot_ik: Option<LocobotIk>,
+    /// The arm's chain, base frame to end effector.
+    pub(crate) chain: Chain,
     /// Chains from the arm's base frame to other frames, built when first asked for.
     pub(crate) chains: Mutex<HashMap<String, Arc<Chain>>>,
     /// The planning scene and collision model.
@@ -35,12 +37,12 @@ pub(crate) struct ArmParts {
 impl ArmParts {
     /// The arm of `cfg`; `None` when it has none.
     pub(crate) fn new(cfg: &RobotConfig) -> Result<Option<ArmParts>> {
-        let (Some(a), Some(chain)) = (&cfg.arm, &cfg.arm_chain) else {
+        let (Some(a), Some(chain)) = (&cfg.arm, ferrobot_profile::arm_chain(cfg)) else {
             return Ok(None);
         };
         let (ik, locobot_ik): (Box<dyn IkSolver>, Option<LocobotIk>) = match a.ik {
             IkKind::LocobotPitchRoll => {
-                let l = LocobotIk::from_chain(chain)?;
+                let l = LocobotIk::from_chain(&chain)?;
                 (Box::new(l), Some(l))
             }
             IkKind::Numerical => (Box::new(NumericalIk), None),
@@ -49,6 +51,7 @@ impl ArmParts {
             joints: a.joints.iter().filter_map(|n| cfg.joint_index(n)).collect(),
             ik,
             locobot_ik,
+            chain,
             chains: Mutex::new(HashMap::new()),
             planning: Mutex::new(Default::default()),
             mode: Mutex::new(None),

@@ -155,19 +155,19 @@ impl Base {
             .lock_hub()
             .base
             .odometry
-            .or(s.odometry)
-            .unwrap_or_else(|| s.nominal_geometry())
+            .or(ferrobot_profile::odometry_geometry(s))
+            .unwrap_or_else(|| ferrobot_profile::nominal_geometry(s))
     }
 
     /// Make the firmware's odometry use a calibrated geometry (from
     /// [`crate::odometry_calibration::estimate`]); each value must be within 10 % of the
     /// nominal one. Takes effect from the next wheel sample; the pose is not reset.
     pub fn set_odometry_geometry(&self, g: WheelGeometry) -> Result<()> {
-        if !g.near(&self.section().nominal_geometry(), 0.1) {
+        if !g.near(&ferrobot_profile::nominal_geometry(self.section()), 0.1) {
             return Err(Error::Calibration {
                 why: format!(
                     "{g:?} is not within 10 % of the nominal {:?}",
-                    self.section().nominal_geometry()
+                    ferrobot_profile::nominal_geometry(self.section())
                 ),
             });
         }
@@ -301,7 +301,7 @@ impl Base {
         let timeout = Duration::from_secs_f64(duration + 5.0);
         if let Some(goal) = finish {
             // One encoder tick of one wheel turns the odometry by this much (rad).
-            let fw = self.robot.cfg().firmware_profile().base;
+            let fw = ferrobot_profile::firmware_profile(self.robot.cfg()).base;
             let tick = fw.rad_per_tick() as f64 * fw.wheel_radius as f64 / fw.track as f64;
             let s = self.section();
             let law = TrackThenFinish {

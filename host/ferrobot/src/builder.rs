@@ -99,7 +99,7 @@ impl RobotBuilder {
 
     /// Load, connect, configure.
     pub fn build(self) -> Result<Robot> {
-        let world_cfg = RobotConfig::load(&self.source, &self.overrides)?;
+        let world_cfg = ferrobot_profile::load(&self.source, &self.overrides)?;
         let mut cfg = world_cfg.clone();
         if let Some(path) = &self.camera_calibration {
             let c = ferrobot_description::CameraCalibration::load(path)?;
@@ -182,7 +182,7 @@ impl Robot {
             .base
             .as_ref()
             .filter(|_| robot.inner.uses.base)
-            .and_then(|b| b.odometry);
+            .and_then(ferrobot_profile::odometry_geometry);
         if let Some(g) = geometry {
             robot.base()?.set_odometry_geometry(g)?;
         }
@@ -195,12 +195,12 @@ impl Robot {
         let cfg = self.cfg();
         let mut io = self.lock_hub();
         let info = io.link.info().clone();
-        if info.robot.as_str() != cfg.firmware_profile().robot.as_str()
-            || info.base != cfg.base_kind()
+        if info.robot.as_str() != ferrobot_profile::firmware_profile(cfg).robot.as_str()
+            || info.base != ferrobot_profile::base_kind(cfg)
         {
             return Err(Error::WrongRobot {
                 config: cfg.name.clone(),
-                config_base: format!("{:?}", cfg.base_kind()),
+                config_base: format!("{:?}", ferrobot_profile::base_kind(cfg)),
                 firmware: info.robot.as_str().to_string(),
                 firmware_base: format!("{:?}", info.base),
             });
@@ -212,7 +212,7 @@ impl Robot {
                 info.joints.len()
             )));
         }
-        for (i, ours) in cfg.joints.iter().enumerate() {
+        for (i, ours) in ferrobot_profile::joint_table(cfg).iter().enumerate() {
             let fw = io.link.joint_config(i as u8)?;
             if fw.name != ours.name
                 || fw.servo_id != ours.servo_id

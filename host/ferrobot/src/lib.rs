@@ -61,6 +61,9 @@ pub use ferrobot_geometry::validate;
 pub use ferrobot_kinematics as kinematics;
 /// Navigation: maps on disk, the global planner on occupancy grids, obstacles.
 pub use ferrobot_nav as nav;
+/// A described robot made whole: its checks against the wire, the firmware and its chain, and
+/// what derives from it (firmware profile, joint table, arm chain).
+pub use ferrobot_profile as profile;
 
 /// Base control and navigation, as one module of the API: references, LQR and ILQR
 /// (`ferrobot-control`), and the navigation field and dynamic window (`ferrobot-nav`).

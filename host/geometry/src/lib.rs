@@ -7,12 +7,12 @@ pub mod validate;
 pub use validate::ValueError;
 
 /// Wrap an angle (rad) to (−π, π]: the one convention of every host crate, the firmware and
-/// the plants (`ferrobot_protocol::geometry::wrap` in `f64`, so that literals need no type).
+/// the plants (`ferrobot_planar::wrap` in `f64`, so that literals need no type).
 pub fn wrap(a: f64) -> f64 {
-    ferrobot_protocol::geometry::wrap(a)
+    ferrobot_planar::wrap(a)
 }
 
-pub use ferrobot_protocol::geometry::arc_step;
+pub use ferrobot_planar::arc_step;
 
 /// A pose in the plane (SE(2)): the position `x`, `y` (m) and heading `theta` (rad) of a frame
 /// in a parent frame, e.g. a base in the odometry frame. Arrays `[x, y, θ]` convert both ways.

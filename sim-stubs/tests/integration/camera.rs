@@ -325,7 +325,7 @@ fn two_bands_render_the_one_image() {
     let section = cfg.camera.clone().unwrap();
     let sim = ferrobot_sim::LockstepSim::with_scene(
         ferrobot_sim::robots::from_description(&cfg),
-        cfg.firmware_profile(),
+        ferrobot_profile::firmware_profile(&cfg),
         1,
         std::sync::Arc::new(Scene::bundled("tabletop").unwrap()),
     )

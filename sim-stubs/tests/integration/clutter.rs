@@ -31,7 +31,7 @@ impl Sawyer {
         Sawyer {
             scene: Scene::bundled("clutter").unwrap(),
             body: robots::by_name("sawyer").unwrap().body.unwrap(),
-            chain: cfg.arm_chain.clone().unwrap(),
+            chain: ferrobot_profile::arm_chain(&cfg).unwrap(),
             cfg,
         }
     }

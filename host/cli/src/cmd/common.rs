@@ -9,20 +9,18 @@ use serde::Serialize;
 /// a `/`).
 pub fn load(robot: &str) -> ferrobot::Result<RobotConfig> {
     Ok(if robot.ends_with(".toml") || robot.contains('/') {
-        RobotConfig::from_file(robot)?
+        ferrobot::profile::from_file(robot)?
     } else {
-        RobotConfig::bundled(robot)?
+        ferrobot::profile::bundled(robot)?
     })
 }
 
 /// The arm's kinematic chain, or the error that the robot has no arm.
 pub fn arm_chain(cfg: &RobotConfig) -> ferrobot::Result<Chain> {
-    cfg.arm_chain
-        .clone()
-        .ok_or_else(|| ferrobot::Error::NoComponent {
-            robot: cfg.name.clone(),
-            component: "arm",
-        })
+    ferrobot::profile::arm_chain(cfg).ok_or_else(|| ferrobot::Error::NoComponent {
+        robot: cfg.name.clone(),
+        component: "arm",
+    })
 }
 
 /// Joint angles for `chain`: its count, each finite and within ±`validate::MAX_ANGLE`.

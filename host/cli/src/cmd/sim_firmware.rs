@@ -37,7 +37,7 @@ pub fn run(a: &Args) -> ferrobot::Result<()> {
     let scene = Arc::new(Scene::load(&SceneSource::from_arg(scene))?);
     let sim = ferrobot_sim::LockstepSim::with_scene(
         ferrobot::backend::sim::sim_robot(&cfg),
-        cfg.firmware_profile(),
+        ferrobot::profile::firmware_profile(&cfg),
         seed,
         scene,
     )?;

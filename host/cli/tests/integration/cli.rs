@@ -37,10 +37,8 @@ fn fk_matches_the_library_with_negative_numbers() {
     cmd.push("--json");
     let (ok, v) = run(&cmd);
     assert!(ok, "{v}");
-    let chain = RobotConfig::bundled("locobot")
-        .expect("cfg")
-        .arm_chain
-        .expect("arm");
+    let chain =
+        ferrobot::profile::arm_chain(&RobotConfig::bundled("locobot").expect("cfg")).expect("arm");
     let t = chain.fk(&q);
     for (k, want) in [t.translation.x, t.translation.y, t.translation.z]
         .iter()
@@ -88,10 +86,8 @@ fn ik_succeeds_and_fails_with_json_and_exit_codes() {
         .iter()
         .map(|x| x.as_f64().unwrap_or(f64::NAN))
         .collect();
-    let chain = RobotConfig::bundled("locobot")
-        .expect("cfg")
-        .arm_chain
-        .expect("arm");
+    let chain =
+        ferrobot::profile::arm_chain(&RobotConfig::bundled("locobot").expect("cfg")).expect("arm");
     let p = chain.fk(&q).translation;
     assert!((p.x - 0.35).abs() < 1e-5 && p.y.abs() < 1e-5 && (p.z - 0.15).abs() < 1e-5);
     let (ok, v) = run(&[

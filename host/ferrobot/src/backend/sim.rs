@@ -47,7 +47,12 @@ impl SimLink {
         realtime: bool,
         scene: std::sync::Arc<ferrobot_sim::scene::Scene>,
     ) -> Result<Self> {
-        let sim = LockstepSim::with_scene(sim_robot(cfg), cfg.firmware_profile(), seed, scene)?;
+        let sim = LockstepSim::with_scene(
+            sim_robot(cfg),
+            ferrobot_profile::firmware_profile(cfg),
+            seed,
+            scene,
+        )?;
         let mut session = SimHost::new(sim);
         let info = session.handshake().map_err(|e| sim_err("hello", e))?;
         let mut link = SimLink {

@@ -325,11 +325,10 @@ fn the_base_refuses_hostile_values() {
 #[test]
 fn the_ik_solvers_refuse_hostile_targets() {
     let cfg = ferrobot::RobotConfig::bundled("sawyer").expect("sawyer");
-    let sawyer = cfg.arm_chain.clone().expect("chain");
-    let locobot = ferrobot::RobotConfig::bundled("locobot")
-        .expect("locobot")
-        .arm_chain
-        .expect("chain");
+    let sawyer = ferrobot::profile::arm_chain(&cfg).expect("chain");
+    let locobot =
+        ferrobot::profile::arm_chain(&ferrobot::RobotConfig::bundled("locobot").expect("locobot"))
+            .expect("chain");
     let lik = LocobotIk::from_chain(&locobot).expect("solver");
     let calls = std::cell::Cell::new(0usize);
     let strategy = (triple(), triple(), vector(4..9));

@@ -98,10 +98,7 @@ fn sawyer_fk_matches_rethink_description() {
 }
 
 fn arm_chain(robot: &str) -> Chain {
-    RobotConfig::bundled(robot)
-        .expect("robot")
-        .arm_chain
-        .expect("arm")
+    ferrobot::profile::arm_chain(&RobotConfig::bundled(robot).expect("robot")).expect("arm")
 }
 
 #[test]

@@ -102,7 +102,7 @@ fn the_arm_plans_around_a_post_within_its_limits_and_follows_the_plan() {
     // Executing it: the measured joints stay within 1 cm (mapped to the end effector) of the
     // planned trajectory at the time (allowing the servos' lag of one knot period).
     let motion = arm.execute(&traj).expect("execute");
-    let chain = bot.config().arm_chain.clone().expect("chain");
+    let chain = ferrobot::profile::arm_chain(bot.config()).expect("chain");
     let t0 = bot.time();
     let mut worst = 0.0f64;
     while !motion.is_finished() {

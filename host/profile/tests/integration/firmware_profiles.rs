@@ -4,17 +4,18 @@
 //! The one field left out is the telemetry period, a setting of the link rather than of the
 //! robot: a board on a serial line starts at its built-in 20 ms, the simulator links ask 10 ms.
 
-use ferrobot_description::{RobotConfig, BUNDLED};
+use ferrobot_description::BUNDLED;
 use ferrobot_firmware::config;
+use ferrobot_profile::firmware_profile;
 
 #[test]
 fn every_bundled_robot_runs_the_built_in_profile_its_description_derives() {
     for name in BUNDLED {
-        let cfg = RobotConfig::bundled(name).expect("bundled");
+        let cfg = ferrobot_profile::bundled(name).expect("bundled");
         let board = cfg.board_profile.as_deref().expect("board_profile");
         let built_in = config::by_name(board)
             .unwrap_or_else(|| panic!("{name}: the firmware has no profile {board:?}"));
-        let derived = cfg.firmware_profile();
+        let derived = firmware_profile(&cfg);
         assert_eq!(derived.robot, built_in.robot, "{name}: robot");
         assert_eq!(
             derived.joints.len(),
@@ -38,14 +39,13 @@ fn every_bundled_robot_runs_the_built_in_profile_its_description_derives() {
 
 #[test]
 fn a_robot_without_a_gripper_has_no_gripper_driver() {
-    let sawyer = RobotConfig::bundled("sawyer").expect("sawyer");
+    let sawyer = ferrobot_profile::bundled("sawyer").expect("sawyer");
     assert!(sawyer.gripper.is_none());
-    assert_eq!(sawyer.firmware_profile().gripper, None);
-    let locobot = RobotConfig::bundled("locobot").expect("locobot");
+    assert_eq!(firmware_profile(&sawyer).gripper, None);
+    let locobot = ferrobot_profile::bundled("locobot").expect("locobot");
     let g = locobot.gripper.as_ref().expect("gripper");
     assert_eq!(
-        locobot
-            .firmware_profile()
+        firmware_profile(&locobot)
             .gripper
             .map(|d| (d.open_tick, d.closed_tick)),
         Some((g.open_tick, g.closed_tick))

@@ -1,11 +1,22 @@
 //! Plane geometry shared by the firmware (`f32`), the simulated plants and the host (`f64`):
 //! the one angle wrap and the one exact-arc step of a differential-drive base. The telemetry's
-//! [`crate::Odometry`] is integrated with it, so it lives beside that type.
-
+//! odometry (`ferrobot_protocol::Odometry`) is integrated with it; the protocol re-exports this
+//! crate as `ferrobot_protocol::geometry`, and the host's geometry layer uses it directly.
+#![no_std]
+#![forbid(unsafe_code)]
+#![cfg_attr(
+    not(test),
+    deny(
+        clippy::unwrap_used,
+        clippy::expect_used,
+        clippy::panic,
+        clippy::indexing_slicing
+    )
+)]
+#![warn(missing_docs)]
 // The arithmetic here is on `Real` (f32, f64) only: floating point neither overflows nor
-// panics (it saturates to ±inf or gives NaN, which callers check), so the crate's denial of
+// panics (it saturates to ±inf or gives NaN, which callers check), so the protocol's denial of
 // integer arithmetic side effects does not apply; clippy cannot tell a generic float apart.
-#![allow(clippy::arithmetic_side_effects)]
 
 use core::ops::{Add, Div, Mul, Neg, Rem, Sub};
 

@@ -2,7 +2,6 @@
 //! the bundled URDF: every link's inertial data, every fixed joint, the fingers and the AR tag,
 //! walked as the URDF's tree with its own transforms, at 125 poses of the arm.
 
-use ferrobot_description::RobotConfig;
 use ferrobot_firmware::config::LOCOBOT_GRAVITY;
 use ferrobot_protocol::gravity::{torques, G};
 
@@ -128,7 +127,7 @@ fn urdf_torques(urdf: &urdf_rs::Robot, arm: &[String], q: &[f64]) -> Vec<f64> {
 fn the_firmware_gravity_model_matches_the_urdf_of_both_locobots() {
     let links: Vec<_> = LOCOBOT_GRAVITY.links.iter().map(|l| l.to_f64()).collect();
     for robot in ["locobot", "locobot_lite"] {
-        let cfg = RobotConfig::bundled(robot).expect("bundled");
+        let cfg = ferrobot_profile::bundled(robot).expect("bundled");
         let arm: Vec<String> = LOCOBOT_GRAVITY
             .joints
             .iter()
@@ -138,7 +137,10 @@ fn the_firmware_gravity_model_matches_the_urdf_of_both_locobots() {
         // The built-in firmware profile of this robot carries the model.
         let profile = ferrobot_firmware::config::by_name(robot).expect("profile");
         assert_eq!(profile.gravity, Some(LOCOBOT_GRAVITY));
-        assert_eq!(cfg.firmware_profile().gravity, Some(LOCOBOT_GRAVITY));
+        assert_eq!(
+            ferrobot_profile::firmware_profile(&cfg).gravity,
+            Some(LOCOBOT_GRAVITY)
+        );
         let mut worst: f64 = 0.0;
         let mut largest: f64 = 0.0;
         let mut poses = 0;

@@ -13,7 +13,7 @@ fn load(
 ) -> Result<RobotConfig, Error> {
     let (toml, urdf) = bundled_files("locobot").expect("bundled");
     let urdf = edit_urdf(urdf);
-    RobotConfig::parse(&edit_toml(toml), Path::new("locobot.toml"), |_| {
+    ferrobot_profile::parse(&edit_toml(toml), Path::new("locobot.toml"), |_| {
         Ok(urdf.clone())
     })
 }
@@ -83,16 +83,6 @@ fn malformed_urdfs_are_refused_when_the_configuration_loads() {
     }
 }
 
-#[test]
-fn a_joint_table_entry_given_twice_is_refused() {
-    let edit = |t: &str| t.replacen("name = \"joint_2\"", "name = \"joint_1\"", 1);
-    refused(
-        load(edit, |t: &str| t.to_string()),
-        "joint[1].name",
-        "two [[joint]] entries",
-    );
-}
-
 /// The arm's chain, which IK searches, has the limits of the joint table (the configuration's
 /// overrides), not the URDF's.
 #[test]
@@ -105,7 +95,7 @@ fn the_arm_chain_has_the_configured_limits() {
         )
     };
     let cfg = load(edit, |t: &str| t.to_string()).expect("loads");
-    let j = &cfg.arm_chain.expect("chain").joints[0];
+    let j = &ferrobot_profile::arm_chain(&cfg).expect("chain").joints[0];
     assert_eq!((j.name.as_str(), j.lower, j.upper), ("joint_1", -1.0, 1.57));
 }
 
