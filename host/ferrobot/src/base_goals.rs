@@ -43,7 +43,8 @@ impl BaseLaw for Proportional {
     }
 }
 
-/// the proportional controller turns to the goal heading.
+/// A dynamic-window position goal: the window steers to the goal position among the
+/// obstacles, then the proportional controller turns to the goal heading.
 pub(crate) struct DwaGoal {
     pub(crate) dwa: Dwa,
     pub(crate) finish: Proportional,
@@ -110,6 +111,7 @@ impl BaseLaw for DwaGoal {
     }
 }
 
+/// Closed-loop tracking, then the [`Finisher`].
 pub(crate) struct TrackThenFinish {
     pub(crate) track: Tracking,
     pub(crate) tracking: bool,

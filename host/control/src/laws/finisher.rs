@@ -334,8 +334,6 @@ impl Finisher {
     }
 }
 
-/// Closed-loop tracking, then the [`Finisher`].
-
 impl Finisher {
     /// How long (ms) the firmware should hold the command [`Finisher::step`] returned last.
     pub fn hold_ms(&self) -> u16 {

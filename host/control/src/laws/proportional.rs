@@ -139,8 +139,6 @@ impl Proportional {
     }
 }
 
-/// A dynamic-window position goal: the window steers to the goal position among the obstacles, then
-
 impl Proportional {
     /// A law to `goal` `[x, y, θ]` (m, m, rad) starting at rest: speeds bounded by `max_v`
     /// (m/s) and `max_w` (rad/s), turns at least `min_w` (rad/s, above the wheels' deadband)

@@ -3,5 +3,5 @@
 
 mod grasp;
 mod hand_eye;
-mod hostile;
+mod hostile_skills;
 mod push;
