@@ -69,6 +69,13 @@ background boards 'scripts/build-boards.sh'
 step "cargo fmt --check"
 check fmt cargo fmt --all -- --check
 
+# The house's budget: files under 600 lines and functions under 80 (tests excepted) unless
+# listed with a reason in scripts/budget-exceptions.txt; no import circle of more than three
+# files inside a crate.
+step "size budget and import circles"
+check budget python3 scripts/budget.py --check
+check circles python3 scripts/circles.py --check
+
 # Every cargo command below selects the whole workspace (--workspace), as the full build does,
 # so that nothing is built twice: a narrower selection (-p) would unify other features. The
 # test builds leave out the criterion benchmarks' crate (--exclude ferrobot-benches): no test
