@@ -141,18 +141,7 @@ impl StrictChecker {
             t.samples.clear();
             return;
         }
-        // A joint taken under control outside its limits may only come back; while it
-        // brakes from the speed it was taken at, it may go on as far as it brakes.
-        if t.entered_fast.is_some() && beyond > 0.0 {
-            t.entered_outside = Some(t.entered_outside.unwrap_or(0.0).max(beyond));
-        }
-        let tol = match t.entered_outside {
-            Some(e) if beyond > 0.0 => POS_TOL + e,
-            _ => {
-                t.entered_outside = None;
-                POS_TOL
-            }
-        };
+        let tol = tolerance(t, beyond);
         let here = |kind: &str| {
             format!(
                 "{what}: t={now} us joint {j} ({:?}) {kind} at {q:.4} rad, limits {l:?}",
@@ -188,6 +177,22 @@ impl StrictChecker {
                     (now - t0) as f64 * 1e-3
                 )));
             }
+        }
+    }
+}
+
+/// How far (rad) beyond a limit joint track `t` may be when it is `beyond` it now. A joint
+/// taken under control outside its limits may only come back; while it brakes from the speed
+/// it was taken at, it may go on as far as it brakes.
+fn tolerance(t: &mut Track, beyond: f64) -> f64 {
+    if t.entered_fast.is_some() && beyond > 0.0 {
+        t.entered_outside = Some(t.entered_outside.unwrap_or(0.0).max(beyond));
+    }
+    match t.entered_outside {
+        Some(e) if beyond > 0.0 => POS_TOL + e,
+        _ => {
+            t.entered_outside = None;
+            POS_TOL
         }
     }
 }
