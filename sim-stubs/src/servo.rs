@@ -1,20 +1,8 @@
-//! One simulated X-series Dynamixel: its control table and its physics.
-//!
-//! Model (output-shaft side, SI units):
-//! * DC motor with gear at a 12 V supply: `i = (V − Ke·ω)/R`, `τ = Kt·i`, with `Kt = Ke` and `R`
-//!   from the published stall torque and no-load speed ([`MotorSpec`]); gear-train Coulomb and
-//!   viscous friction; the reflected rotor inertia dominates the joint inertia.
-//! * The servo's internal controllers run at 4 kHz: position PID with the e-manual's gain
-//!   scaling (`KP = P/128`, `KI = I/65536`, `KD = D/16`, error in ticks, output in PWM units of
-//!   1/885), optional trapezoidal profile, velocity PI (`P/128`, `I/65536`), an ideal current
-//!   loop (XM430), and raw PWM.
-//! * Gear backlash (a play operator between motor and output), encoder quantisation to 4096
-//!   ticks per turn, seeded noise on velocity and current readings.
-//! * Overload: a load beyond 80 % of stall for 2 s latches the Overload bit of Hardware Error
-//!   Status, sets the alert bit of every status packet and shuts the torque off, as the real
-//!   servo does; only a reboot clears it.
-//! * Contacts: mechanical stops and an optional obstacle (an object in the gripper, a blocked
-//!   joint) as stiff spring-dampers.
+//! One simulated X-series Dynamixel: its control table and its physics (output-shaft side, SI
+//! units): DC motor and gear from [`MotorSpec`], the internal controllers at 4 kHz with the
+//! e-manual's gain scaling, backlash, encoder quantisation, seeded reading noise, overload
+//! protection ([`OVERLOAD_FRACTION`], [`OVERLOAD_TIME`]) and contacts (stops, an obstacle) as
+//! stiff spring-dampers. Model details: `docs/design/sim-stubs.md`, "servo".
 
 use ferrobot_protocol::dxl::{addr, hw_error, mode, status_error, units, MotorSpec};
 use ferrobot_protocol::ServoModel;

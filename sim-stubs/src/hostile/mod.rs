@@ -1,31 +1,12 @@
 //! A hostile host for the firmware: seeded random streams of every `HostMsg` variant with
-//! hostile field values (±0, subnormals, ±1e38, ±f32::MAX, NaN, ±inf, integer extremes, random
-//! masks and indices) mixed with ordinary ones, interleaved with time, on every robot profile,
-//! through the lockstep simulator. Throughout, on the plants' true state:
-//!
-//! * every joint under control (not switched off by the host, not being configured, not the
-//!   gripper, which its own state machine drives against its stops) stays within its
-//!   configured position limits (tolerance [`POS_TOL`]) and within its velocity limit
-//!   (tolerance [`SPEED_TOL`] of the limit plus [`SPEED_ABS`]), unless it is pressed against a
-//!   mechanical stop (limits set beyond the joint's mechanical range). A joint that was limp (off,
-//!   rebooting, being configured) goes where gravity takes it, and a joint that new limits
-//!   left outside is outside through no motion of its own: from there it may run on for its
-//!   stopping distance (at [`BRAKING`]) and, once taken under control or switched to another
-//!   mode, for [`GRACE_US`]; then it may only come back and slow down;
-//! * the wheels stay within the base's top speed ([`WHEEL_TOL`]);
-//! * nothing panics;
-//! * and, checked beside these by [`strict::StrictChecker`] to an outside review's simpler and
-//!   stricter rules (issue 48): within 0.05 rad of the limits 0.3 s after they change, and no
-//!   faster than 1.5× the velocity limit + 0.15 rad/s over any 20 ms.
-//!
-//! Two mixes of messages ([`Mix`]): the broad one over every variant, and a pointed one at the
-//! holes that review found (extreme gains, broadcast indices, limits narrowed around moving
-//! joints, mode changes under load, non-finite efforts, direct commands at their edges).
-//!
-//! At the end an emergency stop, sent in whatever session state the stream left, stops the
-//! base within one base cycle and brings every joint to rest; after a valid Hello and Resume
-//! the arm obeys a waypoint again. `FERROBOT_HOSTILE_MESSAGES` sets the messages per profile
-//! (CI: 20,000) and `FERROBOT_HOSTILE_SEED` shifts the seeds (CI: 0), for longer searches.
+//! hostile field values mixed with ordinary ones ([`Mix`]), interleaved with time, on every
+//! robot profile, through the lockstep simulator; [`Checker`] (and beside it
+//! [`strict::StrictChecker`]) asserts on the plants' true state that joints under control stay
+//! within their limits ([`POS_TOL`], [`SPEED_TOL`], [`SPEED_ABS`], [`BRAKING`], [`GRACE_US`])
+//! and wheels within top speed ([`WHEEL_TOL`]), and at the end an emergency stop stops
+//! everything and a valid session recovers. `FERROBOT_HOSTILE_MESSAGES` and
+//! `FERROBOT_HOSTILE_SEED` set the length and the seeds. Design: `docs/design/sim-stubs.md`,
+//! "hostile".
 
 mod checker;
 mod stream;

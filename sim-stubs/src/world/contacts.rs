@@ -112,8 +112,8 @@ impl World {
     /// touch which scene bodies (as [`World::robot_contacts`] sees them), with the first and
     /// last time, the number of steps and the deepest penetration of each pair; read with
     /// [`World::take_robot_contacts`]. Checks once now, too. Replaces an earlier watch and
-    /// drops what it recorded. Checked once per step ([`STEP_US`](super::STEP_US): a link moving at 1 m/s
-    /// advances 1 mm between checks). Costs nothing while nothing is watched; a watch costs
+    /// drops what it recorded. Checked once per step ([`STEP_US`](super::STEP_US): a link
+    /// moving at 1 m/s advances 1 mm between checks). Costs nothing while nothing is watched; a watch costs
     /// one bounding-box test per scene body and link shape per step, and an exact query per
     /// pair whose boxes meet (all 18 of the LoCoBot's links in the tabletop: about 4 µs a
     /// step). Changes nothing in the physics. Links without shapes are accepted and never
