@@ -204,114 +204,117 @@ impl BasePlant {
         let inj = self.injected;
         match &mut self.kind {
             Kind::Kobuki { gyro_bias, .. } => {
-                use kobuki::{bumper, cliff, wheel_drop};
-                let mut bump = 0;
-                if b & 1 != 0 {
-                    bump |= bumper::LEFT;
-                }
-                if b & 2 != 0 {
-                    bump |= bumper::CENTER;
-                }
-                if b & 4 != 0 {
-                    bump |= bumper::RIGHT;
-                }
-                let mut cl = 0;
-                if inj.cliff & 1 != 0 {
-                    cl |= cliff::LEFT;
-                }
-                if inj.cliff & 2 != 0 {
-                    cl |= cliff::CENTER;
-                }
-                if inj.cliff & 4 != 0 {
-                    cl |= cliff::RIGHT;
-                }
-                let mut wd = 0;
-                if inj.wheel_drop & 1 != 0 {
-                    wd |= wheel_drop::LEFT;
-                }
-                if inj.wheel_drop & 2 != 0 {
-                    wd |= wheel_drop::RIGHT;
-                }
-                let p = &self.drive.p;
-                let pwm = |v: f64| (v / p.max_speed * 100.0).clamp(-100.0, 100.0) as i8;
-                let d = kobuki::BasicSensorData {
-                    timestamp_ms: (self.time_us / 1000) as u16,
-                    bumper: bump,
-                    wheel_drop: wd,
-                    cliff: cl,
-                    left_encoder: l,
-                    right_encoder: r,
-                    left_pwm: pwm(self.drive.speed.0),
-                    right_pwm: pwm(self.drive.speed.1),
-                    buttons: 0,
-                    charger: 0,
-                    battery: 160,
-                    over_current: 0,
-                };
-                let heading = self.drive.truth[2] + *gyro_bias * self.time_us as f64 * 1e-6;
-                let angle = (heading.to_degrees() * 100.0).round() as i64 as i16;
-                let rate_dps = (self.drive.speed.1 - self.drive.speed.0) / p.track;
-                let rate = (rate_dps.to_degrees() * 100.0).round() as i16;
-                let mut payload = vec![
-                    kobuki::FB_BASIC_SENSOR_DATA,
-                    kobuki::BasicSensorData::LEN as u8,
-                ];
-                payload.extend_from_slice(&d.to_bytes());
-                let a = angle.to_le_bytes();
-                let rr = rate.to_le_bytes();
-                payload.extend_from_slice(&[
-                    kobuki::FB_INERTIA,
-                    7,
-                    a[0],
-                    a[1],
-                    rr[0],
-                    rr[1],
-                    0,
-                    0,
-                    0,
-                ]);
-                let mut buf = [0u8; 64];
-                if let Some(n) = kobuki::encode_packet(&payload, &mut buf) {
-                    self.out.extend_from_slice(&buf[..n]);
-                }
+                let gyro_bias = *gyro_bias;
+                self.emit_kobuki(gyro_bias, (l, r), b, inj);
             }
             Kind::Create2 { streaming, .. } => {
                 if !*streaming {
                     return;
                 }
-                use create2::bumps;
-                let mut bd = 0;
-                if b & 1 != 0 {
-                    bd |= bumps::BUMP_LEFT;
-                }
-                if b & 4 != 0 {
-                    bd |= bumps::BUMP_RIGHT;
-                }
-                if b & 2 != 0 {
-                    bd |= bumps::BUMP_LEFT | bumps::BUMP_RIGHT;
-                }
-                if inj.wheel_drop & 1 != 0 {
-                    bd |= bumps::DROP_LEFT;
-                }
-                if inj.wheel_drop & 2 != 0 {
-                    bd |= bumps::DROP_RIGHT;
-                }
-                let s = create2::Sensors {
-                    bumps_drops: bd,
-                    cliffs: [
-                        (inj.cliff & 1 != 0) as u8,
-                        (inj.cliff & 2 != 0) as u8,
-                        (inj.cliff & 2 != 0) as u8,
-                        (inj.cliff & 4 != 0) as u8,
-                    ],
-                    left_encoder: l as i16,
-                    right_encoder: r as i16,
-                };
-                let mut buf = [0u8; 64];
-                if let Some(n) = create2::encode_stream(&s, &mut buf) {
-                    self.out.extend_from_slice(&buf[..n]);
-                }
+                self.emit_create2((l, r), b, inj);
             }
+        }
+    }
+
+    /// A Kobuki's feedback: basic sensor data and inertia, from the encoders `(l, r)`, the
+    /// bumper bits `b` (left, centre, right) and the injected faults.
+    fn emit_kobuki(&mut self, gyro_bias: f64, (l, r): (u16, u16), b: u8, inj: Injected) {
+        use kobuki::{bumper, cliff, wheel_drop};
+        let mut bump = 0;
+        if b & 1 != 0 {
+            bump |= bumper::LEFT;
+        }
+        if b & 2 != 0 {
+            bump |= bumper::CENTER;
+        }
+        if b & 4 != 0 {
+            bump |= bumper::RIGHT;
+        }
+        let mut cl = 0;
+        if inj.cliff & 1 != 0 {
+            cl |= cliff::LEFT;
+        }
+        if inj.cliff & 2 != 0 {
+            cl |= cliff::CENTER;
+        }
+        if inj.cliff & 4 != 0 {
+            cl |= cliff::RIGHT;
+        }
+        let mut wd = 0;
+        if inj.wheel_drop & 1 != 0 {
+            wd |= wheel_drop::LEFT;
+        }
+        if inj.wheel_drop & 2 != 0 {
+            wd |= wheel_drop::RIGHT;
+        }
+        let p = &self.drive.p;
+        let pwm = |v: f64| (v / p.max_speed * 100.0).clamp(-100.0, 100.0) as i8;
+        let d = kobuki::BasicSensorData {
+            timestamp_ms: (self.time_us / 1000) as u16,
+            bumper: bump,
+            wheel_drop: wd,
+            cliff: cl,
+            left_encoder: l,
+            right_encoder: r,
+            left_pwm: pwm(self.drive.speed.0),
+            right_pwm: pwm(self.drive.speed.1),
+            buttons: 0,
+            charger: 0,
+            battery: 160,
+            over_current: 0,
+        };
+        let heading = self.drive.truth[2] + gyro_bias * self.time_us as f64 * 1e-6;
+        let angle = (heading.to_degrees() * 100.0).round() as i64 as i16;
+        let rate_dps = (self.drive.speed.1 - self.drive.speed.0) / p.track;
+        let rate = (rate_dps.to_degrees() * 100.0).round() as i16;
+        let mut payload = vec![
+            kobuki::FB_BASIC_SENSOR_DATA,
+            kobuki::BasicSensorData::LEN as u8,
+        ];
+        payload.extend_from_slice(&d.to_bytes());
+        let a = angle.to_le_bytes();
+        let rr = rate.to_le_bytes();
+        payload.extend_from_slice(&[kobuki::FB_INERTIA, 7, a[0], a[1], rr[0], rr[1], 0, 0, 0]);
+        let mut buf = [0u8; 64];
+        if let Some(n) = kobuki::encode_packet(&payload, &mut buf) {
+            self.out.extend_from_slice(&buf[..n]);
+        }
+    }
+
+    /// A Create 2's sensor stream (while streaming), from the encoders `(l, r)`, the bumper
+    /// bits `b` (left, centre, right) and the injected faults.
+    fn emit_create2(&mut self, (l, r): (u16, u16), b: u8, inj: Injected) {
+        use create2::bumps;
+        let mut bd = 0;
+        if b & 1 != 0 {
+            bd |= bumps::BUMP_LEFT;
+        }
+        if b & 4 != 0 {
+            bd |= bumps::BUMP_RIGHT;
+        }
+        if b & 2 != 0 {
+            bd |= bumps::BUMP_LEFT | bumps::BUMP_RIGHT;
+        }
+        if inj.wheel_drop & 1 != 0 {
+            bd |= bumps::DROP_LEFT;
+        }
+        if inj.wheel_drop & 2 != 0 {
+            bd |= bumps::DROP_RIGHT;
+        }
+        let s = create2::Sensors {
+            bumps_drops: bd,
+            cliffs: [
+                (inj.cliff & 1 != 0) as u8,
+                (inj.cliff & 2 != 0) as u8,
+                (inj.cliff & 2 != 0) as u8,
+                (inj.cliff & 4 != 0) as u8,
+            ],
+            left_encoder: l as i16,
+            right_encoder: r as i16,
+        };
+        let mut buf = [0u8; 64];
+        if let Some(n) = create2::encode_stream(&s, &mut buf) {
+            self.out.extend_from_slice(&buf[..n]);
         }
     }
 

@@ -1,21 +1,10 @@
 //! The plants of an emulated board, on one clock with its firmware: the thin thread around the
-//! [`Conductor`].
-//!
-//! [`BoardServer::start`] makes a pseudo-terminal for each serial port of the board (host
-//! link, servo bus, base, virtual-time link) for QEMU to open, and one more for the host: the
-//! server relays the host link between the two, so it can record every frame, and drops what
-//! the firmware sends while no host has the port open, as a USB serial port would. One thread
-//! runs it all: it reads what the board sends, steps the conductor, and paces simulated time
-//! to at most [`BoardOptions::real_time_factor`] times the wall clock (the host on the other
-//! end is a real-time program with its own heartbeats). When the machine is too slow for that
-//! pace, simulated time simply runs slower; the firmware and the plants still agree on it.
-//!
-//! Everything needed to tell why a test failed is kept: counters of the conductor, the plants
-//! and the lines, and the last frames on each link ([`BoardServer::report`]).
+//! [`Conductor`]. [`BoardServer::start`] makes a pseudo-terminal for each serial port of the
+//! board (host link, servo bus, base, virtual-time link) for QEMU and one for the host, relays
+//! the host link between the two, and paces simulated time to at most
+//! [`BoardOptions::real_time_factor`] times the wall clock; [`BoardServer::report`] tells why a
+//! test failed. Design: `docs/design/sim-stubs.md`, "board".
 
-use std::collections::VecDeque;
-use std::fmt::Write as _;
-use std::os::fd::AsRawFd;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
@@ -23,16 +12,22 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use ferrobot_firmware::Link;
-use ferrobot_protocol::{DeviceMsg, Frame, FrameDecoder, HostMsg};
-use nix::poll::{poll, PollFd, PollFlags};
-use serialport::{SerialPort, TTYPort};
+use ferrobot_protocol::FrameDecoder;
 
-use crate::conductor::{Conductor, LINES};
+use crate::conductor::Conductor;
 use crate::hardware::Hardware;
 use crate::lockstep::SimError;
 use crate::robots;
 use crate::scene::Scene;
 use crate::serve::ServeError;
+
+mod ports;
+mod report;
+mod run_loop;
+
+use ports::{pty, Ports};
+use report::LinkTrace;
+use run_loop::run;
 
 /// Entries kept per link and direction in the trace.
 const TRACE_LEN: usize = 12;
@@ -78,50 +73,6 @@ impl Default for BoardOptions {
     }
 }
 
-/// What went over one link, newest last.
-#[derive(Default)]
-struct LinkTrace {
-    to_board: VecDeque<(u64, String)>,
-    from_board: VecDeque<(u64, String)>,
-}
-
-impl LinkTrace {
-    fn push(&mut self, to_board: bool, t: u64, what: String) {
-        let q = if to_board {
-            &mut self.to_board
-        } else {
-            &mut self.from_board
-        };
-        if q.len() == TRACE_LEN {
-            q.pop_front();
-        }
-        q.push_back((t, what));
-    }
-}
-
-fn hex(bytes: &[u8]) -> String {
-    let mut s = String::new();
-    for b in bytes.iter().take(40) {
-        let _ = write!(s, "{b:02X} ");
-    }
-    if bytes.len() > 40 {
-        let _ = write!(s, "... ({} bytes)", bytes.len());
-    }
-    s.trim_end().to_string()
-}
-
-fn short(s: String) -> String {
-    if s.len() > 200 {
-        let cut = (0..=200)
-            .rev()
-            .find(|&i| s.is_char_boundary(i))
-            .unwrap_or(0);
-        format!("{}...", &s[..cut])
-    } else {
-        s
-    }
-}
-
 struct Inner {
     conductor: Conductor,
     robot: String,
@@ -138,97 +89,6 @@ struct Inner {
     /// Simulated time the clock holds at (µs), until raised.
     hold_at: u64,
     stopped: Option<String>,
-}
-
-impl Inner {
-    fn record_plant(&mut self, link: Link, to_board: bool, bytes: &[u8]) {
-        let t = self.conductor.now_us();
-        let trace = if link == Link::Servo {
-            &mut self.servo
-        } else {
-            &mut self.base
-        };
-        trace.push(to_board, t, hex(bytes));
-    }
-
-    fn record_host(&mut self, to_board: bool, bytes: &[u8]) {
-        let t = self.conductor.now_us();
-        let mut seen = Vec::new();
-        if to_board {
-            self.host_to_board
-                .feed(bytes, |r: Result<Frame<HostMsg>, _>| {
-                    seen.push(short(match r {
-                        Ok(f) => format!("#{} {:?}", f.seq, f.msg),
-                        Err(e) => format!("bad frame: {e:?}"),
-                    }))
-                });
-        } else {
-            self.board_to_host
-                .feed(bytes, |r: Result<Frame<DeviceMsg>, _>| {
-                    seen.push(short(match r {
-                        Ok(f) => format!("#{} {:?}", f.seq, f.msg),
-                        Err(e) => format!("bad frame: {e:?}"),
-                    }))
-                });
-        }
-        for s in seen {
-            self.host.push(to_board, t, s);
-        }
-    }
-}
-
-/// A pseudo-terminal: our master end and, when kept, the other end held open.
-struct Pty {
-    master: TTYPort,
-    _slave: Option<TTYPort>,
-    path: String,
-}
-
-fn pty(keep_slave: bool) -> Result<Pty, ServeError> {
-    let (mut master, slave) =
-        TTYPort::pair().map_err(|e| ServeError::Io(std::io::Error::other(e.to_string())))?;
-    let path = slave.name().unwrap_or_default();
-    master
-        .set_timeout(TICK)
-        .map_err(|e| ServeError::Io(std::io::Error::other(e.to_string())))?;
-    Ok(Pty {
-        master,
-        _slave: keep_slave.then_some(slave),
-        path,
-    })
-}
-
-/// Write all of `bytes` unless the other side stops reading for [`TICK`]; returns how many
-/// were written.
-fn write_some(port: &mut TTYPort, bytes: &[u8]) -> usize {
-    let mut done = 0;
-    while done < bytes.len() {
-        match std::io::Write::write(port, &bytes[done..]) {
-            Ok(0) | Err(_) => break,
-            Ok(n) => done += n,
-        }
-    }
-    done
-}
-
-/// Read what is there (the port is known readable); `None` when the other side is closed.
-fn read_now(port: &TTYPort, buf: &mut [u8]) -> Option<usize> {
-    match nix::unistd::read(port.as_raw_fd(), buf) {
-        Ok(n) => Some(n),
-        Err(nix::errno::Errno::EAGAIN) | Err(nix::errno::Errno::EINTR) => Some(0),
-        Err(_) => None,
-    }
-}
-
-/// Whether a host has the host end open (no hang-up on our master).
-fn host_present(port: &TTYPort) -> bool {
-    let mut fds = [PollFd::new(port.as_raw_fd(), PollFlags::POLLIN)];
-    match poll(&mut fds, 0) {
-        Ok(_) => !fds[0]
-            .revents()
-            .is_some_and(|r| r.contains(PollFlags::POLLHUP)),
-        Err(_) => false,
-    }
 }
 
 /// The plants of an emulated robot, served to its firmware in QEMU on one clock.
@@ -450,101 +310,6 @@ impl BoardServer {
             answer
         })
     }
-
-    /// What the server knows, for a person reading a failed test: clock, counters of the
-    /// conductor, the plants and the lines, and the last frames on each link.
-    pub fn report(&self) -> String {
-        let mut i = self.lock();
-        let mut s = String::new();
-        let now = i.conductor.now_us();
-        let st = i.conductor.stats();
-        let wall = i.first_report.map(|t| t.elapsed().as_secs_f64());
-        let _ = writeln!(
-            s,
-            "plants of {:?}: simulated time {:.3} s{}; {} steps, {} reports from the board, {} bad clock frames, {} re-anchorings of the pace{}",
-            i.robot,
-            now as f64 * 1e-6,
-            wall.map(|w| format!(" after {w:.1} s of wall time since the board's first report ({:.2}x real time)", now as f64 * 1e-6 / w.max(1e-9))).unwrap_or_else(|| " (the board never reported on its clock link)".into()),
-            st.advances,
-            st.reports,
-            st.bad_clock_frames,
-            i.paced_behind,
-            i.stopped.as_ref().map(|w| format!("; server stopped: {w}")).unwrap_or_default()
-        );
-        match i.conductor.report() {
-            Some(r) => {
-                let _ = writeln!(
-                    s,
-                    "board's last report: at {} us, next {} us, consumed {:?} and sent {:?} bytes (servo, base); the plants wrote {:?} and read {:?}",
-                    r.now_us,
-                    if r.next_us == u64::MAX { "none".to_string() } else { r.next_us.to_string() },
-                    r.rx,
-                    r.tx,
-                    st.written,
-                    st.read
-                );
-            }
-            None => {
-                let _ = writeln!(s, "board's last report: none");
-            }
-        }
-        let hw = i.conductor.hardware();
-        let c = hw.chain.stats;
-        let _ = writeln!(
-            s,
-            "servo bus (plants' side): {} instructions, {} status packets, {} bad packets; line bytes [to servos, from servos, to base, from base] = {:?}",
-            c.instructions,
-            c.statuses,
-            c.bad_packets,
-            hw.line_bytes()
-        );
-        for id in 1..=32u8 {
-            if let Some(sv) = hw.chain.servo(id) {
-                let _ = writeln!(
-                    s,
-                    "  servo {id}: angle {:.4} rad, torque {}, hardware error {:#04x}{}",
-                    sv.theta,
-                    if sv.torque_enabled() { "on" } else { "off" },
-                    sv.hardware_error(),
-                    if sv.silent { ", silent" } else { "" }
-                );
-            }
-        }
-        if let Some(b) = hw.base.as_ref() {
-            let _ = writeln!(
-                s,
-                "base: truth {:?}, wheel speed {:?}, target {:?}, {} bad packets",
-                b.drive.truth,
-                b.drive.speed,
-                b.drive.target,
-                b.bad_packets()
-            );
-        }
-        let _ = writeln!(
-            s,
-            "host link: {} bytes to the board, {} from it, {} dropped while no host had the port open (host connected: {})",
-            i.host_bytes[0], i.host_bytes[1], i.host_dropped, i.host_connected
-        );
-        for (name, trace) in [
-            ("host", &i.host),
-            ("servo bus", &i.servo),
-            ("base", &i.base),
-        ] {
-            for (dir, q) in [
-                ("to the board", &trace.to_board),
-                ("from the board", &trace.from_board),
-            ] {
-                if q.is_empty() {
-                    continue;
-                }
-                let _ = writeln!(s, "last on {name}, {dir}:");
-                for (t, what) in q {
-                    let _ = writeln!(s, "  {:>10.6} s  {what}", *t as f64 * 1e-6);
-                }
-            }
-        }
-        s
-    }
 }
 
 impl Drop for BoardServer {
@@ -554,157 +319,4 @@ impl Drop for BoardServer {
             let _ = t.join();
         }
     }
-}
-
-struct Ports {
-    board_host: Pty,
-    servo: Pty,
-    base: Option<Pty>,
-    clock: Pty,
-    host: Pty,
-}
-
-/// The server thread; returns why it stopped.
-fn run(mut p: Ports, inner: &Mutex<Inner>, quit: &AtomicBool, opts: BoardOptions) -> String {
-    let rtf = opts.real_time_factor;
-    let lock = || inner.lock().unwrap_or_else(|e| e.into_inner());
-    let mut buf = [0u8; 4096];
-    // Pace: simulated time `origin.1` was released at wall time `origin.0`.
-    let mut origin: Option<(Instant, u64)> = None;
-    let mut host_connected = false;
-    let mut last_host_check = Instant::now() - TICK;
-    while !quit.load(Ordering::Relaxed) {
-        // Step the clock as far as the pace allows.
-        let mut wait = TICK;
-        {
-            let mut i = lock();
-            let hold = i.hold_at;
-            if let Some(next) = i
-                .conductor
-                .poll()
-                .map(|t| t.min(hold))
-                .filter(|t| *t > i.conductor.now_us())
-            {
-                let now = i.conductor.now_us();
-                let (wall0, sim0) = *origin.get_or_insert((Instant::now(), now));
-                let due = if rtf.is_finite() && rtf > 0.0 {
-                    wall0 + Duration::from_secs_f64((next - sim0) as f64 * 1e-6 / rtf)
-                } else {
-                    Instant::now()
-                };
-                let wall = Instant::now();
-                if due <= wall {
-                    i.conductor.advance(next);
-                    if wall > due + SLACK {
-                        origin = Some((wall, next));
-                        i.paced_behind += 1;
-                    }
-                    wait = Duration::ZERO;
-                } else {
-                    wait = wait.min(due - wall);
-                }
-            }
-            let clock = i.conductor.take_clock_output();
-            if !clock.is_empty() && write_some(&mut p.clock.master, &clock) < clock.len() {
-                return "the board does not read its clock link".into();
-            }
-            for (link, port) in [
-                (Link::Servo, Some(&mut p.servo)),
-                (Link::Base, p.base.as_mut()),
-            ] {
-                let out = i.conductor.take_board_output(link);
-                if out.is_empty() {
-                    continue;
-                }
-                i.record_plant(link, true, &out);
-                if let Some(port) = port {
-                    write_some(&mut port.master, &out);
-                }
-            }
-        }
-        if last_host_check.elapsed() >= TICK {
-            last_host_check = Instant::now();
-            host_connected = host_present(&p.host.master);
-            lock().host_connected = host_connected;
-        }
-        // Look at the ports.
-        let mut watch = vec![(3usize, p.board_host.master.as_raw_fd())];
-        if opts.plants {
-            watch.push((0, p.clock.master.as_raw_fd()));
-            watch.push((1, p.servo.master.as_raw_fd()));
-            if let Some(b) = p.base.as_ref() {
-                watch.push((2, b.master.as_raw_fd()));
-            }
-        }
-        if host_connected {
-            watch.push((4, p.host.master.as_raw_fd()));
-        }
-        let mut fds: Vec<PollFd> = watch
-            .iter()
-            .map(|(_, fd)| PollFd::new(*fd, PollFlags::POLLIN))
-            .collect();
-        let ms = wait.as_micros().div_ceil(1000).min(TICK.as_millis()) as i32;
-        if let Err(e) = poll(&mut fds, ms) {
-            if e != nix::errno::Errno::EINTR {
-                return format!("poll failed: {e}");
-            }
-            continue;
-        }
-        for ((which, _), fd) in watch.iter().zip(&fds) {
-            let ready = fd.revents().unwrap_or(PollFlags::empty());
-            if !ready.intersects(PollFlags::POLLIN | PollFlags::POLLHUP | PollFlags::POLLERR) {
-                continue;
-            }
-            let port = match which {
-                0 => &p.clock.master,
-                1 => &p.servo.master,
-                2 => match p.base.as_ref() {
-                    Some(b) => &b.master,
-                    None => continue,
-                },
-                3 => &p.board_host.master,
-                _ => &p.host.master,
-            };
-            let Some(n) = read_now(port, &mut buf) else {
-                if *which == 4 {
-                    host_connected = false;
-                }
-                continue;
-            };
-            if n == 0 {
-                continue;
-            }
-            let bytes = &buf[..n];
-            let mut i = lock();
-            match which {
-                0 => {
-                    i.conductor.on_clock_bytes(bytes);
-                    if i.first_report.is_none() && i.conductor.report().is_some() {
-                        i.first_report = Some(Instant::now());
-                    }
-                }
-                1 | 2 => {
-                    let link = LINES[which - 1];
-                    i.record_plant(link, false, bytes);
-                    i.conductor.on_board_bytes(link, bytes);
-                }
-                3 => {
-                    i.host_bytes[1] += n as u64;
-                    i.record_host(false, bytes);
-                    if host_connected {
-                        let sent = write_some(&mut p.host.master, bytes);
-                        i.host_dropped += (n - sent) as u64;
-                    } else {
-                        i.host_dropped += n as u64;
-                    }
-                }
-                _ => {
-                    i.host_bytes[0] += n as u64;
-                    i.record_host(true, bytes);
-                    write_some(&mut p.board_host.master, bytes);
-                }
-            }
-        }
-    }
-    "stopped by its owner".into()
 }

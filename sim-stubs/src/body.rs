@@ -118,82 +118,13 @@ impl RobotBody {
     /// root (a body cannot be placed in the world then).
     pub fn new(cfg: &RobotConfig, servos: &[JointServo]) -> Option<Arc<Self>> {
         let tree = LinkTree::from_urdf(&cfg.urdf).ok()?;
-        let shapes = tree
-            .links()
-            .map(|name| {
-                let link = cfg.urdf.links.iter().find(|l| l.name == name);
-                link.map(|l| {
-                    l.collision
-                        .iter()
-                        .filter_map(|c| {
-                            let shape = match &c.geometry {
-                                urdf_rs::Geometry::Box { size } => {
-                                    Shape::Box([size[0], size[1], size[2]])
-                                }
-                                urdf_rs::Geometry::Cylinder { radius, length } => Shape::Cylinder {
-                                    radius: *radius,
-                                    length: *length,
-                                },
-                                urdf_rs::Geometry::Capsule { radius, length } => Shape::Capsule {
-                                    radius: *radius,
-                                    length: *length,
-                                },
-                                urdf_rs::Geometry::Sphere { radius } => Shape::Sphere(*radius),
-                                // Mesh files of a URDF are not read (the bundled robots have
-                                // none): such links are invisible and do not collide.
-                                urdf_rs::Geometry::Mesh { .. } => return None,
-                            };
-                            Some(LinkShape {
-                                origin: pose_from_urdf(&c.origin),
-                                shape,
-                                colour: link_colour(name),
-                            })
-                        })
-                        .collect()
-                })
-                .unwrap_or_default()
-            })
-            .collect();
+        let shapes = link_shapes(cfg, &tree);
         let gripper_servo = cfg
             .gripper
             .as_ref()
             .and_then(|g| servos.iter().find(|s| s.joint == g.joint).map(|s| s.servo));
-        let drives = tree
-            .joints()
-            .iter()
-            .map(|j| {
-                if let Some(s) = servos.iter().find(|s| s.joint == j.name) {
-                    return Some(Drive::Servo {
-                        servo: s.servo,
-                        sign: s.sign,
-                        offset: s.offset,
-                    });
-                }
-                let g = cfg.gripper.as_ref()?;
-                let f = g.fingers.iter().find(|f| f.joint == j.name)?;
-                Some(Drive::Finger {
-                    servo: gripper_servo?,
-                    sign: f.sign,
-                })
-            })
-            .collect();
-        let hand = cfg.gripper.as_ref().and_then(|g| {
-            let joint = |name: &str| cfg.urdf.joints.iter().find(|j| j.name == name);
-            let fingers: Vec<usize> = g
-                .fingers
-                .iter()
-                .filter_map(|f| tree.link_index(&joint(&f.joint)?.child.link))
-                .collect();
-            let first = joint(&g.fingers.first()?.joint)?;
-            let tick = |t: i32| f64::from(units::tick_to_rad(t));
-            (fingers.len() == g.fingers.len()).then_some(Hand {
-                servo: gripper_servo?,
-                palm: tree.link_index(&first.parent.link)?,
-                fingers,
-                closed: tick(g.stops[0]),
-                open: tick(g.stops[1]),
-            })
-        });
+        let drives = drives(&tree, cfg, servos, gripper_servo);
+        let hand = hand(&tree, cfg, gripper_servo);
         let decals = cfg
             .camera
             .as_ref()
@@ -253,4 +184,94 @@ impl RobotBody {
     pub fn link_poses(&self, root: &Isometry3<f64>, q: &[f64]) -> Vec<Isometry3<f64>> {
         self.tree.poses(q).into_iter().map(|p| root * p).collect()
     }
+}
+
+/// The collision shapes of each link of `tree` ([`LinkTree::links`] order) from `cfg`'s URDF;
+/// links with mesh geometry get none (mesh files are not read).
+fn link_shapes(cfg: &RobotConfig, tree: &LinkTree) -> Vec<Vec<LinkShape>> {
+    tree.links()
+        .map(|name| {
+            let link = cfg.urdf.links.iter().find(|l| l.name == name);
+            link.map(|l| {
+                l.collision
+                    .iter()
+                    .filter_map(|c| {
+                        let shape = match &c.geometry {
+                            urdf_rs::Geometry::Box { size } => {
+                                Shape::Box([size[0], size[1], size[2]])
+                            }
+                            urdf_rs::Geometry::Cylinder { radius, length } => Shape::Cylinder {
+                                radius: *radius,
+                                length: *length,
+                            },
+                            urdf_rs::Geometry::Capsule { radius, length } => Shape::Capsule {
+                                radius: *radius,
+                                length: *length,
+                            },
+                            urdf_rs::Geometry::Sphere { radius } => Shape::Sphere(*radius),
+                            // Mesh files of a URDF are not read (the bundled robots have
+                            // none): such links are invisible and do not collide.
+                            urdf_rs::Geometry::Mesh { .. } => return None,
+                        };
+                        Some(LinkShape {
+                            origin: pose_from_urdf(&c.origin),
+                            shape,
+                            colour: link_colour(name),
+                        })
+                    })
+                    .collect()
+            })
+            .unwrap_or_default()
+        })
+        .collect()
+}
+
+/// What drives each joint of `tree` ([`LinkTree::joints`] order): its servo, a finger of the
+/// gripper servo `gripper_servo`, or nothing.
+fn drives(
+    tree: &LinkTree,
+    cfg: &RobotConfig,
+    servos: &[JointServo],
+    gripper_servo: Option<usize>,
+) -> Vec<Option<Drive>> {
+    tree.joints()
+        .iter()
+        .map(|j| {
+            if let Some(s) = servos.iter().find(|s| s.joint == j.name) {
+                return Some(Drive::Servo {
+                    servo: s.servo,
+                    sign: s.sign,
+                    offset: s.offset,
+                });
+            }
+            let g = cfg.gripper.as_ref()?;
+            let f = g.fingers.iter().find(|f| f.joint == j.name)?;
+            Some(Drive::Finger {
+                servo: gripper_servo?,
+                sign: f.sign,
+            })
+        })
+        .collect()
+}
+
+/// The gripper's hand: its servo, palm and finger links and stops, when `cfg` has a gripper
+/// whose links are all in `tree`.
+fn hand(tree: &LinkTree, cfg: &RobotConfig, gripper_servo: Option<usize>) -> Option<Hand> {
+    cfg.gripper.as_ref().and_then(|g| {
+        let joint = |name: &str| cfg.urdf.joints.iter().find(|j| j.name == name);
+        let fingers: Vec<usize> = g
+            .fingers
+            .iter()
+            .filter_map(|f| tree.link_index(&joint(&f.joint)?.child.link))
+            .collect();
+        let first = joint(&g.fingers.first()?.joint)?;
+        let tick = |t: i32| f64::from(units::tick_to_rad(t));
+        (fingers.len() == g.fingers.len()).then_some(Hand {
+            servo: gripper_servo?,
+            palm: tree.link_index(&first.parent.link)?,
+            fingers,
+            closed: tick(g.stops[0]),
+            open: tick(g.stops[1]),
+        })
+    })
 }

@@ -107,30 +107,8 @@ impl StereoNoise {
                 let (l, r) = (row[c.saturating_sub(1)], row[(c + 1).min(w - 1)]);
                 bad[c] = flag(row[c], up[c], down[c], l, r);
             }
-            // Stereo shadow: scanning right to left, a pixel whose match in the right image
-            // lies at or right of a match already taken by a pixel to its right is hidden from
-            // the right imager; so is one whose match falls off the right image's left edge.
-            let mut min_right = f32::INFINITY;
-            for c in (0..w).rev() {
-                if row[c] <= 0.0 {
-                    continue;
-                }
-                let ur = c as f32 - disparity[c];
-                if ur < 0.0 || ur > min_right + 0.5 {
-                    bad[c] = true;
-                }
-                if ur < min_right {
-                    min_right = ur;
-                }
-            }
-            // Five 12-bit table indices from each 64-bit draw.
-            for chunk in error.chunks_mut(5) {
-                let mut bits = gen.next();
-                for e in chunk {
-                    *e = table[(bits & 0xfff) as usize] * subpixel;
-                    bits >>= 12;
-                }
-            }
+            stereo_shadow(&row, &disparity, &mut bad);
+            disparity_errors(&mut error, &mut gen, table, subpixel);
             let out = &mut depth[r * w..(r + 1) * w];
             for c in 0..w {
                 let d = disparity[c] + error[c];
@@ -145,6 +123,38 @@ impl StereoNoise {
                 };
             }
             std::mem::swap(&mut above, &mut row);
+        }
+    }
+}
+
+/// Stereo shadow: scanning right to left, a pixel whose match in the right image lies at or
+/// right of a match already taken by a pixel to its right is hidden from the right imager; so
+/// is one whose match falls off the right image's left edge. Marks them in `bad`.
+fn stereo_shadow(row: &[f32], disparity: &[f32], bad: &mut [bool]) {
+    let w = row.len();
+    let mut min_right = f32::INFINITY;
+    for c in (0..w).rev() {
+        if row[c] <= 0.0 {
+            continue;
+        }
+        let ur = c as f32 - disparity[c];
+        if ur < 0.0 || ur > min_right + 0.5 {
+            bad[c] = true;
+        }
+        if ur < min_right {
+            min_right = ur;
+        }
+    }
+}
+
+/// A row of disparity errors (px): quantiles of `table` scaled by `subpixel`, five 12-bit
+/// table indices from each 64-bit draw of `gen`.
+fn disparity_errors(error: &mut [f32], gen: &mut WyRand, table: &[f32], subpixel: f32) {
+    for chunk in error.chunks_mut(5) {
+        let mut bits = gen.next();
+        for e in chunk {
+            *e = table[(bits & 0xfff) as usize] * subpixel;
+            bits >>= 12;
         }
     }
 }

@@ -278,30 +278,11 @@ impl ServoChain {
         }
     }
 
+    /// Execute one instruction packet `ins` for `id` with parameters `p`, adding the replies.
     fn execute(&mut self, id: u8, ins: u8, p: &[u8], replies: &mut Vec<Reply>) {
         let broadcast = id == dxl::BROADCAST_ID;
         match ins {
-            inst::PING => {
-                let targets: Vec<usize> = if broadcast {
-                    (0..self.servos.len()).collect()
-                } else {
-                    self.index(id).into_iter().collect()
-                };
-                for i in targets {
-                    if self.servos.get(i).is_some_and(|s| s.silent) {
-                        continue;
-                    }
-                    let (model, fw) = match self.servos.get(i) {
-                        Some(s) => (
-                            s.get(addr::MODEL_NUMBER, 2) as u16,
-                            s.get(addr::FIRMWARE_VERSION, 1) as u8,
-                        ),
-                        None => continue,
-                    };
-                    let m = model.to_le_bytes();
-                    replies.extend(self.status(i, 0, &[m[0], m[1], fw], 0));
-                }
-            }
+            inst::PING => self.ping(id, broadcast, replies),
             inst::READ
             | inst::WRITE
             | inst::REG_WRITE
@@ -310,51 +291,7 @@ impl ServoChain {
             | inst::CLEAR
                 if !broadcast =>
             {
-                let Some(i) = self.index(id) else { return };
-                if self.servos.get(i).is_some_and(|s| s.silent) {
-                    return;
-                }
-                let level = self.status_level(i);
-                let (err, data): (u8, Vec<u8>) = match ins {
-                    inst::READ => {
-                        let (a, n) = (dxl::le_u16(p, 0), dxl::le_u16(p, 2));
-                        match self.servos.get(i).and_then(|s| s.read(a, n)) {
-                            Some(d) if p.len() == 4 => (0, d.to_vec()),
-                            _ => (status_error::ACCESS, Vec::new()),
-                        }
-                    }
-                    inst::WRITE => {
-                        let a = dxl::le_u16(p, 0);
-                        let e = match (self.servos.get_mut(i), p.get(2..)) {
-                            (Some(s), Some(d)) => s.write(a, d),
-                            _ => status_error::DATA_LENGTH,
-                        };
-                        (e, Vec::new())
-                    }
-                    inst::REG_WRITE => {
-                        let a = dxl::le_u16(p, 0);
-                        self.pending_reg
-                            .push((i, a, p.get(2..).unwrap_or(&[]).to_vec()));
-                        (0, Vec::new())
-                    }
-                    inst::REBOOT => {
-                        if let Some(s) = self.servos.get_mut(i) {
-                            s.reboot();
-                        }
-                        (0, Vec::new())
-                    }
-                    inst::FACTORY_RESET => {
-                        if let Some(s) = self.servos.get_mut(i) {
-                            s.factory_reset();
-                        }
-                        (0, Vec::new())
-                    }
-                    _ => (0, Vec::new()),
-                };
-                let answer = level >= 2 || (level == 1 && ins == inst::READ);
-                if answer {
-                    replies.extend(self.status(i, err, &data, 0));
-                }
+                self.unicast(id, ins, p, replies)
             }
             inst::WRITE if broadcast => {
                 let a = dxl::le_u16(p, 0);
@@ -364,16 +301,7 @@ impl ServoChain {
                     }
                 }
             }
-            inst::ACTION => {
-                let regs = std::mem::take(&mut self.pending_reg);
-                for (i, a, d) in regs {
-                    if broadcast || self.servos.get(i).is_some_and(|s| s.id == id) {
-                        if let Some(s) = self.servos.get_mut(i) {
-                            s.write(a, &d);
-                        }
-                    }
-                }
-            }
+            inst::ACTION => self.action(id, broadcast),
             inst::SYNC_READ => {
                 let (a, n) = (dxl::le_u16(p, 0), dxl::le_u16(p, 2));
                 let reads: Vec<(u8, u16, u16)> = p
@@ -384,18 +312,7 @@ impl ServoChain {
                     .collect();
                 self.chained_reads(&reads, replies);
             }
-            inst::SYNC_WRITE => {
-                let (a, n) = (dxl::le_u16(p, 0), dxl::le_u16(p, 2) as usize);
-                let mut rest = p.get(4..).unwrap_or(&[]);
-                while let (Some(&sid), Some(d)) = (rest.first(), rest.get(1..1 + n)) {
-                    if let Some(i) = self.index(sid) {
-                        if let Some(s) = self.servos.get_mut(i).filter(|s| !s.silent) {
-                            s.write(a, d);
-                        }
-                    }
-                    rest = rest.get(1 + n..).unwrap_or(&[]);
-                }
-            }
+            inst::SYNC_WRITE => self.sync_write(p),
             inst::BULK_READ => {
                 let reads: Vec<(u8, u16, u16)> = p
                     .chunks_exact(5)
@@ -403,20 +320,7 @@ impl ServoChain {
                     .collect();
                 self.chained_reads(&reads, replies);
             }
-            inst::BULK_WRITE => {
-                let mut rest = p;
-                while rest.len() >= 5 {
-                    let (sid, a, n) =
-                        (rest[0], dxl::le_u16(rest, 1), dxl::le_u16(rest, 3) as usize);
-                    let Some(d) = rest.get(5..5 + n) else { break };
-                    if let Some(i) = self.index(sid) {
-                        if let Some(s) = self.servos.get_mut(i).filter(|s| !s.silent) {
-                            s.write(a, d);
-                        }
-                    }
-                    rest = rest.get(5 + n..).unwrap_or(&[]);
-                }
-            }
+            inst::BULK_WRITE => self.bulk_write(p),
             _ => {
                 if !broadcast {
                     if let Some(i) = self.index(id) {
@@ -426,6 +330,125 @@ impl ServoChain {
                     }
                 }
             }
+        }
+    }
+
+    /// Ping: every servo that is not silent answers with its model and firmware version.
+    fn ping(&mut self, id: u8, broadcast: bool, replies: &mut Vec<Reply>) {
+        let targets: Vec<usize> = if broadcast {
+            (0..self.servos.len()).collect()
+        } else {
+            self.index(id).into_iter().collect()
+        };
+        for i in targets {
+            if self.servos.get(i).is_some_and(|s| s.silent) {
+                continue;
+            }
+            let (model, fw) = match self.servos.get(i) {
+                Some(s) => (
+                    s.get(addr::MODEL_NUMBER, 2) as u16,
+                    s.get(addr::FIRMWARE_VERSION, 1) as u8,
+                ),
+                None => continue,
+            };
+            let m = model.to_le_bytes();
+            replies.extend(self.status(i, 0, &[m[0], m[1], fw], 0));
+        }
+    }
+
+    /// An instruction to one servo (read, write, registered write, reboot, factory reset,
+    /// clear), answered as its status return level asks.
+    fn unicast(&mut self, id: u8, ins: u8, p: &[u8], replies: &mut Vec<Reply>) {
+        let Some(i) = self.index(id) else { return };
+        if self.servos.get(i).is_some_and(|s| s.silent) {
+            return;
+        }
+        let level = self.status_level(i);
+        let (err, data) = self.apply(i, ins, p);
+        let answer = level >= 2 || (level == 1 && ins == inst::READ);
+        if answer {
+            replies.extend(self.status(i, err, &data, 0));
+        }
+    }
+
+    /// Apply a one-servo instruction to servo `i`: its error and the data read.
+    fn apply(&mut self, i: usize, ins: u8, p: &[u8]) -> (u8, Vec<u8>) {
+        match ins {
+            inst::READ => {
+                let (a, n) = (dxl::le_u16(p, 0), dxl::le_u16(p, 2));
+                match self.servos.get(i).and_then(|s| s.read(a, n)) {
+                    Some(d) if p.len() == 4 => (0, d.to_vec()),
+                    _ => (status_error::ACCESS, Vec::new()),
+                }
+            }
+            inst::WRITE => {
+                let a = dxl::le_u16(p, 0);
+                let e = match (self.servos.get_mut(i), p.get(2..)) {
+                    (Some(s), Some(d)) => s.write(a, d),
+                    _ => status_error::DATA_LENGTH,
+                };
+                (e, Vec::new())
+            }
+            inst::REG_WRITE => {
+                let a = dxl::le_u16(p, 0);
+                self.pending_reg
+                    .push((i, a, p.get(2..).unwrap_or(&[]).to_vec()));
+                (0, Vec::new())
+            }
+            inst::REBOOT => {
+                if let Some(s) = self.servos.get_mut(i) {
+                    s.reboot();
+                }
+                (0, Vec::new())
+            }
+            inst::FACTORY_RESET => {
+                if let Some(s) = self.servos.get_mut(i) {
+                    s.factory_reset();
+                }
+                (0, Vec::new())
+            }
+            _ => (0, Vec::new()),
+        }
+    }
+
+    /// Action: the registered writes for `id` (all of them for broadcast) take effect.
+    fn action(&mut self, id: u8, broadcast: bool) {
+        let regs = std::mem::take(&mut self.pending_reg);
+        for (i, a, d) in regs {
+            if broadcast || self.servos.get(i).is_some_and(|s| s.id == id) {
+                if let Some(s) = self.servos.get_mut(i) {
+                    s.write(a, &d);
+                }
+            }
+        }
+    }
+
+    /// Sync write: one address and length, data for each servo in turn.
+    fn sync_write(&mut self, p: &[u8]) {
+        let (a, n) = (dxl::le_u16(p, 0), dxl::le_u16(p, 2) as usize);
+        let mut rest = p.get(4..).unwrap_or(&[]);
+        while let (Some(&sid), Some(d)) = (rest.first(), rest.get(1..1 + n)) {
+            if let Some(i) = self.index(sid) {
+                if let Some(s) = self.servos.get_mut(i).filter(|s| !s.silent) {
+                    s.write(a, d);
+                }
+            }
+            rest = rest.get(1 + n..).unwrap_or(&[]);
+        }
+    }
+
+    /// Bulk write: an address, a length and data for each servo in turn.
+    fn bulk_write(&mut self, p: &[u8]) {
+        let mut rest = p;
+        while rest.len() >= 5 {
+            let (sid, a, n) = (rest[0], dxl::le_u16(rest, 1), dxl::le_u16(rest, 3) as usize);
+            let Some(d) = rest.get(5..5 + n) else { break };
+            if let Some(i) = self.index(sid) {
+                if let Some(s) = self.servos.get_mut(i).filter(|s| !s.silent) {
+                    s.write(a, d);
+                }
+            }
+            rest = rest.get(5 + n..).unwrap_or(&[]);
         }
     }
 }

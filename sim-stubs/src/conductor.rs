@@ -1,23 +1,9 @@
 //! The conductor: simulated time for a firmware that runs somewhere else (the real board
-//! firmware in QEMU), sans-IO.
-//!
-//! The conductor owns the clock of the [`Hardware`] and grants time to the board over the
-//! virtual-time link ([`ferrobot_protocol::clock`]). One step:
-//!
-//! 1. *Settle.* Wait until the board reports [`Idle`] at the current time, has consumed every
-//!    byte written to it, and every byte it sent has arrived; then hand what it sent to the
-//!    plants, in one piece per line, stamped with the current time.
-//! 2. *Choose.* The next time is the earliest of the board's next deadline, the plants' next
-//!    event and one [`MAX_STEP_US`] ahead.
-//! 3. *Advance.* Run the plants at that time, write the bytes that reach the board then, and
-//!    send [`Advance`] with the new time and the bytes released so far.
-//!
-//! The board takes no byte before its time has come (it consumes only released bytes), so
-//! the firmware sees every byte at the time it arrives, and the plants see every byte at the
-//! time the firmware sent it. The result
-//! does not depend on how fast the host machine runs QEMU, the plants or the pseudo-terminals
-//! between them: a busy machine gives the same bytes at the same simulated times, only later.
-//! The shell around it ([`crate::board`]) paces the steps to the wall clock.
+//! firmware in QEMU), sans-IO. It owns the clock of the [`Hardware`] and grants time to the
+//! board over the virtual-time link ([`ferrobot_protocol::clock`]) in steps of at most
+//! [`MAX_STEP_US`]: settle (the board [`Idle`] with every byte consumed and delivered), choose
+//! the next event, advance (plants, then [`Advance`] to the board); the result does not depend
+//! on how fast the machine runs. Design: `docs/design/sim-stubs.md`, "conductor".
 
 use ferrobot_firmware::Link;
 use ferrobot_protocol::clock::{Advance, Idle, PLANT_LINES};

@@ -161,13 +161,10 @@ impl DiffDrive {
         self.step_among(dt, None);
     }
 
-    /// Advance by `dt` seconds among round obstacles and `world`'s colliders: the bumper
-    /// reports what the body touches; the body does not move deeper into a fixed collider
-    /// (the wheels stall: neither the pose nor the encoders move that step) and pushes movable
-    /// ones (the world moves them).
-    pub fn step_among(&mut self, dt: f64, world: Option<&dyn Surroundings>) {
+    /// The wheels' speeds after `dt` seconds towards their targets (actuator lag, acceleration
+    /// limit, static friction); their accelerations, m/s².
+    fn wheel_speeds(&mut self, dt: f64) -> [f64; 2] {
         let p = self.p;
-        let before = (self.speed, self.ticks);
         let mut next = [0.0; 2];
         let mut accel = [0.0; 2];
         for (k, (v, t)) in [(self.speed.0, self.target.0), (self.speed.1, self.target.1)]
@@ -184,6 +181,17 @@ impl DiffDrive {
             accel[k] = (next[k] - v) / dt;
         }
         self.speed = (next[0], next[1]);
+        accel
+    }
+
+    /// Advance by `dt` seconds among round obstacles and `world`'s colliders: the bumper
+    /// reports what the body touches; the body does not move deeper into a fixed collider
+    /// (the wheels stall: neither the pose nor the encoders move that step) and pushes movable
+    /// ones (the world moves them).
+    pub fn step_among(&mut self, dt: f64, world: Option<&dyn Surroundings>) {
+        let p = self.p;
+        let before = (self.speed, self.ticks);
+        let accel = self.wheel_speeds(dt);
         // Wheel rotation (what the encoders count) and ground travel (less slip).
         let rot_l = self.speed.0 * dt / p.left_radius;
         let rot_r = self.speed.1 * dt / p.right_radius;

@@ -36,10 +36,15 @@
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 
-use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
-use serde::Deserialize;
+use nalgebra::{Isometry3, Point3, Vector3};
 
-use crate::mesh::{self, TriMesh};
+use crate::mesh::TriMesh;
+
+mod file;
+mod sections;
+mod shapes;
+mod textures;
+mod walls;
 
 /// Names of the bundled scenes.
 pub const BUNDLED: [&str; 5] = ["empty", "tabletop", "apartment", "shelf", "clutter"];
@@ -347,125 +352,6 @@ impl Default for SceneSource {
     }
 }
 
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct SceneFile {
-    name: String,
-    robot: Option<RobotFile>,
-    floor: Option<FloorFile>,
-    #[serde(default)]
-    wall: Vec<WallFile>,
-    #[serde(default)]
-    object: Vec<ObjectFile>,
-    #[serde(default)]
-    route: Vec<RouteFile>,
-}
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct RouteFile {
-    name: String,
-    waypoints: Vec<Vec<f64>>,
-    #[serde(default)]
-    head_tilt: f64,
-}
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct RobotFile {
-    pose: [f64; 3],
-    #[serde(default)]
-    height: f64,
-}
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct FloorFile {
-    size: [f64; 2],
-    #[serde(default = "grey")]
-    colour: [f64; 3],
-    texture: Option<TextureFile>,
-    #[serde(default = "floor_friction")]
-    friction: f64,
-}
-
-fn grey() -> [f64; 3] {
-    [0.6, 0.6, 0.6]
-}
-fn floor_friction() -> f64 {
-    0.8
-}
-fn wall_height() -> f64 {
-    2.4
-}
-fn wall_thickness() -> f64 {
-    0.1
-}
-fn default_friction() -> f64 {
-    0.6
-}
-fn wall_colour() -> [f64; 3] {
-    [0.85, 0.83, 0.78]
-}
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct WallFile {
-    from: [f64; 2],
-    to: [f64; 2],
-    #[serde(default = "wall_height")]
-    height: f64,
-    #[serde(default = "wall_thickness")]
-    thickness: f64,
-    #[serde(default = "wall_colour")]
-    colour: [f64; 3],
-    texture: Option<TextureFile>,
-    #[serde(default)]
-    doors: Vec<DoorFile>,
-}
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct DoorFile {
-    at: f64,
-    width: f64,
-    height: f64,
-}
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct TextureFile {
-    pattern: Option<String>,
-    image: Option<String>,
-    scale: f64,
-    colour: Option<[f64; 3]>,
-}
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct ObjectFile {
-    id: String,
-    shape: String,
-    size: Option<Vec<f64>>,
-    mesh: Option<String>,
-    #[serde(default = "unit")]
-    scale: f64,
-    position: [f64; 3],
-    rpy: Option<[f64; 3]>,
-    quaternion: Option<[f64; 4]>,
-    mass: Option<f64>,
-    #[serde(default = "default_friction")]
-    friction: f64,
-    colour: [f64; 3],
-    texture: Option<TextureFile>,
-    #[serde(rename = "static", default)]
-    fixed: bool,
-}
-
-fn unit() -> f64 {
-    1.0
-}
-
 /// Reads a file a scene names (relative path), at most `max` bytes.
 type Reader<'a> = dyn Fn(&str, u64) -> std::result::Result<Vec<u8>, String> + 'a;
 
@@ -509,207 +395,6 @@ impl Ctx<'_> {
         }
         Ok(out)
     }
-
-    fn texture(&self, key: &str, t: &TextureFile, base: [f32; 3]) -> Result<Texture> {
-        let scale = self.positive(&format!("{key}.scale"), t.scale)?;
-        let second = match t.colour {
-            Some(c) => self.colour(&format!("{key}.colour"), c)?,
-            None => base.map(|v| v * 0.6),
-        };
-        match (&t.pattern, &t.image) {
-            (Some(p), None) => match p.as_str() {
-                "checker" => Ok(Texture::Checker {
-                    scale,
-                    colour: second,
-                }),
-                "noise" => Ok(Texture::Noise {
-                    scale,
-                    colour: second,
-                }),
-                "tiles" => Ok(Texture::Tiles {
-                    scale,
-                    colour: second,
-                }),
-                other => Err(self.err(
-                    format!("{key}.pattern"),
-                    format!("unknown pattern {other:?} (checker, noise, tiles)"),
-                )),
-            },
-            (None, Some(path)) => {
-                if t.colour.is_some() {
-                    return Err(self.err(
-                        format!("{key}.colour"),
-                        "an image texture takes its colours from the image",
-                    ));
-                }
-                let bytes = (self.read)(path, MAX_TEXTURE_BYTES)
-                    .map_err(|e| self.err(format!("{key}.image"), e))?;
-                let (width, height, pixels) = decode_png(&bytes)
-                    .map_err(|e| self.err(format!("{key}.image"), format!("{path}: {e}")))?;
-                Ok(Texture::Image {
-                    path: path.clone(),
-                    scale,
-                    width,
-                    height,
-                    pixels,
-                })
-            }
-            _ => Err(self.err(key, "give exactly one of `pattern` and `image`")),
-        }
-    }
-
-    fn rotation(&self, key: &str, o: &ObjectFile) -> Result<UnitQuaternion<f64>> {
-        match (o.rpy, o.quaternion) {
-            (Some(_), Some(_)) => Err(self.err(key, "give `rpy` or `quaternion`, not both")),
-            (Some(r), None) => {
-                for v in r {
-                    self.finite(&format!("{key}.rpy"), v, -100.0, 100.0)?;
-                }
-                Ok(UnitQuaternion::from_euler_angles(r[0], r[1], r[2]))
-            }
-            (None, Some(q)) => {
-                for v in q {
-                    self.finite(&format!("{key}.quaternion"), v, -1.0, 1.0)?;
-                }
-                let n = q.iter().map(|v| v * v).sum::<f64>().sqrt();
-                if (n - 1.0).abs() > 1e-3 {
-                    return Err(self.err(
-                        format!("{key}.quaternion"),
-                        format!("norm {n} is not 1 (within 0.001)"),
-                    ));
-                }
-                Ok(UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(
-                    q[3], q[0], q[1], q[2],
-                )))
-            }
-            (None, None) => Ok(UnitQuaternion::identity()),
-        }
-    }
-
-    fn shape(&self, key: &str, o: &ObjectFile) -> Result<Shape> {
-        let size = |n: usize, what: &str| -> Result<Vec<f64>> {
-            let s = o.size.as_ref().ok_or_else(|| {
-                self.err(
-                    format!("{key}.size"),
-                    format!("a {} needs `size` ({what})", o.shape),
-                )
-            })?;
-            if s.len() != n {
-                return Err(self.err(
-                    format!("{key}.size"),
-                    format!("a {} takes {n} numbers ({what}), not {}", o.shape, s.len()),
-                ));
-            }
-            s.iter()
-                .map(|&v| self.positive(&format!("{key}.size"), v))
-                .collect()
-        };
-        if o.shape != "mesh" && o.mesh.is_some() {
-            return Err(self.err(
-                format!("{key}.mesh"),
-                "only a `mesh` shape takes a mesh file",
-            ));
-        }
-        if o.shape != "mesh" && o.scale != 1.0 {
-            return Err(self.err(format!("{key}.scale"), "only a `mesh` shape takes a scale"));
-        }
-        Ok(match o.shape.as_str() {
-            "box" => {
-                let s = size(3, "full extents x, y, z")?;
-                Shape::Box([s[0], s[1], s[2]])
-            }
-            "cylinder" => {
-                let s = size(2, "radius, length")?;
-                Shape::Cylinder {
-                    radius: s[0],
-                    length: s[1],
-                }
-            }
-            "capsule" => {
-                let s = size(2, "radius, length")?;
-                Shape::Capsule {
-                    radius: s[0],
-                    length: s[1],
-                }
-            }
-            "sphere" => Shape::Sphere(size(1, "radius")?[0]),
-            "mesh" => {
-                if o.size.is_some() {
-                    return Err(self.err(
-                        format!("{key}.size"),
-                        "a mesh takes its size from its file (use `scale`)",
-                    ));
-                }
-                let path = o.mesh.as_ref().ok_or_else(|| {
-                    self.err(
-                        format!("{key}.mesh"),
-                        "a mesh needs `mesh` (an OBJ or STL file)",
-                    )
-                })?;
-                let scale = self.positive(&format!("{key}.scale"), o.scale)?;
-                let bytes = (self.read)(path, MAX_MESH_BYTES)
-                    .map_err(|e| self.err(format!("{key}.mesh"), e))?;
-                let mut m = mesh::parse(path, &bytes)
-                    .map_err(|e| self.err(format!("{key}.mesh"), format!("{path}: {e}")))?;
-                m.scale(scale);
-                let (lo, hi) = m.bounds();
-                let ext = (hi - lo).amax();
-                if !(ext > 1e-4 && ext <= MAX_EXTENT) {
-                    return Err(self.err(
-                        format!("{key}.mesh"),
-                        format!("{path}: extent {ext} m is not in (0.0001, {MAX_EXTENT}]"),
-                    ));
-                }
-                Shape::Mesh {
-                    path: path.clone(),
-                    mesh: m,
-                }
-            }
-            other => {
-                return Err(self.err(
-                    format!("{key}.shape"),
-                    format!("unknown shape {other:?} (box, cylinder, sphere, capsule, mesh)"),
-                ))
-            }
-        })
-    }
-}
-
-/// Decode a PNG (8 or 16 bit, grey, grey-alpha, RGB or RGBA) into linear-ish RGB 0-1.
-fn decode_png(bytes: &[u8]) -> std::result::Result<(u32, u32, Vec<[f32; 3]>), String> {
-    let mut dec = png::Decoder::new(std::io::Cursor::new(bytes));
-    dec.set_transformations(png::Transformations::EXPAND | png::Transformations::STRIP_16);
-    let mut reader = dec.read_info().map_err(|e| format!("not a PNG: {e}"))?;
-    let (w, h) = (reader.info().width, reader.info().height);
-    if w == 0 || h == 0 || u64::from(w) * u64::from(h) > 16 << 20 {
-        return Err(format!("{w}x{h} px is not a texture size (at most 16 Mpx)"));
-    }
-    let size = reader
-        .output_buffer_size()
-        .ok_or_else(|| "image too large".to_string())?;
-    let mut buf = vec![0; size];
-    let info = reader
-        .next_frame(&mut buf)
-        .map_err(|e| format!("bad PNG data: {e}"))?;
-    let ch = match info.color_type {
-        png::ColorType::Grayscale => 1,
-        png::ColorType::GrayscaleAlpha => 2,
-        png::ColorType::Rgb => 3,
-        png::ColorType::Rgba => 4,
-        png::ColorType::Indexed => return Err("indexed PNG not expanded".into()),
-    };
-    let px = buf[..info.buffer_size()]
-        .chunks_exact(ch)
-        .map(|p| {
-            let g = |i: usize| f32::from(p[i]) / 255.0;
-            if ch < 3 {
-                [g(0); 3]
-            } else {
-                [g(0), g(1), g(2)]
-            }
-        })
-        .collect();
-    Ok((w, h, px))
 }
 
 impl Scene {
@@ -762,111 +447,25 @@ impl Scene {
     /// textures it names, by relative path, at most a given number of bytes.
     pub fn parse(text: &str, file: &Path, read: &Reader<'_>) -> Result<Scene> {
         let cx = Ctx { file, read };
-        let de = toml::Deserializer::parse(text).map_err(|e| cx.err("-", e.message()))?;
-        let raw: SceneFile = serde_path_to_error::deserialize(de).map_err(|e| {
-            let key = e.path().to_string();
-            cx.err(
-                if key.is_empty() || key == "." {
-                    "-".to_string()
-                } else {
-                    key
-                },
-                e.inner().message().to_string(),
-            )
-        })?;
+        let raw = cx.deserialize(text)?;
         if raw.name.is_empty() || raw.name.len() > 64 {
             return Err(cx.err("name", "a name of 1-64 characters"));
         }
-        let (robot_pose, robot_height) = match &raw.robot {
-            Some(r) => {
-                cx.finite("robot.pose", r.pose[0], -MAX_EXTENT, MAX_EXTENT)?;
-                cx.finite("robot.pose", r.pose[1], -MAX_EXTENT, MAX_EXTENT)?;
-                cx.finite("robot.pose", r.pose[2], -100.0, 100.0)?;
-                cx.finite("robot.height", r.height, 0.0, 10.0)?;
-                (r.pose, r.height)
-            }
-            None => ([0.0; 3], 0.0),
-        };
+        let (robot_pose, robot_height) = cx.robot(raw.robot.as_ref())?;
         let count = raw.object.len() + raw.wall.len() * 8;
         if count > MAX_OBJECTS {
             return Err(cx.err("-", format!("{count} bodies is more than {MAX_OBJECTS}")));
         }
         let mut bodies = Vec::new();
         if let Some(f) = &raw.floor {
-            let sx = cx.positive("floor.size", f.size[0])?;
-            let sy = cx.positive("floor.size", f.size[1])?;
-            let colour = cx.colour("floor.colour", f.colour)?;
-            let texture = f
-                .texture
-                .as_ref()
-                .map(|t| cx.texture("floor.texture", t, colour))
-                .transpose()?;
-            bodies.push(Body {
-                id: "floor".into(),
-                shape: Shape::Box([sx, sy, FLOOR_THICKNESS]),
-                pose: Isometry3::translation(0.0, 0.0, -FLOOR_THICKNESS / 2.0),
-                mass: 0.0,
-                friction: cx.finite("floor.friction", f.friction, 0.0, 10.0)?,
-                colour,
-                texture,
-                fixed: true,
-            });
+            bodies.push(cx.floor(f)?);
         }
         for (i, w) in raw.wall.iter().enumerate() {
-            bodies.extend(wall_bodies(&cx, i, w)?);
+            bodies.extend(walls::wall_bodies(&cx, i, w)?);
         }
         let mut movable = Vec::new();
         for (i, o) in raw.object.iter().enumerate() {
-            let key = format!("object[{i}]");
-            if o.id.is_empty() || o.id.len() > 64 {
-                return Err(cx.err(format!("{key}.id"), "an id of 1-64 characters"));
-            }
-            let shape = cx.shape(&key, o)?;
-            let rotation = cx.rotation(&key, o)?;
-            let mut p = [0.0; 3];
-            for (k, v) in p.iter_mut().zip(o.position) {
-                *k = cx.finite(&format!("{key}.position"), v, -MAX_EXTENT, MAX_EXTENT)?;
-            }
-            let mass = match (o.fixed, o.mass) {
-                (true, Some(_)) => {
-                    return Err(cx.err(format!("{key}.mass"), "a static object has no mass"))
-                }
-                (true, None) => 0.0,
-                (false, Some(m)) => {
-                    if !(m.is_finite() && m > 0.0 && m <= 1000.0) {
-                        return Err(cx.err(
-                            format!("{key}.mass"),
-                            format!("{m} is not a mass in (0, 1000] kg"),
-                        ));
-                    }
-                    m
-                }
-                (false, None) => {
-                    return Err(cx.err(format!("{key}.mass"), "a movable object needs a mass"))
-                }
-            };
-            if !o.fixed && shape.volume() <= 0.0 {
-                return Err(cx.err(
-                    format!("{key}.mesh"),
-                    "a movable mesh must be a closed surface (its volume is 0)",
-                ));
-            }
-            let colour = cx.colour(&format!("{key}.colour"), o.colour)?;
-            let texture = o
-                .texture
-                .as_ref()
-                .map(|t| cx.texture(&format!("{key}.texture"), t, colour))
-                .transpose()?;
-            let body = Body {
-                id: o.id.clone(),
-                shape,
-                pose: Isometry3::from_parts(Translation3::new(p[0], p[1], p[2]), rotation),
-                mass,
-                friction: cx.finite(&format!("{key}.friction"), o.friction, 0.0, 10.0)?,
-                colour,
-                texture,
-                fixed: o.fixed,
-            };
+            let body = cx.object(i, o)?;
             if o.fixed {
                 bodies.push(body);
             } else {
@@ -880,44 +479,7 @@ impl Scene {
                 return Err(cx.err("object.id", format!("id {:?} is used twice", b.id)));
             }
         }
-        let mut routes: Vec<Route> = Vec::new();
-        for (i, r) in raw.route.iter().enumerate() {
-            let key = format!("route[{i}]");
-            if r.name.is_empty() || r.name.len() > 64 || routes.iter().any(|o| o.name == r.name) {
-                return Err(cx.err(format!("{key}.name"), "a unique name of 1-64 characters"));
-            }
-            if r.waypoints.is_empty() || r.waypoints.len() > 1000 {
-                return Err(cx.err(format!("{key}.waypoints"), "1-1000 waypoints"));
-            }
-            let mut waypoints = Vec::new();
-            for (k, w) in r.waypoints.iter().enumerate() {
-                let wk = format!("{key}.waypoints[{k}]");
-                if !(2..=4).contains(&w.len()) {
-                    return Err(cx.err(wk, "[x, y], [x, y, heading] or [x, y, heading, wait]"));
-                }
-                let x = cx.finite(&wk, w[0], -MAX_EXTENT, MAX_EXTENT)?;
-                let y = cx.finite(&wk, w[1], -MAX_EXTENT, MAX_EXTENT)?;
-                let th = w
-                    .get(2)
-                    .map(|&t| cx.finite(&wk, t, -100.0, 100.0))
-                    .transpose()?;
-                let wait = w
-                    .get(3)
-                    .map(|&t| cx.finite(&wk, t, 0.0, 600.0))
-                    .transpose()?
-                    .unwrap_or(0.0);
-                waypoints.push(Waypoint {
-                    xy: [x, y],
-                    heading: th,
-                    wait,
-                });
-            }
-            routes.push(Route {
-                name: r.name.clone(),
-                waypoints,
-                head_tilt: cx.finite(&format!("{key}.head_tilt"), r.head_tilt, -1.6, 1.6)?,
-            });
-        }
+        let routes = cx.routes(&raw.route)?;
         Ok(Scene {
             name: raw.name,
             file: file.to_path_buf(),
@@ -955,85 +517,3 @@ impl Scene {
 
 /// Thickness of the floor slab (its top is at z = 0), m.
 pub const FLOOR_THICKNESS: f64 = 0.05;
-
-/// A wall as boxes: the pieces between its door openings and a lintel above each.
-fn wall_bodies(cx: &Ctx<'_>, i: usize, w: &WallFile) -> Result<Vec<Body>> {
-    let key = format!("wall[{i}]");
-    for v in w.from.iter().chain(&w.to) {
-        cx.finite(&format!("{key}.from/to"), *v, -MAX_EXTENT, MAX_EXTENT)?;
-    }
-    let height = cx.positive(&format!("{key}.height"), w.height)?;
-    let thick = cx.positive(&format!("{key}.thickness"), w.thickness)?;
-    let colour = cx.colour(&format!("{key}.colour"), w.colour)?;
-    let texture = w
-        .texture
-        .as_ref()
-        .map(|t| cx.texture(&format!("{key}.texture"), t, colour))
-        .transpose()?;
-    let a = Vector3::new(w.from[0], w.from[1], 0.0);
-    let d = Vector3::new(w.to[0] - w.from[0], w.to[1] - w.from[1], 0.0);
-    let len = d.norm();
-    if len < 0.01 {
-        return Err(cx.err(format!("{key}.to"), "a wall needs two distinct ends"));
-    }
-    let dir = d / len;
-    let rot = UnitQuaternion::from_euler_angles(0.0, 0.0, dir.y.atan2(dir.x));
-    if w.doors.len() > 6 {
-        return Err(cx.err(format!("{key}.doors"), "at most 6 doors per wall"));
-    }
-    // Openings sorted along the wall, each inside it and apart from the others.
-    let mut doors: Vec<(f64, f64, f64)> = Vec::new();
-    for (k, dr) in w.doors.iter().enumerate() {
-        let dk = format!("{key}.doors[{k}]");
-        let at = cx.finite(&format!("{dk}.at"), dr.at, 0.0, len)?;
-        let width = cx.positive(&format!("{dk}.width"), dr.width)?;
-        let dh = cx.positive(&format!("{dk}.height"), dr.height)?;
-        if at + width > len + 1e-9 {
-            return Err(cx.err(
-                format!("{dk}.width"),
-                format!(
-                    "the opening ends at {} m, beyond the wall's {len} m",
-                    at + width
-                ),
-            ));
-        }
-        if dh > height {
-            return Err(cx.err(
-                format!("{dk}.height"),
-                format!("{dh} m is higher than the wall ({height} m)"),
-            ));
-        }
-        doors.push((at, at + width, dh));
-    }
-    doors.sort_by(|x, y| x.0.total_cmp(&y.0));
-    for p in doors.windows(2) {
-        if p[1].0 < p[0].1 {
-            return Err(cx.err(format!("{key}.doors"), "door openings overlap"));
-        }
-    }
-    let mut out = Vec::new();
-    let mut piece = |s0: f64, s1: f64, z0: f64, z1: f64| {
-        if s1 - s0 < 1e-6 || z1 - z0 < 1e-6 {
-            return;
-        }
-        let centre = a + dir * ((s0 + s1) / 2.0) + Vector3::z() * ((z0 + z1) / 2.0);
-        out.push(Body {
-            id: format!("wall{i}.{}", out.len()),
-            shape: Shape::Box([s1 - s0, thick, z1 - z0]),
-            pose: Isometry3::from_parts(Translation3::from(centre), rot),
-            mass: 0.0,
-            friction: 0.6,
-            colour,
-            texture: texture.clone(),
-            fixed: true,
-        });
-    };
-    let mut s = 0.0;
-    for &(d0, d1, dh) in &doors {
-        piece(s, d0, 0.0, height);
-        piece(d0, d1, dh, height);
-        s = d1;
-    }
-    piece(s, len, 0.0, height);
-    Ok(out)
-}

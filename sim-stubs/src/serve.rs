@@ -5,6 +5,7 @@
 //! of wall time (the base's bumper and the gripper meet the scene's objects).
 
 use std::io::{self, Read, Write};
+use std::sync::{Arc, Mutex};
 use std::thread;
 use std::time::{Duration, Instant};
 
@@ -92,7 +93,6 @@ pub fn serve(robot: &str, seed: u64) -> Result<(Served, Plants), ServeError> {
 /// [`serve`] in `scene`: the base at the scene's start pose, and the scene's bodies in a
 /// physics world stepped in real time. Fails when a scene body overlaps the robot.
 pub fn serve_in(robot: &str, seed: u64, scene: &Scene) -> Result<(Served, Plants), ServeError> {
-    use std::sync::{Arc, Mutex};
     let desc = robots::by_name(robot)
         .ok_or_else(|| ServeError::Sim(SimError::UnknownRobot(robot.into())))?;
     let world = if scene.bodies.is_empty() {
@@ -104,6 +104,45 @@ pub fn serve_in(robot: &str, seed: u64, scene: &Scene) -> Result<(Served, Plants
         Some(Arc::new(Mutex::new(w)))
     };
     let start = Instant::now();
+    let (servo_path, chain, noise) = serve_chain(&desc, seed, start)?;
+    let (base, base_plant) = match desc.base {
+        BaseModel::None => (None, None),
+        kind => {
+            let (path, plant) = serve_base(kind, seed, scene, world.clone(), start)?;
+            (Some(path), Some(plant))
+        }
+    };
+    if let Some(w) = world.clone() {
+        step_world(
+            w,
+            chain.clone(),
+            base_plant.clone(),
+            scene.robot_pose,
+            start,
+        );
+    }
+    Ok((
+        Served {
+            servo_bus: servo_path,
+            base,
+        },
+        Plants {
+            chain,
+            base: base_plant,
+            servo_noise: noise,
+            world,
+        },
+    ))
+}
+
+/// Serve the servo chain of `desc` on a fresh PTY in real time from `start`: its path, the
+/// chain, and the line noise to inject.
+#[allow(clippy::type_complexity)]
+fn serve_chain(
+    desc: &robots::SimRobot,
+    seed: u64,
+    start: Instant,
+) -> Result<(String, Arc<Mutex<ServoChain>>, Arc<Mutex<Vec<u8>>>), ServeError> {
     let (mut master, slave, servo_path) = pty()?;
     let chain = Arc::new(Mutex::new(ServoChain::new(&desc.servos, &desc.arm, seed)));
     let noise = Arc::new(Mutex::new(Vec::new()));
@@ -148,91 +187,93 @@ pub fn serve_in(robot: &str, seed: u64, scene: &Scene) -> Result<(Served, Plants
             }
         });
     }
-    let (base, base_plant) = match desc.base {
-        BaseModel::None => (None, None),
-        kind => {
-            let (mut master, slave, path) = pty()?;
-            let mut b = if kind == BaseModel::Kobuki {
-                BasePlant::kobuki(seed)
-            } else {
-                BasePlant::create2(seed)
-            };
-            b.drive.truth = scene.robot_pose;
-            let plant = Arc::new(Mutex::new(b));
-            let p = plant.clone();
-            let w = world.clone();
-            thread::spawn(move || {
-                let _keep_open = slave;
-                let mut buf = [0u8; 512];
-                loop {
-                    let now = micros(start);
-                    let out = p
-                        .lock()
-                        .map(|mut b| {
-                            // Lock order: chain, base, world.
-                            let world = w.as_ref().and_then(|w| w.lock().ok());
-                            b.advance_among(now, world.as_deref().map(|w| w as _));
-                            b.take_output()
-                        })
-                        .unwrap_or_default();
-                    if !out.is_empty() {
-                        let _ = master.write_all(&out);
-                    }
-                    match master.read(&mut buf) {
-                        Ok(n) if n > 0 => {
-                            if let Ok(mut b) = p.lock() {
-                                b.on_bytes(micros(start), &buf[..n]);
-                            }
-                        }
-                        Ok(_) => {}
-                        Err(e)
-                            if e.kind() == io::ErrorKind::TimedOut
-                                || e.kind() == io::ErrorKind::WouldBlock => {}
-                        Err(_) => thread::sleep(Duration::from_millis(1)),
+    Ok((servo_path, chain, noise))
+}
+
+/// Serve a base plant of model `kind` on a fresh PTY in real time from `start`, at the
+/// scene's start pose among the world's bodies: its path and the plant.
+fn serve_base(
+    kind: BaseModel,
+    seed: u64,
+    scene: &Scene,
+    world: Option<Arc<Mutex<World>>>,
+    start: Instant,
+) -> Result<(String, Arc<Mutex<BasePlant>>), ServeError> {
+    let (mut master, slave, path) = pty()?;
+    let mut b = if kind == BaseModel::Kobuki {
+        BasePlant::kobuki(seed)
+    } else {
+        BasePlant::create2(seed)
+    };
+    b.drive.truth = scene.robot_pose;
+    let plant = Arc::new(Mutex::new(b));
+    let p = plant.clone();
+    let w = world.clone();
+    thread::spawn(move || {
+        let _keep_open = slave;
+        let mut buf = [0u8; 512];
+        loop {
+            let now = micros(start);
+            let out = p
+                .lock()
+                .map(|mut b| {
+                    // Lock order: chain, base, world.
+                    let world = w.as_ref().and_then(|w| w.lock().ok());
+                    b.advance_among(now, world.as_deref().map(|w| w as _));
+                    b.take_output()
+                })
+                .unwrap_or_default();
+            if !out.is_empty() {
+                let _ = master.write_all(&out);
+            }
+            match master.read(&mut buf) {
+                Ok(n) if n > 0 => {
+                    if let Ok(mut b) = p.lock() {
+                        b.on_bytes(micros(start), &buf[..n]);
                     }
                 }
-            });
-            (Some(path), Some(plant))
+                Ok(_) => {}
+                Err(e)
+                    if e.kind() == io::ErrorKind::TimedOut
+                        || e.kind() == io::ErrorKind::WouldBlock => {}
+                Err(_) => thread::sleep(Duration::from_millis(1)),
+            }
         }
-    };
-    if let Some(w) = world.clone() {
-        let (chain, base) = (chain.clone(), base_plant.clone());
-        let fixed = scene.robot_pose;
-        thread::spawn(move || loop {
-            let now = micros(start);
-            // Lock order: chain, base, world.
-            if let Ok(mut c) = chain.lock() {
-                let mut b = base.as_ref().and_then(|b| b.lock().ok());
-                if let Ok(mut w) = w.lock() {
-                    while w.next_step() <= now {
-                        let t = w.next_step();
-                        c.advance_to(t);
-                        let pose = match b.as_deref_mut() {
-                            Some(b) => {
-                                b.advance_among(t, Some(&*w));
-                                b.drive.truth
-                            }
-                            None => fixed,
-                        };
-                        w.step(pose, &mut c);
-                    }
+    });
+    Ok((path, plant))
+}
+
+/// Step world `w` in real time from `start` with the chain and the base (or the robot fixed
+/// at `fixed`) on a thread of its own. Lock order: chain, base, world.
+fn step_world(
+    w: Arc<Mutex<World>>,
+    chain: Arc<Mutex<ServoChain>>,
+    base: Option<Arc<Mutex<BasePlant>>>,
+    fixed: [f64; 3],
+    start: Instant,
+) {
+    thread::spawn(move || loop {
+        let now = micros(start);
+        // Lock order: chain, base, world.
+        if let Ok(mut c) = chain.lock() {
+            let mut b = base.as_ref().and_then(|b| b.lock().ok());
+            if let Ok(mut w) = w.lock() {
+                while w.next_step() <= now {
+                    let t = w.next_step();
+                    c.advance_to(t);
+                    let pose = match b.as_deref_mut() {
+                        Some(b) => {
+                            b.advance_among(t, Some(&*w));
+                            b.drive.truth
+                        }
+                        None => fixed,
+                    };
+                    w.step(pose, &mut c);
                 }
             }
-            thread::sleep(Duration::from_millis(1));
-        });
-    }
-    Ok((
-        Served {
-            servo_bus: servo_path,
-            base,
-        },
-        Plants {
-            chain,
-            base: base_plant,
-            servo_noise: noise,
-            world,
-        },
-    ))
+        }
+        thread::sleep(Duration::from_millis(1));
+    });
 }
 
 impl Plants {

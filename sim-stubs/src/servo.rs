@@ -1,20 +1,8 @@
-//! One simulated X-series Dynamixel: its control table and its physics.
-//!
-//! Model (output-shaft side, SI units):
-//! * DC motor with gear at a 12 V supply: `i = (V − Ke·ω)/R`, `τ = Kt·i`, with `Kt = Ke` and `R`
-//!   from the published stall torque and no-load speed ([`MotorSpec`]); gear-train Coulomb and
-//!   viscous friction; the reflected rotor inertia dominates the joint inertia.
-//! * The servo's internal controllers run at 4 kHz: position PID with the e-manual's gain
-//!   scaling (`KP = P/128`, `KI = I/65536`, `KD = D/16`, error in ticks, output in PWM units of
-//!   1/885), optional trapezoidal profile, velocity PI (`P/128`, `I/65536`), an ideal current
-//!   loop (XM430), and raw PWM.
-//! * Gear backlash (a play operator between motor and output), encoder quantisation to 4096
-//!   ticks per turn, seeded noise on velocity and current readings.
-//! * Overload: a load beyond 80 % of stall for 2 s latches the Overload bit of Hardware Error
-//!   Status, sets the alert bit of every status packet and shuts the torque off, as the real
-//!   servo does; only a reboot clears it.
-//! * Contacts: mechanical stops and an optional obstacle (an object in the gripper, a blocked
-//!   joint) as stiff spring-dampers.
+//! One simulated X-series Dynamixel: its control table and its physics (output-shaft side, SI
+//! units): DC motor and gear from [`MotorSpec`], the internal controllers at 4 kHz with the
+//! e-manual's gain scaling, backlash, encoder quantisation, seeded reading noise, overload
+//! protection ([`OVERLOAD_FRACTION`], [`OVERLOAD_TIME`]) and contacts (stops, an obstacle) as
+//! stiff spring-dampers. Model details: `docs/design/sim-stubs.md`, "servo".
 
 use ferrobot_protocol::dxl::{addr, hw_error, mode, status_error, units, MotorSpec};
 use ferrobot_protocol::ServoModel;
@@ -280,15 +268,24 @@ impl ServoSim {
     /// Advance the physics by one substep of [`SUBSTEP`] seconds.
     pub fn step(&mut self) {
         let dt = SUBSTEP;
+        let on = self.torque_enabled();
+        let pwm = self.control_pwm(on, dt);
+        self.motor(on, pwm);
+        let contact = self.contact_torque();
+        let drive = self.torque + self.external_torque + contact - self.phys.viscous * self.omega;
+        self.integrate(drive, dt);
+        self.protect(on, dt);
+    }
+
+    /// The PWM (±885) the internal controller asks for in its operating mode, before the PWM
+    /// limit; 0 with torque off.
+    fn control_pwm(&mut self, on: bool, dt: f64) -> f64 {
         let ms = dt * 1e3;
-        let ticks_per_rad = units::TICKS_PER_REV as f64 / std::f64::consts::TAU;
         let vel_unit = units::RAD_S_PER_VELOCITY_UNIT as f64;
         let supply = self.spec.supply_voltage as f64;
         let kt = self.spec.kt() as f64;
         let r = self.spec.resistance() as f64;
-        let pwm_limit = (self.get(addr::PWM_LIMIT, 2) as f64).min(885.0);
-        let on = self.torque_enabled();
-        let pwm: f64 = if !on {
+        if !on {
             0.0
         } else {
             match self.mode() {
@@ -308,41 +305,54 @@ impl ServoSim {
                     let i_goal = goal * units::AMP_PER_CURRENT_UNIT as f64;
                     (r * i_goal + kt * self.omega) / supply * 885.0
                 }
-                _ => {
-                    // Position control with optional trapezoidal profile.
-                    let goal = self.goal_angle();
-                    let pv = self.get(addr::PROFILE_VELOCITY, 4) as f64 * vel_unit;
-                    let pa = self.get(addr::PROFILE_ACCELERATION, 4) as f64
-                        * 214.577
-                        * std::f64::consts::TAU
-                        / 3600.0;
-                    if pv <= 0.0 {
-                        self.prof_pos = goal;
-                        self.prof_vel = 0.0;
-                    } else {
-                        let d = goal - self.prof_pos;
-                        let a = if pa > 0.0 { pa } else { 1e6 };
-                        let v_target = d.signum() * pv.min((2.0 * a * d.abs()).sqrt());
-                        let dv = (v_target - self.prof_vel).clamp(-a * dt, a * dt);
-                        self.prof_vel += dv;
-                        self.prof_pos += self.prof_vel * dt;
-                        if (goal - self.prof_pos).signum() != d.signum() {
-                            self.prof_pos = goal;
-                            self.prof_vel = 0.0;
-                        }
-                    }
-                    let e = (self.prof_pos - self.theta) * ticks_per_rad;
-                    let de_ms = (self.prof_vel - self.omega) * ticks_per_rad * 1e-3;
-                    let kp = self.get(addr::POSITION_P_GAIN, 2) as f64 / 128.0;
-                    let ki = self.get(addr::POSITION_I_GAIN, 2) as f64 / 65536.0;
-                    let kd = self.get(addr::POSITION_D_GAIN, 2) as f64 / 16.0;
-                    if ki > 0.0 {
-                        self.integ_pos = (self.integ_pos + e * ms).clamp(-885.0 / ki, 885.0 / ki);
-                    }
-                    kp * e + ki * self.integ_pos + kd * de_ms
-                }
+                _ => self.position_pwm(dt),
             }
-        };
+        }
+    }
+
+    /// Position control with optional trapezoidal profile: the profile advanced one step, and
+    /// the PID's PWM towards it.
+    fn position_pwm(&mut self, dt: f64) -> f64 {
+        let ms = dt * 1e3;
+        let ticks_per_rad = units::TICKS_PER_REV as f64 / std::f64::consts::TAU;
+        let vel_unit = units::RAD_S_PER_VELOCITY_UNIT as f64;
+        let goal = self.goal_angle();
+        let pv = self.get(addr::PROFILE_VELOCITY, 4) as f64 * vel_unit;
+        let pa = self.get(addr::PROFILE_ACCELERATION, 4) as f64 * 214.577 * std::f64::consts::TAU
+            / 3600.0;
+        if pv <= 0.0 {
+            self.prof_pos = goal;
+            self.prof_vel = 0.0;
+        } else {
+            let d = goal - self.prof_pos;
+            let a = if pa > 0.0 { pa } else { 1e6 };
+            let v_target = d.signum() * pv.min((2.0 * a * d.abs()).sqrt());
+            let dv = (v_target - self.prof_vel).clamp(-a * dt, a * dt);
+            self.prof_vel += dv;
+            self.prof_pos += self.prof_vel * dt;
+            if (goal - self.prof_pos).signum() != d.signum() {
+                self.prof_pos = goal;
+                self.prof_vel = 0.0;
+            }
+        }
+        let e = (self.prof_pos - self.theta) * ticks_per_rad;
+        let de_ms = (self.prof_vel - self.omega) * ticks_per_rad * 1e-3;
+        let kp = self.get(addr::POSITION_P_GAIN, 2) as f64 / 128.0;
+        let ki = self.get(addr::POSITION_I_GAIN, 2) as f64 / 65536.0;
+        let kd = self.get(addr::POSITION_D_GAIN, 2) as f64 / 16.0;
+        if ki > 0.0 {
+            self.integ_pos = (self.integ_pos + e * ms).clamp(-885.0 / ki, 885.0 / ki);
+        }
+        kp * e + ki * self.integ_pos + kd * de_ms
+    }
+
+    /// The motor's current and torque from `pwm` (limited), its back-EMF and, in current
+    /// mode, the current limit.
+    fn motor(&mut self, on: bool, pwm: f64) {
+        let supply = self.spec.supply_voltage as f64;
+        let kt = self.spec.kt() as f64;
+        let r = self.spec.resistance() as f64;
+        let pwm_limit = (self.get(addr::PWM_LIMIT, 2) as f64).min(885.0);
         let pwm = pwm.clamp(-pwm_limit, pwm_limit);
         let volts = pwm / 885.0 * supply;
         self.current = if on {
@@ -356,8 +366,11 @@ impl ServoSim {
             self.current = self.current.clamp(-limit, limit);
         }
         self.torque = kt * self.current;
+    }
 
-        // Contacts: stiff, critically damped, pushing out and never pulling in.
+    /// Contacts: stiff, critically damped, pushing out and never pulling in (the stops and the
+    /// obstacle), N·m.
+    fn contact_torque(&self) -> f64 {
         let k = 60.0;
         let c = 2.0 * (k * self.phys.inertia).sqrt();
         let push_up = |pen: f64, omega: f64| (k * pen - c * omega).max(0.0);
@@ -377,7 +390,12 @@ impl ServoSim {
                 contact += push_down(self.theta - at, self.omega);
             }
         }
-        let drive = self.torque + self.external_torque + contact - self.phys.viscous * self.omega;
+        contact
+    }
+
+    /// Move the motor under torque `drive` (N·m) for `dt` s with Coulomb friction and
+    /// stiction, and the output after it through the backlash.
+    fn integrate(&mut self, drive: f64, dt: f64) {
         // Coulomb friction with stiction.
         let fc = self.phys.coulomb;
         let acc = if self.omega.abs() < 1e-4 && drive.abs() <= fc {
@@ -403,8 +421,11 @@ impl ServoSim {
         } else if self.theta_m - self.theta < -half {
             self.theta = self.theta_m + half;
         }
+    }
 
-        // Overload protection.
+    /// Overload protection: torque above [`OVERLOAD_FRACTION`] of stall for
+    /// [`OVERLOAD_TIME`] sets the overload error and turns torque off.
+    fn protect(&mut self, on: bool, dt: f64) {
         if on && self.torque.abs() > OVERLOAD_FRACTION * self.spec.stall_torque as f64 {
             self.overload_timer += dt;
             if self.overload_timer >= OVERLOAD_TIME {

@@ -111,113 +111,7 @@ impl Checker {
         let joints = &fw.profile().joints;
         self.watch.resize(joints.len(), Watch::new(None));
         for (j, cfg) in joints.iter().enumerate() {
-            let Some(servo) = sim.hw.chain.servo(cfg.servo_id) else {
-                continue;
-            };
-            let sign = cfg.sign as f64;
-            let q = sign * (servo.theta - cfg.offset as f64);
-            let w = &mut self.watch[j];
-            // The output's speed now (the motor may turn inside the backlash while the joint
-            // stands still: that is not the joint moving).
-            let now = sim.now_us();
-            let qd = sign * servo.output_speed();
-            // Time since the last sample, for the allowed speed's fall.
-            let dt = w
-                .last
-                .map_or(0.0, |(t, _)| now.saturating_sub(t) as f64 * 1e-6);
-            w.last = Some((now, servo.theta));
-            if w.row.as_ref() != Some(cfg) {
-                // A new row (limits, servo, sign, offset): the joint may be outside its new
-                // limits, and may only come back.
-                w.row = Some(cfg.clone());
-                w.outside = outside(q, &cfg.limits) + stopping(qd);
-                w.speed = qd.abs();
-                continue;
-            }
-            // Pressed against a mechanical stop (limits set beyond the joint's mechanical
-            // range): the stop, not the firmware, decides where the joint is.
-            let at_stop = servo
-                .stops
-                .is_some_and(|(lo, hi)| servo.theta <= lo + 0.02 || servo.theta >= hi - 0.02);
-            let controlled = !at_stop
-                && cfg.kind != JointKind::Gripper
-                && fw.joints().get(j).is_some_and(|c| c.mode != JointMode::Off)
-                && fw
-                    .bus()
-                    .servos
-                    .iter()
-                    .filter(|s| s.joint as usize == j)
-                    .all(|s| {
-                        // Under control once its configuration (a mode change: torque off,
-                        // mode, goal, torque on) is done: until then the servo is limp.
-                        s.status == ferrobot_firmware::bus::ServoStatus::Ok
-                            && s.hw_error == 0
-                            && s.ops == 0
-                    });
-            let d = outside(q, &cfg.limits);
-            let vmax = cfg.limits.velocity as f64 * (1.0 + SPEED_TOL) + SPEED_ABS;
-            let mode = fw.joints().get(j).map(|c| c.mode).unwrap_or(JointMode::Off);
-            if (!w.was_controlled || w.mode != mode) && controlled {
-                w.grace_until = now + GRACE_US;
-            }
-            w.was_controlled = controlled;
-            w.mode = mode;
-            if !controlled || now < w.grace_until {
-                // A limp joint goes where gravity takes it; once under control it must come
-                // back from there, and slow down from that speed.
-                w.outside = w.outside.max(d + stopping(qd));
-                w.speed = w.speed.max(qd.abs());
-                continue;
-            }
-            let (dp, dv) = (
-                d - w.outside,
-                qd.abs() - (cfg.limits.velocity as f64).max(w.speed),
-            );
-            let here = || {
-                format!(
-                    "{what}: t={} us joint {j} ({:?}) at {q:.4} rad, {qd:.3} rad/s, {:?}",
-                    sim.now_us(),
-                    fw.joints()[j].mode,
-                    cfg.limits
-                )
-            };
-            if dp > self.worst.0 {
-                self.worst.0 = dp;
-                self.worst_at.0 = here();
-            }
-            if dv > self.worst.1 {
-                self.worst.1 = dv;
-                self.worst_at.1 = here();
-            }
-            let servo_state = || {
-                format!(
-                    "{:?}; servo torque {}, error {}, mode {}",
-                    fw.joints()[j].mode,
-                    servo.torque_enabled(),
-                    servo.hardware_error(),
-                    servo.get(dxl::addr::OPERATING_MODE, 1)
-                )
-            };
-            if d > w.outside + POS_TOL {
-                self.violations.push(format!(
-                    "{what}: t={} us joint {j} ({}) at {q:.4} rad, {d:.4} rad outside {:?}",
-                    sim.now_us(),
-                    servo_state(),
-                    cfg.limits
-                ));
-            }
-            if qd.abs() > vmax.max(w.speed + SPEED_ABS) {
-                self.violations.push(format!(
-                    "{what}: t={} us joint {j} ({}) at {q:.4} rad, {qd:.3} rad/s, limits {:?}",
-                    sim.now_us(),
-                    servo_state(),
-                    cfg.limits
-                ));
-            }
-            w.outside = w.outside.min(d + stopping(qd));
-            // A joint found too fast slows down at most at the braking rate: the allowed speed
-            // falls at that rate (never below what it is now).
-            w.speed = w.speed.min((w.speed - BRAKING * dt).max(qd.abs()));
+            self.check_joint(sim, what, j, cfg);
         }
         // Every servo the firmware believes configured runs the mode and torque it asked for.
         for b in fw.bus().servos.iter() {
@@ -248,4 +142,171 @@ impl Checker {
             }
         }
     }
+
+    /// Check joint `j` (row `cfg`) now: within its limits (or coming back) and its speed.
+    fn check_joint(&mut self, sim: &LockstepSim, what: &str, j: usize, cfg: &JointConfig) {
+        let fw = &sim.fw;
+        let Some(servo) = sim.hw.chain.servo(cfg.servo_id) else {
+            return;
+        };
+        let sign = cfg.sign as f64;
+        let q = sign * (servo.theta - cfg.offset as f64);
+        let w = &mut self.watch[j];
+        // The output's speed now (the motor may turn inside the backlash while the joint
+        // stands still: that is not the joint moving).
+        let now = sim.now_us();
+        let qd = sign * servo.output_speed();
+        // Time since the last sample, for the allowed speed's fall.
+        let dt = w
+            .last
+            .map_or(0.0, |(t, _)| now.saturating_sub(t) as f64 * 1e-6);
+        w.last = Some((now, servo.theta));
+        if w.row.as_ref() != Some(cfg) {
+            // A new row (limits, servo, sign, offset): the joint may be outside its new
+            // limits, and may only come back.
+            w.row = Some(cfg.clone());
+            w.outside = outside(q, &cfg.limits) + stopping(qd);
+            w.speed = qd.abs();
+            return;
+        }
+        let controlled = under_control(sim, j, cfg, servo);
+        let d = outside(q, &cfg.limits);
+        let vmax = cfg.limits.velocity as f64 * (1.0 + SPEED_TOL) + SPEED_ABS;
+        let mode = fw.joints().get(j).map(|c| c.mode).unwrap_or(JointMode::Off);
+        if (!w.was_controlled || w.mode != mode) && controlled {
+            w.grace_until = now + GRACE_US;
+        }
+        w.was_controlled = controlled;
+        w.mode = mode;
+        if !controlled || now < w.grace_until {
+            // A limp joint goes where gravity takes it; once under control it must come
+            // back from there, and slow down from that speed.
+            w.outside = w.outside.max(d + stopping(qd));
+            w.speed = w.speed.max(qd.abs());
+            return;
+        }
+        let was = (w.outside, w.speed);
+        let state = JointNow {
+            j,
+            cfg,
+            servo,
+            q,
+            qd,
+            d,
+        };
+        self.judge(sim, what, &state, vmax, was);
+        let w = &mut self.watch[j];
+        w.outside = w.outside.min(d + stopping(qd));
+        // A joint found too fast slows down at most at the braking rate: the allowed speed
+        // falls at that rate (never below what it is now).
+        w.speed = w.speed.min((w.speed - BRAKING * dt).max(qd.abs()));
+    }
+
+    /// Record the worst excesses of joint `n` and its violations: beyond the limits by more
+    /// than it was `outside` (rad) or faster than `vmax` or its allowed `speed` (rad/s).
+    fn judge(
+        &mut self,
+        sim: &LockstepSim,
+        what: &str,
+        n: &JointNow<'_>,
+        vmax: f64,
+        (outside, speed): (f64, f64),
+    ) {
+        let fw = &sim.fw;
+        let JointNow {
+            j,
+            cfg,
+            servo,
+            q,
+            qd,
+            d,
+        } = *n;
+        let (dp, dv) = (
+            d - outside,
+            qd.abs() - (cfg.limits.velocity as f64).max(speed),
+        );
+        let here = || {
+            format!(
+                "{what}: t={} us joint {j} ({:?}) at {q:.4} rad, {qd:.3} rad/s, {:?}",
+                sim.now_us(),
+                fw.joints()[j].mode,
+                cfg.limits
+            )
+        };
+        if dp > self.worst.0 {
+            self.worst.0 = dp;
+            self.worst_at.0 = here();
+        }
+        if dv > self.worst.1 {
+            self.worst.1 = dv;
+            self.worst_at.1 = here();
+        }
+        let servo_state = || {
+            format!(
+                "{:?}; servo torque {}, error {}, mode {}",
+                fw.joints()[j].mode,
+                servo.torque_enabled(),
+                servo.hardware_error(),
+                servo.get(dxl::addr::OPERATING_MODE, 1)
+            )
+        };
+        if d > outside + POS_TOL {
+            self.violations.push(format!(
+                "{what}: t={} us joint {j} ({}) at {q:.4} rad, {d:.4} rad outside {:?}",
+                sim.now_us(),
+                servo_state(),
+                cfg.limits
+            ));
+        }
+        if qd.abs() > vmax.max(speed + SPEED_ABS) {
+            self.violations.push(format!(
+                "{what}: t={} us joint {j} ({}) at {q:.4} rad, {qd:.3} rad/s, limits {:?}",
+                sim.now_us(),
+                servo_state(),
+                cfg.limits
+            ));
+        }
+    }
+}
+
+/// One joint's state in one check.
+struct JointNow<'a> {
+    j: usize,
+    cfg: &'a JointConfig,
+    servo: &'a crate::servo::ServoSim,
+    /// Position, rad.
+    q: f64,
+    /// Output speed, rad/s.
+    qd: f64,
+    /// How far outside its limits, rad.
+    d: f64,
+}
+
+/// Whether joint `j` (row `cfg`, servo `servo`) is under the firmware's control: not pressed
+/// against a mechanical stop, not the gripper, not off, and its servos configured.
+fn under_control(
+    sim: &LockstepSim,
+    j: usize,
+    cfg: &JointConfig,
+    servo: &crate::servo::ServoSim,
+) -> bool {
+    let fw = &sim.fw;
+    // Pressed against a mechanical stop (limits set beyond the joint's mechanical
+    // range): the stop, not the firmware, decides where the joint is.
+    let at_stop = servo
+        .stops
+        .is_some_and(|(lo, hi)| servo.theta <= lo + 0.02 || servo.theta >= hi - 0.02);
+    !at_stop
+        && cfg.kind != JointKind::Gripper
+        && fw.joints().get(j).is_some_and(|c| c.mode != JointMode::Off)
+        && fw
+            .bus()
+            .servos
+            .iter()
+            .filter(|s| s.joint as usize == j)
+            .all(|s| {
+                // Under control once its configuration (a mode change: torque off,
+                // mode, goal, torque on) is done: until then the servo is limp.
+                s.status == ferrobot_firmware::bus::ServoStatus::Ok && s.hw_error == 0 && s.ops == 0
+            })
 }

@@ -1,31 +1,12 @@
 //! A hostile host for the firmware: seeded random streams of every `HostMsg` variant with
-//! hostile field values (±0, subnormals, ±1e38, ±f32::MAX, NaN, ±inf, integer extremes, random
-//! masks and indices) mixed with ordinary ones, interleaved with time, on every robot profile,
-//! through the lockstep simulator. Throughout, on the plants' true state:
-//!
-//! * every joint under control (not switched off by the host, not being configured, not the
-//!   gripper, which its own state machine drives against its stops) stays within its
-//!   configured position limits (tolerance [`POS_TOL`]) and within its velocity limit
-//!   (tolerance [`SPEED_TOL`] of the limit plus [`SPEED_ABS`]), unless it is pressed against a
-//!   mechanical stop (limits set beyond the joint's mechanical range). A joint that was limp (off,
-//!   rebooting, being configured) goes where gravity takes it, and a joint that new limits
-//!   left outside is outside through no motion of its own: from there it may run on for its
-//!   stopping distance (at [`BRAKING`]) and, once taken under control or switched to another
-//!   mode, for [`GRACE_US`]; then it may only come back and slow down;
-//! * the wheels stay within the base's top speed ([`WHEEL_TOL`]);
-//! * nothing panics;
-//! * and, checked beside these by [`strict::StrictChecker`] to an outside review's simpler and
-//!   stricter rules (issue 48): within 0.05 rad of the limits 0.3 s after they change, and no
-//!   faster than 1.5× the velocity limit + 0.15 rad/s over any 20 ms.
-//!
-//! Two mixes of messages ([`Mix`]): the broad one over every variant, and a pointed one at the
-//! holes that review found (extreme gains, broadcast indices, limits narrowed around moving
-//! joints, mode changes under load, non-finite efforts, direct commands at their edges).
-//!
-//! At the end an emergency stop, sent in whatever session state the stream left, stops the
-//! base within one base cycle and brings every joint to rest; after a valid Hello and Resume
-//! the arm obeys a waypoint again. `FERROBOT_HOSTILE_MESSAGES` sets the messages per profile
-//! (CI: 20,000) and `FERROBOT_HOSTILE_SEED` shifts the seeds (CI: 0), for longer searches.
+//! hostile field values mixed with ordinary ones ([`Mix`]), interleaved with time, on every
+//! robot profile, through the lockstep simulator; [`Checker`] (and beside it
+//! [`strict::StrictChecker`]) asserts on the plants' true state that joints under control stay
+//! within their limits ([`POS_TOL`], [`SPEED_TOL`], [`SPEED_ABS`], [`BRAKING`], [`GRACE_US`])
+//! and wheels within top speed ([`WHEEL_TOL`]), and at the end an emergency stop stops
+//! everything and a valid session recovers. `FERROBOT_HOSTILE_MESSAGES` and
+//! `FERROBOT_HOSTILE_SEED` set the length and the seeds. Design: `docs/design/sim-stubs.md`,
+//! "hostile".
 
 mod checker;
 mod stream;
@@ -80,6 +61,21 @@ pub fn hostile_stream_of<R: Rng + ?Sized>(
         .scale_arm_masses(|_| 1.0 + MASS_TOL * (2.0 * masses.uniform() - 1.0));
     let mut c = Checker::new(&s.sim);
     run(&mut s, &mut c, 1_500_000, "configuration");
+    stream(rng, &mut s, &mut c, messages, mix);
+    emergency_stop(&mut s, &mut c, robot);
+    recover(&mut s, &mut c, robot);
+    let t = s.sim.now_us();
+    (c, t)
+}
+
+/// The stream itself: `messages` messages of mix `mix`, each followed by a random gap.
+fn stream<R: Rng + ?Sized>(
+    rng: &mut R,
+    s: &mut SimHost,
+    c: &mut Checker,
+    messages: usize,
+    mix: Mix,
+) {
     for k in 0..messages {
         let msg = mixed_message(rng, &s.sim.fw, mix);
         let what = format!("after message {k} {msg:?}");
@@ -89,13 +85,18 @@ pub fn hostile_stream_of<R: Rng + ?Sized>(
             1..=4 => rng.random_range(10_000..50_000),
             _ => rng.random_range(0..5_000),
         };
-        run(&mut s, &mut c, gap, &what);
+        run(s, c, gap, &what);
         s.inbox.clear();
     }
+}
+
+/// The end: an emergency stop in whatever state the stream left, engaged and acknowledged,
+/// the base's wheels commanded to 0 within a base cycle, every controlled joint at rest.
+fn emergency_stop(s: &mut SimHost, c: &mut Checker, robot: &str) {
     // The end: an emergency stop in whatever state the stream left.
     let seq = s.send(&HostMsg::EmergencyStop);
     let stop_at = s.sim.now_us();
-    run(&mut s, &mut c, 1000, "emergency stop");
+    run(s, c, 1000, "emergency stop");
     assert!(s.sim.fw.estopped(), "the emergency stop was not engaged");
     let acked = s
         .inbox
@@ -106,7 +107,7 @@ pub fn hostile_stream_of<R: Rng + ?Sized>(
         // One base cycle (Kobuki 20 ms, Create 2 15 ms) for the command to reach the wheels.
         let deadline = stop_at + 20_000;
         while s.sim.now_us() < deadline && s.sim.hw.wheel_command() != (0.0, 0.0) {
-            run(&mut s, &mut c, 1000, "emergency stop");
+            run(s, c, 1000, "emergency stop");
         }
         assert_eq!(
             s.sim.hw.wheel_command(),
@@ -114,7 +115,7 @@ pub fn hostile_stream_of<R: Rng + ?Sized>(
             "{robot}: base still commanded"
         );
     }
-    run(&mut s, &mut c, 800_000, "after the emergency stop");
+    run(s, c, 800_000, "after the emergency stop");
     for (j, cfg) in s.sim.fw.profile().joints.iter().enumerate() {
         let controlled =
             cfg.kind != JointKind::Gripper && s.sim.fw.joints()[j].mode != JointMode::Off;
@@ -144,6 +145,11 @@ pub fn hostile_stream_of<R: Rng + ?Sized>(
             );
         }
     }
+}
+
+/// Recovery: a valid session, Resume, every joint off, the default joint table, then joint 0
+/// in position mode and a waypoint it reaches.
+fn recover(s: &mut SimHost, c: &mut Checker, robot: &str) {
     // Recovery: a valid session, Resume, every joint off, the default joint table, then
     // joint 0 in position mode and a waypoint.
     s.handshake().expect("hello");
@@ -177,14 +183,14 @@ pub fn hostile_stream_of<R: Rng + ?Sized>(
         mode: JointMode::Position,
     })
     .expect("position");
-    run(&mut s, &mut c, 600_000, "recovery");
+    run(s, c, 600_000, "recovery");
     s.command(&HostMsg::Waypoint {
         joints: 0b1,
         duration_us: 1_000_000,
         points: [JointPoint::at_rest(0.4)].into_iter().collect(),
     })
     .expect("waypoint accepted");
-    run(&mut s, &mut c, 2_500_000, "recovery waypoint");
+    run(s, c, 2_500_000, "recovery waypoint");
     let cfg = &s.sim.fw.profile().joints[0];
     let q = cfg.sign as f64
         * (s.sim.hw.chain.servo(cfg.servo_id).expect("servo").theta - cfg.offset as f64);
@@ -192,6 +198,4 @@ pub fn hostile_stream_of<R: Rng + ?Sized>(
         (q - 0.4).abs() < 0.02,
         "{robot}: joint 0 at {q} after the recovery waypoint"
     );
-    let t = s.sim.now_us();
-    (c, t)
 }

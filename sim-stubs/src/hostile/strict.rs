@@ -99,96 +99,112 @@ impl StrictChecker {
     /// Check the plants' state now; `what` says where in the stream.
     pub fn check(&mut self, sim: &LockstepSim, what: &str) {
         self.samples += 1;
-        let now = sim.now_us();
         let joints = sim.fw.profile().joints.clone();
         self.tracks.resize(joints.len(), Track::default());
         for (j, cfg) in joints.iter().enumerate() {
-            let Some(servo) = sim.hw.chain.servo(cfg.servo_id) else {
-                continue;
-            };
-            let q = cfg.sign as f64 * (servo.theta - cfg.offset as f64);
-            // Against a mechanical stop (it fell there while limp), the stop moves the joint
-            // as it springs back, not the firmware.
-            let at_stop = servo
-                .stops
-                .is_some_and(|(lo, hi)| servo.theta <= lo + 0.02 || servo.theta >= hi - 0.02);
-            let controlled = self.checked(sim, j, cfg);
-            let t = &mut self.tracks[j];
-            let l = cfg.limits;
-            let beyond = (l.min as f64 - q).max(q - l.max as f64);
-            let qd = (cfg.sign as f64 * servo.output_speed()).abs();
-            let allowed = SPEED_FACTOR * l.velocity as f64 + SPEED_ABS;
-            if t.limits != Some(cfg.limits) {
-                // New limits are no excuse: once settled, it must be within them.
-                t.limits = Some(cfg.limits);
-                t.changed_at = now;
-                t.entered_outside = None;
-                t.entered_fast = None;
+            self.check_joint(sim, what, j, cfg);
+        }
+    }
+
+    /// Check joint `j` (row `cfg`) now.
+    fn check_joint(&mut self, sim: &LockstepSim, what: &str, j: usize, cfg: &JointConfig) {
+        let now = sim.now_us();
+        let Some(servo) = sim.hw.chain.servo(cfg.servo_id) else {
+            return;
+        };
+        let q = cfg.sign as f64 * (servo.theta - cfg.offset as f64);
+        // Against a mechanical stop (it fell there while limp), the stop moves the joint
+        // as it springs back, not the firmware.
+        let at_stop = servo
+            .stops
+            .is_some_and(|(lo, hi)| servo.theta <= lo + 0.02 || servo.theta >= hi - 0.02);
+        let controlled = self.checked(sim, j, cfg);
+        let t = &mut self.tracks[j];
+        let l = cfg.limits;
+        let beyond = (l.min as f64 - q).max(q - l.max as f64);
+        let qd = (cfg.sign as f64 * servo.output_speed()).abs();
+        let allowed = SPEED_FACTOR * l.velocity as f64 + SPEED_ABS;
+        if t.limits != Some(cfg.limits) {
+            // New limits are no excuse: once settled, it must be within them.
+            t.limits = Some(cfg.limits);
+            t.changed_at = now;
+            t.entered_outside = None;
+            t.entered_fast = None;
+        }
+        if controlled && !t.controlled {
+            // Taken under control (it was limp): from where gravity took it, and as fast.
+            t.entered_outside = (beyond > 0.0).then_some(beyond);
+            t.entered_fast = (qd > allowed).then_some(qd);
+        }
+        t.controlled = controlled;
+        if !controlled || at_stop || now < t.changed_at + SETTLE_US {
+            t.samples.clear();
+            return;
+        }
+        let tol = tolerance(t, beyond);
+        let here = |kind: &str| {
+            format!(
+                "{what}: t={now} us joint {j} ({:?}) {kind} at {q:.4} rad, limits {l:?}",
+                sim.fw.joints()[j].mode
+            )
+        };
+        if t.entered_outside.is_none() && beyond > self.worst.0 {
+            self.worst.0 = beyond;
+        }
+        if beyond > tol {
+            self.violations
+                .push(here(&format!("{beyond:.4} rad beyond a limit")));
+        }
+        if let Some(v) = t.entered_fast {
+            // Braking from the speed it was taken at: it may only slow down (above the
+            // noise of the speed reading).
+            if qd > v + SPEED_ABS {
+                self.violations.push(here(&format!(
+                    "{qd:.3} rad/s, faster than the {v:.3} rad/s it was taken under control at"
+                )));
             }
-            if controlled && !t.controlled {
-                // Taken under control (it was limp): from where gravity took it, and as fast.
-                t.entered_outside = (beyond > 0.0).then_some(beyond);
-                t.entered_fast = (qd > allowed).then_some(qd);
+            if qd > allowed {
+                t.entered_fast = Some(v.min(qd).max(allowed));
+                return;
             }
-            t.controlled = controlled;
-            if !controlled || at_stop || now < t.changed_at + SETTLE_US {
-                t.samples.clear();
-                continue;
-            }
-            // A joint taken under control outside its limits may only come back; while it
-            // brakes from the speed it was taken at, it may go on as far as it brakes.
-            if t.entered_fast.is_some() && beyond > 0.0 {
-                t.entered_outside = Some(t.entered_outside.unwrap_or(0.0).max(beyond));
-            }
-            let tol = match t.entered_outside {
-                Some(e) if beyond > 0.0 => POS_TOL + e,
-                _ => {
-                    t.entered_outside = None;
-                    POS_TOL
-                }
-            };
-            let here = |kind: &str| {
-                format!(
-                    "{what}: t={now} us joint {j} ({:?}) {kind} at {q:.4} rad, limits {l:?}",
-                    sim.fw.joints()[j].mode
-                )
-            };
-            if t.entered_outside.is_none() && beyond > self.worst.0 {
-                self.worst.0 = beyond;
-            }
-            if beyond > tol {
-                self.violations
-                    .push(here(&format!("{beyond:.4} rad beyond a limit")));
-            }
-            if let Some(v) = t.entered_fast {
-                // Braking from the speed it was taken at: it may only slow down (above the
-                // noise of the speed reading).
-                if qd > v + SPEED_ABS {
-                    self.violations.push(here(&format!(
-                        "{qd:.3} rad/s, faster than the {v:.3} rad/s it was taken under control at"
-                    )));
-                }
-                if qd > allowed {
-                    t.entered_fast = Some(v.min(qd).max(allowed));
-                    continue;
-                }
-                t.entered_fast = None;
-            }
-            t.samples.push_back((now, q));
-            // The newest sample at least a window old, and the average speed since.
-            while t.samples.get(1).is_some_and(|s| now - s.0 >= WINDOW_US) {
-                t.samples.pop_front();
-            }
-            if let Some(&(t0, q0)) = t.samples.front().filter(|s| now - s.0 >= WINDOW_US) {
-                let v = (q - q0).abs() / ((now - t0) as f64 * 1e-6);
-                self.worst.1 = self.worst.1.max(v - allowed);
-                if v > allowed {
-                    self.violations.push(here(&format!(
-                        "{v:.3} rad/s on average over {:.0} ms (allowed {allowed:.3})",
-                        (now - t0) as f64 * 1e-3
-                    )));
-                }
+            t.entered_fast = None;
+        }
+        if let Some((v, t0)) = window_speed(t, now, q) {
+            self.worst.1 = self.worst.1.max(v - allowed);
+            if v > allowed {
+                self.violations.push(here(&format!(
+                    "{v:.3} rad/s on average over {:.0} ms (allowed {allowed:.3})",
+                    (now - t0) as f64 * 1e-3
+                )));
             }
         }
     }
+}
+
+/// How far (rad) beyond a limit joint track `t` may be when it is `beyond` it now. A joint
+/// taken under control outside its limits may only come back; while it brakes from the speed
+/// it was taken at, it may go on as far as it brakes.
+fn tolerance(t: &mut Track, beyond: f64) -> f64 {
+    if t.entered_fast.is_some() && beyond > 0.0 {
+        t.entered_outside = Some(t.entered_outside.unwrap_or(0.0).max(beyond));
+    }
+    match t.entered_outside {
+        Some(e) if beyond > 0.0 => POS_TOL + e,
+        _ => {
+            t.entered_outside = None;
+            POS_TOL
+        }
+    }
+}
+
+/// Add the sample `q` (rad) at `now` (µs) to `t`'s window; the average speed (rad/s) since the
+/// newest sample at least [`WINDOW_US`] old, with that sample's time, once there is one.
+fn window_speed(t: &mut Track, now: u64, q: f64) -> Option<(f64, u64)> {
+    t.samples.push_back((now, q));
+    // The newest sample at least a window old, and the average speed since.
+    while t.samples.get(1).is_some_and(|s| now - s.0 >= WINDOW_US) {
+        t.samples.pop_front();
+    }
+    let &(t0, q0) = t.samples.front().filter(|s| now - s.0 >= WINDOW_US)?;
+    Some(((q - q0).abs() / ((now - t0) as f64 * 1e-6), t0))
 }

@@ -1,0 +1,175 @@
+//! The robot's body in the world: where the plants put its link bodies, moving them there
+//! (waking what they touch), whether the world must step, and the overlap check at the start.
+
+use rapier3d::parry::bounding_volume::BoundingVolume;
+use rapier3d::prelude::*;
+
+use super::{convert, World, NEAR, OVERLAP};
+use crate::body::RobotBody;
+use crate::diff_drive::Pose as BasePose;
+use crate::scene::{Scene, SceneError};
+
+impl World {
+    /// Where the robot's link bodies belong for the plants' state: each link body with its
+    /// pose (the fingers held at the contact angle while the gripper holds an object).
+    pub(super) fn link_targets(
+        &self,
+        base: BasePose,
+        theta: &[f64],
+    ) -> Vec<(RigidBodyHandle, Pose)> {
+        let Some(r) = &self.robot else {
+            return Vec::new();
+        };
+        let mut theta = theta.to_vec();
+        if let (Some(g), Some(hand)) = (&r.grasp, r.body.hand()) {
+            if let Some(t) = theta.get_mut(hand.servo) {
+                *t = if hand.closed < hand.open {
+                    t.max(g.at)
+                } else {
+                    t.min(g.at)
+                };
+            }
+        }
+        let root = RobotBody::root_pose(base, r.height);
+        let q = r.body.joint_values(&theta);
+        let poses = r.body.link_poses(&root, &q);
+        r.links
+            .iter()
+            .zip(&poses)
+            .filter_map(|(h, p)| h.map(|h| (h, convert::pose(p))))
+            .collect()
+    }
+
+    /// Put the link bodies at `targets` now, outside a step.
+    pub(super) fn teleport(&mut self, targets: &[(RigidBodyHandle, Pose)]) {
+        for (h, p) in targets {
+            if let Some(rb) = self.pw.bodies.get_mut(*h) {
+                rb.set_position(*p, false);
+            }
+        }
+    }
+
+    /// Send the link bodies to `targets` in the next step, waking what the moving ones touch
+    /// (rapier does not wake a sleeping body that a kinematic one runs into).
+    pub(super) fn drive(&mut self, targets: &[(RigidBodyHandle, Pose)]) {
+        let mut moving = Vec::new();
+        for (h, p) in targets {
+            if let Some(rb) = self.pw.bodies.get_mut(*h) {
+                if rb.position() != p {
+                    moving.extend(rb.colliders().iter().copied());
+                }
+                rb.set_next_kinematic_position(*p);
+            }
+        }
+        let mut wake = Vec::new();
+        for &c in &moving {
+            for pair in self.pw.narrow_phase.contact_pairs_with(c) {
+                let other = if pair.collider1 == c {
+                    pair.collider2
+                } else {
+                    pair.collider1
+                };
+                if let Some(b) = self.pw.colliders.get(other).and_then(|o| o.parent()) {
+                    wake.push(b);
+                }
+            }
+        }
+        for b in wake {
+            if let Some(rb) = self.pw.bodies.get_mut(b) {
+                if rb.is_dynamic() && rb.is_sleeping() {
+                    rb.wake_up(true);
+                }
+            }
+        }
+    }
+
+    /// Whether a link moving to `targets` comes within [`NEAR`] of a movable body, or any
+    /// movable body is awake: the engine has something to do.
+    pub(super) fn busy(&self, targets: &[(RigidBodyHandle, Pose)]) -> bool {
+        let bodies = &self.pw.bodies;
+        let movable: Vec<&RigidBody> = self
+            .bodies
+            .iter()
+            .filter_map(|h| bodies.get(*h))
+            .filter(|b| b.is_dynamic())
+            .collect();
+        if movable.iter().any(|b| !b.is_sleeping()) {
+            return true;
+        }
+        let mut swept = Vec::new();
+        for (h, p) in targets {
+            let Some(rb) = bodies.get(*h) else { continue };
+            if rb.position() == p {
+                continue;
+            }
+            for ch in rb.colliders() {
+                let Some(c) = self.pw.colliders.get(*ch) else {
+                    continue;
+                };
+                let local = c.position_wrt_parent().copied().unwrap_or(Pose::IDENTITY);
+                let to = c.shape().compute_aabb(&(*p * local));
+                swept.push(c.compute_aabb().merged(&to).loosened(NEAR as f32));
+            }
+        }
+        if swept.is_empty() {
+            return false;
+        }
+        movable.iter().any(|b| {
+            b.colliders().iter().any(|ch| {
+                self.pw.colliders.get(*ch).is_some_and(|c| {
+                    let a = c.compute_aabb();
+                    swept.iter().any(|s| s.intersects(&a))
+                })
+            })
+        })
+    }
+
+    pub(super) fn check_overlap(&self, scene: &Scene) -> Result<(), SceneError> {
+        let Some(r) = &self.robot else { return Ok(()) };
+        let names: Vec<&str> = r.body.tree.links().collect();
+        for (i, h) in self.bodies.iter().enumerate() {
+            let Some(rb) = self.pw.bodies.get(*h) else {
+                continue;
+            };
+            for ch in rb.colliders() {
+                let Some(c) = self.pw.colliders.get(*ch) else {
+                    continue;
+                };
+                let aabb = c.compute_aabb();
+                for (li, lh) in r.links.iter().enumerate() {
+                    let Some(lb) = lh.and_then(|h| self.pw.bodies.get(h)) else {
+                        continue;
+                    };
+                    for lch in lb.colliders() {
+                        let Some(lc) = self.pw.colliders.get(*lch) else {
+                            continue;
+                        };
+                        if !aabb.intersects(&lc.compute_aabb()) {
+                            continue;
+                        }
+                        let hit = rapier3d::parry::query::contact(
+                            c.position(),
+                            c.shape(),
+                            lc.position(),
+                            lc.shape(),
+                            0.0,
+                        );
+                        if let Ok(Some(k)) = hit {
+                            if f64::from(k.dist) < -OVERLAP {
+                                return Err(SceneError::Overlap {
+                                    object: scene
+                                        .bodies
+                                        .get(i)
+                                        .map(|b| b.id.clone())
+                                        .unwrap_or_default(),
+                                    link: names.get(li).copied().unwrap_or("?").to_string(),
+                                });
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+}
