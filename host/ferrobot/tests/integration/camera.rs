@@ -402,7 +402,9 @@ fn frames_come_at_the_camera_rate_with_their_pose() {
 }
 
 /// A camera socket that answers with garbage, absurd intrinsics, a frame of the wrong size or
-/// a truncated frame: each a typed error naming the socket, never a panic or a hang.
+/// a truncated frame: each a typed error naming the socket, never a panic or a hang (a camera
+/// socket is the serial backend's).
+#[cfg(feature = "serial")]
 #[test]
 fn a_hostile_camera_socket_is_a_clear_error() {
     use ferrobot::backend::camera_socket::SocketCamera;
