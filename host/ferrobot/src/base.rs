@@ -143,8 +143,7 @@ impl Base {
 
     /// Odometry pose `[x, y, θ]`.
     pub fn get_state(&self) -> Result<[f64; 3]> {
-        let o = self.robot.telemetry()?.odometry;
-        Ok([o.x as f64, o.y as f64, o.theta as f64])
+        Ok(crate::base_goals::odometry_pose(&self.robot.telemetry()?))
     }
 
     /// The geometry the odometry uses: the configuration's calibrated `[base] odometry`, or

@@ -107,8 +107,7 @@ impl Goal for NavGoal {
     }
 
     fn step(&mut self, s: &mut Step<'_>) -> Option<Result<()>> {
-        let o = s.telemetry.odometry;
-        let odometry = [o.x as f64, o.y as f64, o.theta as f64];
+        let odometry = odometry_pose(s.telemetry);
         if self.finishing {
             return match self.finish.step(s.now, odometry_pose(s.telemetry)) {
                 Some((v, w)) => self.drive(s, v, w),
@@ -470,8 +469,7 @@ impl Goal for ExploreGoal {
         if s.now < self.next && self.nav.is_none() {
             return crate::base_goals::send_logged(s, self.last.0, self.last.1, 250);
         }
-        let o = s.telemetry.odometry;
-        let odometry = [o.x as f64, o.y as f64, o.theta as f64];
+        let odometry = odometry_pose(s.telemetry);
         let Some(pose) = s.sense.in_map(odometry, true) else {
             if let Some(e) = out_of_patience(&mut self.lost_since, s, "exploration cannot go on") {
                 return Some(Err(e));

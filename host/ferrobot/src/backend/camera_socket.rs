@@ -148,3 +148,18 @@ impl CameraDevice for SocketCamera {
         })
     }
 }
+
+// The simulator serves its camera with the `serve` feature, which `emulated` turns on.
+#[cfg(all(test, feature = "emulated"))]
+mod tests {
+    /// The socket's name is a convention between `ferrobot sim-firmware` (the simulator's
+    /// camera server) and this client, which cannot share code: they must agree.
+    #[test]
+    fn the_socket_beside_a_link_is_where_the_simulator_serves_it() {
+        let link = std::path::Path::new("/tmp/ferrobot-link");
+        assert_eq!(
+            super::socket_beside(link),
+            ferrobot_sim::camera_server::socket_beside(link)
+        );
+    }
+}
