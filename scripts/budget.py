@@ -8,6 +8,10 @@ braces outside strings, chars and comments. Prints the files and functions over 
 largest first; `--check` exits with 1 if any is over budget and not listed in
 `scripts/budget-exceptions.txt` (one `path` or `path::function` per line, `#` comments).
 
+Also checks that no unit test is silently left out: a crate whose library is not built as a
+test harness (`[lib] test = false` in its Cargo.toml, where its tests live in `tests/` to spare
+CI a second compile of an optimised library) holds no `#[cfg(test)]` or `#[test]` in `src/`.
+
 Usage: scripts/budget.py [--check] [--files N] [--fns N]
 """
 import os
@@ -124,6 +128,21 @@ def measure(path):
     return count, fns
 
 
+def unit_tests_never_run(files):
+    """The `src/` files holding tests of crates whose library is not a test harness."""
+    found = []
+    for manifest in subprocess.run(["git", "ls-files", "*Cargo.toml"], capture_output=True,
+                                   text=True).stdout.split():
+        text = open(manifest).read()
+        if not re.search(r"^\[lib\][^\[]*^test\s*=\s*false", text, re.M | re.S):
+            continue
+        src = os.path.join(os.path.dirname(manifest), "src") + "/"
+        for f in files:
+            if f.startswith(src) and re.search(r"#\[(cfg\()?test\]?\)?\]", open(f).read()):
+                found.append(f)
+    return found
+
+
 def main():
     args = sys.argv[1:]
     check = "--check" in args
@@ -158,8 +177,13 @@ def main():
         mark = " (listed exception)" if name in exceptions else ""
         bad += not mark
         print(f"  {n:5}  {name} (line {start}){mark}")
-    if check and bad:
-        print(f"{bad} over budget and not in scripts/budget-exceptions.txt")
+    never = unit_tests_never_run(subprocess.run(["git", "ls-files", "*.rs"], capture_output=True,
+                                                text=True).stdout.split())
+    for f in never:
+        print(f"  {f}: unit tests in a library built with `test = false` (they never run)")
+    if check and (bad or never):
+        print(f"{bad} over budget and not in scripts/budget-exceptions.txt; "
+              f"{len(never)} files of tests that never run")
         sys.exit(1)
 
 

@@ -62,9 +62,12 @@ rustup component add rustfmt clippy >/dev/null 2>&1 || true
 step "cross toolchain for the boards (Debian's rustc-web, lld, QEMU)"
 scripts/setup-cross.sh
 
-step "started: Python (dynamixel-sdk; OMPL and FCL for the planning peer; scikit-learn for the clustering peer; PyBullet for SLAM's independent sequences) in target/py-venv, and the board builds (mps2-an386 for QEMU, opencr for OpenCR 1.0)"
+step "started: Python (dynamixel-sdk; OMPL and FCL for the planning peer; scikit-learn for the clustering peer; PyBullet for SLAM's independent sequences) in target/py-venv, and the board builds and clippy (mps2-an386 for QEMU, opencr for OpenCR 1.0)"
 background python 'scripts/python-env.sh && scripts/python-env.sh plan && scripts/python-env.sh cluster && scripts/python-env.sh slam'
-background boards 'scripts/build-boards.sh'
+# The boards' clippy (Debian's, -D warnings) right after their builds: both boards share one
+# target directory (boards/target), so it reuses the host-side build dependencies, and it keeps
+# off the workspace's target directory, whose lock the steps below hold.
+background boards 'rc=0; scripts/build-boards.sh || rc=1; scripts/build-boards.sh --clippy || rc=1; exit $rc'
 
 step "cargo fmt --check"
 check fmt cargo fmt --all -- --check
@@ -87,7 +90,7 @@ step "cargo test --no-run: what the HIL tests need"
 # where CI's compile time goes.
 cargo test "${tested[@]}" --no-run --timings --test hil --bin firmware-process
 
-step "waited for: the board builds"
+step "waited for: the board builds and their clippy"
 join boards
 step "waited for: Python"
 join python
@@ -119,14 +122,6 @@ check doc env RUSTDOCFLAGS="-D warnings" cargo doc "${tested[@]}" --no-deps
 # port without the simulator (two small check builds of the API crate with other features).
 step "ferrobot with one backend each (sim without serialport, serial without the simulator)"
 check "backend builds" scripts/backend-builds.sh
-
-# Both boards share one target directory (boards/target), so the second reuses the host-side
-# build dependencies the first checked.
-step "cargo clippy -D warnings (both boards, Debian's clippy)"
-for board in mps2-an386 opencr; do
-    check "clippy ($board)" bash -c "cd boards/$board && env -u RUSTUP_TOOLCHAIN -u CARGO -u RUSTC -u RUSTC_WRAPPER -u CARGO_TARGET_DIR \
-        cargo clippy --release --quiet -- -D warnings"
-done
 
 step "waited for: the HIL tests"
 join hil

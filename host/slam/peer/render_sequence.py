@@ -60,7 +60,7 @@ def write_png(path, img):
 
     ihdr = struct.pack(">IIBBBBB", w, h, depth, colour, 0, 0, 0)
     with open(path, "wb") as f:
-        f.write(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) + chunk(b"IDAT", zlib.compress(raw, 6))
+        f.write(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) + chunk(b"IDAT", zlib.compress(raw, 1))
                 + chunk(b"IEND", b""))
 
 
@@ -197,7 +197,22 @@ def camera_path(kind, n, radius):
     return poses
 
 
+# The last render's key and result: a camera standing still (facing the bare board for 2 s)
+# renders the same view frame after frame.
+_last = [None, None]
+
+
 def render(pos, R, light):
+    """Colour (HxWx3 float32) and depth (HxW, m, 0 where nothing is hit) from the optical
+    frame at `pos` with axes `R` under `light`; a view equal to the last one is not redrawn."""
+    key = (pos.tobytes(), R.tobytes(), tuple(light["dir"]), tuple(light["colour"]))
+    if _last[0] != key:
+        _last[0], _last[1] = key, _draw(pos, R, light)
+    rgb, depth = _last[1]
+    return rgb.copy(), depth.copy()
+
+
+def _draw(pos, R, light):
     fwd, down = R[:, 2], R[:, 1]
     view = p.computeViewMatrix(pos.tolist(), (pos + fwd).tolist(), (-down).tolist())
     # OpenGL projection from the pinhole (principal point off centre as the D435's).
@@ -261,16 +276,20 @@ def main():
         if within(ev, "blur", i) and 0 < i < len(poses) - 1:
             # The exposure: the mean of 5 renders from the poses between the neighbouring
             # frames' (position and heading).
+            # The middle of the exposure is the frame's own pose, that of its depth image.
+            middle, depth = render(pos, R, light)
             acc = np.zeros((HEIGHT, WIDTH, 3), np.float32)
             (_, p0, r0), (_, p1, r1) = poses[i - 1], poses[i + 1]
             for f in np.linspace(-0.5, 0.5, 5):
+                if f == 0.0:
+                    acc += middle
+                    continue
                 q = pos + f * (p1 - p0) / 2
                 rr = R + f * (r1 - r0) / 2
                 u, _, vt = np.linalg.svd(rr)
                 c, _ = render(q, u @ vt, light)
                 acc += c
             colour = acc / 5
-            _, depth = render(pos, R, light)
         else:
             colour, depth = render(pos, R, light)
         if within(ev, "holes", i):

@@ -2,7 +2,7 @@
 
 use std::path::Path;
 
-use ferrobot_sim::camera::StereoNoise;
+use ferrobot_sim::camera::{normal_table, StereoNoise};
 use ferrobot_sim::render::{PinholeCamera, RenderedImage, Renderer};
 use ferrobot_sim::rng::SimRng;
 use ferrobot_sim::scene::Scene;
@@ -366,4 +366,18 @@ fn two_bands_render_the_one_image() {
     let (d1, d2) = (noisy(), noisy());
     assert_eq!(d1, d2);
     assert_ne!(d1, b.depth, "the noise is on");
+}
+
+#[test]
+fn the_normal_table_holds_the_standard_normals_quantiles() {
+    let t = normal_table();
+    // Φ⁻¹(0.5 / 4096) = -3.6683; the table is symmetric and its spread 0.99984.
+    assert!((f64::from(t[0]) + 3.6683).abs() < 1e-3, "{}", t[0]);
+    assert!(t
+        .iter()
+        .zip(t.iter().rev())
+        .all(|(a, b)| (a + b).abs() < 1e-4));
+    let var = t.iter().map(|&x| f64::from(x).powi(2)).sum::<f64>() / 4096.0;
+    assert!((var.sqrt() - 0.99984).abs() < 1e-4, "{}", var.sqrt());
+    assert!(t.windows(2).all(|w| w[0] < w[1]));
 }
