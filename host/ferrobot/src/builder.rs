@@ -164,6 +164,7 @@ impl Robot {
                     camera: connected.camera,
                     slam: None,
                     sense: Default::default(),
+                    streams: Default::default(),
                 }),
                 cfg,
                 uses,

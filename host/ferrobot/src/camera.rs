@@ -11,59 +11,18 @@
 //! Unlike PyRobot on main (which divides depth by 1000 twice and returns empty clouds, its
 //! issues #139 and #153), depth is in metres throughout; rows and columns are named as such.
 
-use std::time::Duration;
+use std::sync::Arc;
 
-use ferrobot_perception::{
-    backproject, pixels_to_points, DepthImage, DepthRange, Intrinsics, PixelPoints, PointCloud,
-    RgbImage,
-};
+use ferrobot_perception::{DepthImage, DepthRange, Intrinsics, PixelPoints, PointCloud, RgbImage};
 use ferrobot_protocol::Telemetry;
 use nalgebra::Isometry3;
 
 pub use crate::backend::device::{CameraDevice, RawFrame};
 use crate::error::{Error, Result};
+pub use crate::frame::Frame;
 use crate::head::Head;
 use crate::robot::Robot;
-
-/// One RGB-D frame with its time and the camera's pose.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Frame {
-    /// Colour, H x W x 3.
-    pub rgb: RgbImage,
-    /// Depth aligned to colour, m (0 = invalid).
-    pub depth: DepthImage,
-    /// The intrinsics.
-    pub intrinsics: Intrinsics,
-    /// Capture time on the robot's clock (since the firmware started).
-    pub time: Duration,
-    /// Pose of the optical frame (x right, y down, z forward) in `base_link` at capture, from
-    /// the measured joints.
-    pub camera_pose: Isometry3<f64>,
-}
-
-impl Frame {
-    /// The cloud of the pixels whose depth `range` keeps, with colours: in the optical frame
-    /// (`in_cam`) or in `base_link`.
-    pub fn cloud(&self, range: DepthRange, in_cam: bool) -> Result<PointCloud> {
-        let c = backproject(&self.intrinsics, &self.depth, Some(&self.rgb), range)?;
-        Ok(if in_cam {
-            c
-        } else {
-            c.transformed(&self.camera_pose)
-        })
-    }
-
-    /// The points seen at pixels (`rows[i]`, `cols[i]`), in the optical frame (`in_cam`) or in
-    /// `base_link`; `None` where the depth is invalid.
-    pub fn pixels(&self, rows: &[i64], cols: &[i64], in_cam: bool) -> Result<PixelPoints> {
-        let p = pixels_to_points(&self.intrinsics, &self.depth, Some(&self.rgb), rows, cols)?;
-        Ok(if in_cam {
-            p
-        } else {
-            p.transformed(&self.camera_pose)
-        })
-    }
-}
+use crate::subscription::Subscription;
 
 /// The RGB-D camera of a [`Robot`]: a handle (a clone of the robot's).
 #[derive(Clone, Debug)]
@@ -108,22 +67,41 @@ impl Camera {
             let tel = io.link.telemetry()?;
             let raw = device.capture(&mut *io.link)?;
             let k = device.intrinsics();
-            // SLAM beside the robot sees this frame too.
+            // SLAM beside the robot and the frame subscriptions see this frame too.
             io.feed_frame(&tel, &raw);
+            io.publish_frame(&tel, &raw);
             (k, tel, raw)
         };
-        let camera_pose = self
-            .robot
-            .frames()?
-            .transform_at(&tel, &frame, "base_link")?;
-        let frame = Frame {
-            rgb: raw.rgb,
-            depth: raw.depth,
-            intrinsics,
-            time: raw.time,
-            camera_pose,
-        };
+        let frame = Frame::placed(raw, intrinsics, self.robot.frames()?, &frame, &tel)?;
         Ok((frame, tel))
+    }
+
+    /// Subscribes to every frame the camera takes from now on, placed as
+    /// [`Camera::get_frame`]'s are, in a queue of `queue` frames (in
+    /// `[1, subscription::MAX_QUEUE]`; a full queue drops its oldest). While a subscription
+    /// lives, the camera takes a picture for each of its frame instants, when the robot's time
+    /// next passes it (waits step 10 ms), and every [`Camera::get_frame`] is delivered too, so SLAM, recorders and viewers see the
+    /// same frames. Needs a camera that tells its frame instants (the simulated one): a device
+    /// that only knows by capturing would make every wait wait for a picture.
+    ///
+    /// [`subscription::MAX_QUEUE`]: crate::subscription::MAX_QUEUE
+    pub fn subscribe(&self, queue: usize) -> Result<Subscription<Arc<Frame>>> {
+        let placing = (self.robot.frames()?.clone(), self.robot.optical_frame()?);
+        let mut io = self.robot.lock_hub();
+        let device = io
+            .camera
+            .as_ref()
+            .ok_or_else(|| self.robot.missing("camera"))?;
+        if !device.knows_frame_instants() {
+            return Err(Error::Usage(
+                "frame subscriptions need a camera that tells its frame instants (the simulated \
+                 one); a real one needs a capture thread, not yet built"
+                    .into(),
+            ));
+        }
+        let sub = io.streams.frames.subscribe("camera frame", queue)?;
+        io.streams.placing.get_or_insert(placing);
+        Ok(sub)
     }
 
     /// The next colour image (H x W x 3, 8-bit RGB).

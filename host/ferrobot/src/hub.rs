@@ -1,6 +1,7 @@
 //! The hub: the link to the firmware, the goal table and the sensing that time feeds, under the
 //! robot's one lock. Whoever lets time pass pumps it ([`Hub::pump`]): the link advances, every
-//! goal under way takes its step, and the camera's due frame reaches its subscribers.
+//! goal under way takes its step, and the telemetry and the camera's due frame reach their
+//! subscribers (SLAM, the obstacle layer, [`crate::subscription`]s).
 
 use std::time::Duration;
 
@@ -27,6 +28,8 @@ pub(crate) struct Hub {
     pub(crate) slam: Option<crate::slam_runner::SlamRunner>,
     /// What the camera and SLAM tell the base's goals.
     pub(crate) sense: crate::sense::Sense,
+    /// The streams users subscribe to.
+    pub(crate) streams: crate::sensing::Streams,
 }
 
 impl Hub {
@@ -191,6 +194,7 @@ impl Hub {
     pub(crate) fn pump(&mut self, cfg: &RobotConfig, dt: Duration) {
         self.link.wait(dt);
         self.step(cfg);
+        self.publish_telemetry();
         self.feed_camera();
     }
 

@@ -34,6 +34,7 @@ pub mod camera;
 mod components;
 mod connect;
 pub mod error;
+mod frame;
 pub mod frames;
 mod goals;
 pub mod gripper;
@@ -50,6 +51,7 @@ mod sensing;
 mod simulated;
 pub mod slam;
 mod slam_runner;
+pub mod subscription;
 #[cfg(feature = "sim")]
 pub mod world_options;
 /// Where to stand at a table (pure geometry, in `ferrobot-nav`).
@@ -88,6 +90,7 @@ pub use ferrobot_sim::scene;
 pub use motion::Motion;
 pub use robot::Robot;
 pub use slam::Source;
+pub use subscription::Subscription;
 #[cfg(feature = "sim")]
 pub use world_options::{mount_error_pose, MAX_CAMERA_MOUNT_ERROR};
 

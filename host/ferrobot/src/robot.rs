@@ -313,6 +313,23 @@ impl Robot {
         }
     }
 
+    /// Subscribes to the firmware's telemetry (joints, gripper, odometry, wheels, faults'
+    /// flags), in a queue of `queue` reports (in `[1, subscription::MAX_QUEUE]`; a full queue
+    /// drops its oldest): the newest report each time the robot's time passes (a wait, a
+    /// motion's wait, a capture), each report once. Reports that arrive between two such
+    /// instants are not all seen (the link keeps the newest).
+    ///
+    /// [`subscription::MAX_QUEUE`]: crate::subscription::MAX_QUEUE
+    pub fn subscribe_telemetry(
+        &self,
+        queue: usize,
+    ) -> Result<crate::subscription::Subscription<Telemetry>> {
+        self.lock_hub()
+            .streams
+            .telemetry
+            .subscribe("telemetry", queue)
+    }
+
     /// The backend's clock, s.
     pub fn time(&self) -> f64 {
         self.lock_hub().link.now().as_secs_f64()

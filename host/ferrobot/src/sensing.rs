@@ -1,28 +1,82 @@
-//! The hub's sensing stage: after every wait, the camera's due frame goes to its subscribers,
-//! SLAM while it runs and the obstacle layer while a base goal wants scans, and SLAM's
-//! occupancy grid is refreshed for the goals that plan on it (see [`crate::sense`]).
+//! The hub's sensing stage: after every wait, the newest telemetry goes to its subscribers, and
+//! the camera's due frame to its consumers: SLAM while it runs, the obstacle layer while a base
+//! goal wants scans, and the frame subscriptions ([`crate::subscription`]); SLAM's occupancy
+//! grid is refreshed for the goals that plan on it (see [`crate::sense`]).
 
+use std::sync::Arc;
 use std::time::Duration;
 
 use ferrobot_geometry::Pose2;
+use ferrobot_protocol::Telemetry;
 use ferrobot_slam::{optimise, RgbdInput, TrackState};
 
 use crate::backend::device::RawFrame;
+use crate::frame::Frame;
+use crate::frames::Frames;
 use crate::hub::Hub;
 use crate::slam_runner::odometry_at;
+use crate::subscription::Publisher;
+
+/// The streams users subscribe to.
+#[derive(Default)]
+pub(crate) struct Streams {
+    /// The camera's frames, placed in `base_link`.
+    pub(crate) frames: Publisher<Arc<Frame>>,
+    /// What places a frame: the URDF's frames and the camera's optical frame (set with the
+    /// first frame subscription).
+    pub(crate) placing: Option<(Frames, String)>,
+    /// The firmware's telemetry.
+    pub(crate) telemetry: Publisher<Telemetry>,
+    /// The time of the newest telemetry delivered, µs on the robot's clock.
+    pub(crate) telemetry_us: Option<u64>,
+}
+
+impl Hub {
+    /// Delivers the newest telemetry to its subscribers, once per report.
+    pub(crate) fn publish_telemetry(&mut self) {
+        if !self.streams.telemetry.wanted() {
+            return;
+        }
+        let Ok(t) = self.link.telemetry() else {
+            return;
+        };
+        if self.streams.telemetry_us != Some(t.time_us) {
+            self.streams.telemetry_us = Some(t.time_us);
+            self.streams.telemetry.publish(t);
+        }
+    }
+
+    /// Delivers a frame taken with telemetry `tel` to the frame subscriptions, placed in
+    /// `base_link` (a frame that cannot be placed is not delivered).
+    pub(crate) fn publish_frame(&mut self, tel: &Telemetry, raw: &RawFrame) {
+        let (Some((frames, optical)), Some(camera)) =
+            (self.streams.placing.as_ref(), self.camera.as_ref())
+        else {
+            return;
+        };
+        if !self.streams.frames.wanted() {
+            return;
+        }
+        if let Ok(frame) = Frame::placed(raw.clone(), camera.intrinsics(), frames, optical, tel) {
+            self.streams.frames.publish(Arc::new(frame));
+        }
+    }
+}
 
 impl Hub {
     /// Takes the frame whose instant time has just passed, if anyone wants it: SLAM, when it
-    /// runs, gets every frame; the base's goals that want obstacle scans or SLAM's occupancy
-    /// grid get them (see [`crate::sense`]). The pump calls this after every wait. A failure
-    /// is kept for [`Robot::slam_report`] (and a goal without scans goes on without them).
+    /// runs, and the frame subscriptions get every frame; the base's goals that want obstacle
+    /// scans or SLAM's occupancy grid get them (see [`crate::sense`]). The pump calls this
+    /// after every wait. A failure is kept for [`crate::Robot::slam_report`] (and a goal without
+    /// scans goes on without them).
     pub(crate) fn feed_camera(&mut self) {
         let now = self.link.now();
         let scans = self.sense.scan_due(now) && self.goals.any(|g| g.wants_scans());
         if self.slam.is_some() && self.sense.grid_due(now) && self.goals.any(|g| g.wants_grid()) {
             self.refresh_grid(now);
         }
-        if self.slam.is_none() && !scans {
+        let subscribed = self.streams.frames.wanted();
+        if self.slam.is_none() && !scans && !subscribed {
             return;
         }
         let Some(camera) = self.camera.as_mut() else {
@@ -40,6 +94,9 @@ impl Hub {
                 self.feed_frame(&tel, &raw);
                 if scans {
                     self.scan_frame(&tel, &raw);
+                }
+                if subscribed {
+                    self.publish_frame(&tel, &raw);
                 }
             }
             Err(e) => {
@@ -64,7 +121,7 @@ impl Hub {
 
     /// Makes the obstacle scan of a frame taken with telemetry `tel`, in the map's frame (SLAM's
     /// when it runs and has a pose, else the odometry's).
-    fn scan_frame(&mut self, tel: &ferrobot_protocol::Telemetry, raw: &RawFrame) {
+    fn scan_frame(&mut self, tel: &Telemetry, raw: &RawFrame) {
         let (Some(eyes), Some(camera)) = (self.sense.camera.as_ref(), self.camera.as_ref()) else {
             return;
         };
@@ -97,7 +154,7 @@ impl Hub {
 
     /// Feeds SLAM a frame taken with telemetry `tel` (the joints and odometry of its time);
     /// a tracked frame updates where the map lies in the odometry's frame.
-    pub(crate) fn feed_frame(&mut self, tel: &ferrobot_protocol::Telemetry, raw: &RawFrame) {
+    pub(crate) fn feed_frame(&mut self, tel: &Telemetry, raw: &RawFrame) {
         let Some(runner) = self.slam.as_mut() else {
             return;
         };

@@ -34,6 +34,12 @@ pub trait CameraDevice: Send {
     fn until_next(&self, _now: Duration) -> Duration {
         Duration::ZERO
     }
+    /// Whether [`CameraDevice::until_next`] tells the frame instants (a simulated camera), so
+    /// that frames can be taken as time passes without waiting for them; false for a device
+    /// that only knows by capturing.
+    fn knows_frame_instants(&self) -> bool {
+        false
+    }
     /// The next frame: waits for it (at most one frame period).
     fn capture(&mut self, link: &mut dyn Link) -> Result<RawFrame>;
 }

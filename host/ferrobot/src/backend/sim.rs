@@ -199,6 +199,10 @@ impl super::device::CameraDevice for SimCameraDevice {
         self.clock.rate()
     }
 
+    fn knows_frame_instants(&self) -> bool {
+        true
+    }
+
     fn until_next(&self, now: Duration) -> Duration {
         let now_us = now.as_micros() as u64;
         Duration::from_micros(self.clock.peek(now_us).saturating_sub(now_us))

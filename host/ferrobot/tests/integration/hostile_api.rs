@@ -480,6 +480,32 @@ fn the_camera_refuses_hostile_values() {
     assert_eq!(cam.get_rgb().expect("rgb").data.len(), 640 * 480 * 3);
 }
 
+/// Subscriptions under hostile queue lengths: zero and beyond `subscription::MAX_QUEUE`
+/// refused, with the robot's time passing between cases.
+#[test]
+fn subscriptions_refuse_hostile_queue_lengths() {
+    use ferrobot::subscription::MAX_QUEUE;
+    let bot = Robot::new("locobot").expect("robot");
+    let cam = bot.camera().expect("camera");
+    let calls = std::cell::Cell::new(0usize);
+    runner(10)
+        .run(&(count(), count()), |(a, b)| {
+            let bad = |n: usize| !(1..=MAX_QUEUE).contains(&n);
+            let r = bot.subscribe_telemetry(a);
+            judge("Robot::subscribe_telemetry", bad(a), &r)?;
+            let f = cam.subscribe(b);
+            judge("Camera::subscribe", bad(b), &f)?;
+            bot.wait(0.04).expect("wait");
+            if let Ok(f) = &f {
+                prop_assert!(f.len() <= b);
+            }
+            calls.set(calls.get() + 2);
+            Ok(())
+        })
+        .expect("subscriptions refuse hostile queue lengths");
+    report("subscriptions", calls.get());
+}
+
 /// Perception's cloud algorithms under hostile clouds and parameters: DBSCAN (the k-d tree
 /// one and the exhaustive reference, which must agree whenever both accept), RANSAC plane
 /// fitting, segmentation above a table and per-object features. Points with a NaN, infinite

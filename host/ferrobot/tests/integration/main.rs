@@ -11,4 +11,5 @@ mod navigation;
 mod planning;
 mod slam;
 mod stow;
+mod subscriptions;
 mod world;

@@ -1,0 +1,172 @@
+//! Subscriptions to the robot's streams: the camera's frames ([`crate::Camera::subscribe`])
+//! and the firmware's telemetry ([`crate::Robot::subscribe_telemetry`]).
+//!
+//! A subscription is a bounded queue that the robot fills as its time passes: whoever lets
+//! time pass (a wait, a motion's wait, a capture) delivers what became due to every live
+//! subscription, oldest first. A full queue drops its oldest item and counts it
+//! ([`Subscription::dropped`]); the robot never waits for a reader. A subscription its holder
+//! drops is forgotten at the next delivery, and while no subscription to frames is alive the
+//! camera takes no picture for one.
+
+use std::collections::VecDeque;
+use std::sync::{Arc, Weak};
+
+use parking_lot::Mutex;
+
+use crate::error::{Error, Result};
+
+/// The longest queue a subscription may ask for, items.
+pub const MAX_QUEUE: usize = 100_000;
+
+/// One subscriber's queue.
+#[derive(Debug)]
+struct Queue<T> {
+    items: VecDeque<T>,
+    capacity: usize,
+    delivered: u64,
+    dropped: u64,
+}
+
+/// A subscription to one of the robot's streams: a queue of at most
+/// [`Subscription::capacity`] items, filled as the robot's time passes. It may be moved to
+/// another thread; dropping it unsubscribes.
+pub struct Subscription<T> {
+    queue: Arc<Mutex<Queue<T>>>,
+}
+
+impl<T> Subscription<T> {
+    /// The oldest item not yet taken, if any (never waits).
+    pub fn try_next(&self) -> Option<T> {
+        self.queue.lock().items.pop_front()
+    }
+
+    /// Every item not yet taken, oldest first (never waits).
+    pub fn drain(&self) -> Vec<T> {
+        self.queue.lock().items.drain(..).collect()
+    }
+
+    /// Items waiting to be taken.
+    pub fn len(&self) -> usize {
+        self.queue.lock().items.len()
+    }
+
+    /// Whether no item waits.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// The most items the queue holds.
+    pub fn capacity(&self) -> usize {
+        self.queue.lock().capacity
+    }
+
+    /// Items delivered since subscribing, taken or not (dropped ones included).
+    pub fn delivered(&self) -> u64 {
+        self.queue.lock().delivered
+    }
+
+    /// Items dropped since subscribing because the queue was full (the oldest go first).
+    pub fn dropped(&self) -> u64 {
+        self.queue.lock().dropped
+    }
+}
+
+impl<T> std::fmt::Debug for Subscription<T> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let q = self.queue.lock();
+        f.debug_struct("Subscription")
+            .field("waiting", &q.items.len())
+            .field("capacity", &q.capacity)
+            .field("delivered", &q.delivered)
+            .field("dropped", &q.dropped)
+            .finish()
+    }
+}
+
+/// The robot's side of a stream: the live subscriptions' queues.
+pub(crate) struct Publisher<T> {
+    queues: Vec<Weak<Mutex<Queue<T>>>>,
+}
+
+impl<T> Default for Publisher<T> {
+    fn default() -> Self {
+        Publisher { queues: Vec::new() }
+    }
+}
+
+impl<T: Clone> Publisher<T> {
+    /// A new subscription of `capacity` items, in `[1, MAX_QUEUE]`, to the stream `what`.
+    pub(crate) fn subscribe(&mut self, what: &str, capacity: usize) -> Result<Subscription<T>> {
+        if !(1..=MAX_QUEUE).contains(&capacity) {
+            return Err(Error::OutOfRange {
+                what: format!("{what} subscription's queue length"),
+                value: capacity as f64,
+                min: 1.0,
+                max: MAX_QUEUE as f64,
+            });
+        }
+        let queue = Arc::new(Mutex::new(Queue {
+            items: VecDeque::new(),
+            capacity,
+            delivered: 0,
+            dropped: 0,
+        }));
+        self.queues.push(Arc::downgrade(&queue));
+        Ok(Subscription { queue })
+    }
+
+    /// Whether any subscription is alive (forgetting those dropped).
+    pub(crate) fn wanted(&mut self) -> bool {
+        self.queues.retain(|q| q.strong_count() > 0);
+        !self.queues.is_empty()
+    }
+
+    /// Delivers `item` to every live subscription.
+    pub(crate) fn publish(&mut self, item: T) {
+        self.queues.retain(|weak| {
+            let Some(queue) = weak.upgrade() else {
+                return false;
+            };
+            let mut q = queue.lock();
+            if q.items.len() == q.capacity {
+                q.items.pop_front();
+                q.dropped += 1;
+            }
+            q.items.push_back(item.clone());
+            q.delivered += 1;
+            true
+        });
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_full_queue_drops_its_oldest_and_a_dropped_subscription_is_forgotten() {
+        let mut p = Publisher::default();
+        assert!(!p.wanted());
+        let a = p.subscribe("test", 2).unwrap();
+        let b = p.subscribe("test", 10).unwrap();
+        for i in 0..5 {
+            p.publish(i);
+        }
+        assert_eq!(a.drain(), vec![3, 4]);
+        assert_eq!((a.delivered(), a.dropped()), (5, 3));
+        assert_eq!(b.try_next(), Some(0));
+        assert_eq!((b.len(), b.dropped()), (4, 0));
+        drop(a);
+        p.publish(5);
+        assert!(p.wanted());
+        assert_eq!(p.queues.len(), 1);
+        drop(b);
+        assert!(!p.wanted());
+        for bad in [0, MAX_QUEUE + 1, usize::MAX] {
+            assert!(matches!(
+                p.subscribe("test", bad),
+                Err(Error::OutOfRange { .. })
+            ));
+        }
+    }
+}
