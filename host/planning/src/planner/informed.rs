@@ -3,11 +3,11 @@
 
 use std::time::{Duration, Instant};
 
-use rand::{Rng, SeedableRng};
+use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 
 use super::tree::Tree;
-use super::{check_ends, path_length, shortcut, Plan, PlanOptions, Planner, RrtConnect};
+use super::{path_length, shortcut, Plan, PlanOptions, Planner, RrtConnect};
 use crate::checker::Checker;
 use crate::joint_space::dist;
 use crate::Result;
@@ -31,12 +31,8 @@ impl Planner for InformedRrtStar {
         opts: &PlanOptions,
     ) -> Result<Plan> {
         let t0 = Instant::now();
-        opts.validate()?;
-        check_ends(checker, start, goal)?;
-        let mut rng = ChaCha8Rng::seed_from_u64(opts.seed);
-        let first = RrtConnect::search(checker, start, goal, opts, &mut rng, t0)?;
-        let raw_waypoints = first.len();
-        let first = shortcut(checker, first, opts, &mut rng, t0);
+        let (first, raw_waypoints, mut rng) =
+            RrtConnect::first_path(checker, start, goal, opts, t0)?;
         let deadline = t0
             .elapsed()
             .saturating_add(opts.improve_for)

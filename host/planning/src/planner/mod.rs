@@ -286,6 +286,27 @@ fn smaller_first(a: &mut Tree, b: &mut Tree, a_is_start: &mut bool) {
     }
 }
 
+impl RrtConnect {
+    /// The start of every plan from RRT-Connect: `opts` validated and the ends checked, the
+    /// generator seeded with `opts.seed`, the search's path (its waypoint count) shortcut;
+    /// the generator is returned for what comes after.
+    fn first_path(
+        checker: &Checker,
+        start: &[f64],
+        goal: &[f64],
+        opts: &PlanOptions,
+        t0: Instant,
+    ) -> Result<(Vec<Vec<f64>>, usize, ChaCha8Rng)> {
+        opts.validate()?;
+        check_ends(checker, start, goal)?;
+        let mut rng = ChaCha8Rng::seed_from_u64(opts.seed);
+        let raw = Self::search(checker, start, goal, opts, &mut rng, t0)?;
+        let raw_waypoints = raw.len();
+        let path = shortcut(checker, raw, opts, &mut rng, t0);
+        Ok((path, raw_waypoints, rng))
+    }
+}
+
 impl Planner for RrtConnect {
     fn name(&self) -> &'static str {
         "rrt-connect"
@@ -299,12 +320,7 @@ impl Planner for RrtConnect {
         opts: &PlanOptions,
     ) -> Result<Plan> {
         let t0 = Instant::now();
-        opts.validate()?;
-        check_ends(checker, start, goal)?;
-        let mut rng = ChaCha8Rng::seed_from_u64(opts.seed);
-        let raw = Self::search(checker, start, goal, opts, &mut rng, t0)?;
-        let raw_waypoints = raw.len();
-        let path = shortcut(checker, raw, opts, &mut rng, t0);
+        let (path, raw_waypoints, _) = Self::first_path(checker, start, goal, opts, t0)?;
         Ok(Plan {
             path,
             time: t0.elapsed(),
