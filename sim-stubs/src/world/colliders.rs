@@ -7,6 +7,19 @@ use rapier3d::prelude::*;
 use super::{convert, BALL_SPACING, MAX_BALLS};
 use crate::scene::{Body, Shape};
 
+impl super::World {
+    /// The colliders of the rigid body `rb`, in its order (any no longer in the set left
+    /// out).
+    pub(super) fn colliders_of<'a>(
+        &'a self,
+        rb: &'a RigidBody,
+    ) -> impl Iterator<Item = &'a Collider> + 'a {
+        rb.colliders()
+            .iter()
+            .filter_map(|ch| self.pw.colliders.get(*ch))
+    }
+}
+
 pub(super) fn collider(b: &Body) -> Option<ColliderBuilder> {
     let f = |v: f64| v as f32;
     let upright = |c: ColliderBuilder| {

@@ -250,10 +250,7 @@ impl World {
             else {
                 continue;
             };
-            for ch in lb.colliders() {
-                let Some(c) = self.pw.colliders.get(*ch) else {
-                    continue;
-                };
+            for c in self.colliders_of(lb) {
                 let pose = placed(lb, c);
                 let aabb = c.shape().compute_aabb(&pose).loosened(CONTACT as f32);
                 shapes.push((l, pose, c, aabb));
@@ -267,10 +264,7 @@ impl World {
             let Some(rb) = self.pw.bodies.get(*h) else {
                 continue;
             };
-            for ch in rb.colliders() {
-                let Some(c) = self.pw.colliders.get(*ch) else {
-                    continue;
-                };
+            for c in self.colliders_of(rb) {
                 let pose = placed(rb, c);
                 let aabb = c.shape().compute_aabb(&pose);
                 if !aabb.intersects(&all) {

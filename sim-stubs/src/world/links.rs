@@ -102,10 +102,7 @@ impl World {
             if rb.position() == p {
                 continue;
             }
-            for ch in rb.colliders() {
-                let Some(c) = self.pw.colliders.get(*ch) else {
-                    continue;
-                };
+            for c in self.colliders_of(rb) {
                 let local = c.position_wrt_parent().copied().unwrap_or(Pose::IDENTITY);
                 let to = c.shape().compute_aabb(&(*p * local));
                 swept.push(c.compute_aabb().merged(&to).loosened(NEAR as f32));
@@ -115,11 +112,9 @@ impl World {
             return false;
         }
         movable.iter().any(|b| {
-            b.colliders().iter().any(|ch| {
-                self.pw.colliders.get(*ch).is_some_and(|c| {
-                    let a = c.compute_aabb();
-                    swept.iter().any(|s| s.intersects(&a))
-                })
+            self.colliders_of(b).any(|c| {
+                let a = c.compute_aabb();
+                swept.iter().any(|s| s.intersects(&a))
             })
         })
     }
@@ -131,19 +126,13 @@ impl World {
             let Some(rb) = self.pw.bodies.get(*h) else {
                 continue;
             };
-            for ch in rb.colliders() {
-                let Some(c) = self.pw.colliders.get(*ch) else {
-                    continue;
-                };
+            for c in self.colliders_of(rb) {
                 let aabb = c.compute_aabb();
                 for (li, lh) in r.links.iter().enumerate() {
                     let Some(lb) = lh.and_then(|h| self.pw.bodies.get(h)) else {
                         continue;
                     };
-                    for lch in lb.colliders() {
-                        let Some(lc) = self.pw.colliders.get(*lch) else {
-                            continue;
-                        };
+                    for lc in self.colliders_of(lb) {
                         if !aabb.intersects(&lc.compute_aabb()) {
                             continue;
                         }
