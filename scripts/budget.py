@@ -148,8 +148,8 @@ def main():
     check = "--check" in args
     root = subprocess.run(["git", "rev-parse", "--show-toplevel"], capture_output=True, text=True).stdout.strip() or "."
     os.chdir(root)
-    files = subprocess.run(["git", "ls-files", "*.rs"], capture_output=True, text=True).stdout.split()
-    files = [f for f in files if not any(s in "/" + f for s in SKIP)]
+    tracked = subprocess.run(["git", "ls-files", "*.rs"], capture_output=True, text=True).stdout.split()
+    files = [f for f in tracked if not any(s in "/" + f for s in SKIP)]
     exceptions = set()
     if os.path.exists("scripts/budget-exceptions.txt"):
         for line in open("scripts/budget-exceptions.txt"):
@@ -177,8 +177,7 @@ def main():
         mark = " (listed exception)" if name in exceptions else ""
         bad += not mark
         print(f"  {n:5}  {name} (line {start}){mark}")
-    never = unit_tests_never_run(subprocess.run(["git", "ls-files", "*.rs"], capture_output=True,
-                                                text=True).stdout.split())
+    never = unit_tests_never_run(tracked)
     for f in never:
         print(f"  {f}: unit tests in a library built with `test = false` (they never run)")
     if check and (bad or never):

@@ -86,7 +86,6 @@ impl Camera {
     ///
     /// [`subscription::MAX_QUEUE`]: crate::subscription::MAX_QUEUE
     pub fn subscribe(&self, queue: usize) -> Result<Subscription<Arc<Frame>>> {
-        let placing = (self.robot.frames()?.clone(), self.robot.optical_frame()?);
         let mut io = self.robot.lock_hub();
         let device = io
             .camera
@@ -99,9 +98,11 @@ impl Camera {
                     .into(),
             ));
         }
-        let sub = io.streams.frames.subscribe("camera frame", queue)?;
-        io.streams.placing.get_or_insert(placing);
-        Ok(sub)
+        if io.streams.placing.is_none() {
+            let placing = (self.robot.frames()?.clone(), self.robot.optical_frame()?);
+            io.streams.placing = Some(placing);
+        }
+        io.streams.frames.subscribe("camera frame", queue)
     }
 
     /// The next colour image (H x W x 3, 8-bit RGB).
