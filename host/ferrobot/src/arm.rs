@@ -48,6 +48,11 @@ impl From<Isometry3<f64>> for Pose {
     }
 }
 
+/// How far from orthonormal a rotation matrix may be (`‖MᵀM − I‖`, Frobenius): a rotation
+/// written to four decimals, as PyRobot's programs write them, is within it; the nearest
+/// rotation is used.
+pub const ROTATION_MATRIX_TOLERANCE: f64 = 1e-3;
+
 /// An orientation, in whichever form is at hand.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Orientation {
@@ -56,7 +61,7 @@ pub enum Orientation {
     Quaternion([f64; 4]),
     /// Euler angles `[yaw, pitch, roll]`, rad: `R = Rz(yaw)·Ry(pitch)·Rx(roll)`.
     YawPitchRoll([f64; 3]),
-    /// Rotation matrix, rows (must be orthonormal).
+    /// Rotation matrix, rows: orthonormal within [`ROTATION_MATRIX_TOLERANCE`], det +1.
     Matrix([[f64; 3]; 3]),
 }
 
@@ -74,14 +79,17 @@ impl Orientation {
                 check_finite("rotation matrix", &m.concat())?;
                 let mm = Matrix3::from_row_slice(&m.concat());
                 let orth = (mm.transpose() * mm - Matrix3::identity()).norm();
-                if orth > 1e-6 || mm.determinant() < 0.0 {
+                if orth > ROTATION_MATRIX_TOLERANCE || mm.determinant() < 0.0 {
                     return Err(Error::Unreachable {
-                        why: "the matrix is not a rotation (orthonormal, det +1)".into(),
+                        why: format!(
+                            "the matrix is not a rotation (orthonormal within {ROTATION_MATRIX_TOLERANCE}, det +1)"
+                        ),
                     });
                 }
-                Ok(UnitQuaternion::from_rotation_matrix(
-                    &Rotation3::from_matrix_unchecked(mm),
-                ))
+                // The nearest rotation: a matrix printed to four decimals is one within the
+                // tolerance.
+                let r = Rotation3::from_matrix_eps(&mm, 1e-12, 100, Rotation3::identity());
+                Ok(UnitQuaternion::from_rotation_matrix(&r))
             }
         }
     }
@@ -479,8 +487,21 @@ impl Arm {
     /// The IK solution is the collision-free one nearest the current joints, from several
     /// seeds.
     pub fn set_ee_pose(&self, position: [f64; 3], orientation: Orientation) -> Result<()> {
+        self.move_to_pose(position, orientation, MoveOptions::default())?
+            .wait()
+    }
+
+    /// Start moving the end effector to a pose (`position` m, `orientation`, base frame):
+    /// [`Arm::set_ee_pose`]'s IK, then [`Arm::move_joints`] with `opts`; returns the motion
+    /// under way.
+    pub fn move_to_pose(
+        &self,
+        position: [f64; 3],
+        orientation: Orientation,
+        opts: MoveOptions,
+    ) -> Result<Motion> {
         let q = self.free_ik(position, orientation)?;
-        self.set_joint_positions(&q)
+        self.move_joints(&q, opts)
     }
 
     /// 5-DOF arms: move the end effector to `position` with gripper pitch `pitch` (rad below

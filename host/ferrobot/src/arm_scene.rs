@@ -157,6 +157,27 @@ impl Arm {
         self.planning().scene.detach(id, None)?;
         Ok(())
     }
+    /// Detach object `id` from the end effector and leave it in the planning scene where it
+    /// is now (at the measured joints): what a gripper letting go of it does.
+    pub fn release_arm_object(&self, id: &str) -> Result<()> {
+        let attached = self
+            .planning()
+            .scene
+            .attached()
+            .find(|a| a.id == id)
+            .map(|a| (a.link.clone(), a.pose));
+        let Some((link, offset)) = attached else {
+            // Not attached: the scene's own error names it.
+            return self.detach_arm_object(id);
+        };
+        let model = self.model()?;
+        let root = model.tree().root().to_string();
+        let link_in_root = self.robot.link_transform(&link, &root)?;
+        self.planning()
+            .scene
+            .detach(id, Some(link_in_root * offset))?;
+        Ok(())
+    }
     /// Removes every object, attached or not, and the point-cloud voxels.
     pub fn remove_all_objects(&self) -> Result<()> {
         self.planning().scene.clear();

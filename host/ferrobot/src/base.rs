@@ -41,6 +41,14 @@ use crate::odometry_calibration::WheelGeometry;
 use crate::robot::Robot;
 use crate::slam_runner::Source;
 
+/// The sample period of the references the LQR controllers track to a position goal, s
+/// (PyRobot's 10 Hz base control rate).
+pub const REFERENCE_DT: f64 = 0.1;
+
+/// The smooth reference's Bézier control-point distance along the start and goal headings, m
+/// ([`ferrobot_control::trajectory::Reference::smooth`]'s `arm`).
+pub const SMOOTH_ARM: f64 = 0.8;
+
 /// How a position goal is reached.
 #[derive(Debug, Clone, PartialEq)]
 pub struct GoalOptions {
@@ -113,8 +121,10 @@ impl Base {
         self.robot.lock_hub().link.now()
     }
 
-    /// The tracking limits, capped by the configuration's speeds.
-    pub(crate) fn tracking_limits(&self) -> Limits {
+    /// The limits the references of position goals and tracked trajectories are made under
+    /// (PyRobot's 0.2 m/s and 0.5 rad/s, capped by the configuration's speeds): PyRobot's
+    /// `MAX_ABS_FWD_SPEED` and `MAX_ABS_TURN_SPEED`.
+    pub fn tracking_limits(&self) -> Limits {
         let s = self.section();
         Limits {
             v: Limits::TRACKING.v.min(s.max_linear),
@@ -355,9 +365,9 @@ impl Base {
             BaseController::Proportional => self.proportional_async(goal, here),
             BaseController::Lqr | BaseController::Ilqr => {
                 let mut r = if opts.smooth {
-                    Reference::smooth(here, goal, &lim, 0.1, 0.8)?
+                    Reference::smooth(here, goal, &lim, REFERENCE_DT, SMOOTH_ARM)?
                 } else {
-                    Reference::sharp(here, goal, &lim, 0.1)?
+                    Reference::sharp(here, goal, &lim, REFERENCE_DT)?
                 };
                 if controller == BaseController::Ilqr {
                     r = ilqr(here, &r, [3.0, 3.0, 4.0], 0.2, &lim)?.reference;

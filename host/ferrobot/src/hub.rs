@@ -198,6 +198,14 @@ impl Hub {
         self.feed_camera();
     }
 
+    /// Stop every goal under way where it is; each ends with [`Error::Cancelled`].
+    pub(crate) fn cancel_all(&mut self) {
+        for mut g in std::mem::take(&mut self.goals.running) {
+            g.goal.halt(self.link.as_mut());
+            self.goals.finish(g.id, Err(Error::Cancelled));
+        }
+    }
+
     /// Stop goal `id` where it is, when it is under way; its result is dropped.
     pub(crate) fn cancel(&mut self, id: u64) {
         self.goals.finished.remove(&id);

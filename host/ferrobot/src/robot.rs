@@ -244,6 +244,13 @@ impl Robot {
         sent
     }
 
+    /// Stop every motion under way where it is (joints hold, the base stops) and end each
+    /// with [`Error::Cancelled`]: what a program does when its user interrupts it (Python's
+    /// Ctrl-C). Unlike [`Robot::emergency_stop`] nothing latches: the next command runs.
+    pub fn cancel_motions(&self) {
+        self.lock_hub().cancel_all();
+    }
+
     /// Leave the emergency stop.
     pub fn resume(&self) -> Result<()> {
         self.lock_hub().link.command(&HostMsg::Resume, "resume")
