@@ -4,7 +4,9 @@
 # benches/benches/requirements.txt); with `plan`, also those of the planning benchmark's peer
 # (OMPL and FCL, host/planning/peer/requirements.txt); with `cluster`, also the clustering
 # peer's (scikit-learn, host/perception/peer/requirements.txt); with `slam`, also the
-# renderer of SLAM's independent test sequences (PyBullet, host/slam/peer/requirements.txt).
+# renderer of SLAM's independent test sequences (PyBullet, host/slam/peer/requirements.txt);
+# with `python`, also what the Python package's tests use (pytest, yourdfpy,
+# host/python/requirements-test.txt).
 # Idempotent: does nothing when
 # they are already there.
 set -euo pipefail
@@ -32,5 +34,6 @@ case "${1:-}" in
     plan) install host/planning/peer/requirements.txt .installed-plan-requirements "ompl.geometric, fcl, scipy.spatial" ;;
     cluster) install host/perception/peer/requirements.txt .installed-cluster-requirements "sklearn.cluster" ;;
     slam) install host/slam/peer/requirements.txt .installed-slam-requirements "pybullet, numpy" ;;
-    *) echo "usage: $0 [bench|plan|cluster|slam]" >&2; exit 2 ;;
+    python) install host/python/requirements-test.txt .installed-python-requirements "numpy, pytest, yourdfpy, absl" ;;
+    *) echo "usage: $0 [bench|plan|cluster|slam|python]" >&2; exit 2 ;;
 esac

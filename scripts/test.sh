@@ -2,7 +2,8 @@
 # The project's one test command: formatting, clippy, the docs (rustdoc's warnings as errors),
 # both board builds, every test of the workspace (unit, property, lockstep acceptance and fault
 # tests, the API on the simulator and over serial ports, the Dynamixel conformance test against
-# ROBOTIS' official SDK, the planning benchmark's exports re-checked by FCL, and the
+# ROBOTIS' official SDK, the planning benchmark's exports re-checked by FCL, the Python
+# package's pytest suites against the extension this build makes, and the
 # hardware-in-the-loop tests with the firmware in QEMU). Installs what it needs by itself,
 # idempotently.
 #
@@ -62,8 +63,8 @@ rustup component add rustfmt clippy >/dev/null 2>&1 || true
 step "cross toolchain for the boards (Debian's rustc-web, lld, QEMU)"
 scripts/setup-cross.sh
 
-step "started: Python (dynamixel-sdk; OMPL and FCL for the planning peer; scikit-learn for the clustering peer; PyBullet for SLAM's independent sequences) in target/py-venv, and the board builds and clippy (mps2-an386 for QEMU, opencr for OpenCR 1.0)"
-background python 'scripts/python-env.sh && scripts/python-env.sh plan && scripts/python-env.sh cluster && scripts/python-env.sh slam'
+step "started: Python (dynamixel-sdk; OMPL and FCL for the planning peer; scikit-learn for the clustering peer; PyBullet for SLAM's independent sequences; pytest, yourdfpy and absl-py for the Python package's tests) in target/py-venv, and the board builds and clippy (mps2-an386 for QEMU, opencr for OpenCR 1.0)"
+background python 'scripts/python-env.sh && scripts/python-env.sh plan && scripts/python-env.sh cluster && scripts/python-env.sh slam && scripts/python-env.sh python'
 # The boards' clippy (Debian's, -D warnings) right after their builds: both boards share one
 # target directory (boards/target), so it reuses the host-side build dependencies, and it keeps
 # off the workspace's target directory, whose lock the steps below hold.

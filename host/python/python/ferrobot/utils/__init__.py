@@ -1,0 +1,1 @@
+"""``pyrobot.utils``: PyRobot's helpers that programs import."""

@@ -1,0 +1,73 @@
+//! `bot.gripper`: PyRobot's gripper.
+
+use ferrobot::GripperState;
+use pyo3::prelude::*;
+
+use crate::convert::Flag;
+
+use crate::arm::finish;
+use crate::errors::OrRaise;
+
+/// The gripper: PyRobot's `Gripper`.
+#[pyclass(frozen, module = "ferrobot._native")]
+pub struct Gripper {
+    gripper: ferrobot::gripper::Gripper,
+    robot: ferrobot::Robot,
+}
+
+impl Gripper {
+    /// The gripper of `robot`.
+    pub fn new(gripper: ferrobot::gripper::Gripper, robot: ferrobot::Robot) -> Self {
+        Gripper { gripper, robot }
+    }
+}
+
+/// PyRobot's gripper state codes: -1 unknown, 0 open, 1 closing, 2 holding an object, 3
+/// fully closed; Ferrobot adds 4 opening.
+pub fn state_code(s: GripperState) -> i32 {
+    match s {
+        GripperState::Open => 0,
+        GripperState::Closing => 1,
+        GripperState::Holding => 2,
+        GripperState::Closed => 3,
+        GripperState::Opening => 4,
+        _ => -1,
+    }
+}
+
+#[pymethods]
+impl Gripper {
+    /// Open the gripper; with `wait`, until it is open (True), else a `Motion`.
+    #[pyo3(signature = (wait=Flag(true)))]
+    fn open(&self, py: Python<'_>, wait: Flag) -> PyResult<Py<PyAny>> {
+        let m = py.detach(|| self.gripper.open_async()).py()?;
+        finish(py, &self.robot, "gripper opening", m, wait)
+    }
+
+    /// Close the gripper; with `wait`, until it holds something or is closed (True), else a
+    /// `Motion`.
+    #[pyo3(signature = (wait=Flag(true)))]
+    fn close(&self, py: Python<'_>, wait: Flag) -> PyResult<Py<PyAny>> {
+        let m = py.detach(|| self.gripper.close_async()).py()?;
+        finish(py, &self.robot, "gripper closing", m, wait)
+    }
+
+    /// Open, close and open again (PyRobot's reset).
+    #[pyo3(signature = (wait=Flag(true)))]
+    fn reset(&self, py: Python<'_>, wait: Flag) -> PyResult<bool> {
+        let _ = wait;
+        let g = self.gripper.clone();
+        crate::motion::blocking(py, &self.robot, move || g.reset())?;
+        Ok(true)
+    }
+
+    /// PyRobot's state code: -1 unknown, 0 open, 1 closing, 2 holding an object, 3 fully
+    /// closed, 4 opening.
+    fn get_gripper_state(&self, py: Python<'_>) -> PyResult<i32> {
+        Ok(state_code(py.detach(|| self.gripper.get_state()).py()?))
+    }
+
+    fn __repr__(&self) -> String {
+        format!("<ferrobot.Gripper of {:?}>", self.robot.name())
+    }
+}

@@ -1,0 +1,227 @@
+"""Hostile values at every entry point of the Python API: NaN and infinities, huge numbers,
+wrong lengths, shapes and dtypes, None, strings, booleans where numbers go, nested junk. Each
+call must raise a clear exception (a ``ferrobot.Error``, or Python's TypeError or
+OverflowError where Python itself converts a plain argument), never crash the interpreter or
+raise pyo3's PanicException (a BaseException: a Rust panic), and the robot must still work
+afterwards."""
+
+import math
+
+import numpy as np
+import pytest
+
+import ferrobot
+import ferrobot.locobot.base_control_utils
+from ferrobot import Robot
+
+# What every vector-valued argument is given.
+VECTORS = [
+    None,
+    "abc",
+    b"bytes",
+    {"a": 1},
+    True,
+    [],
+    [[]],
+    [1.0, None, 2.0],
+    ["1", "2", "3"],
+    [[1.0, 2.0], [3.0]],
+    [[[[1.0]]]],
+    [float("nan")] * 5,
+    [float("inf")] * 5,
+    [-float("inf")] * 5,
+    [1e308] * 5,
+    [-1e308] * 5,
+    [10**400] * 5,
+    [1.0] * 1000,
+    np.zeros(5, dtype=complex),
+    np.array(["a"] * 5),
+    np.zeros((5, 5)),
+    np.zeros((2, 3, 4, 5)),
+    np.array([object()] * 5),
+    np.full(5, np.nan, dtype=np.float32),
+]
+# What every scalar argument is given.
+SCALARS = [None, "1.0", [1.0], float("nan"), float("inf"), -float("inf"), 1e308, -1e308, 10**400]
+ALLOWED = (ferrobot.Error, TypeError, OverflowError)
+# Arguments whose default is None: None is a value they take.
+OPTIONAL = {
+    "compute_ik qinit",
+    "set_ee_pose_pitch_roll roll",
+    "track_trajectory controls",
+    "track_trajectory dt",
+    "Motion.wait timeout",
+    "get_ee_pose",
+    "load_controller",
+    "load_planner",
+    "start_slam",
+    "Robot start_pose",
+    "Robot scene",
+}
+
+
+@pytest.fixture(scope="module")
+def bot():
+    return Robot("locobot", scene="tabletop")
+
+
+def _refused(call, value):
+    try:
+        call(value)
+    except ALLOWED as e:
+        assert str(e), f"an empty message for {value!r}"
+        return e
+    except BaseException as e:  # a panic, or an exception outside the hierarchy
+        pytest.fail(f"{type(e).__module__}.{type(e).__name__} for {value!r}: {e}")
+    return None
+
+
+def _vector_calls(bot):
+    arm, base, cam = bot.arm, bot.base, bot.camera
+    ok5 = [0.0] * 5
+    return {
+        "set_joint_positions": lambda v: arm.set_joint_positions(v, plan=False),
+        "set_joint_positions plan": lambda v: arm.set_joint_positions(v),
+        "set_joint_velocities": arm.set_joint_velocities,
+        "set_joint_torques": arm.set_joint_torques,
+        "set_ee_pose position": lambda v: arm.set_ee_pose(v, [0.0, 1.5, 0.0]),
+        "set_ee_pose orientation": lambda v: arm.set_ee_pose([0.3, 0.0, 0.2], v),
+        "set_ee_pose_pitch_roll": lambda v: arm.set_ee_pose_pitch_roll(v, 1.0),
+        "move_ee_xyz": arm.move_ee_xyz,
+        "compute_fk_position": lambda v: arm.compute_fk_position(v, "gripper_link"),
+        "compute_fk_velocity q": lambda v: arm.compute_fk_velocity(v, ok5, "gripper_link"),
+        "compute_fk_velocity qd": lambda v: arm.compute_fk_velocity(ok5, v, "gripper_link"),
+        "compute_ik position": lambda v: arm.compute_ik(v, [0.0, 1.5, 0.0]),
+        "compute_ik orientation": lambda v: arm.compute_ik([0.3, 0.0, 0.2], v),
+        "compute_ik qinit": lambda v: arm.compute_ik([0.3, 0.0, 0.2], [0.0, 1.5, 0.0], qinit=v),
+        "get_jacobian": arm.get_jacobian,
+        "make_plan_joint_positions": arm.make_plan_joint_positions,
+        "make_plan_pose": lambda v: arm.make_plan_pose(v, [0.0, 1.5, 0.0]),
+        "add_world_object pose": lambda v: arm.add_world_object("box", v, [0.1, 0.1, 0.1]),
+        "add_world_object size": lambda v: arm.add_world_object("box", [1, 0, 0, 0, 0, 0, 1], v),
+        "attach_arm_object pose": lambda v: arm.attach_arm_object("gripper_link", "t", v, [0.1] * 3),
+        "attach_arm_object size": lambda v: arm.attach_arm_object("gripper_link", "t", [0] * 6, v),
+        "go_to_relative": base.go_to_relative,
+        "go_to_absolute": base.go_to_absolute,
+        "track_trajectory states": base.track_trajectory,
+        "track_trajectory controls": lambda v: base.track_trajectory([[0, 0, 0], [0.01, 0, 0]], controls=v),
+        "pix_to_3dpt rows": lambda v: cam.pix_to_3dpt(v, [0] * 5),
+        "pix_to_3dpt cols": lambda v: cam.pix_to_3dpt([0] * 5, v),
+        "start_slam": bot.start_slam,
+        "Robot start_pose": lambda v: Robot("locobot", use_arm=False, start_pose=v),
+        "position_control_init_fn": lambda v: ferrobot.locobot.base_control_utils.position_control_init_fn(
+            "sharp", [0, 0, 0], v, 0.1, 0.2, 0.4
+        ),
+        "get_trajectory_circle": lambda v: ferrobot.locobot.base_control_utils.get_trajectory_circle(
+            v, 0.1, 0.5, 0.1, 1.0
+        ),
+    }
+
+
+def _scalar_calls(bot):
+    arm, base, cam = bot.arm, bot.base, bot.camera
+    return {
+        "set_ee_pose_pitch_roll pitch": lambda v: arm.set_ee_pose_pitch_roll([0.3, 0, 0.2], v),
+        "set_ee_pose_pitch_roll roll": lambda v: arm.set_ee_pose_pitch_roll([0.3, 0, 0.2], 1.0, roll=v),
+        "move_ee_xyz eef_step": lambda v: arm.move_ee_xyz([0, 0, 0.01], eef_step=v),
+        "set_vel v": lambda v: base.set_vel(v, 0.0, 0.5),
+        "set_vel w": lambda v: base.set_vel(0.0, v, 0.5),
+        "set_vel exe_time": lambda v: base.set_vel(0.1, 0.0, v),
+        "track_trajectory dt": lambda v: base.track_trajectory([[0, 0, 0], [0.01, 0, 0]], dt=v),
+        "set_pan": cam.set_pan,
+        "set_tilt": cam.set_tilt,
+        "set_pan_tilt": lambda v: cam.set_pan_tilt(v, v),
+        "wait": bot.wait,
+        "slam_map_3d": bot.slam_map_3d,
+        "Motion.wait timeout": lambda v: arm.set_joint_positions([0.0] * 5, plan=False, wait=False).wait(v),
+        "Plan.sample dt": lambda v: arm.make_plan_joint_positions([0.1] * 5).sample(v),
+        "circle dt": lambda v: ferrobot.locobot.base_control_utils.get_trajectory_circle([0, 0, 0], v, 0.5, 0.1, 1.0),
+        "circle r": lambda v: ferrobot.locobot.base_control_utils.get_trajectory_circle([0, 0, 0], 0.1, v, 0.1, 1.0),
+        "init max_v": lambda v: ferrobot.locobot.base_control_utils.position_control_init_fn(
+            "sharp", [0, 0, 0], [1, 0, 0], 0.1, v, 0.4
+        ),
+    }
+
+
+def _name_calls(bot):
+    arm, cam = bot.arm, bot.camera
+    return {
+        "get_joint_angle": arm.get_joint_angle,
+        "get_ee_pose": arm.get_ee_pose,
+        "compute_fk_position frame": lambda v: arm.compute_fk_position([0.0] * 5, v),
+        "get_link_transform": lambda v: cam.get_link_transform(v, "base_link"),
+        "remove_world_object": arm.remove_world_object,
+        "get_state": bot.base.get_state,
+        "load_controller": bot.base.load_controller,
+        "load_planner": bot.base.load_planner,
+        "Robot name": lambda v: Robot(v),
+        "Robot scene": lambda v: Robot("locobot", scene=v),
+        "Robot backend": lambda v: Robot("locobot", backend=v),
+        "base_reference init_type": lambda v: ferrobot._native.base_reference(v, [0, 0, 0], [1, 0, 0], 0.1, 0.2, 0.4),
+    }
+
+
+NAMES = [None, 3, "", "\x00", "ü" * 10_000, "../../etc/passwd", ["joint_1"], b"joint_1"]
+
+
+def test_vectors_are_refused_everywhere(bot):
+    calls = _vector_calls(bot)
+    for name, call in calls.items():
+        for v in VECTORS:
+            if v is None and name in OPTIONAL:
+                continue
+            e = _refused(call, v)
+            if e is None:
+                # A value accepted must be one the call can take (e.g. [] for no trajectory).
+                assert name.startswith(("pix_to_3dpt",)) and isinstance(v, list), (name, v)
+        bot.cancel_motions()
+    _robot_still_works(bot)
+
+
+def test_scalars_are_refused_everywhere(bot):
+    for name, call in _scalar_calls(bot).items():
+        for v in SCALARS:
+            if v is None and name in OPTIONAL:
+                continue
+            e = _refused(call, v)
+            assert e is not None, f"{name} accepted {v!r}"
+        bot.cancel_motions()
+    _robot_still_works(bot)
+
+
+def test_names_are_refused_everywhere(bot):
+    for name, call in _name_calls(bot).items():
+        for v in NAMES:
+            if v is None and name in OPTIONAL:
+                continue
+            e = _refused(call, v)
+            assert e is not None, f"{name} accepted {v!r}"
+    _robot_still_works(bot)
+
+
+def test_constructor_dictionaries_are_checked():
+    for bad in [{"base_controller": 3}, {"nonsense": 1}, {1: 2}]:
+        assert _refused(lambda v: Robot("locobot", base_config=v), bad) is not None
+    for bad in [{"arm.joint_tolerance": float("nan")}, {"arm.joint_tolerance": object()}, {3: 1}]:
+        assert _refused(lambda v: Robot("locobot", overrides=v), bad) is not None
+    assert _refused(lambda v: Robot("locobot", seed=v), -1) is not None
+    assert _refused(lambda v: Robot("locobot", config_file=v), "/nonexistent.toml") is not None
+
+
+def test_the_skills_refuse_absurd_options():
+    bot = Robot("locobot", scene="tabletop")
+    for v in [0, 10**6, -1]:
+        assert _refused(lambda a: ferrobot.grasp(bot, attempts=a), v) is not None
+    for v in [float("nan"), 10.0]:
+        assert _refused(lambda t: ferrobot.grasp(bot, head_tilt=t), v) is not None
+    for v in [0, 99]:
+        assert _refused(lambda p: ferrobot.calibrate_camera(bot, poses=p), v) is not None
+
+
+def _robot_still_works(bot):
+    bot.cancel_motions()
+    bot.arm.remove_all_objects()
+    assert bot.arm.go_home(plan=False) is True
+    assert np.allclose(bot.arm.get_joint_angles(), 0.0, atol=0.02)
+    assert all(math.isfinite(x) for x in bot.base.get_state())
+    assert bot.camera.get_rgb().shape[2] == 3
