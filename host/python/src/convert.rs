@@ -4,7 +4,7 @@
 //! the Rust buffers they came from (no copy).
 
 use numpy::{
-    PyArray1, PyArrayDescrMethods, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArray,
+    PyArray, PyArray1, PyArrayDescrMethods, PyReadonlyArrayDyn, PyUntypedArray,
     PyUntypedArrayMethods,
 };
 use pyo3::prelude::*;
@@ -247,7 +247,10 @@ pub fn shaped<'py, T: numpy::Element>(
     data: Vec<T>,
     shape: &[usize],
 ) -> PyResult<Bound<'py, PyAny>> {
-    Ok(PyArray1::from_vec(py, data).reshape(shape)?.into_any())
+    let array = numpy::ndarray::ArrayD::from_shape_vec(shape, data).map_err(|e| {
+        pyo3::exceptions::PyValueError::new_err(format!("array of shape {shape:?}: {e}"))
+    })?;
+    Ok(PyArray::from_owned_array(py, array).into_any())
 }
 
 /// A 3x3 matrix (rows) as a numpy array.

@@ -9,6 +9,7 @@ mod arm;
 mod arm_plan;
 mod base;
 mod base_utils;
+mod bench;
 mod camera;
 mod configs;
 mod convert;
@@ -38,6 +39,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(skills::scenes, m)?)?;
     m.add_function(wrap_pyfunction!(base_utils::base_reference, m)?)?;
     m.add_function(wrap_pyfunction!(base_utils::circle_reference, m)?)?;
+    m.add_function(wrap_pyfunction!(bench::rust_call_seconds, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

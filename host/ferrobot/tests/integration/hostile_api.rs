@@ -50,6 +50,16 @@ fn the_arm_refuses_hostile_values() {
                 let _ = m.cancel();
             });
             judge("move_joints", bad_q || hostile_opts, &r)?;
+            let r = arm
+                .move_to_pose(p, Orientation::Quaternion(quat), opts)
+                .map(|m| {
+                    let _ = m.cancel();
+                });
+            judge(
+                "move_to_pose",
+                absurd(&p) || absurd(&quat) || hostile_opts,
+                &r,
+            )?;
             let r = arm.compute_fk_position(&q, "gripper_link");
             judge("compute_fk_position", bad_q, &r)?;
             let r = arm.get_jacobian(&q);
@@ -94,7 +104,7 @@ fn the_arm_refuses_hostile_values() {
             let d = [p[0] * 0.05, p[1] * 0.05, p[2] * 0.05];
             let r = arm.move_ee_xyz(d, a.abs() * 0.01);
             judge("move_ee_xyz", absurd(&d) || absurd(&[a]) || a == 0.0, &r)?;
-            calls.set(calls.get() + 13);
+            calls.set(calls.get() + 14);
             let cam = bot.head().expect("camera");
             let r = cam.set_pan_tilt_async(a, b).map(|m| {
                 let _ = m.cancel();
@@ -149,6 +159,15 @@ fn the_planning_scene_refuses_hostile_values() {
             )?;
             let r = arm.attach_arm_object("held", p, Orientation::Quaternion(quat), size);
             judge("attach_arm_object", bad_pose || bad_size, &r)?;
+            // Released where it is now: only what was attached, and only once.
+            let attached = r.is_ok();
+            let r = arm.release_arm_object("held");
+            judge("release_arm_object", !attached, &r)?;
+            if attached && r.is_err() {
+                return Err(TestCaseError::fail(format!("release_arm_object: {r:?}")));
+            }
+            let r = arm.release_arm_object("held");
+            judge("release_arm_object (again)", true, &r)?;
             let flat: Vec<f64> = cloud.iter().flatten().copied().collect();
             let r = arm.set_point_cloud(Some(&cloud), a);
             judge(
@@ -174,7 +193,7 @@ fn the_planning_scene_refuses_hostile_values() {
             )?;
             let _ = arm.get_collision_state();
             arm.remove_all_objects().expect("clear");
-            calls.set(calls.get() + 8);
+            calls.set(calls.get() + 10);
             Ok(())
         })
         .expect("the planning scene refuses hostile values");
