@@ -5,7 +5,8 @@
 //! modules do the work so that tests can call them.
 #![warn(missing_docs)]
 
-pub mod base_trials;
+/// PyRobot's base trials (in `ferrobot-skills`, so that the Python package runs them too).
+pub use ferrobot_skills::base_trials;
 pub mod circle_tracking;
 pub mod odometry_calibration;
 pub mod plot;

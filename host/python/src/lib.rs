@@ -35,6 +35,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(skills::grasp, m)?)?;
     m.add_function(wrap_pyfunction!(skills::push, m)?)?;
     m.add_function(wrap_pyfunction!(skills::calibrate_camera, m)?)?;
+    m.add_function(wrap_pyfunction!(skills::bench_base, m)?)?;
     m.add_function(wrap_pyfunction!(skills::robots, m)?)?;
     m.add_function(wrap_pyfunction!(skills::scenes, m)?)?;
     m.add_function(wrap_pyfunction!(base_utils::base_reference, m)?)?;

@@ -106,6 +106,38 @@ pub fn calibrate_camera(
     Ok(d.into_any().unbind())
 }
 
+/// PyRobot's base benchmark (its Table 1), as `ferrobot bench base` runs it: every controller
+/// drives to the paper's relative targets from rest, `trials` times each (1 to 100, trial k
+/// seeded `seed + k`) on a fresh simulated `robot`; errors against the simulator's ground
+/// truth and the odometry. Returns `{"rows": [...], "markdown": table}`, each row a dict of
+/// `controller`, `category`, `reference`, `translation_mm` and `rotation_deg` (mean, std),
+/// `successes` (of trials). Ctrl-C stops between trials.
+#[pyfunction]
+#[pyo3(signature = (robot="locobot", trials=5, seed=1))]
+pub fn bench_base(py: Python<'_>, robot: &str, trials: usize, seed: u64) -> PyResult<Py<PyAny>> {
+    use ferrobot_skills::base_trials::{jobs, markdown, run_trial, summarize};
+    ferrobot::validate::count("trials", trials, 1..=100)
+        .map_err(ferrobot::Error::from)
+        .py()?;
+    let mut done = Vec::new();
+    for (c, cat, target, sd) in jobs(trials, seed) {
+        let opts = ferrobot::GoalOptions::default();
+        done.push(
+            py.detach(|| run_trial(robot, c, cat, target, opts, sd, None))
+                .py()?,
+        );
+        py.check_signals()?;
+    }
+    let rows = summarize(&done);
+    let json: Vec<_> = rows.iter().map(|r| r.json()).collect();
+    let text = serde_json::to_string(&json)
+        .map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(e.to_string()))?;
+    let d = PyDict::new(py);
+    d.set_item("rows", py.import("json")?.call_method1("loads", (text,))?)?;
+    d.set_item("markdown", markdown(robot, trials, seed, &rows))?;
+    Ok(d.into_any().unbind())
+}
+
 /// The bundled robots' names.
 #[pyfunction]
 pub fn robots() -> Vec<&'static str> {

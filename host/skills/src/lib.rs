@@ -3,7 +3,8 @@
 //! Tasks built only on `ferrobot`'s public API, as `openrr-apps` sits on `arci`: grasping an
 //! object from a table ([`grasp::pick`]), pushing one ([`Skills::push_object`]) and the
 //! hand-eye calibration of the head camera ([`Skills::calibrate_camera`]). They run on every
-//! backend, since they only look and move through the API.
+//! backend, since they only look and move through the API. PyRobot's base benchmark
+//! ([`base_trials`]) is here too, for the command line and the Python package alike.
 //!
 //! ```no_run
 //! use ferrobot_skills::{grasp, Skills};
@@ -15,6 +16,8 @@
 //!
 //! Units are SI (m, rad, s); frames as in `ferrobot` (`base_link`: x forward, z up).
 
+#[cfg(feature = "sim")]
+pub mod base_trials;
 pub mod error;
 pub mod grasp;
 pub mod hand_eye;

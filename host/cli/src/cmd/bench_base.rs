@@ -3,10 +3,9 @@
 
 use std::path::PathBuf;
 
-use ferrobot::config::BaseController;
 use ferrobot::odometry_calibration::WheelGeometry;
 use ferrobot::{validate, GoalOptions};
-use ferrobot_cli::base_trials::{markdown, run_trial, summarize, Category, Row, RowJson, Trial};
+use ferrobot_cli::base_trials::{jobs, markdown, run_trial, summarize, Row, RowJson, Trial};
 use ferrobot_cli::circle_tracking::{circle_path, paper_circle, CircleRun};
 use ferrobot_cli::odometry_calibration::calibrate_odometry;
 use ferrobot_cli::plot::{Canvas, COLOURS};
@@ -101,7 +100,9 @@ fn bench_robot(a: &Args, robot: &str) -> ferrobot::Result<()> {
         None
     };
     let geometry = calibration.as_ref().map(|c| c.estimate);
-    let jobs = trial_jobs(a.trials, a.seed);
+    // Each trial is seeded, so running them on rayon's pool (all cores) in any order gives
+    // the same results.
+    let jobs = jobs(a.trials, a.seed);
     let bar = progress_bar(jobs.len() as u64 + CircleRun::ALL.len() as u64, robot);
     // Results come back in the jobs' order; the first error in that order is reported.
     let results: Vec<ferrobot::Result<Trial>> = jobs
@@ -147,22 +148,6 @@ fn bench_robot(a: &Args, robot: &str) -> ferrobot::Result<()> {
         say!("");
     }
     Ok(())
-}
-
-/// Every (controller, category, target, trial seed), to run on rayon's pool (all cores); each
-/// is seeded, so the order of execution does not change the results.
-fn trial_jobs(trials: usize, seed: u64) -> Vec<(BaseController, Category, [f64; 3], u64)> {
-    let mut jobs = Vec::new();
-    for c in BaseController::ALL {
-        for cat in Category::ALL {
-            for target in cat.targets() {
-                for k in 0..trials {
-                    jobs.push((c, cat, target, seed + k as u64));
-                }
-            }
-        }
-    }
-    jobs
 }
 
 /// The progress bar of `len` steps, named after `robot`.

@@ -273,3 +273,15 @@ def test_pushing_moves_an_object():
     p = ferrobot.push(bot)
     assert p["objects"] >= 1 and 0 <= p["target"] < p["objects"]
     assert p["side"] in {"near", "far", "left", "right", "front", "back"} or p["side"]
+
+
+def test_the_base_benchmark_runs_pyrobots_table():
+    r = ferrobot.bench_base("locobot", trials=1, seed=1)
+    rows = r["rows"]
+    # Four controllers, three categories, each against ground truth and odometry.
+    assert len(rows) == 24 and r["markdown"].count("\n| ") == 25
+    assert {row["controller"] for row in rows} == {"proportional", "lqr", "ilqr", "dwa"}
+    for row in rows:
+        assert row["successes"] == [2, 2], row
+        # Every controller ends within 2 cm and 2 degrees of each target, by either measure.
+        assert row["translation_mm"][0] < 20 and row["rotation_deg"][0] < 2, row

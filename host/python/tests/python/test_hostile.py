@@ -216,6 +216,10 @@ def test_the_skills_refuse_absurd_options():
         assert _refused(lambda t: ferrobot.grasp(bot, head_tilt=t), v) is not None
     for v in [0, 99]:
         assert _refused(lambda p: ferrobot.calibrate_camera(bot, poses=p), v) is not None
+    for v in [0, 101, -1]:
+        assert _refused(lambda t: ferrobot.bench_base(trials=t), v) is not None
+    for v in NAMES:
+        assert _refused(lambda r: ferrobot.bench_base(r, trials=1), v) is not None
 
 
 def _robot_still_works(bot):

@@ -91,10 +91,26 @@ pub fn base_robot(robot: &str, seed: u64, geometry: Option<WheelGeometry>) -> Re
 }
 
 /// The simulator's ground-truth base pose `[x, y, θ]` (the paper's motion capture).
-pub(crate) fn truth(bot: &Robot) -> Result<[f64; 3]> {
+pub fn truth(bot: &Robot) -> Result<[f64; 3]> {
     bot.simulator()
         .and_then(|s| s.base_truth())
         .ok_or_else(|| Error::Link("the benchmark needs the simulated backend".into()))
+}
+
+/// One robot's trials: every controller, category and target, `trials` times each, trial k
+/// seeded `seed + k` (the same seeds for every controller).
+pub fn jobs(trials: usize, seed: u64) -> Vec<(BaseController, Category, [f64; 3], u64)> {
+    let mut jobs = Vec::new();
+    for c in BaseController::ALL {
+        for cat in Category::ALL {
+            for target in cat.targets() {
+                for k in 0..trials {
+                    jobs.push((c, cat, target, seed + k as u64));
+                }
+            }
+        }
+    }
+    jobs
 }
 
 /// Run one motion from rest at the origin on a fresh simulated `robot` whose odometry uses
