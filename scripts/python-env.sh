@@ -34,6 +34,6 @@ case "${1:-}" in
     plan) install host/planning/peer/requirements.txt .installed-plan-requirements "ompl.geometric, fcl, scipy.spatial" ;;
     cluster) install host/perception/peer/requirements.txt .installed-cluster-requirements "sklearn.cluster" ;;
     slam) install host/slam/peer/requirements.txt .installed-slam-requirements "pybullet, numpy" ;;
-    python) install host/python/requirements-test.txt .installed-python-requirements "numpy, pytest, yourdfpy, absl" ;;
+    python) install host/python/requirements-test.txt .installed-python-requirements "numpy, pytest, yourdfpy, absl, ipykernel, nbclient" ;;
     *) echo "usage: $0 [bench|plan|cluster|slam|python]" >&2; exit 2 ;;
 esac

@@ -68,8 +68,8 @@ fn pytest(file: &str) {
 
 /// [`pytest`] with pytest's own arguments `args`.
 fn pytest_with(file: &str, args: &[&str]) {
-    let Some(python) = ferrobot_peers::for_test("numpy, pytest", "scripts/python-env.sh python")
-    else {
+    let modules = "numpy, pytest, yourdfpy, absl, ipykernel, nbclient";
+    let Some(python) = ferrobot_peers::for_test(modules, "scripts/python-env.sh python") else {
         return;
     };
     let test = format!("{}{}", file.trim_end_matches(".py"), args.concat());
@@ -115,6 +115,7 @@ files!(
     test_examples,
     test_hostile,
     test_interrupt,
+    test_jupyter,
     test_pyrobot_arm_controls,
     test_pyrobot_arm_utils,
     test_pyrobot_base_controllers,
