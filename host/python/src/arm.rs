@@ -4,7 +4,7 @@
 use ferrobot::arm::{MoveOptions, Orientation, Pose};
 use pyo3::prelude::*;
 
-use crate::convert::Flag;
+use crate::convert::truthy;
 use pyo3::types::PyTuple;
 
 use crate::convert::{self, array, column3, mat3, vector};
@@ -41,9 +41,9 @@ impl Arm {
     }
 
     /// Runs a joint move to `q`: blocking (True) or a [`Motion`].
-    fn start(&self, py: Python<'_>, q: Vec<f64>, plan: Flag, wait: Flag) -> PyResult<Py<PyAny>> {
+    fn start(&self, py: Python<'_>, q: Vec<f64>, plan: bool, wait: bool) -> PyResult<Py<PyAny>> {
         let opts = MoveOptions {
-            plan: plan.0,
+            plan,
             ..MoveOptions::default()
         };
         let arm = self.arm.clone();
@@ -58,10 +58,10 @@ pub fn finish(
     robot: &ferrobot::Robot,
     what: &str,
     motion: ferrobot::Motion,
-    wait: Flag,
+    wait: bool,
 ) -> PyResult<Py<PyAny>> {
     let m = Py::new(py, Motion::new(robot, what, motion))?;
-    if wait.0 {
+    if wait {
         m.get().wait_blocking(py)?;
         Ok(true.into_pyobject(py)?.to_owned().into_any().unbind())
     } else {
@@ -125,8 +125,13 @@ impl Arm {
 
     /// Move to the home configuration (`configs.ARM.HOME`; zeros on the LoCoBot). PyRobot's
     /// `plan=False` default kept. True when arrived.
-    #[pyo3(signature = (plan=Flag(false), wait=Flag(true)))]
-    fn go_home(&self, py: Python<'_>, plan: Flag, wait: Flag) -> PyResult<Py<PyAny>> {
+    #[pyo3(signature = (plan=false, wait=true))]
+    fn go_home(
+        &self,
+        py: Python<'_>,
+        #[pyo3(from_py_with = truthy)] plan: bool,
+        #[pyo3(from_py_with = truthy)] wait: bool,
+    ) -> PyResult<Py<PyAny>> {
         let home = self.robot().config().arm.as_ref().map(|a| a.home.clone());
         let home = home.unwrap_or_else(|| vec![0.0; self.arm.dof()]);
         self.start(py, home, plan, wait)
@@ -149,26 +154,26 @@ impl Arm {
     /// Move to joint `positions` (rad): planned around the planning scene when `plan`, else
     /// straight to them. `wait=True` returns True on arrival (an error otherwise);
     /// `wait=False` returns a `Motion`.
-    #[pyo3(signature = (positions, plan=Flag(true), wait=Flag(true), **_kwargs))]
+    #[pyo3(signature = (positions, plan=true, wait=true, **kwargs))]
     fn set_joint_positions(
         &self,
         py: Python<'_>,
         positions: &Bound<'_, PyAny>,
-        plan: Flag,
-        wait: Flag,
-        _kwargs: Option<&Bound<'_, pyo3::types::PyDict>>,
+        #[pyo3(from_py_with = truthy)] plan: bool,
+        #[pyo3(from_py_with = truthy)] wait: bool,
+        #[allow(unused_variables)] kwargs: Option<&Bound<'_, pyo3::types::PyDict>>,
     ) -> PyResult<Py<PyAny>> {
         let q = self.joints(positions, "positions")?;
         self.start(py, q, plan, wait)
     }
 
     /// Command joint velocities (rad/s); held until the next command.
-    #[pyo3(signature = (velocities, **_kwargs))]
+    #[pyo3(signature = (velocities, **kwargs))]
     fn set_joint_velocities(
         &self,
         py: Python<'_>,
         velocities: &Bound<'_, PyAny>,
-        _kwargs: Option<&Bound<'_, pyo3::types::PyDict>>,
+        #[allow(unused_variables)] kwargs: Option<&Bound<'_, pyo3::types::PyDict>>,
     ) -> PyResult<bool> {
         let v = self.joints(velocities, "velocities")?;
         py.detach(|| self.arm.set_joint_velocities(&v)).py()?;
@@ -176,12 +181,12 @@ impl Arm {
     }
 
     /// Command joint torques (N m); held until the next command.
-    #[pyo3(signature = (torques, **_kwargs))]
+    #[pyo3(signature = (torques, **kwargs))]
     fn set_joint_torques(
         &self,
         py: Python<'_>,
         torques: &Bound<'_, PyAny>,
-        _kwargs: Option<&Bound<'_, pyo3::types::PyDict>>,
+        #[allow(unused_variables)] kwargs: Option<&Bound<'_, pyo3::types::PyDict>>,
     ) -> PyResult<bool> {
         let t = self.joints(torques, "torques")?;
         py.detach(|| self.arm.set_joint_torques(&t)).py()?;
@@ -262,23 +267,23 @@ impl Arm {
     /// or `[x, y, z, w]`): the collision-free IK solution nearest the joints, then a joint
     /// move (planned when `plan`). `numerical` is accepted for PyRobot's programs; the IK is
     /// the description's (numerical, or closed-form on 5-DOF arms).
-    #[pyo3(signature = (position, orientation, plan=Flag(true), wait=Flag(true), numerical=Flag(true), **_kwargs))]
+    #[pyo3(signature = (position, orientation, plan=true, wait=true, numerical=true, **kwargs))]
     #[allow(clippy::too_many_arguments)]
     fn set_ee_pose(
         &self,
         py: Python<'_>,
         position: &Bound<'_, PyAny>,
         orientation: &Bound<'_, PyAny>,
-        plan: Flag,
-        wait: Flag,
-        numerical: Flag,
-        _kwargs: Option<&Bound<'_, pyo3::types::PyDict>>,
+        #[pyo3(from_py_with = truthy)] plan: bool,
+        #[pyo3(from_py_with = truthy)] wait: bool,
+        #[pyo3(from_py_with = truthy)] numerical: bool,
+        #[allow(unused_variables)] kwargs: Option<&Bound<'_, pyo3::types::PyDict>>,
     ) -> PyResult<Py<PyAny>> {
         let _ = numerical;
         let p = array::<3>(position, "position")?;
         let o = self::orientation(orientation, "orientation")?;
         let opts = MoveOptions {
-            plan: plan.0,
+            plan,
             ..MoveOptions::default()
         };
         let arm = self.arm.clone();
@@ -288,7 +293,7 @@ impl Arm {
 
     /// 5-DOF arms: move the end effector to `position` (m) with gripper `pitch` (rad below
     /// horizontal; pi/2 points down) and `roll` (rad; the current roll when `None`).
-    #[pyo3(signature = (position, pitch, roll=None, plan=Flag(true), wait=Flag(true), numerical=Flag(true), **_kwargs))]
+    #[pyo3(signature = (position, pitch, roll=None, plan=true, wait=true, numerical=true, **kwargs))]
     #[allow(clippy::too_many_arguments)]
     fn set_ee_pose_pitch_roll(
         &self,
@@ -296,10 +301,10 @@ impl Arm {
         position: &Bound<'_, PyAny>,
         pitch: f64,
         roll: Option<f64>,
-        plan: Flag,
-        wait: Flag,
-        numerical: Flag,
-        _kwargs: Option<&Bound<'_, pyo3::types::PyDict>>,
+        #[pyo3(from_py_with = truthy)] plan: bool,
+        #[pyo3(from_py_with = truthy)] wait: bool,
+        #[pyo3(from_py_with = truthy)] numerical: bool,
+        #[allow(unused_variables)] kwargs: Option<&Bound<'_, pyo3::types::PyDict>>,
     ) -> PyResult<Py<PyAny>> {
         let _ = numerical;
         let p = array::<3>(position, "position")?;
@@ -313,21 +318,21 @@ impl Arm {
     /// Move the end effector along a straight line by `displacement` (m, base frame), its
     /// orientation kept, through IK solutions every `eef_step` m; the line is checked for
     /// collisions and joint jumps first when `plan`. True when done.
-    #[pyo3(signature = (displacement, eef_step=0.005, numerical=Flag(true), plan=Flag(true), **_kwargs))]
+    #[pyo3(signature = (displacement, eef_step=0.005, numerical=true, plan=true, **kwargs))]
     fn move_ee_xyz(
         &self,
         py: Python<'_>,
         displacement: &Bound<'_, PyAny>,
         eef_step: f64,
-        numerical: Flag,
-        plan: Flag,
-        _kwargs: Option<&Bound<'_, pyo3::types::PyDict>>,
+        #[pyo3(from_py_with = truthy)] numerical: bool,
+        #[pyo3(from_py_with = truthy)] plan: bool,
+        #[allow(unused_variables)] kwargs: Option<&Bound<'_, pyo3::types::PyDict>>,
     ) -> PyResult<bool> {
         let _ = numerical;
         let d = array::<3>(displacement, "displacement")?;
         let arm = self.arm.clone();
         blocking(py, self.robot(), move || {
-            arm.move_ee_xyz_with(d, eef_step, plan.0)
+            arm.move_ee_xyz_with(d, eef_step, plan)
         })?;
         Ok(true)
     }
@@ -380,14 +385,14 @@ impl Arm {
     /// Joint angles (rad, `(dof,)`) that put the end effector at `position` with
     /// `orientation`, nearest `qinit` (default: the joints now). Raises `Unreachable` when
     /// none does (PyRobot returned `None`).
-    #[pyo3(signature = (position, orientation, qinit=None, numerical=Flag(true)))]
+    #[pyo3(signature = (position, orientation, qinit=None, numerical=true))]
     fn compute_ik<'py>(
         &self,
         py: Python<'py>,
         position: &Bound<'_, PyAny>,
         orientation: &Bound<'_, PyAny>,
         qinit: Option<&Bound<'_, PyAny>>,
-        numerical: Flag,
+        #[pyo3(from_py_with = truthy)] numerical: bool,
     ) -> PyResult<Bound<'py, PyAny>> {
         let _ = numerical;
         let p = array::<3>(position, "position")?;

@@ -6,7 +6,7 @@ use ferrobot::arm::Orientation;
 use ferrobot::arm_plan::ArmTrajectory;
 use pyo3::prelude::*;
 
-use crate::convert::Flag;
+use crate::convert::truthy;
 use pyo3::types::{PyDict, PyTuple};
 
 use crate::arm::{finish, orientation, Arm};
@@ -128,12 +128,12 @@ fn object_pose(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<([f64; 3], Orient
 impl Arm {
     /// Plan a collision-free, time-optimal motion from the joints now to `positions` (rad)
     /// without moving: a `Plan`.
-    #[pyo3(signature = (positions, **_kwargs))]
+    #[pyo3(signature = (positions, **kwargs))]
     fn make_plan_joint_positions(
         &self,
         py: Python<'_>,
         positions: &Bound<'_, PyAny>,
-        _kwargs: Option<&Bound<'_, PyDict>>,
+        #[allow(unused_variables)] kwargs: Option<&Bound<'_, PyDict>>,
     ) -> PyResult<Plan> {
         let q = vector(positions, "positions", None)?;
         let plan = py.detach(|| self.arm.make_plan_joint_positions(&q)).py()?;
@@ -142,15 +142,15 @@ impl Arm {
 
     /// Plan to a pose (`position` m, `orientation` as `set_ee_pose` takes it) without moving:
     /// a `Plan`.
-    #[pyo3(signature = (position, orientation, wait=Flag(true), numerical=Flag(true), **_kwargs))]
+    #[pyo3(signature = (position, orientation, wait=true, numerical=true, **kwargs))]
     fn make_plan_pose(
         &self,
         py: Python<'_>,
         position: &Bound<'_, PyAny>,
         orientation: &Bound<'_, PyAny>,
-        wait: Flag,
-        numerical: Flag,
-        _kwargs: Option<&Bound<'_, PyDict>>,
+        #[pyo3(from_py_with = truthy)] wait: bool,
+        #[pyo3(from_py_with = truthy)] numerical: bool,
+        #[allow(unused_variables)] kwargs: Option<&Bound<'_, PyDict>>,
     ) -> PyResult<Plan> {
         let _ = (wait, numerical);
         let p = array::<3>(position, "position")?;
@@ -161,8 +161,13 @@ impl Arm {
 
     /// Run a `Plan` (refused as `StalePlan` when the arm has moved away from its start or
     /// the scene has changed across it). True when done, or a `Motion` with `wait=False`.
-    #[pyo3(signature = (plan, wait=Flag(true)))]
-    fn execute_plan(&self, py: Python<'_>, plan: &Plan, wait: Flag) -> PyResult<Py<PyAny>> {
+    #[pyo3(signature = (plan, wait=true))]
+    fn execute_plan(
+        &self,
+        py: Python<'_>,
+        plan: &Plan,
+        #[pyo3(from_py_with = truthy)] wait: bool,
+    ) -> PyResult<Py<PyAny>> {
         let m = py.detach(|| self.arm.execute(&plan.plan)).py()?;
         finish(py, &self.robot, "planned arm motion", m, wait)
     }
@@ -219,16 +224,16 @@ impl Arm {
 
     /// Detach object `id_name` from the end effector `link_name`; it is removed from the
     /// scene too when `remove_from_world`, else left where it is.
-    #[pyo3(signature = (link_name, id_name, remove_from_world=Flag(true)))]
+    #[pyo3(signature = (link_name, id_name, remove_from_world=true))]
     fn detach_arm_object(
         &self,
         py: Python<'_>,
         link_name: &str,
         id_name: &str,
-        remove_from_world: Flag,
+        #[pyo3(from_py_with = truthy)] remove_from_world: bool,
     ) -> PyResult<()> {
         self.check_link(py, link_name)?;
-        if remove_from_world.0 {
+        if remove_from_world {
             py.detach(|| self.arm.detach_arm_object(id_name)).py()
         } else {
             py.detach(|| self.arm.release_arm_object(id_name)).py()

@@ -7,7 +7,7 @@ use ferrobot::{GoalOptions, Source};
 use parking_lot::Mutex;
 use pyo3::prelude::*;
 
-use crate::convert::Flag;
+use crate::convert::truthy;
 use pyo3::types::PyDict;
 
 use crate::arm::finish;
@@ -81,7 +81,7 @@ impl Base {
         xyt: &Bound<'_, PyAny>,
         relative: bool,
         opts: GoalOptions,
-        wait: Flag,
+        wait: bool,
     ) -> PyResult<Py<PyAny>> {
         let g = array::<3>(xyt, "xyt_position")?;
         let base = self.base.clone();
@@ -97,12 +97,12 @@ impl Base {
         finish(py, &self.robot, "base motion", m, wait)
     }
 
-    fn options(&self, use_map: Flag, close_loop: Flag, smooth: Flag) -> GoalOptions {
+    fn options(&self, use_map: bool, close_loop: bool, smooth: bool) -> GoalOptions {
         GoalOptions {
             controller: *self.controller.lock(),
-            smooth: smooth.0,
-            close_loop: close_loop.0,
-            use_map: use_map.0,
+            smooth,
+            close_loop,
+            use_map,
             ..GoalOptions::default()
         }
     }
@@ -129,15 +129,15 @@ impl Base {
     /// Drive to `xyt_position` `[x, y, theta]` relative to the base now (x forward, y left).
     /// `use_map` plans on SLAM's map (SLAM must be running); `close_loop` and `smooth` choose
     /// how the LQR controllers track. True on arrival, a `Motion` with `wait=False`.
-    #[pyo3(signature = (xyt_position, use_map=Flag(false), close_loop=Flag(true), smooth=Flag(false), wait=Flag(true)))]
+    #[pyo3(signature = (xyt_position, use_map=false, close_loop=true, smooth=false, wait=true))]
     fn go_to_relative(
         &self,
         py: Python<'_>,
         xyt_position: &Bound<'_, PyAny>,
-        use_map: Flag,
-        close_loop: Flag,
-        smooth: Flag,
-        wait: Flag,
+        #[pyo3(from_py_with = truthy)] use_map: bool,
+        #[pyo3(from_py_with = truthy)] close_loop: bool,
+        #[pyo3(from_py_with = truthy)] smooth: bool,
+        #[pyo3(from_py_with = truthy)] wait: bool,
     ) -> PyResult<Py<PyAny>> {
         let opts = self.options(use_map, close_loop, smooth);
         self.goal(py, xyt_position, true, opts, wait)
@@ -145,15 +145,15 @@ impl Base {
 
     /// Drive to `xyt_position` `[x, y, theta]` in the odometry frame (SLAM's map with
     /// `use_map`). True on arrival, a `Motion` with `wait=False`.
-    #[pyo3(signature = (xyt_position, use_map=Flag(false), close_loop=Flag(true), smooth=Flag(false), wait=Flag(true)))]
+    #[pyo3(signature = (xyt_position, use_map=false, close_loop=true, smooth=false, wait=true))]
     fn go_to_absolute(
         &self,
         py: Python<'_>,
         xyt_position: &Bound<'_, PyAny>,
-        use_map: Flag,
-        close_loop: Flag,
-        smooth: Flag,
-        wait: Flag,
+        #[pyo3(from_py_with = truthy)] use_map: bool,
+        #[pyo3(from_py_with = truthy)] close_loop: bool,
+        #[pyo3(from_py_with = truthy)] smooth: bool,
+        #[pyo3(from_py_with = truthy)] wait: bool,
     ) -> PyResult<Py<PyAny>> {
         let opts = self.options(use_map, close_loop, smooth);
         self.goal(py, xyt_position, false, opts, wait)
@@ -161,14 +161,14 @@ impl Base {
 
     /// Drive at `fwd_speed` (m/s) and `turn_speed` (rad/s) for `exe_time` s. Speeds beyond
     /// the base's limits are refused (`OutOfRange`; PyRobot clamped them).
-    #[pyo3(signature = (fwd_speed, turn_speed, exe_time=1.0, wait=Flag(true)))]
+    #[pyo3(signature = (fwd_speed, turn_speed, exe_time=1.0, wait=true))]
     fn set_vel(
         &self,
         py: Python<'_>,
         fwd_speed: f64,
         turn_speed: f64,
         exe_time: f64,
-        wait: Flag,
+        #[pyo3(from_py_with = truthy)] wait: bool,
     ) -> PyResult<Py<PyAny>> {
         let m = py
             .detach(|| self.base.set_vel_async(fwd_speed, turn_speed, exe_time))
@@ -184,14 +184,14 @@ impl Base {
     /// Track `states` (`(T, 3)`: `[x, y, theta]` every `dt` s, odometry frame) with the LQR
     /// tracker, `controls` (`(T, 2)` or `(T-1, 2)`: `[v, w]`) as its feed-forward (derived
     /// from the states when `None`). `dt` is PyRobot's `1 / BASE_CONTROL_RATE` by default.
-    #[pyo3(signature = (states, controls=None, close_loop=Flag(true), wait=Flag(true), dt=None))]
+    #[pyo3(signature = (states, controls=None, close_loop=true, wait=true, dt=None))]
     fn track_trajectory(
         &self,
         py: Python<'_>,
         states: &Bound<'_, PyAny>,
         controls: Option<&Bound<'_, PyAny>>,
-        close_loop: Flag,
-        wait: Flag,
+        #[pyo3(from_py_with = truthy)] close_loop: bool,
+        #[pyo3(from_py_with = truthy)] wait: bool,
         dt: Option<f64>,
     ) -> PyResult<Py<PyAny>> {
         let states = rows::<3>(states, "states")?;
@@ -218,7 +218,7 @@ impl Base {
         };
         let base = self.base.clone();
         let m = py
-            .detach(move || base.track_trajectory_async(reference, close_loop.0))
+            .detach(move || base.track_trajectory_async(reference, close_loop))
             .py()?;
         finish(py, &self.robot, "trajectory tracking", m, wait)
     }
@@ -263,8 +263,12 @@ impl Base {
     /// Explore the scene with SLAM (running) until no frontier is left: the map grows as the
     /// robot drives to the nearest unexplored edge. True when done, a `Motion` with
     /// `wait=False`.
-    #[pyo3(signature = (wait=Flag(true)))]
-    fn explore(&self, py: Python<'_>, wait: Flag) -> PyResult<Py<PyAny>> {
+    #[pyo3(signature = (wait=true))]
+    fn explore(
+        &self,
+        py: Python<'_>,
+        #[pyo3(from_py_with = truthy)] wait: bool,
+    ) -> PyResult<Py<PyAny>> {
         let m = py.detach(|| self.base.explore_async()).py()?;
         finish(py, &self.robot, "exploration", m, wait)
     }

@@ -6,7 +6,7 @@ use ferrobot::perception::PointCloud;
 use nalgebra::Isometry3;
 use pyo3::prelude::*;
 
-use crate::convert::Flag;
+use crate::convert::truthy;
 use pyo3::types::PyTuple;
 
 use crate::arm::finish;
@@ -47,7 +47,7 @@ impl Camera {
         })
     }
 
-    fn pan_tilt(&self, py: Python<'_>, pan: f64, tilt: f64, wait: Flag) -> PyResult<Py<PyAny>> {
+    fn pan_tilt(&self, py: Python<'_>, pan: f64, tilt: f64, wait: bool) -> PyResult<Py<PyAny>> {
         let head = self.head(py)?.clone();
         let m = py.detach(|| head.set_pan_tilt_async(pan, tilt)).py()?;
         finish(py, &self.robot, "pan-tilt motion", m, wait)
@@ -149,27 +149,31 @@ impl Camera {
     /// The point cloud of the next frame, depths within the description's range:
     /// `(points (N, 3) m, colours (N, 3) uint8)`, in the camera's optical frame (`in_cam`) or
     /// in `base_link`.
-    #[pyo3(signature = (in_cam=Flag(true)))]
-    fn get_current_pcd<'py>(&self, py: Python<'py>, in_cam: Flag) -> PyResult<Bound<'py, PyAny>> {
-        let cloud = py.detach(|| self.camera.get_current_pcd(in_cam.0)).py()?;
+    #[pyo3(signature = (in_cam=true))]
+    fn get_current_pcd<'py>(
+        &self,
+        py: Python<'py>,
+        #[pyo3(from_py_with = truthy)] in_cam: bool,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let cloud = py.detach(|| self.camera.get_current_pcd(in_cam)).py()?;
         cloud_tuple(py, cloud)
     }
 
     /// The 3-D points of pixels (rows `rs`, columns `cs`): `(points (N, 3) m, colours (N, 3)
     /// uint8)`, in `base_link` or the optical frame (`in_cam`). A pixel without depth gives
     /// NaNs (PyRobot gave the camera's origin).
-    #[pyo3(signature = (rs, cs, in_cam=Flag(false)))]
+    #[pyo3(signature = (rs, cs, in_cam=false))]
     fn pix_to_3dpt<'py>(
         &self,
         py: Python<'py>,
         rs: &Bound<'_, PyAny>,
         cs: &Bound<'_, PyAny>,
-        in_cam: Flag,
+        #[pyo3(from_py_with = truthy)] in_cam: bool,
     ) -> PyResult<Bound<'py, PyAny>> {
         let rows = integers(rs, "rs")?;
         let cols = integers(cs, "cs")?;
         let px = py
-            .detach(|| self.camera.pix_to_3dpt(&rows, &cols, in_cam.0))
+            .detach(|| self.camera.pix_to_3dpt(&rows, &cols, in_cam))
             .py()?;
         let n = px.points.len();
         let pts: Vec<f64> = px
@@ -202,22 +206,38 @@ impl Camera {
     }
 
     /// Pan to `pan` (rad), the tilt kept.
-    #[pyo3(signature = (pan, wait=Flag(true)))]
-    fn set_pan(&self, py: Python<'_>, pan: f64, wait: Flag) -> PyResult<Py<PyAny>> {
+    #[pyo3(signature = (pan, wait=true))]
+    fn set_pan(
+        &self,
+        py: Python<'_>,
+        pan: f64,
+        #[pyo3(from_py_with = truthy)] wait: bool,
+    ) -> PyResult<Py<PyAny>> {
         let tilt = self.get_tilt(py)?;
         self.pan_tilt(py, pan, tilt, wait)
     }
 
     /// Tilt to `tilt` (rad; positive looks down), the pan kept.
-    #[pyo3(signature = (tilt, wait=Flag(true)))]
-    fn set_tilt(&self, py: Python<'_>, tilt: f64, wait: Flag) -> PyResult<Py<PyAny>> {
+    #[pyo3(signature = (tilt, wait=true))]
+    fn set_tilt(
+        &self,
+        py: Python<'_>,
+        tilt: f64,
+        #[pyo3(from_py_with = truthy)] wait: bool,
+    ) -> PyResult<Py<PyAny>> {
         let pan = self.get_pan(py)?;
         self.pan_tilt(py, pan, tilt, wait)
     }
 
     /// Pan and tilt together (rad).
-    #[pyo3(signature = (pan, tilt, wait=Flag(true)))]
-    fn set_pan_tilt(&self, py: Python<'_>, pan: f64, tilt: f64, wait: Flag) -> PyResult<Py<PyAny>> {
+    #[pyo3(signature = (pan, tilt, wait=true))]
+    fn set_pan_tilt(
+        &self,
+        py: Python<'_>,
+        pan: f64,
+        tilt: f64,
+        #[pyo3(from_py_with = truthy)] wait: bool,
+    ) -> PyResult<Py<PyAny>> {
         self.pan_tilt(py, pan, tilt, wait)
     }
 
@@ -245,7 +265,7 @@ impl Camera {
 
     /// Back to pan 0, tilt 0.
     fn reset(&self, py: Python<'_>) -> PyResult<Py<PyAny>> {
-        self.pan_tilt(py, 0.0, 0.0, Flag(true))
+        self.pan_tilt(py, 0.0, 0.0, true)
     }
 
     fn __repr__(&self) -> String {

@@ -264,14 +264,7 @@ pub fn column3(py: Python<'_>, p: [f64; 3]) -> PyResult<Bound<'_, PyAny>> {
 }
 
 /// A flag as Python reads one: any object by its truth value (`if plan:`), as PyRobot read its
-/// keyword arguments (numpy's booleans, 0 and 1 included).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Flag(pub bool);
-
-impl<'a, 'py> FromPyObject<'a, 'py> for Flag {
-    type Error = PyErr;
-
-    fn extract(obj: pyo3::Borrowed<'a, 'py, PyAny>) -> PyResult<Self> {
-        Ok(Flag(obj.is_truthy()?))
-    }
+/// keyword arguments (numpy's booleans, 0 and 1 included; PyRobot's tests pass `"False"`).
+pub fn truthy(obj: &Bound<'_, PyAny>) -> PyResult<bool> {
+    obj.is_truthy()
 }

@@ -3,7 +3,7 @@
 use ferrobot::GripperState;
 use pyo3::prelude::*;
 
-use crate::convert::Flag;
+use crate::convert::truthy;
 
 use crate::arm::finish;
 use crate::errors::OrRaise;
@@ -38,23 +38,31 @@ pub fn state_code(s: GripperState) -> i32 {
 #[pymethods]
 impl Gripper {
     /// Open the gripper; with `wait`, until it is open (True), else a `Motion`.
-    #[pyo3(signature = (wait=Flag(true)))]
-    fn open(&self, py: Python<'_>, wait: Flag) -> PyResult<Py<PyAny>> {
+    #[pyo3(signature = (wait=true))]
+    fn open(
+        &self,
+        py: Python<'_>,
+        #[pyo3(from_py_with = truthy)] wait: bool,
+    ) -> PyResult<Py<PyAny>> {
         let m = py.detach(|| self.gripper.open_async()).py()?;
         finish(py, &self.robot, "gripper opening", m, wait)
     }
 
     /// Close the gripper; with `wait`, until it holds something or is closed (True), else a
     /// `Motion`.
-    #[pyo3(signature = (wait=Flag(true)))]
-    fn close(&self, py: Python<'_>, wait: Flag) -> PyResult<Py<PyAny>> {
+    #[pyo3(signature = (wait=true))]
+    fn close(
+        &self,
+        py: Python<'_>,
+        #[pyo3(from_py_with = truthy)] wait: bool,
+    ) -> PyResult<Py<PyAny>> {
         let m = py.detach(|| self.gripper.close_async()).py()?;
         finish(py, &self.robot, "gripper closing", m, wait)
     }
 
     /// Open, close and open again (PyRobot's reset).
-    #[pyo3(signature = (wait=Flag(true)))]
-    fn reset(&self, py: Python<'_>, wait: Flag) -> PyResult<bool> {
+    #[pyo3(signature = (wait=true))]
+    fn reset(&self, py: Python<'_>, #[pyo3(from_py_with = truthy)] wait: bool) -> PyResult<bool> {
         let _ = wait;
         let g = self.gripper.clone();
         crate::motion::blocking(py, &self.robot, move || g.reset())?;

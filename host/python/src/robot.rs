@@ -3,7 +3,7 @@
 
 use pyo3::prelude::*;
 
-use crate::convert::Flag;
+use crate::convert::truthy;
 use ferrobot::config::ConfigSource;
 use pyo3::types::PyDict;
 
@@ -107,19 +107,19 @@ impl Robot {
     /// the description, e.g. `{"arm.joint_tolerance": 0.01}`).
     #[new]
     #[pyo3(signature = (
-        robot_name, use_arm=Flag(true), use_base=Flag(true), use_camera=Flag(true), use_gripper=Flag(true),
+        robot_name, use_arm=true, use_base=true, use_camera=true, use_gripper=true,
         arm_config=None, base_config=None, camera_config=None, gripper_config=None,
-        common_config=None, *, scene=None, backend="sim", seed=1, realtime=Flag(false),
-        config_file=None, start_pose=None, depth_noise=Flag(true), slam=Flag(false), overrides=None
+        common_config=None, *, scene=None, backend="sim", seed=1, realtime=false,
+        config_file=None, start_pose=None, depth_noise=true, slam=false, overrides=None
     ))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
         robot_name: &str,
-        use_arm: Flag,
-        use_base: Flag,
-        use_camera: Flag,
-        use_gripper: Flag,
+        #[pyo3(from_py_with = truthy)] use_arm: bool,
+        #[pyo3(from_py_with = truthy)] use_base: bool,
+        #[pyo3(from_py_with = truthy)] use_camera: bool,
+        #[pyo3(from_py_with = truthy)] use_gripper: bool,
         arm_config: Option<&Bound<'_, PyDict>>,
         base_config: Option<&Bound<'_, PyDict>>,
         camera_config: Option<&Bound<'_, PyDict>>,
@@ -128,11 +128,11 @@ impl Robot {
         scene: Option<String>,
         backend: &str,
         seed: u64,
-        realtime: Flag,
+        #[pyo3(from_py_with = truthy)] realtime: bool,
         config_file: Option<std::path::PathBuf>,
         start_pose: Option<&Bound<'_, PyAny>>,
-        depth_noise: Flag,
-        slam: Flag,
+        #[pyo3(from_py_with = truthy)] depth_noise: bool,
+        #[pyo3(from_py_with = truthy)] slam: bool,
         overrides: Option<&Bound<'_, PyDict>>,
     ) -> PyResult<Self> {
         let base_cfg = options::checked(base_config, "base_config", &options::BASE_KEYS)?;
@@ -149,12 +149,12 @@ impl Robot {
             ConfigSource::Bundled(name) => ferrobot::Robot::builder(name),
         };
         builder = builder
-            .use_arm(use_arm.0)
-            .use_base(use_base.0)
-            .use_camera(use_camera.0)
-            .use_gripper(use_gripper.0 && use_arm.0)
-            .depth_noise(depth_noise.0)
-            .backend(options::backend(py, backend, seed, realtime.0)?);
+            .use_arm(use_arm)
+            .use_base(use_base)
+            .use_camera(use_camera)
+            .use_gripper(use_gripper && use_arm)
+            .depth_noise(depth_noise)
+            .backend(options::backend(py, backend, seed, realtime)?);
         let scene = scene
             .or(options::string(&common, "scene")?)
             .or(options::string(&common, "scene_path")?);
@@ -168,7 +168,7 @@ impl Robot {
         builder = options::pyrobot_ik_tolerances(builder, &source);
         builder = options::apply_overrides(builder, overrides)?;
         let robot = py.detach(move || builder.build()).py()?;
-        if slam.0 {
+        if slam {
             let r = robot.clone();
             blocking(py, &robot, move || r.start_slam([0.0; 3], None))?;
         }
