@@ -103,14 +103,18 @@ impl Robot {
     /// Ferrobot's keywords: `scene` (a bundled scene's name or a scene file), `backend`
     /// (`"sim"`, `"serial:PATH"`, `"emulated"`), `seed` (the simulator's noise), `realtime`
     /// (pace simulated time to the wall clock), `start_pose` (`[x, y, theta]` in the scene),
-    /// `depth_noise`, `slam` (start SLAM at the start pose), and `overrides` (dotted keys of
-    /// the description, e.g. `{"arm.joint_tolerance": 0.01}`).
+    /// `depth_noise`, `slam` (start SLAM at the start pose), `overrides` (dotted keys of the
+    /// description, e.g. `{"arm.joint_tolerance": 0.01}`), and for hand-eye calibration in
+    /// the simulator `calibration_marker` (draw the gripper's marker) and
+    /// `camera_mount_error` (`[dx, dy, dz, droll, dpitch, dyaw]`, m and rad: the simulated
+    /// camera sits that far off its URDF pose, which the host keeps believing).
     #[new]
     #[pyo3(signature = (
         robot_name, use_arm=true, use_base=true, use_camera=true, use_gripper=true,
         arm_config=None, base_config=None, camera_config=None, gripper_config=None,
         common_config=None, *, scene=None, backend="sim", seed=1, realtime=false,
-        config_file=None, start_pose=None, depth_noise=true, slam=false, overrides=None
+        config_file=None, start_pose=None, depth_noise=true, slam=false, overrides=None,
+        calibration_marker=false, camera_mount_error=None
     ))]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -134,6 +138,8 @@ impl Robot {
         #[pyo3(from_py_with = truthy)] depth_noise: bool,
         #[pyo3(from_py_with = truthy)] slam: bool,
         overrides: Option<&Bound<'_, PyDict>>,
+        #[pyo3(from_py_with = truthy)] calibration_marker: bool,
+        camera_mount_error: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         let base_cfg = options::checked(base_config, "base_config", &options::BASE_KEYS)?;
         options::checked(arm_config, "arm_config", &options::ARM_KEYS)?;
@@ -164,6 +170,10 @@ impl Robot {
         if let Some(p) = start_pose {
             builder = builder.start_pose(convert::array::<3>(p, "start_pose")?);
         }
+        if let Some(e) = camera_mount_error {
+            builder = builder.camera_mount_error(convert::array::<6>(e, "camera_mount_error")?);
+        }
+        builder = builder.calibration_marker(calibration_marker);
         builder = options::base_controller(py, builder, &base_cfg)?;
         builder = options::pyrobot_ik_tolerances(builder, &source);
         builder = options::apply_overrides(builder, overrides)?;

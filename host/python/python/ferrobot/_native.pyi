@@ -146,6 +146,8 @@ class Robot:
         depth_noise: bool = True,
         slam: bool = False,
         overrides: Optional[Mapping[str, Any]] = None,
+        calibration_marker: bool = False,
+        camera_mount_error: Optional[ArrayLike] = None,
     ) -> None: ...
     @property
     def arm(self) -> Optional[Arm]: ...

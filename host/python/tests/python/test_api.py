@@ -303,3 +303,28 @@ def test_the_base_benchmark_runs_pyrobots_table():
         assert row["successes"] == [2, 2], row
         # Every controller ends within 2 cm and 2 degrees of each target, by either measure.
         assert row["translation_mm"][0] < 20 and row["rotation_deg"][0] < 2, row
+
+
+def test_hand_eye_calibration_finds_the_cameras_true_mount(repo):
+    import yourdfpy
+
+    error = [0.02, 0.0, 0.0, 0.0, 0.0524, 0.0]  # 2 cm forward, 3 degrees of pitch
+    bot = Robot("locobot", calibration_marker=True, camera_mount_error=error)
+    r = ferrobot.calibrate_camera(bot, poses=6, grid=3)
+    c = r["calibration"]
+    assert r["used"] >= 3 and r["rms_px"] < 2.0
+    # The truth: the URDF's mount (read by yourdfpy, not by Ferrobot) moved by the error.
+    urdf = yourdfpy.URDF.load(
+        str(repo / "host/description/robots/locobot.urdf"), load_meshes=False, build_collision_scene_graph=False
+    )
+    nominal = urdf.get_transform(c["child"], c["parent"])
+    shift = np.eye(4)
+    shift[:3, :3] = ferrobot.utils.util.euler_to_rot_mat([error[5], error[4], error[3]])
+    shift[:3, 3] = error[:3]
+    truth = nominal @ shift
+    assert np.linalg.norm(np.array(c["xyz"]) - truth[:3, 3]) < 0.005
+    fitted = ferrobot.utils.util.quat_to_rot_mat(c["quaternion"])
+    angle = np.arccos(np.clip((np.trace(truth[:3, :3].T @ fitted) - 1) / 2, -1, 1))
+    assert np.degrees(angle) < 0.5
+    # The nominal mount is 2 cm and 3 degrees away: the fit is not the URDF's.
+    assert np.linalg.norm(np.array(c["xyz"]) - nominal[:3, 3]) > 0.015

@@ -56,6 +56,7 @@ OPTIONAL = {
     "load_planner",
     "start_slam",
     "Robot start_pose",
+    "Robot camera_mount_error",
     "Robot scene",
 }
 
@@ -109,6 +110,7 @@ def _vector_calls(bot):
         "pix_to_3dpt cols": lambda v: cam.pix_to_3dpt([0] * 5, v),
         "start_slam": bot.start_slam,
         "Robot start_pose": lambda v: Robot("locobot", use_arm=False, start_pose=v),
+        "Robot camera_mount_error": lambda v: Robot("locobot", use_arm=False, camera_mount_error=v),
         "position_control_init_fn": lambda v: ferrobot.locobot.base_control_utils.position_control_init_fn(
             "sharp", [0, 0, 0], v, 0.1, 0.2, 0.4
         ),
@@ -205,6 +207,9 @@ def test_constructor_dictionaries_are_checked():
     for bad in [{"arm.joint_tolerance": float("nan")}, {"arm.joint_tolerance": object()}, {3: 1}]:
         assert _refused(lambda v: Robot("locobot", overrides=v), bad) is not None
     assert _refused(lambda v: Robot("locobot", seed=v), -1) is not None
+    # A mount error beyond MAX_CAMERA_MOUNT_ERROR (0.1 m, 0.5 rad).
+    for bad in ([0.2, 0, 0, 0, 0, 0], [0, 0, 0, 0, 0.6, 0], [0.0] * 6 + [1.0]):
+        assert _refused(lambda v: Robot("locobot", camera_mount_error=v), bad) is not None
     assert _refused(lambda v: Robot("locobot", config_file=v), "/nonexistent.toml") is not None
 
 
