@@ -55,14 +55,17 @@ def test_the_kernels_interrupt_stops_a_motion():
     km, kc = _kernel()
     try:
         _run(kc, "from ferrobot import Robot\nbot = Robot('locobot', use_arm=False, use_camera=False, realtime=True)")
-        # The cell says when the base drives; the interrupt follows that message (a few ms
-        # through the kernel's sockets), by which time the cell waits on the motion.
+        # The cell's main thread blocks in go_to_absolute (5 m: half a minute at the wall
+        # clock's pace); a thread of the cell says when the base drives, so the interrupt
+        # that follows that message comes while the blocking call runs.
         msg_id = kc.execute(
-            "m = bot.base.go_to_absolute([5.0, 0.0, 0.0], wait=False)\n"
-            "while abs(bot.telemetry()['base_velocity'][0]) < 0.1:\n"
-            "    m.done()\n"
-            "print('moving', flush=True)\n"
-            "m.wait()"
+            "import threading, time\n"
+            "def say_when_moving():\n"
+            "    while abs(bot.telemetry()['base_velocity'][0]) < 0.1:\n"
+            "        time.sleep(0.005)\n"
+            "    print('moving', flush=True)\n"
+            "threading.Thread(target=say_when_moving, daemon=True).start()\n"
+            "bot.base.go_to_absolute([5.0, 0.0, 0.0])"
         )
         error, interrupted = None, None
         while True:
