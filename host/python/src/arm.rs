@@ -36,6 +36,37 @@ impl Arm {
         &self.robot
     }
 
+    /// The end effector's URDF frame (`configs.ARM.EE_FRAME`).
+    pub(crate) fn ee_frame(&self) -> &str {
+        self.robot.config().arm.as_ref().map_or("", |a| &a.ee_frame)
+    }
+
+    /// The arm's base frame (`configs.ARM.ARM_BASE_FRAME`).
+    pub(crate) fn base_frame(&self) -> &str {
+        self.robot
+            .config()
+            .arm
+            .as_ref()
+            .map_or("", |a| &a.base_frame)
+    }
+
+    /// `Usage` unless `given` is `expected`, the frame `what` must be.
+    pub(crate) fn expect_frame(
+        &self,
+        py: Python<'_>,
+        given: &str,
+        expected: &str,
+        what: &str,
+    ) -> PyResult<()> {
+        if given == expected {
+            return Ok(());
+        }
+        Err(crate::errors::to_py(
+            py,
+            ferrobot::Error::Usage(format!("{what} {expected:?}, not {given:?}")),
+        ))
+    }
+
     fn joints(&self, obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<f64>> {
         vector(obj, what, None)
     }
@@ -241,11 +272,10 @@ impl Arm {
         py: Python<'py>,
         base_frame: Option<&str>,
     ) -> PyResult<Bound<'py, PyTuple>> {
-        let cfg = self.robot().config().arm.as_ref();
-        let ee = cfg.map(|a| a.ee_frame.clone()).unwrap_or_default();
+        let ee = self.ee_frame();
         let p = match base_frame {
             None => py.detach(|| self.arm.get_ee_pose()).py()?,
-            Some(f) => Pose::from(py.detach(|| self.robot().link_transform(&ee, f)).py()?),
+            Some(f) => Pose::from(py.detach(|| self.robot().link_transform(ee, f)).py()?),
         };
         pose_tuple(py, &p)
     }
@@ -363,21 +393,8 @@ impl Arm {
     ) -> PyResult<Bound<'py, PyAny>> {
         let q = self.joints(joint_positions, "joint_positions")?;
         let qd = self.joints(joint_velocities, "joint_velocities")?;
-        let ee = self
-            .robot()
-            .config()
-            .arm
-            .as_ref()
-            .map(|a| a.ee_frame.clone());
-        if ee.as_deref() != Some(des_frame) {
-            return Err(crate::errors::to_py(
-                py,
-                ferrobot::Error::Usage(format!(
-                    "compute_fk_velocity gives the end effector's twist: des_frame must be {:?}, not {des_frame:?}",
-                    ee.unwrap_or_default()
-                )),
-            ));
-        }
+        let twist_of = "compute_fk_velocity gives the end effector's twist: des_frame must be";
+        self.expect_frame(py, des_frame, self.ee_frame(), twist_of)?;
         let v = py.detach(|| self.arm.compute_fk_velocity(&q, &qd)).py()?;
         Ok(convert::vec1(py, v.to_vec()))
     }
@@ -413,12 +430,9 @@ impl Arm {
     ) -> PyResult<Bound<'py, PyAny>> {
         let q = self.joints(joint_angles, "joint_angles")?;
         let j = py.detach(|| self.arm.get_jacobian(&q)).py()?;
+        // Row-major: the transpose's column-major storage.
         let (rows, cols) = j.shape();
-        let data: Vec<f64> = (0..rows)
-            .flat_map(|r| (0..cols).map(move |c| (r, c)))
-            .map(|(r, c)| j[(r, c)])
-            .collect();
-        convert::shaped(py, data, &[rows, cols])
+        convert::shaped(py, j.transpose().as_slice().to_vec(), &[rows, cols])
     }
 
     fn __repr__(&self) -> String {

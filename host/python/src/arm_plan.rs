@@ -11,7 +11,7 @@ use pyo3::types::{PyDict, PyTuple};
 
 use crate::arm::{finish, orientation, Arm};
 use crate::convert::{self, array, vector};
-use crate::errors::{invalid, to_py, OrRaise};
+use crate::errors::{invalid, OrRaise};
 
 /// A planned arm motion, made without moving: its collision-free path and time-optimal
 /// trajectory. Iterating gives the path's waypoints (rad), as PyRobot's plans did:
@@ -263,37 +263,17 @@ impl Arm {
 }
 
 impl Arm {
+    /// A planning-scene pose's frame: the arm's base frame (PyRobot's ROS names may have a
+    /// leading `/`).
     fn check_frame(&self, py: Python<'_>, frame: Option<&str>) -> PyResult<()> {
-        let base = self
-            .robot
-            .config()
-            .arm
-            .as_ref()
-            .map(|a| a.base_frame.clone());
-        match frame {
-            None => Ok(()),
-            Some(f) if Some(f.trim_start_matches('/')) == base.as_deref() => Ok(()),
-            Some(f) => Err(to_py(
-                py,
-                ferrobot::Error::Usage(format!(
-                    "planning-scene poses are in the arm's base frame {:?}, not {f:?}",
-                    base.unwrap_or_default()
-                )),
-            )),
-        }
+        let Some(f) = frame else { return Ok(()) };
+        let what = "planning-scene poses are in the arm's base frame";
+        self.expect_frame(py, f.trim_start_matches('/'), self.base_frame(), what)
     }
 
+    /// An attached object's link: the end effector.
     fn check_link(&self, py: Python<'_>, link: &str) -> PyResult<()> {
-        let ee = self.robot.config().arm.as_ref().map(|a| a.ee_frame.clone());
-        if Some(link.trim_start_matches('/')) == ee.as_deref() {
-            return Ok(());
-        }
-        Err(to_py(
-            py,
-            ferrobot::Error::Usage(format!(
-                "objects are attached to the end effector {:?}, not {link:?}",
-                ee.unwrap_or_default()
-            )),
-        ))
+        let what = "objects are attached to the end effector";
+        self.expect_frame(py, link.trim_start_matches('/'), self.ee_frame(), what)
     }
 }

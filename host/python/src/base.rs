@@ -26,23 +26,6 @@ pub struct Base {
     controller: Mutex<Option<BaseController>>,
 }
 
-fn controller(py: Python<'_>, name: &str) -> PyResult<BaseController> {
-    Ok(match options::controller_key(name) {
-        Some("ilqr") => BaseController::Ilqr,
-        Some("proportional") => BaseController::Proportional,
-        Some("lqr") => BaseController::Lqr,
-        Some("dwa") => BaseController::Dwa,
-        _ => {
-            return Err(invalid(
-                py,
-                "base_controller",
-                "\"ilqr\", \"proportional\", \"movebase\", \"lqr\" or \"dwa\"",
-                format!("{name:?}"),
-            ))
-        }
-    })
-}
-
 /// PyRobot's `base_planner`: `"none"` or `"movebase"` (planning on a map is `use_map`).
 fn check_planner(py: Python<'_>, name: &str) -> PyResult<()> {
     match name {
@@ -249,7 +232,9 @@ impl Base {
     /// `"movebase"`; Ferrobot's `"lqr"`, `"dwa"`).
     #[pyo3(signature = (base_controller=None))]
     fn load_controller(&self, py: Python<'_>, base_controller: Option<&str>) -> PyResult<()> {
-        *self.controller.lock() = base_controller.map(|c| controller(py, c)).transpose()?;
+        *self.controller.lock() = base_controller
+            .map(|c| options::controller(py, c))
+            .transpose()?;
         Ok(())
     }
 

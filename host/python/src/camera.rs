@@ -2,7 +2,7 @@
 //! head. Images reach numpy without a copy: the arrays own the Rust buffers.
 
 use ferrobot::nav::{Cell, MapImage};
-use ferrobot::perception::PointCloud;
+use ferrobot::perception::{DepthImage, PointCloud, RgbImage};
 use nalgebra::Isometry3;
 use pyo3::prelude::*;
 
@@ -56,40 +56,58 @@ impl Camera {
 
 /// `(trans (3,), rot (3, 3), T (4, 4))`, PyRobot's `get_link_transform`.
 pub fn transform_tuple<'py>(py: Python<'py>, t: &Isometry3<f64>) -> PyResult<Bound<'py, PyAny>> {
-    let m = t.to_homogeneous();
-    let rows: Vec<f64> = (0..4)
-        .flat_map(|r| (0..4).map(move |c| (r, c)))
-        .map(|(r, c)| m[(r, c)])
-        .collect();
-    let rot: Vec<f64> = (0..3)
-        .flat_map(|r| (0..3).map(move |c| (r, c)))
-        .map(|(r, c)| m[(r, c)])
-        .collect();
-    let trans = t.translation.vector;
+    let p = ferrobot::Pose::from(*t);
+    let mut rows = Vec::with_capacity(16);
+    for (row, x) in p.rotation.iter().zip(p.position) {
+        rows.extend(row);
+        rows.push(x);
+    }
+    rows.extend([0.0, 0.0, 0.0, 1.0]);
     Ok(PyTuple::new(
         py,
         [
-            convert::vec1(py, vec![trans.x, trans.y, trans.z]),
-            convert::shaped(py, rot, &[3, 3])?,
+            convert::vec1(py, p.position.to_vec()),
+            convert::mat3(py, p.rotation)?,
             convert::shaped(py, rows, &[4, 4])?,
         ],
     )?
     .into_any())
 }
 
-/// `(points (N, 3) float64 m, colours (N, 3) uint8)`.
-pub fn cloud_tuple(py: Python<'_>, cloud: PointCloud) -> PyResult<Bound<'_, PyAny>> {
-    let n = cloud.points.len();
-    let pts: Vec<f64> = cloud.points.iter().flat_map(|p| [p.x, p.y, p.z]).collect();
-    let cols: Vec<u8> = cloud.colours.concat();
+/// `(points (N, 3) float64 m, colours (N, 3) uint8)` from `n` points' coordinates and
+/// colours, row by row.
+fn points_tuple<'py>(
+    py: Python<'py>,
+    n: usize,
+    pts: Vec<f64>,
+    colours: &[[u8; 3]],
+) -> PyResult<Bound<'py, PyAny>> {
     Ok(PyTuple::new(
         py,
         [
             convert::shaped(py, pts, &[n, 3])?,
-            convert::shaped(py, cols, &[n, 3])?,
+            convert::shaped(py, colours.concat(), &[n, 3])?,
         ],
     )?
     .into_any())
+}
+
+/// A cloud as `(points (N, 3) float64 m, colours (N, 3) uint8)`.
+pub fn cloud_tuple(py: Python<'_>, cloud: PointCloud) -> PyResult<Bound<'_, PyAny>> {
+    let pts: Vec<f64> = cloud.points.iter().flat_map(|p| [p.x, p.y, p.z]).collect();
+    points_tuple(py, cloud.points.len(), pts, &cloud.colours)
+}
+
+/// A colour image as `(H, W, 3)` uint8 (its buffer moved into numpy).
+fn rgb_array(py: Python<'_>, img: RgbImage) -> PyResult<Bound<'_, PyAny>> {
+    let shape = [img.height as usize, img.width as usize, 3];
+    convert::shaped(py, img.data, &shape)
+}
+
+/// A depth image as `(H, W)` float32 m (its buffer moved into numpy).
+fn depth_array(py: Python<'_>, img: DepthImage) -> PyResult<Bound<'_, PyAny>> {
+    let shape = [img.height as usize, img.width as usize];
+    convert::shaped(py, img.data, &shape)
 }
 
 /// `(grid (H, W) uint8: 0 free, 100 occupied, 255 unknown; row 0 at the map's bottom,
@@ -114,30 +132,18 @@ pub fn occupancy_tuple(py: Python<'_>, m: MapImage) -> PyResult<Bound<'_, PyAny>
 impl Camera {
     /// The colour image: `(H, W, 3)` uint8, RGB.
     fn get_rgb<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        let img = py.detach(|| self.camera.get_rgb()).py()?;
-        let (h, w) = (img.height as usize, img.width as usize);
-        convert::shaped(py, img.data, &[h, w, 3])
+        rgb_array(py, py.detach(|| self.camera.get_rgb()).py()?)
     }
 
     /// The depth image, aligned with the colour image: `(H, W)` float32, m (0 where unknown).
     fn get_depth<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        let img = py.detach(|| self.camera.get_depth()).py()?;
-        let (h, w) = (img.height as usize, img.width as usize);
-        convert::shaped(py, img.data, &[h, w])
+        depth_array(py, py.detach(|| self.camera.get_depth()).py()?)
     }
 
     /// Colour and depth of one frame: `(rgb (H, W, 3) uint8, depth (H, W) float32 m)`.
     fn get_rgb_depth<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyTuple>> {
         let (rgb, depth) = py.detach(|| self.camera.get_rgb_depth()).py()?;
-        let (h, w) = (rgb.height as usize, rgb.width as usize);
-        let (dh, dw) = (depth.height as usize, depth.width as usize);
-        PyTuple::new(
-            py,
-            [
-                convert::shaped(py, rgb.data, &[h, w, 3])?,
-                convert::shaped(py, depth.data, &[dh, dw])?,
-            ],
-        )
+        PyTuple::new(py, [rgb_array(py, rgb)?, depth_array(py, depth)?])
     }
 
     /// The intrinsic matrix `K` (3x3, px).
@@ -175,21 +181,12 @@ impl Camera {
         let px = py
             .detach(|| self.camera.pix_to_3dpt(&rows, &cols, in_cam))
             .py()?;
-        let n = px.points.len();
         let pts: Vec<f64> = px
             .points
             .iter()
             .flat_map(|p| p.map_or([f64::NAN; 3], |p| [p.x, p.y, p.z]))
             .collect();
-        let cols: Vec<u8> = px.colours.concat();
-        Ok(PyTuple::new(
-            py,
-            [
-                convert::shaped(py, pts, &[n, 3])?,
-                convert::shaped(py, cols, &[n, 3])?,
-            ],
-        )?
-        .into_any())
+        points_tuple(py, px.points.len(), pts, &px.colours)
     }
 
     /// Pose of URDF frame `src` in frame `tgt`: `(trans (3,), rot (3, 3), T (4, 4))`.

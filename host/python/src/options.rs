@@ -4,6 +4,7 @@
 
 use std::path::PathBuf;
 
+use ferrobot::config::BaseController;
 use ferrobot::{Backend, RobotBuilder};
 use pyo3::prelude::*;
 
@@ -26,16 +27,26 @@ pub const GRIPPER_KEYS: [&str; 1] = ["wait_time"];
 /// `common_config`'s keys: the simulated world's scene (Habitat's `scene_path` in PyRobot).
 pub const COMMON_KEYS: [&str; 2] = ["scene", "scene_path"];
 
-/// The controller a PyRobot `base_controller` names, as the description's key spells it:
-/// PyRobot's `ilqr` and `proportional` are ours; its `movebase` (ROS's planner and local
-/// controller) is the dynamic window approach, Ferrobot's obstacle-aware local controller.
-pub fn controller_key(name: &str) -> Option<&'static str> {
-    Some(match name {
-        "ilqr" => "ilqr",
-        "proportional" => "proportional",
-        "lqr" => "lqr",
-        "movebase" | "dwa" => "dwa",
-        _ => return None,
+/// The controller a PyRobot `base_controller` names: the description's names (PyRobot's
+/// `ilqr` and `proportional` among them, and Ferrobot's `lqr` and `dwa`), and PyRobot's
+/// `movebase` (ROS's planner and local controller), which is the dynamic window approach,
+/// Ferrobot's obstacle-aware local controller. Anything else is `InvalidArgument`.
+pub fn controller(py: Python<'_>, name: &str) -> PyResult<BaseController> {
+    if name == "movebase" {
+        return Ok(BaseController::Dwa);
+    }
+    name.parse().map_err(|_| {
+        let names: Vec<String> = BaseController::ALL
+            .iter()
+            .map(|c| format!("{:?}", c.name()))
+            .chain(["\"movebase\"".to_string()])
+            .collect();
+        invalid(
+            py,
+            "base_controller",
+            &format!("one of {}", names.join(", ")),
+            format!("{name:?}"),
+        )
     })
 }
 
@@ -148,15 +159,7 @@ pub fn base_controller(
     let Some(name) = string(base_cfg, "base_controller")? else {
         return Ok(builder);
     };
-    let key = controller_key(&name).ok_or_else(|| {
-        invalid(
-            py,
-            "base_controller",
-            "\"ilqr\", \"proportional\", \"movebase\", \"lqr\" or \"dwa\"",
-            format!("{name:?}"),
-        )
-    })?;
-    Ok(builder.set("base.controller", key))
+    Ok(builder.set("base.controller", controller(py, &name)?.name()))
 }
 
 /// PyRobot's IK tolerances (its `ARM.IK_POSITION_TOLERANCE` and `ARM.IK_ORIENTATION_TOLERANCE`,

@@ -91,13 +91,8 @@ pub fn calibrate_camera(
             .save(&path)
             .map_err(|e| crate::errors::to_py(py, ferrobot::Error::Io(e)))?;
     }
-    let json = serde_json::to_string(&r.calibration)
-        .map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(e.to_string()))?;
     let d = PyDict::new(py);
-    d.set_item(
-        "calibration",
-        py.import("json")?.call_method1("loads", (json,))?,
-    )?;
+    d.set_item("calibration", to_python(py, &r.calibration)?)?;
     d.set_item("captured", r.captured)?;
     d.set_item("seen", r.seen)?;
     d.set_item("used", r.used)?;
@@ -115,8 +110,8 @@ pub fn calibrate_camera(
 #[pyfunction]
 #[pyo3(signature = (robot="locobot", trials=5, seed=1))]
 pub fn bench_base(py: Python<'_>, robot: &str, trials: usize, seed: u64) -> PyResult<Py<PyAny>> {
-    use ferrobot_skills::base_trials::{jobs, markdown, run_trial, summarize};
-    ferrobot::validate::count("trials", trials, 1..=100)
+    use ferrobot_skills::base_trials::{jobs, markdown, run_trial, summarize, MAX_TRIALS};
+    ferrobot::validate::count("trials", trials, 1..=MAX_TRIALS)
         .map_err(ferrobot::Error::from)
         .py()?;
     let mut done = Vec::new();
@@ -130,12 +125,18 @@ pub fn bench_base(py: Python<'_>, robot: &str, trials: usize, seed: u64) -> PyRe
     }
     let rows = summarize(&done);
     let json: Vec<_> = rows.iter().map(|r| r.json()).collect();
-    let text = serde_json::to_string(&json)
-        .map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(e.to_string()))?;
     let d = PyDict::new(py);
-    d.set_item("rows", py.import("json")?.call_method1("loads", (text,))?)?;
+    d.set_item("rows", to_python(py, &json)?)?;
     d.set_item("markdown", markdown(robot, trials, seed, &rows))?;
     Ok(d.into_any().unbind())
+}
+
+/// A value of the Rust API as Python's dicts and lists: the same fields and names as the
+/// command line's `--json` gives, through its serde form.
+fn to_python<'py>(py: Python<'py>, value: &impl serde::Serialize) -> PyResult<Bound<'py, PyAny>> {
+    let text = serde_json::to_string(value)
+        .map_err(|e| pyo3::exceptions::PyRuntimeError::new_err(e.to_string()))?;
+    py.import("json")?.call_method1("loads", (text,))
 }
 
 /// The bundled robots' names.

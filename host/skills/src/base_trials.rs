@@ -97,6 +97,9 @@ pub fn truth(bot: &Robot) -> Result<[f64; 3]> {
         .ok_or_else(|| Error::Link("the benchmark needs the simulated backend".into()))
 }
 
+/// Most trials per target of a table.
+pub const MAX_TRIALS: usize = 100;
+
 /// One robot's trials: every controller, category and target, `trials` times each, trial k
 /// seeded `seed + k` (the same seeds for every controller).
 pub fn jobs(trials: usize, seed: u64) -> Vec<(BaseController, Category, [f64; 3], u64)> {

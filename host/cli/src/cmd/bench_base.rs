@@ -5,7 +5,9 @@ use std::path::PathBuf;
 
 use ferrobot::odometry_calibration::WheelGeometry;
 use ferrobot::{validate, GoalOptions};
-use ferrobot_cli::base_trials::{jobs, markdown, run_trial, summarize, Row, RowJson, Trial};
+use ferrobot_cli::base_trials::{
+    jobs, markdown, run_trial, summarize, Row, RowJson, Trial, MAX_TRIALS,
+};
 use ferrobot_cli::circle_tracking::{circle_path, paper_circle, CircleRun};
 use ferrobot_cli::odometry_calibration::calibrate_odometry;
 use ferrobot_cli::plot::{Canvas, COLOURS};
@@ -14,9 +16,6 @@ use serde::Serialize;
 
 use super::calibrate_odometry::{calibration_text, CalibrationJson};
 use super::common::print_json;
-
-/// Most trials per target of `bench base`.
-const MAX_TRIALS: usize = 100;
 
 /// `bench base --json`: one robot's table, circle plots and settings, fields in alphabetical
 /// order, here and below (see [`print_json`]).
