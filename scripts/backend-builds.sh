@@ -22,3 +22,6 @@ cargo check --quiet -p ferrobot --example quickstart
 echo "ferrobot (sim): the quickstart builds"
 cargo check --quiet -p ferrobot --no-default-features --features serial --example serial_robot
 echo "ferrobot --no-default-features --features serial: the serial_robot example builds"
+absent "--no-default-features --features direct" ferrobot-sim
+cargo check --quiet -p ferrobot --no-default-features --features direct
+echo "ferrobot --no-default-features --features direct: the host-run firmware builds without the simulator"

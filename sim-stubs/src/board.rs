@@ -120,7 +120,18 @@ impl BoardServer {
     ) -> Result<BoardServer, ServeError> {
         let desc = robots::by_name(robot)
             .ok_or_else(|| ServeError::Sim(SimError::UnknownRobot(robot.into())))?;
-        let hw = Hardware::in_scene(&desc, opts.seed, scene).map_err(ServeError::Scene)?;
+        Self::start_robot(&desc, opts, scene)
+    }
+
+    /// [`BoardServer::start_in`] for the robot `desc` (a description's: its bus at the rate
+    /// the description gives).
+    pub fn start_robot(
+        desc: &robots::SimRobot,
+        opts: BoardOptions,
+        scene: &Scene,
+    ) -> Result<BoardServer, ServeError> {
+        let robot = desc.name.as_str();
+        let hw = Hardware::in_scene(desc, opts.seed, scene).map_err(ServeError::Scene)?;
         let body = desc.body.clone();
         let scene = Arc::new(scene.clone());
         let has_base = hw.base.is_some();

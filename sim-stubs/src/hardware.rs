@@ -58,8 +58,14 @@ impl Hardware {
             BaseModel::Create2 => Some(BasePlant::create2(seed)),
             BaseModel::None => None,
         };
+        let mut chain = ServoChain::new(&desc.servos, &desc.arm, seed);
+        for m in &desc.servos {
+            if let Some(s) = chain.servo_mut(m.id) {
+                s.set_baud_register(desc.bus_baud);
+            }
+        }
         Self {
-            chain: ServoChain::new(&desc.servos, &desc.arm, seed),
+            chain,
             base,
             to_servo: SerialLine::new(desc.bus_baud),
             from_servo: SerialLine::new(desc.bus_baud),

@@ -74,6 +74,17 @@ enum Command {
     /// its telemetry (a stopped control loop), `freeze` and `thaw` stop and restart the
     /// world's clock (the firmware still answers), `stall MS` stops the server for MS.
     SimFirmware(cmd::sim_firmware::Args),
+    /// Serve the host-run firmware of a stock robot (the firmware core on this computer, the
+    /// servo bus and the base on the robot's own USB cables: a U2D2, the base's cable) on a
+    /// PTY behind the symlink LINK, for the serial backend, after the hardware check has
+    /// passed. Prints one JSON line (the link and the check's report) and serves until
+    /// standard input closes.
+    Drive(cmd::drive::Args),
+    /// The robot's own hardware.
+    Hardware {
+        #[command(subcommand)]
+        which: HardwareCommand,
+    },
     /// One base motion on the simulated robot, from rest at the origin.
     BaseMove(cmd::base_move::Args),
     /// Calibrate the simulated base's odometry (UMBmark squares both ways and a 2 m line,
@@ -129,6 +140,15 @@ enum Command {
 }
 
 #[derive(Subcommand)]
+enum HardwareCommand {
+    /// Before anything moves: find the devices of the robot's `[direct]` section (by path,
+    /// udev link or USB IDs), ping every servo the description names and read its model,
+    /// firmware, baud, mode, voltage and temperature, hear the base and its battery, and
+    /// print a table of what is wrong and how to fix it. Fails when a row is a fault.
+    Check(cmd::hardware::Args),
+}
+
+#[derive(Subcommand)]
 enum BenchCommand {
     /// PyRobot's base accuracy trials (Table 1) for every controller, against ground truth
     /// and odometry, plus the circle-tracking plot per base.
@@ -167,6 +187,10 @@ fn run(cli: Cli) -> Result<(), (ferrobot::Error, bool)> {
         Command::Ik(a) => (cmd::ik::run(&a), a.json),
         // Its one line on standard output is JSON, and so are its errors.
         Command::SimFirmware(a) => (cmd::sim_firmware::run(&a), true),
+        Command::Drive(a) => (cmd::drive::run(&a), true),
+        Command::Hardware {
+            which: HardwareCommand::Check(a),
+        } => (cmd::hardware::run(&a), a.json),
         Command::BaseMove(a) => (cmd::base_move::run(&a), a.json),
         Command::CalibrateOdometry(a) => (cmd::calibrate_odometry::run(&a), a.json),
         Command::Bench { which } => run_bench(which),

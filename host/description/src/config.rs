@@ -24,6 +24,8 @@ pub struct RobotConfig {
     pub board_profile: Option<String>,
     /// `[bus]`.
     pub bus: BusSection,
+    /// `[direct]`: the stock robot's own cables, for the host-run firmware.
+    pub direct: Option<crate::direct::DirectSection>,
     /// The parsed URDF.
     pub urdf: urdf_rs::Robot,
     /// The URDF's file name as the configuration gives it (relative to the configuration).
@@ -175,6 +177,16 @@ impl RobotConfig {
         // origins, then the tree: one root, no cycle, every link on it).
         checks.urdf(file, &urdf)?;
         crate::validate::validate(raw, urdf, file, checks)
+    }
+
+    /// The configuration as the host-run firmware runs it (`[direct]`'s bus in place of
+    /// `[bus]`), or `None` for a robot without a `[direct]` section.
+    pub fn direct_config(&self) -> Option<RobotConfig> {
+        let direct = self.direct.as_ref()?;
+        Some(RobotConfig {
+            bus: direct.bus(),
+            ..self.clone()
+        })
     }
 
     /// Index of a joint in the firmware's table.

@@ -14,6 +14,7 @@ pub mod base;
 pub mod camera_mount;
 pub mod checks;
 pub mod config;
+pub mod direct;
 pub mod error;
 pub mod files;
 pub mod joints;
@@ -24,6 +25,7 @@ pub use base::{BaseController, BaseModel, BaseSection, OdometrySection};
 pub use camera_mount::{CameraCalibration, CameraMount};
 pub use checks::{Checks, DescriptionOnly, JointEntry};
 pub use config::{ConfigSource, RobotConfig};
+pub use direct::{DeviceSection, DirectSection};
 pub use error::{config_error, in_range, Error, Result};
 pub use files::{bundled_files, read_bytes, read_text, BUNDLED, MAX_CONFIG_BYTES, MAX_URDF_BYTES};
 pub use joints::{

@@ -236,6 +236,7 @@ pub(crate) struct ConfigFile {
     pub(crate) camera: Option<CameraSection>,
     pub(crate) base: Option<BaseSection>,
     pub(crate) bus: Option<BusSection>,
+    pub(crate) direct: Option<crate::direct::DirectSection>,
     #[serde(rename = "joint", default)]
     pub(crate) joints: Vec<JointSection>,
     pub(crate) sim: Option<SimSection>,

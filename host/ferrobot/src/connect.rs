@@ -59,7 +59,7 @@ pub(crate) fn connect(
             )
         }
         #[cfg(feature = "emulated")]
-        Backend::Emulated { firmware } => {
+        Backend::Emulated { .. } | Backend::DirectEmulated => {
             let camera = cfg
                 .camera
                 .clone()
@@ -71,14 +71,38 @@ pub(crate) fn connect(
                     mount_error: world.mount_error,
                     marker: world.marker,
                 });
-            let link = crate::backend::emulated::EmulatedLink::start_in(
-                &cfg.name,
-                firmware,
-                world.scene.clone(),
-                camera,
-            )?;
+            let link = match &backend {
+                Backend::Emulated { firmware } => crate::backend::emulated::EmulatedLink::start_in(
+                    &cfg.name,
+                    firmware,
+                    world.scene.clone(),
+                    camera,
+                )?,
+                _ => crate::backend::emulated::EmulatedLink::start_host_run(
+                    cfg,
+                    world.scene.clone(),
+                    camera,
+                )?,
+            };
             let socket = link.camera.as_ref().map(|c| c.path.clone());
             (Box::new(link), socket)
+        }
+        #[cfg(feature = "direct")]
+        Backend::Direct {
+            servo,
+            base,
+            camera,
+        } => {
+            use crate::backend::direct::{check::Devices, temp_link, DirectLink, HostLink, Ports};
+            let ports = Ports {
+                host: HostLink::Serve(temp_link("direct")),
+                devices: Devices {
+                    servo: servo.clone(),
+                    base: base.clone(),
+                },
+                clock: None,
+            };
+            (Box::new(DirectLink::start(cfg, &ports)?), camera.clone())
         }
     };
     let uses_camera = uses_camera && cfg.camera.is_some();

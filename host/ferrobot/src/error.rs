@@ -200,6 +200,15 @@ pub enum Error {
         /// Frames in a row without a confirmed pose.
         frames: usize,
     },
+    /// The hardware check of a robot on its own cables failed: nothing moves until it passes
+    /// (`ferrobot hardware check ROBOT` prints the table with the fixes).
+    #[error("the hardware check failed: {}; nothing moves until it passes", faults.join("; "))]
+    HardwareCheck {
+        /// Each fault with its fix.
+        faults: Vec<String>,
+        /// The whole table, as `ferrobot hardware check` prints it.
+        table: String,
+    },
     /// A path the program would create already exists: nothing is removed or replaced.
     #[error("{} already exists; refusing to replace it", path.display())]
     PathExists {

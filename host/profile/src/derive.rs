@@ -95,6 +95,16 @@ pub fn firmware_profile(cfg: &RobotConfig) -> RobotProfile {
     }
 }
 
+/// The firmware profile the host-run firmware runs for `cfg` (its `[direct]` section: the
+/// adapter's bit rate, the host's loop period, the USB round trip in every reply's margin),
+/// or `None` for a robot without one.
+pub fn direct_profile(cfg: &RobotConfig) -> Option<RobotProfile> {
+    let direct = cfg.direct.as_ref()?;
+    let mut profile = firmware_profile(&cfg.direct_config()?);
+    profile.bus.reply_margin = Duration::from_micros(u64::from(direct.reply_margin_us));
+    Some(profile)
+}
+
 /// The base kind of `cfg` as the protocol names it.
 pub fn base_kind(cfg: &RobotConfig) -> BaseKind {
     match cfg.base.as_ref().map(|b| b.kind) {

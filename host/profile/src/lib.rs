@@ -17,7 +17,7 @@ use ferrobot_description::{ConfigSource, Result, RobotConfig};
 
 pub use checks::ProfileChecks;
 pub use derive::{
-    arm_chain, base_kind, firmware_profile, gripper_driver, joint_row, joint_table,
+    arm_chain, base_kind, direct_profile, firmware_profile, gripper_driver, joint_row, joint_table,
     nominal_geometry, odometry_geometry,
 };
 

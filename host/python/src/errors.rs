@@ -130,6 +130,7 @@ pub fn to_py(py: Python<'_>, e: Error) -> PyErr {
             fields![py; config, config_base, firmware, firmware_base],
         ),
         Error::SlamLost { frames } => ("SlamLost", fields![py; frames]),
+        Error::HardwareCheck { faults, table } => ("HardwareCheck", fields![py; faults, table]),
         Error::PathExists { path } => {
             let path = path.display().to_string();
             ("PathExists", fields![py; path])

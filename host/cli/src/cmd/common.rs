@@ -102,7 +102,9 @@ pub use ferrobot::backend::emulated::DEFAULT_FIRMWARE;
 #[derive(clap::Args, Debug, Clone)]
 pub struct BackendArgs {
     /// sim (in-process simulator, the default), emulated (the real firmware in QEMU with
-    /// simulated plants; --firmware) or serial (a board or `ferrobot sim-firmware` on --port).
+    /// simulated plants; --firmware), serial (a board or `ferrobot sim-firmware` on --port),
+    /// direct (the host-run firmware on the robot's own cables; --servo, --base, --camera) or
+    /// direct-emulated (the host-run firmware on emulated devices).
     #[arg(long, value_enum, default_value_t = BackendKind::Sim)]
     pub backend: BackendKind,
     /// The board firmware's ELF for --backend emulated.
@@ -114,6 +116,16 @@ pub struct BackendArgs {
     /// Seed of the simulated plants' noise (sim backend).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// The servo bus's device for --backend direct (default: the description's).
+    #[arg(long)]
+    pub servo: Option<std::path::PathBuf>,
+    /// The base's device for --backend direct (default: the description's).
+    #[arg(long)]
+    pub base: Option<std::path::PathBuf>,
+    /// A camera server's Unix socket for --backend direct (a RealSense served by
+    /// host/peers/realsense/serve_realsense.py).
+    #[arg(long)]
+    pub camera: Option<std::path::PathBuf>,
 }
 
 /// The kinds of backend a tool can drive ([`BackendArgs`]).
@@ -125,6 +137,10 @@ pub enum BackendKind {
     Emulated,
     /// A serial port.
     Serial,
+    /// The host-run firmware on the robot's own cables.
+    Direct,
+    /// The host-run firmware on emulated devices.
+    DirectEmulated,
 }
 
 impl BackendArgs {
@@ -145,6 +161,12 @@ impl BackendArgs {
             BackendKind::Emulated => ferrobot::Backend::Emulated {
                 firmware: self.firmware.clone(),
             },
+            BackendKind::Direct => ferrobot::Backend::Direct {
+                servo: self.servo.clone(),
+                base: self.base.clone(),
+                camera: self.camera.clone(),
+            },
+            BackendKind::DirectEmulated => ferrobot::Backend::DirectEmulated,
             BackendKind::Serial => ferrobot::Backend::Serial {
                 path: self.port.clone().ok_or_else(|| {
                     ferrobot::Error::Usage("--backend serial needs --port".into())

@@ -152,3 +152,60 @@ pub(super) fn bus(bus: &BusSection, file: &Path, checks: &dyn Checks) -> Result<
     num(file, "bus.baud", bus.baud as f64, 9600.0, 10_500_000.0)?;
     checks.bus(file, bus)
 }
+
+/// `[direct]`: its devices' rates, the host loop (the [`Checks`] see it as a bus) and the
+/// reply margin; a base cable only on a robot with a `[base]`, and one there.
+pub(super) fn direct(
+    d: &crate::direct::DirectSection,
+    has_base: bool,
+    file: &Path,
+    checks: &dyn Checks,
+) -> Result<()> {
+    num(
+        file,
+        "direct.servo.baud",
+        d.servo.baud as f64,
+        9600.0,
+        10_500_000.0,
+    )?;
+    if let Some(b) = &d.base {
+        num(
+            file,
+            "direct.base.baud",
+            b.baud as f64,
+            9600.0,
+            10_500_000.0,
+        )?;
+    }
+    for (key, dev) in [
+        ("direct.servo.usb", Some(&d.servo)),
+        ("direct.base.usb", d.base.as_ref()),
+    ] {
+        if let Some(dev) = dev.filter(|dev| dev.usb.is_some() && dev.usb_ids().is_none()) {
+            return Err(cfg_err(
+                file,
+                key,
+                format!("{:?} is not a USB ID pair \"vvvv:pppp\" in hex", dev.usb),
+            ));
+        }
+    }
+    num(
+        file,
+        "direct.reply_margin_us",
+        d.reply_margin_us as f64,
+        0.0,
+        100_000.0,
+    )?;
+    if d.base.is_some() != has_base {
+        return Err(cfg_err(
+            file,
+            "direct.base",
+            if has_base {
+                "the robot has a [base]: say which cable drives it"
+            } else {
+                "the robot has no [base] for this cable to drive"
+            },
+        ));
+    }
+    checks.bus(file, &d.bus())
+}

@@ -38,6 +38,9 @@ pub(crate) fn validate(
     }
     let bus = raw.bus.unwrap_or_default();
     joints::bus(&bus, file, checks)?;
+    if let Some(d) = &raw.direct {
+        joints::direct(d, raw.base.is_some(), file, checks)?;
+    }
     if let Some(c) = &raw.collision {
         collision::check(c, &urdf, file)?;
     }
@@ -46,6 +49,7 @@ pub(crate) fn validate(
         file: file.to_path_buf(),
         board_profile: raw.board_profile,
         bus,
+        direct: raw.direct,
         urdf_file: raw.urdf,
         collision: raw.collision,
         urdf,

@@ -114,10 +114,25 @@ pub fn start_qemu(elf: &Path, ports: &BoardPorts, log: &Path) -> Result<(Child, 
     Ok((qemu, err))
 }
 
-/// QEMU and the plants of one emulated robot; QEMU is killed when dropped.
+/// The firmware of an emulated board: the board's ELF in QEMU, or the firmware core run on
+/// this machine (the host-run firmware of a stock robot, on emulated devices).
+enum BoardFirmware {
+    Qemu { child: Child, stderr: Stderr },
+    HostRun(super::direct::HostRunFirmware),
+}
+
+/// The emulated devices of `server` as the host-run firmware opens them: its servo bus and
+/// base ports.
+pub fn server_devices(server: &BoardServer) -> super::direct::check::Devices {
+    super::direct::check::Devices {
+        servo: Some(server.board.servo_bus.clone().into()),
+        base: server.board.base.clone().map(Into::into),
+    }
+}
+
+/// The firmware and the plants of one emulated robot; QEMU is killed when dropped.
 pub struct EmulatedBoard {
-    qemu: Child,
-    qemu_stderr: Stderr,
+    firmware: BoardFirmware,
     /// The plants and their clock (ground truth, fault injection, diagnostics).
     pub server: BoardServer,
     /// The firmware's defmt log (UART3), a file.
@@ -154,13 +169,52 @@ impl EmulatedBoard {
             ferrobot_sim::serve::ServeError::Scene(e) => Error::Scene(e),
             e => Error::Link(format!("plants: {e}")),
         })?;
-        let (qemu, qemu_stderr) = start_qemu(firmware, &server.board, &log)?;
-        let mut board = EmulatedBoard {
-            qemu,
-            qemu_stderr,
+        let (child, stderr) = start_qemu(firmware, &server.board, &log)?;
+        let board = EmulatedBoard {
+            firmware: BoardFirmware::Qemu { child, stderr },
             server,
             log,
         };
+        board.booted(&firmware.display().to_string())
+    }
+
+    /// The host-run firmware of `cfg` (its `[direct]` section: the stock robot's cables) on
+    /// emulated devices: the plants of `cfg`'s robot in `scene` behind pseudo-terminals, the
+    /// firmware core on this machine on their clock.
+    pub fn start_host_run(
+        cfg: &crate::config::RobotConfig,
+        scene: std::sync::Arc<ferrobot_sim::scene::Scene>,
+    ) -> Result<EmulatedBoard> {
+        let direct = cfg.direct_config().ok_or_else(|| {
+            Error::Usage(format!(
+                "{} has no [direct] section: it has no host-run firmware",
+                cfg.name
+            ))
+        })?;
+        let desc = ferrobot_sim::robots::from_description(&direct);
+        let server = BoardServer::start_robot(&desc, BoardOptions::default(), &scene).map_err(
+            |e| match e {
+                ferrobot_sim::serve::ServeError::Scene(e) => Error::Scene(e),
+                e => Error::Link(format!("plants: {e}")),
+            },
+        )?;
+        let ports = super::direct::Ports {
+            host: super::direct::HostLink::Open(server.board.host.clone().into()),
+            devices: server_devices(&server),
+            clock: Some(server.board.clock.clone().into()),
+        };
+        let firmware = super::direct::HostRunFirmware::start(cfg, &ports)?;
+        let board = EmulatedBoard {
+            firmware: BoardFirmware::HostRun(firmware),
+            server,
+            log: PathBuf::new(),
+        };
+        board.booted("the host-run firmware")
+    }
+
+    /// Wait for the firmware (`what`) to report on its clock link.
+    fn booted(mut self, what: &str) -> Result<EmulatedBoard> {
+        let board = &mut self;
         let deadline = Instant::now() + BOOT_TIMEOUT;
         while !board.server.board_reported() {
             if let Some(why) = board.qemu_exited() {
@@ -168,15 +222,14 @@ impl EmulatedBoard {
             }
             if Instant::now() >= deadline {
                 return Err(Error::Link(format!(
-                    "{} did not report on its virtual-time link within {BOOT_TIMEOUT:?}; \
+                    "{what} did not report on its virtual-time link within {BOOT_TIMEOUT:?}; \
                      QEMU said: {:?}",
-                    firmware.display(),
                     board.qemu_stderr()
                 )));
             }
             std::thread::sleep(Duration::from_millis(5));
         }
-        Ok(board)
+        Ok(self)
     }
 
     /// [`EmulatedBoard::start_with`] with seed 1, real-time pace and a log in the temporary
@@ -187,14 +240,18 @@ impl EmulatedBoard {
         Self::start_with(robot, firmware, BoardOptions::default(), log)
     }
 
-    /// `Some(why)` once QEMU has exited.
+    /// `Some(why)` once the firmware has stopped (QEMU exited).
     pub fn qemu_exited(&mut self) -> Option<String> {
-        match self.qemu.try_wait() {
+        let (child, stderr) = match &mut self.firmware {
+            BoardFirmware::Qemu { child, stderr } => (child, stderr),
+            BoardFirmware::HostRun(f) => return f.stopped(),
+        };
+        match child.try_wait() {
             Ok(Some(status)) => {
-                self.qemu_stderr.finish();
+                stderr.finish();
                 Some(format!(
                     "QEMU exited ({status}): {}",
-                    self.qemu_stderr().join(" / ")
+                    stderr.lines().join(" / ")
                 ))
             }
             Ok(None) => None,
@@ -202,16 +259,21 @@ impl EmulatedBoard {
         }
     }
 
-    /// What QEMU printed on standard error so far.
+    /// What QEMU printed on standard error so far (nothing for the host-run firmware).
     pub fn qemu_stderr(&self) -> Vec<String> {
-        self.qemu_stderr.lines()
+        match &self.firmware {
+            BoardFirmware::Qemu { stderr, .. } => stderr.lines(),
+            BoardFirmware::HostRun(_) => Vec::new(),
+        }
     }
 }
 
 impl Drop for EmulatedBoard {
     fn drop(&mut self) {
-        let _ = self.qemu.kill();
-        let _ = self.qemu.wait();
+        if let BoardFirmware::Qemu { child, .. } = &mut self.firmware {
+            let _ = child.kill();
+            let _ = child.wait();
+        }
     }
 }
 
@@ -249,9 +311,31 @@ impl EmulatedLink {
         let tag = format!("ferrobot-emulated-{}-{n}", std::process::id());
         let log = std::env::temp_dir().join(format!("{tag}.defmt"));
         let board = EmulatedBoard::start_in(robot, firmware, BoardOptions::default(), log, scene)?;
+        Self::connect(board, camera)
+    }
+}
+
+impl EmulatedLink {
+    /// The host-run firmware of `cfg` on emulated devices in `scene`
+    /// ([`EmulatedBoard::start_host_run`]), its camera (`camera`) served on a Unix socket,
+    /// and the serial backend connected to it.
+    pub fn start_host_run(
+        cfg: &crate::config::RobotConfig,
+        scene: std::sync::Arc<ferrobot_sim::scene::Scene>,
+        camera: Option<ferrobot_sim::camera_server::CameraOptions>,
+    ) -> Result<Self> {
+        let board = EmulatedBoard::start_host_run(cfg, scene)?;
+        Self::connect(board, camera)
+    }
+
+    /// Serve `board`'s camera and connect to its host link.
+    fn connect(
+        board: EmulatedBoard,
+        camera: Option<ferrobot_sim::camera_server::CameraOptions>,
+    ) -> Result<Self> {
         let camera = match camera {
             Some(c) => {
-                let path = std::env::temp_dir().join(format!("{tag}.camera"));
+                let path = super::direct::temp_link("camera");
                 Some(
                     board
                         .server
@@ -268,9 +352,7 @@ impl EmulatedLink {
             board,
         })
     }
-}
 
-impl EmulatedLink {
     /// The simulated plants' ground truth now.
     pub fn truth(&self) -> ferrobot_sim::lockstep::Truth {
         self.board.server.truth()

@@ -8,10 +8,14 @@
 //!   firmware process behind a PTY). One I/O thread owns the port.
 //! * [`Backend::Emulated`]: the real board firmware in QEMU with the simulated plants, started
 //!   in one call, over the serial backend.
+//! * [`Backend::Direct`]: the host-run firmware on a stock robot's own serial devices;
+//!   [`Backend::DirectEmulated`] the same on the simulated plants' emulated devices.
 
 #[cfg(feature = "serial")]
 pub mod camera_socket;
 pub mod device;
+#[cfg(feature = "direct")]
+pub mod direct;
 #[cfg(feature = "emulated")]
 pub mod emulated;
 #[cfg(feature = "serial")]
@@ -56,6 +60,25 @@ pub enum Backend {
         /// Path of the board's ELF, e.g. [`emulated::DEFAULT_FIRMWARE`].
         firmware: PathBuf,
     },
+    /// The host-run firmware on a stock robot's own cables (cargo feature `direct`): the
+    /// firmware core on this computer, its servo bus and base on the serial devices of the
+    /// description's `[direct]` section (a U2D2, the base's cable), after the hardware check
+    /// has passed ([`direct::check`]).
+    #[cfg(feature = "direct")]
+    Direct {
+        /// The servo bus's device, if not the description's.
+        servo: Option<PathBuf>,
+        /// The base's device, if not the description's.
+        base: Option<PathBuf>,
+        /// The Unix socket of a camera server (a RealSense served by
+        /// `host/peers/realsense/serve_realsense.py`), if the robot's camera is to be read.
+        camera: Option<PathBuf>,
+    },
+    /// The host-run firmware on emulated devices: the simulated plants behind
+    /// pseudo-terminals at the stock robot's rates, on one clock with the firmware (cargo
+    /// feature `emulated`). What `Direct` does on a robot, on none.
+    #[cfg(feature = "emulated")]
+    DirectEmulated,
 }
 
 #[cfg(feature = "sim")]

@@ -39,6 +39,7 @@ __all__ = [
     "Link",
     "Usage",
     "SlamLost",
+    "HardwareCheck",
     "PathExists",
     "Scene",
     "Perception",
@@ -174,6 +175,11 @@ class Usage(Error, ValueError):
 
 class SlamLost(Error):
     """SLAM has no confirmed pose for the last ``frames`` frames."""
+
+
+class HardwareCheck(Error):
+    """The hardware check of a robot on its own cables failed; nothing moves until it passes.
+    ``faults`` (each with its fix) and ``table`` (as ``ferrobot hardware check`` prints it)."""
 
 
 class PathExists(Error, FileExistsError):

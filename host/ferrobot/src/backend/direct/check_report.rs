@@ -1,0 +1,267 @@
+//! The hardware check's findings: a row per device, servo and base, each with what is wrong
+//! and how to fix it, and the table `ferrobot hardware check` prints.
+
+use std::fmt;
+use std::path::PathBuf;
+
+use serde::Serialize;
+
+/// How bad a row is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub enum Severity {
+    /// As the description says.
+    Ok,
+    /// Runs, but worth fixing.
+    Warning,
+    /// Nothing moves until it is fixed.
+    Fault,
+}
+
+/// What is wrong, with what the fix needs.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[non_exhaustive]
+pub enum Problem {
+    /// The robot has no `[direct]` section: no stock cables to check.
+    NoDirectSection(String),
+    /// No device at the path, and no adapter with the section's USB IDs either.
+    DeviceMissing {
+        /// Which device.
+        what: &'static str,
+        /// Where it was looked for.
+        path: PathBuf,
+    },
+    /// The adapter is plugged in, but its udev link is missing.
+    UdevLinkMissing {
+        /// The link the description names.
+        link: PathBuf,
+        /// Where the adapter is.
+        device: PathBuf,
+    },
+    /// This user may not open the device.
+    Permission(PathBuf),
+    /// The device would not open for another reason (another program has it).
+    DeviceBusy(PathBuf, String),
+    /// No servo answers at any rate.
+    BusSilent(PathBuf),
+    /// The servos answer at another rate than the description's.
+    WrongBaud {
+        /// Where they answer, bit/s.
+        found: u32,
+        /// The description's, bit/s.
+        expected: u32,
+    },
+    /// A servo the description names does not answer.
+    ServoMissing(u8),
+    /// A servo of another model than the description's.
+    WrongModel {
+        /// Its ID.
+        id: u8,
+        /// The model number it reports.
+        found: u16,
+        /// The description's.
+        expected: u16,
+    },
+    /// A servo reports a hardware error (its alert bit).
+    HardwareAlert(u8),
+    /// A servo's input voltage is outside its range.
+    Voltage {
+        /// Its ID.
+        id: u8,
+        /// Its input voltage, V.
+        volts: f64,
+    },
+    /// A servo runs hot.
+    Hot {
+        /// Its ID.
+        id: u8,
+        /// Its temperature, °C.
+        celsius: u8,
+    },
+    /// A servo's Baud Rate register disagrees with the rate it answers at.
+    BaudRegister {
+        /// Its ID.
+        id: u8,
+        /// The register's code.
+        code: u8,
+        /// The bus's rate, bit/s.
+        baud: u32,
+    },
+    /// No base at the path.
+    NoBase(PathBuf),
+    /// The base's device opens, but the base says nothing.
+    BaseSilent(PathBuf),
+    /// The base's battery is low, V.
+    BatteryLow(f64),
+}
+
+impl fmt::Display for Problem {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        use Problem::*;
+        match self {
+            NoDirectSection(r) => write!(f, "{r} has no [direct] section: it runs on a board"),
+            DeviceMissing { what, path } => write!(
+                f,
+                "no {what} at {}: plug its USB cable in, or name the device (--servo/--base)",
+                path.display()
+            ),
+            UdevLinkMissing { link, device } => write!(
+                f,
+                "the adapter is at {} but {} is missing: install the udev rules \
+                 (sudo cp scripts/udev/99-ferrobot.rules /etc/udev/rules.d/ && sudo udevadm \
+                 control --reload && sudo udevadm trigger) or pass the device",
+                device.display(),
+                link.display()
+            ),
+            Permission(p) => write!(
+                f,
+                "no permission to open {}: sudo usermod -aG dialout $USER, then log in again \
+                 (or install scripts/udev/99-ferrobot.rules)",
+                p.display()
+            ),
+            DeviceBusy(p, why) => write!(
+                f,
+                "{} will not open ({why}): is another program (a ROS driver, a terminal) using it?",
+                p.display()
+            ),
+            BusSilent(p) => write!(
+                f,
+                "no servo answers on {} at any rate: check the servos' power (12 V) and the \
+                 cable from the U2D2",
+                p.display()
+            ),
+            WrongBaud { found, expected } => write!(
+                f,
+                "the servos answer at {found} bit/s, the description says {expected}: set \
+                 them to {expected} with ROBOTIS' Dynamixel Wizard, or set [direct].servo.baud"
+            ),
+            ServoMissing(id) => write!(
+                f,
+                "servo {id} does not answer: check its cable and ID (Dynamixel Wizard)"
+            ),
+            WrongModel {
+                id,
+                found,
+                expected,
+            } => write!(
+                f,
+                "servo {id} is model {found}, the description says {expected}: fix the \
+                 joint's servo.model or the wiring"
+            ),
+            HardwareAlert(id) => write!(
+                f,
+                "servo {id} reports a hardware error: power-cycle it, and look at its load"
+            ),
+            Voltage { id, volts } => write!(
+                f,
+                "servo {id} sees {volts:.1} V (10-14.8 V): check the power supply"
+            ),
+            Hot { id, celsius } => write!(f, "servo {id} is at {celsius} °C: let it cool"),
+            BaudRegister { id, code, baud } => write!(
+                f,
+                "servo {id}'s Baud Rate register is {code}, not the code of {baud} bit/s"
+            ),
+            NoBase(p) => write!(
+                f,
+                "no base at {}: plug the base's USB cable in and switch the base on",
+                p.display()
+            ),
+            BaseSilent(p) => write!(
+                f,
+                "the base's cable is at {} but the base says nothing: switch the base on",
+                p.display()
+            ),
+            BatteryLow(v) => write!(f, "the base's battery is at {v:.1} V: charge it"),
+        }
+    }
+}
+
+/// One finding.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Row {
+    /// What was checked: a device, a servo, the base.
+    pub subject: String,
+    /// What was read.
+    pub reading: String,
+    /// How bad it is.
+    pub severity: Severity,
+    /// What is wrong, if anything.
+    pub problem: Option<Problem>,
+}
+
+impl Row {
+    /// A row as it should be.
+    pub fn ok(subject: &str, reading: &str) -> Row {
+        Self::new(subject, reading, Severity::Ok, None)
+    }
+
+    /// A row worth fixing.
+    pub fn warning(subject: &str, reading: &str, p: Problem) -> Row {
+        Self::new(subject, reading, Severity::Warning, Some(p))
+    }
+
+    /// A row that stops the robot from moving.
+    pub fn fault(subject: &str, reading: &str, p: Problem) -> Row {
+        Self::new(subject, reading, Severity::Fault, Some(p))
+    }
+
+    fn new(subject: &str, reading: &str, severity: Severity, problem: Option<Problem>) -> Row {
+        Row {
+            subject: subject.into(),
+            reading: reading.into(),
+            severity,
+            problem,
+        }
+    }
+}
+
+/// The check of one robot.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Report {
+    /// The robot's name.
+    pub robot: String,
+    /// The findings, devices first.
+    pub rows: Vec<Row>,
+}
+
+impl Report {
+    /// Whether no row is a fault: the robot may move.
+    pub fn passed(&self) -> bool {
+        self.rows.iter().all(|r| r.severity != Severity::Fault)
+    }
+
+    /// The problems of the rows that are faults.
+    pub fn faults(&self) -> Vec<&Problem> {
+        self.rows
+            .iter()
+            .filter(|r| r.severity == Severity::Fault)
+            .filter_map(|r| r.problem.as_ref())
+            .collect()
+    }
+}
+
+impl fmt::Display for Report {
+    /// The table: subject, status, reading; then each problem with its fix.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let w = self.rows.iter().map(|r| r.subject.len()).max().unwrap_or(0);
+        writeln!(f, "hardware check of {}", self.robot)?;
+        for r in &self.rows {
+            let status = match r.severity {
+                Severity::Ok => "ok",
+                Severity::Warning => "WARN",
+                Severity::Fault => "FAULT",
+            };
+            writeln!(f, "  {:w$}  {status:5}  {}", r.subject, r.reading)?;
+        }
+        for r in self.rows.iter().filter(|r| r.problem.is_some()) {
+            if let Some(p) = &r.problem {
+                writeln!(f, "  - {}: {p}", r.subject)?;
+            }
+        }
+        let verdict = if self.passed() {
+            "passed: the robot may move"
+        } else {
+            "FAILED: nothing moves until the faults are fixed"
+        };
+        write!(f, "{verdict}")
+    }
+}
