@@ -24,6 +24,9 @@ use crate::serve::ServeError;
 mod ports;
 mod report;
 mod run_loop;
+mod wiring;
+
+pub use wiring::Wiring;
 
 use ports::{pty, Ports};
 use report::LinkTrace;
@@ -89,6 +92,8 @@ struct Inner {
     /// Simulated time the clock holds at (µs), until raised.
     hold_at: u64,
     stopped: Option<String>,
+    /// The plant lines' cables, as a test sets them.
+    wiring: Wiring,
 }
 
 /// The plants of an emulated robot, served to its firmware in QEMU on one clock.
@@ -135,6 +140,7 @@ impl BoardServer {
         let body = desc.body.clone();
         let scene = Arc::new(scene.clone());
         let has_base = hw.base.is_some();
+        let baud = [desc.bus_baud, crate::hardware::BASE_BAUD];
         let board_host = pty(true)?;
         let servo = pty(true)?;
         let base = if has_base { Some(pty(true)?) } else { None };
@@ -162,12 +168,13 @@ impl BoardServer {
             paced_behind: 0,
             hold_at: u64::MAX,
             stopped: None,
+            wiring: Wiring::new(&servo.path, base.as_ref().map(|b| b.path.as_str()), baud)
+                .map_err(ServeError::Io)?,
         }));
         let quit = Arc::new(AtomicBool::new(false));
         let ports = Ports {
             board_host,
-            servo,
-            base,
+            lines: [Some(servo), base],
             clock,
             host,
         };
@@ -292,6 +299,18 @@ impl BoardServer {
         false
     }
 
+    /// The plant lines' cables ([`Wiring`]): their stable links, plugged or not, and the rate
+    /// their devices listen at.
+    pub fn wiring(&self) -> Wiring {
+        self.lock().wiring.clone()
+    }
+
+    /// Change the plant lines' cables (fault injection): the server unplugs and plugs them
+    /// at its next pass.
+    pub fn rewire(&self, f: impl FnOnce(&mut Wiring)) {
+        f(&mut self.lock().wiring);
+    }
+
     /// Let the clock run freely again after [`BoardServer::run_to`].
     pub fn release(&self) {
         self.lock().hold_at = u64::MAX;
@@ -329,5 +348,6 @@ impl Drop for BoardServer {
         if let Some(t) = self.thread.take() {
             let _ = t.join();
         }
+        self.lock().wiring.remove_links();
     }
 }

@@ -143,6 +143,12 @@ impl ServoSim {
         }
     }
 
+    /// Write `len` bytes of `value` at `address` of the control table, as nothing on the bus
+    /// can (fault injection: a servo of another model, a wrong setting).
+    pub fn set_register(&mut self, address: u16, len: usize, value: u32) {
+        self.put(address, len, value);
+    }
+
     /// Restore the control table's defaults (ID kept).
     pub fn factory_reset(&mut self) {
         let id = self.id;

@@ -65,8 +65,20 @@ pub(super) fn host_present(port: &TTYPort) -> bool {
 
 pub(super) struct Ports {
     pub(super) board_host: Pty,
-    pub(super) servo: Pty,
-    pub(super) base: Option<Pty>,
+    /// The plant lines (servo bus, base) while plugged; a robot without a base has none.
+    pub(super) lines: [Option<Pty>; 2],
     pub(super) clock: Pty,
     pub(super) host: Pty,
+}
+
+/// The line rate the other end of `port` has set, bit/s (a PTY master reads its slave's
+/// settings).
+pub(super) fn line_baud(port: &TTYPort) -> Option<u32> {
+    port.baud_rate().ok()
+}
+
+/// Point the symlink `link` at `target`, replacing the symlink it was.
+pub(super) fn relink(link: &std::path::Path, target: &str) -> std::io::Result<()> {
+    let _ = std::fs::remove_file(link);
+    std::os::unix::fs::symlink(target, link)
 }

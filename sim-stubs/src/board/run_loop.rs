@@ -10,9 +10,15 @@ use std::time::{Duration, Instant};
 use ferrobot_firmware::Link;
 use nix::poll::{poll, PollFd, PollFlags};
 
-use super::ports::{host_present, read_now, write_some, Ports};
+use super::ports::{host_present, line_baud, pty, read_now, write_some, Ports};
+use super::wiring::garble;
 use super::{BoardOptions, Inner, SLACK, TICK};
 use crate::conductor::LINES;
+
+/// Index of `link` among the plant lines.
+fn idx(link: Link) -> usize {
+    usize::from(link != Link::Servo)
+}
 
 /// The server thread; returns why it stopped.
 pub(super) fn run(p: Ports, inner: &Mutex<Inner>, quit: &AtomicBool, opts: BoardOptions) -> String {
@@ -26,6 +32,7 @@ pub(super) fn run(p: Ports, inner: &Mutex<Inner>, quit: &AtomicBool, opts: Board
         last_host_check: Instant::now() - TICK,
     };
     while !quit.load(Ordering::Relaxed) {
+        r.rewire();
         // Step the clock as far as the pace allows.
         let wait = match r.step_clock() {
             Ok(wait) => wait,
@@ -113,20 +120,44 @@ impl<'a> Runner<'a> {
         if !clock.is_empty() && write_some(&mut self.p.clock.master, &clock) < clock.len() {
             return Err("the board does not read its clock link".into());
         }
-        for (link, port) in [
-            (Link::Servo, Some(&mut self.p.servo)),
-            (Link::Base, self.p.base.as_mut()),
-        ] {
-            let out = i.conductor.take_board_output(link);
+        for link in LINES {
+            let mut out = i.conductor.take_board_output(link);
             if out.is_empty() {
                 continue;
             }
             i.record_plant(link, true, &out);
-            if let Some(port) = port {
+            let baud = i.wiring.baud[idx(link)];
+            if let Some(port) = self.p.lines[idx(link)].as_mut() {
+                if line_baud(&port.master).is_some_and(|b| b != baud) {
+                    garble(&mut out);
+                }
                 write_some(&mut port.master, &out);
             }
         }
         Ok(wait)
+    }
+
+    /// Pull and plug the plant lines' cables as the wiring says.
+    fn rewire(&mut self) {
+        let wiring = self.lock().wiring.clone();
+        for k in 0..2 {
+            if wiring.links[k].is_none() {
+                continue;
+            }
+            match (wiring.plugged[k], self.p.lines[k].is_some()) {
+                (false, true) => {
+                    self.p.lines[k] = None;
+                    wiring.pulled(k);
+                }
+                (true, false) => {
+                    if let Ok(p) = pty(true) {
+                        wiring.plugged_in(k, &p.path);
+                        self.p.lines[k] = Some(p);
+                    }
+                }
+                _ => {}
+            }
+        }
     }
 
     /// The ports to watch, each with its number: 0 clock, 1 servo bus, 2 base, 3 the board's
@@ -136,9 +167,10 @@ impl<'a> Runner<'a> {
         let mut watch = vec![(3usize, p.board_host.master.as_raw_fd())];
         if self.opts.plants {
             watch.push((0, p.clock.master.as_raw_fd()));
-            watch.push((1, p.servo.master.as_raw_fd()));
-            if let Some(b) = p.base.as_ref() {
-                watch.push((2, b.master.as_raw_fd()));
+            for (k, line) in p.lines.iter().enumerate() {
+                if let Some(l) = line {
+                    watch.push((k + 1, l.master.as_raw_fd()));
+                }
             }
         }
         if self.host_connected {
@@ -152,9 +184,8 @@ impl<'a> Runner<'a> {
         let p = &self.p;
         let port = match which {
             0 => &p.clock.master,
-            1 => &p.servo.master,
-            2 => match p.base.as_ref() {
-                Some(b) => &b.master,
+            1 | 2 => match p.lines[which - 1].as_ref() {
+                Some(l) => &l.master,
                 None => return,
             },
             3 => &p.board_host.master,
@@ -185,8 +216,14 @@ impl<'a> Runner<'a> {
             }
             1 | 2 => {
                 let link = LINES[which - 1];
-                i.record_plant(link, false, bytes);
-                i.conductor.on_board_bytes(link, bytes);
+                let mut bytes = bytes.to_vec();
+                let baud = i.wiring.baud[which - 1];
+                let port = self.p.lines[which - 1].as_ref();
+                if port.is_some_and(|p| line_baud(&p.master).is_some_and(|b| b != baud)) {
+                    garble(&mut bytes);
+                }
+                i.record_plant(link, false, &bytes);
+                i.conductor.on_board_bytes(link, &bytes);
             }
             3 => {
                 i.host_bytes[1] += n as u64;

@@ -122,11 +122,13 @@ enum BoardFirmware {
 }
 
 /// The emulated devices of `server` as the host-run firmware opens them: its servo bus and
-/// base ports.
+/// base ports
+/// (their stable links, which follow a cable pulled and plugged again).
 pub fn server_devices(server: &BoardServer) -> super::direct::check::Devices {
+    let wiring = server.wiring();
     super::direct::check::Devices {
-        servo: Some(server.board.servo_bus.clone().into()),
-        base: server.board.base.clone().map(Into::into),
+        servo: wiring.link(0).map(Into::into),
+        base: wiring.link(1).map(Into::into),
     }
 }
 

@@ -26,6 +26,10 @@ pub const SCAN_BAUDS: [u32; 8] = [
 /// How long a servo has to answer one packet (its return delay, USB both ways).
 pub const REPLY_WINDOW: Duration = Duration::from_millis(20);
 
+/// Longest wall time one exchange may take, whatever the clock: a virtual clock whose
+/// conductor stopped granting time ends the check with an error instead of a hang.
+pub const STALLED_CLOCK: Duration = Duration::from_secs(10);
+
 /// How long the base has to be heard.
 pub const BASE_WINDOW: Duration = Duration::from_millis(300);
 
@@ -140,12 +144,22 @@ pub fn exchange(
     let _ = wires.take(line);
     wires.send(line, packet);
     let deadline = wires.now_us() + window.as_micros() as u64;
+    let started = std::time::Instant::now();
     let mut got = Vec::new();
     loop {
         got.extend(wires.take(line));
+        // The other line's bytes are not this exchange's: taken and dropped, so that a virtual
+        // clock sees every released byte consumed (a Kobuki talks unasked).
+        let _ = wires.take(1 - line);
         let now = wires.now_us();
         if complete(&got) || now >= deadline {
             return Ok(got);
+        }
+        if started.elapsed() > STALLED_CLOCK {
+            return Err(format!(
+                "the clock stood still for {STALLED_CLOCK:?} at {now} us: are the emulated \
+                 devices' plants running?"
+            ));
         }
         wires.idle_until(deadline);
         let wait = match wires.clock {

@@ -223,11 +223,10 @@ impl Device {
             .port
             .as_mut()
             .is_some_and(|p| p.set_baud_rate(baud).is_ok());
+        // What is still buffered stays: the next exchange takes it (and drops it), so that a
+        // virtual clock's byte counts hold.
         if ok {
             self.baud = baud;
-            if let Some(p) = self.port.as_mut() {
-                let _ = p.clear(serialport::ClearBuffer::All);
-            }
         }
         ok
     }

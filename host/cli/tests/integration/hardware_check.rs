@@ -1,0 +1,187 @@
+//! `ferrobot hardware check` on an emulated LoCoBot: the plants at the stock robot's rates
+//! behind pseudo-terminals, on the virtual-time link the check keeps time on, and each fault
+//! a user meets named in the table, as the JSON report's typed problem: a servo that does not
+//! answer, a servo of another model, servos at another bit rate, a device this user may not
+//! open, no base.
+
+use std::process::{Command, Output};
+
+use ferrobot_sim::board::{BoardOptions, BoardServer};
+use serde_json::Value;
+
+/// The plants of the LoCoBot as its `[direct]` section describes them (1 Mbit/s).
+fn plants() -> BoardServer {
+    let cfg = ferrobot::profile::bundled("locobot").expect("locobot");
+    let direct = cfg
+        .direct_config()
+        .expect("the LoCoBot has a [direct] section");
+    let desc = ferrobot_sim::robots::from_description(&direct);
+    BoardServer::start_robot(
+        &desc,
+        BoardOptions::default(),
+        &ferrobot_sim::scene::Scene::empty(),
+    )
+    .expect("the plants")
+}
+
+/// `ferrobot hardware check locobot` on `server`'s devices, as `run_as` (a user name to drop
+/// to, or `None`): its output and the JSON report.
+fn check(server: &BoardServer, run_as: Option<&str>) -> (Output, Value) {
+    let wiring = server.wiring();
+    let exe = env!("CARGO_BIN_EXE_ferrobot");
+    let mut cmd = match run_as {
+        Some(user) => {
+            let mut c = Command::new("setpriv");
+            c.args(["--reuid", user, "--regid", user, "--clear-groups", exe]);
+            c
+        }
+        None => Command::new(exe),
+    };
+    cmd.args(["hardware", "check", "locobot", "--json", "--clock"])
+        .arg(&server.board.clock)
+        .arg("--servo")
+        .arg(wiring.link(0).expect("a servo line"))
+        .arg("--base")
+        .arg(wiring.link(1).expect("a base line"));
+    let out = cmd.output().expect("ferrobot runs");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let report = stdout
+        .lines()
+        .find_map(|l| {
+            serde_json::from_str::<Value>(l)
+                .ok()
+                .filter(|v| v.get("rows").is_some())
+        })
+        .unwrap_or_else(|| panic!("no report in {stdout:?}; stderr {:?}", out.stderr));
+    (out, report)
+}
+
+/// The typed problems of the report's faults.
+fn faults(report: &Value) -> Vec<Value> {
+    report["rows"]
+        .as_array()
+        .expect("rows")
+        .iter()
+        .filter(|r| r["severity"] == "Fault")
+        .map(|r| r["problem"].clone())
+        .collect()
+}
+
+#[test]
+fn a_healthy_emulated_locobot_passes_with_a_row_per_servo_and_its_base() {
+    let server = plants();
+    let (out, report) = check(&server, None);
+    assert!(out.status.success(), "{report:#}");
+    let rows = report["rows"].as_array().expect("rows");
+    // Two devices, nine servos (joint_2's twin included), the base.
+    assert_eq!(rows.len(), 12, "{report:#}");
+    let servo4 = rows
+        .iter()
+        .find(|r| {
+            r["subject"]
+                .as_str()
+                .is_some_and(|s| s.starts_with("servo 4 "))
+        })
+        .expect("servo 4's row");
+    let reading = servo4["reading"].as_str().expect("reading");
+    assert!(
+        reading.contains("model 1020") && reading.contains("12.0 V"),
+        "{reading}"
+    );
+    assert!(
+        rows.last().unwrap()["reading"]
+            .as_str()
+            .is_some_and(|r| r.contains("battery 16.0 V")),
+        "{report:#}"
+    );
+}
+
+#[test]
+fn a_servo_that_does_not_answer_is_named() {
+    let server = plants();
+    assert_eq!(server.command("silent 5 on")["ok"], true);
+    let (out, report) = check(&server, None);
+    assert!(!out.status.success());
+    assert_eq!(faults(&report), [serde_json::json!({"ServoMissing": 5})]);
+}
+
+#[test]
+fn a_servo_of_another_model_is_named() {
+    let server = plants();
+    server.with_hardware(|hw, _| {
+        hw.chain.servo_mut(8).expect("servo 8").set_register(
+            ferrobot_protocol::dxl::addr::MODEL_NUMBER,
+            2,
+            1200,
+        )
+    });
+    let (_, report) = check(&server, None);
+    assert_eq!(
+        faults(&report),
+        [serde_json::json!({"WrongModel": {"id": 8, "found": 1200, "expected": 1060}})]
+    );
+}
+
+#[test]
+fn servos_at_another_bit_rate_are_found_at_theirs() {
+    let server = plants();
+    server.rewire(|w| w.baud[0] = 57_600);
+    let (_, report) = check(&server, None);
+    assert_eq!(
+        faults(&report),
+        [serde_json::json!({"WrongBaud": {"found": 57600, "expected": 1000000}})]
+    );
+}
+
+#[test]
+fn no_base_is_named() {
+    let server = plants();
+    let base = server.wiring().link(1).expect("base").to_path_buf();
+    server.rewire(|w| w.plugged[1] = false);
+    // The server pulls the cable at its next pass: the link goes.
+    let t = std::time::Instant::now();
+    while base.exists() && t.elapsed().as_secs() < 5 {
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    let (_, report) = check(&server, None);
+    assert_eq!(
+        faults(&report),
+        [serde_json::json!({"NoBase": base.display().to_string()})]
+    );
+}
+
+#[test]
+fn a_device_without_permission_is_named() {
+    use std::os::unix::fs::PermissionsExt;
+    let server = plants();
+    let wiring = server.wiring();
+    let servo = std::fs::canonicalize(wiring.link(0).expect("servo")).expect("its PTY");
+    // Root opens anything: the check runs as `nobody`, who may open the base's and the
+    // clock's PTYs but not the servo bus's.
+    let others = [
+        std::fs::canonicalize(wiring.link(1).expect("base")).expect("its PTY"),
+        std::fs::canonicalize(&server.board.clock).expect("the clock's PTY"),
+    ];
+    for p in &others {
+        std::fs::set_permissions(p, std::fs::Permissions::from_mode(0o666)).expect("chmod");
+    }
+    std::fs::set_permissions(&servo, std::fs::Permissions::from_mode(0o000)).expect("chmod");
+    let root = nix_is_root();
+    let (out, report) = check(&server, root.then_some("65534"));
+    assert!(!out.status.success());
+    let servo_link = wiring.link(0).unwrap().display().to_string();
+    assert_eq!(
+        faults(&report),
+        [serde_json::json!({"Permission": servo_link})]
+    );
+}
+
+/// Whether this process runs as root (owner of the files it makes).
+fn nix_is_root() -> bool {
+    use std::os::unix::fs::MetadataExt;
+    let probe = std::env::temp_dir().join(format!("ferrobot-uid-{}", std::process::id()));
+    let _ = std::fs::write(&probe, b"");
+    let uid = std::fs::metadata(&probe).map(|m| m.uid()).unwrap_or(1);
+    let _ = std::fs::remove_file(&probe);
+    uid == 0
+}
