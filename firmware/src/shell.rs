@@ -17,6 +17,7 @@ use core::task::{Poll, Waker};
 
 use embassy_futures::select::{select, select4, Either4};
 
+use crate::log::log_info;
 use crate::time::Instant;
 use crate::{Firmware, Link};
 
@@ -207,6 +208,7 @@ impl Shell {
         loop {
             rx.wait_connection().await;
             self.connected.set(true);
+            log_info!("host link up");
             let receive = async {
                 while let Ok(n) = rx.read(&mut inbound).await {
                     let bytes = inbound.get(..n).unwrap_or_default();
@@ -240,6 +242,7 @@ impl Shell {
             };
             select(receive, send).await;
             self.connected.set(false);
+            log_info!("host link down");
             self.with(Self::drop_host_tx);
             self.kick.notify();
         }
