@@ -1,11 +1,11 @@
 #!/usr/bin/env bash
 # The project's one test command: formatting, clippy, the docs (rustdoc's warnings as errors),
-# both board builds, every test of the workspace (unit, property, lockstep acceptance and fault
-# tests, the API on the simulator and over serial ports, the Dynamixel conformance test against
-# ROBOTIS' official SDK, the planning benchmark's exports re-checked by FCL, the Python
-# package's pytest suites against the extension this build makes, and the
-# hardware-in-the-loop tests with the firmware in QEMU). Installs what it needs by itself,
-# idempotently.
+# both board builds (and the OpenCR's flashable image checked), every test of the workspace
+# (unit, property, lockstep acceptance and fault tests, the API on the simulator and over serial
+# ports, the Dynamixel conformance test against ROBOTIS' official SDK, the planning benchmark's
+# exports re-checked by FCL, the Python package's pytest suites against the extension this
+# build makes, and the hardware-in-the-loop tests with the firmware in QEMU). Installs what it
+# needs by itself, idempotently.
 #
 # Work that does not need all of the machine runs beside the rest: the Python setup and the
 # board builds while the workspace's tests compile, and the HIL tests (QEMU paced at real
@@ -63,12 +63,14 @@ rustup component add rustfmt clippy >/dev/null 2>&1 || true
 step "cross toolchain for the boards (Debian's rustc-web, lld, QEMU)"
 scripts/setup-cross.sh
 
-step "started: Python (dynamixel-sdk; OMPL and FCL for the planning peer; scikit-learn for the clustering peer; PyBullet for SLAM's independent sequences; pytest, yourdfpy, absl-py and a Jupyter kernel for the Python package's tests) in target/py-venv, and the board builds and clippy (mps2-an386 for QEMU, opencr for OpenCR 1.0)"
+step "started: Python (dynamixel-sdk; OMPL and FCL for the planning peer; scikit-learn for the clustering peer; PyBullet for SLAM's independent sequences; pytest, yourdfpy, absl-py and a Jupyter kernel for the Python package's tests) in target/py-venv, and the board builds, the OpenCR image's check and clippy (mps2-an386 for QEMU, opencr for OpenCR 1.0)"
 background python 'scripts/python-env.sh && scripts/python-env.sh plan && scripts/python-env.sh cluster && scripts/python-env.sh slam && scripts/python-env.sh python'
 # The boards' clippy (Debian's, -D warnings) right after their builds: both boards share one
 # target directory (boards/target), so it reuses the host-side build dependencies, and it keeps
-# off the workspace's target directory, whose lock the steps below hold.
-background boards 'rc=0; scripts/build-boards.sh || rc=1; scripts/build-boards.sh --clippy || rc=1; exit $rc'
+# off the workspace's target directory, whose lock the steps below hold. Between the two, the
+# OpenCR's flashing script on the ELF just built (--no-build: no second build): the raw image,
+# its checks (size, initial stack pointer, reset vector) and the dfu-util commands it would run.
+background boards 'rc=0; scripts/build-boards.sh || rc=1; scripts/flash-opencr.sh --no-build --dry-run --check || rc=1; scripts/build-boards.sh --clippy || rc=1; exit $rc'
 
 step "cargo fmt --check"
 check fmt cargo fmt --all -- --check
