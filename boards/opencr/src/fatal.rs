@@ -17,6 +17,9 @@
 //!    address), written straight to the log UART.
 //! 5. The user LEDs blink the halt code ([`blink_forever`]).
 //!
+//! An exception or interrupt without a handler halts the board the same way (cortex-m-rt's
+//! default handler would spin silently).
+//!
 //! Only registers are used here (through the PAC): the drivers that own these peripherals
 //! never run again, so nothing else touches them.
 
@@ -40,6 +43,8 @@ enum Halt {
     Panic = 2,
     /// A hard fault: 3 flashes.
     HardFault = 3,
+    /// An exception or interrupt without a handler: 4 flashes.
+    Unexpected = 4,
 }
 
 /// The user LEDs, active low (ROBOTIS `variant.cpp`: `setLedOn` writes LOW): USER1 PG12,
@@ -80,6 +85,19 @@ unsafe fn HardFault(frame: &ExceptionFrame) -> ! {
         );
     }
     blink_forever(Halt::HardFault, 0)
+}
+
+// SAFETY (of the `unsafe fn` the attribute requires): the handler never returns, so the
+// exception it was given is never resumed.
+#[exception]
+unsafe fn DefaultHandler(irqn: i16) -> ! {
+    if stop_everything() {
+        defmt::error!(
+            "halted: exception or interrupt {=i16} without a handler",
+            irqn
+        );
+    }
+    blink_forever(Halt::Unexpected, 0)
 }
 
 /// Steps 1 to 3 of the module's list, and the log's switch to blocking writes; false if the
@@ -153,7 +171,7 @@ fn flash(mask: u8, n: u32, on_ms: u32, off_ms: u32) {
 }
 
 /// Blink the halt code for ever: each cycle, all four user LEDs flash `kind` times (2 panic,
-/// 3 hard fault); for a panic, USER1 then blinks each decimal digit of the panic's line
+/// 3 hard fault, 4 unexpected exception or interrupt); for a panic, USER1 then blinks each decimal digit of the panic's line
 /// number (a digit d as d blinks, 0 as ten, a pause between digits); then a long pause.
 fn blink_forever(kind: Halt, line: u32) -> ! {
     // The LED pins as outputs, whether or not `main` got as far as setting them up.

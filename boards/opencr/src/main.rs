@@ -21,6 +21,8 @@ mod fatal;
 mod log;
 mod status;
 
+use cortex_m::peripheral::SYST;
+use cortex_m_rt::exception;
 use embassy_executor::Spawner;
 use embassy_futures::join::join3;
 use embassy_stm32::gpio::{Level, Output, Speed};
@@ -81,8 +83,25 @@ async fn usb_task(mut dev: UsbDevice<'static, Driver<'static, USB_OTG_FS>>) -> !
     dev.run().await
 }
 
+/// ROBOTIS' bootloader jumps to the firmware with SysTick still interrupting (its
+/// `bsp_deinit` leaves the HAL's tick on), and cortex-m-rt's default handler would take the
+/// first tick as a fault: the first tick switches SysTick off instead (this firmware's time
+/// comes from one of the MCU's timers, not SysTick).
+#[exception]
+fn SysTick() {
+    // SAFETY: a single write to SysTick's control register, which nothing else here uses;
+    // SysTick's registers are always mapped on a Cortex-M.
+    unsafe { (*SYST::PTR).csr.write(0) }
+}
+
 #[embassy_executor::main]
 async fn main(spawner: Spawner) {
+    // The instruction cache: ROBOTIS' bootloader turns it off before the jump, and code runs
+    // from flash with 7 wait states at 216 MHz. (Not the data cache: DMA buffers are not kept
+    // coherent with it.)
+    if let Some(mut core) = cortex_m::Peripherals::take() {
+        core.SCB.enable_icache();
+    }
     let p = embassy_stm32::init(clocks());
     start_log(spawner, p.USART6, p.PC6, p.DMA2_CH6);
     let robot = if cfg!(feature = "locobot-lite") {
