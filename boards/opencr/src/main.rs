@@ -104,12 +104,15 @@ async fn main(spawner: Spawner) {
     }
     let p = embassy_stm32::init(clocks());
     start_log(spawner, p.USART6, p.PC6, p.DMA2_CH6);
-    let robot = if cfg!(feature = "locobot-lite") {
-        "locobot_lite"
+    let profile = if cfg!(feature = "locobot-lite") {
+        config::locobot_lite()
     } else {
-        "locobot"
+        config::locobot()
     };
-    defmt::info!("boot: ferrobot firmware on OpenCR 1.0 for {=str}", robot);
+    defmt::info!(
+        "boot: ferrobot firmware on OpenCR 1.0 for {=str}",
+        profile.robot.as_str()
+    );
     // The servos' power first, so that they boot while the rest is set up; kept on for good
     // (dropping the pin would float it, and the switch would open).
     let _servo_power = Output::new(p.PF15, Level::High, Speed::Low);
@@ -121,11 +124,6 @@ async fn main(spawner: Spawner) {
     let mut base = base_uart(p.USART2, p.PD6, p.PD5);
     Timer::at(powered_at + SERVO_BOOT).await;
 
-    let profile = if cfg!(feature = "locobot-lite") {
-        config::locobot_lite()
-    } else {
-        config::locobot()
-    };
     defmt::info!(
         "boot: firmware core started, servo loop {=u64} us; waiting for a host on USB",
         profile.loop_period.as_micros()
