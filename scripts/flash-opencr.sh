@@ -9,7 +9,8 @@
 #   --check     verify the image: it fits the application area, its vector table's initial
 #               stack pointer lies in RAM and its reset vector in the image; print its sha256
 #   --dry-run   build and convert, print the dfu-util commands, flash nothing (what CI runs)
-#   --no-build  use the ELF scripts/build-boards.sh built (the LoCoBot's) instead of building
+#   --no-build  use the ELF last built (scripts/build-boards.sh builds the LoCoBot's) instead
+#               of building; refused if it is the other robot's
 #
 # The image and a copy of its ELF (for `defmt-print -e`, to read the log) are left in
 # boards/target/flash/. Put the board in DFU mode first: hold BOOT, press RESET, release BOOT
@@ -41,7 +42,6 @@ for arg in "$@"; do
     *) die "unknown option '$arg' (try --help)" ;;
     esac
 done
-$lite && ! $build && die "--no-build takes the LoCoBot build of scripts/build-boards.sh; build --lite without it"
 
 # region NAME: "ORIGIN LENGTH" of a MEMORY region of memory.x, in bytes.
 region() {
@@ -101,6 +101,11 @@ mkdir -p "$out"
 cp "$elf" "$out/$name.elf"
 bin=$out/$name.bin
 show "$(find_objcopy)" -O binary "$out/$name.elf" "$bin"
+# Which robot the image is for: only the LoCoBot-Lite's holds its profile's name,
+# "locobot_lite" (firmware/src/config.rs), among its constants.
+if grep -a -q locobot_lite "$bin"; then built_lite=true; else built_lite=false; fi
+[ "$built_lite" = "$lite" ] ||
+    die "$elf was built for the $($built_lite && echo LoCoBot-Lite || echo LoCoBot), not the robot asked for: build it again (drop --no-build)"
 
 # check_image: the checks of --check, on $bin and its ELF.
 check_image() {
