@@ -11,8 +11,9 @@
 //!    (control table address 98, not set by this firmware) or a power cut ends. The firmware
 //!    core's host watchdog no longer runs.
 //! 3. The base is told to stop (three stop commands on its UART, enough for its parser to
-//!    resynchronise after a command the halt cut in two): neither the Kobuki nor the Create 2
-//!    documents a command timeout of its own, and the Create 2 keeps its last drive command.
+//!    resynchronise after a command the halt cut in two): the Kobuki and Create 2
+//!    documentation we read gives neither base a command timeout of its own, so a base left
+//!    driving would drive on.
 //! 4. The log says what went wrong (the panic's message and location, or the faulting
 //!    address), written straight to the log UART.
 //! 5. The user LEDs blink the halt code ([`blink_forever`]).

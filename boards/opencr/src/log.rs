@@ -82,8 +82,9 @@ pub fn enter_halt() {
         write_blocking(UART, chunk.get(..n).unwrap_or_default());
     }
     // SAFETY: interrupts are off and the halt path runs once (HALTED above), so nothing else
-    // touches the logger's state. A frame the halt interrupted is abandoned: a fresh encoder
-    // starts the next frame with a `0x00`, which ends what went out of the abandoned one.
+    // touches the logger's state: a logger call the halt interrupted (a fault inside it) never
+    // resumes. Its frame is abandoned: a fresh encoder starts the next frame with a `0x00`,
+    // which ends whatever of the abandoned one went out.
     unsafe {
         let state = &mut *addr_of_mut!(STATE);
         if state.taken {
