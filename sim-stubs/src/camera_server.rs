@@ -10,6 +10,16 @@
 //!   simulated clock that has not been served yet; `time_us` is that clock (the firmware's).
 //! * anything else → `{"error": ...}` and the connection stays open.
 //!
+//! A real camera's server (`host/peers/realsense/serve_realsense.py`, a RealSense on
+//! librealsense) speaks the same protocol with optional keys a client may ignore:
+//! * in `info`: `"distortion": {"model", "coeffs"}` (librealsense's lens model and its
+//!   coefficients), `"device"` (a line naming the camera), `"depth_scale"` (m per depth unit);
+//! * in `frame`'s header: no `time_us` (it does not know the robot's clock), and
+//!   `"frame_number"`, `"device_time_ms"` and `"time_domain"` (the camera's own stamp, ms, and
+//!   its clock: `hardware_clock`, `system_time` or `global_time`) and `"age_us"` (how long
+//!   before the header was sent the frame was taken, µs, by the host's clock). The client
+//!   stamps such a frame with its link's clock less `age_us`.
+//!
 //! The server asks for the world's ground truth through a closure: a channel to the
 //! simulation thread ([`TruthTap`], [`tap_truth`]) or a short lock of the plants; the
 //! simulation is never held while a frame renders.

@@ -17,7 +17,7 @@ use ferrobot_perception::{DepthImage, DepthRange, Intrinsics, PixelPoints, Point
 use ferrobot_protocol::Telemetry;
 use nalgebra::Isometry3;
 
-pub use crate::backend::device::{CameraDevice, RawFrame};
+pub use crate::backend::device::{CameraDevice, DeviceTime, RawFrame, TimeDomain};
 use crate::error::{Error, Result};
 pub use crate::frame::Frame;
 use crate::head::Head;

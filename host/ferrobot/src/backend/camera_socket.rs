@@ -1,7 +1,13 @@
 //! A camera served on a Unix socket ([`ferrobot_sim::camera_server`]'s protocol): the
-//! simulated world's camera beside a firmware served on a serial port, as a [`CameraDevice`].
-//! Behind the serial and emulated backends, the world that moves the plants renders the
-//! frames, so a program sees the same scene whichever backend it uses.
+//! simulated world's camera beside a firmware served on a serial port, or a real RealSense
+//! served by `host/peers/realsense/serve_realsense.py`, as a [`CameraDevice`]. Behind the
+//! serial and emulated backends, the world that moves the plants renders the frames, so a
+//! program sees the same scene whichever backend it uses.
+//!
+//! A frame whose header has `time_us` (the simulator's) is on the robot's clock already; one
+//! without it (a real camera's server, which does not know the robot's clock) is stamped with
+//! the link's clock when its header arrives, less the `age_us` the server measured, and keeps
+//! the camera's own stamp ([`RawFrame::device_time`]).
 
 use std::io::{BufRead, BufReader, Read, Write};
 use std::os::unix::net::UnixStream;
@@ -11,7 +17,7 @@ use std::time::Duration;
 use ferrobot_perception::{DepthImage, Intrinsics, RgbImage};
 use serde::Deserialize;
 
-use super::device::{CameraDevice, RawFrame};
+use super::device::{CameraDevice, DeviceTime, RawFrame, TimeDomain};
 use super::Link;
 use crate::error::{Error, Result};
 
@@ -37,13 +43,46 @@ struct Info {
     cx: f64,
     cy: f64,
     rate: f64,
+    #[serde(default)]
+    distortion: Option<Distortion>,
+    #[serde(default)]
+    device: Option<String>,
+}
+
+/// A real camera's lens distortion, as its server reports it (librealsense's model and
+/// coefficients). Ferrobot projects with a pinhole ([`Intrinsics`]): a D435's colour stream
+/// reports zero coefficients.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+pub struct Distortion {
+    /// librealsense's name of the model (`none`, `brown_conrady`, `inverse_brown_conrady`,
+    /// ...).
+    pub model: String,
+    /// The model's coefficients (k1, k2, p1, p2, k3 for Brown-Conrady).
+    pub coeffs: Vec<f64>,
 }
 
 #[derive(Deserialize)]
 struct Header {
-    time_us: u64,
+    /// The robot's clock, µs (the simulator's server only).
+    time_us: Option<u64>,
     width: u32,
     height: u32,
+    frame_number: Option<u64>,
+    device_time_ms: Option<f64>,
+    time_domain: Option<TimeDomain>,
+    /// How long before the header was sent the frame was taken, µs.
+    age_us: Option<u64>,
+}
+
+impl Header {
+    /// The camera's own stamp, when the header has all of it.
+    fn device_time(&self) -> Option<DeviceTime> {
+        Some(DeviceTime {
+            frame_number: self.frame_number?,
+            time_ms: self.device_time_ms.filter(|t| t.is_finite())?,
+            domain: self.time_domain?,
+        })
+    }
 }
 
 /// A camera on a Unix socket.
@@ -53,6 +92,8 @@ pub struct SocketCamera {
     writer: UnixStream,
     intrinsics: Intrinsics,
     rate: f64,
+    distortion: Option<Distortion>,
+    device: Option<String>,
 }
 
 impl SocketCamera {
@@ -79,6 +120,8 @@ impl SocketCamera {
                 cy: 0.0,
             },
             rate: 1.0,
+            distortion: None,
+            device: None,
             path,
         };
         let info: Info = cam.ask("info")?;
@@ -88,7 +131,20 @@ impl SocketCamera {
             return Err(cam.bad(format!("a frame rate of {} Hz", info.rate)));
         }
         cam.rate = info.rate;
+        cam.distortion = info.distortion;
+        cam.device = info.device;
         Ok(cam)
+    }
+
+    /// The lens distortion the server reports (a real camera's), if any.
+    pub fn distortion(&self) -> Option<&Distortion> {
+        self.distortion.as_ref()
+    }
+
+    /// The line naming the camera that the server reports (a real camera's model, serial
+    /// number and firmware), if any.
+    pub fn device(&self) -> Option<&str> {
+        self.device.as_deref()
     }
 
     fn bad(&self, what: String) -> Error {
@@ -121,8 +177,18 @@ impl CameraDevice for SocketCamera {
         self.rate
     }
 
-    fn capture(&mut self, _link: &mut dyn Link) -> Result<RawFrame> {
+    fn capture(&mut self, link: &mut dyn Link) -> Result<RawFrame> {
         let h: Header = self.ask("frame")?;
+        let time = match h.time_us {
+            Some(t) => Duration::from_micros(t),
+            None => {
+                let age = Duration::from_micros(h.age_us.unwrap_or(0));
+                if age > FRAME_TIMEOUT {
+                    return Err(self.bad(format!("a frame {} s old", age.as_secs_f64())));
+                }
+                link.now().saturating_sub(age)
+            }
+        };
         let k = self.intrinsics;
         if (h.width, h.height) != (k.width, k.height) {
             return Err(self.bad(format!(
@@ -144,7 +210,8 @@ impl CameraDevice for SocketCamera {
         Ok(RawFrame {
             rgb: RgbImage::new(k.width, k.height, rgb)?,
             depth: DepthImage::new(k.width, k.height, depth)?,
-            time: Duration::from_micros(h.time_us),
+            time,
+            device_time: h.device_time(),
         })
     }
 }

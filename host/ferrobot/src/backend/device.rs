@@ -18,6 +18,37 @@ pub struct RawFrame {
     pub depth: DepthImage,
     /// Capture time on the robot's clock (the link's [`Link::now`]).
     pub time: Duration,
+    /// The camera's own stamp of the frame, when it has one (a RealSense); `None` for the
+    /// simulated camera, whose frames are stamped on the robot's clock itself.
+    pub device_time: Option<DeviceTime>,
+}
+
+/// A frame's stamp by the camera's own clock and counter, as librealsense reports it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DeviceTime {
+    /// The device's frame counter.
+    pub frame_number: u64,
+    /// The frame's timestamp, ms, on the clock `domain` names.
+    pub time_ms: f64,
+    /// The clock `time_ms` is on.
+    pub domain: TimeDomain,
+}
+
+/// The clock of a [`DeviceTime`] (librealsense's `rs2_timestamp_domain`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+#[non_exhaustive]
+pub enum TimeDomain {
+    /// The camera's own clock (its firmware's), started at an arbitrary instant.
+    HardwareClock,
+    /// The host's system clock (ms since the Unix epoch) when the frame reached the host.
+    SystemTime,
+    /// The camera's clock mapped by librealsense onto the host's system clock (ms since the
+    /// Unix epoch): the D400s' default.
+    GlobalTime,
+    /// A clock this version does not know.
+    #[serde(other)]
+    Other,
 }
 
 /// A source of colour and depth frames on the host: the simulated world's renderer, or (later)

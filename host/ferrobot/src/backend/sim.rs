@@ -225,6 +225,7 @@ impl super::device::CameraDevice for SimCameraDevice {
             rgb: ferrobot_perception::RgbImage::new(w, h, rgb)?,
             depth: ferrobot_perception::DepthImage::new(w, h, depth)?,
             time: Duration::from_micros(truth.time_us),
+            device_time: None,
         })
     }
 }
