@@ -1,8 +1,9 @@
 //! The Python peers that Ferrobot's tests and benchmarks compare against: ROBOTIS' Dynamixel
-//! SDK, OMPL with FCL (planning), scikit-learn (clustering), PyBullet (rendering). They live
-//! in one virtual environment, `target/py-venv` at the workspace's root, which
-//! `scripts/python-env.sh [plan|cluster|bench]` makes and `scripts/test.sh` fills; the
-//! variable `FERROBOT_PYTHON` names another interpreter instead.
+//! SDK, OMPL with FCL (planning), scikit-learn (clustering), PyBullet (rendering), Intel's
+//! librealsense (the RealSense server, `realsense/serve_realsense.py` beside this crate). They
+//! live in one virtual environment, `target/py-venv` at the workspace's root, which
+//! `scripts/python-env.sh [plan|cluster|bench|realsense|...]` makes and `scripts/test.sh`
+//! fills; the variable `FERROBOT_PYTHON` names another interpreter instead.
 //!
 //! One rule for every test that needs a peer: with `FERROBOT_PYTHON` set (as the test command
 //! sets it), a peer that cannot be imported fails the test, naming the setup command; without
@@ -64,6 +65,38 @@ pub fn for_test(modules: &str, setup: &str) -> Option<PathBuf> {
     None
 }
 
+/// The file in a virtual environment that says PyPI has no wheel of `package` for its
+/// platform: `scripts/python-env.sh` writes it (with pip's words) where pip finds none.
+pub fn no_wheel_note(python: &Path, package: &str) -> PathBuf {
+    // `ENV/bin/python` -> `ENV/.no-wheel-PACKAGE`
+    let env = python
+        .parent()
+        .and_then(Path::parent)
+        .unwrap_or(Path::new("."));
+    env.join(format!(".no-wheel-{package}"))
+}
+
+/// [`for_test`] for a peer whose wheel PyPI has for some platforms only (pyrealsense2): the
+/// test is also skipped, saying so, where `scripts/python-env.sh` found no wheel of `package`
+/// for this platform ([`no_wheel_note`]), and only then when `FERROBOT_PYTHON` is set (as the
+/// test command sets it): anywhere else a peer that cannot be imported fails the test.
+pub fn for_test_where_wheels_exist(modules: &str, setup: &str, package: &str) -> Option<PathBuf> {
+    let py = python();
+    if can_import(&py, modules) {
+        return Some(py);
+    }
+    let note = no_wheel_note(&py, package);
+    if let Ok(why) = std::fs::read_to_string(&note) {
+        eprintln!(
+            "skipped: PyPI has no {package} wheel for this platform ({}: {})",
+            note.display(),
+            why.trim()
+        );
+        return None;
+    }
+    for_test(modules, setup)
+}
+
 /// The interpreter a benchmark uses for a peer: [`python`] when it imports `modules`, else
 /// `None` (the benchmark reports the peer as not run).
 pub fn for_bench(modules: &str) -> Option<PathBuf> {
@@ -74,6 +107,14 @@ pub fn for_bench(modules: &str) -> Option<PathBuf> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_no_wheel_note_sits_in_the_interpreters_environment() {
+        assert_eq!(
+            no_wheel_note(Path::new("/w/target/py-venv/bin/python"), "pyrealsense2"),
+            Path::new("/w/target/py-venv/.no-wheel-pyrealsense2")
+        );
+    }
 
     #[test]
     fn a_missing_interpreter_imports_nothing() {
