@@ -9,6 +9,8 @@ mod hostile_api;
 mod kinematics;
 mod navigation;
 mod planning;
+#[cfg(feature = "serial")]
+mod realsense;
 mod slam;
 mod stow;
 mod subscriptions;
