@@ -408,6 +408,8 @@ fn a_realsense_software_device_is_served_aligned_in_metres_with_its_intrinsics_a
     };
     assert!(status.success(), "{status}: {}", server.stderr());
     assert!(!server.socket.exists(), "the socket is left behind");
+    drop(server);
+    let _ = std::fs::remove_dir_all(&dir);
     eprintln!(
         "served, checked and stopped in {:.2} s",
         started.elapsed().as_secs_f64()
@@ -446,4 +448,5 @@ fn a_missing_realsense_or_pyrealsense2_is_said_plainly() {
         "{err}"
     );
     assert!(!Path::new(&socket).exists());
+    let _ = std::fs::remove_dir_all(&dir);
 }
