@@ -401,9 +401,10 @@ fn frames_come_at_the_camera_rate_with_their_pose() {
     assert!(valid > 0.5 && valid < 0.98, "{valid}");
 }
 
-/// A camera socket that answers with garbage, absurd intrinsics, a frame of the wrong size or
-/// a truncated frame: each a typed error naming the socket, never a panic or a hang (a camera
-/// socket is the serial backend's).
+/// A camera socket that answers with garbage, absurd intrinsics, a frame of the wrong size, a
+/// frame 20 s old (a real camera's server, without the robot's clock) or a truncated frame:
+/// each a typed error naming the socket, never a panic or a hang (a camera socket is the
+/// serial backend's).
 #[cfg(feature = "serial")]
 #[test]
 fn a_hostile_camera_socket_is_a_clear_error() {
@@ -425,6 +426,10 @@ fn a_hostile_camera_socket_is_a_clear_error() {
         (
             "wrong size",
             format!("{good_info}\n{{\"time_us\":1,\"width\":640,\"height\":480}}").into_bytes(),
+        ),
+        (
+            "ancient",
+            format!("{good_info}\n{{\"width\":4,\"height\":2,\"age_us\":20000000}}").into_bytes(),
         ),
         (
             "truncated",
@@ -471,6 +476,10 @@ fn a_hostile_camera_socket_is_a_clear_error() {
         assert!(
             e.to_string().contains("cam") || matches!(e, Error::Perception(_)),
             "{name}: {e}"
+        );
+        assert!(
+            name != "ancient" || e.to_string().contains("20 s old"),
+            "{e}"
         );
         server.join().unwrap();
     }
