@@ -55,6 +55,9 @@ pub struct BasePlant {
     out: Vec<u8>,
     /// Command packets accepted.
     pub commands: u32,
+    /// The base's replies are lost on their way (a broken receive wire, a base whose serial
+    /// output died): it still obeys commands but says nothing (fault injection).
+    pub mute: bool,
 }
 
 /// The Kobuki of the LoCoBot: nominal radius 0.035 m and track 0.230 m; the true wheels are
@@ -136,6 +139,7 @@ impl BasePlant {
             period_us,
             out: Vec::new(),
             commands: 0,
+            mute: false,
         }
     }
 
@@ -177,9 +181,14 @@ impl BasePlant {
         }
     }
 
-    /// Bytes the base has sent since the last call.
+    /// Bytes the base has sent since the last call (none while [`BasePlant::mute`]).
     pub fn take_output(&mut self) -> Vec<u8> {
-        std::mem::take(&mut self.out)
+        let out = std::mem::take(&mut self.out);
+        if self.mute {
+            Vec::new()
+        } else {
+            out
+        }
     }
 
     fn bumper_bits(&self) -> u8 {

@@ -140,7 +140,6 @@ impl BoardServer {
         let body = desc.body.clone();
         let scene = Arc::new(scene.clone());
         let has_base = hw.base.is_some();
-        let baud = [desc.bus_baud, crate::hardware::BASE_BAUD];
         let board_host = pty(true)?;
         let servo = pty(true)?;
         let base = if has_base { Some(pty(true)?) } else { None };
@@ -168,7 +167,7 @@ impl BoardServer {
             paced_behind: 0,
             hold_at: u64::MAX,
             stopped: None,
-            wiring: Wiring::new(&servo.path, base.as_ref().map(|b| b.path.as_str()), baud)
+            wiring: Wiring::new(&servo.path, base.as_ref().map(|b| b.path.as_str()))
                 .map_err(ServeError::Io)?,
         }));
         let quit = Arc::new(AtomicBool::new(false));

@@ -68,6 +68,11 @@ pub mod op {
     pub const TORQUE_ON: u16 = 1 << 10;
     /// Read Hardware Error Status.
     pub const READ_HW: u16 = 1 << 11;
+    /// Read Torque Enable of a servo that answers again after it was lost: still on, it kept
+    /// its power and its settings (only its answers were lost: a noisy or stalled line), and
+    /// it is taken back holding where it stands; off, it was power-cycled and is configured
+    /// in full. A servo holding the arm is never switched off to be taken back.
+    pub const READ_TORQUE: u16 = 1 << 12;
     /// Full configuration.
     pub const CONFIGURE: u16 = PING
         | TORQUE_OFF
@@ -81,8 +86,10 @@ pub mod op {
         | TORQUE_ON;
     /// Mode change.
     pub const MODE_CHANGE: u16 = TORQUE_OFF | MODE | READ_POS | GOAL_HOLD | TORQUE_ON;
+    /// Taking back a lost servo that kept its torque on: its position read and held.
+    pub const RESUME: u16 = READ_POS | GOAL_HOLD;
     /// Operations during which no goal may be written.
-    pub const BLOCKS_GOALS: u16 = CONFIGURE | REBOOT;
+    pub const BLOCKS_GOALS: u16 = CONFIGURE | REBOOT | READ_TORQUE;
 
     /// Parameters in the status that answers operation `o` (a ping's model and firmware
     /// version, a position read's 4 bytes, a hardware-error read's 1; writes and reboots
@@ -91,7 +98,7 @@ pub mod op {
         match o {
             PING => 3,
             READ_POS => 4,
-            READ_HW => 1,
+            READ_HW | READ_TORQUE => 1,
             _ => 0,
         }
     }

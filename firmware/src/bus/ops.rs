@@ -120,6 +120,7 @@ impl ServoBus {
                 self.send(now, |b| dxl::write(b, id, addr::TORQUE_ENABLE, &[1]))
             }
             op::READ_HW => self.send(now, |b| dxl::read(b, id, addr::HARDWARE_ERROR_STATUS, 1)),
+            op::READ_TORQUE => self.send(now, |b| dxl::read(b, id, addr::TORQUE_ENABLE, 1)),
             _ => {
                 if let Some(s) = self.servos.get_mut(i) {
                     s.ops &= !o;

@@ -65,9 +65,10 @@ impl ServoBus {
                 if !ok {
                     self.op_failed(now, servo);
                 } else if o == op::PING && s.status == ServoStatus::Lost {
+                    // Whether it kept its torque decides how it is taken back (READ_TORQUE).
                     if let Some(s) = self.servos.get_mut(servo) {
                         s.status = ServoStatus::Configuring;
-                        s.ops |= op::CONFIGURE;
+                        s.ops |= op::READ_TORQUE;
                         s.hw_error = 0;
                     }
                     self.event(BusEvent::Recovered(servo as u8));
@@ -80,6 +81,13 @@ impl ServoBus {
                             }
                             op::READ_HW if len >= 1 => {
                                 s.hw_error = data[0];
+                            }
+                            op::READ_TORQUE if len >= 1 => {
+                                s.ops |= if data[0] == 1 {
+                                    op::RESUME
+                                } else {
+                                    op::CONFIGURE
+                                };
                             }
                             _ => {}
                         }

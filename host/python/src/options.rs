@@ -86,13 +86,61 @@ pub fn string(dict: &Option<Bound<'_, PyDict>>, key: &str) -> PyResult<Option<St
         .map_err(|_| invalid(d.py(), key, "a string", format!("{v}")))
 }
 
-/// The backend a string names: `"sim"`, `"serial:PATH"`, `"emulated"` or `"emulated:ELF"`.
+/// The environment variable that names the backend of a `Robot` whose `backend` is not given.
+pub const BACKEND_ENV: &str = "FERROBOT_BACKEND";
+
+/// The backend asked for: `backend` if given, else [`BACKEND_ENV`], else `"sim"`.
+pub fn backend_spec(py: Python<'_>, backend: Option<String>) -> PyResult<String> {
+    match backend {
+        Some(b) => Ok(b),
+        None => match std::env::var(BACKEND_ENV) {
+            Ok(b) => Ok(b),
+            Err(std::env::VarError::NotPresent) => Ok("sim".into()),
+            Err(std::env::VarError::NotUnicode(v)) => {
+                Err(invalid(py, BACKEND_ENV, "text", format!("{v:?}")))
+            }
+        },
+    }
+}
+
+/// `Backend::Direct` from `"direct"` or `"direct:servo=PATH,base=PATH,camera=SOCKET"` (each key
+/// at most once, any of them); `None` for anything else.
+fn direct(spec: &str) -> Option<Backend> {
+    let rest = match spec.strip_prefix("direct") {
+        Some("") => "",
+        Some(r) => r.strip_prefix(':').filter(|r| !r.is_empty())?,
+        None => return None,
+    };
+    let (mut servo, mut base, mut camera) = (None, None, None);
+    for pair in rest.split(',').filter(|_| !rest.is_empty()) {
+        let (key, value) = pair.split_once('=')?;
+        let slot = match key {
+            "servo" => &mut servo,
+            "base" => &mut base,
+            "camera" => &mut camera,
+            _ => return None,
+        };
+        if value.is_empty() || slot.is_some() {
+            return None;
+        }
+        *slot = Some(PathBuf::from(value));
+    }
+    Some(Backend::Direct {
+        servo,
+        base,
+        camera,
+    })
+}
+
+/// The backend a string names: `"sim"`, `"serial:PATH"`, `"emulated"`, `"emulated:ELF"`,
+/// `"direct"`, `"direct:servo=PATH,base=PATH,camera=SOCKET"` or `"direct-emulated"`.
 pub fn backend(py: Python<'_>, spec: &str, seed: u64, realtime: bool) -> PyResult<Backend> {
     let bad = || {
         invalid(
             py,
             "backend",
-            "\"sim\", \"serial:PATH\", \"emulated\" or \"emulated:ELF\"",
+            "\"sim\", \"serial:PATH\", \"emulated\", \"emulated:ELF\", \"direct\", \
+             \"direct:servo=PATH,base=PATH,camera=SOCKET\" or \"direct-emulated\"",
             format!("{spec:?}"),
         )
     };
@@ -106,6 +154,12 @@ pub fn backend(py: Python<'_>, spec: &str, seed: u64, realtime: bool) -> PyResul
         return Ok(Backend::Serial {
             path: PathBuf::from(path),
         });
+    }
+    if spec == "direct-emulated" {
+        return Ok(Backend::DirectEmulated);
+    }
+    if let Some(b) = direct(spec) {
+        return Ok(b);
     }
     if spec == "emulated" {
         return Ok(Backend::Emulated {

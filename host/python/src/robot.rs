@@ -101,7 +101,10 @@ impl Robot {
     /// `base_controller` `"ilqr"`, `"proportional"`, `"movebase"`, and `base_planner`;
     /// `arm_config`: `use_moveit`, `moveit_planner`, `planning_time`, `control_mode`).
     /// Ferrobot's keywords: `scene` (a bundled scene's name or a scene file), `backend`
-    /// (`"sim"`, `"serial:PATH"`, `"emulated"`), `seed` (the simulator's noise), `realtime`
+    /// (`"sim"`, `"serial:PATH"`, `"emulated"`, `"direct"` for the host-run firmware on the
+    /// robot's own cables, `"direct:servo=PATH,base=PATH,camera=SOCKET"` with its devices
+    /// named, `"direct-emulated"`; when absent, the environment's `FERROBOT_BACKEND`, else
+    /// `"sim"`: an unchanged program runs on the robot), `seed` (the simulator's noise), `realtime`
     /// (pace simulated time to the wall clock), `start_pose` (`[x, y, theta]` in the scene),
     /// `depth_noise`, `slam` (start SLAM at the start pose), `overrides` (dotted keys of the
     /// description, e.g. `{"arm.joint_tolerance": 0.01}`), and for hand-eye calibration in
@@ -112,7 +115,7 @@ impl Robot {
     #[pyo3(signature = (
         robot_name, use_arm=true, use_base=true, use_camera=true, use_gripper=true,
         arm_config=None, base_config=None, camera_config=None, gripper_config=None,
-        common_config=None, *, scene=None, backend="sim", seed=1, realtime=false,
+        common_config=None, *, scene=None, backend=None, seed=1, realtime=false,
         config_file=None, start_pose=None, depth_noise=true, slam=false, overrides=None,
         calibration_marker=false, camera_mount_error=None
     ))]
@@ -130,7 +133,7 @@ impl Robot {
         gripper_config: Option<&Bound<'_, PyDict>>,
         common_config: Option<&Bound<'_, PyDict>>,
         scene: Option<String>,
-        backend: &str,
+        backend: Option<String>,
         seed: u64,
         #[pyo3(from_py_with = truthy)] realtime: bool,
         config_file: Option<std::path::PathBuf>,
@@ -160,7 +163,12 @@ impl Robot {
             .use_camera(use_camera)
             .use_gripper(use_gripper && use_arm)
             .depth_noise(depth_noise)
-            .backend(options::backend(py, backend, seed, realtime)?);
+            .backend(options::backend(
+                py,
+                &options::backend_spec(py, backend)?,
+                seed,
+                realtime,
+            )?);
         let scene = scene
             .or(options::string(&common, "scene")?)
             .or(options::string(&common, "scene_path")?);

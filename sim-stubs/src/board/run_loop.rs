@@ -11,7 +11,7 @@ use ferrobot_firmware::Link;
 use nix::poll::{poll, PollFd, PollFlags};
 
 use super::ports::{host_present, line_baud, pty, read_now, write_some, Ports};
-use super::wiring::garble;
+use super::wiring::{damage, garble};
 use super::{BoardOptions, Inner, SLACK, TICK};
 use crate::conductor::LINES;
 
@@ -30,6 +30,7 @@ pub(super) fn run(p: Ports, inner: &Mutex<Inner>, quit: &AtomicBool, opts: Board
         origin: None,
         host_connected: false,
         last_host_check: Instant::now() - TICK,
+        rng: 0x9E37_79B9_7F4A_7C15,
     };
     while !quit.load(Ordering::Relaxed) {
         r.rewire();
@@ -77,6 +78,8 @@ struct Runner<'a> {
     origin: Option<(Instant, u64)>,
     host_connected: bool,
     last_host_check: Instant,
+    /// The damaged lines' generator.
+    rng: u64,
 }
 
 impl<'a> Runner<'a> {
@@ -127,8 +130,9 @@ impl<'a> Runner<'a> {
             }
             i.record_plant(link, true, &out);
             let baud = i.wiring.baud[idx(link)];
+            damage(&mut out, i.wiring.corruption[idx(link)], &mut self.rng);
             if let Some(port) = self.p.lines[idx(link)].as_mut() {
-                if line_baud(&port.master).is_some_and(|b| b != baud) {
+                if baud.is_some_and(|want| line_baud(&port.master).is_some_and(|b| b != want)) {
                     garble(&mut out);
                 }
                 write_some(&mut port.master, &out);
@@ -219,9 +223,13 @@ impl<'a> Runner<'a> {
                 let mut bytes = bytes.to_vec();
                 let baud = i.wiring.baud[which - 1];
                 let port = self.p.lines[which - 1].as_ref();
-                if port.is_some_and(|p| line_baud(&p.master).is_some_and(|b| b != baud)) {
+                let wrong = |p: &super::ports::Pty| {
+                    baud.is_some_and(|want| line_baud(&p.master).is_some_and(|b| b != want))
+                };
+                if port.is_some_and(wrong) {
                     garble(&mut bytes);
                 }
+                damage(&mut bytes, i.wiring.corruption[which - 1], &mut self.rng);
                 i.record_plant(link, false, &bytes);
                 i.conductor.on_board_bytes(link, &bytes);
             }

@@ -10,19 +10,23 @@ use std::path::{Path, PathBuf};
 use super::ports::relink;
 
 /// The plant lines' cables (index 0 the servo bus, 1 the base).
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Wiring {
     /// Stable symlinks to each line's PTY; `None` for a line the robot does not have.
     pub links: [Option<PathBuf>; 2],
     /// Whether each line's cable is plugged.
     pub plugged: [bool; 2],
-    /// The rate the devices on each line listen at, bit/s.
-    pub baud: [u32; 2],
+    /// The rate the devices on each line listen at, bit/s, if the line's rate is checked (a
+    /// host-run firmware sets its devices' rate; QEMU sets its PTYs to a rate of its own,
+    /// so a board's lines are not checked).
+    pub baud: [Option<u32>; 2],
+    /// Fraction of each line's bytes damaged (one bit flipped), both ways, in `[0, 1]`.
+    pub corruption: [f64; 2],
 }
 
 impl Wiring {
     /// Links in the temporary directory to the servo bus's PTY `servo` and the base's `base`.
-    pub(super) fn new(servo: &str, base: Option<&str>, baud: [u32; 2]) -> std::io::Result<Self> {
+    pub(super) fn new(servo: &str, base: Option<&str>) -> std::io::Result<Self> {
         use std::sync::atomic::{AtomicUsize, Ordering};
         static NEXT: AtomicUsize = AtomicUsize::new(0);
         let n = NEXT.fetch_add(1, Ordering::Relaxed);
@@ -42,7 +46,8 @@ impl Wiring {
         Ok(Wiring {
             links: [Some(servo_link), base_link],
             plugged: [true, base.is_some()],
-            baud,
+            baud: [None; 2],
+            corruption: [0.0; 2],
         })
     }
 
@@ -78,5 +83,21 @@ impl Wiring {
 pub(super) fn garble(bytes: &mut [u8]) {
     for b in bytes {
         *b = !*b;
+    }
+}
+
+/// Flip one bit in about `fraction` of `bytes`, drawing from the generator `state`
+/// (xorshift64: a seeded, reproducible line).
+pub(super) fn damage(bytes: &mut [u8], fraction: f64, state: &mut u64) {
+    if fraction <= 0.0 {
+        return;
+    }
+    for b in bytes {
+        *state ^= *state << 13;
+        *state ^= *state >> 7;
+        *state ^= *state << 17;
+        if ((*state >> 11) as f64) / ((1u64 << 53) as f64) < fraction {
+            *b ^= 1 << (*state & 7);
+        }
     }
 }

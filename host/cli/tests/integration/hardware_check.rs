@@ -125,7 +125,7 @@ fn a_servo_of_another_model_is_named() {
 #[test]
 fn servos_at_another_bit_rate_are_found_at_theirs() {
     let server = plants();
-    server.rewire(|w| w.baud[0] = 57_600);
+    server.rewire(|w| w.baud[0] = Some(57_600));
     let (_, report) = check(&server, None);
     assert_eq!(
         faults(&report),

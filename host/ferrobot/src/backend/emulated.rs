@@ -200,6 +200,13 @@ impl EmulatedBoard {
                 e => Error::Link(format!("plants: {e}")),
             },
         )?;
+        // The devices listen at the description's rates: bytes at another rate are garbled.
+        let base_baud = direct
+            .direct
+            .as_ref()
+            .and_then(|d| d.base.as_ref())
+            .map(|b| b.baud);
+        server.rewire(|w| w.baud = [Some(direct.bus.baud), base_baud]);
         let ports = super::direct::Ports {
             host: super::direct::HostLink::Open(server.board.host.clone().into()),
             devices: server_devices(&server),

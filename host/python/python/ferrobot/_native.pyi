@@ -138,7 +138,7 @@ class Robot:
         common_config: Optional[Mapping[str, Any]] = None,
         *,
         scene: Optional[str] = None,
-        backend: str = "sim",
+        backend: Optional[str] = None,
         seed: int = 1,
         realtime: bool = False,
         config_file: Optional[Union[str, PathLike[str]]] = None,

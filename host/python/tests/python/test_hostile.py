@@ -46,6 +46,7 @@ SCALARS = [None, "1.0", [1.0], float("nan"), float("inf"), -float("inf"), 1e308,
 ALLOWED = (ferrobot.Error, TypeError, OverflowError)
 # Arguments whose default is None: None is a value they take.
 OPTIONAL = {
+    "Robot backend",
     "compute_ik qinit",
     "set_ee_pose_pitch_roll roll",
     "track_trajectory controls",
@@ -234,3 +235,20 @@ def _robot_still_works(bot):
     assert np.allclose(bot.arm.get_joint_angles(), 0.0, atol=0.02)
     assert all(math.isfinite(x) for x in bot.base.get_state())
     assert bot.camera.get_rgb().shape[2] == 3
+
+
+def test_backend_specs_are_refused_with_typed_errors(monkeypatch):
+    for spec in ["direct:", "direct:servo=", "direct:bogus=1", "direct:servo=a,servo=b", "directx", "direct-emulated:1"]:
+        with pytest.raises(ferrobot.errors.InvalidArgument):
+            Robot("locobot", backend=spec)
+    # The host-run firmware refuses to start before its hardware check passes: a typed error
+    # that names each missing device.
+    with pytest.raises(ferrobot.errors.HardwareCheck) as e:
+        Robot("locobot", backend="direct:servo=/nonexistent/u2d2,base=/nonexistent/kobuki")
+    assert "no servo bus at /nonexistent/u2d2" in str(e.value)
+    assert "no base at /nonexistent/kobuki" in str(e.value)
+    assert "hardware check of locobot" in e.value.table
+    # The environment names the backend of a Robot that does not; it is checked the same.
+    monkeypatch.setenv("FERROBOT_BACKEND", "serial:")
+    with pytest.raises(ferrobot.errors.InvalidArgument):
+        Robot("locobot")
