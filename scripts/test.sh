@@ -91,7 +91,7 @@ tested=(--workspace --exclude ferrobot-benches)
 step "cargo test --no-run: what the HIL tests need"
 # --timings: each build's per-crate times in target/cargo-timings/ (the HTML reports), to see
 # where CI's compile time goes.
-cargo test "${tested[@]}" --no-run --timings --test hil --bin firmware-process
+cargo test "${tested[@]}" --no-run --timings --test hil --test host_run --test pytest --bin firmware-process
 
 step "waited for: the board builds and their clippy"
 join boards
@@ -104,8 +104,13 @@ export FERROBOT_PYTHON="$PWD/target/py-venv/bin/python"
 # on wall-clock budgets (the planners, serial timeouts), run after them, alone. ferrobot-hil's
 # library and its firmware-process binary are the harness and hold no tests of their own (the
 # binary's empty test harness still runs, here).
-step "started: the HIL tests (hil-tests/tests/hil.rs: the firmware in QEMU, real-time paced)"
-background hil "cargo test ${tested[*]} --no-fail-fast --test hil --bin firmware-process"
+# With them, the host-run firmware's tests (hil-tests/tests/host_run.rs: the stock robots on
+# emulated devices, and each fault of a real wire on the host-run firmware and in QEMU) and
+# PyRobot's listings on the host-run firmware (FERROBOT_BACKEND=direct-emulated), also paced
+# at real time; nextest leaves that one out below.
+host_run_listings=pyrobot_listings_on_the_host_run_firmware
+step "started: the HIL tests (hil-tests/tests/hil.rs: the firmware in QEMU; host_run.rs: the host-run firmware; PyRobot's listings on it; real-time paced)"
+background hil "rc=0; cargo test ${tested[*]} --no-fail-fast --test hil --test host_run --bin firmware-process || rc=1; cargo test ${tested[*]} --test pytest -- --exact $host_run_listings || rc=1; exit \$rc"
 
 step "cargo test --no-run: every other test"
 cargo test "${tested[@]}" --no-run --timings
@@ -136,12 +141,14 @@ join hil
 # Nextest does not run doc tests: cargo runs them after it.
 if cargo nextest --version >/dev/null 2>&1; then
     step "cargo nextest run: every other test"
-    check "cargo nextest" cargo nextest run "${tested[@]}" --no-fail-fast --exclude ferrobot-hil
+    check "cargo nextest" cargo nextest run "${tested[@]}" --no-fail-fast --exclude ferrobot-hil \
+        -E "not test(=$host_run_listings)"
     step "cargo test --doc"
     check "cargo test --doc" cargo test "${tested[@]}" --doc --exclude ferrobot-hil
 else
     step "cargo test: every other test (cargo-nextest is not installed)"
-    check "cargo test" cargo test "${tested[@]}" --no-fail-fast --exclude ferrobot-hil
+    check "cargo test" cargo test "${tested[@]}" --no-fail-fast --exclude ferrobot-hil -- \
+        --skip "$host_run_listings"
 fi
 
 if [ ${#failed[@]} -gt 0 ]; then

@@ -171,6 +171,10 @@ enum BenchCommand {
     /// objects at random on the table (seed SEED + trial), looks, grasps, lifts; success is an
     /// object lifted at least 5 cm and held 2 s, from the simulator's ground truth.
     Grasp(cmd::bench_grasp::Args),
+    /// The host-run firmware's servo loop on the wall clock against the plants served in real
+    /// time, the arm moving: tick interval and jitter, the firmware's overruns and servo
+    /// timeouts, and the wire's budget per tick on a U2D2.
+    HostLoop(cmd::bench_host_loop::Args),
     /// Navigation on the scene's ground-truth floor plan: the simulated robot drives to N
     /// random reachable goals; success rate, bumper hits, path length against the shortest
     /// path, time per goal.
@@ -219,6 +223,7 @@ fn run_bench(which: BenchCommand) -> (ferrobot::Result<()>, bool) {
         BenchCommand::Push(a) => (cmd::bench_push::run(&a), a.json),
         BenchCommand::Grasp(a) => (cmd::bench_grasp::run(&a), a.json),
         BenchCommand::Nav(a) => (cmd::bench_nav::run(&a), a.json),
+        BenchCommand::HostLoop(a) => (cmd::bench_host_loop::run(&a), a.json),
     }
 }
 

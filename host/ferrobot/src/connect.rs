@@ -101,6 +101,7 @@ pub(crate) fn connect(
                     base: base.clone(),
                 },
                 clock: None,
+                ticks: None,
             };
             (Box::new(DirectLink::start(cfg, &ports)?), camera.clone())
         }

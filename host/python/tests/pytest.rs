@@ -68,6 +68,11 @@ fn pytest(file: &str) {
 
 /// [`pytest`] with pytest's own arguments `args`.
 fn pytest_with(file: &str, args: &[&str]) {
+    pytest_env(file, args, &[]);
+}
+
+/// [`pytest_with`] with the environment variables `env` set.
+fn pytest_env(file: &str, args: &[&str], env: &[(&str, &str)]) {
     let modules = "numpy, pytest, yourdfpy, absl, ipykernel, nbclient";
     let Some(python) = ferrobot_peers::for_test(modules, "scripts/python-env.sh python") else {
         return;
@@ -81,6 +86,7 @@ fn pytest_with(file: &str, args: &[&str]) {
         .env("PYTHONPATH", &dir)
         .env("PYTHONDONTWRITEBYTECODE", "1")
         .env("FERROBOT_REPO", root().join("../.."))
+        .envs(env.iter().copied())
         .status()
         .expect("pytest runs");
     let _ = std::fs::remove_dir_all(&dir);
@@ -138,5 +144,31 @@ fn test_pyrobot_on_the_locobot_lite() {
         "test_pyrobot_make_robots.py",
     ] {
         pytest_with(file, &["--botname", "locobot_lite"]);
+    }
+}
+
+/// PyRobot's listings, unchanged, on the host-run firmware of a stock robot with its devices
+/// emulated (`FERROBOT_BACKEND=direct-emulated`: the plants at the stock robot's rates behind
+/// pseudo-terminals), for both LoCoBots. Paced at real time (about four minutes, little CPU):
+/// CI runs it beside the build, with the HIL tests (`scripts/test.sh`), not in nextest's queue.
+#[test]
+fn pyrobot_listings_on_the_host_run_firmware() {
+    let env = [("FERROBOT_BACKEND", "direct-emulated")];
+    for file in [
+        "test_pyrobot_make_robots.py",
+        "test_pyrobot_camera.py",
+        "test_pyrobot_arm_utils.py",
+        "test_pyrobot_arm_controls.py",
+        "test_pyrobot_base_velocity_control.py",
+        "test_pyrobot_base_controllers.py",
+        "test_pyrobot_base_position_control_inits.py",
+    ] {
+        pytest_env(file, &[], &env);
+    }
+    for file in [
+        "test_pyrobot_arm_controls.py",
+        "test_pyrobot_base_velocity_control.py",
+    ] {
+        pytest_env(file, &["--botname", "locobot_lite"], &env);
     }
 }

@@ -40,6 +40,7 @@ pub fn run(a: &Args) -> ferrobot::Result<()> {
             base: a.base.clone(),
         },
         clock: a.clock.clone(),
+        ticks: None,
     };
     let mut firmware = HostRunFirmware::start(&cfg, &ports)?;
     let line = serde_json::json!({"link": firmware.link, "check": firmware.check});

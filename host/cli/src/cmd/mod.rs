@@ -8,6 +8,7 @@ pub mod bench_arm;
 pub mod bench_base;
 pub mod bench_camera;
 pub mod bench_grasp;
+pub mod bench_host_loop;
 pub mod bench_nav;
 pub mod bench_plan;
 pub mod bench_push;

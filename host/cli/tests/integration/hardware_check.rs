@@ -27,6 +27,11 @@ fn plants() -> BoardServer {
 /// `ferrobot hardware check locobot` on `server`'s devices, as `run_as` (a user name to drop
 /// to, or `None`): its output and the JSON report.
 fn check(server: &BoardServer, run_as: Option<&str>) -> (Output, Value) {
+    check_as(server, run_as, true)
+}
+
+/// [`check`], with `--json` or the table.
+fn check_as(server: &BoardServer, run_as: Option<&str>, json: bool) -> (Output, Value) {
     let wiring = server.wiring();
     let exe = env!("CARGO_BIN_EXE_ferrobot");
     let mut cmd = match run_as {
@@ -37,13 +42,19 @@ fn check(server: &BoardServer, run_as: Option<&str>) -> (Output, Value) {
         }
         None => Command::new(exe),
     };
-    cmd.args(["hardware", "check", "locobot", "--json", "--clock"])
+    cmd.args(["hardware", "check", "locobot", "--clock"])
         .arg(&server.board.clock)
         .arg("--servo")
         .arg(wiring.link(0).expect("a servo line"))
         .arg("--base")
         .arg(wiring.link(1).expect("a base line"));
+    if json {
+        cmd.arg("--json");
+    }
     let out = cmd.output().expect("ferrobot runs");
+    if !json {
+        return (out, Value::Null);
+    }
     let stdout = String::from_utf8_lossy(&out.stdout);
     let report = stdout
         .lines()
@@ -93,6 +104,14 @@ fn a_healthy_emulated_locobot_passes_with_a_row_per_servo_and_its_base() {
             .as_str()
             .is_some_and(|r| r.contains("battery 16.0 V")),
         "{report:#}"
+    );
+    // The table a user reads (fresh plants: a conductor's clock serves one board).
+    let (out, _) = check_as(&plants(), None, false);
+    let table = String::from_utf8_lossy(&out.stdout);
+    eprintln!("{table}");
+    assert!(
+        table.contains("servo 4 (joint_3)") && table.ends_with("passed: the robot may move\n"),
+        "{table}"
     );
 }
 
@@ -184,4 +203,37 @@ fn nix_is_root() -> bool {
     let uid = std::fs::metadata(&probe).map(|m| m.uid()).unwrap_or(1);
     let _ = std::fs::remove_file(&probe);
     uid == 0
+}
+
+/// The shipped udev rules give every `[direct]` device of the bundled robots its name, by the
+/// USB IDs the description gives: the check's hints and the rules cannot drift apart.
+#[test]
+fn the_udev_rules_name_every_direct_device_by_its_usb_ids() {
+    let rules = std::fs::read_to_string(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../scripts/udev/99-ferrobot.rules"),
+    )
+    .expect("the rules");
+    let mut checked = 0;
+    for robot in ["locobot", "locobot_lite"] {
+        let cfg = ferrobot::profile::bundled(robot).expect("robot");
+        let direct = cfg.direct.expect("a [direct] section");
+        for dev in std::iter::once(&direct.servo).chain(direct.base.as_ref()) {
+            let (v, p) = dev.usb_ids().expect("USB IDs");
+            let name = dev.port.strip_prefix("/dev/").expect("a /dev path");
+            let rule = rules
+                .lines()
+                .find(|l| l.contains(&format!("SYMLINK+=\"{name}\"")))
+                .unwrap_or_else(|| panic!("no rule names /dev/{name}"));
+            assert!(
+                rule.contains(&format!("ATTRS{{idVendor}}==\"{v:04x}\""))
+                    && rule.contains(&format!("ATTRS{{idProduct}}==\"{p:04x}\""))
+                    && rule.contains("ATTR{device/latency_timer}=\"1\"")
+                    && rule.contains("GROUP=\"dialout\""),
+                "{rule}"
+            );
+            checked += 1;
+        }
+    }
+    assert_eq!(checked, 4);
 }

@@ -8,6 +8,7 @@ mod bench_manipulation;
 mod bench_plan;
 mod cli;
 mod cli_hostile;
+mod demo_host_run;
 mod hardware_check;
 mod hostile_plots;
 mod nav_plan;

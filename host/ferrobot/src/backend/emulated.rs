@@ -211,6 +211,7 @@ impl EmulatedBoard {
             host: super::direct::HostLink::Open(server.board.host.clone().into()),
             devices: server_devices(&server),
             clock: Some(server.board.clock.clone().into()),
+            ticks: None,
         };
         let firmware = super::direct::HostRunFirmware::start(cfg, &ports)?;
         let board = EmulatedBoard {

@@ -13,7 +13,7 @@ use ferrobot_description::{BaseModel, RobotConfig, ServoModel};
 use ferrobot_protocol::dxl::{self, addr, units, PacketDecoder};
 
 use super::clock::Clock;
-use super::device::{Device, OpenError};
+use super::device::{Device, LatencyTimer, OpenError};
 use super::wires::{Wires, SERVO};
 
 pub use super::check_report::{Problem, Report, Row, Severity};
@@ -80,8 +80,21 @@ fn open_one(
         .unwrap_or_else(|| PathBuf::from(&spec.port));
     match Device::open(&path, spec.baud) {
         Ok(d) => {
-            let latency = format!("{:?}", d.latency);
-            rows.push(Row::ok(what, &format!("{} ({latency})", path.display())));
+            let shown = path.display();
+            rows.push(match d.latency {
+                Some(LatencyTimer::Unwritable(ms)) => Row::warning(
+                    what,
+                    &format!("{shown}, FTDI latency timer {ms} ms"),
+                    Problem::LatencyTimer {
+                        path: path.clone(),
+                        ms,
+                    },
+                ),
+                Some(LatencyTimer::Set(ms)) => {
+                    Row::ok(what, &format!("{shown}, FTDI latency timer {ms} ms"))
+                }
+                _ => Row::ok(what, &format!("{shown} (no FTDI latency timer)")),
+            });
             Some(d)
         }
         Err(OpenError::Missing(p)) => {

@@ -77,6 +77,13 @@ pub enum Problem {
         /// Its temperature, °C.
         celsius: u8,
     },
+    /// The adapter's FTDI latency timer could not be lowered: every reply may wait that long.
+    LatencyTimer {
+        /// The device.
+        path: PathBuf,
+        /// The timer, ms.
+        ms: u32,
+    },
     /// A servo's Baud Rate register disagrees with the rate it answers at.
     BaudRegister {
         /// Its ID.
@@ -156,6 +163,13 @@ impl fmt::Display for Problem {
                 "servo {id} sees {volts:.1} V (10-14.8 V): check the power supply"
             ),
             Hot { id, celsius } => write!(f, "servo {id} is at {celsius} °C: let it cool"),
+            LatencyTimer { path, ms } => write!(
+                f,
+                "{}'s FTDI latency timer stays at {ms} ms (this user may not write it): every \
+                 servo reply can wait {ms} ms and the loop overruns; install \
+                 scripts/udev/99-ferrobot.rules, which sets it to 1 ms",
+                path.display()
+            ),
             BaudRegister { id, code, baud } => write!(
                 f,
                 "servo {id}'s Baud Rate register is {code}, not the code of {baud} bit/s"

@@ -45,7 +45,7 @@ pub enum HostLink {
 }
 
 /// The host-run firmware's ports.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone)]
 pub struct Ports {
     /// The host link.
     pub host: HostLink,
@@ -53,6 +53,8 @@ pub struct Ports {
     pub devices: check::Devices,
     /// A virtual-time link from a conductor (emulated devices), or `None` for the wall clock.
     pub clock: Option<PathBuf>,
+    /// Where to log the instant of every servo-loop tick (the loop-period benchmark).
+    pub ticks: Option<runtime::TickLog>,
 }
 
 /// The host-run firmware on its own thread; stopped when dropped.
@@ -141,6 +143,7 @@ impl HostRunFirmware {
         };
         let quit = Arc::new(AtomicBool::new(false));
         let mut run = HostRun::new(profile, host, wires);
+        run.ticks = ports.ticks.clone();
         let thread = {
             let quit = quit.clone();
             std::thread::Builder::new()

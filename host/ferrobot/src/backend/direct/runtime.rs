@@ -67,6 +67,9 @@ impl HostEnd {
     }
 }
 
+/// Wall-clock instants of servo-loop ticks, shared with whoever measures them.
+pub type TickLog = std::sync::Arc<std::sync::Mutex<Vec<Instant>>>;
+
 /// The firmware core with its ports and clock.
 pub struct HostRun {
     fw: Firmware,
@@ -75,9 +78,9 @@ pub struct HostRun {
     host_rx: Vec<u8>,
     /// Firmware polls so far.
     pub polls: u64,
-    /// Wall-clock instants of the firmware's servo-loop ticks, for the loop-period benchmark
-    /// (kept only when `Some`).
-    pub ticks: Option<Vec<Instant>>,
+    /// Wall-clock instants at which each servo-loop tick's sync read left, for the
+    /// loop-period benchmark (kept only when `Some`).
+    pub ticks: Option<TickLog>,
 }
 
 impl HostRun {
@@ -178,8 +181,9 @@ impl HostRun {
             if out.is_empty() {
                 continue;
             }
-            if i == SERVO {
-                if let Some(t) = self.ticks.as_mut() {
+            // A tick's bus cycle starts with its sync read (instruction at byte 7).
+            if i == SERVO && out.get(7) == Some(&ferrobot_protocol::dxl::inst::SYNC_READ) {
+                if let Some(Ok(mut t)) = self.ticks.as_ref().map(|t| t.lock()) {
                     t.push(Instant::now());
                 }
             }
