@@ -102,89 +102,95 @@ pub enum Problem {
 }
 
 impl fmt::Display for Problem {
+    /// What is wrong and how to fix it.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.device_fix() {
+            Some(text) => f.write_str(&text),
+            None => f.write_str(&self.servo_or_base_fix()),
+        }
+    }
+}
+
+impl Problem {
+    /// The text of a device's problem.
+    fn device_fix(&self) -> Option<String> {
         use Problem::*;
-        match self {
-            NoDirectSection(r) => write!(f, "{r} has no [direct] section: it runs on a board"),
-            DeviceMissing { what, path } => write!(
-                f,
+        Some(match self {
+            NoDirectSection(r) => format!("{r} has no [direct] section: it runs on a board"),
+            DeviceMissing { what, path } => format!(
                 "no {what} at {}: plug its USB cable in, or name the device (--servo/--base)",
                 path.display()
             ),
-            UdevLinkMissing { link, device } => write!(
-                f,
+            UdevLinkMissing { link, device } => format!(
                 "the adapter is at {} but {} is missing: install the udev rules \
                  (sudo cp scripts/udev/99-ferrobot.rules /etc/udev/rules.d/ && sudo udevadm \
                  control --reload && sudo udevadm trigger) or pass the device",
                 device.display(),
                 link.display()
             ),
-            Permission(p) => write!(
-                f,
+            Permission(p) => format!(
                 "no permission to open {}: sudo usermod -aG dialout $USER, then log in again \
                  (or install scripts/udev/99-ferrobot.rules)",
                 p.display()
             ),
-            DeviceBusy(p, why) => write!(
-                f,
+            DeviceBusy(p, why) => format!(
                 "{} will not open ({why}): is another program (a ROS driver, a terminal) using it?",
                 p.display()
             ),
-            BusSilent(p) => write!(
-                f,
-                "no servo answers on {} at any rate: check the servos' power (12 V) and the \
-                 cable from the U2D2",
-                p.display()
-            ),
-            WrongBaud { found, expected } => write!(
-                f,
-                "the servos answer at {found} bit/s, the description says {expected}: set \
-                 them to {expected} with ROBOTIS' Dynamixel Wizard, or set [direct].servo.baud"
-            ),
-            ServoMissing(id) => write!(
-                f,
-                "servo {id} does not answer: check its cable and ID (Dynamixel Wizard)"
-            ),
-            WrongModel {
-                id,
-                found,
-                expected,
-            } => write!(
-                f,
-                "servo {id} is model {found}, the description says {expected}: fix the \
-                 joint's servo.model or the wiring"
-            ),
-            HardwareAlert(id) => write!(
-                f,
-                "servo {id} reports a hardware error: power-cycle it, and look at its load"
-            ),
-            Voltage { id, volts } => write!(
-                f,
-                "servo {id} sees {volts:.1} V (10-14.8 V): check the power supply"
-            ),
-            Hot { id, celsius } => write!(f, "servo {id} is at {celsius} °C: let it cool"),
-            LatencyTimer { path, ms } => write!(
-                f,
+            LatencyTimer { path, ms } => format!(
                 "{}'s FTDI latency timer stays at {ms} ms (this user may not write it): every \
                  servo reply can wait {ms} ms and the loop overruns; install \
                  scripts/udev/99-ferrobot.rules, which sets it to 1 ms",
                 path.display()
             ),
-            BaudRegister { id, code, baud } => write!(
-                f,
-                "servo {id}'s Baud Rate register is {code}, not the code of {baud} bit/s"
+            _ => return None,
+        })
+    }
+
+    /// The text of a servo's or the base's problem.
+    fn servo_or_base_fix(&self) -> String {
+        use Problem::*;
+        match self {
+            BusSilent(p) => format!(
+                "no servo answers on {} at any rate: check the servos' power (12 V) and the \
+                 cable from the U2D2",
+                p.display()
             ),
-            NoBase(p) => write!(
-                f,
+            WrongBaud { found, expected } => format!(
+                "the servos answer at {found} bit/s, the description says {expected}: set \
+                 them to {expected} with ROBOTIS' Dynamixel Wizard, or set [direct].servo.baud"
+            ),
+            ServoMissing(id) => {
+                format!("servo {id} does not answer: check its cable and ID (Dynamixel Wizard)")
+            }
+            WrongModel {
+                id,
+                found,
+                expected,
+            } => format!(
+                "servo {id} is model {found}, the description says {expected}: fix the \
+                 joint's servo.model or the wiring"
+            ),
+            HardwareAlert(id) => {
+                format!("servo {id} reports a hardware error: power-cycle it, and look at its load")
+            }
+            Voltage { id, volts } => {
+                format!("servo {id} sees {volts:.1} V (10-14.8 V): check the power supply")
+            }
+            Hot { id, celsius } => format!("servo {id} is at {celsius} °C: let it cool"),
+            BaudRegister { id, code, baud } => {
+                format!("servo {id}'s Baud Rate register is {code}, not the code of {baud} bit/s")
+            }
+            NoBase(p) => format!(
                 "no base at {}: plug the base's USB cable in and switch the base on",
                 p.display()
             ),
-            BaseSilent(p) => write!(
-                f,
+            BaseSilent(p) => format!(
                 "the base's cable is at {} but the base says nothing: switch the base on",
                 p.display()
             ),
-            BatteryLow(v) => write!(f, "the base's battery is at {v:.1} V: charge it"),
+            BatteryLow(v) => format!("the base's battery is at {v:.1} V: charge it"),
+            other => format!("{other:?}"),
         }
     }
 }
