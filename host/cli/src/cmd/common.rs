@@ -175,3 +175,29 @@ impl BackendArgs {
         })
     }
 }
+
+/// Where a stock robot's devices are (`ferrobot drive`, `ferrobot hardware check`).
+#[derive(clap::Args, Debug, Clone)]
+pub struct DeviceArgs {
+    /// Robot name or configuration path (it needs a `[direct]` section).
+    pub robot: String,
+    /// The servo bus's device (default: the description's, e.g. /dev/ttyUSB_dyna).
+    #[arg(long)]
+    pub servo: Option<std::path::PathBuf>,
+    /// The base's device (default: the description's, e.g. /dev/kobuki).
+    #[arg(long)]
+    pub base: Option<std::path::PathBuf>,
+    /// Emulated devices: the virtual-time link of the plants that serve them (a test's).
+    #[arg(long, hide = true)]
+    pub clock: Option<std::path::PathBuf>,
+}
+
+impl DeviceArgs {
+    /// The devices as the host-run firmware takes them.
+    pub fn devices(&self) -> ferrobot::backend::direct::check::Devices {
+        ferrobot::backend::direct::check::Devices {
+            servo: self.servo.clone(),
+            base: self.base.clone(),
+        }
+    }
+}

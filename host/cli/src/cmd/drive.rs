@@ -6,40 +6,29 @@
 use std::io::Read;
 use std::path::PathBuf;
 
-use ferrobot::backend::direct::{check::Devices, HostLink, HostRunFirmware, Ports};
+use ferrobot::backend::direct::{HostLink, HostRunFirmware, Ports};
 
-use super::common::load;
+use super::common::{load, DeviceArgs};
 
 /// `ferrobot drive`'s arguments.
 #[derive(clap::Args)]
 pub struct Args {
-    /// Robot name or configuration path (it needs a `[direct]` section).
-    pub robot: String,
+    /// The robot and its devices.
+    #[command(flatten)]
+    pub devices: DeviceArgs,
     /// Path of the symlink to create for the host link.
     #[arg(long)]
     pub link: PathBuf,
-    /// The servo bus's device (default: the description's, e.g. /dev/ttyUSB_dyna).
-    #[arg(long)]
-    pub servo: Option<PathBuf>,
-    /// The base's device (default: the description's, e.g. /dev/kobuki).
-    #[arg(long)]
-    pub base: Option<PathBuf>,
-    /// Emulated devices: the virtual-time link of the plants that serve them (a test's).
-    #[arg(long, hide = true)]
-    pub clock: Option<PathBuf>,
 }
 
 /// Check the devices, start the firmware, print one JSON line (the link and the check's
 /// report), and serve until standard input closes.
 pub fn run(a: &Args) -> ferrobot::Result<()> {
-    let cfg = load(&a.robot)?;
+    let cfg = load(&a.devices.robot)?;
     let ports = Ports {
         host: HostLink::Serve(a.link.clone()),
-        devices: Devices {
-            servo: a.servo.clone(),
-            base: a.base.clone(),
-        },
-        clock: a.clock.clone(),
+        devices: a.devices.devices(),
+        clock: a.devices.clock.clone(),
         ticks: None,
     };
     let mut firmware = HostRunFirmware::start(&cfg, &ports)?;

@@ -237,3 +237,51 @@ fn the_udev_rules_name_every_direct_device_by_its_usb_ids() {
     }
     assert_eq!(checked, 4);
 }
+
+/// `ferrobot drive` serves the host-run firmware of the emulated LoCoBot to another process's
+/// program over the serial backend, after its check, until its standard input closes.
+#[test]
+fn ferrobot_drive_serves_the_host_run_firmware_to_a_program() {
+    use std::io::BufRead;
+    let server = plants();
+    let wiring = server.wiring();
+    let link = std::env::temp_dir().join(format!("ferrobot-drive-test-{}", std::process::id()));
+    let mut child = Command::new(env!("CARGO_BIN_EXE_ferrobot"))
+        .args(["drive", "locobot", "--link"])
+        .arg(&link)
+        .arg("--clock")
+        .arg(&server.board.clock)
+        .arg("--servo")
+        .arg(wiring.link(0).expect("servo"))
+        .arg("--base")
+        .arg(wiring.link(1).expect("base"))
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .spawn()
+        .expect("ferrobot drive");
+    let mut line = String::new();
+    std::io::BufReader::new(child.stdout.take().expect("stdout"))
+        .read_line(&mut line)
+        .expect("its line");
+    let said: Value = serde_json::from_str(&line).expect("one JSON line");
+    assert_eq!(
+        said["check"]["rows"].as_array().map(Vec::len),
+        Some(12),
+        "{said}"
+    );
+    let bot = ferrobot::Robot::builder("locobot")
+        .backend(ferrobot::Backend::Serial { path: link.clone() })
+        .use_camera(false)
+        .build()
+        .expect("the program connects");
+    let arm = bot.arm().expect("arm");
+    arm.set_joint_positions(&[0.3, 0.0, 0.0, 0.0, 0.0])
+        .expect("a motion");
+    let q = server.with_hardware(|hw, _| hw.chain.arm_angles());
+    assert!((q[0] - 0.3).abs() < 0.02, "{q:?}");
+    drop(bot);
+    drop(child.stdin.take());
+    let status = child.wait().expect("it ends");
+    assert!(status.success(), "{status}");
+    assert!(!link.exists(), "the link is removed");
+}

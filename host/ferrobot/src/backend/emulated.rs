@@ -12,11 +12,9 @@ use std::process::{Child, Command, Stdio};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use ferrobot_protocol::{DeviceInfo, Diagnostics, Fault, HostMsg, JointConfig, Telemetry};
 use ferrobot_sim::board::{BoardOptions, BoardPorts, BoardServer};
 
 use super::serial::SerialLink;
-use super::Link;
 use crate::error::{Error, Result};
 
 /// `qemu-system-arm` arguments for the board the firmware targets: MPS2 AN386 (Cortex-M4),
@@ -369,42 +367,7 @@ impl EmulatedLink {
     }
 }
 
-impl Link for EmulatedLink {
-    fn info(&self) -> &DeviceInfo {
-        self.serial.info()
-    }
-    fn command(&mut self, msg: &HostMsg, what: &str) -> Result<()> {
-        self.serial.command(msg, what)
-    }
-    fn joint_config(&mut self, index: u8) -> Result<JointConfig> {
-        self.serial.joint_config(index)
-    }
-    fn diagnostics(&mut self) -> Result<Diagnostics> {
-        self.serial.diagnostics()
-    }
-    fn telemetry(&mut self) -> Result<Telemetry> {
-        self.serial.telemetry()
-    }
-    fn wait(&mut self, dt: Duration) {
-        self.serial.wait(dt)
-    }
-    fn now(&self) -> Duration {
-        self.serial.now()
-    }
-    fn take_faults(&mut self) -> Vec<Fault> {
-        self.serial.take_faults()
-    }
-
-    fn take_events(&mut self) -> Vec<super::LinkEvent> {
-        self.serial.take_events()
-    }
-    fn as_any_mut(&mut self) -> &mut dyn std::any::Any {
-        self
-    }
-    fn stop_line(&self) -> Option<std::sync::Arc<dyn super::StopLine>> {
-        self.serial.stop_line()
-    }
-}
+link_through_serial!(EmulatedLink);
 
 #[cfg(test)]
 mod tests {

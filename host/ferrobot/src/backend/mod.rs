@@ -11,6 +11,57 @@
 //! * [`Backend::Direct`]: the host-run firmware on a stock robot's own serial devices;
 //!   [`Backend::DirectEmulated`] the same on the simulated plants' emulated devices.
 
+/// `impl Link` for a type that keeps a backend alive around the [`serial::SerialLink`] in its
+/// field `serial` (the emulated board, the host-run firmware): every call goes to the serial
+/// link, and [`Link::as_any_mut`] gives the type itself.
+#[cfg(feature = "serial")]
+macro_rules! link_through_serial {
+    ($t:ty) => {
+        impl $crate::backend::Link for $t {
+            fn info(&self) -> &ferrobot_protocol::DeviceInfo {
+                self.serial.info()
+            }
+            fn command(
+                &mut self,
+                msg: &ferrobot_protocol::HostMsg,
+                what: &str,
+            ) -> $crate::error::Result<()> {
+                self.serial.command(msg, what)
+            }
+            fn joint_config(
+                &mut self,
+                index: u8,
+            ) -> $crate::error::Result<ferrobot_protocol::JointConfig> {
+                self.serial.joint_config(index)
+            }
+            fn diagnostics(&mut self) -> $crate::error::Result<ferrobot_protocol::Diagnostics> {
+                self.serial.diagnostics()
+            }
+            fn telemetry(&mut self) -> $crate::error::Result<ferrobot_protocol::Telemetry> {
+                self.serial.telemetry()
+            }
+            fn wait(&mut self, dt: std::time::Duration) {
+                self.serial.wait(dt)
+            }
+            fn now(&self) -> std::time::Duration {
+                self.serial.now()
+            }
+            fn take_faults(&mut self) -> Vec<ferrobot_protocol::Fault> {
+                self.serial.take_faults()
+            }
+            fn take_events(&mut self) -> Vec<$crate::backend::LinkEvent> {
+                self.serial.take_events()
+            }
+            fn as_any_mut(&mut self) -> &mut dyn std::any::Any {
+                self
+            }
+            fn stop_line(&self) -> Option<std::sync::Arc<dyn $crate::backend::StopLine>> {
+                self.serial.stop_line()
+            }
+        }
+    };
+}
+
 #[cfg(feature = "serial")]
 pub mod camera_socket;
 pub mod device;

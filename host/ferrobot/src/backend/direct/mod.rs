@@ -24,14 +24,13 @@ use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::Duration;
 
-use ferrobot_protocol::{DeviceInfo, Diagnostics, Fault, HostMsg, JointConfig, Telemetry};
 use serialport::{SerialPort, TTYPort};
 
 use self::clock::{Clock, VirtualClock};
 use self::runtime::{HostEnd, HostRun};
 use self::wires::Wires;
 use super::serial::SerialLink;
-use super::{Link, LinkEvent, StopLine};
+
 use crate::config::RobotConfig;
 use crate::error::{Error, Result};
 
@@ -228,38 +227,4 @@ impl DirectLink {
     }
 }
 
-impl Link for DirectLink {
-    fn info(&self) -> &DeviceInfo {
-        self.serial.info()
-    }
-    fn command(&mut self, msg: &HostMsg, what: &str) -> Result<()> {
-        self.serial.command(msg, what)
-    }
-    fn joint_config(&mut self, index: u8) -> Result<JointConfig> {
-        self.serial.joint_config(index)
-    }
-    fn diagnostics(&mut self) -> Result<Diagnostics> {
-        self.serial.diagnostics()
-    }
-    fn telemetry(&mut self) -> Result<Telemetry> {
-        self.serial.telemetry()
-    }
-    fn wait(&mut self, dt: Duration) {
-        self.serial.wait(dt)
-    }
-    fn now(&self) -> Duration {
-        self.serial.now()
-    }
-    fn take_faults(&mut self) -> Vec<Fault> {
-        self.serial.take_faults()
-    }
-    fn take_events(&mut self) -> Vec<LinkEvent> {
-        self.serial.take_events()
-    }
-    fn as_any_mut(&mut self) -> &mut dyn std::any::Any {
-        self
-    }
-    fn stop_line(&self) -> Option<Arc<dyn StopLine>> {
-        self.serial.stop_line()
-    }
-}
+link_through_serial!(DirectLink);
