@@ -61,6 +61,55 @@ impl DirectSection {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::{ConfigSource, RobotConfig};
+
+    /// The LoCoBot with `key` set to `value`: the error's text, if refused.
+    fn refused(key: &str, value: toml::Value) -> Option<String> {
+        let source = ConfigSource::Bundled("locobot".into());
+        RobotConfig::load(&source, &[(key.to_string(), value)])
+            .err()
+            .map(|e| e.to_string())
+    }
+
+    #[test]
+    fn a_direct_section_out_of_its_ranges_is_refused_naming_the_key() {
+        use toml::Value::{Integer, String as S};
+        for (key, value) in [
+            ("direct.servo.baud", Integer(0)),
+            ("direct.servo.baud", Integer(-1)),
+            ("direct.servo.baud", Integer(100_000_000)),
+            ("direct.base.baud", Integer(12)),
+            ("direct.servo.usb", S("zz:6014".into())),
+            ("direct.base.usb", S("0403".into())),
+            ("direct.reply_margin_us", Integer(1_000_000)),
+            ("direct.servo.port", Integer(3)),
+            ("direct.servo.colour", S("red".into())),
+        ] {
+            let why = refused(key, value.clone()).unwrap_or_else(|| panic!("{key} = {value}"));
+            let field = key.rsplit('.').next().unwrap_or(key);
+            assert!(why.contains(field), "{key} = {value}: {why}");
+        }
+        let lite = ConfigSource::Bundled("locobot_lite".into());
+        let no_base = [(
+            "direct.base".to_string(),
+            toml::Value::Table(Default::default()),
+        )];
+        assert!(RobotConfig::load(&lite, &no_base).is_err());
+    }
+
+    #[test]
+    fn the_bundled_locobots_run_their_bus_at_1_mbit_on_their_own_cables() {
+        for robot in ["locobot", "locobot_lite"] {
+            let cfg = RobotConfig::bundled(robot).expect("bundled");
+            let direct = cfg.direct_config().expect("a [direct] section");
+            assert_eq!(direct.bus.baud, 1_000_000);
+            assert_eq!(cfg.bus.baud, 4_000_000, "a board's bus stays as [bus] says");
+        }
+        assert!(RobotConfig::bundled("sawyer")
+            .expect("sawyer")
+            .direct
+            .is_none());
+    }
 
     #[test]
     fn usb_ids_are_read_in_hex_and_refused_when_malformed() {
