@@ -105,12 +105,14 @@ export FERROBOT_PYTHON="$PWD/target/py-venv/bin/python"
 # library and its firmware-process binary are the harness and hold no tests of their own (the
 # binary's empty test harness still runs, here).
 # With them, the host-run firmware's tests (hil-tests/tests/host_run.rs: the stock robots on
-# emulated devices, and each fault of a real wire on the host-run firmware and in QEMU) and
-# PyRobot's listings on the host-run firmware (FERROBOT_BACKEND=direct-emulated), also paced
-# at real time; nextest leaves that one out below.
+# emulated devices, and each fault of a real wire on the host-run firmware and in QEMU); and,
+# in a job of its own beside them, PyRobot's listings on the host-run firmware
+# (FERROBOT_BACKEND=direct-emulated, about six minutes). Both are paced at real time and use
+# little CPU; nextest leaves the listings out below.
 host_run_listings=pyrobot_listings_on_the_host_run_firmware
-step "started: the HIL tests (hil-tests/tests/hil.rs: the firmware in QEMU; host_run.rs: the host-run firmware; PyRobot's listings on it; real-time paced)"
-background hil "rc=0; cargo test ${tested[*]} --no-fail-fast --test hil --test host_run --bin firmware-process || rc=1; cargo test ${tested[*]} --test pytest -- --exact $host_run_listings || rc=1; exit \$rc"
+step "started: the HIL tests (hil-tests/tests/hil.rs: the firmware in QEMU; host_run.rs: the host-run firmware) and PyRobot's listings on the host-run firmware, real-time paced"
+background hil "cargo test ${tested[*]} --no-fail-fast --test hil --test host_run --bin firmware-process"
+background listings "cargo test ${tested[*]} --test pytest -- --exact $host_run_listings"
 
 step "cargo test --no-run: every other test"
 cargo test "${tested[@]}" --no-run --timings
@@ -131,8 +133,9 @@ check doc env RUSTDOCFLAGS="-D warnings" cargo doc "${tested[@]}" --no-deps
 step "ferrobot with one backend each (sim without serialport, serial without the simulator)"
 check "backend builds" scripts/backend-builds.sh
 
-step "waited for: the HIL tests"
+step "waited for: the HIL tests and PyRobot's listings on the host-run firmware"
 join hil
+join listings
 
 # cargo-nextest (on every machine of this kind; cargo's own runner where it is missing) runs
 # the tests of all binaries in one queue, two at a time: cargo test runs one binary after the

@@ -149,10 +149,9 @@ fn test_pyrobot_on_the_locobot_lite() {
 
 /// PyRobot's listings, unchanged, on the host-run firmware of a stock robot with its devices
 /// emulated (`FERROBOT_BACKEND=direct-emulated`: the plants at the stock robot's rates behind
-/// pseudo-terminals). Paced at real time (about four minutes, little CPU): CI runs it beside
-/// the build, with the HIL tests (`scripts/test.sh`), not in nextest's queue. The LoCoBot-Lite
-/// runs its demo and its own test on the host-run firmware (`ferrobot-cli`'s
-/// `demo_host_run`, `ferrobot-hil`'s `host_run`).
+/// pseudo-terminals): all seven on the LoCoBot, the arm's and the base's on the LoCoBot-Lite.
+/// Paced at real time (about six minutes, little CPU): CI runs it beside the build, in a
+/// background job of its own (`scripts/test.sh`), not in nextest's queue.
 #[test]
 fn pyrobot_listings_on_the_host_run_firmware() {
     let env = [("FERROBOT_BACKEND", "direct-emulated")];
