@@ -76,6 +76,14 @@ fn stats(mut v: Vec<f64>) -> ([f64; 4], f64) {
 
 /// Run the host-run firmware on the plants served in real time for `seconds`, the arm swinging.
 pub fn run(a: &Args) -> ferrobot::Result<()> {
+    if !(a.seconds >= 0.1 && a.seconds <= 3600.0) {
+        return Err(ferrobot::Error::OutOfRange {
+            what: "--seconds".into(),
+            value: a.seconds,
+            min: 0.1,
+            max: 3600.0,
+        });
+    }
     let cfg = load(&a.robot)?;
     let direct = cfg
         .direct_config()

@@ -21,17 +21,29 @@ pub struct Args {
 pub fn run(a: &Args) -> ferrobot::Result<()> {
     let cfg = load(&a.devices.robot)?;
     let (_, report) = check_devices(&cfg, &a.devices.devices(), a.devices.clock.as_deref())?;
-    if a.json {
-        print_json(&report);
-    } else {
-        say!("{report}");
-    }
     if report.passed() {
-        Ok(())
-    } else {
-        Err(ferrobot::Error::HardwareCheck {
-            faults: report.faults().iter().map(|p| p.to_string()).collect(),
-            table: report.to_string(),
-        })
+        if a.json {
+            print_json(&report);
+        } else {
+            say!("{report}");
+        }
+        return Ok(());
     }
+    let failed = ferrobot::Error::HardwareCheck {
+        faults: report.faults().iter().map(|p| p.to_string()).collect(),
+        table: report.to_string(),
+    };
+    if !a.json {
+        say!("{report}");
+        return Err(failed);
+    }
+    // One JSON object: the report with the error's fields, then exit code 1 (the robot's
+    // hardware failed, not the input), without the generic error line a second object would
+    // be.
+    let mut v = serde_json::to_value(&report).unwrap_or_default();
+    v["success"] = false.into();
+    v["input_error"] = false.into();
+    v["error"] = failed.to_string().into();
+    print_json(&v);
+    std::process::exit(1)
 }

@@ -964,6 +964,56 @@ fn cases() -> Vec<Case> {
         &["sim-firmware", "wall-e", "--link", "new-link"],
         Input,
     ));
+    // The host-run firmware: unknown robots, robots without their own cables, devices that
+    // are files, directories or nothing, and a link path that exists; the hardware check
+    // refuses before anything is opened for writing or created.
+    for robot in ["wall-e", "", "./notes.txt"] {
+        c.push(case(&["hardware", "check", robot, "--json"], Input));
+        c.push(case(&["drive", robot, "--link", "new-link"], Input));
+    }
+    c.push(case(&["hardware", "check", "sawyer", "--json"], Failure));
+    for dev in [
+        "./notes.txt",
+        "./binary.toml",
+        "./",
+        "",
+        "/dev/zero",
+        "no/such/device",
+    ] {
+        c.push(case(
+            &[
+                "hardware", "check", "locobot", "--servo", dev, "--base", dev, "--json",
+            ],
+            Failure,
+        ));
+        c.push(case(
+            &[
+                "drive",
+                "locobot",
+                "--link",
+                "notes.txt",
+                "--servo",
+                dev,
+                "--base",
+                dev,
+            ],
+            Failure,
+        ));
+        c.push(case(
+            &["demo", "--backend", "direct", "--servo", dev, "--base", dev],
+            Failure,
+        ));
+    }
+    for v in HOSTILE.iter().chain(&["0", "-1", "1e6"]) {
+        c.push(case(
+            &["bench", "host-loop", "--seconds", v, "--json"],
+            Input,
+        ));
+    }
+    c.push(case(
+        &["bench", "host-loop", "--robot", "sawyer", "--json"],
+        Input,
+    ));
     // scene --map, nav-plan: files that are not maps, existing files not to write over,
     // hostile numbers and resolutions.
     for map in [

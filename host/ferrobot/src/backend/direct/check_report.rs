@@ -205,6 +205,7 @@ pub struct Row {
     /// How bad it is.
     pub severity: Severity,
     /// What is wrong, if anything.
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub problem: Option<Problem>,
 }
 
