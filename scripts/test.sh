@@ -117,6 +117,13 @@ background listings "cargo test ${tested[*]} --test pytest -- --exact $host_run_
 step "cargo test --no-run: every other test"
 cargo test "${tested[@]}" --no-run --timings
 
+# The demo on the host-run firmware of both LoCoBots (ferrobot-cli's demo_host_run: the
+# command line's binary, just built, on emulated devices paced at real time, little CPU),
+# beside clippy and the docs; nextest leaves it out below.
+host_run_demos=demo_host_run
+step "started: the demo on the host-run firmware (ferrobot-cli's $host_run_demos), real-time paced"
+background demos "cargo test ${tested[*]} --test integration -- $host_run_demos"
+
 # The workspace includes the fuzz targets (fuzz/, built without libFuzzer as programs that
 # replay inputs), so they are linted here too.
 step "cargo clippy --all-targets -D warnings (workspace)"
@@ -133,9 +140,10 @@ check doc env RUSTDOCFLAGS="-D warnings" cargo doc "${tested[@]}" --no-deps
 step "ferrobot with one backend each (sim without serialport, serial without the simulator)"
 check "backend builds" scripts/backend-builds.sh
 
-step "waited for: the HIL tests and PyRobot's listings on the host-run firmware"
+step "waited for: the HIL tests, PyRobot's listings and the demo on the host-run firmware"
 join hil
 join listings
+join demos
 
 # cargo-nextest (on every machine of this kind; cargo's own runner where it is missing) runs
 # the tests of all binaries in one queue, two at a time: cargo test runs one binary after the
@@ -145,13 +153,13 @@ join listings
 if cargo nextest --version >/dev/null 2>&1; then
     step "cargo nextest run: every other test"
     check "cargo nextest" cargo nextest run "${tested[@]}" --no-fail-fast --exclude ferrobot-hil \
-        -E "not test(=$host_run_listings)"
+        -E "not test(=$host_run_listings) and not test(/$host_run_demos/)"
     step "cargo test --doc"
     check "cargo test --doc" cargo test "${tested[@]}" --doc --exclude ferrobot-hil
 else
     step "cargo test: every other test (cargo-nextest is not installed)"
     check "cargo test" cargo test "${tested[@]}" --no-fail-fast --exclude ferrobot-hil -- \
-        --skip "$host_run_listings"
+        --skip "$host_run_listings" --skip "$host_run_demos"
 fi
 
 if [ ${#failed[@]} -gt 0 ]; then

@@ -150,12 +150,13 @@ fn test_pyrobot_on_the_locobot_lite() {
 /// PyRobot's listings, unchanged, on the host-run firmware of a stock robot with its devices
 /// emulated (`FERROBOT_BACKEND=direct-emulated`: the plants at the stock robot's rates behind
 /// pseudo-terminals): all seven on the LoCoBot, the arm's and the base's on the LoCoBot-Lite.
-/// Paced at real time (about six minutes, little CPU): CI runs it beside the build, in a
-/// background job of its own (`scripts/test.sh`), not in nextest's queue.
+/// Paced at real time, two files at a time (about three minutes, little CPU): CI runs it
+/// beside the build, in a background job of its own (`scripts/test.sh`), not in nextest's
+/// queue.
 #[test]
 fn pyrobot_listings_on_the_host_run_firmware() {
     let env = [("FERROBOT_BACKEND", "direct-emulated")];
-    for file in [
+    let mut runs: Vec<(&str, &[&str])> = [
         "test_pyrobot_make_robots.py",
         "test_pyrobot_camera.py",
         "test_pyrobot_arm_utils.py",
@@ -163,13 +164,22 @@ fn pyrobot_listings_on_the_host_run_firmware() {
         "test_pyrobot_base_velocity_control.py",
         "test_pyrobot_base_controllers.py",
         "test_pyrobot_base_position_control_inits.py",
-    ] {
-        pytest_env(file, &[], &env);
-    }
-    for file in [
-        "test_pyrobot_arm_controls.py",
-        "test_pyrobot_base_velocity_control.py",
-    ] {
-        pytest_env(file, &["--botname", "locobot_lite"], &env);
-    }
+    ]
+    .into_iter()
+    .map(|f| (f, &[][..]))
+    .collect();
+    let lite: &[&str] = &["--botname", "locobot_lite"];
+    runs.push(("test_pyrobot_arm_controls.py", lite));
+    runs.push(("test_pyrobot_base_velocity_control.py", lite));
+    // Two files at a time: each waits on its robot's real-time clock, with little CPU.
+    let queue = std::sync::Mutex::new(runs);
+    std::thread::scope(|s| {
+        for _ in 0..2 {
+            s.spawn(|| loop {
+                let next = queue.lock().map(|mut q| q.pop()).unwrap_or(None);
+                let Some((file, args)) = next else { return };
+                pytest_env(file, args, &env);
+            });
+        }
+    });
 }
