@@ -29,10 +29,7 @@ pub fn run(a: &Args) -> ferrobot::Result<()> {
         }
         return Ok(());
     }
-    let failed = ferrobot::Error::HardwareCheck {
-        faults: report.faults().iter().map(|p| p.to_string()).collect(),
-        table: report.to_string(),
-    };
+    let failed = report.error();
     if !a.json {
         say!("{report}");
         return Err(failed);

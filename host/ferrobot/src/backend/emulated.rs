@@ -112,6 +112,14 @@ pub fn start_qemu(elf: &Path, ports: &BoardPorts, log: &Path) -> Result<(Child, 
     Ok((qemu, err))
 }
 
+/// The API's error for a plant server that would not start: a scene's, or the link's.
+fn plants_error(e: ferrobot_sim::serve::ServeError) -> Error {
+    match e {
+        ferrobot_sim::serve::ServeError::Scene(e) => Error::Scene(e),
+        e => Error::Link(format!("plants: {e}")),
+    }
+}
+
 /// The firmware of an emulated board: the board's ELF in QEMU, or the firmware core run on
 /// this machine (the host-run firmware of a stock robot, on emulated devices).
 enum BoardFirmware {
@@ -165,10 +173,7 @@ impl EmulatedBoard {
         log: PathBuf,
         scene: std::sync::Arc<ferrobot_sim::scene::Scene>,
     ) -> Result<EmulatedBoard> {
-        let server = BoardServer::start_in(robot, opts, &scene).map_err(|e| match e {
-            ferrobot_sim::serve::ServeError::Scene(e) => Error::Scene(e),
-            e => Error::Link(format!("plants: {e}")),
-        })?;
+        let server = BoardServer::start_in(robot, opts, &scene).map_err(plants_error)?;
         let (child, stderr) = start_qemu(firmware, &server.board, &log)?;
         let board = EmulatedBoard {
             firmware: BoardFirmware::Qemu { child, stderr },
@@ -185,19 +190,12 @@ impl EmulatedBoard {
         cfg: &crate::config::RobotConfig,
         scene: std::sync::Arc<ferrobot_sim::scene::Scene>,
     ) -> Result<EmulatedBoard> {
-        let direct = cfg.direct_config().ok_or_else(|| {
-            Error::Usage(format!(
-                "{} has no [direct] section: it has no host-run firmware",
-                cfg.name
-            ))
-        })?;
+        let direct = cfg
+            .direct_config()
+            .ok_or_else(|| super::direct::no_host_run(cfg))?;
         let desc = ferrobot_sim::robots::from_description(&direct);
-        let server = BoardServer::start_robot(&desc, BoardOptions::default(), &scene).map_err(
-            |e| match e {
-                ferrobot_sim::serve::ServeError::Scene(e) => Error::Scene(e),
-                e => Error::Link(format!("plants: {e}")),
-            },
-        )?;
+        let server = BoardServer::start_robot(&desc, BoardOptions::default(), &scene)
+            .map_err(plants_error)?;
         // The devices listen at the description's rates: bytes at another rate are garbled.
         let base_baud = direct
             .direct
@@ -222,17 +220,16 @@ impl EmulatedBoard {
 
     /// Wait for the firmware (`what`) to report on its clock link.
     fn booted(mut self, what: &str) -> Result<EmulatedBoard> {
-        let board = &mut self;
         let deadline = Instant::now() + BOOT_TIMEOUT;
-        while !board.server.board_reported() {
-            if let Some(why) = board.qemu_exited() {
+        while !self.server.board_reported() {
+            if let Some(why) = self.qemu_exited() {
                 return Err(Error::Link(why));
             }
             if Instant::now() >= deadline {
                 return Err(Error::Link(format!(
                     "{what} did not report on its virtual-time link within {BOOT_TIMEOUT:?}; \
                      QEMU said: {:?}",
-                    board.qemu_stderr()
+                    self.qemu_stderr()
                 )));
             }
             std::thread::sleep(Duration::from_millis(5));

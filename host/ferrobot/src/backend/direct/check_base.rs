@@ -13,6 +13,15 @@ use super::wires::{Wires, BASE};
 /// reports 0.1 V units).
 pub const KOBUKI_LOW_BATTERY: f64 = 13.2;
 
+/// The base's device path, as the rows name it.
+fn base_path(wires: &Wires) -> std::path::PathBuf {
+    wires
+        .base
+        .as_ref()
+        .map(|d| d.path.clone())
+        .unwrap_or_default()
+}
+
 /// The first basic sensor data in `bytes`.
 fn kobuki_sensors(bytes: &[u8]) -> Option<BasicSensorData> {
     let mut p = Parser::new();
@@ -35,16 +44,11 @@ pub fn kobuki(wires: &mut Wires) -> Result<Row, String> {
     let got = exchange(wires, BASE, &[], BASE_WINDOW, |b| {
         kobuki_sensors(b).is_some()
     })?;
-    let path = wires
-        .base
-        .as_ref()
-        .map(|d| d.path.clone())
-        .unwrap_or_default();
     let Some(s) = kobuki_sensors(&got) else {
         return Ok(Row::fault(
             "base (Kobuki)",
             "silent",
-            Problem::BaseSilent(path),
+            Problem::BaseSilent(base_path(wires)),
         ));
     };
     let volts = f64::from(s.battery) * 0.1;
@@ -74,11 +78,6 @@ pub fn create2(wires: &mut Wires) -> Result<Row, String> {
     };
     let got = exchange(wires, BASE, &ask, BASE_WINDOW, |b| heard(b).is_some())?;
     wires.send(BASE, &[create2::OP_PAUSE_RESUME, 0, create2::OP_STOP]);
-    let path = wires
-        .base
-        .as_ref()
-        .map(|d| d.path.clone())
-        .unwrap_or_default();
     Ok(match heard(&got) {
         Some(s) => Row::ok(
             "base (Create 2)",
@@ -87,6 +86,10 @@ pub fn create2(wires: &mut Wires) -> Result<Row, String> {
                 s.bumps_drops, s.cliffs, s.left_encoder, s.right_encoder
             ),
         ),
-        None => Row::fault("base (Create 2)", "silent", Problem::BaseSilent(path)),
+        None => Row::fault(
+            "base (Create 2)",
+            "silent",
+            Problem::BaseSilent(base_path(wires)),
+        ),
     })
 }

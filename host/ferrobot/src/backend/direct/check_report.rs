@@ -245,18 +245,26 @@ pub struct Report {
 }
 
 impl Report {
+    /// The error that refuses the robot when the check failed: each fault with its subject and
+    /// fix, and the table.
+    pub fn error(&self) -> crate::Error {
+        crate::Error::HardwareCheck {
+            faults: self
+                .rows
+                .iter()
+                .filter(|r| r.severity == Severity::Fault)
+                .map(|r| match &r.problem {
+                    Some(p) => format!("{}: {p}", r.subject),
+                    None => r.subject.clone(),
+                })
+                .collect(),
+            table: self.to_string(),
+        }
+    }
+
     /// Whether no row is a fault: the robot may move.
     pub fn passed(&self) -> bool {
         self.rows.iter().all(|r| r.severity != Severity::Fault)
-    }
-
-    /// The problems of the rows that are faults.
-    pub fn faults(&self) -> Vec<&Problem> {
-        self.rows
-            .iter()
-            .filter(|r| r.severity == Severity::Fault)
-            .filter_map(|r| r.problem.as_ref())
-            .collect()
     }
 }
 

@@ -31,8 +31,6 @@ pub struct VirtualClock {
     /// Bytes sent on each plant line, wrapping.
     pub tx: [u32; PLANT_LINES],
     last: Option<Idle>,
-    /// Whether an `Advance` came.
-    pub started: bool,
 }
 
 impl VirtualClock {
@@ -46,7 +44,6 @@ impl VirtualClock {
             rx: [0; PLANT_LINES],
             tx: [0; PLANT_LINES],
             last: None,
-            started: false,
         }
     }
 
@@ -74,7 +71,6 @@ impl VirtualClock {
             if let Some(Ok(Frame { msg, .. })) = self.decoder.push::<Advance>(b) {
                 self.now_us = self.now_us.max(msg.now_us);
                 self.release = msg.release;
-                self.started = true;
             }
         }
         true

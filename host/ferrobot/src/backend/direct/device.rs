@@ -126,8 +126,6 @@ pub struct Device {
     next_try: Instant,
     /// The latency timer at the last opening.
     pub latency: Option<LatencyTimer>,
-    /// Times it was lost.
-    pub losses: u32,
 }
 
 impl Device {
@@ -141,7 +139,6 @@ impl Device {
             lost: None,
             next_try: Instant::now(),
             latency: Some(latency),
-            losses: 0,
         })
     }
 
@@ -158,7 +155,6 @@ impl Device {
     /// Close it: it failed for `why`. It is opened again from [`Device::retry`].
     pub fn lose(&mut self, why: String) {
         if self.port.take().is_some() {
-            self.losses += 1;
             self.lost = Some(why);
             self.next_try = Instant::now() + REOPEN_PERIOD;
         }
@@ -229,10 +225,5 @@ impl Device {
             self.baud = baud;
         }
         ok
-    }
-
-    /// The device's line rate as the kernel has it, bit/s.
-    pub fn kernel_baud(&self) -> Option<u32> {
-        self.port.as_ref().and_then(|p| p.baud_rate().ok())
     }
 }

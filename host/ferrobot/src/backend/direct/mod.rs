@@ -72,20 +72,12 @@ fn open_port(path: &Path) -> Result<TTYPort> {
     Ok(port)
 }
 
-/// The error of a failed check.
-fn check_failed(report: &check::Report) -> Error {
-    Error::HardwareCheck {
-        faults: report
-            .rows
-            .iter()
-            .filter(|r| r.severity == check::Severity::Fault)
-            .map(|r| match &r.problem {
-                Some(p) => format!("{}: {p}", r.subject),
-                None => r.subject.clone(),
-            })
-            .collect(),
-        table: report.to_string(),
-    }
+/// The error of a robot without a `[direct]` section asked to run on its own cables.
+pub fn no_host_run(cfg: &RobotConfig) -> Error {
+    Error::Usage(format!(
+        "{} has no [direct] section: it has no host-run firmware",
+        cfg.name
+    ))
 }
 
 /// Open the devices of `cfg` (where `devices` says, else where its `[direct]` section says)
@@ -121,7 +113,7 @@ pub fn checked_wires(
 ) -> Result<(Wires, check::Report)> {
     match check_devices(cfg, devices, clock)? {
         (Some(wires), report) if report.passed() => Ok((wires, report)),
-        (_, report) => Err(check_failed(&report)),
+        (_, report) => Err(report.error()),
     }
 }
 
@@ -129,12 +121,7 @@ impl HostRunFirmware {
     /// Open the devices of `cfg`, check them ([`checked_wires`]: refused unless the check
     /// passes) and start its firmware (`[direct]`'s profile) on them.
     pub fn start(cfg: &RobotConfig, ports: &Ports) -> Result<HostRunFirmware> {
-        let profile = ferrobot_profile::direct_profile(cfg).ok_or_else(|| {
-            Error::Usage(format!(
-                "{} has no [direct] section: it has no host-run firmware",
-                cfg.name
-            ))
-        })?;
+        let profile = ferrobot_profile::direct_profile(cfg).ok_or_else(|| no_host_run(cfg))?;
         let (wires, report) = checked_wires(cfg, &ports.devices, ports.clock.as_deref())?;
         let (host, link, served) = match &ports.host {
             HostLink::Open(path) => (HostEnd::opened(open_port(path)?), path.clone(), false),

@@ -76,8 +76,6 @@ pub struct HostRun {
     host: HostEnd,
     wires: Wires,
     host_rx: Vec<u8>,
-    /// Firmware polls so far.
-    pub polls: u64,
     /// Wall-clock instants at which each servo-loop tick's sync read left, for the
     /// loop-period benchmark (kept only when `Some`).
     pub ticks: Option<TickLog>,
@@ -92,14 +90,8 @@ impl HostRun {
             host,
             wires,
             host_rx: Vec::new(),
-            polls: 0,
             ticks: None,
         }
-    }
-
-    /// The core, to look at (tests).
-    pub fn firmware(&self) -> &Firmware {
-        &self.fw
     }
 
     /// Run until `quit` is set or the virtual clock's conductor goes away; returns why it
@@ -124,7 +116,6 @@ impl HostRun {
         self.feed(now);
         if self.fw.next_deadline() <= now {
             self.fw.poll(now);
-            self.polls += 1;
         }
         self.flush();
         let deadline = self.fw.next_deadline();

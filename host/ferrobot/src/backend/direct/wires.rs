@@ -27,8 +27,6 @@ pub struct Wires {
     pub clock: Clock,
     /// Bytes read from each line, not yet taken.
     rx: [VecDeque<u8>; 2],
-    /// Bytes dropped on each line because its device was lost or would not take them.
-    pub dropped: [u64; 2],
 }
 
 impl Wires {
@@ -39,7 +37,6 @@ impl Wires {
             base,
             clock,
             rx: [VecDeque::new(), VecDeque::new()],
-            dropped: [0; 2],
         }
     }
 
@@ -68,15 +65,11 @@ impl Wires {
         self.rx[i].drain(..n).collect()
     }
 
-    /// Send `bytes` on line `i`; false (and counted as dropped) if they did not go out.
+    /// Send `bytes` on line `i`; false if they did not go out (a lost device loses them).
     pub fn send(&mut self, i: usize, bytes: &[u8]) -> bool {
         let sent = self.device(i).is_some_and(|d| d.write(bytes));
-        if sent {
-            if let Clock::Virtual(v) = &mut self.clock {
-                v.tx[i] = v.tx[i].wrapping_add(bytes.len() as u32);
-            }
-        } else {
-            self.dropped[i] += bytes.len() as u64;
+        if let (true, Clock::Virtual(v)) = (sent, &mut self.clock) {
+            v.tx[i] = v.tx[i].wrapping_add(bytes.len() as u32);
         }
         sent
     }
