@@ -9,11 +9,6 @@ use ferrobot_protocol::ServoModel;
 
 use crate::rng::SimRng;
 
-/// Line rates of the X series' Baud Rate register (address 8), by code, bit/s.
-pub const BAUD_RATES: [u32; 8] = [
-    9600, 57_600, 115_200, 1_000_000, 2_000_000, 3_000_000, 4_000_000, 4_500_000,
-];
-
 /// Physical parameters beyond the datasheet's motor figures.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ServoPhysics {
@@ -129,16 +124,10 @@ impl ServoSim {
         s
     }
 
-    /// The Baud Rate register's value for `baud` bit/s (the X series' table: 0 9600, 1 57600,
-    /// 2 115200, 3 1M, 4 2M, 5 3M, 6 4M, 7 4.5M), or `None` for a rate it cannot be set to.
-    pub fn baud_code(baud: u32) -> Option<u8> {
-        BAUD_RATES.iter().position(|&b| b == baud).map(|i| i as u8)
-    }
-
     /// Set the Baud Rate register to `baud`'s code, as ROBOTIS' tools leave a servo of a bus
     /// at that rate (the factory's is 57600); a rate outside the table leaves it as it is.
     pub fn set_baud_register(&mut self, baud: u32) {
-        if let Some(code) = Self::baud_code(baud) {
+        if let Some(code) = ferrobot_protocol::dxl::baud_code(baud) {
             self.put(addr::BAUD_RATE, 1, u32::from(code));
         }
     }

@@ -159,3 +159,14 @@ pub mod mode {
     /// PWM (voltage) control.
     pub const PWM: u8 = 16;
 }
+
+/// Line rates of the X series' Baud Rate register (address 8), by code, bit/s (ROBOTIS
+/// e-manual, XM430-W350 control table).
+pub const BAUD_RATES: [u32; 8] = [
+    9600, 57_600, 115_200, 1_000_000, 2_000_000, 3_000_000, 4_000_000, 4_500_000,
+];
+
+/// The Baud Rate register's code of `baud` bit/s, or `None` for a rate it cannot be set to.
+pub fn baud_code(baud: u32) -> Option<u8> {
+    BAUD_RATES.iter().position(|&b| b == baud).map(|i| i as u8)
+}

@@ -15,7 +15,7 @@ mod decoder;
 mod servo;
 mod writer;
 
-pub use codes::{addr, hw_error, inst, mode, status_error};
+pub use codes::{addr, baud_code, hw_error, inst, mode, status_error, BAUD_RATES};
 pub use decoder::{Packet, PacketDecoder, PacketStats};
 pub use servo::{units, MotorSpec};
 pub use writer::{

@@ -18,11 +18,6 @@ use super::wires::{Wires, SERVO};
 
 pub use super::check_report::{Problem, Report, Row, Severity};
 
-/// Line rates tried when no servo answers at the description's (the X series' table).
-pub const SCAN_BAUDS: [u32; 8] = [
-    57_600, 1_000_000, 115_200, 2_000_000, 3_000_000, 4_000_000, 9600, 4_500_000,
-];
-
 /// How long a servo has to answer one packet (its return delay, USB both ways).
 pub const REPLY_WINDOW: Duration = Duration::from_millis(20);
 
@@ -221,11 +216,11 @@ fn any_answers(wires: &mut Wires, ids: &[u8]) -> Result<bool, String> {
     Ok(false)
 }
 
-/// The rate the servos answer at, when it is not `expected`: every rate of [`SCAN_BAUDS`]
-/// tried, the device set back to `expected` after.
+/// The rate the servos answer at, when it is not `expected`: every rate of the X series'
+/// table ([`dxl::BAUD_RATES`]) tried, the device set back to `expected` after.
 pub fn scan_baud(wires: &mut Wires, ids: &[u8], expected: u32) -> Result<Option<u32>, String> {
     let mut found = None;
-    for baud in SCAN_BAUDS.into_iter().filter(|b| *b != expected) {
+    for baud in dxl::BAUD_RATES.into_iter().filter(|b| *b != expected) {
         if wires.servo.set_baud(baud) && any_answers(wires, ids)? {
             found = Some(baud);
             break;
@@ -321,19 +316,11 @@ fn check_servo(
     Ok(match problem {
         Some(p) => Row::fault(&subject, &reading, p),
         None if celsius >= HOT => Row::warning(&subject, &reading, Problem::Hot { id, celsius }),
-        None if baud_code(baud) != Some(code) => {
+        None if dxl::baud_code(baud) != Some(code) => {
             Row::warning(&subject, &reading, Problem::BaudRegister { id, code, baud })
         }
         None => Row::ok(&subject, &reading),
     })
-}
-
-/// The X series' Baud Rate register code of `baud`.
-pub fn baud_code(baud: u32) -> Option<u8> {
-    const RATES: [u32; 8] = [
-        9600, 57_600, 115_200, 1_000_000, 2_000_000, 3_000_000, 4_000_000, 4_500_000,
-    ];
-    RATES.iter().position(|&r| r == baud).map(|i| i as u8)
 }
 
 /// Hear the base: a Kobuki streams its feedback unasked; a Create 2 is started, asked for a
