@@ -282,6 +282,16 @@ impl RawClient {
         None
     }
 
+    /// Say Hello in this build's protocol version and schema, and wait up to `timeout` (wall
+    /// time) for the firmware's accepting answer.
+    pub fn hello(&mut self, timeout: Duration) -> Option<DeviceMsg> {
+        self.send(&HostMsg::Hello {
+            protocol_version: ferrobot_protocol::PROTOCOL_VERSION,
+            schema_hash: ferrobot_protocol::SCHEMA_HASH,
+        });
+        self.wait(timeout, |m| matches!(m, DeviceMsg::Hello(i) if i.accepted))
+    }
+
     /// Send a command and wait for its acknowledgement (true) or rejection (false).
     pub fn command(&mut self, msg: &HostMsg) -> Option<bool> {
         let seq = self.send(msg);

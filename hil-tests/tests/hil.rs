@@ -222,14 +222,7 @@ fn the_watchdog_stops_the_base_when_the_host_goes_silent() {
     let (_g, mut hil) = start();
     let mut raw = hil.raw().expect("port");
     hil.eventually(Duration::from_secs(2), "the handshake", |_| {
-        raw.send(&HostMsg::Hello {
-            protocol_version: PROTOCOL_VERSION,
-            schema_hash: SCHEMA_HASH,
-        });
-        raw.wait(
-            Duration::from_millis(300),
-            |m| matches!(m, DeviceMsg::Hello(i) if i.accepted),
-        )
+        raw.hello(Duration::from_millis(300))
     });
     assert_eq!(
         raw.command(&HostMsg::SetWatchdog { period_ms: 300 }),
@@ -910,16 +903,7 @@ fn the_base_driving_into_a_wall_raises_the_bumper_fault_and_stops() {
         .wait_for_board(Duration::from_secs(20))
         .expect("the board reports");
     let mut raw = ferrobot_hil::RawClient::open(&server.host).expect("port");
-    let hello = (0..20).find_map(|_| {
-        raw.send(&HostMsg::Hello {
-            protocol_version: PROTOCOL_VERSION,
-            schema_hash: SCHEMA_HASH,
-        });
-        raw.wait(
-            Duration::from_millis(500),
-            |m| matches!(m, DeviceMsg::Hello(i) if i.accepted),
-        )
-    });
+    let hello = (0..20).find_map(|_| raw.hello(Duration::from_millis(500)));
     assert!(hello.is_some(), "no handshake; {}", server.report());
     // The servos are configured before the base answers commands.
     let accepted = (0..40).any(|_| {

@@ -136,6 +136,17 @@ impl Rig {
     }
 }
 
+/// Whether `e` is the fault of a servo the firmware lost.
+fn servo_lost(e: &Error) -> bool {
+    matches!(
+        e,
+        Error::Fault {
+            kind: FaultKind::ServoLost,
+            ..
+        }
+    )
+}
+
 fn direct() -> MoveOptions {
     MoveOptions {
         plan: false,
@@ -191,16 +202,7 @@ fn the_servo_bus_cable_pulled_mid_motion_stops_the_arm_and_it_moves_again_when_p
         .wait()
         .expect_err("the motion cannot finish without its servos");
     let to_safe = rig.now() - pulled;
-    assert!(
-        matches!(
-            err,
-            Error::Fault {
-                kind: FaultKind::ServoLost,
-                ..
-            }
-        ),
-        "{err}"
-    );
+    assert!(servo_lost(&err), "{err}");
     // The servos hold their last goals, which lie on the motion's path: the arm comes to rest
     // on it, short of the target, and stays there.
     let (start, target) = (start, [0.6, 0.3, -0.4, 0.5, 0.2]);
@@ -293,16 +295,7 @@ fn a_servo_that_stops_answering_is_lost_and_recovered(fw: Firmware) {
     let silent = rig.now();
     let err = motion.wait().expect_err("joint_3 without its servo");
     let to_safe = rig.now() - silent;
-    assert!(
-        matches!(
-            err,
-            Error::Fault {
-                kind: FaultKind::ServoLost,
-                ..
-            }
-        ),
-        "{err}"
-    );
+    assert!(servo_lost(&err), "{err}");
     eprintln!("a servo stops answering: ServoLost after {to_safe:?}");
     assert_eq!(rig.board.server.command("silent 4 off")["ok"], true);
     rig.until(Duration::from_secs(2), "ServoRecovered", |r| {
@@ -422,16 +415,7 @@ fn a_latency_spike_of_100_ms_stops_the_arm_safely_and_it_moves_again(fw: Firmwar
     let outcome = motion.wait();
     eprintln!("a 100 ms latency spike on the servo bus: {outcome:?}");
     if let Err(e) = &outcome {
-        assert!(
-            matches!(
-                e,
-                Error::Fault {
-                    kind: FaultKind::ServoLost,
-                    ..
-                }
-            ),
-            "{e}"
-        );
+        assert!(servo_lost(e), "{e}");
     }
     rig.until(Duration::from_secs(3), "moving again", |_| {
         arm.set_joint_positions(&[0.0; 5]).is_ok()
@@ -443,7 +427,7 @@ fn a_latency_spike_of_100_ms_stops_the_arm_safely_and_it_moves_again(fw: Firmwar
 /// holding a pose): the firmware's watchdog stops the base on its own, the arm holds, and a
 /// watchdog fault waits for the next host.
 fn a_host_killed_mid_motion_leaves_the_base_stopped_and_the_arm_holding(fw: Firmware) {
-    use ferrobot_protocol::{DeviceMsg, HostMsg, PROTOCOL_VERSION, SCHEMA_HASH};
+    use ferrobot_protocol::HostMsg;
     let rig = Rig::on(fw, "locobot");
     rig.bot
         .arm()
@@ -453,15 +437,7 @@ fn a_host_killed_mid_motion_leaves_the_base_stopped_and_the_arm_holding(fw: Firm
     drop(rig.bot);
     let mut raw = ferrobot_hil::RawClient::open(&rig.board.server.host).expect("the port");
     rig_until(&rig.board, Duration::from_secs(3), "the handshake", || {
-        raw.send(&HostMsg::Hello {
-            protocol_version: PROTOCOL_VERSION,
-            schema_hash: SCHEMA_HASH,
-        });
-        raw.wait(
-            Duration::from_millis(300),
-            |m| matches!(m, DeviceMsg::Hello(i) if i.accepted),
-        )
-        .is_some()
+        raw.hello(Duration::from_millis(300)).is_some()
     });
     let drive = HostMsg::BaseVelocity {
         v: 0.2,
