@@ -13,8 +13,9 @@
 
 /// `impl Link` for a type that keeps a backend alive around the [`serial::SerialLink`] in its
 /// field `serial` (the emulated board, the host-run firmware): every call goes to the serial
-/// link, and [`Link::as_any_mut`] gives the type itself.
-#[cfg(feature = "serial")]
+/// link, and [`Link::as_any_mut`] gives the type itself. Both users need `direct` (`emulated`
+/// implies it), so a build with `serial` alone has no unused macro.
+#[cfg(feature = "direct")]
 macro_rules! link_through_serial {
     ($t:ty) => {
         impl $crate::backend::Link for $t {
