@@ -297,13 +297,19 @@ fn pixels_the_offset_moves(scene: &Scene) -> usize {
         .count()
 }
 
-#[test]
-fn a_realsense_software_device_is_served_aligned_in_metres_with_its_intrinsics_and_stamps() {
-    let Some(py) = ferrobot_peers::for_test_where_wheels_exist(
+/// The peers' interpreter with pyrealsense2, or `None` (and the skip said) where its wheel
+/// does not exist for this platform.
+fn realsense_python() -> Option<std::path::PathBuf> {
+    ferrobot_peers::for_test_where_wheels_exist(
         "pyrealsense2, numpy",
         "scripts/python-env.sh realsense",
         "pyrealsense2",
-    ) else {
+    )
+}
+
+#[test]
+fn a_realsense_software_device_is_served_aligned_in_metres_with_its_intrinsics_and_stamps() {
+    let Some(py) = realsense_python() else {
         return;
     };
     let started = Instant::now();
@@ -419,11 +425,7 @@ fn a_realsense_software_device_is_served_aligned_in_metres_with_its_intrinsics_a
 /// Without a camera, or without pyrealsense2, the server says so and fails.
 #[test]
 fn a_missing_realsense_or_pyrealsense2_is_said_plainly() {
-    let Some(py) = ferrobot_peers::for_test_where_wheels_exist(
-        "pyrealsense2, numpy",
-        "scripts/python-env.sh realsense",
-        "pyrealsense2",
-    ) else {
+    let Some(py) = realsense_python() else {
         return;
     };
     let dir = std::env::temp_dir().join(format!("ferrobot-realsense-none-{}", std::process::id()));
