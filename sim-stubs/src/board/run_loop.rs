@@ -143,7 +143,9 @@ impl<'a> Runner<'a> {
 
     /// Pull and plug the plant lines' cables as the wiring says.
     fn rewire(&mut self) {
-        let wiring = self.lock().wiring.clone();
+        // On every pass: read the wiring in place (no copy), and act only on a change.
+        let i = self.lock();
+        let wiring = &i.wiring;
         for k in 0..2 {
             if wiring.links[k].is_none() {
                 continue;
