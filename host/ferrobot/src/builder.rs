@@ -154,17 +154,19 @@ impl Robot {
         let frames = Frames::new(&cfg).map_err(|e| e.to_string());
         let optical = cfg.camera.as_ref().map(|c| c.frame.clone());
         let stop_line = connected.link.stop_line();
+        let streams = crate::sensing::Streams::default();
+        let link = crate::events::Tapped::new(connected.link, streams.events.clone());
         let robot = Robot {
             inner: Arc::new(Inner {
                 stop_line,
                 io: Mutex::new(Hub {
-                    link: connected.link,
+                    link: Box::new(link),
                     goals: Goals::default(),
                     base,
                     camera: connected.camera,
                     slam: None,
                     sense: Default::default(),
-                    streams: Default::default(),
+                    streams,
                 }),
                 cfg,
                 uses,

@@ -103,6 +103,11 @@ impl Frames {
         self.tree.links_moved_by(&idx)
     }
 
+    /// The URDF's link tree (its links, joints and their origins).
+    pub fn tree(&self) -> &LinkTree {
+        &self.tree
+    }
+
     /// Index of link `name` in the URDF tree's order.
     pub fn link_index(&self, name: &str) -> Option<usize> {
         self.tree.link_index(name)

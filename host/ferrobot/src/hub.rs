@@ -70,7 +70,10 @@ impl Hub {
     /// goal a fault hits ends with its error. Both are kept for [`Robot::take_link_events`]
     /// and [`Robot::take_faults`].
     pub(crate) fn collect_faults(&mut self, cfg: &RobotConfig) {
-        for e in self.link.take_events() {
+        let events = self.link.take_events();
+        let faults = self.link.take_faults();
+        self.publish_events(&events, &faults);
+        for e in events {
             if let LinkEvent::Lost { why } = &e {
                 let why = format!("{why} (reconnecting)");
                 self.end_where(|_| true, |_| Error::Link(why.clone()));
@@ -80,7 +83,6 @@ impl Hub {
             }
             self.goals.link_events.push_back(e);
         }
-        let faults = self.link.take_faults();
         if faults.is_empty() {
             return;
         }
@@ -90,6 +92,27 @@ impl Hub {
                 self.goals.faults.pop_front();
             }
             self.goals.faults.push_back(f);
+        }
+    }
+
+    /// Publishes link events and faults on the events' stream, stamped now.
+    fn publish_events(&mut self, events: &[LinkEvent], faults: &[ferrobot_protocol::Fault]) {
+        if events.is_empty() && faults.is_empty() {
+            return;
+        }
+        let mut stream = self.streams.events.lock();
+        if !stream.wanted() {
+            return;
+        }
+        let time = self.link.now();
+        for e in events {
+            stream.publish(crate::events::Event::Link {
+                time,
+                event: e.clone(),
+            });
+        }
+        for &fault in faults {
+            stream.publish(crate::events::Event::Fault { time, fault });
         }
     }
 

@@ -34,6 +34,7 @@ pub mod camera;
 mod components;
 mod connect;
 pub mod error;
+pub mod events;
 mod frame;
 pub mod frames;
 mod goals;
@@ -90,7 +91,7 @@ pub use ferrobot_sim::scene;
 pub use motion::Motion;
 pub use robot::Robot;
 pub use slam::Source;
-pub use subscription::Subscription;
+pub use subscription::{Bell, Subscription};
 #[cfg(feature = "sim")]
 pub use world_options::{mount_error_pose, MAX_CAMERA_MOUNT_ERROR};
 

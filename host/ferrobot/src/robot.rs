@@ -337,6 +337,24 @@ impl Robot {
             .subscribe("telemetry", queue)
     }
 
+    /// Subscribes to the robot's events ([`crate::events::Event`]: the commands the firmware
+    /// acknowledged, faults, link events and SLAM's poses), in a queue of `queue` events (in
+    /// `[1, subscription::MAX_QUEUE]`; a full queue drops its oldest). Every event is
+    /// delivered, as it happens; reading them takes nothing from [`Robot::take_faults`] or
+    /// [`Robot::take_link_events`].
+    ///
+    /// [`subscription::MAX_QUEUE`]: crate::subscription::MAX_QUEUE
+    pub fn subscribe_events(
+        &self,
+        queue: usize,
+    ) -> Result<crate::subscription::Subscription<crate::events::Event>> {
+        self.lock_hub()
+            .streams
+            .events
+            .lock()
+            .subscribe("events", queue)
+    }
+
     /// The backend's clock, s.
     pub fn time(&self) -> f64 {
         self.lock_hub().link.now().as_secs_f64()

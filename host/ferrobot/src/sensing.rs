@@ -29,6 +29,9 @@ pub(crate) struct Streams {
     pub(crate) telemetry: Publisher<Telemetry>,
     /// The time of the newest telemetry delivered, µs on the robot's clock.
     pub(crate) telemetry_us: Option<u64>,
+    /// Commands, faults, link events and SLAM's poses (shared with the tapped link, which
+    /// publishes the commands).
+    pub(crate) events: crate::events::Events,
 }
 
 impl Hub {
@@ -183,6 +186,14 @@ impl Hub {
             Ok(r) => {
                 runner.last = Some(r);
                 runner.error = None;
+                let mut events = self.streams.events.lock();
+                if events.wanted() {
+                    events.publish(crate::events::Event::Slam {
+                        time: raw.time,
+                        report: r,
+                    });
+                }
+                drop(events);
                 if r.state != TrackState::Lost {
                     let map = Pose2::from(optimise::to_planar(&r.pose));
                     self.sense

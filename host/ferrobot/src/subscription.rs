@@ -11,7 +11,7 @@
 use std::collections::VecDeque;
 use std::sync::{Arc, Weak};
 
-use parking_lot::Mutex;
+use parking_lot::{Condvar, Mutex};
 
 use crate::error::{Error, Result};
 
@@ -25,6 +25,40 @@ struct Queue<T> {
     capacity: usize,
     delivered: u64,
     dropped: u64,
+    /// Rung at every delivery, when the holder asked ([`Subscription::ring`]).
+    bell: Option<Arc<Bell>>,
+}
+
+/// Wakes whoever reads one or more subscriptions when any of them receives an item
+/// ([`Subscription::ring`]), so that a reader on another thread (a recorder) waits without
+/// polling.
+#[derive(Debug, Default)]
+pub struct Bell {
+    rung: Mutex<bool>,
+    cv: Condvar,
+}
+
+impl Bell {
+    /// A bell not yet rung.
+    pub fn new() -> Arc<Bell> {
+        Arc::new(Bell::default())
+    }
+
+    /// Rings it: wakes a waiter, or the next wait returns at once.
+    pub fn ring(&self) {
+        *self.rung.lock() = true;
+        self.cv.notify_all();
+    }
+
+    /// Waits until the bell rings or `timeout` passes (wall time); whether it rang. Each ring
+    /// ends one wait.
+    pub fn wait(&self, timeout: std::time::Duration) -> bool {
+        let mut rung = self.rung.lock();
+        if !*rung {
+            let _ = self.cv.wait_for(&mut rung, timeout);
+        }
+        std::mem::take(&mut *rung)
+    }
 }
 
 /// A subscription to one of the robot's streams: a queue of at most
@@ -63,6 +97,12 @@ impl<T> Subscription<T> {
     /// Items delivered since subscribing, taken or not (dropped ones included).
     pub fn delivered(&self) -> u64 {
         self.queue.lock().delivered
+    }
+
+    /// Rings `bell` at every item delivered from now on (one bell may serve several
+    /// subscriptions).
+    pub fn ring(&self, bell: Arc<Bell>) {
+        self.queue.lock().bell = Some(bell);
     }
 
     /// Items dropped since subscribing because the queue was full (the oldest go first).
@@ -110,6 +150,7 @@ impl<T: Clone> Publisher<T> {
             capacity,
             delivered: 0,
             dropped: 0,
+            bell: None,
         }));
         self.queues.push(Arc::downgrade(&queue));
         Ok(Subscription { queue })
@@ -134,6 +175,9 @@ impl<T: Clone> Publisher<T> {
             }
             q.items.push_back(item.clone());
             q.delivered += 1;
+            if let Some(b) = &q.bell {
+                b.ring();
+            }
             true
         });
     }

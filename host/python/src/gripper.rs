@@ -22,17 +22,9 @@ impl Gripper {
     }
 }
 
-/// PyRobot's gripper state codes: -1 unknown, 0 open, 1 closing, 2 holding an object, 3
-/// fully closed; Ferrobot adds 4 opening.
+/// PyRobot's gripper state codes ([`GripperState::pyrobot_code`]).
 pub fn state_code(s: GripperState) -> i32 {
-    match s {
-        GripperState::Open => 0,
-        GripperState::Closing => 1,
-        GripperState::Holding => 2,
-        GripperState::Closed => 3,
-        GripperState::Opening => 4,
-        _ => -1,
-    }
+    i32::from(s.pyrobot_code())
 }
 
 #[pymethods]

@@ -28,6 +28,21 @@ pub enum GripperState {
     Absent,
 }
 
+impl GripperState {
+    /// PyRobot's code of the state: -1 unknown, 0 open, 1 closing, 2 holding an object, 3
+    /// fully closed; Ferrobot adds 4 opening (and -1 for a robot without a gripper).
+    pub const fn pyrobot_code(self) -> i8 {
+        match self {
+            GripperState::Open => 0,
+            GripperState::Closing => 1,
+            GripperState::Holding => 2,
+            GripperState::Closed => 3,
+            GripperState::Opening => 4,
+            GripperState::Unknown | GripperState::Absent => -1,
+        }
+    }
+}
+
 /// Measured state of one joint.
 #[derive(Serialize, Deserialize, Schema, Debug, Clone, Copy, PartialEq, Default)]
 pub struct JointState {

@@ -1,0 +1,61 @@
+//! What can go wrong while recording, replaying or exporting.
+
+use std::path::PathBuf;
+
+/// A recording's error.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum RecordError {
+    /// The disk is full (or the file reached its size limit): everything before the last
+    /// closed chunk is readable (see [`crate::recover`]).
+    #[error("the disk is full: the recording stopped at {written_s:.3} s of the robot's time; what was written before it is readable")]
+    DiskFull {
+        /// The newest message written, s on the robot's clock.
+        written_s: f64,
+    },
+    /// Another I/O error.
+    #[error("{what} {path}: {source}")]
+    Io {
+        /// What was being done.
+        what: &'static str,
+        /// The file.
+        path: PathBuf,
+        /// The error.
+        source: std::io::Error,
+    },
+    /// The MCAP library's error.
+    #[error("MCAP: {0}")]
+    Mcap(#[from] mcap::McapError),
+    /// The robot refused a subscription or lacks what was asked for.
+    #[error(transparent)]
+    Robot(#[from] ferrobot::Error),
+    /// A value outside its range.
+    #[error("{what} must be in [{min}, {max}], not {value}")]
+    OutOfRange {
+        /// The value's name.
+        what: &'static str,
+        /// The value.
+        value: f64,
+        /// Least allowed.
+        min: f64,
+        /// Most allowed.
+        max: f64,
+    },
+    /// The recorder's thread failed.
+    #[error("the recorder's thread panicked")]
+    Thread,
+}
+
+impl RecordError {
+    /// Whether an MCAP error is the disk being full.
+    pub(crate) fn is_disk_full(e: &mcap::McapError) -> bool {
+        let io = match e {
+            mcap::McapError::Io(io) => io,
+            _ => return false,
+        };
+        matches!(
+            io.kind(),
+            std::io::ErrorKind::StorageFull | std::io::ErrorKind::FileTooLarge
+        ) || io.raw_os_error() == Some(28) // ENOSPC, where the kind is not mapped
+    }
+}

@@ -1,0 +1,21 @@
+//! Recording a robot: its streams into [MCAP](https://mcap.dev) files with ROS 2 message
+//! schemas and CDR payloads, which Foxglove, Lichtblick, rosbag2 and rosbags open without
+//! Ferrobot.
+//!
+//! - [`Recorder`]: start it on a [`ferrobot::Robot`], let the robot work, finish it. Every
+//!   topic it writes is in [`topics`]: joint states, odometry, every link's transform, the
+//!   gripper's state, the commands sent, faults and emergency stops, camera colour, depth and
+//!   intrinsics, SLAM's pose and the robot's URDF.
+//! - [`bag::Bag`]: the writer itself, fed items, for any `Write + Seek`.
+//! - [`cdr`] and [`ros2`]: the messages' encoding and definitions.
+
+pub mod bag;
+pub mod cdr;
+pub mod error;
+pub mod events;
+pub mod recorder;
+pub mod ros2;
+pub mod topics;
+
+pub use error::RecordError;
+pub use recorder::{RecordOptions, RecordStats, Recorder};

@@ -1,0 +1,288 @@
+//! The recorder: the robot's streams into an MCAP file, on a thread of its own.
+//!
+//! It subscribes to the telemetry, the camera's frames and the robot's events; the robot fills
+//! those queues as its time passes and never waits for the recorder. The recorder's thread
+//! takes what they hold, in time order, and writes it ([`crate::bag::Bag`]). A disk slower than
+//! the robot's streams fills the queues: the oldest items are dropped whole and counted
+//! ([`RecordStats`]), and the control loop goes on. Memory is bounded by the queues' lengths.
+
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::thread::JoinHandle;
+use std::time::Duration;
+
+use ferrobot::subscription::MAX_QUEUE;
+use ferrobot::{Bell, Robot, Subscription};
+use parking_lot::Mutex;
+
+use crate::bag::{Bag, BagStats, Item, RobotInfo};
+use crate::error::RecordError;
+
+/// What to record, and how.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RecordOptions {
+    /// Record the camera's frames (when the robot has a camera).
+    pub camera: bool,
+    /// Frames the queue holds before the oldest is dropped (each 640x480 RGB-D frame is about
+    /// 2.1 MB).
+    pub frame_queue: usize,
+    /// Telemetry reports the queue holds (100 per second of the robot's time).
+    pub telemetry_queue: usize,
+    /// Events the queue holds.
+    pub event_queue: usize,
+    /// zstd's level, 1 (fast) to 19.
+    pub level: u32,
+}
+
+impl Default for RecordOptions {
+    fn default() -> Self {
+        RecordOptions {
+            camera: true,
+            frame_queue: 16,
+            telemetry_queue: 2000,
+            event_queue: 2000,
+            level: 1,
+        }
+    }
+}
+
+/// How a recording went.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct RecordStats {
+    /// What was written.
+    pub written: BagStats,
+    /// Camera frames dropped because the disk fell behind.
+    pub frames_dropped: u64,
+    /// Telemetry reports dropped because the disk fell behind.
+    pub telemetry_dropped: u64,
+    /// Events dropped because the disk fell behind.
+    pub events_dropped: u64,
+}
+
+struct Feeds {
+    telemetry: Subscription<ferrobot::Telemetry>,
+    frames: Option<Subscription<Arc<ferrobot::Frame>>>,
+    events: Subscription<ferrobot::events::Event>,
+}
+
+impl Feeds {
+    /// Everything waiting, in time order.
+    fn take(&self) -> Vec<Item> {
+        let mut items: Vec<Item> = self
+            .telemetry
+            .drain()
+            .into_iter()
+            .map(Item::Telemetry)
+            .collect();
+        if let Some(f) = &self.frames {
+            items.extend(f.drain().into_iter().map(Item::Frame));
+        }
+        items.extend(self.events.drain().into_iter().map(Item::Event));
+        items.sort_by_key(Item::time);
+        items
+    }
+
+    fn dropped(&self, written: BagStats) -> RecordStats {
+        RecordStats {
+            written,
+            frames_dropped: self.frames.as_ref().map_or(0, Subscription::dropped),
+            telemetry_dropped: self.telemetry.dropped(),
+            events_dropped: self.events.dropped(),
+        }
+    }
+}
+
+/// A recording under way ([`Recorder::start`]); [`Recorder::finish`] ends it.
+pub struct Recorder {
+    path: PathBuf,
+    stop: Arc<AtomicBool>,
+    bell: Arc<Bell>,
+    stats: Arc<Mutex<RecordStats>>,
+    thread: Option<JoinHandle<Result<RecordStats, RecordError>>>,
+}
+
+/// What the thread shares with the handle.
+struct Shared {
+    stop: Arc<AtomicBool>,
+    bell: Arc<Bell>,
+    stats: Arc<Mutex<RecordStats>>,
+}
+
+fn check(what: &'static str, value: usize, max: usize) -> Result<(), RecordError> {
+    if (1..=max).contains(&value) {
+        return Ok(());
+    }
+    Err(RecordError::OutOfRange {
+        what,
+        value: value as f64,
+        min: 1.0,
+        max: max as f64,
+    })
+}
+
+impl RobotInfo {
+    /// What a recording of `robot` needs to know of it.
+    pub fn of(robot: &Robot) -> Result<RobotInfo, RecordError> {
+        let cfg = robot.config();
+        // The URDF the robot was built from, as it was parsed.
+        let urdf = urdf_rs::write_to_string(&cfg.urdf).unwrap_or_default();
+        Ok(RobotInfo {
+            joints: cfg.joints.iter().map(|j| j.name.clone()).collect(),
+            frames: robot.frames()?.clone(),
+            urdf,
+            base: cfg.base.is_some(),
+            gripper: cfg.gripper.is_some(),
+            optical: cfg.camera.as_ref().map(|c| c.frame.clone()),
+        })
+    }
+}
+
+impl Recorder {
+    /// Starts recording `robot` into the new file `path` (an existing file is replaced).
+    pub fn start(
+        robot: &Robot,
+        path: impl AsRef<Path>,
+        opts: RecordOptions,
+    ) -> Result<Recorder, RecordError> {
+        check("frame queue", opts.frame_queue, MAX_QUEUE)?;
+        check("telemetry queue", opts.telemetry_queue, MAX_QUEUE)?;
+        check("event queue", opts.event_queue, MAX_QUEUE)?;
+        check("zstd level", opts.level as usize, 19)?;
+        let path = path.as_ref().to_path_buf();
+        let info = RobotInfo::of(robot)?;
+        let bell = Bell::new();
+        let feeds = Feeds {
+            telemetry: robot.subscribe_telemetry(opts.telemetry_queue)?,
+            frames: match robot.config().camera.is_some() && opts.camera {
+                true => Some(robot.camera()?.subscribe(opts.frame_queue)?),
+                false => None,
+            },
+            events: robot.subscribe_events(opts.event_queue)?,
+        };
+        feeds.telemetry.ring(bell.clone());
+        feeds.events.ring(bell.clone());
+        if let Some(f) = &feeds.frames {
+            f.ring(bell.clone());
+        }
+        let file = File::create(&path).map_err(|source| RecordError::Io {
+            what: "creating",
+            path: path.clone(),
+            source,
+        })?;
+        let start = Duration::from_secs_f64(robot.time());
+        let bag = Bag::new(
+            BufWriter::with_capacity(1 << 20, file),
+            info,
+            start,
+            opts.level,
+        )?;
+        let shared = Shared {
+            stop: Arc::new(AtomicBool::new(false)),
+            bell,
+            stats: Arc::new(Mutex::new(RecordStats::default())),
+        };
+        let (stop, bell, stats) = (
+            shared.stop.clone(),
+            shared.bell.clone(),
+            shared.stats.clone(),
+        );
+        let thread = std::thread::Builder::new()
+            .name("ferrobot-recorder".into())
+            .spawn(move || run(bag, feeds, shared))
+            .map_err(|source| RecordError::Io {
+                what: "starting the recorder's thread for",
+                path: path.clone(),
+                source,
+            })?;
+        Ok(Recorder {
+            path,
+            stop,
+            bell,
+            stats,
+            thread: Some(thread),
+        })
+    }
+
+    /// The file being written.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// What has been written and dropped so far.
+    pub fn stats(&self) -> RecordStats {
+        *self.stats.lock()
+    }
+
+    /// Writes what the robot delivered until now, ends the file (its summary and footer) and
+    /// returns how it went; the first error the recording met, if any (what was written before
+    /// it stays readable).
+    pub fn finish(mut self) -> Result<RecordStats, RecordError> {
+        self.stop.store(true, Ordering::SeqCst);
+        self.bell.ring();
+        match self.thread.take().map(JoinHandle::join) {
+            Some(Ok(r)) => r,
+            _ => Err(RecordError::Thread),
+        }
+    }
+}
+
+impl Drop for Recorder {
+    /// A recorder dropped without [`Recorder::finish`] still ends its file.
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::SeqCst);
+        self.bell.ring();
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+/// The recorder's thread: write what arrives until told to stop, then what is left.
+fn run<W: std::io::Write + std::io::Seek>(
+    mut bag: Bag<W>,
+    feeds: Feeds,
+    shared: Shared,
+) -> Result<RecordStats, RecordError> {
+    loop {
+        let stopping = shared.stop.load(Ordering::SeqCst);
+        let items = feeds.take();
+        for item in &items {
+            if let Err(e) = bag.push(item) {
+                return Err(fail(e, &bag));
+            }
+        }
+        *shared.stats.lock() = feeds.dropped(bag.stats());
+        if stopping {
+            break;
+        }
+        if items.is_empty() {
+            shared.bell.wait(Duration::from_millis(200));
+        }
+    }
+    let stats = feeds.dropped(bag.stats());
+    bag.finish().map_err(|e| fail_stats(e, stats))?;
+    Ok(stats)
+}
+
+/// A write's error, typed: a full disk says how far the recording got.
+fn fail<W: std::io::Write + std::io::Seek>(e: RecordError, bag: &Bag<W>) -> RecordError {
+    fail_stats(
+        e,
+        RecordStats {
+            written: bag.stats(),
+            ..Default::default()
+        },
+    )
+}
+
+fn fail_stats(e: RecordError, stats: RecordStats) -> RecordError {
+    match e {
+        RecordError::Mcap(m) if RecordError::is_disk_full(&m) => RecordError::DiskFull {
+            written_s: stats.written.last_ns as f64 * 1e-9,
+        },
+        e => e,
+    }
+}

@@ -1,0 +1,138 @@
+//! The topics of a recording: each one's name, its ROS 2 type and what it holds. One table for
+//! the recorder, replay and the dataset export.
+
+use crate::ros2::schemas::{self, MsgType};
+
+/// A topic: its name and its message type.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Topic {
+    /// The name, as ROS 2 writes it.
+    pub name: &'static str,
+    /// Its message type.
+    pub msg: &'static MsgType,
+}
+
+macro_rules! topic {
+    ($id:ident, $name:literal, $msg:ident, $doc:literal) => {
+        #[doc = concat!("`", $name, "`: ", $doc)]
+        pub const $id: Topic = Topic {
+            name: $name,
+            msg: &schemas::$msg,
+        };
+    };
+}
+
+topic!(
+    ROBOT_DESCRIPTION,
+    "/robot_description",
+    STRING,
+    "the robot's URDF, once at the start."
+);
+topic!(
+    TF_STATIC,
+    "/tf_static",
+    TF_MESSAGE,
+    "the URDF's fixed joints, once at the start."
+);
+topic!(
+    TF,
+    "/tf",
+    TF_MESSAGE,
+    "every moving joint's child in its parent, and the base in `odom`, at each telemetry report."
+);
+topic!(
+    JOINT_STATES,
+    "/joint_states",
+    JOINT_STATE,
+    "the joint table's positions (rad; m for a prismatic joint), velocities and efforts (N·m), at each telemetry report (100 Hz)."
+);
+topic!(
+    ODOM,
+    "/odom",
+    ODOMETRY,
+    "the wheel odometry of the base (`odom` to the URDF's root), at each telemetry report."
+);
+topic!(
+    GRIPPER_STATE,
+    "/gripper/state",
+    INT8,
+    "the gripper's state as PyRobot's code (-1 unknown, 0 open, 1 closing, 2 holding, 3 closed, 4 opening), at the start and at each change."
+);
+topic!(
+    CMD_VEL,
+    "/cmd_vel",
+    TWIST,
+    "each base velocity command (m/s forward, rad/s yaw)."
+);
+topic!(
+    JOINT_COMMANDS,
+    "/joint_commands",
+    JOINT_TRAJECTORY,
+    "each joint command: a trajectory knot (time from start: its duration) or a direct position, velocity or effort command."
+);
+topic!(
+    GRIPPER_COMMAND,
+    "/gripper/command",
+    STRING,
+    "each gripper command: `open`, `close` or `stop`."
+);
+topic!(
+    ROSOUT,
+    "/rosout",
+    LOG,
+    "faults, emergency stops, resumes, mode changes, link events and the firmware's fault flags as they change."
+);
+topic!(
+    COLOR,
+    "/camera/color/image_raw",
+    IMAGE,
+    "the camera's colour (`rgb8`)."
+);
+topic!(
+    DEPTH,
+    "/camera/aligned_depth_to_color/image_raw",
+    IMAGE,
+    "depth aligned to colour (`32FC1`, m along the optical axis; 0 invalid)."
+);
+topic!(
+    CAMERA_INFO,
+    "/camera/color/camera_info",
+    CAMERA_INFO,
+    "the colour camera's intrinsics, with each frame."
+);
+topic!(
+    CAMERA_POSE,
+    "/camera/pose",
+    POSE_STAMPED,
+    "the optical frame in `base_link` at each frame's capture, from the measured joints."
+);
+topic!(
+    SLAM_POSE,
+    "/slam/pose",
+    POSE_STAMPED,
+    "SLAM's pose of the body in `map`, at each tracked frame."
+);
+
+/// Every topic, in the order of this table.
+pub const ALL: [Topic; 15] = [
+    ROBOT_DESCRIPTION,
+    TF_STATIC,
+    TF,
+    JOINT_STATES,
+    ODOM,
+    GRIPPER_STATE,
+    CMD_VEL,
+    JOINT_COMMANDS,
+    GRIPPER_COMMAND,
+    ROSOUT,
+    COLOR,
+    DEPTH,
+    CAMERA_INFO,
+    CAMERA_POSE,
+    SLAM_POSE,
+];
+
+/// The odometry's frame.
+pub const ODOM_FRAME: &str = "odom";
+/// SLAM's map frame.
+pub const MAP_FRAME: &str = "map";

@@ -1,0 +1,4 @@
+//! The recorder's integration tests: recordings of the simulated LoCoBot read back by readers
+//! that are not ours.
+
+mod recording;
