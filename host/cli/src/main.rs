@@ -137,6 +137,11 @@ enum Command {
     CalibrateCamera(cmd::calibrate_camera::Args),
     /// Run the quickstart on the simulated LoCoBot.
     Demo(cmd::demo::Args),
+    /// Record a robot for --seconds of its time into an MCAP file with ROS 2 schemas (joint
+    /// states, odometry, transforms, the gripper, commands, faults, the camera, SLAM's pose,
+    /// the URDF), readable by Foxglove, rosbag2 and rosbags; the robot is moved by whatever
+    /// moves it meanwhile (a hand in teach mode, another program through `ferrobot drive`).
+    Record(cmd::record::Args),
 }
 
 #[derive(Subcommand)]
@@ -209,6 +214,7 @@ fn run(cli: Cli) -> Result<(), (ferrobot::Error, bool)> {
         Command::Teleop(a) => (cmd::teleop::run(&a), false),
         Command::CalibrateCamera(a) => (cmd::calibrate_camera::run(&a), a.json),
         Command::Demo(a) => (cmd::demo::run(&a), false),
+        Command::Record(a) => (cmd::record::run(&a), a.json),
     };
     result.map_err(|e| (e, json))
 }

@@ -154,7 +154,7 @@ impl Robot {
         let frames = Frames::new(&cfg).map_err(|e| e.to_string());
         let optical = cfg.camera.as_ref().map(|c| c.frame.clone());
         let stop_line = connected.link.stop_line();
-        let streams = crate::sensing::Streams::default();
+        let streams = crate::sensing::Streams::new(stop_line.is_none());
         let link = crate::events::Tapped::new(connected.link, streams.events.clone());
         let robot = Robot {
             inner: Arc::new(Inner {

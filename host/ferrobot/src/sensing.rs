@@ -34,6 +34,18 @@ pub(crate) struct Streams {
     pub(crate) events: crate::events::Events,
 }
 
+impl Streams {
+    /// The streams of a robot whose time is virtual (`virtual_time`: it passes only while the
+    /// robot is driven) or real.
+    pub(crate) fn new(virtual_time: bool) -> Streams {
+        let mut s = Streams::default();
+        s.frames.virtual_time = virtual_time;
+        s.telemetry.virtual_time = virtual_time;
+        s.events.lock().virtual_time = virtual_time;
+        s
+    }
+}
+
 impl Hub {
     /// Delivers the newest telemetry to its subscribers, once per report.
     pub(crate) fn publish_telemetry(&mut self) {

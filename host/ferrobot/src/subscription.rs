@@ -27,6 +27,11 @@ struct Queue<T> {
     dropped: u64,
     /// Rung at every delivery, when the holder asked ([`Subscription::ring`]).
     bell: Option<Arc<Bell>>,
+    /// Whether the robot's time is virtual (it passes only when the robot is driven), so
+    /// that a full queue may hold it ([`Subscription::pause_when_full`]).
+    virtual_time: bool,
+    /// Whether a full queue holds the robot's time until an item is taken.
+    pause: bool,
 }
 
 /// Wakes whoever reads one or more subscriptions when any of them receives an item
@@ -66,17 +71,41 @@ impl Bell {
 /// another thread; dropping it unsubscribes.
 pub struct Subscription<T> {
     queue: Arc<Mutex<Queue<T>>>,
+    /// Signalled when items are taken (a publisher held by a full queue waits on it).
+    room: Arc<Condvar>,
 }
 
 impl<T> Subscription<T> {
     /// The oldest item not yet taken, if any (never waits).
     pub fn try_next(&self) -> Option<T> {
-        self.queue.lock().items.pop_front()
+        let item = self.queue.lock().items.pop_front();
+        self.room.notify_all();
+        item
     }
 
     /// Every item not yet taken, oldest first (never waits).
     pub fn drain(&self) -> Vec<T> {
-        self.queue.lock().items.drain(..).collect()
+        let items = self.queue.lock().items.drain(..).collect();
+        self.room.notify_all();
+        items
+    }
+
+    /// On a robot whose time is virtual (the in-process simulator: it passes only while the
+    /// robot is driven), a full queue from now on holds the robot's time until an item is
+    /// taken, instead of dropping the oldest: nothing is lost, and the simulation waits for
+    /// a slow reader (a recorder on a slow disk). Dropping the subscription releases it.
+    /// On a robot in real time, [`Error::Usage`]: its control loop waits for nobody.
+    pub fn pause_when_full(&self) -> Result<()> {
+        let mut q = self.queue.lock();
+        if !q.virtual_time {
+            return Err(Error::Usage(
+                "a full queue can hold only a simulated robot's time; a real robot's \
+                 subscription drops its oldest items"
+                    .into(),
+            ));
+        }
+        q.pause = true;
+        Ok(())
     }
 
     /// Items waiting to be taken.
@@ -123,14 +152,23 @@ impl<T> std::fmt::Debug for Subscription<T> {
     }
 }
 
+/// A subscription as its publisher holds it: its queue, and the condition a full pausing
+/// queue waits on.
+type Subscriber<T> = (Weak<Mutex<Queue<T>>>, Arc<Condvar>);
+
 /// The robot's side of a stream: the live subscriptions' queues.
 pub(crate) struct Publisher<T> {
-    queues: Vec<Weak<Mutex<Queue<T>>>>,
+    queues: Vec<Subscriber<T>>,
+    /// Whether the robot's time is virtual ([`Subscription::pause_when_full`]).
+    pub(crate) virtual_time: bool,
 }
 
 impl<T> Default for Publisher<T> {
     fn default() -> Self {
-        Publisher { queues: Vec::new() }
+        Publisher {
+            queues: Vec::new(),
+            virtual_time: false,
+        }
     }
 }
 
@@ -151,24 +189,32 @@ impl<T: Clone> Publisher<T> {
             delivered: 0,
             dropped: 0,
             bell: None,
+            virtual_time: self.virtual_time,
+            pause: false,
         }));
-        self.queues.push(Arc::downgrade(&queue));
-        Ok(Subscription { queue })
+        let room = Arc::new(Condvar::new());
+        self.queues.push((Arc::downgrade(&queue), room.clone()));
+        Ok(Subscription { queue, room })
     }
 
     /// Whether any subscription is alive (forgetting those dropped).
     pub(crate) fn wanted(&mut self) -> bool {
-        self.queues.retain(|q| q.strong_count() > 0);
+        self.queues.retain(|(q, _)| q.strong_count() > 0);
         !self.queues.is_empty()
     }
 
     /// Delivers `item` to every live subscription.
     pub(crate) fn publish(&mut self, item: T) {
-        self.queues.retain(|weak| {
+        self.queues.retain(|(weak, room)| {
             let Some(queue) = weak.upgrade() else {
                 return false;
             };
             let mut q = queue.lock();
+            // A pausing queue waits for room while its subscription lives (this `queue` is
+            // the other strong reference); checked every 50 ms of wall time.
+            while q.pause && q.items.len() == q.capacity && Arc::strong_count(&queue) > 1 {
+                room.wait_for(&mut q, std::time::Duration::from_millis(50));
+            }
             if q.items.len() == q.capacity {
                 q.items.pop_front();
                 q.dropped += 1;
@@ -212,5 +258,40 @@ mod tests {
                 Err(Error::OutOfRange { .. })
             ));
         }
+    }
+
+    #[test]
+    fn a_pausing_queue_holds_its_publisher_until_an_item_is_taken_and_only_in_virtual_time() {
+        let mut real: Publisher<u32> = Publisher::default();
+        let s = real.subscribe("test", 1).unwrap();
+        assert!(matches!(s.pause_when_full(), Err(Error::Usage(_))));
+        let mut p = Publisher {
+            virtual_time: true,
+            ..Publisher::default()
+        };
+        let s = p.subscribe("test", 2).unwrap();
+        s.pause_when_full().unwrap();
+        let bell = Bell::new();
+        s.ring(bell.clone());
+        let publisher = std::thread::spawn(move || {
+            for i in 0..6 {
+                p.publish(i);
+            }
+            p
+        });
+        let mut got = Vec::new();
+        while got.len() < 6 {
+            bell.wait(std::time::Duration::from_millis(100));
+            got.extend(s.drain());
+        }
+        let mut p = publisher.join().unwrap();
+        assert_eq!(got, (0..6).collect::<Vec<_>>());
+        assert_eq!(s.dropped(), 0);
+        // A subscription dropped while full releases its publisher.
+        p.publish(6);
+        p.publish(7);
+        drop(s);
+        p.publish(8);
+        assert!(!p.wanted());
     }
 }

@@ -86,6 +86,8 @@ pub struct Bag<W: Write + Seek> {
     gripper: Option<GripperState>,
     faults: u16,
     stats: BagStats,
+    /// The disk filled: every later write is refused as that.
+    full: bool,
 }
 
 /// Nanoseconds of `t`, as MCAP's times are.
@@ -121,6 +123,7 @@ impl<W: Write + Seek> Bag<W> {
             gripper: None,
             faults: 0,
             stats: BagStats::default(),
+            full: false,
         };
         let urdf = encode::string(&bag.robot.urdf);
         bag.write(topics::ROBOT_DESCRIPTION, start, &urdf)?;
@@ -173,8 +176,28 @@ impl<W: Write + Seek> Bag<W> {
     }
 
     /// Writes `item`, then closes the chunk if the last was closed
-    /// [`Bag::flush_every`] or longer before it.
+    /// [`Bag::flush_every`] or longer before it. A full disk is [`RecordError::DiskFull`]:
+    /// what was written up to the last closed chunk stays readable.
     pub fn push(&mut self, item: &Item) -> Result<(), RecordError> {
+        if self.full {
+            return Err(self.disk_full());
+        }
+        self.push_item(item).map_err(|e| match e {
+            RecordError::Mcap(m) if RecordError::is_disk_full(&m) => {
+                self.full = true;
+                self.disk_full()
+            }
+            e => e,
+        })
+    }
+
+    fn disk_full(&self) -> RecordError {
+        RecordError::DiskFull {
+            written_s: self.stats.last_ns as f64 * 1e-9,
+        }
+    }
+
+    fn push_item(&mut self, item: &Item) -> Result<(), RecordError> {
         let t = item.time();
         match item {
             Item::Telemetry(tel) => self.telemetry(tel)?,
@@ -334,7 +357,13 @@ impl<W: Write + Seek> Bag<W> {
 
     /// Ends the recording: the last chunk, the summary (indexes, statistics) and the footer.
     pub fn finish(mut self) -> Result<BagStats, RecordError> {
-        self.mcap.finish()?;
-        Ok(self.stats)
+        if self.full {
+            return Err(self.disk_full());
+        }
+        match self.mcap.finish() {
+            Ok(_) => Ok(self.stats),
+            Err(m) if RecordError::is_disk_full(&m) => Err(self.disk_full()),
+            Err(m) => Err(m.into()),
+        }
     }
 }

@@ -59,3 +59,35 @@ impl RecordError {
         ) || io.raw_os_error() == Some(28) // ENOSPC, where the kind is not mapped
     }
 }
+
+impl From<RecordError> for ferrobot::Error {
+    /// The API's error of a recording's: the robot's own, a range, or an I/O error that keeps
+    /// the message (a full disk is `StorageFull`).
+    fn from(e: RecordError) -> ferrobot::Error {
+        use std::io::{Error as IoError, ErrorKind};
+        match e {
+            RecordError::Robot(e) => e,
+            RecordError::OutOfRange {
+                what,
+                value,
+                min,
+                max,
+            } => ferrobot::Error::OutOfRange {
+                what: what.to_string(),
+                value,
+                min,
+                max,
+            },
+            RecordError::DiskFull { .. } => {
+                ferrobot::Error::Io(IoError::new(ErrorKind::StorageFull, e.to_string()))
+            }
+            RecordError::Io { path, source, .. } if source.kind() == ErrorKind::AlreadyExists => {
+                ferrobot::Error::PathExists { path }
+            }
+            RecordError::Io { ref source, .. } => {
+                ferrobot::Error::Io(IoError::new(source.kind(), e.to_string()))
+            }
+            e => ferrobot::Error::Io(IoError::other(e.to_string())),
+        }
+    }
+}

@@ -4,7 +4,9 @@
 //! those queues as its time passes and never waits for the recorder. The recorder's thread
 //! takes what they hold, in time order, and writes it ([`crate::bag::Bag`]). A disk slower than
 //! the robot's streams fills the queues: the oldest items are dropped whole and counted
-//! ([`RecordStats`]), and the control loop goes on. Memory is bounded by the queues' lengths.
+//! ([`RecordStats`]), and the control loop goes on. On the in-process simulator, whose time
+//! is virtual, nothing is dropped: a full queue holds the simulation until the recorder has
+//! caught up. Memory is bounded by the queues' lengths.
 
 use std::fs::File;
 use std::io::BufWriter;
@@ -141,7 +143,8 @@ impl RobotInfo {
 }
 
 impl Recorder {
-    /// Starts recording `robot` into the new file `path` (an existing file is replaced).
+    /// Starts recording `robot` into the new file `path`; a path that exists is
+    /// [`std::io::ErrorKind::AlreadyExists`] (nothing is replaced).
     pub fn start(
         robot: &Robot,
         path: impl AsRef<Path>,
@@ -162,12 +165,21 @@ impl Recorder {
             },
             events: robot.subscribe_events(opts.event_queue)?,
         };
+        // On the simulator, nothing is dropped: a full queue holds the robot's virtual time
+        // until the recorder catches up (a real robot's refuses, and drops its oldest).
+        let lossless = feeds.telemetry.pause_when_full().is_ok();
         feeds.telemetry.ring(bell.clone());
         feeds.events.ring(bell.clone());
+        if lossless {
+            feeds.events.pause_when_full()?;
+        }
         if let Some(f) = &feeds.frames {
             f.ring(bell.clone());
+            if lossless {
+                f.pause_when_full()?;
+            }
         }
-        let file = File::create(&path).map_err(|source| RecordError::Io {
+        let file = File::create_new(&path).map_err(|source| RecordError::Io {
             what: "creating",
             path: path.clone(),
             source,
@@ -250,9 +262,7 @@ fn run<W: std::io::Write + std::io::Seek>(
         let stopping = shared.stop.load(Ordering::SeqCst);
         let items = feeds.take();
         for item in &items {
-            if let Err(e) = bag.push(item) {
-                return Err(fail(e, &bag));
-            }
+            bag.push(item)?;
         }
         *shared.stats.lock() = feeds.dropped(bag.stats());
         if stopping {
@@ -263,26 +273,6 @@ fn run<W: std::io::Write + std::io::Seek>(
         }
     }
     let stats = feeds.dropped(bag.stats());
-    bag.finish().map_err(|e| fail_stats(e, stats))?;
+    bag.finish()?;
     Ok(stats)
-}
-
-/// A write's error, typed: a full disk says how far the recording got.
-fn fail<W: std::io::Write + std::io::Seek>(e: RecordError, bag: &Bag<W>) -> RecordError {
-    fail_stats(
-        e,
-        RecordStats {
-            written: bag.stats(),
-            ..Default::default()
-        },
-    )
-}
-
-fn fail_stats(e: RecordError, stats: RecordStats) -> RecordError {
-    match e {
-        RecordError::Mcap(m) if RecordError::is_disk_full(&m) => RecordError::DiskFull {
-            written_s: stats.written.last_ns as f64 * 1e-9,
-        },
-        e => e,
-    }
 }

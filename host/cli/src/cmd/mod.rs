@@ -25,6 +25,7 @@ pub mod ik;
 pub mod info;
 pub mod jacobian;
 pub mod nav_plan;
+pub mod record;
 pub mod record_rgbd;
 pub mod robots;
 pub mod route;

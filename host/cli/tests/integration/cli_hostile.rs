@@ -941,6 +941,46 @@ fn cases() -> Vec<Case> {
             Input,
         ));
     }
+    // record: no file replaced, none made for a refused invocation.
+    for out in ["notes.txt", "subdir", "locobot.urdf"] {
+        c.push(case(
+            &["record", "locobot", "-o", out, "--seconds", "0.1"],
+            Input,
+        ));
+    }
+    c.push(case(
+        &[
+            "record",
+            "locobot",
+            "-o",
+            "no/such/dir/x.mcap",
+            "--seconds",
+            "0.1",
+        ],
+        Failure,
+    ));
+    for n in HOSTILE {
+        c.push(case(
+            &["record", "locobot", "-o", "new.mcap", "--seconds", n],
+            Input,
+        ));
+        c.push(case(
+            &[
+                "record",
+                "locobot",
+                "-o",
+                "new.mcap",
+                "--progress",
+                n,
+                "--json",
+            ],
+            Input,
+        ));
+    }
+    c.push(case(
+        &["record", "wall-e", "-o", "new.mcap", "--json"],
+        Input,
+    ));
     c.push(case(&["demo", "--robot", "wall-e"], Input));
     c.push(case(&["demo", "--robot", ""], Input));
     // sim-firmware: never replace what exists at the link path.

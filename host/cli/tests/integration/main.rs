@@ -12,6 +12,7 @@ mod demo_host_run;
 mod hardware_check;
 mod hostile_plots;
 mod nav_plan;
+mod record;
 mod slam;
 mod slam_peer;
 mod support;

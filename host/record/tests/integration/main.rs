@@ -1,4 +1,5 @@
 //! The recorder's integration tests: recordings of the simulated LoCoBot read back by readers
 //! that are not ours.
 
+mod disk_full;
 mod recording;
