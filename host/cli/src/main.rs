@@ -180,6 +180,9 @@ enum BenchCommand {
     /// time, the arm moving: tick interval and jitter, the firmware's overruns and servo
     /// timeouts, and the wire's budget per tick on a U2D2.
     HostLoop(cmd::bench_host_loop::Args),
+    /// What recording costs: the simulated LoCoBot with its camera, with and without the
+    /// recorder (real-time factor, the recorder's CPU time, MB/s, drops, loop overruns).
+    Record(cmd::bench_record::Args),
     /// Navigation on the scene's ground-truth floor plan: the simulated robot drives to N
     /// random reachable goals; success rate, bumper hits, path length against the shortest
     /// path, time per goal.
@@ -230,6 +233,7 @@ fn run_bench(which: BenchCommand) -> (ferrobot::Result<()>, bool) {
         BenchCommand::Grasp(a) => (cmd::bench_grasp::run(&a), a.json),
         BenchCommand::Nav(a) => (cmd::bench_nav::run(&a), a.json),
         BenchCommand::HostLoop(a) => (cmd::bench_host_loop::run(&a), a.json),
+        BenchCommand::Record(a) => (cmd::bench_record::run(&a), a.json),
     }
 }
 

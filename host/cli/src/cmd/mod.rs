@@ -12,6 +12,7 @@ pub mod bench_host_loop;
 pub mod bench_nav;
 pub mod bench_plan;
 pub mod bench_push;
+pub mod bench_record;
 pub mod calibrate_camera;
 pub mod calibrate_odometry;
 pub mod cluster;
