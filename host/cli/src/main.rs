@@ -142,6 +142,10 @@ enum Command {
     /// the URDF), readable by Foxglove, rosbag2 and rosbags; the robot is moved by whatever
     /// moves it meanwhile (a hand in teach mode, another program through `ferrobot drive`).
     Record(cmd::record::Args),
+    /// Feed a recording back: its commands to a robot at their recorded instants (the
+    /// simulator by default; a real robot after a confirmation), or its frames and odometry to
+    /// SLAM offline at any speed.
+    Replay(cmd::replay::Args),
 }
 
 #[derive(Subcommand)]
@@ -218,6 +222,7 @@ fn run(cli: Cli) -> Result<(), (ferrobot::Error, bool)> {
         Command::CalibrateCamera(a) => (cmd::calibrate_camera::run(&a), a.json),
         Command::Demo(a) => (cmd::demo::run(&a), false),
         Command::Record(a) => (cmd::record::run(&a), a.json),
+        Command::Replay(a) => (cmd::replay::run(&a), a.json),
     };
     result.map_err(|e| (e, json))
 }

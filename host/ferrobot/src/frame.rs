@@ -28,6 +28,9 @@ pub struct Frame {
     /// Pose of the optical frame (x right, y down, z forward) in `base_link` at capture, from
     /// the measured joints.
     pub camera_pose: Isometry3<f64>,
+    /// The base's wheel-odometry pose `[x, y, θ]` (m, rad, the odometry's frame) carried to the
+    /// capture time ([`crate::slam::odometry_at`]): what SLAM beside the robot is fed with it.
+    pub odometry: [f64; 3],
 }
 
 impl Frame {
@@ -45,6 +48,7 @@ impl Frame {
             rgb: raw.rgb,
             depth: raw.depth,
             intrinsics,
+            odometry: crate::slam_runner::odometry_at(tel, raw.time.as_secs_f64()),
             time: raw.time,
             camera_pose,
         })

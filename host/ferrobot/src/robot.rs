@@ -355,6 +355,15 @@ impl Robot {
             .subscribe("events", queue)
     }
 
+    /// Sends one message of the wire protocol to the firmware, as the API's components do,
+    /// and waits for its acknowledgement: for tools that replay what a robot was sent
+    /// ([`crate::events::Event::Command`]). The firmware checks it as it checks every
+    /// message (ranges, limits, the emergency stop) and a refusal is [`crate::Error::Rejected`];
+    /// the API's components do not know of it (their goals may overrule it).
+    pub fn send_command(&self, msg: &crate::events::HostMsg) -> Result<()> {
+        self.lock_hub().link.command(msg, "a replayed command")
+    }
+
     /// The backend's clock, s.
     pub fn time(&self) -> f64 {
         self.lock_hub().link.now().as_secs_f64()

@@ -343,6 +343,8 @@ impl<W: Write + Seek> Bag<W> {
         )?;
         let pose = encode::pose_stamped(t, ferrobot::frames::BASE_FRAME, &f.camera_pose);
         self.write(topics::CAMERA_POSE, t, &pose)?;
+        let odom = encode::pose_stamped(t, topics::ODOM_FRAME, &encode::planar_pose(f.odometry));
+        self.write(topics::CAMERA_ODOM, t, &odom)?;
         self.stats.frames += 1;
         Ok(())
     }

@@ -41,6 +41,15 @@ pub enum RecordError {
         /// Most allowed.
         max: f64,
     },
+    /// A file that is not an MCAP recording.
+    #[error("{} is not an MCAP recording (its first bytes are not MCAP's magic)", path.display())]
+    NotMcap {
+        /// The file.
+        path: PathBuf,
+    },
+    /// A recorded message that does not decode.
+    #[error("a recorded message does not decode: {0}")]
+    Decode(String),
     /// The recorder's thread failed.
     #[error("the recorder's thread panicked")]
     Thread,
@@ -80,6 +89,9 @@ impl From<RecordError> for ferrobot::Error {
             },
             RecordError::DiskFull { .. } => {
                 ferrobot::Error::Io(IoError::new(ErrorKind::StorageFull, e.to_string()))
+            }
+            RecordError::NotMcap { .. } | RecordError::Decode(_) => {
+                ferrobot::Error::Usage(e.to_string())
             }
             RecordError::Io { path, source, .. } if source.kind() == ErrorKind::AlreadyExists => {
                 ferrobot::Error::PathExists { path }

@@ -7,13 +7,18 @@
 //!   gripper's state, the commands sent, faults and emergency stops, camera colour, depth and
 //!   intrinsics, SLAM's pose and the robot's URDF.
 //! - [`bag::Bag`]: the writer itself, fed items, for any `Write + Seek`.
+//! - [`replay`]: a recording fed back as commands to a robot, or as sensor input (SLAM
+//!   offline); [`reader`] and [`decode`] read it.
 //! - [`cdr`] and [`ros2`]: the messages' encoding and definitions.
 
 pub mod bag;
 pub mod cdr;
+pub mod decode;
 pub mod error;
 pub mod events;
+pub mod reader;
 pub mod recorder;
+pub mod replay;
 pub mod ros2;
 pub mod topics;
 

@@ -107,6 +107,18 @@ topic!(
     "the optical frame in `base_link` at each frame's capture, from the measured joints."
 );
 topic!(
+    CAMERA_ODOM,
+    "/camera/odom_pose",
+    POSE_STAMPED,
+    "the base's wheel odometry in `odom` carried to each frame's capture: what SLAM is fed with the frame."
+);
+topic!(
+    COMMANDS,
+    "/ferrobot/commands",
+    FERROBOT_COMMAND,
+    "every command the firmware acknowledged, exactly: its kind, and the message in the wire protocol's postcard encoding (what replay sends)."
+);
+topic!(
     SLAM_POSE,
     "/slam/pose",
     POSE_STAMPED,
@@ -114,7 +126,7 @@ topic!(
 );
 
 /// Every topic, in the order of this table.
-pub const ALL: [Topic; 15] = [
+pub const ALL: [Topic; 17] = [
     ROBOT_DESCRIPTION,
     TF_STATIC,
     TF,
@@ -129,6 +141,8 @@ pub const ALL: [Topic; 15] = [
     DEPTH,
     CAMERA_INFO,
     CAMERA_POSE,
+    CAMERA_ODOM,
+    COMMANDS,
     SLAM_POSE,
 ];
 

@@ -28,6 +28,7 @@ pub mod jacobian;
 pub mod nav_plan;
 pub mod record;
 pub mod record_rgbd;
+pub mod replay;
 pub mod robots;
 pub mod route;
 pub mod scene;

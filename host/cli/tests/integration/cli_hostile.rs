@@ -981,6 +981,26 @@ fn cases() -> Vec<Case> {
         &["record", "wall-e", "-o", "new.mcap", "--json"],
         Input,
     ));
+    // replay: files that are not recordings, nothing to do, hostile numbers.
+    for file in ["notes.txt", "subdir", "/dev/zero", "binary.toml"] {
+        c.push(case(&["replay", file, "--slam", "--json"], Input));
+        c.push(case(&["replay", file, "--commands"], Input));
+    }
+    c.push(case(
+        &["replay", "nothing.mcap", "--slam", "--json"],
+        Failure,
+    ));
+    c.push(case(&["replay", "notes.txt"], Input));
+    for n in HOSTILE {
+        c.push(case(
+            &["replay", "notes.txt", "--slam", "--speed", n],
+            Input,
+        ));
+        c.push(case(
+            &["replay", "notes.txt", "--slam", "--start", n, "0", "0"],
+            Input,
+        ));
+    }
     c.push(case(&["demo", "--robot", "wall-e"], Input));
     c.push(case(&["demo", "--robot", ""], Input));
     // sim-firmware: never replace what exists at the link path.

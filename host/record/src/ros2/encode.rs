@@ -33,6 +33,14 @@ pub fn string(s: &str) -> Vec<u8> {
     w.into_bytes()
 }
 
+/// `ferrobot_msgs/Command`: the kind and the postcard bytes of a command.
+pub fn command(kind: &str, postcard: &[u8]) -> Vec<u8> {
+    let mut w = CdrWriter::with_capacity(32 + kind.len() + postcard.len());
+    w.string(kind);
+    w.bytes(postcard);
+    w.into_bytes()
+}
+
 /// `std_msgs/Int8`.
 pub fn int8(v: i8) -> Vec<u8> {
     let mut w = CdrWriter::default();

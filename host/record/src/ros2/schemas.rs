@@ -156,6 +156,13 @@ msg!(
     "byte DEBUG=10\nbyte INFO=20\nbyte WARN=30\nbyte ERROR=40\nbyte FATAL=50\nbuiltin_interfaces/Time stamp\nuint8 level\nstring name\nstring msg\nstring file\nstring function\nuint32 line\n"
 );
 
+msg!(
+    FERROBOT_COMMAND,
+    "ferrobot_msgs/msg/Command",
+    [],
+    "string kind\nuint8[] postcard\n"
+);
+
 /// The separator rosbag2 writes between a definition and each type it uses.
 const SEPARATOR: &str =
     "================================================================================\n";

@@ -1,0 +1,118 @@
+//! The messages replay reads back, decoded from CDR into the robot's types.
+
+use std::time::Duration;
+
+use ferrobot::events::HostMsg;
+use ferrobot::perception::{DepthImage, Intrinsics, RgbImage};
+use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
+
+use crate::cdr::{CdrError, CdrReader};
+
+/// Why a message could not be decoded.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum DecodeError {
+    /// Malformed CDR.
+    #[error(transparent)]
+    Cdr(#[from] CdrError),
+    /// A command whose wire bytes do not decode.
+    #[error("a recorded command does not decode: {0}")]
+    Command(#[from] postcard::Error),
+    /// A value the robot's type refuses (an image whose size and data disagree, intrinsics
+    /// out of range).
+    #[error("{0}")]
+    Invalid(String),
+}
+
+/// A `builtin_interfaces/Time`.
+fn time(r: &mut CdrReader<'_>) -> Result<Duration, CdrError> {
+    let sec = r.i32()?;
+    let nanosec = r.u32()?;
+    Ok(Duration::new(sec.max(0) as u64, nanosec.min(999_999_999)))
+}
+
+/// A `std_msgs/Header`: its stamp and frame.
+fn header(r: &mut CdrReader<'_>) -> Result<(Duration, String), CdrError> {
+    Ok((time(r)?, r.string()?))
+}
+
+/// A `ferrobot_msgs/Command`'s message.
+pub fn command(data: &[u8]) -> Result<HostMsg, DecodeError> {
+    let mut r = CdrReader::new(data)?;
+    let _kind = r.string()?;
+    Ok(postcard::from_bytes(r.bytes()?)?)
+}
+
+/// A `geometry_msgs/PoseStamped`: stamp, frame and pose.
+pub fn pose_stamped(data: &[u8]) -> Result<(Duration, String, Isometry3<f64>), DecodeError> {
+    let mut r = CdrReader::new(data)?;
+    let (t, frame) = header(&mut r)?;
+    let v = r.f64_array(7)?;
+    let q = UnitQuaternion::from_quaternion(Quaternion::new(v[6], v[3], v[4], v[5]));
+    Ok((
+        t,
+        frame,
+        Isometry3::from_parts(Translation3::new(v[0], v[1], v[2]), q),
+    ))
+}
+
+/// A `sensor_msgs/Image`: stamp, size (width, height), encoding and bytes.
+fn image(data: &[u8]) -> Result<(Duration, u32, u32, String, Vec<u8>), DecodeError> {
+    let mut r = CdrReader::new(data)?;
+    let (t, _) = header(&mut r)?;
+    let height = r.u32()?;
+    let width = r.u32()?;
+    let encoding = r.string()?;
+    let _big_endian = r.u8()?;
+    let _step = r.u32()?;
+    Ok((t, width, height, encoding, r.bytes()?.to_vec()))
+}
+
+/// An `rgb8` image.
+pub fn rgb(data: &[u8]) -> Result<RgbImage, DecodeError> {
+    let (_, w, h, enc, bytes) = image(data)?;
+    if enc != "rgb8" {
+        return Err(DecodeError::Invalid(format!(
+            "a colour image in {enc}, not rgb8"
+        )));
+    }
+    RgbImage::new(w, h, bytes).map_err(|e| DecodeError::Invalid(e.to_string()))
+}
+
+/// A `32FC1` depth image, m.
+pub fn depth(data: &[u8]) -> Result<DepthImage, DecodeError> {
+    let (_, w, h, enc, bytes) = image(data)?;
+    if enc != "32FC1" {
+        return Err(DecodeError::Invalid(format!(
+            "a depth image in {enc}, not 32FC1"
+        )));
+    }
+    let d = bytes
+        .chunks_exact(4)
+        .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+        .collect();
+    DepthImage::new(w, h, d).map_err(|e| DecodeError::Invalid(e.to_string()))
+}
+
+/// A `sensor_msgs/CameraInfo`'s pinhole intrinsics.
+pub fn intrinsics(data: &[u8]) -> Result<Intrinsics, DecodeError> {
+    let mut r = CdrReader::new(data)?;
+    let _ = header(&mut r)?;
+    let height = r.u32()?;
+    let width = r.u32()?;
+    let _model = r.string()?;
+    let _d = r.f64_seq()?;
+    let k = r.f64_array(9)?;
+    Intrinsics::new(width, height, k[0], k[4], k[2], k[5])
+        .map_err(|e| DecodeError::Invalid(e.to_string()))
+}
+
+/// A `sensor_msgs/JointState`: stamp, names, positions, velocities, efforts.
+pub type JointStates = (Duration, Vec<String>, Vec<f64>, Vec<f64>, Vec<f64>);
+
+/// A `sensor_msgs/JointState`.
+pub fn joint_state(data: &[u8]) -> Result<JointStates, DecodeError> {
+    let mut r = CdrReader::new(data)?;
+    let (t, _) = header(&mut r)?;
+    Ok((t, r.string_seq()?, r.f64_seq()?, r.f64_seq()?, r.f64_seq()?))
+}
