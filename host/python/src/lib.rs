@@ -17,6 +17,7 @@ mod errors;
 mod gripper;
 mod motion;
 mod options;
+mod record;
 mod robot;
 mod skills;
 
@@ -32,6 +33,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<camera::Camera>()?;
     m.add_class::<base::Base>()?;
     m.add_class::<motion::Motion>()?;
+    m.add_class::<record::Recorder>()?;
     m.add_function(wrap_pyfunction!(skills::grasp, m)?)?;
     m.add_function(wrap_pyfunction!(skills::push, m)?)?;
     m.add_function(wrap_pyfunction!(skills::calibrate_camera, m)?)?;

@@ -129,6 +129,7 @@ files!(
     test_pyrobot_base_velocity_control,
     test_pyrobot_camera,
     test_pyrobot_make_robots,
+    test_record,
     test_stubs,
     test_threads,
 );

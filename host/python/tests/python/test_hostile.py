@@ -228,6 +228,15 @@ def test_the_skills_refuse_absurd_options():
         assert _refused(lambda r: ferrobot.bench_base(r, trials=1), v) is not None
 
 
+def test_the_recorder_refuses_what_is_not_a_new_file(bot, tmp_path):
+    (tmp_path / "taken.mcap").write_text("a user's file")
+    for v in NAMES + [tmp_path, tmp_path / "taken.mcap", tmp_path / "no" / "dir.mcap", "/dev/null"]:
+        assert _refused(lambda p: ferrobot.Recorder(bot, p), v) is not None, v
+    assert _refused(lambda c: ferrobot.Recorder(bot, tmp_path / "c.mcap", camera=c), "yes") is not None
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["taken.mcap"]
+    _robot_still_works(bot)
+
+
 def _robot_still_works(bot):
     bot.cancel_motions()
     bot.arm.remove_all_objects()
