@@ -129,6 +129,10 @@ impl Session {
         let mut cmd = CommandBuilder::new(bin());
         cmd.args(["teleop", "locobot", "--step-ms", "10", "--trace"]);
         cmd.arg(&trace);
+        // The session recorded, as a demonstration is (frames left out: the test's pace is
+        // the terminal's, and rendering them would only slow it).
+        cmd.args(["--record-without-camera", "--record"]);
+        cmd.arg(dir.join("session.mcap"));
         cmd.cwd(dir);
         cmd.env("TERM", "xterm-256color");
         let child = pair
@@ -507,6 +511,24 @@ fn every_key_moves_what_it_should_a_released_base_key_stops_and_quitting_is_safe
     let words: Vec<&str> = settings.split_whitespace().collect();
     for mode in ["icanon", "echo", "isig"] {
         assert!(words.contains(&mode), "stty after teleop: {settings}");
+    }
+    // The session's recording: the operator's commands, as the robot acknowledged them.
+    let mut topics = std::collections::BTreeMap::<String, usize>::new();
+    for m in ferrobot_record::reader::Reading::open(dir.join("session.mcap")).expect("recording") {
+        *topics
+            .entry(m.expect("message").topic.to_string())
+            .or_default() += 1;
+    }
+    for topic in [
+        "/cmd_vel",
+        "/joint_commands",
+        "/ferrobot/commands",
+        "/joint_states",
+    ] {
+        assert!(
+            topics.get(topic).copied().unwrap_or(0) > 0,
+            "{topic}: {topics:?}"
+        );
     }
     // Releases, from the robot's own record.
     // The release is the last hold's end. A repeat delayed past the repeat hold by a loaded

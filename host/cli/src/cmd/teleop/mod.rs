@@ -76,6 +76,13 @@ pub struct Args {
     /// Write one JSON line per turn (time, keys, commands, state) to this new file.
     #[arg(long)]
     pub trace: Option<std::path::PathBuf>,
+    /// Record the session into this new MCAP file (ROS 2 schemas: joint states, commands,
+    /// odometry, transforms, the camera; see `ferrobot record`): a demonstration.
+    #[arg(long)]
+    pub record: Option<std::path::PathBuf>,
+    /// With --record, leave the camera's frames out.
+    #[arg(long, requires = "record")]
+    pub record_without_camera: bool,
 }
 
 /// How the loop lets time pass.
@@ -112,6 +119,17 @@ pub fn run(a: &Args) -> ferrobot::Result<()> {
         .scene(&a.scene)
         .backend(backend.clone())
         .build()?;
+    let recorder = match &a.record {
+        Some(path) => Some(ferrobot_record::Recorder::start(
+            &bot,
+            path,
+            ferrobot_record::RecordOptions {
+                camera: !a.record_without_camera,
+                ..Default::default()
+            },
+        )?),
+        None => None,
+    };
     let mut op = Operator::new(bot)?;
     op.start_pose();
     let wrist = op.wrist_joints();
@@ -151,11 +169,24 @@ pub fn run(a: &Args) -> ferrobot::Result<()> {
     if let Some(t) = trace.as_mut() {
         t.end(reason, &report);
     }
+    let recorded = recorder.map(ferrobot_record::Recorder::finish).transpose();
     drop(inputs);
     if reason != QuitReason::Hangup {
         // On the restored terminal; a closed one is no error here.
         use std::io::Write;
         let _ = writeln!(std::io::stdout(), "{}", report.summary(reason));
+    }
+    if let (Some(s), Some(path)) = (recorded?, &a.record) {
+        if reason != QuitReason::Hangup {
+            use std::io::Write;
+            let _ = writeln!(
+                std::io::stdout(),
+                "recorded {} messages ({} frames) into {}",
+                s.written.messages,
+                s.written.frames,
+                path.display()
+            );
+        }
     }
     Ok(())
 }
