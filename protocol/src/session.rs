@@ -147,12 +147,17 @@ pub struct SessionStats {
     pub faults_dropped: u32,
 }
 
+/// Telemetry reports kept for [`HostSession::take_report`] (the oldest give way): 80 ms at
+/// the 10 ms period, more than any reader lets pass between two takes.
+pub const REPORTS: usize = 8;
+
 /// The host side of a session (see the module doc).
 pub struct HostSession {
     next_seq: u16,
     decoder: FrameDecoder,
     handshake: Handshake,
     telemetry: Option<Telemetry>,
+    reports: Deque<Telemetry, REPORTS>,
     faults: Deque<Fault, FAULT_QUEUE>,
     pending: Vec<Pending, MAX_PENDING>,
     answers: Deque<(u16, Answer), MAX_PENDING>,
@@ -185,6 +190,7 @@ impl HostSession {
             decoder: FrameDecoder::new(),
             handshake: Handshake::Waiting,
             telemetry: None,
+            reports: Deque::new(),
             faults: Deque::new(),
             pending: Vec::new(),
             answers: Deque::new(),
@@ -224,6 +230,7 @@ impl HostSession {
         self.handshake = Handshake::Waiting;
         self.pending.clear();
         self.telemetry = None;
+        self.reports.clear();
     }
 
     /// A Hello with our version and schema into `out`; the handshake waits for its answer.
@@ -360,6 +367,11 @@ impl HostSession {
         match msg {
             DeviceMsg::Telemetry(t) => {
                 self.telemetry = Some(t.clone());
+                if self.reports.is_full() {
+                    self.reports.pop_front();
+                }
+                // Room was made above.
+                let _ = self.reports.push_back(t.clone());
                 true
             }
             DeviceMsg::Fault(f) => {
@@ -436,6 +448,12 @@ impl HostSession {
     /// Where the handshake stands.
     pub fn handshake(&self) -> &Handshake {
         &self.handshake
+    }
+
+    /// The oldest telemetry report not yet taken (the newest [`REPORTS`] are kept): for a
+    /// reader that wants every report, not only the newest.
+    pub fn take_report(&mut self) -> Option<Telemetry> {
+        self.reports.pop_front()
     }
 
     /// The newest telemetry.
@@ -525,6 +543,35 @@ mod tests {
             s.take_reply::<GetJoint>(j),
             Some(Err(RejectReason::UnknownJoint))
         );
+    }
+
+    /// Every report is kept for a reader that wants them all, the newest [`REPORTS`] of them,
+    /// oldest first; a restart forgets them.
+    #[test]
+    fn reports_are_kept_in_order_up_to_their_bound() {
+        let mut s = HostSession::new();
+        let report = |time_us| Telemetry {
+            time_us,
+            joints: heapless::Vec::new(),
+            queued: 0,
+            gripper: crate::GripperState::Unknown,
+            odometry: Default::default(),
+            wheels: Default::default(),
+            base_flags: 0,
+            faults: 0,
+            loop_stats: Default::default(),
+        };
+        for i in 0..(REPORTS as u64 + 3) {
+            s.on_bytes(&device(0, &DeviceMsg::Telemetry(report(i * 10_000))));
+        }
+        let got: heapless::Vec<u64, 16> = core::iter::from_fn(|| s.take_report())
+            .map(|t| t.time_us)
+            .collect();
+        let want: heapless::Vec<u64, 16> = (3..REPORTS as u64 + 3).map(|i| i * 10_000).collect();
+        assert_eq!(got, want);
+        s.on_bytes(&device(0, &DeviceMsg::Telemetry(report(1))));
+        s.restart();
+        assert!(s.take_report().is_none());
     }
 
     /// A new connection forgets the old one's telemetry: the host must not take what a

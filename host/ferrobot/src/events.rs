@@ -113,6 +113,9 @@ impl Link for Tapped {
     fn telemetry(&mut self) -> Result<Telemetry> {
         self.inner.telemetry()
     }
+    fn take_telemetry(&mut self) -> Vec<Telemetry> {
+        self.inner.take_telemetry()
+    }
     fn wait(&mut self, dt: Duration) {
         self.inner.wait(dt)
     }

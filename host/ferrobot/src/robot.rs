@@ -322,19 +322,21 @@ impl Robot {
 
     /// Subscribes to the firmware's telemetry (joints, gripper, odometry, wheels, faults'
     /// flags), in a queue of `queue` reports (in `[1, subscription::MAX_QUEUE]`; a full queue
-    /// drops its oldest): the newest report each time the robot's time passes (a wait, a
-    /// motion's wait, a capture), each report once. Reports that arrive between two such
-    /// instants are not all seen (the link keeps the newest).
+    /// drops its oldest): every report received from now on, once, oldest first, delivered
+    /// each time the robot's time passes (a wait, a motion's wait, a capture). The link keeps
+    /// the newest [`ferrobot_protocol::session::REPORTS`] between two such instants.
     ///
     /// [`subscription::MAX_QUEUE`]: crate::subscription::MAX_QUEUE
     pub fn subscribe_telemetry(
         &self,
         queue: usize,
     ) -> Result<crate::subscription::Subscription<Telemetry>> {
-        self.lock_hub()
-            .streams
-            .telemetry
-            .subscribe("telemetry", queue)
+        let mut io = self.lock_hub();
+        // Reports received before now are not this subscriber's.
+        if let Some(t) = io.link.take_telemetry().last() {
+            io.streams.telemetry_us = Some(t.time_us);
+        }
+        io.streams.telemetry.subscribe("telemetry", queue)
     }
 
     /// Subscribes to the robot's events ([`crate::events::Event`]: the commands the firmware

@@ -47,17 +47,23 @@ impl Streams {
 }
 
 impl Hub {
-    /// Delivers the newest telemetry to its subscribers, once per report.
+    /// Delivers every telemetry report received since the last pump to its subscribers, once
+    /// per report, oldest first (taken even when nobody subscribes; a new subscriber gets
+    /// only reports from its time on: see [`crate::Robot::subscribe_telemetry`]).
     pub(crate) fn publish_telemetry(&mut self) {
+        let reports = self.link.take_telemetry();
         if !self.streams.telemetry.wanted() {
             return;
         }
-        let Ok(t) = self.link.telemetry() else {
-            return;
-        };
-        if self.streams.telemetry_us != Some(t.time_us) {
-            self.streams.telemetry_us = Some(t.time_us);
-            self.streams.telemetry.publish(t);
+        for t in reports {
+            if self
+                .streams
+                .telemetry_us
+                .is_none_or(|last| t.time_us > last)
+            {
+                self.streams.telemetry_us = Some(t.time_us);
+                self.streams.telemetry.publish(t);
+            }
         }
     }
 

@@ -34,6 +34,8 @@ pub struct Args {
 /// One run's figures.
 #[derive(Serialize, Default, Clone, Copy)]
 struct Run {
+    /// Seconds of the robot's time the run took (its last motions end after --seconds).
+    robot_s: f64,
     /// Real-time factor: the robot's seconds per wall second.
     rtf: f64,
     /// Wall time, s.
@@ -122,6 +124,7 @@ fn run_once(seconds: f64, out: Option<&PathBuf>) -> ferrobot::Result<Run> {
         })
         .build()?;
     let overruns0 = robot.telemetry()?.loop_stats.overruns;
+    let t0 = robot.time();
     let (cpu0, wall) = (cpu_seconds(None), Instant::now());
     let mut run = Run::default();
     if let Some(path) = out {
@@ -144,7 +147,8 @@ fn run_once(seconds: f64, out: Option<&PathBuf>) -> ferrobot::Result<Run> {
     }
     run.wall_s = wall.elapsed().as_secs_f64();
     run.cpu_s = cpu_seconds(None) - cpu0;
-    run.rtf = seconds / run.wall_s;
+    run.robot_s = robot.time() - t0;
+    run.rtf = run.robot_s / run.wall_s;
     run.overruns = robot.telemetry()?.loop_stats.overruns - overruns0;
     Ok(run)
 }
@@ -166,7 +170,7 @@ pub fn run(a: &Args) -> ferrobot::Result<()> {
     let r = Report {
         baseline,
         file_mb: bytes / 1e6,
-        mb_per_robot_s: bytes / 1e6 / seconds,
+        mb_per_robot_s: bytes / 1e6 / recording.robot_s,
         mb_per_wall_s: bytes / 1e6 / recording.wall_s,
         recording,
         seconds,
@@ -176,14 +180,15 @@ pub fn run(a: &Args) -> ferrobot::Result<()> {
         return Ok(());
     }
     say!("Recording the simulated LoCoBot: {seconds:.0} s of its time, RGB-D 640x480 at 30 Hz, telemetry at 100 Hz");
-    say!("| run | real-time factor | wall s | CPU s | recorder CPU s | frames | telemetry | dropped | loop overruns |");
-    say!("|---|---|---|---|---|---|---|---|---|");
+    say!("| run | robot s | real-time factor | wall s | CPU s | recorder CPU s | frames | telemetry | dropped | loop overruns |");
+    say!("|---|---|---|---|---|---|---|---|---|---|");
     for (name, x) in [
         ("frames taken, nothing written", &r.baseline),
         ("recorded to MCAP (zstd 1)", &r.recording),
     ] {
         say!(
-            "| {name} | {:.1} | {:.1} | {:.1} | {:.1} | {} | {} | {} | {} |",
+            "| {name} | {:.2} | {:.1} | {:.1} | {:.1} | {:.1} | {} | {} | {} | {} |",
+            x.robot_s,
             x.rtf,
             x.wall_s,
             x.cpu_s,

@@ -41,6 +41,9 @@ macro_rules! link_through_serial {
             fn telemetry(&mut self) -> $crate::error::Result<ferrobot_protocol::Telemetry> {
                 self.serial.telemetry()
             }
+            fn take_telemetry(&mut self) -> Vec<ferrobot_protocol::Telemetry> {
+                self.serial.take_telemetry()
+            }
             fn wait(&mut self, dt: std::time::Duration) {
                 self.serial.wait(dt)
             }
@@ -156,6 +159,11 @@ pub trait Link: Send {
     fn diagnostics(&mut self) -> Result<Diagnostics>;
     /// The newest telemetry.
     fn telemetry(&mut self) -> Result<Telemetry>;
+    /// Every telemetry report received since the last call, oldest first (the session keeps
+    /// the newest [`ferrobot_protocol::session::REPORTS`]); by default the newest alone.
+    fn take_telemetry(&mut self) -> Vec<Telemetry> {
+        self.telemetry().into_iter().collect()
+    }
     /// Let `dt` pass (simulated time in the simulator, wall time otherwise).
     fn wait(&mut self, dt: Duration);
     /// The backend's clock.

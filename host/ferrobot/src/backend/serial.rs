@@ -510,6 +510,13 @@ impl Link for SerialLink {
         })
     }
 
+    fn take_telemetry(&mut self) -> Vec<Telemetry> {
+        match self.shared.lock() {
+            Ok(mut s) => std::iter::from_fn(|| s.session.take_report()).collect(),
+            Err(_) => Vec::new(),
+        }
+    }
+
     fn stop_line(&self) -> Option<Arc<dyn StopLine>> {
         Some(Arc::new(SerialStopLine {
             shared: self.shared.clone(),

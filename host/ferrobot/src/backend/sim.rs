@@ -107,6 +107,10 @@ impl Link for SimLink {
             .map_err(|_| Error::Link("no telemetry".into()))
     }
 
+    fn take_telemetry(&mut self) -> Vec<Telemetry> {
+        std::iter::from_fn(|| self.session.session.take_report()).collect()
+    }
+
     fn wait(&mut self, dt: Duration) {
         self.session.run_for(dt.as_micros() as u64);
         if let Some((wall0, sim0)) = self.realtime {
