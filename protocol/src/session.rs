@@ -545,12 +545,9 @@ mod tests {
         );
     }
 
-    /// Every report is kept for a reader that wants them all, the newest [`REPORTS`] of them,
-    /// oldest first; a restart forgets them.
-    #[test]
-    fn reports_are_kept_in_order_up_to_their_bound() {
-        let mut s = HostSession::new();
-        let report = |time_us| Telemetry {
+    /// A telemetry report at `time_us` of a robot without joints.
+    fn report(time_us: u64) -> Telemetry {
+        Telemetry {
             time_us,
             joints: heapless::Vec::new(),
             queued: 0,
@@ -560,7 +557,14 @@ mod tests {
             base_flags: 0,
             faults: 0,
             loop_stats: Default::default(),
-        };
+        }
+    }
+
+    /// Every report is kept for a reader that wants them all, the newest [`REPORTS`] of them,
+    /// oldest first; a restart forgets them.
+    #[test]
+    fn reports_are_kept_in_order_up_to_their_bound() {
+        let mut s = HostSession::new();
         for i in 0..(REPORTS as u64 + 3) {
             s.on_bytes(&device(0, &DeviceMsg::Telemetry(report(i * 10_000))));
         }
@@ -579,17 +583,7 @@ mod tests {
     #[test]
     fn a_restart_forgets_the_telemetry() {
         let mut s = HostSession::new();
-        let t = Telemetry {
-            time_us: 5_000,
-            joints: heapless::Vec::new(),
-            queued: 0,
-            gripper: crate::GripperState::Unknown,
-            odometry: Default::default(),
-            wheels: Default::default(),
-            base_flags: 0,
-            faults: 0,
-            loop_stats: Default::default(),
-        };
+        let t = report(5_000);
         s.on_bytes(&device(0, &DeviceMsg::Telemetry(t.clone())));
         assert_eq!(s.telemetry(), Some(&t));
         s.restart();

@@ -14,7 +14,7 @@ use ferrobot::frames::Frames;
 use ferrobot::{Frame, GripperState, Telemetry};
 
 use crate::error::RecordError;
-use crate::ros2::encode::{self, Pinhole, Planar, Transform};
+use crate::ros2::encode::{self, Planar, Transform};
 use crate::topics::{self, Topic};
 
 /// What a recording's channels need to know of the robot.
@@ -327,20 +327,8 @@ impl<W: Write + Seek> Bag<W> {
             &depth_bytes,
         );
         self.write(topics::DEPTH, t, &depth)?;
-        let k = &f.intrinsics;
-        let info = Pinhole {
-            width: k.width,
-            height: k.height,
-            fx: k.fx,
-            fy: k.fy,
-            cx: k.cx,
-            cy: k.cy,
-        };
-        self.write(
-            topics::CAMERA_INFO,
-            t,
-            &encode::camera_info(t, &frame_id, &info),
-        )?;
+        let info = encode::camera_info(t, &frame_id, &f.intrinsics);
+        self.write(topics::CAMERA_INFO, t, &info)?;
         let pose = encode::pose_stamped(t, ferrobot::frames::BASE_FRAME, &f.camera_pose);
         self.write(topics::CAMERA_POSE, t, &pose)?;
         let odom = encode::pose_stamped(t, topics::ODOM_FRAME, &encode::planar_pose(f.odometry));

@@ -3,6 +3,7 @@
 
 use std::time::Duration;
 
+use ferrobot::perception::Intrinsics;
 use nalgebra::Isometry3;
 
 use crate::cdr::CdrWriter;
@@ -92,26 +93,9 @@ pub fn image(t: Duration, frame: &str, layout: ImageLayout<'_>, data: &[u8]) -> 
     w.into_bytes()
 }
 
-/// A pinhole camera without distortion: size (px), focal lengths and principal point (px).
-#[derive(Debug, Clone, Copy)]
-pub struct Pinhole {
-    /// Width, px.
-    pub width: u32,
-    /// Height, px.
-    pub height: u32,
-    /// Focal length along x, px.
-    pub fx: f64,
-    /// Focal length along y, px.
-    pub fy: f64,
-    /// Principal point, x, px.
-    pub cx: f64,
-    /// Principal point, y, px.
-    pub cy: f64,
-}
-
 /// `sensor_msgs/CameraInfo` of an undistorted pinhole (`plumb_bob` with zero coefficients;
 /// `k` and `p` from the intrinsics, `r` the identity).
-pub fn camera_info(t: Duration, frame: &str, c: &Pinhole) -> Vec<u8> {
+pub fn camera_info(t: Duration, frame: &str, c: &Intrinsics) -> Vec<u8> {
     let mut w = CdrWriter::with_capacity(400);
     header(&mut w, t, frame);
     w.u32(c.height);
