@@ -3,7 +3,7 @@
 //! frame, each stamped with the robot's clock. Recorders subscribe to it; reading it takes
 //! nothing from [`crate::Robot::take_faults`] or [`crate::Robot::take_link_events`].
 //!
-//! The commands are tapped where they leave the API: [`Tapped`] wraps the backend's link and
+//! The commands are tapped where they leave the API: a tap wraps the backend's link and
 //! publishes each command that the firmware acknowledged, so no goal, component or backend
 //! needs to know about recording.
 

@@ -7,7 +7,7 @@ use std::path::PathBuf;
 #[non_exhaustive]
 pub enum RecordError {
     /// The disk is full (or the file reached its size limit): everything before the last
-    /// closed chunk is readable (see [`crate::recover`]).
+    /// closed chunk is readable (see [`crate::reader::Reading`]).
     #[error("the disk is full: the recording stopped at {written_s:.3} s of the robot's time; what was written before it is readable")]
     DiskFull {
         /// The newest message written, s on the robot's clock.

@@ -107,6 +107,21 @@ pub enum QuitReason {
     Signal,
 }
 
+/// The session's recorder, with --record.
+fn start_recording(
+    a: &Args,
+    bot: &ferrobot::Robot,
+) -> ferrobot::Result<Option<ferrobot_record::Recorder>> {
+    let Some(path) = &a.record else {
+        return Ok(None);
+    };
+    let opts = ferrobot_record::RecordOptions {
+        camera: !a.record_without_camera,
+        ..Default::default()
+    };
+    Ok(Some(ferrobot_record::Recorder::start(bot, path, opts)?))
+}
+
 /// Check the arguments, connect, drive, and leave the robot safe.
 pub fn run(a: &Args) -> ferrobot::Result<()> {
     let backend = check(a)?;
@@ -119,17 +134,7 @@ pub fn run(a: &Args) -> ferrobot::Result<()> {
         .scene(&a.scene)
         .backend(backend.clone())
         .build()?;
-    let recorder = match &a.record {
-        Some(path) => Some(ferrobot_record::Recorder::start(
-            &bot,
-            path,
-            ferrobot_record::RecordOptions {
-                camera: !a.record_without_camera,
-                ..Default::default()
-            },
-        )?),
-        None => None,
-    };
+    let recorder = start_recording(a, &bot)?;
     let mut op = Operator::new(bot)?;
     op.start_pose();
     let wrist = op.wrist_joints();
