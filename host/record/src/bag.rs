@@ -300,32 +300,13 @@ impl<W: Write + Seek> Bag<W> {
     fn frame(&mut self, f: &Frame) -> Result<(), RecordError> {
         let t = f.time;
         let frame_id = self.robot.optical.clone().unwrap_or_default();
-        let (w, h) = (f.rgb.width, f.rgb.height);
-        let color = encode::image(
-            t,
-            &frame_id,
-            encode::ImageLayout {
-                height: h,
-                width: w,
-                encoding: "rgb8",
-                step: w * 3,
-            },
-            &f.rgb.data,
-        );
+        let (rgb, d) = (&f.rgb, &f.depth);
+        let layout = encode::ImageLayout::packed(rgb.width, rgb.height, "rgb8", 3);
+        let color = encode::image(t, &frame_id, layout, &rgb.data);
         self.write(topics::COLOR, t, &color)?;
-        let depth_bytes: Vec<u8> = f.depth.data.iter().flat_map(|d| d.to_le_bytes()).collect();
-        let (dw, dh) = (f.depth.width, f.depth.height);
-        let depth = encode::image(
-            t,
-            &frame_id,
-            encode::ImageLayout {
-                height: dh,
-                width: dw,
-                encoding: "32FC1",
-                step: dw * 4,
-            },
-            &depth_bytes,
-        );
+        let bytes: Vec<u8> = d.data.iter().flat_map(|x| x.to_le_bytes()).collect();
+        let layout = encode::ImageLayout::packed(d.width, d.height, "32FC1", 4);
+        let depth = encode::image(t, &frame_id, layout, &bytes);
         self.write(topics::DEPTH, t, &depth)?;
         let info = encode::camera_info(t, &frame_id, &f.intrinsics);
         self.write(topics::CAMERA_INFO, t, &info)?;

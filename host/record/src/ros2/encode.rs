@@ -80,6 +80,18 @@ pub struct ImageLayout<'a> {
     pub step: u32,
 }
 
+impl<'a> ImageLayout<'a> {
+    /// Rows without padding: `width` pixels of `bytes_per_pixel` bytes each.
+    pub fn packed(width: u32, height: u32, encoding: &'a str, bytes_per_pixel: u32) -> Self {
+        ImageLayout {
+            height,
+            width,
+            encoding,
+            step: width * bytes_per_pixel,
+        }
+    }
+}
+
 /// `sensor_msgs/Image` (little-endian data).
 pub fn image(t: Duration, frame: &str, layout: ImageLayout<'_>, data: &[u8]) -> Vec<u8> {
     let mut w = CdrWriter::with_capacity(data.len() + 96);
