@@ -332,10 +332,8 @@ impl Robot {
         queue: usize,
     ) -> Result<crate::subscription::Subscription<Telemetry>> {
         let mut io = self.lock_hub();
-        // Reports received before now are not this subscriber's.
-        if let Some(t) = io.link.take_telemetry().last() {
-            io.streams.telemetry_us = Some(t.time_us);
-        }
+        // Reports received before now go to the subscribers of before, not to this one.
+        io.publish_telemetry();
         io.streams.telemetry.subscribe("telemetry", queue)
     }
 

@@ -53,6 +53,10 @@ impl Hub {
     pub(crate) fn publish_telemetry(&mut self) {
         let reports = self.link.take_telemetry();
         if !self.streams.telemetry.wanted() {
+            // Nobody to deliver them to; a later subscriber starts after them.
+            if let Some(t) = reports.last() {
+                self.streams.telemetry_us = Some(t.time_us);
+            }
             return;
         }
         for t in reports {
@@ -204,14 +208,13 @@ impl Hub {
             Ok(r) => {
                 runner.last = Some(r);
                 runner.error = None;
-                let mut events = self.streams.events.lock();
-                if events.wanted() {
-                    events.publish(crate::events::Event::Slam {
+                self.streams
+                    .events
+                    .lock()
+                    .publish(crate::events::Event::Slam {
                         time: raw.time,
                         report: r,
                     });
-                }
-                drop(events);
                 if r.state != TrackState::Lost {
                     let map = Pose2::from(optimise::to_planar(&r.pose));
                     self.sense

@@ -182,13 +182,19 @@ impl<W: Write + Seek> Bag<W> {
         if self.full {
             return Err(self.disk_full());
         }
-        self.push_item(item).map_err(|e| match e {
+        self.push_item(item).map_err(|e| self.typed(e))
+    }
+
+    /// `e`, or [`RecordError::DiskFull`] when it is the disk filling (remembered: nothing
+    /// more is written).
+    fn typed(&mut self, e: RecordError) -> RecordError {
+        match e {
             RecordError::Mcap(m) if RecordError::is_disk_full(&m) => {
                 self.full = true;
                 self.disk_full()
             }
             e => e,
-        })
+        }
     }
 
     fn disk_full(&self) -> RecordError {
@@ -333,8 +339,7 @@ impl<W: Write + Seek> Bag<W> {
         }
         match self.mcap.finish() {
             Ok(_) => Ok(self.stats),
-            Err(m) if RecordError::is_disk_full(&m) => Err(self.disk_full()),
-            Err(m) => Err(m.into()),
+            Err(m) => Err(self.typed(m.into())),
         }
     }
 }

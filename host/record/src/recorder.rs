@@ -100,17 +100,24 @@ impl Feeds {
 /// A recording under way ([`Recorder::start`]); [`Recorder::finish`] ends it.
 pub struct Recorder {
     path: PathBuf,
-    stop: Arc<AtomicBool>,
-    bell: Arc<Bell>,
-    stats: Arc<Mutex<RecordStats>>,
+    shared: Shared,
     thread: Option<JoinHandle<Result<RecordStats, RecordError>>>,
 }
 
 /// What the thread shares with the handle.
+#[derive(Clone)]
 struct Shared {
     stop: Arc<AtomicBool>,
     bell: Arc<Bell>,
     stats: Arc<Mutex<RecordStats>>,
+}
+
+impl Shared {
+    /// Tells the thread to write what is left and end the file.
+    fn stop_thread(&self) {
+        self.stop.store(true, Ordering::SeqCst);
+        self.bell.ring();
+    }
 }
 
 fn check(what: &'static str, value: usize, max: usize) -> Result<(), RecordError> {
@@ -196,14 +203,10 @@ impl Recorder {
             bell,
             stats: Arc::new(Mutex::new(RecordStats::default())),
         };
-        let (stop, bell, stats) = (
-            shared.stop.clone(),
-            shared.bell.clone(),
-            shared.stats.clone(),
-        );
+        let theirs = shared.clone();
         let thread = std::thread::Builder::new()
             .name("ferrobot-recorder".into())
-            .spawn(move || run(bag, feeds, shared))
+            .spawn(move || run(bag, feeds, theirs))
             .map_err(|source| RecordError::Io {
                 what: "starting the recorder's thread for",
                 path: path.clone(),
@@ -211,9 +214,7 @@ impl Recorder {
             })?;
         Ok(Recorder {
             path,
-            stop,
-            bell,
-            stats,
+            shared,
             thread: Some(thread),
         })
     }
@@ -225,15 +226,14 @@ impl Recorder {
 
     /// What has been written and dropped so far.
     pub fn stats(&self) -> RecordStats {
-        *self.stats.lock()
+        *self.shared.stats.lock()
     }
 
     /// Writes what the robot delivered until now, ends the file (its summary and footer) and
     /// returns how it went; the first error the recording met, if any (what was written before
     /// it stays readable).
     pub fn finish(mut self) -> Result<RecordStats, RecordError> {
-        self.stop.store(true, Ordering::SeqCst);
-        self.bell.ring();
+        self.shared.stop_thread();
         match self.thread.take().map(JoinHandle::join) {
             Some(Ok(r)) => r,
             _ => Err(RecordError::Thread),
@@ -244,8 +244,7 @@ impl Recorder {
 impl Drop for Recorder {
     /// A recorder dropped without [`Recorder::finish`] still ends its file.
     fn drop(&mut self) {
-        self.stop.store(true, Ordering::SeqCst);
-        self.bell.ring();
+        self.shared.stop_thread();
         if let Some(t) = self.thread.take() {
             let _ = t.join();
         }
