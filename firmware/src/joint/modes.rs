@@ -74,12 +74,13 @@ impl JointControl {
         let tau = asked.clamp(-lim.effort, lim.effort);
         let servos = if cfg.twin_id.is_some() { 2.0 } else { 1.0 };
         let strength = servos * spec.stall_torque;
-        // The effort ramps from what held the joint before (its modelled load, in
-        // position mode) rather than stepping.
+        // The effort ramps from what held the joint before (its modelled load, or the
+        // effort it was measured giving; within the effort limit) rather than stepping.
         let from = self
             .effort
             .filter(|e| e.is_finite())
-            .unwrap_or_else(|| self.gravity.filter(|g| g.is_finite()).map_or(0.0, |g| -g));
+            .unwrap_or_else(|| self.gravity.filter(|g| g.is_finite()).map_or(0.0, |g| -g))
+            .clamp(-lim.effort, lim.effort);
         let ramp = strength / EFFORT_RAMP_TIME * dt;
         let tau = tau.clamp(from - ramp, from + ramp);
         let t = guard_effort(tau, (q, qd), lim, strength, dt, self.stopped);
