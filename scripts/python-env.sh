@@ -10,7 +10,8 @@
 # RealSense server (pyrealsense2, host/peers/realsense/requirements.txt): where PyPI has no
 # wheel of it for this platform, that is written to target/py-venv/.no-wheel-pyrealsense2 (the
 # one reason its test may skip) and the step succeeds; with `record`, the independent readers
-# of our recordings (Foxglove's mcap and rosbags, host/record/peer/requirements.txt).
+# of our recordings (Foxglove's mcap and rosbags) and of our LeRobot exports (pyarrow, pandas),
+# host/record/peer/requirements.txt.
 # Idempotent: does nothing when
 # they are already there.
 set -euo pipefail
@@ -64,7 +65,7 @@ case "${1:-}" in
     cluster) install host/perception/peer/requirements.txt .installed-cluster-requirements "sklearn.cluster" ;;
     slam) install host/slam/peer/requirements.txt .installed-slam-requirements "pybullet, numpy" ;;
     python) install host/python/requirements-test.txt .installed-python-requirements "numpy, pytest, yourdfpy, absl, ipykernel, nbclient" ;;
-    record) install host/record/peer/requirements.txt .installed-record-requirements "mcap, rosbags.highlevel, numpy" ;;
+    record) install host/record/peer/requirements.txt .installed-record-requirements "mcap, rosbags.highlevel, numpy, pyarrow.parquet, pandas" ;;
     realsense) install_wheel host/peers/realsense/requirements.txt .installed-realsense-requirements "pyrealsense2, numpy" pyrealsense2 ;;
     *) echo "usage: $0 [bench|plan|cluster|slam|python|realsense|record]" >&2; exit 2 ;;
 esac

@@ -146,6 +146,9 @@ enum Command {
     /// simulator by default; a real robot after a confirmation), or its frames and odometry to
     /// SLAM offline at any speed.
     Replay(cmd::replay::Args),
+    /// Export recordings as one LeRobot dataset (format v3.0): each recording an episode with
+    /// its task, observation.state, action and the camera's frames at --fps.
+    ExportLerobot(cmd::export_lerobot::Args),
 }
 
 #[derive(Subcommand)]
@@ -223,6 +226,7 @@ fn run(cli: Cli) -> Result<(), (ferrobot::Error, bool)> {
         Command::Demo(a) => (cmd::demo::run(&a), false),
         Command::Record(a) => (cmd::record::run(&a), a.json),
         Command::Replay(a) => (cmd::replay::run(&a), a.json),
+        Command::ExportLerobot(a) => (cmd::export_lerobot::run(&a), a.json),
     };
     result.map_err(|e| (e, json))
 }

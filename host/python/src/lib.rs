@@ -34,6 +34,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<base::Base>()?;
     m.add_class::<motion::Motion>()?;
     m.add_class::<record::Recorder>()?;
+    m.add_function(wrap_pyfunction!(record::export_lerobot, m)?)?;
     m.add_function(wrap_pyfunction!(skills::grasp, m)?)?;
     m.add_function(wrap_pyfunction!(skills::push, m)?)?;
     m.add_function(wrap_pyfunction!(skills::calibrate_camera, m)?)?;

@@ -1,5 +1,6 @@
 //! Recording from Python: `ferrobot.Recorder(robot, path)` records the robot into an MCAP file
-//! with ROS 2 schemas (`ferrobot-record`) until `finish()` or the end of a `with` block.
+//! with ROS 2 schemas (`ferrobot-record`) until `finish()` or the end of a `with` block;
+//! `ferrobot.export_lerobot(recordings, out, tasks)` makes a LeRobot dataset of recordings.
 
 use std::path::PathBuf;
 
@@ -94,4 +95,62 @@ impl Recorder {
         self.finish(py)?;
         Ok(false)
     }
+}
+
+/// The tasks of `n` recordings: one string for all, or one per recording.
+fn tasks_of(tasks: &Bound<'_, PyAny>, n: usize) -> PyResult<Vec<String>> {
+    if let Ok(t) = tasks.extract::<String>() {
+        return Ok(vec![t; n]);
+    }
+    let list: Vec<String> = tasks.extract().map_err(|_| {
+        pyo3::exceptions::PyTypeError::new_err("tasks: a string, or a list of one per recording")
+    })?;
+    if list.len() != n {
+        return Err(ferrobot::Error::Usage(format!(
+            "{} tasks for {n} recordings: give one task for all, or one per recording",
+            list.len()
+        )))
+        .py();
+    }
+    Ok(list)
+}
+
+/// Export `recordings` (MCAP files, one episode each, in order) as a new LeRobot dataset
+/// (format v3.0) in `out`, a directory that must not exist; `tasks` is one string for all or
+/// one per recording. `fps` frames a second (1 to 1000); `camera=False` leaves the colour
+/// frames out. Returns the counts (episodes, frames, tasks, images, truncated).
+#[pyfunction]
+#[pyo3(signature = (recordings, out, tasks, fps=30, camera=true, robot_type=None))]
+pub fn export_lerobot<'py>(
+    py: Python<'py>,
+    recordings: Vec<PathBuf>,
+    out: PathBuf,
+    tasks: &Bound<'py, PyAny>,
+    fps: u32,
+    camera: bool,
+    robot_type: Option<String>,
+) -> PyResult<Bound<'py, PyDict>> {
+    use ferrobot_record::lerobot::{export, Demonstration, ExportOptions};
+    let tasks = tasks_of(tasks, recordings.len())?;
+    let demos: Vec<Demonstration> = recordings
+        .into_iter()
+        .zip(tasks)
+        .map(|(path, task)| Demonstration { path, task })
+        .collect();
+    let opts = ExportOptions {
+        fps,
+        camera,
+        robot_type,
+    };
+    let s = py
+        .detach(|| export(&demos, &out, &opts))
+        .map_err(ferrobot::Error::from)
+        .py()?;
+    let d = PyDict::new(py);
+    d.set_item("episodes", s.episodes)?;
+    d.set_item("frames", s.frames)?;
+    d.set_item("tasks", s.tasks)?;
+    d.set_item("images", s.images)?;
+    d.set_item("truncated", s.truncated)?;
+    Ok(d)
 }

@@ -1,6 +1,6 @@
 //! The recording's writer, sans thread: the robot's telemetry, frames and events in, MCAP
 //! records out through any `Write + Seek` (a file, or a test's sink that fails). The chunks are
-//! compressed with zstd, and one is closed at least every [`Bag::flush_every`] of the robot's
+//! compressed with lz4, and one is closed at least every [`Bag::flush_every`] of the robot's
 //! time, so that a recording cut short (a crash, `kill -9`, a full disk) reads back to within
 //! that of its end.
 
@@ -97,7 +97,7 @@ fn ns(t: Duration) -> u64 {
 
 impl<W: Write + Seek> Bag<W> {
     /// A recording of `robot` into `sink`, starting at `start` (the robot's clock): the URDF
-    /// and the fixed joints' transforms are written first. zstd at `level` (1 is fast).
+    /// and the fixed joints' transforms are written first. lz4 at `level` (1 is fast).
     pub fn new(
         sink: W,
         robot: RobotInfo,
@@ -107,9 +107,8 @@ impl<W: Write + Seek> Bag<W> {
         let mcap = mcap::WriteOptions::new()
             .profile("ros2")
             .library(concat!("ferrobot-record ", env!("CARGO_PKG_VERSION")))
-            .compression(Some(mcap::Compression::Zstd))
+            .compression(Some(mcap::Compression::Lz4))
             .compression_level(level)
-            .compression_threads(0)
             .chunk_size(Some(4 << 20))
             .create(sink)?;
         let mut bag = Bag {

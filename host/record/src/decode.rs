@@ -68,6 +68,32 @@ fn image(data: &[u8]) -> Result<(Duration, u32, u32, String, Vec<u8>), DecodeErr
     Ok((t, width, height, encoding, r.bytes()?.to_vec()))
 }
 
+/// A `sensor_msgs/Image`'s size (width, height, px) and encoding, without its pixels.
+pub fn image_size(data: &[u8]) -> Result<(u32, u32, String), DecodeError> {
+    let mut r = CdrReader::new(data)?;
+    let _ = header(&mut r)?;
+    let height = r.u32()?;
+    let width = r.u32()?;
+    Ok((width, height, r.string()?))
+}
+
+/// A `nav_msgs/Odometry`'s planar pose: x, y (m) and yaw (rad) in its frame.
+pub fn odometry_pose(data: &[u8]) -> Result<[f64; 3], DecodeError> {
+    let mut r = CdrReader::new(data)?;
+    let _ = header(&mut r)?;
+    let _child = r.string()?;
+    let v = r.f64_array(7)?;
+    let q = UnitQuaternion::from_quaternion(Quaternion::new(v[6], v[3], v[4], v[5]));
+    Ok([v[0], v[1], q.euler_angles().2])
+}
+
+/// A `geometry_msgs/Twist`'s planar part: forward speed (m/s) and yaw rate (rad/s).
+pub fn twist(data: &[u8]) -> Result<[f64; 2], DecodeError> {
+    let mut r = CdrReader::new(data)?;
+    let v = r.f64_array(6)?;
+    Ok([v[0], v[5]])
+}
+
 /// An `rgb8` image.
 pub fn rgb(data: &[u8]) -> Result<RgbImage, DecodeError> {
     let (_, w, h, enc, bytes) = image(data)?;

@@ -9,6 +9,7 @@
 //! - [`bag::Bag`]: the writer itself, fed items, for any `Write + Seek`.
 //! - [`replay`]: a recording fed back as commands to a robot, or as sensor input (SLAM
 //!   offline); [`reader`] and [`decode`] read it.
+//! - [`lerobot`]: recordings exported as a LeRobot dataset (v3.0), one episode each.
 //! - [`cdr`] and [`ros2`]: the messages' encoding and definitions.
 
 pub mod bag;
@@ -16,6 +17,7 @@ pub mod cdr;
 pub mod decode;
 pub mod error;
 pub mod events;
+pub mod lerobot;
 pub mod reader;
 pub mod recorder;
 pub mod replay;

@@ -35,7 +35,7 @@ pub struct RecordOptions {
     pub telemetry_queue: usize,
     /// Events the queue holds.
     pub event_queue: usize,
-    /// zstd's level, 1 (fast) to 19.
+    /// lz4's level: 1 (fast, the default) to 12 (high compression, slower).
     pub level: u32,
 }
 
@@ -160,7 +160,7 @@ impl Recorder {
         check("frame queue", opts.frame_queue, MAX_QUEUE)?;
         check("telemetry queue", opts.telemetry_queue, MAX_QUEUE)?;
         check("event queue", opts.event_queue, MAX_QUEUE)?;
-        check("zstd level", opts.level as usize, 19)?;
+        check("lz4 level", opts.level as usize, 12)?;
         let path = path.as_ref().to_path_buf();
         let info = RobotInfo::of(robot)?;
         let bell = Bell::new();

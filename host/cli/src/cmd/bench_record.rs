@@ -184,7 +184,7 @@ pub fn run(a: &Args) -> ferrobot::Result<()> {
     say!("|---|---|---|---|---|---|---|---|---|---|");
     for (name, x) in [
         ("frames taken, nothing written", &r.baseline),
-        ("recorded to MCAP (zstd 1)", &r.recording),
+        ("recorded to MCAP (lz4 1)", &r.recording),
     ] {
         say!(
             "| {name} | {:.2} | {:.1} | {:.1} | {:.1} | {:.1} | {} | {} | {} | {} |",

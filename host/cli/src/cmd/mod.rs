@@ -20,6 +20,7 @@ pub mod collision_matrix;
 pub mod common;
 pub mod demo;
 pub mod drive;
+pub mod export_lerobot;
 pub mod fk;
 pub mod hardware;
 pub mod ik;

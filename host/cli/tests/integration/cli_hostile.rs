@@ -1001,6 +1001,71 @@ fn cases() -> Vec<Case> {
             Input,
         ));
     }
+    // export-lerobot: files that are not recordings, an existing directory, tasks that do
+    // not match the recordings, hostile rates; no dataset is made.
+    for file in ["notes.txt", "subdir", "/dev/zero", "binary.toml"] {
+        c.push(case(
+            &["export-lerobot", file, "-o", "new-dataset", "--task", "t"],
+            Input,
+        ));
+    }
+    c.push(case(
+        &[
+            "export-lerobot",
+            "nothing.mcap",
+            "-o",
+            "new-dataset",
+            "--task",
+            "t",
+        ],
+        Failure,
+    ));
+    c.push(case(
+        &["export-lerobot", "notes.txt", "-o", "subdir", "--task", "t"],
+        Input,
+    ));
+    c.push(case(
+        &[
+            "export-lerobot",
+            "notes.txt",
+            "notes.txt",
+            "-o",
+            "new-dataset",
+            "--task",
+            "a",
+            "--task",
+            "b",
+            "--task",
+            "c",
+        ],
+        Input,
+    ));
+    c.push(case(
+        &[
+            "export-lerobot",
+            "notes.txt",
+            "-o",
+            "new-dataset",
+            "--task",
+            " ",
+        ],
+        Input,
+    ));
+    for n in HOSTILE {
+        c.push(case(
+            &[
+                "export-lerobot",
+                "notes.txt",
+                "-o",
+                "new-dataset",
+                "--task",
+                "t",
+                "--fps",
+                n,
+            ],
+            Input,
+        ));
+    }
     c.push(case(&["demo", "--robot", "wall-e"], Input));
     c.push(case(&["demo", "--robot", ""], Input));
     // sim-firmware: never replace what exists at the link path.

@@ -237,6 +237,24 @@ def test_the_recorder_refuses_what_is_not_a_new_file(bot, tmp_path):
     _robot_still_works(bot)
 
 
+def test_the_lerobot_export_refuses_hostile_recordings_tasks_and_rates(bot, tmp_path):
+    (tmp_path / "notes.txt").write_text("not a recording")
+    (tmp_path / "taken").mkdir()
+    notes = [tmp_path / "notes.txt"]
+    out = tmp_path / "dataset"
+    for v in NAMES + [[], [tmp_path], ["/dev/zero"], notes * 2]:
+        assert _refused(lambda r: ferrobot.export_lerobot(r, out, "task"), v) is not None, v
+    for v in NAMES + [tmp_path / "taken", "/dev/null"]:
+        assert _refused(lambda o: ferrobot.export_lerobot(notes, o, "task"), v) is not None, v
+    for v in [None, 3, "", " ", ["a", "b"], [3], b"task"]:
+        assert _refused(lambda t: ferrobot.export_lerobot(notes, out, t), v) is not None, v
+    for v in [0, -1, 1001, 2**40, float("nan"), 30.5, "30", None]:
+        assert _refused(lambda f: ferrobot.export_lerobot(notes, out, "task", fps=f), v) is not None, v
+    assert _refused(lambda c: ferrobot.export_lerobot(notes, out, "task", camera=c), "yes") is not None
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["notes.txt", "taken"]
+    _robot_still_works(bot)
+
+
 def _robot_still_works(bot):
     bot.cancel_motions()
     bot.arm.remove_all_objects()

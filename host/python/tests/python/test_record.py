@@ -52,3 +52,31 @@ def test_recorder_arguments_are_checked(bot, tmp_path):
         with pytest.raises(TypeError):
             ferrobot.Recorder(bad, tmp_path / "x.mcap")
     assert sorted(os.listdir(tmp_path)) == ["exists.mcap"]
+
+
+def test_recordings_export_to_a_lerobot_dataset_pyarrow_reads(bot, tmp_path):
+    import json
+
+    import pyarrow.parquet as pq
+
+    paths = []
+    for k, target in enumerate([[0.3, 0.2, -0.3, 0.4, 0.1], [0.0, 0.0, 0.0, 0.0, 0.0]]):
+        paths.append(tmp_path / f"demo{k}.mcap")
+        with ferrobot.Recorder(bot, paths[-1], camera=False):
+            bot.arm.set_joint_positions(target)
+    out = tmp_path / "dataset"
+    s = ferrobot.export_lerobot(paths, out, ["reach", "home"], fps=10)
+    assert (s["episodes"], s["tasks"], s["images"]) == (2, 2, False)
+    info = json.loads((out / "meta" / "info.json").read_text())
+    table = pq.read_table(out / "data" / "chunk-000" / "file-000.parquet")
+    assert info["total_frames"] == table.num_rows == s["frames"]
+    names = info["features"]["observation.state"]["names"]
+    last = table.filter(table["episode_index"].to_numpy() == 0).to_pydict()["observation.state"][-1]
+    # The first episode ends where the arm was sent, as the recording saw it.
+    np.testing.assert_allclose(last[: 5], [0.3, 0.2, -0.3, 0.4, 0.1], atol=0.02)
+    assert names[:5] == bot.arm.arm_joint_names
+    with pytest.raises(errors.PathExists):
+        ferrobot.export_lerobot(paths, out, "again")
+    with pytest.raises(errors.Error):
+        ferrobot.export_lerobot(paths, tmp_path / "d2", ["one"])
+    assert not (tmp_path / "d2").exists()

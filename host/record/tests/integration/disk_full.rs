@@ -54,8 +54,7 @@ fn a_full_disk_is_a_typed_error_and_what_came_before_reads_back() {
     let robot = Robot::new("locobot").unwrap();
     let info = RobotInfo::of(&robot).unwrap();
     let items = items(&robot);
-    // 20 MB: about two seconds of the recording (10 MB/s: RGB-D at 30 Hz compressed by zstd's
-    // level 1 to about 0.33 MB a frame).
+    // 20 MB: one to two seconds of the recording (RGB-D at 30 Hz, lz4-compressed).
     let held = Arc::new(Mutex::new(Cursor::new(Vec::new())));
     let disk = SmallDisk {
         data: held.clone(),

@@ -2,5 +2,6 @@
 //! that are not ours.
 
 mod disk_full;
+mod lerobot;
 mod recording;
 mod replay;
