@@ -50,6 +50,10 @@ pub enum RecordError {
     /// A recorded message that does not decode.
     #[error("a recorded message does not decode: {0}")]
     Decode(String),
+    /// Recordings that do not make one dataset (none, no task, different robots or camera
+    /// sizes, no joint states).
+    #[error("{0}")]
+    Dataset(String),
     /// The recorder's thread failed.
     #[error("the recorder's thread panicked")]
     Thread,
@@ -90,7 +94,7 @@ impl From<RecordError> for ferrobot::Error {
             RecordError::DiskFull { .. } => {
                 ferrobot::Error::Io(IoError::new(ErrorKind::StorageFull, e.to_string()))
             }
-            RecordError::NotMcap { .. } | RecordError::Decode(_) => {
+            RecordError::NotMcap { .. } | RecordError::Decode(_) | RecordError::Dataset(_) => {
                 ferrobot::Error::Usage(e.to_string())
             }
             RecordError::Io { path, source, .. } if source.kind() == ErrorKind::AlreadyExists => {

@@ -71,7 +71,7 @@ impl Streams {
                         s.joints = names.clone();
                     }
                     if names != s.joints {
-                        return Err(RecordError::Decode(format!(
+                        return Err(RecordError::Dataset(format!(
                             "{}: the joint states change their names at {:.3} s",
                             path.display(),
                             t as f64 * 1e-9
@@ -96,7 +96,7 @@ impl Streams {
         s.cmd_vel.sort_by_key(|e| e.0);
         s.frames.sort_unstable();
         if s.states.is_empty() {
-            return Err(RecordError::Decode(format!(
+            return Err(RecordError::Dataset(format!(
                 "{}: no joint states: nothing to make an episode of",
                 path.display()
             )));

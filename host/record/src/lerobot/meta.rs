@@ -48,7 +48,6 @@ pub(super) fn write_episodes(
     out: &Path,
     episodes: &[Episode],
     demos: &[Demonstration],
-    layout: &Layout,
 ) -> Result<(), RecordError> {
     let n = episodes.len();
     let ints =
@@ -84,7 +83,6 @@ pub(super) fn write_episodes(
             Values::I64(per.iter().map(|(_, c)| *c as i64).collect()),
         ));
     }
-    let _ = layout;
     let mut t = Table::new(
         &out.join("meta/episodes/chunk-000/file-000.parquet"),
         vec![],

@@ -82,7 +82,7 @@ pub struct ExportStats {
 }
 
 fn invalid(msg: String) -> RecordError {
-    RecordError::Decode(msg)
+    RecordError::Dataset(msg)
 }
 
 /// Exports `demos` to a new LeRobot dataset in `out` (which must not exist).
@@ -118,7 +118,7 @@ pub fn export(
     }
     data.finish()?;
     write_tasks(out, &tasks)?;
-    write_episodes(out, &episodes, demos, &layout)?;
+    write_episodes(out, &episodes, demos)?;
     write_json(out, "meta/stats.json", &dataset_stats(&episodes, &layout))?;
     write_json(
         out,
