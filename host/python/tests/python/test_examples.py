@@ -28,6 +28,7 @@ EXPECT = {
     "point_cloud.py": "points above the floor",
     "camera.py": "median depth",
     "slam.py": "3-D map",
+    "demonstrations.py": "3 episodes",
 }
 
 
