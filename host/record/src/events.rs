@@ -31,10 +31,8 @@ pub fn encode(robot: &RobotInfo, e: &Event) -> Vec<(Topic, Vec<u8>)> {
     let log = |lvl: u8, msg: &str| (topics::ROSOUT, encode::log(t, lvl, LOGGER, msg));
     match e {
         Event::Command { msg, .. } => {
-            let kind = format!("{msg:?}");
-            let kind = kind.split([' ', '(', '{']).next().unwrap_or_default();
             let exact = postcard::to_allocvec(msg).unwrap_or_default();
-            let mut out = vec![(topics::COMMANDS, encode::command(kind, &exact))];
+            let mut out = vec![(topics::COMMANDS, encode::command(msg.kind(), &exact))];
             out.extend(command(robot, t, msg));
             out
         }

@@ -196,3 +196,33 @@ pub enum HostMsg {
         track: f32,
     },
 }
+
+impl HostMsg {
+    /// The message's name, as its variant is spelled (`"Waypoint"`, `"EmergencyStop"`): for
+    /// logs and recordings.
+    pub const fn kind(&self) -> &'static str {
+        match self {
+            HostMsg::Hello { .. } => "Hello",
+            HostMsg::GetJoint { .. } => "GetJoint",
+            HostMsg::ConfigureJoint { .. } => "ConfigureJoint",
+            HostMsg::SetPid { .. } => "SetPid",
+            HostMsg::SetLimits { .. } => "SetLimits",
+            HostMsg::SetMode { .. } => "SetMode",
+            HostMsg::Waypoint { .. } => "Waypoint",
+            HostMsg::ClearQueue { .. } => "ClearQueue",
+            HostMsg::JointCommand { .. } => "JointCommand",
+            HostMsg::BaseVelocity { .. } => "BaseVelocity",
+            HostMsg::ResetOdometry => "ResetOdometry",
+            HostMsg::Gripper(_) => "Gripper",
+            HostMsg::SetWatchdog { .. } => "SetWatchdog",
+            HostMsg::Heartbeat => "Heartbeat",
+            HostMsg::EmergencyStop => "EmergencyStop",
+            HostMsg::Resume => "Resume",
+            HostMsg::SetTelemetry { .. } => "SetTelemetry",
+            HostMsg::SetLoopPeriod { .. } => "SetLoopPeriod",
+            HostMsg::RebootJoint { .. } => "RebootJoint",
+            HostMsg::GetDiagnostics => "GetDiagnostics",
+            HostMsg::SetBaseGeometry { .. } => "SetBaseGeometry",
+        }
+    }
+}

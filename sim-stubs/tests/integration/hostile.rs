@@ -5,7 +5,7 @@
 //! messages per profile (CI: 20,000) and `FERROBOT_HOSTILE_SEED` shifts the seeds (CI: 0),
 //! for longer searches.
 
-use ferrobot_sim::hostile::{hostile_stream_of, Mix};
+use ferrobot_sim::hostile::{hostile_stream_of, mixed_message, Mix};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
@@ -60,6 +60,27 @@ fn assert_clean_of(robot: &str, seed: u64, n: usize, mix: Mix) {
             .cloned()
             .collect::<Vec<_>>()
             .join("\n")
+    );
+}
+
+/// `HostMsg::kind` names every message as its variant is spelled (recordings and logs use
+/// it): checked on the broad mix, which makes every variant.
+#[test]
+fn every_message_s_kind_is_its_variant_s_name() {
+    let s = ferrobot_sim::SimHost::start("locobot", 1).expect("simulator");
+    let mut rng = ChaCha8Rng::seed_from_u64(7);
+    let mut seen = std::collections::BTreeSet::new();
+    for _ in 0..5000 {
+        let m = mixed_message(&mut rng, &s.sim.fw, Mix::Broad);
+        let debug = format!("{m:?}");
+        let name = debug.split([' ', '(', '{']).next().unwrap_or_default();
+        assert_eq!(m.kind(), name, "{debug}");
+        seen.insert(name.to_string());
+    }
+    assert!(
+        seen.len() >= 21,
+        "only {} variants made: {seen:?}",
+        seen.len()
     );
 }
 

@@ -6,6 +6,7 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use ferrobot::slam::{optimise, RgbdInput, Slam, SlamSettings, SELF_RADIUS};
+use ferrobot_record::reader::Reading;
 use ferrobot_record::replay::{replay_commands, SensorFrames};
 use serde::Serialize;
 
@@ -122,14 +123,10 @@ fn confirm(a: &Args) -> ferrobot::Result<()> {
 
 fn commands(a: &Args) -> ferrobot::Result<Summary> {
     let backend = a.backend.backend()?;
+    // The file is a recording (its magic read) before anyone is asked to confirm.
+    drop(Reading::open(&a.file)?);
     if !matches!(backend, ferrobot::Backend::Sim { .. }) {
         confirm(a)?;
-    }
-    if !a.file.is_file() {
-        return Err(ferrobot::Error::Usage(format!(
-            "no recording at {}",
-            a.file.display()
-        )));
     }
     let robot = super::common::robot_builder(&a.robot)
         .backend(backend)
