@@ -1040,31 +1040,14 @@ fn cases() -> Vec<Case> {
         ],
         Input,
     ));
-    c.push(case(
-        &[
-            "export-lerobot",
-            "notes.txt",
-            "-o",
-            "new-dataset",
-            "--task",
-            " ",
-        ],
-        Input,
-    ));
+    let export = |extra: &[&'static str]| -> Vec<&'static str> {
+        let mut v = vec!["export-lerobot", "notes.txt", "-o", "new-dataset"];
+        v.extend_from_slice(extra);
+        v
+    };
+    c.push(case(&export(&["--task", " "]), Input));
     for n in HOSTILE {
-        c.push(case(
-            &[
-                "export-lerobot",
-                "notes.txt",
-                "-o",
-                "new-dataset",
-                "--task",
-                "t",
-                "--fps",
-                n,
-            ],
-            Input,
-        ));
+        c.push(case(&export(&["--task", "t", "--fps", n]), Input));
     }
     c.push(case(&["demo", "--robot", "wall-e"], Input));
     c.push(case(&["demo", "--robot", ""], Input));
