@@ -73,6 +73,19 @@ impl RecordError {
     }
 }
 
+/// `value` within `1..=max`, else [`RecordError::OutOfRange`] naming `what`.
+pub(crate) fn check(what: &'static str, value: usize, max: usize) -> Result<(), RecordError> {
+    if (1..=max).contains(&value) {
+        return Ok(());
+    }
+    Err(RecordError::OutOfRange {
+        what,
+        value: value as f64,
+        min: 1.0,
+        max: max as f64,
+    })
+}
+
 impl From<RecordError> for ferrobot::Error {
     /// The API's error of a recording's: the robot's own, a range, or an I/O error that keeps
     /// the message (a full disk is `StorageFull`).

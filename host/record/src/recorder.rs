@@ -21,7 +21,7 @@ use ferrobot::{Bell, Robot, Subscription};
 use parking_lot::Mutex;
 
 use crate::bag::{Bag, BagStats, Item, RobotInfo};
-use crate::error::RecordError;
+use crate::error::{check, RecordError};
 
 /// What to record, and how.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -118,18 +118,6 @@ impl Shared {
         self.stop.store(true, Ordering::SeqCst);
         self.bell.ring();
     }
-}
-
-fn check(what: &'static str, value: usize, max: usize) -> Result<(), RecordError> {
-    if (1..=max).contains(&value) {
-        return Ok(());
-    }
-    Err(RecordError::OutOfRange {
-        what,
-        value: value as f64,
-        min: 1.0,
-        max: max as f64,
-    })
 }
 
 impl RobotInfo {

@@ -24,7 +24,7 @@ use std::sync::Arc;
 
 use serde_json::{json, Value};
 
-use crate::error::RecordError;
+use crate::error::{check as in_range, RecordError};
 use columns::{Table, Values};
 use episode::{Row, Streams};
 use stats::{Histograms, Stat};
@@ -136,14 +136,7 @@ pub fn export(
 
 /// The arguments' checks, before anything is read or written.
 fn check(demos: &[Demonstration], opts: &ExportOptions) -> Result<(), RecordError> {
-    if !(1..=1000).contains(&opts.fps) {
-        return Err(RecordError::OutOfRange {
-            what: "fps",
-            value: f64::from(opts.fps),
-            min: 1.0,
-            max: 1000.0,
-        });
-    }
+    in_range("fps", opts.fps as usize, 1000)?;
     if demos.is_empty() {
         return Err(invalid("no recording to export".into()));
     }
