@@ -43,26 +43,35 @@ pub fn command(data: &[u8]) -> Result<HostMsg, DecodeError> {
     Ok(postcard::from_bytes(r.bytes()?)?)
 }
 
+/// A `geometry_msgs/Pose`: position, then orientation `[x, y, z, w]`.
+fn pose(r: &mut CdrReader<'_>) -> Result<Isometry3<f64>, CdrError> {
+    let v = r.f64_array(7)?;
+    let q = UnitQuaternion::from_quaternion(Quaternion::new(v[6], v[3], v[4], v[5]));
+    Ok(Isometry3::from_parts(
+        Translation3::new(v[0], v[1], v[2]),
+        q,
+    ))
+}
+
 /// A `geometry_msgs/PoseStamped`: stamp, frame and pose.
 pub fn pose_stamped(data: &[u8]) -> Result<(Duration, String, Isometry3<f64>), DecodeError> {
     let mut r = CdrReader::new(data)?;
     let (t, frame) = header(&mut r)?;
-    let v = r.f64_array(7)?;
-    let q = UnitQuaternion::from_quaternion(Quaternion::new(v[6], v[3], v[4], v[5]));
-    Ok((
-        t,
-        frame,
-        Isometry3::from_parts(Translation3::new(v[0], v[1], v[2]), q),
-    ))
+    Ok((t, frame, pose(&mut r)?))
+}
+
+/// A `sensor_msgs/Image` up to its pixels: stamp, size (width, height, px) and encoding.
+fn image_head(r: &mut CdrReader<'_>) -> Result<(Duration, u32, u32, String), CdrError> {
+    let (t, _) = header(r)?;
+    let height = r.u32()?;
+    let width = r.u32()?;
+    Ok((t, width, height, r.string()?))
 }
 
 /// A `sensor_msgs/Image`: stamp, size (width, height), encoding and bytes.
 fn image(data: &[u8]) -> Result<(Duration, u32, u32, String, Vec<u8>), DecodeError> {
     let mut r = CdrReader::new(data)?;
-    let (t, _) = header(&mut r)?;
-    let height = r.u32()?;
-    let width = r.u32()?;
-    let encoding = r.string()?;
+    let (t, width, height, encoding) = image_head(&mut r)?;
     let _big_endian = r.u8()?;
     let _step = r.u32()?;
     Ok((t, width, height, encoding, r.bytes()?.to_vec()))
@@ -70,11 +79,8 @@ fn image(data: &[u8]) -> Result<(Duration, u32, u32, String, Vec<u8>), DecodeErr
 
 /// A `sensor_msgs/Image`'s size (width, height, px) and encoding, without its pixels.
 pub fn image_size(data: &[u8]) -> Result<(u32, u32, String), DecodeError> {
-    let mut r = CdrReader::new(data)?;
-    let _ = header(&mut r)?;
-    let height = r.u32()?;
-    let width = r.u32()?;
-    Ok((width, height, r.string()?))
+    let (_, width, height, encoding) = image_head(&mut CdrReader::new(data)?)?;
+    Ok((width, height, encoding))
 }
 
 /// A `nav_msgs/Odometry`'s planar pose: x, y (m) and yaw (rad) in its frame.
@@ -82,9 +88,12 @@ pub fn odometry_pose(data: &[u8]) -> Result<[f64; 3], DecodeError> {
     let mut r = CdrReader::new(data)?;
     let _ = header(&mut r)?;
     let _child = r.string()?;
-    let v = r.f64_array(7)?;
-    let q = UnitQuaternion::from_quaternion(Quaternion::new(v[6], v[3], v[4], v[5]));
-    Ok([v[0], v[1], q.euler_angles().2])
+    let p = pose(&mut r)?;
+    Ok([
+        p.translation.x,
+        p.translation.y,
+        p.rotation.euler_angles().2,
+    ])
 }
 
 /// A `geometry_msgs/Twist`'s planar part: forward speed (m/s) and yaw rate (rad/s).
