@@ -9,7 +9,9 @@ use std::path::Path;
 use std::sync::Arc;
 
 use parquet::basic::{Compression, LogicalType, Repetition, Type as Physical};
-use parquet::data_type::{ByteArray, ByteArrayType, DoubleType, FloatType, Int64Type};
+use parquet::data_type::{ByteArrayType, DoubleType, FloatType, Int64Type};
+
+pub use parquet::data_type::ByteArray;
 use parquet::errors::ParquetError;
 use parquet::file::metadata::KeyValue;
 use parquet::file::properties::WriterProperties;
@@ -35,7 +37,7 @@ pub enum Values {
     StrList(Vec<Vec<String>>),
     /// An image per row: Hugging Face's `struct<bytes: binary, path: string>`, the encoded
     /// file's bytes and no path.
-    Image(Vec<Vec<u8>>),
+    Image(Vec<ByteArray>),
 }
 
 impl Values {
@@ -248,9 +250,8 @@ fn write_values(
                 .write_batch(&bytes(&flat), Some(&def), Some(&rep))?
         }
         Values::Image(v) => {
-            let data: Vec<ByteArray> = v.iter().map(|b| ByteArray::from(b.clone())).collect();
             col.typed::<ByteArrayType>()
-                .write_batch(&data, Some(&vec![1; v.len()]), None)?;
+                .write_batch(v, Some(&vec![1; v.len()]), None)?;
             col.close()?;
             // The path: null in every row.
             let mut path = group

@@ -14,6 +14,9 @@
 
 use std::path::{Path, PathBuf};
 
+use ferrobot::perception::RgbImage;
+
+use super::columns::ByteArray;
 use crate::decode;
 use crate::error::RecordError;
 use crate::reader::Reading;
@@ -49,8 +52,9 @@ pub struct Row {
     pub state: Vec<f32>,
     /// `action`.
     pub action: Vec<f32>,
-    /// The colour frame as PNG, when the dataset has images.
-    pub image: Option<std::sync::Arc<Vec<u8>>>,
+    /// The colour frame as PNG, when the dataset has images (shared by the rows that show
+    /// the same frame, not copied).
+    pub image: Option<ByteArray>,
 }
 
 impl Streams {
@@ -94,7 +98,14 @@ impl Streams {
         s.states.sort_by_key(|e| e.0);
         s.odom.sort_by_key(|e| e.0);
         s.cmd_vel.sort_by_key(|e| e.0);
-        s.frames.sort_unstable();
+        // The frames stay in the file's order: the second pass (`encode_frames`) counts them
+        // in it. One writer thread writes them in time order; a file that does not is refused.
+        if !s.frames.is_sorted() {
+            return Err(RecordError::Dataset(format!(
+                "{}: colour frames out of time order",
+                path.display()
+            )));
+        }
         if s.states.is_empty() {
             return Err(RecordError::Dataset(format!(
                 "{}: no joint states: nothing to make an episode of",
@@ -142,11 +153,9 @@ impl Streams {
     pub fn row(&self, grid: &[u64], k: usize, fps: u32) -> Row {
         let t = grid[k];
         let next = grid[(k + 1).min(grid.len() - 1)];
-        let mut state: Vec<f32> = latest(&self.states, t).iter().map(|&q| q as f32).collect();
-        let mut action: Vec<f32> = latest(&self.states, next)
-            .iter()
-            .map(|&q| q as f32)
-            .collect();
+        let joints =
+            |at| -> Vec<f32> { latest(&self.states, at).iter().map(|&q| q as f32).collect() };
+        let (mut state, mut action) = (joints(t), joints(next));
         if !self.odom.is_empty() {
             state.extend(latest(&self.odom, t).map(|v| v as f32));
             let cmd = at_or_before(&self.cmd_vel, t).map_or([0.0; 2], |c| c.1);
@@ -189,12 +198,12 @@ fn latest<T: Clone>(series: &[(u64, T)], t: u64) -> T {
     at_or_before(series, t).unwrap_or(&series[0]).1.clone()
 }
 
-/// Streams the colour frames of `streams`' recording, calling `each(index, png)` for the frames
-/// `wanted` names (sorted indices into [`Streams::frames`], each once), in order.
+/// Streams the colour frames of `streams`' recording, calling `each(index, image, png)` for
+/// the frames `wanted` names (sorted indices into [`Streams::frames`], each once), in order.
 pub fn encode_frames(
     streams: &Streams,
     wanted: &[usize],
-    mut each: impl FnMut(usize, Vec<u8>) -> Result<(), RecordError>,
+    mut each: impl FnMut(usize, &RgbImage, Vec<u8>) -> Result<(), RecordError>,
 ) -> Result<(), RecordError> {
     let mut reading = Reading::open(&streams.path)?;
     let (mut i, mut next) = (0usize, 0usize);
@@ -205,7 +214,7 @@ pub fn encode_frames(
         }
         if wanted.get(next) == Some(&i) {
             let img = decode::rgb(&m.data)?;
-            each(i, png_of(&img, &streams.path)?)?;
+            each(i, &img, png_of(&img, &streams.path)?)?;
             next += 1;
             if next == wanted.len() {
                 return Ok(());
@@ -220,7 +229,7 @@ pub fn encode_frames(
 }
 
 /// `img` as a PNG file's bytes (fast compression: camera noise compresses little anyway).
-fn png_of(img: &ferrobot::perception::RgbImage, path: &Path) -> Result<Vec<u8>, RecordError> {
+fn png_of(img: &RgbImage, path: &Path) -> Result<Vec<u8>, RecordError> {
     let mut out = Vec::with_capacity(img.data.len() / 2);
     let err = |e: png::EncodingError| RecordError::Io {
         what: "encoding a frame of",

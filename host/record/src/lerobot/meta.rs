@@ -58,11 +58,11 @@ pub(super) fn write_episodes(
             "tasks".into(),
             Values::StrList(demos.iter().map(|d| vec![d.task.clone()]).collect()),
         ),
-        ("length".into(), ints(&|e| e.length)),
+        ("length".into(), ints(&|e| e.rows.len())),
         ("data/chunk_index".into(), Values::I64(vec![0; n])),
         ("data/file_index".into(), Values::I64(vec![0; n])),
         ("dataset_from_index".into(), ints(&|e| e.from)),
-        ("dataset_to_index".into(), ints(&|e| e.from + e.length)),
+        ("dataset_to_index".into(), ints(&|e| e.from + e.rows.len())),
         ("meta/episodes/chunk_index".into(), Values::I64(vec![0; n])),
         ("meta/episodes/file_index".into(), Values::I64(vec![0; n])),
     ];

@@ -17,16 +17,17 @@
 
 pub mod columns;
 pub mod episode;
+mod meta;
 pub mod stats;
 
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
 
 use serde_json::{json, Value};
 
 use crate::error::{check as in_range, RecordError};
-use columns::{Table, Values};
+use columns::{ByteArray, Table, Values};
 use episode::{Row, Streams};
+use meta::{dataset_stats, info, write_episodes, write_tasks};
 use stats::{Histograms, Stat};
 
 /// The format version written (`codebase_version`).
@@ -113,7 +114,7 @@ pub fn export(
     for (e, (s, d)) in streams.iter().zip(demos).enumerate() {
         let task = tasks.iter().position(|t| *t == d.task).unwrap_or(0);
         let ep = write_episode(&mut data, s, (e, task, index), &layout)?;
-        index += ep.length;
+        index += ep.rows.len();
         episodes.push(ep);
     }
     data.finish()?;
@@ -197,15 +198,13 @@ impl Layout {
     }
 }
 
-/// One episode as written: its place in the data and its statistics.
+/// One episode as written: its place in the data, its rows (their images dropped once
+/// written) and its pixels' counts.
 struct Episode {
     index: usize,
     task: usize,
-    length: usize,
     from: usize,
-    states: Vec<Vec<f32>>,
-    actions: Vec<Vec<f32>>,
-    timestamps: Vec<f32>,
+    rows: Vec<Row>,
     pixels: Option<Histograms>,
 }
 
@@ -218,20 +217,17 @@ fn write_episode(
 ) -> Result<Episode, RecordError> {
     let fps = layout.fps;
     let grid = s.grid(fps, layout.image.is_some());
-    let mut rows: Vec<Row> = (0..grid.len()).map(|k| s.row(&grid, k, fps)).collect();
     let mut ep = Episode {
         index: e,
         task,
-        length: rows.len(),
         from,
-        states: rows.iter().map(|r| r.state.clone()).collect(),
-        actions: rows.iter().map(|r| r.action.clone()).collect(),
-        timestamps: rows.iter().map(|r| r.timestamp).collect(),
+        rows: (0..grid.len()).map(|k| s.row(&grid, k, fps)).collect(),
         pixels: None,
     };
+    let place = (ep.index, ep.task, ep.from);
     if layout.image.is_none() {
-        for (g, chunk) in rows.chunks(GROUP_ROWS).enumerate() {
-            data.write_group(&group(chunk, &ep, g * GROUP_ROWS, layout))?;
+        for (g, chunk) in ep.rows.chunks(GROUP_ROWS).enumerate() {
+            data.write_group(&group(chunk, place, g * GROUP_ROWS, layout))?;
         }
         return Ok(ep);
     }
@@ -239,12 +235,12 @@ fn write_episode(
     let frame_of = s.frame_of(&grid);
     let mut wanted = frame_of.clone();
     wanted.dedup();
-    let mut hist = Histograms::default();
+    let (rows, mut hist) = (&mut ep.rows, Histograms::default());
     let (mut next, mut written) = (0usize, 0usize);
-    episode::encode_frames(s, &wanted, |i, png| {
-        let png = Arc::new(png);
+    episode::encode_frames(s, &wanted, |i, img, png| {
+        let png = ByteArray::from(png);
         let mut h = Histograms::default();
-        h.add_png(&png).map_err(|e| invalid(e.to_string()))?;
+        h.add_rgb(&img.data);
         while next < rows.len() && frame_of[next] == i {
             hist.merge(&h);
             rows[next].image = Some(png.clone());
@@ -252,7 +248,7 @@ fn write_episode(
         }
         while next - written >= GROUP_ROWS || (next == rows.len() && written < next) {
             let end = (written + GROUP_ROWS).min(next);
-            data.write_group(&group(&rows[written..end], &ep, written, layout))?;
+            data.write_group(&group(&rows[written..end], place, written, layout))?;
             rows[written..end].iter_mut().for_each(|r| r.image = None);
             written = end;
         }
@@ -262,8 +258,14 @@ fn write_episode(
     Ok(ep)
 }
 
-/// The data file's columns for `rows`, the episode's rows from `first`.
-fn group(rows: &[Row], ep: &Episode, first: usize, layout: &Layout) -> Vec<(&'static str, Values)> {
+/// The data file's columns for `rows`, the rows from `first` of the episode `(index, task,
+/// from)` (its index, its task's, and its first row's in the dataset).
+fn group(
+    rows: &[Row],
+    (index, task, from): (usize, usize, usize),
+    first: usize,
+    layout: &Layout,
+) -> Vec<(&'static str, Values)> {
     let n = rows.len();
     let mut cols = vec![
         (
@@ -278,7 +280,11 @@ fn group(rows: &[Row], ep: &Episode, first: usize, layout: &Layout) -> Vec<(&'st
     if layout.image.is_some() {
         let images = rows
             .iter()
-            .map(|r| r.image.as_deref().cloned().unwrap_or_default())
+            .map(|r| {
+                r.image
+                    .clone()
+                    .unwrap_or_else(|| ByteArray::from(Vec::new()))
+            })
             .collect();
         cols.push((IMAGE_KEY, Values::Image(images)));
     }
@@ -289,12 +295,12 @@ fn group(rows: &[Row], ep: &Episode, first: usize, layout: &Layout) -> Vec<(&'st
             Values::F32(rows.iter().map(|r| r.timestamp).collect()),
         ),
         ("frame_index", Values::I64((0..n).map(frame).collect())),
-        ("episode_index", Values::I64(vec![ep.index as i64; n])),
+        ("episode_index", Values::I64(vec![index as i64; n])),
         (
             "index",
-            Values::I64((0..n).map(|k| (ep.from + first + k) as i64).collect()),
+            Values::I64((0..n).map(|k| (from + first + k) as i64).collect()),
         ),
-        ("task_index", Values::I64(vec![ep.task as i64; n])),
+        ("task_index", Values::I64(vec![task as i64; n])),
     ]);
     cols
 }
@@ -335,31 +341,25 @@ fn write_json(out: &Path, rel: &str, v: &Value) -> Result<(), RecordError> {
     })
 }
 
-mod meta;
-use meta::{dataset_stats, info, write_episodes, write_tasks};
-
 /// The statistics of one feature of `ep`, by its name in the data.
 fn feature_stats(ep: &[&Episode], key: &str) -> Option<(Vec<Stat>, usize)> {
-    let count = ep.iter().map(|e| e.length).sum();
-    let rows = |f: fn(&Episode) -> &Vec<Vec<f32>>| {
-        let all: Vec<&[f32]> = ep
-            .iter()
-            .flat_map(|e| f(e).iter().map(Vec::as_slice))
-            .collect();
+    let count = ep.iter().map(|e| e.rows.len()).sum();
+    let rows = |f: fn(&Row) -> &[f32]| {
+        let all: Vec<&[f32]> = ep.iter().flat_map(|e| e.rows.iter().map(f)).collect();
         stats::of_rows(all.into_iter())
     };
     let scalars = |f: &dyn Fn(&Episode, usize) -> f64| {
         let mut v: Vec<f64> = ep
             .iter()
-            .flat_map(|e| (0..e.length).map(move |k| (e, k)))
+            .flat_map(|e| (0..e.rows.len()).map(move |k| (e, k)))
             .map(|(e, k)| f(e, k))
             .collect();
         vec![Stat::of(&mut v)]
     };
     let s = match key {
-        "observation.state" => rows(|e| &e.states),
-        "action" => rows(|e| &e.actions),
-        "timestamp" => scalars(&|e, k| f64::from(e.timestamps[k])),
+        "observation.state" => rows(|r| &r.state),
+        "action" => rows(|r| &r.action),
+        "timestamp" => scalars(&|e, k| f64::from(e.rows[k].timestamp)),
         "frame_index" => scalars(&|_, k| k as f64),
         "episode_index" => scalars(&|e, _| e.index as f64),
         "index" => scalars(&|e, k| (e.from + k) as f64),

@@ -132,17 +132,13 @@ impl Default for Histograms {
 }
 
 impl Histograms {
-    /// Counts the pixels of the RGB PNG `png`.
-    pub fn add_png(&mut self, png_bytes: &[u8]) -> Result<(), png::DecodingError> {
-        let mut dec = png::Decoder::new(std::io::Cursor::new(png_bytes)).read_info()?;
-        let mut buf = vec![0; dec.output_buffer_size().unwrap_or(0)];
-        let info = dec.next_frame(&mut buf)?;
-        for px in buf[..info.buffer_size()].chunks_exact(3) {
+    /// Counts the pixels of `rgb`, packed RGB bytes.
+    pub fn add_rgb(&mut self, rgb: &[u8]) {
+        for px in rgb.chunks_exact(3) {
             for (h, &v) in self.0.iter_mut().zip(px) {
                 h[v as usize] += 1;
             }
         }
-        Ok(())
     }
 
     /// Adds `other`'s counts.
