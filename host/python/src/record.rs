@@ -97,22 +97,15 @@ impl Recorder {
     }
 }
 
-/// The tasks of `n` recordings: one string for all, or one per recording.
-fn tasks_of(tasks: &Bound<'_, PyAny>, n: usize) -> PyResult<Vec<String>> {
+/// The tasks argument: one string for all recordings, or a list of one per recording.
+fn tasks_of(tasks: &Bound<'_, PyAny>) -> PyResult<ferrobot_record::lerobot::Tasks> {
+    use ferrobot_record::lerobot::Tasks;
     if let Ok(t) = tasks.extract::<String>() {
-        return Ok(vec![t; n]);
+        return Ok(Tasks::All(t));
     }
-    let list: Vec<String> = tasks.extract().map_err(|_| {
+    tasks.extract().map(Tasks::Each).map_err(|_| {
         pyo3::exceptions::PyTypeError::new_err("tasks: a string, or a list of one per recording")
-    })?;
-    if list.len() != n {
-        return Err(ferrobot::Error::Usage(format!(
-            "{} tasks for {n} recordings: give one task for all, or one per recording",
-            list.len()
-        )))
-        .py();
-    }
-    Ok(list)
+    })
 }
 
 /// Export `recordings` (MCAP files, one episode each, in order) as a new LeRobot dataset
@@ -131,12 +124,9 @@ pub fn export_lerobot<'py>(
     robot_type: Option<String>,
 ) -> PyResult<Bound<'py, PyDict>> {
     use ferrobot_record::lerobot::{export, Demonstration, ExportOptions};
-    let tasks = tasks_of(tasks, recordings.len())?;
-    let demos: Vec<Demonstration> = recordings
-        .into_iter()
-        .zip(tasks)
-        .map(|(path, task)| Demonstration { path, task })
-        .collect();
+    let demos = Demonstration::of(recordings, tasks_of(tasks)?)
+        .map_err(ferrobot::Error::from)
+        .py()?;
     let opts = ExportOptions {
         fps,
         camera,

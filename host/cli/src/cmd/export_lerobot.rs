@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use ferrobot_record::lerobot::{export, Demonstration, ExportOptions};
+use ferrobot_record::lerobot::{export, Demonstration, ExportOptions, Tasks};
 use serde::Serialize;
 
 use super::common::{print_json, say};
@@ -48,25 +48,11 @@ struct Summary {
 
 /// Export the recordings.
 pub fn run(a: &Args) -> ferrobot::Result<()> {
-    let tasks = match a.task.len() {
-        1 => vec![a.task[0].clone(); a.files.len()],
-        n if n == a.files.len() => a.task.clone(),
-        n => {
-            return Err(ferrobot::Error::Usage(format!(
-                "{n} tasks for {} recordings: give one task for all, or one per recording",
-                a.files.len()
-            )))
-        }
+    let tasks = match a.task.as_slice() {
+        [one] => Tasks::All(one.clone()),
+        each => Tasks::Each(each.to_vec()),
     };
-    let demos: Vec<Demonstration> = a
-        .files
-        .iter()
-        .zip(tasks)
-        .map(|(path, task)| Demonstration {
-            path: path.clone(),
-            task,
-        })
-        .collect();
+    let demos = Demonstration::of(a.files.clone(), tasks)?;
     let opts = ExportOptions {
         fps: a.fps,
         camera: !a.no_camera,

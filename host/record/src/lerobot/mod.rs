@@ -46,6 +46,38 @@ pub struct Demonstration {
     pub task: String,
 }
 
+/// The tasks of a set of recordings.
+#[derive(Debug, Clone)]
+pub enum Tasks {
+    /// One task for every recording.
+    All(String),
+    /// One task per recording, in order.
+    Each(Vec<String>),
+}
+
+impl Demonstration {
+    /// The demonstrations of `recordings` with their `tasks`; refused when [`Tasks::Each`]
+    /// does not name one per recording.
+    pub fn of(recordings: Vec<PathBuf>, tasks: Tasks) -> Result<Vec<Demonstration>, RecordError> {
+        let n = recordings.len();
+        let tasks = match tasks {
+            Tasks::All(t) => vec![t; n],
+            Tasks::Each(t) if t.len() == n => t,
+            Tasks::Each(t) => {
+                return Err(invalid(format!(
+                    "{} tasks for {n} recordings: give one task for all, or one per recording",
+                    t.len()
+                )))
+            }
+        };
+        Ok(recordings
+            .into_iter()
+            .zip(tasks)
+            .map(|(path, task)| Demonstration { path, task })
+            .collect())
+    }
+}
+
 /// How to export.
 #[derive(Debug, Clone)]
 pub struct ExportOptions {
