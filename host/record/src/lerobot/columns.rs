@@ -121,7 +121,6 @@ pub struct Table {
     names: Vec<String>,
     writer: Option<SerializedFileWriter<File>>,
     metadata: Vec<KeyValue>,
-    rows: u64,
 }
 
 impl Table {
@@ -136,7 +135,6 @@ impl Table {
                 .into_iter()
                 .map(|(k, v)| KeyValue::new(k, v))
                 .collect(),
-            rows: 0,
         }
     }
 
@@ -154,14 +152,21 @@ impl Table {
 
     /// Writes one row group: `columns`, named, each with as many rows (the first group's
     /// names and kinds are the file's schema).
-    pub fn write_group(&mut self, columns: &[(&str, Values)]) -> Result<(), RecordError> {
+    pub fn write_group<S: AsRef<str>>(
+        &mut self,
+        columns: &[(S, Values)],
+    ) -> Result<(), RecordError> {
         let rows = columns.first().map_or(0, |(_, v)| v.len());
         if columns.iter().any(|(_, v)| v.len() != rows) {
             return Err(self.err("columns of different lengths in one row group"));
         }
         if self.writer.is_none() {
             self.open(columns)?;
-        } else if columns.iter().map(|(n, _)| *n).ne(self.names.iter()) {
+        } else if columns
+            .iter()
+            .map(|(n, _)| n.as_ref())
+            .ne(self.names.iter())
+        {
             return Err(self.err("a row group with other columns than the file's"));
         }
         let path = self.path.clone();
@@ -172,14 +177,13 @@ impl Table {
             write_values(&mut group, values).map_err(err)?;
         }
         group.close().map_err(err)?;
-        self.rows += rows as u64;
         Ok(())
     }
 
-    fn open(&mut self, columns: &[(&str, Values)]) -> Result<(), RecordError> {
+    fn open<S: AsRef<str>>(&mut self, columns: &[(S, Values)]) -> Result<(), RecordError> {
         let fields = columns
             .iter()
-            .map(|(n, v)| v.schema(n).map(Arc::new))
+            .map(|(n, v)| v.schema(n.as_ref()).map(Arc::new))
             .collect::<Result<Vec<_>, _>>()
             .map_err(|e| self.err(e))?;
         let schema = Type::group_type_builder("schema")
@@ -198,17 +202,20 @@ impl Table {
         })?;
         let writer = SerializedFileWriter::new(file, Arc::new(schema), Arc::new(props))
             .map_err(|e| self.err(e))?;
-        self.names = columns.iter().map(|(n, _)| n.to_string()).collect();
+        self.names = columns
+            .iter()
+            .map(|(n, _)| n.as_ref().to_string())
+            .collect();
         self.writer = Some(writer);
         Ok(())
     }
 
-    /// Finishes the file; the rows written.
-    pub fn finish(mut self) -> Result<u64, RecordError> {
+    /// Finishes the file.
+    pub fn finish(mut self) -> Result<(), RecordError> {
         if let Some(w) = self.writer.take() {
             w.close().map_err(|e| self.err(e))?;
         }
-        Ok(self.rows)
+        Ok(())
     }
 }
 

@@ -6,6 +6,7 @@ use std::path::Path;
 use serde_json::{json, Value};
 
 use super::columns::{Table, Values};
+use super::stats::Stat;
 use super::{
     feature, feature_stats, invalid, Demonstration, Episode, ExportOptions, Layout,
     CODEBASE_VERSION, IMAGE_KEY, NUMERIC,
@@ -39,7 +40,7 @@ pub(super) fn write_tasks(out: &Path, tasks: &[String]) -> Result<(), RecordErro
         ("task_index", Values::I64((0..tasks.len() as i64).collect())),
         ("task", Values::Str(tasks.to_vec())),
     ])?;
-    t.finish().map(drop)
+    t.finish()
 }
 
 /// `meta/episodes/chunk-000/file-000.parquet`: per episode its index, tasks, length, where
@@ -67,11 +68,11 @@ pub(super) fn write_episodes(
         ("meta/episodes/file_index".into(), Values::I64(vec![0; n])),
     ];
     for key in NUMERIC {
-        let per: Vec<(Vec<super::stats::Stat>, usize)> = episodes
+        let per: Vec<(Vec<Stat>, usize)> = episodes
             .iter()
             .map(|e| feature_stats(&[e], key).ok_or_else(|| invalid(format!("no {key}"))))
             .collect::<Result<_, _>>()?;
-        let stat = |f: fn(&super::stats::Stat) -> f64| {
+        let stat = |f: fn(&Stat) -> f64| {
             Values::F64List(per.iter().map(|(s, _)| s.iter().map(f).collect()).collect())
         };
         cols.push((format!("stats/{key}/min"), stat(|s| s.min)));
@@ -87,9 +88,8 @@ pub(super) fn write_episodes(
         &out.join("meta/episodes/chunk-000/file-000.parquet"),
         vec![],
     );
-    let named: Vec<(&str, Values)> = cols.iter().map(|(k, v)| (k.as_str(), v.clone())).collect();
-    t.write_group(&named)?;
-    t.finish().map(drop)
+    t.write_group(&cols)?;
+    t.finish()
 }
 
 /// `meta/stats.json`: every feature's statistics over the whole dataset.
