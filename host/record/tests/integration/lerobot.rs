@@ -11,13 +11,6 @@ use ferrobot::Robot;
 use ferrobot_record::lerobot::{export, Demonstration, ExportOptions};
 use ferrobot_record::{RecordError, RecordOptions, Recorder};
 
-fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("lerobot-{name}"));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
 fn python() -> Option<PathBuf> {
     ferrobot_peers::for_test(
         "rosbags.highlevel, numpy, pyarrow.parquet, pandas, PIL",
@@ -68,7 +61,7 @@ fn demonstrations(dir: &Path) -> Vec<Demonstration> {
 #[test]
 fn demonstrations_export_to_a_lerobot_dataset_that_reads_back_to_the_recorded_values() {
     let Some(py) = python() else { return };
-    let dir = scratch("export");
+    let dir = crate::scratch("lerobot-export");
     let demos = demonstrations(&dir);
     let out = dir.join("dataset");
     let opts = ExportOptions {

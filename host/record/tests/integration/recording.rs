@@ -13,13 +13,6 @@ use ferrobot::{Frame, Robot, Telemetry};
 use ferrobot_record::{RecordOptions, Recorder};
 use serde_json::{json, Value};
 
-fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("record-{name}"));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
 fn python() -> Option<PathBuf> {
     ferrobot_peers::for_test(
         "mcap, rosbags.highlevel, numpy",
@@ -120,7 +113,7 @@ fn event_json(robot: &Robot, e: &Event) -> Option<Value> {
 #[test]
 fn every_topic_decodes_with_rosbags_and_mcap_to_the_values_recorded() {
     let Some(py) = python() else { return };
-    let dir = scratch("all-topics");
+    let dir = crate::scratch("record-all-topics");
     let robot = Robot::new("locobot").unwrap();
     let file = dir.join("locobot.mcap");
     let recorder = Recorder::start(&robot, &file, RecordOptions::default()).unwrap();

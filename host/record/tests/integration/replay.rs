@@ -2,20 +2,13 @@
 //! same states; its frames fed to SLAM offline give SLAM's poses of the live run.
 
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use ferrobot::slam::{optimise, RgbdInput, Slam, SlamSettings, SELF_RADIUS};
 use ferrobot::Robot;
 use ferrobot_record::reader::Reading;
 use ferrobot_record::replay::{replay_commands, SensorFrames};
 use ferrobot_record::{decode, topics, RecordOptions, Recorder};
-
-fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("replay-{name}"));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
 
 /// A program: SLAM, the arm by positions and by velocities, the gripper, the base.
 fn program(robot: &Robot) {
@@ -44,7 +37,7 @@ fn states(path: &Path) -> BTreeMap<u64, Vec<f64>> {
 
 #[test]
 fn replayed_commands_give_the_same_states_and_replayed_frames_the_same_slam_poses() {
-    let dir = scratch("same");
+    let dir = crate::scratch("replay-same");
     let live = dir.join("live.mcap");
     let robot = Robot::new("locobot").unwrap();
     let recorder = Recorder::start(&robot, &live, RecordOptions::default()).unwrap();
