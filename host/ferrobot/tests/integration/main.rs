@@ -14,5 +14,4 @@ mod realsense;
 mod slam;
 mod stow;
 mod subscriptions;
-mod teach;
 mod world;
