@@ -19,4 +19,3 @@ mod mesh;
 mod physics;
 mod placement;
 mod scenes;
-mod teach;
