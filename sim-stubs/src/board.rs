@@ -246,6 +246,19 @@ impl BoardServer {
         self.lock().conductor.now_us()
     }
 
+    /// A reader of simulated time (µs) that outlives borrows of the server: for a program's
+    /// timeouts counted in the board's time ([`BoardServer::now_us`] each call).
+    pub fn clock(&self) -> impl Fn() -> u64 + Send + Sync + 'static {
+        let inner = self.inner.clone();
+        move || {
+            inner
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .conductor
+                .now_us()
+        }
+    }
+
     /// Whether the firmware has reported on its clock link at least once.
     pub fn board_reported(&self) -> bool {
         self.lock().first_report.is_some()

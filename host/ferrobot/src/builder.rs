@@ -31,6 +31,9 @@ pub struct RobotBuilder {
     /// The simulated world, on the sim and emulated backends.
     #[cfg(feature = "sim")]
     pub(crate) world: crate::world_options::WorldOptions,
+    /// What a serial link's timeouts count ([`RobotBuilder::board_clock`]).
+    #[cfg(feature = "serial")]
+    pub(crate) link_time: crate::backend::timebase::Timebase,
 }
 
 impl RobotBuilder {
@@ -49,7 +52,20 @@ impl RobotBuilder {
             camera_calibration: None,
             #[cfg(feature = "sim")]
             world: Default::default(),
+            #[cfg(feature = "serial")]
+            link_time: Default::default(),
         }
+    }
+
+    /// On [`Backend::Serial`](crate::backend::Backend::Serial) to an emulated board whose
+    /// emulator runs in this program: count the link's timeouts (replies, the firmware's
+    /// silence) on `clock`, the board's time in µs, instead of the wall clock, so that a busy
+    /// machine slows the board without the link calling it lost. Ferrobot's own emulated
+    /// backends do this by themselves.
+    #[cfg(feature = "serial")]
+    pub fn board_clock(mut self, clock: crate::backend::timebase::BoardClock) -> Self {
+        self.link_time = crate::backend::timebase::Timebase::board(clock);
+        self
     }
 
     /// Use the camera mount measured by hand-eye calibration (a file of

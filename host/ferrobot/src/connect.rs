@@ -51,9 +51,10 @@ pub(crate) fn connect(
         Backend::Serial { path } => {
             let socket = crate::backend::camera_socket::socket_beside(path);
             (
-                Box::new(crate::backend::serial::SerialLink::open(
+                Box::new(crate::backend::serial::SerialLink::open_on(
                     path,
                     Duration::from_secs(10),
+                    b.link_time.clone(),
                 )?),
                 socket.exists().then_some(socket),
             )

@@ -350,7 +350,9 @@ impl EmulatedLink {
             }
             None => None,
         };
-        let serial = SerialLink::open(&board.server.host, Duration::from_secs(10))?;
+        // The link's timeouts count the board's time: a busy machine slows it, not loses it.
+        let time = super::timebase::Timebase::board(std::sync::Arc::new(board.server.clock()));
+        let serial = SerialLink::open_on(&board.server.host, Duration::from_secs(10), time)?;
         Ok(EmulatedLink {
             serial,
             camera,

@@ -77,6 +77,8 @@ pub mod emulated;
 pub mod serial;
 #[cfg(feature = "sim")]
 pub mod sim;
+#[cfg(feature = "serial")]
+pub mod timebase;
 #[cfg(feature = "sim")]
 pub mod world;
 

@@ -7,7 +7,9 @@
 //! [`Link::wait`] waits for the firmware's clock to move on. A real board's clock runs with
 //! the wall clock; an emulated board's runs as fast as the machine emulating it can manage,
 //! and the API's timings (motion deadlines, control periods) follow it either way. A firmware
-//! that sends no telemetry for [`TELEMETRY_SILENCE`] is reported lost.
+//! that sends no telemetry for [`TELEMETRY_SILENCE`] is reported lost. The link's timeouts
+//! count the wall clock, or an emulated board's clock when its emulator is at hand
+//! ([`Timebase`], [`SerialLink::open_on`]), so that a busy machine slows it without losing it.
 
 use std::collections::VecDeque;
 use std::io::Write;
@@ -25,6 +27,7 @@ use ferrobot_protocol::{
     SCHEMA_HASH,
 };
 
+use super::timebase::{Mark, Timebase};
 use super::{acked, replied, Link, LinkEvent, StopLine};
 use crate::error::{Error, Result};
 
@@ -32,8 +35,8 @@ use crate::error::{Error, Result};
 pub const REPLY_TIMEOUT: Duration = Duration::from_secs(1);
 /// Heartbeat period when the API sends nothing.
 pub const HEARTBEAT: Duration = Duration::from_millis(100);
-/// Wall time without telemetry after which an accepted firmware counts as lost (the firmware
-/// sends it every few tens of milliseconds of its own time).
+/// Time without telemetry after which an accepted firmware counts as lost (the firmware sends
+/// it every few tens of milliseconds of its own time), counted on the link's [`Timebase`].
 pub const TELEMETRY_SILENCE: Duration = Duration::from_secs(2);
 
 /// How often a lost port is opened again.
@@ -47,8 +50,8 @@ pub const EVENT_QUEUE: usize = 64;
 struct State {
     /// The protocol's host session: sequence numbers, handshake, answers, telemetry, faults.
     session: HostSession,
-    /// When the newest telemetry arrived (wall time).
-    telemetry_at: Option<Instant>,
+    /// When the newest telemetry arrived.
+    telemetry_at: Option<Mark>,
     /// Why the link is down, while it is.
     lost: Option<String>,
     /// When it went down.
@@ -80,20 +83,20 @@ impl State {
     }
 
     /// Bytes from the firmware.
-    fn on_bytes(&mut self, bytes: &[u8]) {
+    fn on_bytes(&mut self, bytes: &[u8], time: &Timebase) {
         let before = self.session.telemetry().map(|t| t.time_us);
         self.session.on_bytes(bytes);
         if self.session.telemetry().map(|t| t.time_us) != before {
-            self.telemetry_at = Some(Instant::now());
+            self.telemetry_at = Some(time.mark());
         }
         if self.lost.is_some() {
-            self.reconnected();
+            self.reconnected(time);
         }
     }
 
     /// While the link is down: once the firmware has answered the new handshake, the link is
     /// back if it is the same firmware (robot, joints, base, board) and accepts us.
-    fn reconnected(&mut self) {
+    fn reconnected(&mut self, time: &Timebase) {
         let info = match self.session.handshake() {
             Handshake::Accepted(info) => info.clone(),
             Handshake::Refused(info) => {
@@ -125,7 +128,7 @@ impl State {
         self.lost = None;
         // The silence is counted from the handshake, so that a firmware that answers it but
         // sends no telemetry is lost again rather than trusted.
-        self.telemetry_at = Some(Instant::now());
+        self.telemetry_at = Some(time.mark());
         let down_for = self.lost_at.take().map(|t| t.elapsed()).unwrap_or_default();
         self.push_event(LinkEvent::Reconnected {
             down_for,
@@ -139,6 +142,8 @@ struct Shared {
     cv: Condvar,
     /// The link's wall clock, the session's time base.
     start: Instant,
+    /// What the link's timeouts count.
+    time: Timebase,
 }
 
 impl Shared {
@@ -253,7 +258,7 @@ fn turn(
         Ok(0) => {}
         Ok(n) => {
             if let Ok(mut s) = shared.state.lock() {
-                s.on_bytes(&buf[..n]);
+                s.on_bytes(&buf[..n], &shared.time);
             }
             shared.cv.notify_all();
         }
@@ -265,20 +270,28 @@ fn turn(
     let silent = shared.state.lock().is_ok_and(|s| {
         matches!(s.session.handshake(), Handshake::Accepted(_))
             && s.telemetry_at
-                .is_some_and(|t| t.elapsed() > TELEMETRY_SILENCE)
+                .is_some_and(|t| shared.time.passed(&t, TELEMETRY_SILENCE))
     });
     if silent {
         return Err(format!(
-            "no telemetry from the firmware for {TELEMETRY_SILENCE:?}: its control loop has \
-             stopped (for an emulated board: its plants and clock are no longer served)"
+            "no telemetry from the firmware for {TELEMETRY_SILENCE:?}{}: its control loop has \
+             stopped (for an emulated board: its plants and clock are no longer served)",
+            shared.time.of()
         ));
     }
     Ok(())
 }
 
 impl SerialLink {
-    /// Open `path`, start the I/O thread and handshake (within `timeout`).
+    /// Open `path`, start the I/O thread and handshake (within `timeout`); timeouts count the
+    /// wall clock.
     pub fn open(path: impl Into<PathBuf>, timeout: Duration) -> Result<Self> {
+        Self::open_on(path, timeout, Timebase::wall())
+    }
+
+    /// [`SerialLink::open`] with the link's timeouts (`timeout` among them) counted on `time`:
+    /// an emulated board's clock when its emulator runs in this process.
+    pub fn open_on(path: impl Into<PathBuf>, timeout: Duration, time: Timebase) -> Result<Self> {
         let path = path.into();
         // Fail early and clearly when the port cannot be opened at all.
         drop(open(&path).map_err(|e| Error::Link(format!("cannot open {}: {e}", path.display())))?);
@@ -294,6 +307,7 @@ impl SerialLink {
             }),
             cv: Condvar::new(),
             start: Instant::now(),
+            time,
         });
         let (tx, rx) = channel();
         let thread = {
@@ -419,8 +433,11 @@ impl SerialLink {
         what: &str,
         mut ready: impl FnMut(&mut State) -> Option<Result<T>>,
     ) -> Result<T> {
-        // A timeout too long to represent waits for as long as it takes.
-        let deadline = Instant::now().checked_add(timeout);
+        // Counted on the link's timebase; a timeout too long to represent on the wall clock
+        // waits for as long as it takes.
+        let time = &self.shared.time;
+        let endless = Instant::now().checked_add(timeout).is_none();
+        let mark = time.mark();
         let mut s = self
             .shared
             .state
@@ -430,16 +447,16 @@ impl SerialLink {
             if let Some(r) = ready(&mut s) {
                 return r;
             }
-            let left = match deadline {
-                Some(d) => d.saturating_duration_since(Instant::now()),
-                None => Duration::from_secs(3600),
-            };
-            if left.is_zero() {
+            if !endless && time.passed(&mark, timeout) {
                 return Err(Error::Timeout {
                     what: what.to_string(),
                     after: timeout,
                 });
             }
+            let left = match endless {
+                false => time.recheck(&mark, timeout).max(Duration::from_micros(100)),
+                true => Duration::from_secs(3600),
+            };
             s = self
                 .shared
                 .cv
