@@ -64,6 +64,7 @@ impl Firmware {
             }
             HostMsg::SetLoopPeriod { period_us } => self.set_loop_period(period_us),
             HostMsg::RebootJoint { joint } => self.reboot_joint(now, joint),
+            HostMsg::ArmLink { index, count, link } => self.arm_link(index, count, &link),
             // Answered by `handle` before any command; listed so that the match stays
             // exhaustive and a new message without a handler fails to compile.
             HostMsg::Hello { .. } | HostMsg::GetJoint { .. } | HostMsg::GetDiagnostics => {
@@ -121,6 +122,8 @@ impl Firmware {
             core::cmp::Ordering::Greater => return Err(RejectReason::UnknownJoint),
         }
         self.rebuild_joints(now);
+        // The model was built for the rows as they were.
+        self.dynamics.clear();
         for j in self.joints.iter_mut() {
             j.set_mode(now, JointMode::Off);
         }
@@ -194,6 +197,16 @@ impl Firmware {
         let sel = self.selected(joints)?;
         if self.estop && mode != JointMode::Off {
             return Err(RejectReason::EmergencyStop);
+        }
+        // Teach mode needs a trusted model of the joint's load (and the gripper has its own
+        // driver).
+        let gripper = self.gripper.as_ref().map(|(j, _)| *j);
+        if mode == JointMode::Teach
+            && sel
+                .iter()
+                .any(|&j| !self.dynamics.trusted_for(j) || gripper == Some(j))
+        {
+            return Err(RejectReason::Unsupported);
         }
         for j in sel {
             if let Some(jc) = self.joints.get_mut(j) {

@@ -1,7 +1,6 @@
 //! Firmware configuration: the joint table, the base and the bus, and the built-in profiles
 //! of the bundled robots (the host can replace joint rows at run time).
 
-use ferrobot_protocol::gravity::Link;
 use ferrobot_protocol::{
     BaseKind, JointConfig, JointKind, JointLimits, Name, PidGains, ServoModel, MAX_JOINTS,
 };
@@ -137,70 +136,6 @@ impl BusConfig {
     }
 }
 
-/// Links of an arm's gravity model.
-pub const GRAVITY_LINKS: usize = 5;
-
-/// The gravity model of an arm: a serial chain of revolute joints (see
-/// [`ferrobot_protocol::gravity`]) and, for each link, the row of the joint table it moves.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct GravityModel {
-    /// The chain, base first.
-    pub links: [Link<f32>; GRAVITY_LINKS],
-    /// Joint-table row of each link's joint.
-    pub joints: [u8; GRAVITY_LINKS],
-}
-
-const fn link(origin: [f32; 3], axis: [f32; 3], mass: f32, com: [f32; 3]) -> Link<f32> {
-    Link {
-        origin,
-        axis,
-        mass,
-        com,
-    }
-}
-
-/// The LoCoBot arm (joint_1 … joint_5, shared by the LoCoBot-Lite) from the bundled
-/// description (`host/description/robots/locobot.urdf`, PyRobot's "cmu" inertial data): joint
-/// origins and axes, and each link's mass and centre of mass; the gripper link carries the two
-/// fingers (at the closed position, their travel is across the roll axis and moves the centre
-/// of mass by under 0.1 mm) and the AR tag.
-/// `host/description/tests/integration/gravity_model.rs` checks it against the URDF.
-pub const LOCOBOT_GRAVITY: GravityModel = GravityModel {
-    links: [
-        link(
-            [0.0, 0.0, 0.072],
-            [0.0, 0.0, 1.0],
-            0.11986,
-            [-5.68e-5, 0.0, 0.02285],
-        ),
-        link(
-            [0.0, 0.0, 0.04125],
-            [0.0, 1.0, 0.0],
-            0.21248,
-            [0.009598, 0.0, 0.1343],
-        ),
-        link(
-            [0.05, 0.0, 0.2],
-            [0.0, 1.0, 0.0],
-            0.18746,
-            [0.11783, 0.0, 0.0],
-        ),
-        link(
-            [0.2002, 0.0, 0.0],
-            [0.0, 1.0, 0.0],
-            0.06059,
-            [0.04294, 4.99e-5, 0.01143],
-        ),
-        link(
-            [0.063, 0.0001, 0.0],
-            [-1.0, 0.0, 0.0],
-            0.12421,
-            [0.040623, -2.0435e-4, 0.012155],
-        ),
-    ],
-    joints: [0, 1, 2, 3, 4],
-};
-
 /// Everything the firmware core needs to start.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RobotProfile {
@@ -221,9 +156,6 @@ pub struct RobotProfile {
     pub watchdog_period: Duration,
     /// Telemetry period after the first accepted Hello; zero sends none.
     pub telemetry_period: Duration,
-    /// The arm's gravity model, if it has one: position mode then carries the modelled load
-    /// in its goals.
-    pub gravity: Option<GravityModel>,
 }
 
 fn name(s: &str) -> Name {
@@ -344,7 +276,6 @@ pub fn locobot() -> RobotProfile {
         loop_period: Duration::from_millis(1),
         watchdog_period: Duration::from_millis(500),
         telemetry_period: Duration::from_millis(20),
-        gravity: Some(LOCOBOT_GRAVITY),
     }
 }
 
@@ -390,7 +321,6 @@ pub fn sawyer() -> RobotProfile {
         loop_period: Duration::from_millis(1),
         watchdog_period: Duration::from_millis(500),
         telemetry_period: Duration::from_millis(20),
-        gravity: None,
     }
 }
 

@@ -44,6 +44,7 @@ pub mod base;
 pub mod bus;
 mod commands;
 pub mod config;
+pub mod dynamics;
 pub mod gripper;
 pub mod joint;
 mod log;
@@ -93,9 +94,8 @@ pub struct Firmware {
     /// Per joint, the limits its row was configured with (at start or by `ConfigureJoint`):
     /// `SetLimits` may narrow a joint's limits within them, never widen them.
     envelope: Vec<ferrobot_protocol::JointLimits, MAX_JOINTS>,
-    /// The sign and offset of each gravity-model joint's row at start: the rows the model was
-    /// built for (a row the host configures differently measures other angles).
-    gravity_rows: [Option<(i8, f32)>; config::GRAVITY_LINKS],
+    /// The arm's gravity model, as the host sent it, and whether the arm confirmed it.
+    dynamics: dynamics::Dynamics,
     board: Name,
     joints: Vec<JointControl, MAX_JOINTS>,
     bus: ServoBus,
@@ -134,15 +134,9 @@ impl Firmware {
         let bus = ServoBus::new(&profile.joints, profile.bus);
         let base = BaseDriver::new(profile.base);
         let envelope = profile.joints.iter().map(|c| c.limits).collect();
-        let mut gravity_rows = [None; config::GRAVITY_LINKS];
-        if let Some(m) = profile.gravity {
-            for (r, &j) in gravity_rows.iter_mut().zip(&m.joints) {
-                *r = profile.joints.get(j as usize).map(|c| (c.sign, c.offset));
-            }
-        }
         let mut fw = Self {
             envelope,
-            gravity_rows,
+            dynamics: dynamics::Dynamics::default(),
             board: b,
             joints: Vec::new(),
             bus,

@@ -103,9 +103,10 @@ impl Firmware {
             // torque that only limits its speed would let a load (gravity) carry it on. So is
             // one in velocity mode: the servo's velocity loop brakes softly, and its hold
             // point would let the joint run on past where the stop found it.
+            // One in teach mode holds in position mode: a hand no longer moves it.
             if matches!(
                 j.mode,
-                JointMode::Current | JointMode::Pwm | JointMode::Velocity
+                JointMode::Current | JointMode::Pwm | JointMode::Velocity | JointMode::Teach
             ) && gripper != Some(k)
             {
                 j.set_mode(now, JointMode::Position);
@@ -126,6 +127,8 @@ impl Firmware {
 
     pub(crate) fn trip_watchdog(&mut self, now: Instant) {
         self.watchdog_tripped = true;
+        // A host that is gone cannot record what a hand teaches, nor end it.
+        self.leave_teach(now);
         self.base.stop(now);
         self.base.poll(now);
         self.hold_all(now);

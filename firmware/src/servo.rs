@@ -14,7 +14,7 @@ use crate::bus::{self, BusEvent, Goal, ServoStatus};
 use crate::gripper::GripperDrive;
 use crate::joint::JointOutput;
 use crate::time::Instant;
-use crate::{config, Firmware};
+use crate::Firmware;
 
 impl Firmware {
     /// Hold the joint of every servo the bus reports lost, failed or faulty, report it, and
@@ -52,7 +52,7 @@ impl Firmware {
         let dt = self.loop_period.as_secs_f32();
         self.measure(now);
         self.report_outside(now);
-        self.model_gravity();
+        self.model_gravity(now);
         let mut goals: Vec<Goal, { bus::MAX_SERVOS }> = Vec::new();
         for _ in 0..self.bus.servos.len() {
             let _ = goals.push(Goal::None);
@@ -99,44 +99,6 @@ impl Firmware {
                 let mrad = (beyond * 1000.0).min(u16::MAX as f32) as u16;
                 let id = cfg.servo_id;
                 self.fault(now, FaultKind::OutsideLimits, Some(j as u8), Some(id), mrad);
-            }
-        }
-    }
-
-    /// Give every joint its modelled gravity load at the measured pose (or none: no model, a
-    /// joint of the model unmeasured, or its row no longer the one the model was built for).
-    fn model_gravity(&mut self) {
-        for j in self.joints.iter_mut() {
-            j.gravity = None;
-        }
-        let Some(m) = self.profile.gravity else {
-            return;
-        };
-        let mut q = [0.0f32; config::GRAVITY_LINKS];
-        for ((qk, &j), row) in q.iter_mut().zip(&m.joints).zip(&self.gravity_rows) {
-            let j = j as usize;
-            let (Some(jc), Some(cfg)) = (self.joints.get(j), self.profile.joints.get(j)) else {
-                return;
-            };
-            let p = jc.state.position;
-            if !jc.measured || !p.is_finite() || Some((cfg.sign, cfg.offset)) != *row {
-                return;
-            }
-            *qk = p;
-        }
-        let mut tau = [0.0f32; config::GRAVITY_LINKS];
-        let n = ferrobot_protocol::gravity::torques(
-            &m.links,
-            &q,
-            ferrobot_protocol::gravity::G,
-            &mut tau,
-        );
-        if n != config::GRAVITY_LINKS || tau.iter().any(|t| !t.is_finite()) {
-            return;
-        }
-        for (&j, &t) in m.joints.iter().zip(&tau) {
-            if let Some(jc) = self.joints.get_mut(j as usize) {
-                jc.gravity = Some(t);
             }
         }
     }

@@ -1,11 +1,10 @@
 //! Gravity torques on a serial chain of revolute joints, for the firmware (`f32`, its gravity
 //! feed-forward), the simulated arm and the host (`f64`).
 //!
-//! Each [`Link`] is one revolute joint and the rigid body it carries: the joint's origin in
-//! the previous joint's frame (the chain's base frame for the first), its axis in its own
-//! frame, and the carried body's mass and centre of mass in the joint's frame. Joint frames
-//! are parallel to their parent's at zero angle (no fixed rotation between joints), which is
-//! how the LoCoBot's arm is described. Gravity points along −z of the base frame. The torque
+//! Each [`Link`] is one revolute joint and the rigid body it carries: the joint's origin and
+//! fixed rotation (roll-pitch-yaw, as a URDF joint's `<origin>`) in the previous joint's frame
+//! (the chain's base frame for the first), its axis in its own frame, and the carried body's
+//! mass and centre of mass in the joint's frame. Gravity points along −z of the base frame. The torque
 //! gravity exerts about joint `i` is `τᵢ = aᵢ · ((Σₖ≥ᵢ mₖ·cₖ − Mᵢ·oᵢ) × g)` with `aᵢ` and `oᵢ`
 //! the joint's axis and origin, `cₖ` the centres of mass and `Mᵢ = Σₖ≥ᵢ mₖ`, all in the base
 //! frame. `no_std`, no allocation, no panics: two passes down the chain, nothing stored.
@@ -22,6 +21,9 @@ use crate::geometry::Real;
 pub struct Link<R> {
     /// Joint origin in the parent joint's frame, m.
     pub origin: [R; 3],
+    /// Fixed rotation of the joint's frame from its parent's at zero angle: roll, pitch, yaw
+    /// about the parent's fixed x, y, z axes (URDF convention), rad.
+    pub rpy: [R; 3],
     /// Joint axis in the joint's frame (unit vector).
     pub axis: [R; 3],
     /// Mass of the carried body (everything rigidly attached up to the next joint), kg.
@@ -36,12 +38,16 @@ impl Link<f32> {
         let v = |a: [f32; 3]| [a[0] as f64, a[1] as f64, a[2] as f64];
         Link {
             origin: v(self.origin),
+            rpy: v(self.rpy),
             axis: v(self.axis),
             mass: self.mass as f64,
             com: v(self.com),
         }
     }
 }
+
+/// Most links an arm's gravity model may have (Sawyer has 7).
+pub const MAX_LINKS: usize = 8;
 
 /// Gravity, m/s² (the value the simulated arm uses too).
 pub const G: f32 = 9.81;
@@ -88,6 +94,15 @@ fn axis_angle<R: Real>(axis: V3<R>, q: R) -> M3<R> {
     ]
 }
 
+/// The rotation of URDF's roll-pitch-yaw: `Rz(yaw)·Ry(pitch)·Rx(roll)`.
+fn rpy_matrix<R: Real>([r, p, y]: V3<R>) -> M3<R> {
+    let (o, i) = (R::ZERO, R::ONE);
+    let x = axis_angle([i, o, o], r);
+    let y_ = axis_angle([o, i, o], p);
+    let z = axis_angle([o, o, i], y);
+    mul(&z, &mul(&y_, &x))
+}
+
 /// Walk the chain at angles `q`, calling `f(i, origin, axis, mass, com)` for each joint with
 /// its origin, axis and carried centre of mass in the base frame.
 fn walk<R: Real>(links: &[Link<R>], q: &[R], mut f: impl FnMut(usize, V3<R>, V3<R>, R, V3<R>)) {
@@ -96,6 +111,10 @@ fn walk<R: Real>(links: &[Link<R>], q: &[R], mut f: impl FnMut(usize, V3<R>, V3<
     let mut pos = [o; 3];
     for (k, (l, &qk)) in links.iter().zip(q).enumerate() {
         pos = add(pos, apply(&rot, l.origin));
+        // Most arms (the LoCoBot's) have no fixed rotations: no trigonometry for them.
+        if l.rpy.iter().any(|&a| a != R::ZERO) {
+            rot = mul(&rot, &rpy_matrix(l.rpy));
+        }
         let axis = apply(&rot, l.axis);
         rot = mul(&rot, &axis_angle(l.axis, qk));
         f(k, pos, axis, l.mass, add(pos, apply(&rot, l.com)));
@@ -148,12 +167,14 @@ mod tests {
         let links = [
             Link {
                 origin: [0.0, 0.0, 0.1],
+                rpy: [0.0; 3],
                 axis: [0.0, 1.0, 0.0],
                 mass: 1.0,
                 com: [0.2, 0.0, 0.0],
             },
             Link {
                 origin: [0.4, 0.0, 0.0],
+                rpy: [0.0; 3],
                 axis: [0.0, 1.0, 0.0],
                 mass: 0.5,
                 com: [0.1, 0.0, 0.0],
@@ -174,6 +195,7 @@ mod tests {
         // In f32 too, and short slices are not a panic.
         let l32 = [Link {
             origin: [0.0f32, 0.0, 0.1],
+            rpy: [0.0; 3],
             axis: [0.0, 1.0, 0.0],
             mass: 1.0,
             com: [0.2, 0.0, 0.0],
@@ -190,6 +212,7 @@ mod tests {
     fn a_vertical_axis_carries_nothing() {
         let links = [Link {
             origin: [0.0, 0.0, 0.0],
+            rpy: [0.0; 3],
             axis: [0.0, 0.0, 1.0],
             mass: 2.0,
             com: [0.3, 0.1, 0.0],

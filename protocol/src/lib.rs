@@ -51,7 +51,7 @@ pub use frame::{encode_frame, Frame, FrameDecoder, FrameError, FrameStats};
 pub use messages::*;
 
 /// Version of the host ⇄ firmware protocol. Bumped on every incompatible change.
-pub const PROTOCOL_VERSION: u16 = 2;
+pub const PROTOCOL_VERSION: u16 = 3;
 
 /// Largest postcard body (sequence number plus message) a frame may carry, in bytes.
 ///

@@ -133,6 +133,34 @@ pub fn joint_config_ok(c: &JointConfig) -> bool {
         && !effort_beyond_servo(c.limits.effort, c)
 }
 
+/// Heaviest link an arm's gravity model may name, kg.
+pub const LINK_MASS_MAX: f32 = 50.0;
+/// Farthest a link's joint origin or centre of mass may lie from its joint, m.
+pub const LINK_REACH_MAX: f32 = 2.0;
+/// How far a link's axis may be from unit length.
+pub const LINK_AXIS_TOLERANCE: f32 = 1e-3;
+
+/// Why one link of an arm's gravity model is refused, if it is: a number not finite, a mass
+/// outside [0, [`LINK_MASS_MAX`]], an origin or centre of mass farther than
+/// [`LINK_REACH_MAX`], an angle of its fixed rotation beyond ±2π, or an axis not of unit
+/// length within [`LINK_AXIS_TOLERANCE`].
+pub fn arm_link_error(l: &crate::ArmLink) -> Option<crate::RejectReason> {
+    let all = [l.origin, l.rpy, l.axis, l.com, [l.mass; 3]];
+    if all.iter().flatten().any(|x| !x.is_finite()) {
+        return Some(crate::RejectReason::NotFinite);
+    }
+    // Squared norms: no square root in `no_std` without libm, and none needed.
+    let norm2 = |v: [f32; 3]| v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+    let reach2 = LINK_REACH_MAX * LINK_REACH_MAX;
+    // |v|² within (1 ± tol)² of 1: within 2·tol to first order.
+    let ok = within(l.mass, 0.0, LINK_MASS_MAX)
+        && norm2(l.origin) <= reach2
+        && norm2(l.com) <= reach2
+        && l.rpy.iter().all(|a| a.abs() <= core::f32::consts::TAU)
+        && (norm2(l.axis) - 1.0).abs() <= 2.0 * LINK_AXIS_TOLERANCE;
+    (!ok).then_some(crate::RejectReason::InvalidConfig)
+}
+
 /// Why a knot is refused, if it is: not finite, or a speed or effort out of range, or a
 /// position outside the joint's limits.
 pub fn point_error(p: &JointPoint, limits: &JointLimits) -> Option<crate::RejectReason> {

@@ -476,7 +476,28 @@ fn host_msg_name(m: &HostMsg) -> &'static str {
         HostMsg::RebootJoint { .. } => "RebootJoint",
         HostMsg::GetDiagnostics => "GetDiagnostics",
         HostMsg::SetBaseGeometry { .. } => "SetBaseGeometry",
+        HostMsg::ArmLink { .. } => "ArmLink",
     }
+}
+
+/// A link of the arm's gravity model fits one frame, whatever its numbers.
+#[test]
+fn an_arm_link_fits_a_frame() {
+    let link = ArmLink {
+        joint: u8::MAX,
+        origin: [f32::MAX; 3],
+        rpy: [f32::MIN; 3],
+        axis: [f32::NAN; 3],
+        mass: f32::MAX,
+        com: [f32::MIN_POSITIVE; 3],
+    };
+    let msg = HostMsg::ArmLink {
+        index: u8::MAX,
+        count: u8::MAX,
+        link,
+    };
+    let wire = encode(u16::MAX, &msg);
+    assert!(wire.len() <= MAX_WIRE, "{} bytes", wire.len());
 }
 
 #[test]

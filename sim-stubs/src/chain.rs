@@ -130,6 +130,16 @@ impl ServoChain {
         }
     }
 
+    /// A hand's torque `tau` (N·m, about the joint's axis) on arm joint `joint` (index into
+    /// the arm chain), shared by its servos as gravity is, until changed; 0 lets go.
+    pub fn set_hand_torque(&mut self, joint: usize, tau: f64) {
+        for (s, m) in self.servos.iter_mut().zip(&self.mounts) {
+            if m.arm_joint == Some(joint) {
+                s.hand_torque = m.gain * m.share * tau;
+            }
+        }
+    }
+
     /// Corrupt one byte of each of the next `n` status packets.
     pub fn corrupt_next_replies(&mut self, n: u32) {
         self.corrupt_replies += n;

@@ -54,6 +54,16 @@ pub fn by_name(name: &str) -> Option<SimRobot> {
         .map(|cfg| from_description(&cfg))
 }
 
+/// The arm's gravity model a host derives from bundled robot `name`'s description and sends
+/// the firmware ([`ferrobot_profile::arm_model`]); empty for a robot that is not bundled or
+/// has no arm.
+pub fn arm_model(name: &str) -> Vec<ferrobot_protocol::ArmLink> {
+    ferrobot_profile::bundled(name)
+        .ok()
+        .and_then(|cfg| ferrobot_profile::arm_model(&cfg))
+        .unwrap_or_default()
+}
+
 /// The simulated robot a description describes: one servo per joint-table row (and its
 /// mirrored twin), with mechanical stops [`STOP_MARGIN`] beyond the joint limits (the
 /// gripper's at its `[gripper] stops`, starting open), the arm chain's links from the URDF
@@ -125,76 +135,25 @@ pub fn from_description(cfg: &RobotConfig) -> SimRobot {
     }
 }
 
-/// The arm chain's joints with the mass and centre of mass of each joint's child link, and
-/// each arm joint's index in it. Fixed joints between two arm joints must be pure
-/// translations (their offsets are summed). Everything distal to the last arm joint (the
-/// gripper's fingers) rides on its link.
+/// The arm chain's joints with the mass and centre of mass of everything each carries up to
+/// the next (the gravity model the host derives for the firmware,
+/// [`ferrobot_profile::arm_links`]), and each arm joint's index in it.
 fn arm_chain(cfg: &RobotConfig) -> (Vec<ArmJoint>, BTreeMap<String, usize>) {
-    let mut arm = Vec::new();
-    let mut index = BTreeMap::new();
-    let Some(a) = &cfg.arm else {
-        return (arm, index);
-    };
-    let urdf = &cfg.urdf;
-    let mut prev = a.base_frame.clone();
-    for name in &a.joints {
-        let Some(j) = urdf.joints.iter().find(|j| &j.name == name) else {
-            break;
-        };
-        let mut origin = j.origin.xyz.0;
-        let mut parent = j.parent.link.clone();
-        while parent != prev {
-            let Some(f) = urdf.joints.iter().find(|f| f.child.link == parent) else {
-                break;
-            };
-            for (o, d) in origin.iter_mut().zip(f.origin.xyz.0) {
-                *o += d;
-            }
-            parent = f.parent.link.clone();
-        }
-        let (mass, com) = urdf
-            .links
-            .iter()
-            .find(|l| l.name == j.child.link)
-            .map(|l| (l.inertial.mass.value, l.inertial.origin.xyz.0))
-            .unwrap_or((0.0, [0.0; 3]));
-        index.insert(name.clone(), arm.len());
-        arm.push(ArmJoint {
-            rpy: j.origin.rpy.0,
-            origin,
-            axis: j.axis.xyz.0,
-            mass,
-            com,
-        });
-        prev = j.child.link.clone();
-    }
-    if let (Some(last), Some(n)) = (arm.last_mut(), a.joints.last()) {
-        let tip = urdf
-            .joints
-            .iter()
-            .find(|j| &j.name == n)
-            .map(|j| j.child.link.clone());
-        for j in urdf
-            .joints
-            .iter()
-            .filter(|j| Some(&j.parent.link) == tip.as_ref())
-        {
-            if let Some(l) = urdf.links.iter().find(|l| l.name == j.child.link) {
-                let m = l.inertial.mass.value;
-                let total = last.mass + m;
-                if total > 0.0 {
-                    for ((lc, o), c) in last
-                        .com
-                        .iter_mut()
-                        .zip(j.origin.xyz.0)
-                        .zip(l.inertial.origin.xyz.0)
-                    {
-                        *lc = (*lc * last.mass + (o + c) * m) / total;
-                    }
-                    last.mass = total;
-                }
-            }
-        }
-    }
+    let links = ferrobot_profile::arm_links(cfg);
+    let index = links
+        .iter()
+        .enumerate()
+        .map(|(i, l)| (l.joint.clone(), i))
+        .collect();
+    let arm = links
+        .iter()
+        .map(|l| ArmJoint {
+            origin: l.link.origin,
+            rpy: l.link.rpy,
+            axis: l.link.axis,
+            mass: l.link.mass,
+            com: l.link.com,
+        })
+        .collect();
     (arm, index)
 }

@@ -80,6 +80,9 @@ pub struct ServoSim {
     pub torque: f64,
     /// External torque on the output (gravity, contacts), N·m, set by the owner each step.
     pub external_torque: f64,
+    /// A hand's torque on the output, N·m: held until the owner changes it (a person moving
+    /// the arm in teach mode).
+    pub hand_torque: f64,
     /// Mechanical stops (min, max), rad.
     pub stops: Option<(f64, f64)>,
     /// An obstacle: motion below (`true`) or above (`false`) this angle is blocked.
@@ -110,6 +113,7 @@ impl ServoSim {
             current: 0.0,
             torque: 0.0,
             external_torque: 0.0,
+            hand_torque: 0.0,
             stops: None,
             obstacle: None,
             silent: false,
@@ -286,7 +290,8 @@ impl ServoSim {
         let pwm = self.control_pwm(on, dt);
         self.motor(on, pwm);
         let contact = self.contact_torque();
-        let drive = self.torque + self.external_torque + contact - self.phys.viscous * self.omega;
+        let drive = self.torque + self.external_torque + self.hand_torque + contact
+            - self.phys.viscous * self.omega;
         self.integrate(drive, dt);
         self.protect(on, dt);
     }

@@ -252,8 +252,8 @@ pub fn mode_byte(
 ) -> u8 {
     use ferrobot_protocol::JointMode as M;
     match joint_mode {
-        M::Position | M::Off if multi_turn => mode::EXTENDED_POSITION,
-        M::Position | M::Off => mode::POSITION,
+        M::Position | M::Teach | M::Off if multi_turn => mode::EXTENDED_POSITION,
+        M::Position | M::Teach | M::Off => mode::POSITION,
         M::Velocity => mode::VELOCITY,
         M::Current if model.spec().current_control => mode::CURRENT,
         M::Current | M::Pwm => mode::PWM,

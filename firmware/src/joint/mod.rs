@@ -11,6 +11,7 @@ mod limits;
 mod modes;
 mod position;
 mod servo_model;
+mod teach;
 mod trajectory;
 
 pub use limits::*;
@@ -19,6 +20,7 @@ pub use position::{
     SAG_MAX, SAG_MODEL_MIN, SAG_MODEL_SHARE, STALL_LEAD_SHARE, STALL_SPEED, STALL_TIME,
 };
 pub use servo_model::*;
+pub use teach::{TEACH_DEADBAND, TEACH_GAIN, TEACH_MODEL_SHARE};
 pub use trajectory::*;
 
 /// Knots a joint can queue.
@@ -65,8 +67,16 @@ pub struct JointControl {
     /// The gravity load the arm's model gives this joint at its measured pose (N·m, what
     /// gravity exerts), set by the core before every tick; `None` without a trusted model.
     pub gravity: Option<f32>,
+    /// The trusted model's load at the measured pose (N·m), whether or not this joint has
+    /// borne it out yet: teach mode tells a hand from it. `None` without a trusted model.
+    pub model_load: Option<f32>,
     /// Position mode: the goal offset that carries the modelled load, rad (last tick).
     feed_forward: f32,
+    /// Position mode: whether the last tick had a trusted model (its offset and the load
+    /// correction hand the load over when that changes).
+    modelled: bool,
+    /// Teach mode: whether a hand pushed the joint at the last tick.
+    teach_push: bool,
     /// Position mode: since when the joint has been held back and standing still.
     held_since: Option<Instant>,
     /// Position mode: where the joint was last held back, rad.
@@ -115,7 +125,10 @@ impl JointControl {
             brake_way: (0, false),
             fast_ticks: 0,
             gravity: None,
+            model_load: None,
             feed_forward: 0.0,
+            modelled: false,
+            teach_push: false,
             held_since: None,
             stall_q: 0.0,
             effort: None,
@@ -223,6 +236,24 @@ impl JointControl {
         self.anchor
     }
 
+    /// Whether the joint is held still in position mode with nothing to do: measured, its
+    /// queue empty, not braked, not held back from its command (an obstacle, a payload's
+    /// stall) and slower than [`STALL_SPEED`]; its measured effort is then its load.
+    pub fn holding_still(&self, cfg: &ferrobot_protocol::JointConfig) -> bool {
+        let (q, qd) = (self.state.position, self.state.velocity);
+        let lead = position_lead(cfg);
+        self.mode == JointMode::Position
+            && self.measured
+            && self.queue.is_empty()
+            && self.direct.is_none()
+            && !self.braking
+            && self.held_since.is_none()
+            && qd.is_finite()
+            && qd.abs() < STALL_SPEED
+            && self.state.effort.is_finite()
+            && (self.cmd - q).abs() < STALL_LEAD_SHARE * lead
+    }
+
     /// Whether a joint in velocity, current or PWM mode has left its limits and must be
     /// stopped (see [`STOP_SPEED_BASE`]).
     pub fn must_stop(&self, lim: &JointLimits) -> bool {
@@ -272,15 +303,37 @@ impl JointControl {
             self.integral = integral;
             return;
         }
+        // Between position and teach mode the servo's loop goes on as it was: the joint keeps
+        // its load correction, its brake and what it learned of a stall, and holds where it
+        // was told to be (a loaded joint whose correction was dropped would sag).
+        let position_like = |m| matches!(m, JointMode::Position | JointMode::Teach);
+        if position_like(mode) && position_like(self.mode) {
+            self.mode = mode;
+            self.teach_push = false;
+            let cmd = self.cmd;
+            let integral = self.integral;
+            self.hold_at(
+                now,
+                if cmd.is_finite() {
+                    cmd
+                } else {
+                    self.state.position
+                },
+            );
+            self.integral = integral;
+            return;
+        }
         self.mode = mode;
         self.sag = 0.0;
+        self.teach_push = false;
         self.held_since = None;
         // The torque modes' ramp starts from what held the joint: the modelled load (at the
-        // first tick) or, without a trusted model, the effort the joint was last measured
-        // giving. From nothing, a loaded joint of an arm without a model handed from position
-        // mode to current mode dropped faster than its speed limit before the guard could
-        // brake it (a LoCoBot-Lite without its model, pointed stream 10008: 0.234 rad/s
-        // against 0.229).
+        // first tick; a model is trusted only once the arm bears it out) or, without a
+        // trusted model, the effort the joint was last measured giving (a moving or braked
+        // joint's is not its load, so the model's is preferred). From nothing, a loaded joint
+        // of an arm without a model handed from position mode to current mode dropped faster
+        // than its speed limit before the guard could brake it (a LoCoBot-Lite without its
+        // model, pointed stream 10008: 0.234 rad/s against 0.229).
         self.effort = match self.gravity.filter(|g| g.is_finite()) {
             Some(_) => None,
             None => self.measured_effort(),

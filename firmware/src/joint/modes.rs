@@ -20,10 +20,14 @@ impl JointControl {
     pub fn tick(&mut self, now: Instant, dt: f32, cfg: &JointConfig) -> JointOutput {
         self.update_anchor(&cfg.limits);
         let mut clamped = false;
-        self.feed_forward = 0.0;
+        let last_ff = core::mem::take(&mut self.feed_forward);
         let out = match self.mode {
             JointMode::Off => JointOutput::None,
-            JointMode::Position => self.tick_position(now, dt, cfg, &mut clamped),
+            JointMode::Position => self.tick_position(now, dt, cfg, last_ff, &mut clamped),
+            JointMode::Teach => {
+                self.teach(now, dt, cfg);
+                self.tick_position(now, dt, cfg, last_ff, &mut clamped)
+            }
             JointMode::Current | JointMode::Pwm if !self.measured => JointOutput::None,
             JointMode::Current | JointMode::Pwm => self.tick_effort(now, dt, cfg, &mut clamped),
             JointMode::Velocity => self.tick_velocity(cfg, &mut clamped),
@@ -68,8 +72,12 @@ impl JointControl {
         let asked = match (self.mode, self.direct) {
             (JointMode::Pwm, Some(p)) => spec.effort_for_pwm_fraction(p, qd),
             (_, Some(t)) => t,
-            // No direct command: the joint PID tracks the reference (or holds).
-            (_, None) => self.pid(now, dt, cfg),
+            // No direct command: the joint PID tracks the reference (or holds), with the
+            // trusted model's load added.
+            (_, None) => {
+                let load = self.gravity.filter(|g| g.is_finite()).unwrap_or(0.0);
+                self.pid(now, dt, cfg) - load
+            }
         };
         let tau = asked.clamp(-lim.effort, lim.effort);
         let servos = if cfg.twin_id.is_some() { 2.0 } else { 1.0 };

@@ -41,6 +41,7 @@ impl JointControl {
         now: Instant,
         dt: f32,
         cfg: &JointConfig,
+        last_ff: f32,
         clamped: &mut bool,
     ) -> JointOutput {
         let lim = &cfg.limits;
@@ -52,6 +53,12 @@ impl JointControl {
         let model = self.gravity.filter(|t| t.is_finite());
         let ff = model.map_or(0.0, |t| goal_offset_for_effort(cfg, -t));
         self.feed_forward = ff;
+        // The model trusted or no longer: the load correction hands the load over to the
+        // model's offset, or takes it back, so that the goal does not move (dropped at once,
+        // a loaded joint would fall until braked).
+        if model.is_some() != core::mem::replace(&mut self.modelled, model.is_some()) {
+            self.sag += last_ff - ff;
+        }
         let target = if self.stopped {
             self.cmd
         } else {
@@ -63,14 +70,18 @@ impl JointControl {
             self.brake();
             *clamped = true;
         } else {
-            self.release_brake(cfg, model.is_some());
+            // A hand's push is a load the model does not carry.
+            self.release_brake(cfg, model.is_some() && !self.teach_push);
             held = self.step_command(dt, cfg, target, clamped);
         }
         // Settled: the command has reached a target that stays put (no knot left, or
         // the reference held at a limit).
         // Or held back by the joint: a load (or an obstacle) it must push against.
-        let settled =
-            ((self.queue.is_empty() || target != r.q) && (target - self.cmd).abs() < 1e-6) || held;
+        // Not while a hand pushes a joint in teach mode: its load is not the arm's.
+        let settled = (((self.queue.is_empty() || target != r.q)
+            && (target - self.cmd).abs() < 1e-6)
+            || held)
+            && !self.teach_push;
         self.correct_load(now, dt, cfg, settled, (model.is_some(), ff));
         // The goal stays within the limits, or between them and a joint outside them:
         // never further out than the joint is.
@@ -268,10 +279,10 @@ impl JointControl {
             None
         };
         let stalled = self.held_since.is_some_and(|t| now - t >= STALL_TIME);
-        // With a model the correction only mends its error; without one (or stalled),
-        // it carries the whole load.
+        // With a model the correction only mends its error; without one, stalled, or pushed
+        // by a hand in teach mode (a load the model does not know), it carries the whole load.
         let bound = match modelled {
-            true if !stalled => SAG_MODEL_SHARE * ff.abs() + SAG_MODEL_MIN,
+            true if !stalled && !self.teach_push => SAG_MODEL_SHARE * ff.abs() + SAG_MODEL_MIN,
             _ => SAG_MAX,
         };
         if (settled || (outside && !self.stopped)) && self.measured && cfg.position_ki > 0.0 {

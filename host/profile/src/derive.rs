@@ -90,8 +90,6 @@ pub fn firmware_profile(cfg: &RobotConfig) -> RobotProfile {
         loop_period: Duration::from_micros(u64::from(cfg.bus.loop_period_us)),
         watchdog_period: Duration::from_millis(500),
         telemetry_period: Duration::from_millis(10),
-        // The built-in profile's arm model, for the robots that have one.
-        gravity: ferrobot_firmware::config::by_name(&cfg.name).and_then(|p| p.gravity),
     }
 }
 

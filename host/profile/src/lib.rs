@@ -10,6 +10,7 @@
 
 mod checks;
 mod derive;
+mod dynamics;
 
 use std::path::Path;
 
@@ -20,6 +21,7 @@ pub use derive::{
     arm_chain, base_kind, direct_profile, firmware_profile, gripper_driver, joint_row, joint_table,
     nominal_geometry, odometry_geometry,
 };
+pub use dynamics::{arm_links, arm_model, ModelLink};
 
 /// Load a robot from `source` with `overrides` (dotted keys) applied, checked whole: the
 /// description's checks and [`ProfileChecks`].

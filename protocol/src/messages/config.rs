@@ -43,6 +43,44 @@ pub enum JointMode {
     Current,
     /// Raw motor voltage as a fraction of the supply, in [−1, 1].
     Pwm,
+    /// Teach mode: the arm moves under a hand and stays where it is left. The servo's
+    /// position loop holds the joint; the firmware takes what its measured effort gives
+    /// beyond the trusted gravity model's load as a hand's torque, and moves the goal with it
+    /// (within the joint's limits and speed limit). Refused
+    /// ([`RejectReason::Unsupported`](crate::RejectReason::Unsupported)) for a joint outside
+    /// a trusted gravity model ([`crate::HostMsg::ArmLink`]).
+    Teach,
+}
+
+/// One link of an arm's gravity model as it crosses the wire (see [`crate::gravity::Link`]),
+/// with the row of the joint table its joint is. Within [`crate::ranges::arm_link_error`].
+#[derive(Serialize, Deserialize, Schema, Debug, Clone, Copy, PartialEq)]
+pub struct ArmLink {
+    /// Joint-table row of the link's joint.
+    pub joint: u8,
+    /// Joint origin in the parent joint's frame, m.
+    pub origin: [f32; 3],
+    /// Fixed rotation of the joint's frame, roll-pitch-yaw (URDF convention), rad.
+    pub rpy: [f32; 3],
+    /// Joint axis in the joint's frame (unit vector).
+    pub axis: [f32; 3],
+    /// Mass carried by the joint up to the next one, kg.
+    pub mass: f32,
+    /// Centre of that mass in the joint's frame, m.
+    pub com: [f32; 3],
+}
+
+impl ArmLink {
+    /// The link as the gravity model takes it.
+    pub const fn link(&self) -> crate::gravity::Link<f32> {
+        crate::gravity::Link {
+            origin: self.origin,
+            rpy: self.rpy,
+            axis: self.axis,
+            mass: self.mass,
+            com: self.com,
+        }
+    }
 }
 
 /// Joint limits the firmware enforces whatever the host sends.

@@ -115,6 +115,16 @@ pub enum FaultKind {
     /// could brake (it fell while limp, or gravity outpulls its effort limit). The firmware
     /// brings it back; reported once, again only after it has come back inside.
     OutsideLimits,
+    /// A gravity model the host sent is trusted (and replaces the one trusted before): every
+    /// loaded joint of it, held still in position mode, was measured giving the effort the
+    /// model gives it. Position mode then carries the modelled load, current mode adds it,
+    /// and teach mode may be set; joints in teach mode go back to position mode.
+    ModelConfirmed,
+    /// The trusted gravity model is no longer trusted (`joint`: the one whose measured effort
+    /// disagreed with it, held still in position mode; a payload, or a wrong model): it waits
+    /// to be confirmed again. Joints in teach mode go back to position mode; the load
+    /// correction takes over the load.
+    ModelRefuted,
 }
 
 /// A fault report.

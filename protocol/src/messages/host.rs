@@ -5,7 +5,7 @@ use heapless::Vec;
 use postcard_schema::Schema;
 use serde::{Deserialize, Serialize};
 
-use super::config::{JointConfig, JointLimits, JointMode, PidGains};
+use super::config::{ArmLink, JointConfig, JointLimits, JointMode, PidGains};
 use super::JointMask;
 use super::MAX_JOINTS;
 
@@ -195,6 +195,24 @@ pub enum HostMsg {
         /// Effective wheel separation, m.
         track: f32,
     },
+    /// Link `index` of the arm's gravity model of `count` links, base first (the host derives
+    /// it from the robot's description). Links arrive in order, every link within
+    /// [`crate::ranges::arm_link_error`] and naming a distinct arm row of the joint table;
+    /// anything else is refused with
+    /// [`RejectReason::InvalidConfig`](crate::RejectReason::InvalidConfig) (or `NotFinite`,
+    /// `UnknownJoint`) and the links so far dropped. A whole model is a candidate: it replaces
+    /// the trusted one only once the joints' measured efforts bear it out
+    /// ([`crate::FaultKind::ModelConfirmed`]); a trusted model is given up only when they
+    /// contradict it ([`crate::FaultKind::ModelRefuted`]) or the joint table changes. `count`
+    /// 0 drops the candidate.
+    ArmLink {
+        /// The link's place in the chain.
+        index: u8,
+        /// Links in the chain, at most [`crate::gravity::MAX_LINKS`].
+        count: u8,
+        /// The link.
+        link: ArmLink,
+    },
 }
 
 impl HostMsg {
@@ -223,6 +241,7 @@ impl HostMsg {
             HostMsg::RebootJoint { .. } => "RebootJoint",
             HostMsg::GetDiagnostics => "GetDiagnostics",
             HostMsg::SetBaseGeometry { .. } => "SetBaseGeometry",
+            HostMsg::ArmLink { .. } => "ArmLink",
         }
     }
 }

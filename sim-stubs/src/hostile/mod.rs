@@ -13,7 +13,7 @@ mod stream;
 pub mod strict;
 
 pub use checker::*;
-pub use stream::{message, mixed_message, pointed_message, Mix};
+pub use stream::{message, mixed_message, model_burst, pointed_message, Mix};
 
 use crate::SimHost;
 use ferrobot_firmware::config;
@@ -60,8 +60,14 @@ pub fn hostile_stream_of<R: Rng + ?Sized>(
         .chain
         .scale_arm_masses(|_| 1.0 + MASS_TOL * (2.0 * masses.uniform() - 1.0));
     let mut c = Checker::new(&s.sim);
+    // The host sends the arm's gravity model from the description first, as a host does.
+    let honest = crate::robots::arm_model(robot);
+    for (index, &link) in (0u8..).zip(&honest) {
+        let count = honest.len() as u8;
+        s.send(&HostMsg::ArmLink { index, count, link });
+    }
     run(&mut s, &mut c, 1_500_000, "configuration");
-    stream(rng, &mut s, &mut c, messages, mix);
+    stream(rng, &mut s, &mut c, messages, mix, &honest);
     emergency_stop(&mut s, &mut c, robot);
     recover(&mut s, &mut c, robot);
     let t = s.sim.now_us();
@@ -75,11 +81,19 @@ fn stream<R: Rng + ?Sized>(
     c: &mut Checker,
     messages: usize,
     mix: Mix,
+    honest: &[ArmLink],
 ) {
     for k in 0..messages {
-        let msg = mixed_message(rng, &s.sim.fw, mix);
-        let what = format!("after message {k} {msg:?}");
-        s.send(&msg);
+        // Now and then a whole gravity model, honest or not, link after link.
+        let msgs = if rng.random_bool(0.02) {
+            model_burst(rng, &s.sim.fw, honest)
+        } else {
+            vec![mixed_message(rng, &s.sim.fw, mix)]
+        };
+        let what = format!("after message {k} {msgs:?}");
+        for msg in &msgs {
+            s.send(msg);
+        }
         let gap = match rng.random_range(0..20) {
             0 => rng.random_range(100_000..600_000),
             1..=4 => rng.random_range(10_000..50_000),

@@ -79,7 +79,8 @@ fn mode<R: Rng + ?Sized>(rng: &mut R) -> JointMode {
         JointMode::Velocity,
         JointMode::Current,
         JointMode::Pwm,
-    ][rng.random_range(0..6)]
+        JointMode::Teach,
+    ][rng.random_range(0..7)]
 }
 
 /// How many values a message for the joints of mask `m` (of `n` joints) carries: usually one
@@ -377,4 +378,68 @@ pub fn pointed_message<R: Rng + ?Sized>(rng: &mut R, fw: &ferrobot_firmware::Fir
             }
         }
     }
+}
+
+/// A gravity model sent whole, link after link: the robot's own (`honest`), or one made
+/// hostile: masses scaled from nothing to thrice, centres of mass moved or flipped, axes
+/// reversed, rows swapped, hostile numbers, links missing or out of order, or a model cleared.
+/// Values in range are what the firmware's confirmation must catch; the rest it refuses.
+pub fn model_burst<R: Rng + ?Sized>(
+    rng: &mut R,
+    fw: &ferrobot_firmware::Firmware,
+    honest: &[ArmLink],
+) -> std::vec::Vec<HostMsg> {
+    let n = fw.profile().joints.len();
+    if honest.is_empty() || rng.random_bool(0.1) {
+        let link = honest.first().copied().unwrap_or(ArmLink {
+            joint: 0,
+            origin: [0.0; 3],
+            rpy: [0.0; 3],
+            axis: [0.0, 0.0, 1.0],
+            mass: 0.0,
+            com: [0.0; 3],
+        });
+        return vec![HostMsg::ArmLink {
+            index: 0,
+            count: 0,
+            link,
+        }];
+    }
+    let mut links: std::vec::Vec<ArmLink> = honest.to_vec();
+    let all = rng.random_bool(0.3);
+    for l in links.iter_mut() {
+        if !all && rng.random_bool(0.6) {
+            continue;
+        }
+        match rng.random_range(0..8) {
+            0 => l.mass *= rng.random_range(0.0..3.0),
+            1 => l.com = l.com.map(|c| c * rng.random_range(-3.0..3.0)),
+            2 => l.com = [l.com[2], l.com[0], l.com[1]],
+            3 => l.axis = l.axis.map(|a| -a),
+            4 => l.joint = index(rng, n),
+            5 => l.mass = hostile_f32(rng),
+            6 => l.origin[rng.random_range(0..3)] = hostile_f32(rng),
+            _ => l.mass = rng.random_range(0.0..ranges::LINK_MASS_MAX),
+        }
+    }
+    let count = if rng.random_bool(0.9) {
+        links.len() as u8
+    } else {
+        rng.random()
+    };
+    let mut order: std::vec::Vec<usize> = (0..links.len()).collect();
+    if rng.random_bool(0.1) {
+        order.swap(0, rng.random_range(0..links.len()));
+    }
+    if rng.random_bool(0.1) {
+        order.truncate(rng.random_range(0..links.len()));
+    }
+    order
+        .into_iter()
+        .map(|i| HostMsg::ArmLink {
+            index: i as u8,
+            count,
+            link: links[i],
+        })
+        .collect()
 }

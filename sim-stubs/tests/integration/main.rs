@@ -19,3 +19,4 @@ mod mesh;
 mod physics;
 mod placement;
 mod scenes;
+mod teach;

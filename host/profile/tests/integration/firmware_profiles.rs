@@ -1,6 +1,6 @@
 //! The firmware's built-in profiles (what a board runs, compiled in) are the bundled
 //! descriptions': every bundled robot names a board profile, and the profile the description
-//! derives equals the built-in one, joint table, base, gripper, bus and gravity model alike.
+//! derives equals the built-in one, joint table, base, gripper and bus alike.
 //! The one field left out is the telemetry period, a setting of the link rather than of the
 //! robot: a board on a serial line starts at its built-in 20 ms, the simulator links ask 10 ms.
 
@@ -33,7 +33,6 @@ fn every_bundled_robot_runs_the_built_in_profile_its_description_derives() {
             derived.watchdog_period, built_in.watchdog_period,
             "{name}: watchdog"
         );
-        assert_eq!(derived.gravity, built_in.gravity, "{name}: gravity");
     }
 }
 

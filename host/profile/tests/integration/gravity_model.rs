@@ -1,8 +1,7 @@
-//! The firmware's gravity model of the LoCoBot arm (`LOCOBOT_GRAVITY`, a compact table) against
-//! the bundled URDF: every link's inertial data, every fixed joint, the fingers and the AR tag,
+//! The arm's gravity model the host derives for the firmware (`ferrobot_profile::arm_model`)
+//! against the bundled URDFs: every link's inertial data, every fixed joint, the fingers and the AR tag,
 //! walked as the URDF's tree with its own transforms, at 125 poses of the arm.
 
-use ferrobot_firmware::config::LOCOBOT_GRAVITY;
 use ferrobot_protocol::gravity::{torques, G};
 
 type V3 = [f64; 3];
@@ -123,61 +122,69 @@ fn urdf_torques(urdf: &urdf_rs::Robot, arm: &[String], q: &[f64]) -> Vec<f64> {
     tau
 }
 
-#[test]
-fn the_firmware_gravity_model_matches_the_urdf_of_both_locobots() {
-    let links: Vec<_> = LOCOBOT_GRAVITY.links.iter().map(|l| l.to_f64()).collect();
-    for robot in ["locobot", "locobot_lite"] {
-        let cfg = ferrobot_profile::bundled(robot).expect("bundled");
-        let arm: Vec<String> = LOCOBOT_GRAVITY
-            .joints
-            .iter()
-            .map(|&j| cfg.joints[j as usize].name.to_string())
+/// Poses of an `n`-joint arm that load it: 125 of the second, third and fourth joints on a
+/// grid, every other joint varied along.
+fn poses(n: usize) -> Vec<Vec<f64>> {
+    let grid = [-1.5, -0.8, 0.0, 0.7, 1.5];
+    let mut out = Vec::new();
+    for k in 0..125usize {
+        let (a, b, c) = (k / 25, (k / 5) % 5, k % 5);
+        let q = (0..n)
+            .map(|i| match i {
+                1 => grid[a],
+                2 => grid[b],
+                3 => grid[c],
+                _ => 1.5 * (0.37 * k as f64 + 0.61 * i as f64).sin(),
+            })
             .collect();
-        assert_eq!(arm, ["joint_1", "joint_2", "joint_3", "joint_4", "joint_5"]);
-        // The built-in firmware profile of this robot carries the model.
-        let profile = ferrobot_firmware::config::by_name(robot).expect("profile");
-        assert_eq!(profile.gravity, Some(LOCOBOT_GRAVITY));
-        assert_eq!(
-            ferrobot_profile::firmware_profile(&cfg).gravity,
-            Some(LOCOBOT_GRAVITY)
-        );
-        let mut worst: f64 = 0.0;
-        let mut largest: f64 = 0.0;
-        let mut poses = 0;
-        // 5 × 5 × 5 poses of the three pitch joints, with the yaw and the roll varied along.
-        let grid = [-1.5, -0.8, 0.0, 0.7, 1.5];
-        for (a, &q2) in grid.iter().enumerate() {
-            for (b, &q3) in grid.iter().enumerate() {
-                for (c, &q4) in grid.iter().enumerate() {
-                    let k = (a * 25 + b * 5 + c) as f64;
-                    let q = [
-                        1.5 * (0.37 * k).sin(),
-                        q2,
-                        q3,
-                        q4,
-                        1.5 * (0.61 * k + 0.3).cos(),
-                    ];
-                    let want = urdf_torques(&cfg.urdf, &arm, &q);
-                    let mut got = [0.0; 5];
-                    assert_eq!(torques(&links, &q, G as f64, &mut got), 5);
-                    for (w, g) in want.iter().zip(&got) {
-                        worst = worst.max((w - g).abs());
-                        largest = largest.max(w.abs());
-                    }
-                    // In f32 too, as the firmware runs it, within the same tolerance.
-                    let mut got32 = [0.0f32; 5];
-                    let q32 = q.map(|v| v as f32);
-                    torques(&LOCOBOT_GRAVITY.links, &q32, G, &mut got32);
-                    for (w, g) in want.iter().zip(&got32) {
-                        worst = worst.max((w - *g as f64).abs());
-                    }
-                    poses += 1;
-                }
+        out.push(q);
+    }
+    out
+}
+
+/// The gravity model the host derives from each bundled arm's URDF (and sends the firmware,
+/// in f32) gives the URDF tree's own gravity torques at 125 poses.
+#[test]
+fn the_arm_model_matches_the_urdf_of_every_bundled_arm() {
+    for robot in ["locobot", "locobot_lite", "sawyer"] {
+        let cfg = ferrobot_profile::bundled(robot).expect("bundled");
+        let model = ferrobot_profile::arm_links(&cfg);
+        let arm: Vec<String> = model.iter().map(|l| l.joint.clone()).collect();
+        assert_eq!(arm, cfg.arm.as_ref().expect("an arm").joints, "{robot}");
+        let links: Vec<_> = model.iter().map(|l| l.link).collect();
+        let wire = ferrobot_profile::arm_model(&cfg).expect("a model");
+        let links32: Vec<_> = wire.iter().map(|l| l.link()).collect();
+        for (w, name) in wire.iter().zip(&arm) {
+            assert_eq!(cfg.joints[w.joint as usize].name.as_str(), name, "{robot}");
+            assert_eq!(
+                ferrobot_protocol::ranges::arm_link_error(w),
+                None,
+                "{robot}"
+            );
+        }
+        let n = links.len();
+        let (mut worst, mut worst32, mut largest) = (0.0f64, 0.0f64, 0.0f64);
+        for q in poses(n) {
+            let want = urdf_torques(&cfg.urdf, &arm, &q);
+            let mut got = vec![0.0; n];
+            assert_eq!(torques(&links, &q, G as f64, &mut got), n);
+            // In f32 too, as the firmware runs it.
+            let mut got32 = vec![0.0f32; n];
+            let q32: Vec<f32> = q.iter().map(|&v| v as f32).collect();
+            torques(&links32, &q32, G, &mut got32);
+            for ((w, g), g32) in want.iter().zip(&got).zip(&got32) {
+                worst = worst.max((w - g).abs());
+                worst32 = worst32.max((w - *g32 as f64).abs());
+                largest = largest.max(w.abs());
             }
         }
-        assert_eq!(poses, 125);
-        // The poses load the arm (about 1 N·m on the shoulder at full reach).
+        eprintln!("{robot}: largest load {largest:.3} N·m, worst error {worst:.2e} (f64), {worst32:.2e} (f32)");
+        // The poses load the arm (about 1 N·m on the LoCoBot's shoulder at full reach).
         assert!(largest > 0.9, "{robot}: largest load {largest} N·m");
-        assert!(worst < 1e-4, "{robot}: worst error {worst} N·m");
+        assert!(worst < 1e-9, "{robot}: worst error {worst} N·m");
+        assert!(
+            worst32 < 1e-3 * largest.max(1.0),
+            "{robot}: worst f32 error {worst32} N·m"
+        );
     }
 }

@@ -7,16 +7,41 @@ use ferrobot_sim::SimHost;
 /// Arm joints of the LoCoBot profile (joint_1 … joint_5).
 pub const ARM: u16 = 0b1_1111;
 
-/// A session on `robot`; the session's keepalive feeds the watchdog, as a host's I/O thread
-/// would.
+/// A session on `robot` with the arm's gravity model sent, as a host sends it; the session's
+/// keepalive feeds the watchdog, as a host's I/O thread would.
 pub fn session(robot: &str) -> SimHost {
-    let mut s = SimHost::start(robot, 7).expect("simulator starts");
+    session_with(robot, 7, 1.0)
+}
+
+/// [`session`] with plant seed `seed` and the arm's masses `scale` times the description's.
+pub fn session_with(robot: &str, seed: u64, scale: f64) -> SimHost {
+    start(robot, seed, scale, true)
+}
+
+/// [`session`] with no gravity model sent.
+pub fn session_without_model(robot: &str) -> SimHost {
+    start(robot, 7, 1.0, false)
+}
+
+fn start(robot: &str, seed: u64, scale: f64, with_model: bool) -> SimHost {
+    let mut s = SimHost::start(robot, seed).expect("simulator starts");
+    s.sim.hw.chain.scale_arm_masses(|_| scale);
     s.command(&HostMsg::SetTelemetry { period_ms: 10 })
         .expect("telemetry at 100 Hz");
+    let mut model = ferrobot_sim::robots::arm_model(robot);
+    if !with_model {
+        model.clear();
+    }
+    for (index, &link) in (0u8..).zip(&model) {
+        let count = model.len() as u8;
+        s.command(&HostMsg::ArmLink { index, count, link })
+            .expect("the arm's gravity model");
+    }
     // Let the servos be configured and measured.
     s.wait_telemetry(1_000_000, |t| t.faults & fault_flags::CONFIGURING == 0)
         .expect("servos configured");
-    s.run_for(100_000);
+    // The arm, held still, bears the model out (ModelConfirmed) once it carries a load.
+    s.run_for(400_000);
     s
 }
 
