@@ -43,11 +43,25 @@ pub fn build_board(
     features: &[&str],
     target_dir: Option<&str>,
 ) -> Result<PathBuf, String> {
+    build_board_with(board, features, target_dir, &[])
+}
+
+/// [`build_board`] with environment variables `env` set for the build (read by the board's
+/// code with `option_env!`).
+pub fn build_board_with(
+    board: &str,
+    features: &[&str],
+    target_dir: Option<&str>,
+    env: &[(&str, String)],
+) -> Result<PathBuf, String> {
     let dir = repo().join("boards").join(board);
     let mut cmd = Command::new("cargo");
     cmd.current_dir(&dir)
         .args(["build", "--release", "--quiet"])
         .env_clear();
+    for (k, v) in env {
+        cmd.env(k, v);
+    }
     if !features.is_empty() {
         cmd.arg("--features").arg(features.join(","));
     }

@@ -11,7 +11,9 @@
 use ferrobot_firmware::time::{Duration, Instant};
 use ferrobot_firmware::{config, Firmware, Link};
 use ferrobot_protocol::dxl::{self, inst, PacketDecoder};
-use ferrobot_protocol::kobuki;
+use ferrobot_protocol::{
+    encode_frame, kobuki, ArmLink, HostMsg, MAX_WIRE, PROTOCOL_VERSION, SCHEMA_HASH,
+};
 
 const TIMER0: usize = 0x4000_0000;
 
@@ -92,10 +94,65 @@ fn kobuki_feedback(k: u32) -> ([u8; 24], usize) {
     (b, n)
 }
 
+/// The arm's gravity model the bench's build was given (`FERROBOT_TICK_BENCH_MODEL`: per
+/// link `joint,origin(3),rpy(3),axis(3),mass,com(3)`, links separated by `;`, as the host
+/// derives it from the LoCoBot's description); none when it was not given.
+fn model() -> heapless::Vec<ArmLink, 8> {
+    let mut links = heapless::Vec::new();
+    for l in option_env!("FERROBOT_TICK_BENCH_MODEL").unwrap_or("").split(';') {
+        let mut v = [0.0f32; 14];
+        let mut n = 0;
+        for (x, f) in v.iter_mut().zip(l.split(',')) {
+            *x = f.trim().parse().unwrap_or(f32::NAN);
+            n += 1;
+        }
+        let t = |i: usize| [v[i], v[i + 1], v[i + 2]];
+        if n == 14 {
+            let _ = links.push(ArmLink {
+                joint: v[0] as u8,
+                origin: t(1),
+                rpy: t(4),
+                axis: t(7),
+                mass: v[10],
+                com: t(11),
+            });
+        }
+    }
+    links
+}
+
+/// One host message, as a frame, to the firmware (its answer drained).
+fn host(fw: &mut Firmware, now: Instant, seq: u16, m: &HostMsg) {
+    let mut buf = [0u8; MAX_WIRE];
+    if let Ok(n) = encode_frame(seq, m, &mut buf) {
+        fw.on_host_bytes(now, &buf[..n]);
+    }
+    let n = fw.pending(Link::Host).len();
+    fw.consume(Link::Host, n);
+}
+
+/// A session with the firmware, as a host opens it, and the arm's gravity model sent.
+fn send_model(fw: &mut Firmware, now: Instant) {
+    let model = model();
+    let mut msgs: heapless::Vec<HostMsg, 9> = heapless::Vec::new();
+    let _ = msgs.push(HostMsg::Hello {
+        protocol_version: PROTOCOL_VERSION,
+        schema_hash: SCHEMA_HASH,
+    });
+    for (index, &link) in (0u8..).zip(model.iter()) {
+        let count = model.len() as u8;
+        let _ = msgs.push(HostMsg::ArmLink { index, count, link });
+    }
+    for (seq, m) in (1u16..).zip(msgs.iter()) {
+        host(fw, now, seq, m);
+    }
+}
+
 /// Run the measurement and report it on UART0.
 pub fn run() -> ! {
     start_clock();
     let mut fw = Firmware::new(config::locobot(), "mps2-an386", Instant::ZERO);
+    send_model(&mut fw, Instant::ZERO);
     let mut chain = FakeChain {
         decoder: PacketDecoder::new(),
         out: heapless::Vec::new(),
@@ -136,8 +193,12 @@ pub fn run() -> ! {
                 spent = spent.wrapping_add(clocks().wrapping_sub(t));
             }
         }
-        let t1 = clocks();
         let ms = now.as_micros() / 1000;
+        // The host's heartbeat keeps the watchdog fed (not timed: the tick is).
+        if ms.is_multiple_of(100) {
+            host(&mut fw, now, 100 + ms as u16, &HostMsg::Heartbeat);
+        }
+        let t1 = clocks();
         if ms.is_multiple_of(20) {
             let (b, n) = kobuki_feedback(ms as u32);
             fw.on_base_bytes(now + reply, &b[..n]);

@@ -195,6 +195,9 @@ impl Robot {
             }),
         };
         robot.check_joint_table()?;
+        if robot.inner.uses.arm {
+            robot.send_arm_model()?;
+        }
         let geometry = robot
             .inner
             .cfg
@@ -206,6 +209,23 @@ impl Robot {
             robot.base()?.set_odometry_geometry(g)?;
         }
         Ok(robot)
+    }
+
+    /// Send the firmware the arm's gravity model from the description, link by link (see
+    /// [`HostMsg::ArmLink`]); it trusts it once the arm bears it out.
+    fn send_arm_model(&self) -> Result<()> {
+        let Some(links) = ferrobot_profile::arm_model(self.cfg()) else {
+            return Ok(());
+        };
+        let count = links.len() as u8;
+        let mut io = self.lock_hub();
+        for (index, link) in (0u8..).zip(links) {
+            io.link.command(
+                &HostMsg::ArmLink { index, count, link },
+                "the arm's gravity model",
+            )?;
+        }
+        Ok(())
     }
 
     /// Compare the firmware's robot, base and joint table with the configuration and push

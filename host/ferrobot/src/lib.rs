@@ -24,6 +24,7 @@ mod arm_kinematics;
 mod arm_parts;
 pub mod arm_plan;
 mod arm_scene;
+pub mod arm_teach;
 pub mod backend;
 pub mod base;
 mod base_goals;

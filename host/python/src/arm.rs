@@ -224,6 +224,14 @@ impl Arm {
         Ok(true)
     }
 
+    /// Teach mode on or off: on, the arm moves under a hand and stays where it is left (its
+    /// limits held as ever); off, it holds where it is. Waits up to two seconds for the
+    /// firmware to trust the arm's gravity model.
+    fn set_teach_mode(&self, py: Python<'_>, on: bool) -> PyResult<bool> {
+        py.detach(|| self.arm.set_teach_mode(on)).py()?;
+        Ok(true)
+    }
+
     /// Joint angles now, rad, shape `(dof,)`.
     fn get_joint_angles<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         let q = py.detach(|| self.arm.get_joint_angles()).py()?;

@@ -118,6 +118,7 @@ fn command(robot: &RobotInfo, t: Duration, msg: &HostMsg) -> Option<(Topic, Vec<
                 JointMode::Velocity => "velocity",
                 JointMode::Current => "current",
                 JointMode::Pwm => "pwm",
+                JointMode::Teach => "teach",
                 _ => "other",
             };
             log(level::INFO, &format!("mode {mode}: {names}"))

@@ -21,6 +21,10 @@ pub struct Args {
     /// Leave the camera out.
     #[arg(long)]
     pub no_camera: bool,
+    /// Teach mode while recording: a hand moves the arm and it stays where it is left (see
+    /// `Arm::set_teach_mode`); the arm holds where it is once the recording ends.
+    #[arg(long)]
+    pub teach: bool,
     /// The simulator paced at real time (as a robot is), rather than as fast as it runs.
     #[arg(long)]
     pub realtime: bool,
@@ -65,6 +69,9 @@ pub fn run(a: &Args) -> ferrobot::Result<()> {
         ..RecordOptions::default()
     };
     let recorder = Recorder::start(&robot, &a.out, opts)?;
+    if a.teach {
+        robot.arm()?.set_teach_mode(true)?;
+    }
     let step = if progress > 0.0 { progress } else { 0.1 };
     let end = robot.time() + seconds;
     while robot.time() < end {
@@ -72,6 +79,9 @@ pub fn run(a: &Args) -> ferrobot::Result<()> {
         if progress > 0.0 {
             println!("{:.3}", robot.time());
         }
+    }
+    if a.teach {
+        robot.arm()?.set_teach_mode(false)?;
     }
     let stats = recorder.finish()?;
     print_summary(a, seconds, &stats)

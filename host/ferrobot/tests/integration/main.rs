@@ -14,4 +14,5 @@ mod realsense;
 mod slam;
 mod stow;
 mod subscriptions;
+mod teach;
 mod world;

@@ -202,6 +202,14 @@ def test_names_are_refused_everywhere(bot):
     _robot_still_works(bot)
 
 
+def test_teach_mode_takes_only_a_boolean(bot):
+    for v in [None, 1, 0.0, "yes", [True], float("nan")]:
+        assert _refused(bot.arm.set_teach_mode, v) is not None, v
+    assert bot.arm.set_teach_mode(True)
+    assert bot.arm.set_teach_mode(False)
+    _robot_still_works(bot)
+
+
 def test_constructor_dictionaries_are_checked():
     for bad in [{"base_controller": 3}, {"nonsense": 1}, {1: 2}]:
         assert _refused(lambda v: Robot("locobot", base_config=v), bad) is not None
