@@ -74,6 +74,11 @@ pub(crate) struct Dynamics {
 }
 
 impl Dynamics {
+    /// Whether a model is trusted.
+    pub(crate) fn trusted(&self) -> bool {
+        self.trusted.is_some()
+    }
+
     /// Whether the trusted model covers joint-table row `j`.
     pub(crate) fn trusted_for(&self, j: usize) -> bool {
         self.trusted

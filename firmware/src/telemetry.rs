@@ -107,6 +107,9 @@ impl Firmware {
         if self.overrun_since_telemetry {
             f |= fault_flags::OVERRUN;
         }
+        if self.dynamics.trusted() {
+            f |= fault_flags::ARM_MODEL;
+        }
         f
     }
 

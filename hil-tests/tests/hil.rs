@@ -651,10 +651,11 @@ fn the_diagnosis_holds_the_firmware_log_the_counters_and_the_last_frames() {
         .set_joint_positions(&[0.1, 0.0, 0.0, 0.0, 0.0])
         .expect("moves");
     let d = hil.diagnosis();
+    let hello = format!("hello: protocol {PROTOCOL_VERSION}, schema 0x");
     for want in [
         "ferrobot firmware on mps2-an386",
         "virtual clock: first step",
-        "hello: protocol 2, schema 0x",
+        &hello,
         "status packets",
         "servo 1: angle",
         "last on host, to the board:",

@@ -82,7 +82,14 @@ impl JointControl {
             && (target - self.cmd).abs() < 1e-6)
             || held)
             && !self.teach_push;
-        self.correct_load(now, dt, cfg, settled, (model.is_some(), ff));
+        // Where the joint has not yet shown the model's whole load, the model carries only
+        // what it has shown (`gravity` is cut short of `model_load`): the correction carries
+        // the rest, as without a model.
+        let cut = match (model, self.model_load) {
+            (Some(g), Some(m)) => (g - m).abs() > 1e-6,
+            _ => false,
+        };
+        self.correct_load(now, dt, cfg, settled, (model.is_some() && !cut, ff));
         // The goal stays within the limits, or between them and a joint outside them:
         // never further out than the joint is.
         // The model's offset may carry the goal beyond that by itself: the goal

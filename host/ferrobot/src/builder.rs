@@ -19,6 +19,10 @@ use crate::goals::Goals;
 use crate::hub::Hub;
 use crate::robot::{Inner, Robot, Use};
 
+/// How long connecting waits, of robot time, for the firmware to trust the arm's gravity
+/// model (it needs the arm held still and settled for a fifth of a second).
+pub const MODEL_WAIT: std::time::Duration = std::time::Duration::from_secs(1);
+
 /// Builds a [`Robot`]: which robot, which components, which backend, which overrides.
 pub struct RobotBuilder {
     pub(crate) source: ConfigSource,
@@ -212,7 +216,10 @@ impl Robot {
     }
 
     /// Send the firmware the arm's gravity model from the description, link by link (see
-    /// [`HostMsg::ArmLink`]); it trusts it once the arm bears it out.
+    /// [`HostMsg::ArmLink`]); it trusts it once the arm, held still, bears it out. Waits up
+    /// to [`MODEL_WAIT`] of robot time for that, so that the first motion already has its
+    /// gravity compensation; an arm at rest unloaded, or one that contradicts the model
+    /// (a payload, wrong masses), goes on without it.
     fn send_arm_model(&self) -> Result<()> {
         let Some(links) = ferrobot_profile::arm_model(self.cfg()) else {
             return Ok(());
@@ -224,6 +231,12 @@ impl Robot {
                 &HostMsg::ArmLink { index, count, link },
                 "the arm's gravity model",
             )?;
+        }
+        let start = io.link.now();
+        while io.link.telemetry()?.faults & ferrobot_protocol::fault_flags::ARM_MODEL == 0
+            && io.link.now().saturating_sub(start) < MODEL_WAIT
+        {
+            io.link.wait(std::time::Duration::from_millis(10));
         }
         Ok(())
     }

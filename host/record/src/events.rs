@@ -136,7 +136,7 @@ fn command(robot: &RobotInfo, t: Duration, msg: &HostMsg) -> Option<(Topic, Vec<
 
 /// The firmware's fault flags as a log line, when they change from `old` to `new`.
 pub fn fault_flags(old: u16, new: u16) -> String {
-    const NAMES: [(u16, &str); 8] = [
+    const NAMES: [(u16, &str); 9] = [
         (fault_flags::ESTOP, "emergency stop"),
         (fault_flags::WATCHDOG, "watchdog"),
         (fault_flags::SERVO_LOST, "servo lost"),
@@ -145,6 +145,7 @@ pub fn fault_flags(old: u16, new: u16) -> String {
         (fault_flags::BASE_SAFETY, "base safety sensor"),
         (fault_flags::OVERRUN, "loop overrun"),
         (fault_flags::CONFIGURING, "configuring"),
+        (fault_flags::ARM_MODEL, "arm gravity model trusted"),
     ];
     let list = |bits: u16| -> String {
         let v: Vec<&str> = NAMES

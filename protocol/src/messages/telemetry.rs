@@ -126,6 +126,9 @@ pub mod fault_flags {
     pub const OVERRUN: u16 = 1 << 6;
     /// Servos are still being configured.
     pub const CONFIGURING: u16 = 1 << 7;
+    /// Not a fault: the firmware trusts the arm's gravity model (the host sent it and the
+    /// arm, held still, has borne it out).
+    pub const ARM_MODEL: u16 = 1 << 8;
 }
 
 /// Servo-loop timing.

@@ -381,3 +381,24 @@ fn the_normal_table_holds_the_standard_normals_quantiles() {
     assert!((var.sqrt() - 0.99984).abs() < 1e-4, "{}", var.sqrt());
     assert!(t.windows(2).all(|w| w[0] < w[1]));
 }
+
+/// Frame instants are a grid of the camera's period from t = 0: the first frame is the first
+/// instant at or after the caller's time (never one already past, whatever time the robot took
+/// to connect); later ones may be taken up to half a period late, none is skipped.
+#[test]
+fn frames_lie_on_the_cameras_grid_from_the_first() {
+    use ferrobot_sim::camera::FrameClock;
+    let period = 33_333;
+    for start in [0u64, 1, 99_999, 100_000, 103_000, 116_000, 133_333] {
+        let mut clock = FrameClock::new(30.0).unwrap();
+        let first = clock.next(start);
+        assert!(
+            first >= start && first - start < period && first.is_multiple_of(period),
+            "start {start} µs: first frame at {first} µs"
+        );
+        // A caller 10 ms late for the next instant still gets it; the one after is next.
+        let second = clock.next(first + period + 10_000);
+        assert_eq!(second, first + period, "start {start} µs");
+        assert_eq!(clock.next(second), second + period, "start {start} µs");
+    }
+}
