@@ -434,11 +434,9 @@ impl FrameClock {
         1e6 / self.period_us as f64
     }
 
-    /// The instant (µs) of the first frame not taken yet at or after `now_us`, or, once a
-    /// frame has been taken, up to half a period before it (a caller that overshot an instant
-    /// while it let time pass still gets that frame, late, instead of skipping it); it is
-    /// taken. The first frame is never late: its instant is on the grid at or after `now_us`,
-    /// so frame times are whole periods apart from the first whatever `now_us` was.
+    /// The instant (µs) of the first frame not taken yet at or after `now_us`, or up to half
+    /// a period before it (a caller that overshot an instant while it let time pass still
+    /// gets that frame, late, instead of skipping it); it is taken.
     pub fn next(&mut self, now_us: u64) -> u64 {
         let index = self.next_index(now_us);
         self.last = Some(index);
@@ -451,12 +449,12 @@ impl FrameClock {
     }
 
     fn next_index(&self, now_us: u64) -> u64 {
+        let index = now_us
+            .saturating_sub(self.period_us / 2)
+            .div_ceil(self.period_us);
         match self.last {
-            Some(last) => now_us
-                .saturating_sub(self.period_us / 2)
-                .div_ceil(self.period_us)
-                .max(last + 1),
-            None => now_us.div_ceil(self.period_us),
+            Some(last) => index.max(last + 1),
+            None => index,
         }
     }
 }

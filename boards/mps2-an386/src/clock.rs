@@ -17,7 +17,7 @@ use embassy_time_queue_utils::Queue;
 use ferrobot_protocol::clock::{Advance, Idle, PLANT_LINES};
 use ferrobot_protocol::{encode_frame, Frame, FrameDecoder, MAX_WIRE};
 
-use crate::uart::{Uart, ACTIVITY};
+use crate::uart::{ClockUart, Uart, ACTIVITY};
 
 struct VirtualClock {
     now: Mutex<Cell<u64>>,
@@ -62,7 +62,7 @@ static DECODER: Mutex<RefCell<FrameDecoder>> = Mutex::new(RefCell::new(FrameDeco
 static RUNNING: Mutex<Cell<bool>> = Mutex::new(Cell::new(false));
 
 /// Take what arrived on the clock link: each `Advance` moves time forward.
-pub fn on_clock_link(link: &Uart) {
+pub fn on_clock_link(link: &ClockUart) {
     let mut buf = [0u8; 64];
     loop {
         let n = link.read(&mut buf);

@@ -33,7 +33,7 @@ use ferrobot_firmware::config;
 use ferrobot_firmware::time;
 use ferrobot_firmware::{Firmware, Link};
 
-use uart::{Uart, ACTIVITY};
+use uart::{ClockUart, Uart, ACTIVITY};
 
 /// Interrupts of the AN386 image this firmware uses (AN385 numbering).
 #[derive(Clone, Copy, PartialEq, Eq)]
@@ -107,10 +107,11 @@ pub static UART0: Uart = Uart::new(0x4000_4000);
 pub static UART1: Uart = Uart::new(0x4000_5000);
 /// Base.
 pub static UART2: Uart = Uart::new(0x4000_6000);
-/// defmt log (polled).
-pub static UART3: Uart = Uart::new(0x4000_7000);
-/// The virtual-time link to the conductor.
-pub static UART4: Uart = Uart::new(0x4000_9000);
+/// defmt log: written by polling, read never (rings of one byte, unused).
+pub static UART3: Uart<1, 1> = Uart::new(0x4000_7000);
+/// The virtual-time link to the conductor: `Advance` frames in (a few dozen bytes each, taken
+/// at every receive interrupt), idle reports out by polling.
+pub static UART4: ClockUart = Uart::new(0x4000_9000);
 
 static EXECUTOR_IRQ: InterruptExecutor = InterruptExecutor::new();
 
@@ -140,9 +141,11 @@ unsafe extern "C" fn EXECUTOR() {
 #[entry]
 fn main() -> ! {
     let mut cp = cortex_m::Peripherals::take().unwrap_or_else(|| panic!("peripherals taken twice"));
-    for u in [&UART0, &UART1, &UART2, &UART3, &UART4] {
-        u.init(!core::ptr::eq(u, &UART3));
+    for u in [&UART0, &UART1, &UART2] {
+        u.init(true);
     }
+    UART3.init(false);
+    UART4.init(true);
     if cfg!(feature = "tick-bench") {
         #[cfg(feature = "tick-bench")]
         tick_bench::run();

@@ -6,6 +6,9 @@ use critical_section::Mutex;
 use embassy_sync::waitqueue::AtomicWaker;
 use heapless::Deque;
 
+/// The virtual-time link's UART ([`crate::UART4`]).
+pub type ClockUart = Uart<512, 1>;
+
 /// Woken on every received byte and whenever transmit space frees up.
 pub static ACTIVITY: AtomicWaker = AtomicWaker::new();
 
@@ -24,9 +27,9 @@ const CTRL_RX_INT: u32 = 1 << 3;
 const INT_TX: u32 = 1 << 0;
 const INT_RX: u32 = 1 << 1;
 
-struct Rings {
-    rx: Deque<u8, 1024>,
-    tx: Deque<u8, 2048>,
+struct Rings<const RX: usize, const TX: usize> {
+    rx: Deque<u8, RX>,
+    tx: Deque<u8, TX>,
     rx_dropped: u32,
     /// Bytes taken out of the receive ring since start, wrapping.
     consumed: u32,
@@ -34,13 +37,15 @@ struct Rings {
     sent: u32,
 }
 
-/// One CMSDK UART.
-pub struct Uart {
+/// One CMSDK UART with receive and transmit rings of `RX` and `TX` bytes: by default those of
+/// a data line (host link, servo bus, base), which at 1 Mbit/s hold 10 and 20 ms of traffic.
+/// A line written by polling only ([`Uart::write_blocking`]) needs no transmit ring.
+pub struct Uart<const RX: usize = 1024, const TX: usize = 2048> {
     base: usize,
-    rings: Mutex<RefCell<Rings>>,
+    rings: Mutex<RefCell<Rings<RX, TX>>>,
 }
 
-impl Uart {
+impl<const RX: usize, const TX: usize> Uart<RX, TX> {
     /// The UART at `base`.
     pub const fn new(base: usize) -> Self {
         Self {
@@ -103,7 +108,7 @@ impl Uart {
         ACTIVITY.wake();
     }
 
-    fn pump(&self, r: &mut Rings) {
+    fn pump(&self, r: &mut Rings<RX, TX>) {
         while self.read_reg(STATE) & STATE_TX_FULL == 0 {
             match r.tx.pop_front() {
                 Some(b) => {

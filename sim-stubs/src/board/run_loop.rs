@@ -2,6 +2,7 @@
 //! board wrote to the plants' ports, watch the ports and hand what arrives to the conductor,
 //! the plants or the other end of the host link.
 
+use std::collections::VecDeque;
 use std::os::fd::{AsRawFd, RawFd};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Mutex, MutexGuard};
@@ -14,6 +15,12 @@ use super::ports::{host_present, line_baud, pty, read_now, write_some, Ports};
 use super::wiring::{damage, garble};
 use super::{BoardOptions, Inner, SLACK, TICK};
 use crate::conductor::LINES;
+
+/// Bytes the host link holds for an end that does not read them yet (a host or a board the
+/// machine is slow to run); beyond it they are dropped and counted. A relay that dropped what
+/// did not fit in a pseudo-terminal's few kilobytes at once lost an acknowledgement whenever
+/// the host's thread waited for a busy core.
+const PENDING_MAX: usize = 1 << 20;
 
 /// Index of `link` among the plant lines.
 fn idx(link: Link) -> usize {
@@ -31,6 +38,7 @@ pub(super) fn run(p: Ports, inner: &Mutex<Inner>, quit: &AtomicBool, opts: Board
         host_connected: false,
         last_host_check: Instant::now() - TICK,
         rng: 0x9E37_79B9_7F4A_7C15,
+        pending: [VecDeque::new(), VecDeque::new()],
     };
     while !quit.load(Ordering::Relaxed) {
         r.rewire();
@@ -43,14 +51,24 @@ pub(super) fn run(p: Ports, inner: &Mutex<Inner>, quit: &AtomicBool, opts: Board
             r.last_host_check = Instant::now();
             r.host_connected = host_present(&r.p.host.master);
             r.lock().host_connected = r.host_connected;
+            if !r.host_connected {
+                // What a host that left did not read is not the next one's.
+                r.pending[0].clear();
+            }
         }
+        r.flush();
         // Look at the ports.
         let watch = r.watched();
         let mut fds: Vec<PollFd> = watch
             .iter()
             .map(|(_, fd)| PollFd::new(*fd, PollFlags::POLLIN))
             .collect();
-        let ms = wait.as_micros().div_ceil(1000).min(TICK.as_millis()) as i32;
+        let most = if r.pending.iter().any(|q| !q.is_empty()) {
+            1
+        } else {
+            TICK.as_millis()
+        };
+        let ms = wait.as_micros().div_ceil(1000).min(most) as i32;
         if let Err(e) = poll(&mut fds, ms) {
             if e != nix::errno::Errno::EINTR {
                 return format!("poll failed: {e}");
@@ -80,6 +98,8 @@ struct Runner<'a> {
     last_host_check: Instant,
     /// The damaged lines' generator.
     rng: u64,
+    /// Host-link bytes not yet written: to the host, to the board.
+    pending: [VecDeque<u8>; 2],
 }
 
 impl<'a> Runner<'a> {
@@ -239,8 +259,7 @@ impl<'a> Runner<'a> {
                 i.host_bytes[1] += n as u64;
                 i.record_host(false, bytes);
                 if self.host_connected {
-                    let sent = write_some(&mut self.p.host.master, bytes);
-                    i.host_dropped += (n - sent) as u64;
+                    i.host_dropped += queue(&mut self.pending[0], bytes);
                 } else {
                     i.host_dropped += n as u64;
                 }
@@ -248,8 +267,32 @@ impl<'a> Runner<'a> {
             _ => {
                 i.host_bytes[0] += n as u64;
                 i.record_host(true, bytes);
-                write_some(&mut self.p.board_host.master, bytes);
+                i.host_dropped += queue(&mut self.pending[1], bytes);
+            }
+        }
+        drop(i);
+        self.flush();
+    }
+
+    /// Write what the host link holds for each end, as far as it reads.
+    fn flush(&mut self) {
+        let ends = [&mut self.p.host.master, &mut self.p.board_host.master];
+        for (q, port) in self.pending.iter_mut().zip(ends) {
+            while !q.is_empty() {
+                let (front, _) = q.as_slices();
+                let (len, sent) = (front.len(), write_some(port, front));
+                q.drain(..sent);
+                if sent < len {
+                    break;
+                }
             }
         }
     }
+}
+
+/// Append `bytes` to `q` as far as [`PENDING_MAX`] allows; how many were dropped.
+fn queue(q: &mut VecDeque<u8>, bytes: &[u8]) -> u64 {
+    let room = PENDING_MAX.saturating_sub(q.len()).min(bytes.len());
+    q.extend(&bytes[..room]);
+    (bytes.len() - room) as u64
 }

@@ -382,18 +382,19 @@ fn the_normal_table_holds_the_standard_normals_quantiles() {
     assert!(t.windows(2).all(|w| w[0] < w[1]));
 }
 
-/// Frame instants are a grid of the camera's period from t = 0: the first frame is the first
-/// instant at or after the caller's time (never one already past, whatever time the robot took
-/// to connect); later ones may be taken up to half a period late, none is skipped.
+/// Frame instants are a grid of the camera's period from t = 0. A frame is taken at the first
+/// instant not yet taken at or after the caller's time, or up to half a period after it (a
+/// caller that overshot an instant while it let time pass gets that frame, late, rather than
+/// none); then one instant after another, none skipped.
 #[test]
-fn frames_lie_on_the_cameras_grid_from_the_first() {
+fn frames_lie_on_the_cameras_grid_and_none_is_skipped() {
     use ferrobot_sim::camera::FrameClock;
     let period = 33_333;
-    for start in [0u64, 1, 99_999, 100_000, 103_000, 116_000, 133_333] {
+    for start in [0u64, 1, 99_999, 100_000, 103_000, 116_000, 117_000, 133_333] {
         let mut clock = FrameClock::new(30.0).unwrap();
         let first = clock.next(start);
         assert!(
-            first >= start && first - start < period && first.is_multiple_of(period),
+            first.is_multiple_of(period) && first + period / 2 >= start && first < start + period,
             "start {start} µs: first frame at {first} µs"
         );
         // A caller 10 ms late for the next instant still gets it; the one after is next.

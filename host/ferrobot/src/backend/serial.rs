@@ -322,34 +322,44 @@ impl SerialLink {
             path,
             thread: Some(thread),
         };
-        // The I/O thread says Hello (again every HELLO_RETRY) until the firmware answers.
-        link.info = link
-            .wait_for(timeout, "handshake", |s| match s.session.handshake() {
-                Handshake::Refused(info) => Some(Err(Error::VersionMismatch {
-                    host: PROTOCOL_VERSION,
-                    host_schema: SCHEMA_HASH,
-                    firmware: info.protocol_version,
-                    firmware_schema: info.schema_hash,
-                })),
-                Handshake::Accepted(info) => {
-                    let info = info.clone();
-                    s.first = Some(info.clone());
-                    // What happened before the link was handed over is not the program's.
-                    s.events.clear();
-                    Some(Ok(info))
-                }
-                Handshake::Waiting => None,
-            })
-            .map_err(|e| match e {
-                Error::Timeout { .. } => Error::Link(format!(
-                    "nothing answered the handshake on {} within {timeout:?}: is the firmware \
+        link.info = link.handshake(timeout)?;
+        link.configured(timeout)?;
+        Ok(link)
+    }
+
+    /// The firmware's answer to the Hello the I/O thread says (again every HELLO_RETRY) until
+    /// it answers, within `timeout`.
+    fn handshake(&self, timeout: Duration) -> Result<DeviceInfo> {
+        self.wait_for(timeout, "handshake", |s| match s.session.handshake() {
+            Handshake::Refused(info) => Some(Err(Error::VersionMismatch {
+                host: PROTOCOL_VERSION,
+                host_schema: SCHEMA_HASH,
+                firmware: info.protocol_version,
+                firmware_schema: info.schema_hash,
+            })),
+            Handshake::Accepted(info) => {
+                let info = info.clone();
+                s.first = Some(info.clone());
+                // What happened before the link was handed over is not the program's.
+                s.events.clear();
+                Some(Ok(info))
+            }
+            Handshake::Waiting => None,
+        })
+        .map_err(|e| match e {
+            Error::Timeout { .. } => Error::Link(format!(
+                "nothing answered the handshake on {} within {timeout:?}: is the firmware \
                      running behind that port?",
-                    link.path.display()
-                )),
-                e => e,
-            })?;
-        // Hand the robot over once the firmware has configured its servos: within `timeout`
-        // of the firmware's own time, which runs as long as telemetry comes.
+                self.path.display()
+            )),
+            e => e,
+        })
+    }
+
+    /// Wait until the firmware has configured its servos, within `timeout` of its own time
+    /// (which runs as long as telemetry comes): then the robot is handed over.
+    fn configured(&mut self, timeout: Duration) -> Result<()> {
+        let link = self;
         let first = link
             .wait_for(timeout, "telemetry", |s| {
                 if let Some(why) = &s.lost {
@@ -380,7 +390,7 @@ impl SerialLink {
             }
             link.wait(Duration::from_millis(10));
         }
-        Ok(link)
+        Ok(())
     }
 
     /// Encode with `encode` (a command or a request) under the session's lock and hand the
