@@ -99,11 +99,18 @@ fn agrees(e: f32, t: f32) -> bool {
     (e + t).abs() <= AGREE_ABS + AGREE_SHARE * e.abs()
 }
 
+/// The largest load (N·m) an effort of `e` N·m bears out, with the agreement's tolerance; the
+/// tolerance alone for an effort not measured.
+pub fn supported(e: f32) -> f32 {
+    let e = if e.is_finite() { e.abs() } else { 0.0 };
+    AGREE_ABS + (1.0 + AGREE_SHARE) * e
+}
+
 /// The load (N·m) a joint carries of its modelled `t`, having been seen bearing out `shown`
 /// N·m: none before it was seen; else `t` within what it showed, with the agreement's
 /// tolerance.
 fn carried(t: f32, shown: f32) -> Option<f32> {
-    let cap = AGREE_ABS + (1.0 + AGREE_SHARE) * shown;
+    let cap = supported(shown);
     (shown > 0.0).then_some(t.clamp(-cap, cap))
 }
 
@@ -191,7 +198,10 @@ impl Firmware {
             .is_some()
         {
             self.bear_out(&tau);
-            if let Some(j) = self.disagreeing(self.dynamics.trusted.as_ref(), &tau).1 {
+            if let Some(j) = self
+                .disagreeing(self.dynamics.trusted.as_ref(), &tau, true)
+                .1
+            {
                 let d = &mut self.dynamics;
                 let since = *d.disagree_since.get_or_insert((now, j));
                 if now - since.0 >= REFUTE_TIME {
@@ -229,7 +239,8 @@ impl Firmware {
         {
             return;
         }
-        let agrees = self.disagreeing(self.dynamics.candidate.as_ref(), &tau) == (true, None);
+        let agrees =
+            self.disagreeing(self.dynamics.candidate.as_ref(), &tau, false) == (true, None);
         let d = &mut self.dynamics;
         d.agree_since = if agrees {
             Some(d.agree_since.unwrap_or(now))
@@ -290,8 +301,16 @@ impl Firmware {
 
     /// Model `m` (its loads `tau`) against the joints held still in position mode: whether
     /// the arm bears it out (every loaded joint checked and agreeing, one of them bearing at
-    /// least [`CONFIRM_LOAD`]), and the first joint that disagrees, if any.
-    fn disagreeing(&self, m: Option<&GravityModel>, tau: &[f32]) -> (bool, Option<u8>) {
+    /// least [`CONFIRM_LOAD`]), and the first joint that disagrees, if any. `refuting` checks
+    /// every joint at rest, held back from its command or not: trust is earned only where
+    /// nothing else pushes a joint, and lost wherever one rests against the model's claim (a
+    /// model that overstates a load holds its joint off its command, beyond a limit even).
+    fn disagreeing(
+        &self,
+        m: Option<&GravityModel>,
+        tau: &[f32],
+        refuting: bool,
+    ) -> (bool, Option<u8>) {
         let Some(m) = m else {
             return (false, None);
         };
@@ -303,7 +322,12 @@ impl Firmware {
             ) else {
                 return (false, None);
             };
-            if !jc.holding_still(cfg) {
+            let checked = if refuting {
+                jc.at_rest()
+            } else {
+                jc.holding_still(cfg)
+            };
+            if !checked {
                 all_agree &= t.abs() < LOADED;
                 continue;
             }

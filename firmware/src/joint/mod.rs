@@ -236,22 +236,31 @@ impl JointControl {
         self.anchor
     }
 
-    /// Whether the joint is held still in position mode with nothing to do: measured, its
-    /// queue empty, not braked, not held back from its command (an obstacle, a payload's
-    /// stall) and slower than [`STALL_SPEED`]; its measured effort is then its load.
+    /// Whether the joint is held still in position mode with nothing to do: [`at_rest`] and
+    /// not held back from its command (an obstacle, a payload's stall); its measured effort is
+    /// then its load.
+    ///
+    /// [`at_rest`]: JointControl::at_rest
     pub fn holding_still(&self, cfg: &ferrobot_protocol::JointConfig) -> bool {
-        let (q, qd) = (self.state.position, self.state.velocity);
         let lead = position_lead(cfg);
+        self.at_rest()
+            && self.held_since.is_none()
+            && (self.cmd - self.state.position).abs() < STALL_LEAD_SHARE * lead
+    }
+
+    /// Whether the joint rests in position mode with nothing to do: measured, its queue empty,
+    /// not braked, slower than [`STALL_SPEED`], its effort measured. Held back from its command
+    /// or not: a wrong gravity model displaces a joint from its command by its own error.
+    pub fn at_rest(&self) -> bool {
+        let qd = self.state.velocity;
         self.mode == JointMode::Position
             && self.measured
             && self.queue.is_empty()
             && self.direct.is_none()
             && !self.braking
-            && self.held_since.is_none()
             && qd.is_finite()
             && qd.abs() < STALL_SPEED
             && self.state.effort.is_finite()
-            && (self.cmd - q).abs() < STALL_LEAD_SHARE * lead
     }
 
     /// Whether a joint in velocity, current or PWM mode has left its limits and must be

@@ -12,6 +12,7 @@ use super::limits::{
 };
 use super::servo_model::{goal_offset_for_effort, position_lead, position_reach};
 use super::{JointControl, JointOutput};
+use crate::dynamics::supported;
 use crate::time::{Duration, Instant};
 
 /// Position mode with a gravity model: the load correction may add at most this share of the
@@ -93,7 +94,9 @@ impl JointControl {
         // The goal stays within the limits, or between them and a joint outside them:
         // never further out than the joint is.
         // The model's offset may carry the goal beyond that by itself: the goal
-        // that holds the joint at a limit against its load lies beyond the limit.
+        // that holds the joint at a limit against its load lies beyond the limit. Only as
+        // far as the load the joint is measured bearing, though: a model that overstates it
+        // (right where it was confirmed, wrong here) would hold the joint beyond the limit.
         let (lo, hi) = position_goal_window(
             lim,
             self.anchor,
@@ -101,7 +104,9 @@ impl JointControl {
             (q, qd),
             position_reach(cfg, qd),
         );
-        let (lo, hi) = (lo + ff.min(0.0), hi + ff.max(0.0));
+        let borne = goal_offset_for_effort(cfg, supported(self.state.effort)).abs();
+        let ext = ff.clamp(-borne, borne);
+        let (lo, hi) = (lo + ext.min(0.0), hi + ext.max(0.0));
         JointOutput::Position((self.cmd + ff + self.sag).clamp(lo, hi))
     }
 
