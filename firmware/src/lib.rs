@@ -301,6 +301,7 @@ impl Firmware {
                 self.overrun_since_telemetry = true;
             }
             self.next_tick += period.saturating_mul(periods_late.saturating_add(1));
+            self.bus.set_next_tick(self.next_tick);
             self.tick_started = now;
             self.bus.begin_tick(now, &self.profile.joints);
             self.drain_bus_events(now);

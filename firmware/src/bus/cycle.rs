@@ -203,7 +203,7 @@ impl ServoBus {
     pub fn kick(&mut self, now: Instant) {
         if self.phase == Phase::Idle {
             self.ops_then_read = false;
-            self.chain_mode_ops(now);
+            self.chain_mode_ops(now, None);
         }
     }
 

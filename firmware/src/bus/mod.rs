@@ -239,6 +239,9 @@ pub struct ServoBus {
     events: Deque<BusEvent, 16>,
     /// Whether the transactions under way belong to a tick (the sync read follows them).
     ops_then_read: bool,
+    /// When the servo loop's next tick is due (set by the core): between ticks, no servo's
+    /// mode change starts after it, so that the other servos' goals are not left stale.
+    next_tick: Instant,
     /// Counters.
     pub stats: BusStats,
 }
@@ -275,6 +278,7 @@ impl ServoBus {
             tx: TxBuf::new(),
             events: Deque::new(),
             ops_then_read: true,
+            next_tick: Instant::ZERO,
             stats: BusStats::default(),
         };
         bus.rebuild(joints);
@@ -329,6 +333,11 @@ impl ServoBus {
 
     fn event(&mut self, e: BusEvent) {
         let _ = self.events.push_back(e);
+    }
+
+    /// When the servo loop's next tick is due: mode changes between ticks start only before it.
+    pub fn set_next_tick(&mut self, t: Instant) {
+        self.next_tick = t;
     }
 
     /// Whether the bus is between ticks.

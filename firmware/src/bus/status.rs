@@ -99,7 +99,7 @@ impl ServoBus {
                     self.op_done(servo, o, gen);
                 }
                 self.decoder.reset();
-                if !self.chain_mode_ops(now) {
+                if !self.chain_mode_ops(now, Some(servo)) {
                     self.after_ops(now);
                 }
             }

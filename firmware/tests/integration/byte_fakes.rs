@@ -718,3 +718,72 @@ fn a_base_gone_silent_is_stopped_and_refused_motion_until_it_speaks() {
     fw.poll(us(330_000));
     assert_ne!(last_kobuki_command(&mut fw), Some(vec![0, 0, 0, 0]));
 }
+
+#[test]
+fn mode_changes_of_many_servos_leave_no_goal_stale_for_long() {
+    // Five servos changing mode take five transactions each. Chained all at once between two
+    // ticks, they held every other servo's goal for 3 ms: a joint in current mode went on
+    // accelerating with a stale effort (pointed seed 716). A servo's own change runs through
+    // at once; the next servo's starts only before the next tick is due.
+    let (mut fw, mut bus, mut now) = locobot();
+    fw.on_host_bytes(now, &hello());
+    run(&mut fw, &mut bus, &mut now, 200);
+    fw.on_host_bytes(
+        now,
+        &frame(
+            1,
+            &HostMsg::SetMode {
+                joints: 0b1_1111,
+                mode: JointMode::Velocity,
+            },
+        ),
+    );
+    // The instants of the goal writes (from the command's), and each servo's writes in
+    // order, over 20 ticks.
+    let mut goal_writes = vec![now];
+    let mut order: Vec<(u8, u16)> = Vec::new();
+    let end = now + Duration::from_millis(20);
+    while now < end {
+        now = (now + Duration::from_micros(1)).max(fw.next_deadline().min(end));
+        fw.poll(now);
+        while !fw.pending(Link::Servo).is_empty() {
+            let tx = fw.pending(Link::Servo).to_vec();
+            fw.consume(Link::Servo, tx.len());
+            let mut d = PacketDecoder::<512>::new();
+            for &b in &tx {
+                if let Some(Ok(p)) = d.push(b) {
+                    if p.instruction == inst::SYNC_WRITE {
+                        goal_writes.push(now);
+                    } else if p.instruction == inst::WRITE {
+                        order.push((p.id, dxl::le_u16(p.params, 0)));
+                    }
+                }
+            }
+            let rx = bus.respond(&tx);
+            if !rx.is_empty() {
+                now += Duration::from_micros(100);
+                fw.on_servo_bytes(now, &rx);
+            }
+        }
+    }
+    for s in &fw.bus().servos[..5] {
+        assert_eq!((s.ops, s.mode), (0, dxl::mode::VELOCITY), "servo {}", s.id);
+    }
+    let gaps = goal_writes.windows(2).map(|w| (w[1] - w[0]).as_micros());
+    let worst = gaps.max().unwrap_or(u64::MAX);
+    // At most a tick (1 ms), the change begun just before it and the one the tick begins with
+    // (5 transactions of 100 µs each here): 2 ms. All six chained at once: 3.2 ms.
+    assert!(worst <= 2_000, "goals written {worst} µs apart");
+    // No servo's change is cut into by another's: between a servo's torque off and its
+    // torque on, only its own writes.
+    for (k, &(id, a)) in order.iter().enumerate() {
+        if a == addr::TORQUE_ENABLE {
+            let rest = &order[k + 1..];
+            let on = rest
+                .iter()
+                .position(|&(i, a)| i == id && a == addr::TORQUE_ENABLE);
+            let between = &rest[..on.unwrap_or(0)];
+            assert!(between.iter().all(|&(i, _)| i == id), "{order:?}");
+        }
+    }
+}
