@@ -14,22 +14,22 @@ use crate::Firmware;
 /// Whether a joint output may reach the servos: finite, within the joint's speed limit, an
 /// effort the servos can give (`strength`, N·m), and its position limits (or between them and
 /// the `anchor` of a joint outside them, and up to the braking offset beyond it while it is
-/// `braking`).
+/// `braking`), extended by `ext` ([`joint::goal_window_extension`]).
 fn goal_is_safe(
     out: &JointOutput,
     lim: &JointLimits,
     (anchor, braking): (Option<f32>, bool),
     strength: f32,
     (state, reach): ((f32, f32), f32),
-    ff: f32,
+    (below, above): (f32, f32),
 ) -> bool {
     match *out {
         JointOutput::None => true,
         JointOutput::Position(g) => {
             let (lo, hi) = joint::position_goal_window(lim, anchor, braking, state, reach);
-            // The gravity model's goal offset (within the servo's full-PWM reach at rest) may
-            // carry the goal beyond that.
-            let (lo, hi) = (lo + ff.min(0.0), hi + ff.max(0.0));
+            // The load the joint bears (and the model's offset within it) may carry the goal
+            // beyond that.
+            let (lo, hi) = (lo + below.min(0.0), hi + above.max(0.0));
             g.is_finite() && (lo..=hi).contains(&g)
         }
         JointOutput::Velocity(v) => v.is_finite() && v.abs() <= lim.velocity,
@@ -48,8 +48,9 @@ struct GoalWindow {
     /// The measured position and speed (NaN before the first measurement), and how far from
     /// there a position goal drives the servo at full PWM, rad.
     window: ((f32, f32), f32),
-    /// The gravity model's goal offset, rad (0 when it is not trusted).
-    ff: f32,
+    /// How far beyond the window a goal may lie for the load the joint bears, rad
+    /// ([`joint::goal_window_extension`]).
+    ext: (f32, f32),
     /// What the joint's servos can give, N·m.
     strength: f32,
 }
@@ -67,18 +68,19 @@ impl GoalWindow {
         let ff = Some(jc.feed_forward())
             .filter(|f| f.is_finite() && f.abs() <= joint::position_reach(cfg, 0.0))
             .unwrap_or(0.0);
+        let ext = joint::goal_window_extension(cfg, jc.anchor().is_some(), jc.state.effort, ff);
         let strength =
             cfg.model.spec().stall_torque * if cfg.twin_id.is_some() { 2.0 } else { 1.0 };
         Self {
             anchor,
             window,
-            ff,
+            ext,
             strength,
         }
     }
 
     fn admits(&self, out: &JointOutput, lim: &JointLimits) -> bool {
-        goal_is_safe(out, lim, self.anchor, self.strength, self.window, self.ff)
+        goal_is_safe(out, lim, self.anchor, self.strength, self.window, self.ext)
     }
 }
 

@@ -20,6 +20,9 @@ pub const SERVO_TIME_CONSTANT: f32 = 0.01;
 pub const FAST_TICKS: u8 = 2;
 /// See [`BRAKE_SPEED_FACTOR`], rad/s (above the noise of a servo's velocity reading).
 pub const BRAKE_SPEED_ABS: f32 = 0.15;
+/// A braked joint is let go once slower than its velocity limit times [`BRAKE_SPEED_FACTOR`]
+/// plus this share of [`BRAKE_SPEED_ABS`].
+pub const BRAKE_RELEASE_SHARE: f32 = 0.5;
 /// The speed above the noise of a servo's velocity reading at which a joint beyond a limit
 /// counts as moving further out, rad/s.
 pub const LEAVING_SPEED: f32 = 0.15;

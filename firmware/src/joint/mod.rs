@@ -17,7 +17,8 @@ mod trajectory;
 pub use limits::*;
 pub use modes::{EFFORT_RAMP_TIME, VELOCITY_HOLD_GAIN};
 pub use position::{
-    SAG_MAX, SAG_MODEL_MIN, SAG_MODEL_SHARE, STALL_LEAD_SHARE, STALL_SPEED, STALL_TIME,
+    goal_window_extension, SAG_MAX, SAG_MODEL_MIN, SAG_MODEL_SHARE, STALL_LEAD_SHARE, STALL_SPEED,
+    STALL_TIME,
 };
 pub use servo_model::*;
 pub use teach::{TEACH_DEADBAND, TEACH_GAIN, TEACH_MODEL_SHARE};
@@ -358,7 +359,8 @@ impl JointControl {
 mod tests {
     use super::*;
     use crate::time::Duration;
-    use ferrobot_protocol::JointPoint;
+    use ferrobot_protocol::{JointConfig, JointPoint};
+    use limits::{BRAKE_RELEASE_SHARE, BRAKE_SPEED_ABS, BRAKE_SPEED_FACTOR};
 
     #[test]
     fn hermite_meets_knots_and_slopes() {
@@ -444,6 +446,105 @@ mod tests {
                 "held {held} N·m: first effort {t} N·m, expected within {ramp} of {starts_at}"
             );
         }
+    }
+
+    /// A position-mode joint at `q` (rad) moving at `qd` (rad/s) under a trusted model of
+    /// `gravity` (N·m), its velocity limit `v` (rad/s), with limits well below it.
+    fn moving_joint(q: f32, qd: f32, gravity: f32, v: f32) -> (JointControl, JointConfig) {
+        let mut cfg = crate::config::locobot().joints[1].clone();
+        cfg.limits.min = -0.2;
+        cfg.limits.max = 0.2;
+        cfg.limits.velocity = v;
+        let mut j = JointControl::new();
+        j.state = JointState {
+            position: q,
+            velocity: qd,
+            effort: 0.4,
+        };
+        j.measured = true;
+        j.set_mode(Instant::ZERO, JointMode::Position);
+        j.gravity = Some(gravity);
+        j.model_load = Some(gravity);
+        (j, cfg)
+    }
+
+    /// A joint rising out of its limits that its model says is loaded far more than it is:
+    /// the brake's goal lies at or behind the joint, the model's offset does not carry it
+    /// ahead again (pointed seed 707: 0.3 rad/s away from its limits, on and on).
+    #[test]
+    fn a_brake_goal_is_never_ahead_of_the_joint_whatever_the_model_says() {
+        let (mut j, cfg) = moving_joint(0.7, 0.0, -3.0, 0.1);
+        // At rest first: the model takes the load over from the load correction.
+        j.tick(Instant::from_millis(1), 1e-3, &cfg);
+        j.state.velocity = 0.3;
+        for k in 2..=4u64 {
+            let out = j.tick(Instant::from_millis(k), 1e-3, &cfg);
+            assert!(j.command().1, "tick {k}: not braking");
+            let JointOutput::Position(goal) = out else {
+                panic!("position mode commands a position");
+            };
+            assert!(
+                goal <= 0.7,
+                "tick {k}: goal {goal} rad ahead of the joint at 0.7 rad (offset {}, command {:?})",
+                j.feed_forward(),
+                j.command()
+            );
+        }
+        // The model's offset is real: ahead of the command while not braking.
+        assert!(j.feed_forward() > 0.01, "offset {} rad", j.feed_forward());
+    }
+
+    /// A braked joint is let go only once well below the speed that braked it (a joint dragged
+    /// on would otherwise speed up again at once: pointed seed 709).
+    #[test]
+    fn a_brake_lets_go_below_the_speed_that_engaged_it() {
+        let v = 0.055;
+        let engage = v * BRAKE_SPEED_FACTOR + BRAKE_SPEED_ABS;
+        let release = v * BRAKE_SPEED_FACTOR + BRAKE_RELEASE_SHARE * BRAKE_SPEED_ABS;
+        let (mut j, cfg) = moving_joint(0.0, -(engage + 0.02), 0.0, v);
+        for (k, qd, braking) in [
+            (1u64, -(engage + 0.02), false),
+            (2, -(engage + 0.02), true),
+            (3, -(engage - 0.01), true),
+            (4, -(release + 0.01), true),
+            (5, -(release - 0.01), false),
+        ] {
+            j.state.velocity = qd;
+            j.tick(Instant::from_millis(k), 1e-3, &cfg);
+            assert_eq!(j.command().1, braking, "tick {k} at {qd} rad/s");
+        }
+    }
+
+    /// A joint outside its limits, held back against a load bringing it back, may have its
+    /// goal beyond it by that load's offset, the way its servos push, and no further; inside
+    /// its limits, only the model's offset, within the load borne, carries the goal beyond.
+    #[test]
+    fn a_goal_may_hold_a_load_beyond_the_window_only_as_far_as_the_load_needs() {
+        let cfg = crate::config::locobot().joints[2].clone();
+        let need = |e: f32| goal_offset_for_effort(&cfg, crate::dynamics::supported(e));
+        // Outside, pushing up against 1 N·m: above by that load's offset only.
+        let (below, above) = goal_window_extension(&cfg, true, 1.0, 0.0);
+        assert_eq!(below, 0.0);
+        assert!(
+            above > 0.0 && (above - need(1.0)).abs() < 1e-6,
+            "{above} rad"
+        );
+        // Pushing down: below.
+        let (below, above) = goal_window_extension(&cfg, true, -1.0, 0.0);
+        assert!(
+            (below + need(1.0)).abs() < 1e-6 && above == 0.0,
+            "{below} rad"
+        );
+        // Inside: nothing for the load; the model's offset, within the load borne.
+        assert_eq!(goal_window_extension(&cfg, false, 1.0, 0.0), (0.0, 0.0));
+        let (_, above) = goal_window_extension(&cfg, false, 0.1, 1.0);
+        assert!(
+            (above - need(0.1)).abs() < 1e-6,
+            "{above} rad for an offset of 1 rad"
+        );
+        // Nothing finite, nothing beyond.
+        let (below, above) = goal_window_extension(&cfg, true, 0.0, f32::NAN);
+        assert!(below <= 0.0 && above >= 0.0 && (above - below) <= need(0.0) + 1e-6);
     }
 
     #[test]

@@ -7,8 +7,9 @@
 use ferrobot_protocol::JointConfig;
 
 use super::limits::{
-    position_goal_window, BRAKE_HOLD, BRAKE_MIN, BRAKE_OFFSET, BRAKE_SPEED_ABS, BRAKE_SPEED_FACTOR,
-    BRAKE_TIME, FAST_TICKS, LEAVING_SPEED, SERVO_TIME_CONSTANT,
+    position_goal_window, BRAKE_HOLD, BRAKE_MIN, BRAKE_OFFSET, BRAKE_RELEASE_SHARE,
+    BRAKE_SPEED_ABS, BRAKE_SPEED_FACTOR, BRAKE_TIME, FAST_TICKS, LEAVING_SPEED,
+    SERVO_TIME_CONSTANT,
 };
 use super::servo_model::{goal_offset_for_effort, position_lead, position_reach};
 use super::{JointControl, JointOutput};
@@ -33,6 +34,31 @@ pub const STALL_SPEED: f32 = 0.05;
 /// See [`STALL_TIME`]: held back means the command leads the joint by at least this share
 /// of its lead ([`position_lead`]).
 pub const STALL_LEAD_SHARE: f32 = 0.75;
+
+/// How far a position goal may lie beyond [`position_goal_window`] for a joint bearing a
+/// measured `effort` (N·m, what its servos give), with the model's goal offset `ff` (rad):
+/// `(below, above)`, rad (`below` ≤ 0 ≤ `above`). The bound is the goal offset of the load
+/// the effort bears out ([`supported`]). Within it, the model's offset: the goal that holds a
+/// joint at a limit against its load lies beyond the limit, but a model that overstates the
+/// load (right where it was confirmed, wrong here) must not hold the joint beyond it. For a
+/// joint `outside` its limits, also that offset the way its servos push: the goal that holds
+/// it against a load bringing it back lies beyond it (a goal at the joint let its load bring
+/// it back as fast as the load liked, brake after brake: 0.32 rad/s against 0.05, pointed
+/// seed 754).
+pub fn goal_window_extension(cfg: &JointConfig, outside: bool, effort: f32, ff: f32) -> (f32, f32) {
+    let borne = goal_offset_for_effort(cfg, supported(effort)).abs();
+    let ext = if ff.is_finite() {
+        ff.clamp(-borne, borne)
+    } else {
+        0.0
+    };
+    let pushed = match outside {
+        true if effort > 0.0 => borne,
+        true if effort < 0.0 => -borne,
+        _ => 0.0,
+    };
+    (ext.min(pushed).min(0.0), ext.max(pushed).max(0.0))
+}
 
 impl JointControl {
     /// One position-mode tick: the goal for the servo, rad; `clamped` is set when a limit
@@ -93,10 +119,7 @@ impl JointControl {
         self.correct_load(now, dt, cfg, settled, (model.is_some() && !cut, ff));
         // The goal stays within the limits, or between them and a joint outside them:
         // never further out than the joint is.
-        // The model's offset may carry the goal beyond that by itself: the goal
-        // that holds the joint at a limit against its load lies beyond the limit. Only as
-        // far as the load the joint is measured bearing, though: a model that overstates it
-        // (right where it was confirmed, wrong here) would hold the joint beyond the limit.
+        // Beyond that only by `goal_window_extension`: the load the joint bears.
         let (lo, hi) = position_goal_window(
             lim,
             self.anchor,
@@ -104,10 +127,11 @@ impl JointControl {
             (q, qd),
             position_reach(cfg, qd),
         );
-        let borne = goal_offset_for_effort(cfg, supported(self.state.effort)).abs();
-        let ext = ff.clamp(-borne, borne);
-        let (lo, hi) = (lo + ext.min(0.0), hi + ext.max(0.0));
-        JointOutput::Position((self.cmd + ff + self.sag).clamp(lo, hi))
+        let (below, above) =
+            goal_window_extension(cfg, self.anchor.is_some(), self.state.effort, ff);
+        let (lo, hi) = (lo + below, hi + above);
+        let goal = (self.cmd + self.braking_offset(ff) + self.sag).clamp(lo, hi);
+        JointOutput::Position(goal)
     }
 
     /// Whether the joint must be braked: measured running away (faster than its limit allows,
@@ -118,8 +142,17 @@ impl JointControl {
         let qd = self.state.velocity;
         // Between two setpoints of a slow loop the servo catches up with a step of the
         // command faster than the command moves: that is not running away.
+        // A braked joint is let go only once well below the speed that braked it: let go
+        // just below it, a joint dragged on (a limp neighbour's swing, a load the model does
+        // not know) speeds up again at once, and brake after brake its average speed stays
+        // above the limit (0.234 rad/s against 0.232 allowed, pointed seed 709).
         let factor = BRAKE_SPEED_FACTOR.max(dt / SERVO_TIME_CONSTANT);
-        let fast = lim.velocity * factor + BRAKE_SPEED_ABS;
+        let margin = if self.braking {
+            BRAKE_RELEASE_SHARE * BRAKE_SPEED_ABS
+        } else {
+            BRAKE_SPEED_ABS
+        };
+        let fast = lim.velocity * factor + margin;
         let leaving = (q > lim.max && qd > LEAVING_SPEED) || (q < lim.min && qd < -LEAVING_SPEED);
         self.fast_ticks = match (qd.abs() > fast, qd > 0.0) {
             (true, true) => self.fast_ticks.max(0).saturating_add(1),
@@ -154,6 +187,26 @@ impl JointControl {
             self.brake_way = (way, way == self.brake_way.0);
         }
         self.braking = true;
+    }
+
+    /// The model's goal offset `ff` (rad) as the goal carries it: while braking, none of it
+    /// the way the joint runs. The brake puts the command behind the joint; a model wrong
+    /// about the load (its size or its sign) must not carry the goal back towards it or
+    /// beyond (a joint rising at 0.3 rad/s, its model's offset 0.07 rad where the load it
+    /// bore needed 0.02: pointed seed 707; one falling at 0.3 rad/s under an emergency stop,
+    /// its model's offset pointing down: seed 735). With a true model, an offset the way
+    /// the joint runs only weakens the brake; the load itself brakes it then.
+    fn braking_offset(&self, ff: f32) -> f32 {
+        let qd = self.state.velocity;
+        if !self.braking || !qd.is_finite() {
+            ff
+        } else if qd > 0.0 {
+            ff.min(0.0)
+        } else if qd < 0.0 {
+            ff.max(0.0)
+        } else {
+            ff
+        }
     }
 
     /// Once a braked joint no longer runs away, let go of the brake where it rests (with a
