@@ -25,7 +25,7 @@ fn robot(hil: &Hil) -> Robot {
         .backend(Backend::Serial {
             path: hil.host.clone(),
         })
-        .board_clock(std::sync::Arc::new(hil.board.server.clock()))
+        .board_clock(hil.board.server.clock())
         .build()
         .unwrap_or_else(|e| panic!("connect to the firmware in QEMU: {e}"))
 }
@@ -105,7 +105,7 @@ fn the_arm_reaches_a_joint_target_and_the_emergency_stop_does_not_wait_for_the_c
         .backend(Backend::Serial {
             path: hil.host.clone(),
         })
-        .board_clock(std::sync::Arc::new(hil.board.server.clock()))
+        .board_clock(hil.board.server.clock())
         .camera_device(Box::new(StalledCamera {
             entered: entered_tx,
             release: release_rx,

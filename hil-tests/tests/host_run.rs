@@ -66,7 +66,7 @@ impl Rig {
             .backend(Backend::Serial {
                 path: board.server.host.clone(),
             })
-            .board_clock(Arc::new(board.server.clock()))
+            .board_clock(board.server.clock())
             .build()
             .unwrap_or_else(|e| panic!("connect: {e}"));
         Rig {

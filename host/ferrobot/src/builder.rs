@@ -67,8 +67,8 @@ impl RobotBuilder {
     /// machine slows the board without the link calling it lost. Ferrobot's own emulated
     /// backends do this by themselves.
     #[cfg(feature = "serial")]
-    pub fn board_clock(mut self, clock: crate::backend::timebase::BoardClock) -> Self {
-        self.link_time = crate::backend::timebase::Timebase::board(clock);
+    pub fn board_clock(mut self, clock: impl Fn() -> u64 + Send + Sync + 'static) -> Self {
+        self.link_time = crate::backend::timebase::Timebase::board(std::sync::Arc::new(clock));
         self
     }
 
