@@ -10,10 +10,9 @@
 //! - [`replay`]: a recording fed back as commands to a robot, or as sensor input (SLAM
 //!   offline); [`reader`] and [`decode`] read it.
 //! - [`lerobot`]: recordings exported as a LeRobot dataset (v3.0), one episode each.
-//! - [`cdr`] and [`ros2`]: the messages' encoding and definitions.
+//! - [`cdr`] and [`ros2`]: the messages' encoding and definitions ([`ferrobot_ros2`]).
 
 pub mod bag;
-pub mod cdr;
 pub mod decode;
 pub mod error;
 pub mod events;
@@ -21,8 +20,9 @@ pub mod lerobot;
 pub mod reader;
 pub mod recorder;
 pub mod replay;
-pub mod ros2;
 pub mod topics;
 
 pub use error::RecordError;
+pub use ferrobot_ros2 as ros2;
+pub use ferrobot_ros2::cdr;
 pub use recorder::{RecordOptions, RecordStats, Recorder};

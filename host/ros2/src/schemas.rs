@@ -1,7 +1,8 @@
 //! The ROS 2 message definitions our recordings use, as MCAP `ros2msg` schemas: each type's
 //! `.msg` text, then every type it uses, each after a line of 80 `=` and `MSG: pkg/Type`, as
 //! rosbag2 writes them (Foxglove, Lichtblick and rosbags parse this). The texts are those of
-//! ROS 2 Jazzy's interfaces, comments left out.
+//! ROS 2 Jazzy's interfaces, comments left out; their RIHS01 hashes ([`crate::type_hash`]) are
+//! checked against ROS 2's own.
 
 /// A ROS 2 message type: its name (`pkg/msg/Type`), its definition, and the types it uses.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -162,6 +163,35 @@ msg!(
     [],
     "string kind\nuint8[] postcard\n"
 );
+
+/// Every message type here.
+pub const ALL: [&MsgType; 25] = [
+    &TIME,
+    &DURATION,
+    &HEADER,
+    &STRING,
+    &INT8,
+    &VECTOR3,
+    &POINT,
+    &QUATERNION,
+    &POSE,
+    &POSE_STAMPED,
+    &POSE_WITH_COVARIANCE,
+    &TWIST,
+    &TWIST_WITH_COVARIANCE,
+    &TRANSFORM,
+    &TRANSFORM_STAMPED,
+    &TF_MESSAGE,
+    &JOINT_STATE,
+    &IMAGE,
+    &REGION_OF_INTEREST,
+    &CAMERA_INFO,
+    &ODOMETRY,
+    &JOINT_TRAJECTORY_POINT,
+    &JOINT_TRAJECTORY,
+    &LOG,
+    &FERROBOT_COMMAND,
+];
 
 /// The separator rosbag2 writes between a definition and each type it uses.
 const SEPARATOR: &str =

@@ -3,7 +3,7 @@
 
 use std::time::Duration;
 
-use ferrobot::perception::Intrinsics;
+use ferrobot_perception::Intrinsics;
 use nalgebra::Isometry3;
 
 use crate::cdr::CdrWriter;
