@@ -91,7 +91,13 @@ tested=(--workspace --exclude ferrobot-benches)
 step "cargo test --no-run: what the HIL tests need"
 # --timings: each build's per-crate times in target/cargo-timings/ (the HTML reports), to see
 # where CI's compile time goes.
-cargo test "${tested[@]}" --no-run --timings --test hil --test host_run --test pytest --bin firmware-process
+# Their executables are listed (scripts/test-binaries.py) and run directly below: a background
+# `cargo test` would wait for cargo's build lock until the rest of the workspace had compiled
+# (4 minutes in CI) before running a test.
+hil_binaries=$logs/hil-binaries.txt
+cargo test "${tested[@]}" --no-run --timings --message-format=json-render-diagnostics \
+    --test hil --test host_run --test pytest --bin firmware-process \
+    | python3 scripts/test-binaries.py "$hil_binaries" hil host_run pytest firmware-process
 
 step "waited for: the board builds and their clippy"
 join boards
@@ -100,7 +106,8 @@ join python
 export FERROBOT_PYTHON="$PWD/target/py-venv/bin/python"
 
 # While the HIL tests run (they keep simulated time with the firmware, so a busy machine only
-# makes them take longer), the rest is built and linted; the other tests, some of which run
+# makes them take longer), the rest is built and linted (the tests' executables run directly,
+# so they start at once rather than after that build); the other tests, some of which run
 # on wall-clock budgets (the planners, serial timeouts), run after them, alone. ferrobot-hil's
 # library and its firmware-process binary are the harness and hold no tests of their own (the
 # binary's empty test harness still runs, here).
@@ -111,18 +118,21 @@ export FERROBOT_PYTHON="$PWD/target/py-venv/bin/python"
 # little CPU; nextest leaves the listings out below.
 host_run_listings=pyrobot_listings_on_the_host_run_firmware
 step "started: the HIL tests (hil-tests/tests/hil.rs: the firmware in QEMU; host_run.rs: the host-run firmware) and PyRobot's listings on the host-run firmware, real-time paced"
-background hil "cargo test ${tested[*]} --no-fail-fast --test hil --test host_run --bin firmware-process"
-background listings "cargo test ${tested[*]} --test pytest -- --exact $host_run_listings"
+run=scripts/run-test-binary.sh
+background hil "rc=0; for t in firmware-process hil host_run; do $run $hil_binaries \$t || rc=1; done; exit \$rc"
+background listings "$run $hil_binaries pytest --exact $host_run_listings"
 
 step "cargo test --no-run: every other test"
-cargo test "${tested[@]}" --no-run --timings
+other_binaries=$logs/other-binaries.txt
+cargo test "${tested[@]}" --no-run --timings --message-format=json-render-diagnostics \
+    | python3 scripts/test-binaries.py "$other_binaries" ferrobot-cli:integration
 
 # The demo on the host-run firmware of both LoCoBots (ferrobot-cli's demo_host_run: the
 # command line's binary, just built, on emulated devices paced at real time, little CPU),
 # beside clippy and the docs; nextest leaves it out below.
 host_run_demos=demo_host_run
 step "started: the demo on the host-run firmware (ferrobot-cli's $host_run_demos), real-time paced"
-background demos "cargo test ${tested[*]} --test integration -- $host_run_demos"
+background demos "$run $other_binaries ferrobot-cli:integration $host_run_demos"
 
 # The workspace includes the fuzz targets (fuzz/, built without libFuzzer as programs that
 # replay inputs), so they are linted here too.
