@@ -74,11 +74,10 @@ fn a_recording_killed_mid_way_reads_back_to_within_a_second_of_the_kill() {
         .unwrap();
     assert!(out.status.success());
     let s: Value = serde_json::from_slice(&out.stdout).unwrap();
-    assert_eq!(
-        (s["frames_dropped"].as_u64(), s["frames"].as_u64()),
-        (Some(0), Some(60)),
-        "{s}"
-    );
+    // 60 frames at 30 Hz, or 61 where the first frame's instant lay up to half a period
+    // before the start (the camera's frame clock takes it late rather than skipping it).
+    assert_eq!(s["frames_dropped"].as_u64(), Some(0), "{s}");
+    assert!(matches!(s["frames"].as_u64(), Some(60..=61)), "{s}");
     let r = read_back(&py, &whole);
     assert_eq!(r["ended"], "footer");
     assert_eq!(r["messages"], s["messages"]);
