@@ -65,7 +65,7 @@ case "${1:-}" in
     cluster) install host/perception/peer/requirements.txt .installed-cluster-requirements "sklearn.cluster" ;;
     slam) install host/slam/peer/requirements.txt .installed-slam-requirements "pybullet, numpy" ;;
     python) install host/python/requirements-test.txt .installed-python-requirements "numpy, pytest, yourdfpy, absl, ipykernel, nbclient" ;;
-    record) install host/record/peer/requirements.txt .installed-record-requirements "mcap, rosbags.highlevel, numpy, pyarrow.parquet, pandas" ;;
+    record) install host/record/peer/requirements.txt .installed-record-requirements "mcap, rosbags.highlevel, numpy, pyarrow.parquet, pandas, PIL" ;;
     realsense) install_wheel host/peers/realsense/requirements.txt .installed-realsense-requirements "pyrealsense2, numpy" pyrealsense2 ;;
     *) echo "usage: $0 [bench|plan|cluster|slam|python|realsense|record]" >&2; exit 2 ;;
 esac
