@@ -151,6 +151,30 @@ msg!(
     "std_msgs/Header header\nstring[] joint_names\nJointTrajectoryPoint[] points\n"
 );
 msg!(
+    POINT_FIELD,
+    "sensor_msgs/msg/PointField",
+    [],
+    "uint8 INT8=1\nuint8 UINT8=2\nuint8 INT16=3\nuint8 UINT16=4\nuint8 INT32=5\nuint8 UINT32=6\nuint8 FLOAT32=7\nuint8 FLOAT64=8\nstring name\nuint32 offset\nuint8 datatype\nuint32 count\n"
+);
+msg!(
+    POINT_CLOUD2,
+    "sensor_msgs/msg/PointCloud2",
+    [HEADER, POINT_FIELD],
+    "std_msgs/Header header\nuint32 height\nuint32 width\nPointField[] fields\nbool is_bigendian\nuint32 point_step\nuint32 row_step\nuint8[] data\nbool is_dense\n"
+);
+msg!(
+    MAP_META_DATA,
+    "nav_msgs/msg/MapMetaData",
+    [TIME, POSE],
+    "builtin_interfaces/Time map_load_time\nfloat32 resolution\nuint32 width\nuint32 height\ngeometry_msgs/Pose origin\n"
+);
+msg!(
+    OCCUPANCY_GRID,
+    "nav_msgs/msg/OccupancyGrid",
+    [HEADER, MAP_META_DATA],
+    "std_msgs/Header header\nMapMetaData info\nint8[] data\n"
+);
+msg!(
     LOG,
     "rcl_interfaces/msg/Log",
     [TIME],
@@ -165,7 +189,7 @@ msg!(
 );
 
 /// Every message type here.
-pub const ALL: [&MsgType; 25] = [
+pub const ALL: [&MsgType; 29] = [
     &TIME,
     &DURATION,
     &HEADER,
@@ -189,6 +213,10 @@ pub const ALL: [&MsgType; 25] = [
     &ODOMETRY,
     &JOINT_TRAJECTORY_POINT,
     &JOINT_TRAJECTORY,
+    &POINT_FIELD,
+    &POINT_CLOUD2,
+    &MAP_META_DATA,
+    &OCCUPANCY_GRID,
     &LOG,
     &FERROBOT_COMMAND,
 ];

@@ -285,6 +285,14 @@ mod tests {
                 &schemas::TRANSFORM_STAMPED,
                 "0a241f87d04668d94099cbb5ba11691d5ad32c2f29682e4eb5653424bd275206",
             ),
+            (
+                &schemas::POINT_CLOUD2,
+                "9198cabf7da3796ae6fe19c4cb3bdd3525492988c70522628af5daa124bae2b5",
+            ),
+            (
+                &schemas::OCCUPANCY_GRID,
+                "8d348150c12913a31ee0ec170fbf25089e4745d17035792a1ba94d6f0bc0cfc7",
+            ),
         ] {
             assert_eq!(rihs01(t).unwrap(), format!("RIHS01_{hash}"), "{}", t.name);
         }
