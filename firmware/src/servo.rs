@@ -107,6 +107,12 @@ impl Firmware {
     /// measurement starts it from where it is.
     fn measure(&mut self, now: Instant) {
         let mut states: [Option<JointState>; MAX_JOINTS] = [None; MAX_JOINTS];
+        let mut reread = 0u32;
+        for s in self.bus.servos.iter_mut() {
+            if core::mem::take(&mut s.reread) && !s.twin {
+                reread |= 1 << (s.joint as u32 % 32);
+            }
+        }
         for s in self.bus.servos.iter() {
             if !(s.fresh || (s.position_valid && !s.twin)) {
                 continue;
@@ -145,8 +151,8 @@ impl Firmware {
             let first = !jc.measured;
             jc.state = *st;
             jc.measured = true;
-            if first {
-                jc.first_measurement(now, st.position);
+            if first || reread & (1 << (j as u32 % 32)) != 0 {
+                jc.measured_afresh(now, st.position);
             }
         }
     }

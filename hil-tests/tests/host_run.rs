@@ -329,8 +329,33 @@ fn a_servo_power_cycled_is_configured_again_and_holds(fw: Firmware) {
     let torque = rig.until(Duration::from_secs(1), "its torque on again", |r| {
         r.board.server.command("servo 4")["torque_enabled"] == true
     });
+    // It sagged while its torque was off and may still be falling when its torque returns; it
+    // is held where it then stands (not driven back to where it stood), and comes to rest. A
+    // plan is made from a joint at rest: one made while it still moved started 0.07 rad from
+    // it in a CI run (StalePlan).
+    let sagged = rig.arm_truth()[2];
+    let on = rig.now();
+    let mut window: std::collections::VecDeque<(Duration, f64)> = Default::default();
+    let still = rig.until(Duration::from_secs(2), "joint_3 at rest", |r| {
+        let t = r.now() - on;
+        window.push_back((t, r.arm_truth()[2]));
+        while window
+            .front()
+            .is_some_and(|(t0, _)| t - *t0 > Duration::from_millis(100))
+        {
+            window.pop_front();
+        }
+        let (lo, hi) = window
+            .iter()
+            .fold((f64::MAX, f64::MIN), |(lo, hi), (_, q)| {
+                (lo.min(*q), hi.max(*q))
+            });
+        t > Duration::from_millis(100) && hi - lo < 0.002
+    });
     eprintln!(
-        "a servo power-cycled: taken back {back:?} after it answered, its torque on {torque:?} later"
+        "a servo power-cycled: taken back {back:?} after it answered, its torque on {torque:?} \
+         later at {sagged:.3} rad, at rest {still:?} later at {:.3} rad",
+        rig.arm_truth()[2]
     );
     arm.set_joint_positions(&[0.0, 0.0, 0.3, 0.0, 0.0])
         .expect("moves again");

@@ -156,6 +156,12 @@ pub struct Servo {
     pub position_valid: bool,
     /// Last Hardware Error Status read, 0 when none.
     pub hw_error: u8,
+    /// Its position was read again after it was lost or rebooted, its torque maybe off for a
+    /// while: the firmware holds its joint where it now stands (not where it stood before, which
+    /// a joint that sagged would be driven back to) and clears this.
+    pub reread: bool,
+    /// Lost or rebooted: the next position read sets [`Servo::reread`].
+    reread_pending: bool,
     retries: u8,
     misses: u8,
     next_probe: Instant,
@@ -305,6 +311,8 @@ impl ServoBus {
                         fresh: false,
                         position_valid: false,
                         hw_error: 0,
+                        reread: false,
+                        reread_pending: false,
                         retries: 0,
                         misses: 0,
                         next_probe: Instant::ZERO,
@@ -375,6 +383,7 @@ impl ServoBus {
         if let Some(s) = self.servos.get_mut(i) {
             s.ops |= op::REBOOT | op::CONFIGURE;
             s.hw_error = 0;
+            s.reread_pending = true;
             s.retries = 0;
             if s.status == ServoStatus::Lost {
                 s.status = ServoStatus::Configuring;

@@ -70,6 +70,7 @@ impl ServoBus {
                         s.status = ServoStatus::Configuring;
                         s.ops |= op::READ_TORQUE;
                         s.hw_error = 0;
+                        s.reread_pending = true;
                     }
                     self.event(BusEvent::Recovered(servo as u8));
                 } else {
@@ -78,6 +79,7 @@ impl ServoBus {
                             op::READ_POS if len >= 4 => {
                                 s.present.position = dxl::le_u32(data, 0) as i32;
                                 s.position_valid = true;
+                                s.reread |= core::mem::take(&mut s.reread_pending);
                             }
                             op::READ_HW if len >= 1 => {
                                 s.hw_error = data[0];

@@ -194,9 +194,11 @@ impl JointControl {
         };
     }
 
-    /// The joint's first measurement: from now on it starts from where it really is. Knots
-    /// already queued are kept (the trajectory to them starts here); an idle joint holds here.
-    pub fn first_measurement(&mut self, now: Instant, q: f32) {
+    /// A measurement that replaces what the joint was believed to be (its first, or its servo's
+    /// first after it was lost or rebooted, its torque maybe off meanwhile): from now on it
+    /// starts from where it really is. Knots already queued are kept (the trajectory to them
+    /// starts here); an idle joint holds here, not where it stood before.
+    pub fn measured_afresh(&mut self, now: Instant, q: f32) {
         if self.queue.is_empty() && self.direct.is_none() {
             self.hold_at(now, q);
         } else {

@@ -787,3 +787,43 @@ fn mode_changes_of_many_servos_leave_no_goal_stale_for_long() {
         }
     }
 }
+
+#[test]
+fn a_servo_power_cycled_holds_its_joint_where_it_stands_not_where_it_stood() {
+    let (mut fw, mut bus, mut now) = locobot();
+    fw.on_host_bytes(now, &hello());
+    fw.on_host_bytes(now, &frame(1, &HostMsg::SetWatchdog { period_ms: 5000 }));
+    run(&mut fw, &mut bus, &mut now, 300);
+    assert_eq!(last_goals(&bus)[&1], 2048, "held where configured");
+    // Power off: no answer, the joint sags 80 ticks (0.12 rad) while its torque is off; back
+    // with its torque off (the fake reads Torque Enable as 0), so it is configured in full.
+    bus.silent.insert(1);
+    run(&mut fw, &mut bus, &mut now, 300);
+    bus.present.get_mut(&1).expect("servo 1").2 = 2048 + 80;
+    bus.silent.remove(&1);
+    bus.log.clear();
+    run(&mut fw, &mut bus, &mut now, 400);
+    let goals: Vec<i32> = bus
+        .log
+        .iter()
+        .filter(|(_, i, _)| *i == inst::SYNC_WRITE)
+        .filter_map(|(_, _, p)| {
+            p[4..]
+                .chunks(5)
+                .find(|c| c[0] == 1)
+                .map(|c| i32::from_le_bytes([c[1], c[2], c[3], c[4]]))
+        })
+        .collect();
+    assert!(
+        goals.len() > 100,
+        "{} goals for servo 1 after it came back",
+        goals.len()
+    );
+    // Every goal since it came back within 5 ticks (7.7 mrad) of where it stands; before this
+    // was mended its joint was held where it stood, 80 ticks away.
+    let worst = goals.iter().map(|g| (g - 2128).abs()).max().unwrap_or(0);
+    assert!(
+        worst <= 5,
+        "a goal {worst} ticks from where the joint stands: {goals:?}"
+    );
+}
