@@ -13,16 +13,13 @@
 //! - [`cdr`] and [`ros2`]: the messages' encoding and definitions ([`ferrobot_ros2`]).
 
 pub mod bag;
-pub mod decode;
 pub mod error;
-pub mod events;
 pub mod lerobot;
 pub mod reader;
 pub mod recorder;
 pub mod replay;
-pub mod topics;
 
 pub use error::RecordError;
 pub use ferrobot_ros2 as ros2;
-pub use ferrobot_ros2::cdr;
+pub use ferrobot_ros2::{cdr, decode, events, topics};
 pub use recorder::{RecordOptions, RecordStats, Recorder};

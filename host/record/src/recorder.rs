@@ -20,8 +20,9 @@ use ferrobot::subscription::MAX_QUEUE;
 use ferrobot::{Bell, Robot, Subscription};
 use parking_lot::Mutex;
 
-use crate::bag::{Bag, BagStats, Item, RobotInfo};
+use crate::bag::{Bag, BagStats, RobotInfo};
 use crate::error::{check, RecordError};
+use crate::ros2::robot::Feeds;
 
 /// What to record, and how.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -64,36 +65,13 @@ pub struct RecordStats {
     pub events_dropped: u64,
 }
 
-struct Feeds {
-    telemetry: Subscription<ferrobot::Telemetry>,
-    frames: Option<Subscription<Arc<ferrobot::Frame>>>,
-    events: Subscription<ferrobot::events::Event>,
-}
-
-impl Feeds {
-    /// Everything waiting, in time order.
-    fn take(&self) -> Vec<Item> {
-        let mut items: Vec<Item> = self
-            .telemetry
-            .drain()
-            .into_iter()
-            .map(Item::Telemetry)
-            .collect();
-        if let Some(f) = &self.frames {
-            items.extend(f.drain().into_iter().map(Item::Frame));
-        }
-        items.extend(self.events.drain().into_iter().map(Item::Event));
-        items.sort_by_key(Item::time);
-        items
-    }
-
-    fn dropped(&self, written: BagStats) -> RecordStats {
-        RecordStats {
-            written,
-            frames_dropped: self.frames.as_ref().map_or(0, Subscription::dropped),
-            telemetry_dropped: self.telemetry.dropped(),
-            events_dropped: self.events.dropped(),
-        }
+/// What the disk fell behind on.
+fn dropped(feeds: &Feeds, written: BagStats) -> RecordStats {
+    RecordStats {
+        written,
+        frames_dropped: feeds.frames.as_ref().map_or(0, Subscription::dropped),
+        telemetry_dropped: feeds.telemetry.dropped(),
+        events_dropped: feeds.events.dropped(),
     }
 }
 
@@ -117,23 +95,6 @@ impl Shared {
     fn stop_thread(&self) {
         self.stop.store(true, Ordering::SeqCst);
         self.bell.ring();
-    }
-}
-
-impl RobotInfo {
-    /// What a recording of `robot` needs to know of it.
-    pub fn of(robot: &Robot) -> Result<RobotInfo, RecordError> {
-        let cfg = robot.config();
-        // The URDF the robot was built from, as it was parsed.
-        let urdf = urdf_rs::write_to_string(&cfg.urdf).unwrap_or_default();
-        Ok(RobotInfo {
-            joints: cfg.joints.iter().map(|j| j.name.clone()).collect(),
-            frames: robot.frames()?.clone(),
-            urdf,
-            base: cfg.base.is_some(),
-            gripper: cfg.gripper.is_some(),
-            optical: cfg.camera.as_ref().map(|c| c.frame.clone()),
-        })
     }
 }
 
@@ -163,16 +124,12 @@ impl Recorder {
         // On the simulator, nothing is dropped: a full queue holds the robot's virtual time
         // until the recorder catches up (a real robot's refuses, and drops its oldest).
         let lossless = feeds.telemetry.pause_when_full().is_ok();
-        feeds.telemetry.ring(bell.clone());
-        feeds.events.ring(bell.clone());
+        feeds.ring(&bell);
         if lossless {
             feeds.events.pause_when_full()?;
         }
-        if let Some(f) = &feeds.frames {
-            f.ring(bell.clone());
-            if lossless {
-                f.pause_when_full()?;
-            }
+        if let Some(f) = feeds.frames.as_ref().filter(|_| lossless) {
+            f.pause_when_full()?;
         }
         let file = File::create_new(&path).map_err(|source| RecordError::Io {
             what: "creating",
@@ -251,7 +208,7 @@ fn run<W: std::io::Write + std::io::Seek>(
         for item in &items {
             bag.push(item)?;
         }
-        *shared.stats.lock() = feeds.dropped(bag.stats());
+        *shared.stats.lock() = dropped(&feeds, bag.stats());
         if stopping {
             break;
         }
@@ -259,7 +216,7 @@ fn run<W: std::io::Write + std::io::Seek>(
             shared.bell.wait(Duration::from_millis(200));
         }
     }
-    let stats = feeds.dropped(bag.stats());
+    let stats = dropped(&feeds, bag.stats());
     bag.finish()?;
     Ok(stats)
 }

@@ -7,8 +7,8 @@ use std::time::Duration;
 use ferrobot::events::{Event, GripperCommand, HostMsg, JointMode};
 use ferrobot::fault_flags;
 
-use crate::bag::RobotInfo;
-use crate::ros2::encode::{self, level, Knot};
+use crate::encode::{self, level, Knot};
+use crate::robot::RobotInfo;
 use crate::topics::{self, Topic};
 
 /// The logger name of the API's own lines on `/rosout`.

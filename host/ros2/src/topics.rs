@@ -1,7 +1,7 @@
 //! The topics of a recording: each one's name, its ROS 2 type and what it holds. One table for
 //! the recorder, replay and the dataset export.
 
-use crate::ros2::schemas::{self, MsgType};
+use crate::schemas::{self, MsgType};
 
 /// A topic: its name and its message type.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -1,0 +1,273 @@
+//! A robot served on zenoh as a ROS 2 node ([`Server`]): a thread publishes the robot's
+//! streams, as [`ferrobot_ros2::robot`] maps them, as they arrive; `/cmd_vel` drives the base.
+//!
+//! The robot's time must pass for its streams to flow: on the simulator, whoever serves it
+//! lets it pass (`ferrobot serve` waits in a loop, paced to the wall clock); a real robot's
+//! passes by itself.
+
+use std::collections::BTreeMap;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::thread::JoinHandle;
+use std::time::Duration;
+
+use ferrobot::{Bell, Robot};
+use ferrobot_ros2::robot::{Feeds, Messages, RobotInfo};
+use ferrobot_ros2::topics::{self, Topic};
+use parking_lot::Mutex;
+
+use crate::error::BridgeError;
+use crate::node::{RosNode, RosPublisher, RosSubscription};
+
+/// How a robot is served.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ServeOptions {
+    /// The ROS domain (`ROS_DOMAIN_ID`).
+    pub domain: u32,
+    /// The robot's namespace: `/` for none, `/locobot` to serve two robots side by side.
+    pub namespace: String,
+    /// The node's name.
+    pub node: String,
+    /// Publish the camera's frames (colour, depth, intrinsics).
+    pub camera: bool,
+    /// Each stream's queue, items: what the publisher may fall behind before the oldest is
+    /// dropped.
+    pub queue: usize,
+    /// How long one `/cmd_vel` message drives the base (s): a teleoperator that falls silent
+    /// stops it within this.
+    pub cmd_vel_hold: f64,
+}
+
+impl Default for ServeOptions {
+    fn default() -> Self {
+        ServeOptions {
+            domain: 0,
+            namespace: "/".into(),
+            node: "ferrobot".into(),
+            camera: true,
+            queue: 256,
+            cmd_vel_hold: 0.5,
+        }
+    }
+}
+
+/// What a server has done so far.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ServeStats {
+    /// Samples published, by topic name.
+    pub published: BTreeMap<String, u64>,
+    /// Samples that could not be published (zenoh refused).
+    pub failed: u64,
+    /// `/cmd_vel` messages that drive the base.
+    pub cmd_vel_accepted: u64,
+    /// `/cmd_vel` messages refused (malformed, beyond the base's limits), and the last reason.
+    pub cmd_vel_refused: u64,
+    /// Why the last `/cmd_vel` message was refused.
+    pub last_refusal: Option<String>,
+    /// Items dropped because the publisher fell behind.
+    pub dropped: u64,
+}
+
+/// A robot served on zenoh; dropping it (or [`Server::stop`]) ends it.
+pub struct Server {
+    stop: Arc<AtomicBool>,
+    bell: Arc<Bell>,
+    stats: Arc<Mutex<ServeStats>>,
+    thread: Option<JoinHandle<()>>,
+    _cmd_vel: Option<RosSubscription>,
+    node: Arc<RosNode>,
+}
+
+/// The topics a robot publishes from the start (others are declared when first sent).
+fn announced(info: &RobotInfo, camera: bool) -> Vec<Topic> {
+    let mut t = vec![
+        topics::ROBOT_DESCRIPTION,
+        topics::TF_STATIC,
+        topics::TF,
+        topics::JOINT_STATES,
+        topics::ROSOUT,
+    ];
+    if info.base {
+        t.push(topics::ODOM);
+    }
+    if info.gripper {
+        t.push(topics::GRIPPER_STATE);
+    }
+    if camera && info.optical.is_some() {
+        t.extend([topics::COLOR, topics::DEPTH, topics::CAMERA_INFO]);
+    }
+    t
+}
+
+impl Server {
+    /// Serves `robot` on `session`.
+    pub fn start(
+        robot: &Robot,
+        session: &zenoh::Session,
+        opts: ServeOptions,
+    ) -> Result<Server, BridgeError> {
+        if !(opts.cmd_vel_hold.is_finite() && opts.cmd_vel_hold > 0.0 && opts.cmd_vel_hold <= 10.0)
+        {
+            return Err(BridgeError::Usage(format!(
+                "cmd_vel_hold {} s: between 0 and 10 s",
+                opts.cmd_vel_hold
+            )));
+        }
+        let node = Arc::new(RosNode::new(
+            session,
+            opts.domain,
+            &opts.namespace,
+            &opts.node,
+        )?);
+        let info = RobotInfo::of(robot)?;
+        let camera = opts.camera && info.optical.is_some();
+        let mut publishers = BTreeMap::new();
+        for t in announced(&info, camera) {
+            publishers.insert(t.name, node.publisher(&t)?);
+        }
+        let messages = Messages::new(info);
+        let start = Duration::from_secs_f64(robot.time());
+        let stats = Arc::new(Mutex::new(ServeStats::default()));
+        let mut publish = Publish {
+            node: node.clone(),
+            publishers,
+            stats: stats.clone(),
+        };
+        for (topic, data) in messages.latched(start) {
+            publish.put(topic, data);
+        }
+        let feeds = Feeds::subscribe(robot, opts.queue.clamp(1, 100_000), camera)?;
+        let bell = Bell::new();
+        feeds.ring(&bell);
+        let cmd_vel = match robot.config().base.is_some() {
+            true => Some(cmd_vel(robot, &node, opts.cmd_vel_hold, stats.clone())?),
+            false => None,
+        };
+        let stop = Arc::new(AtomicBool::new(false));
+        let (their_stop, their_bell) = (stop.clone(), bell.clone());
+        let thread = std::thread::Builder::new()
+            .name("ferrobot-serve".into())
+            .spawn(move || run(feeds, messages, publish, their_stop, their_bell))
+            .map_err(|e| BridgeError::Usage(format!("starting the server's thread: {e}")))?;
+        Ok(Server {
+            stop,
+            bell,
+            stats,
+            thread: Some(thread),
+            _cmd_vel: cmd_vel,
+            node,
+        })
+    }
+
+    /// What it has done so far.
+    pub fn stats(&self) -> ServeStats {
+        self.stats.lock().clone()
+    }
+
+    /// The ROS 2 node it serves as.
+    pub fn node(&self) -> &RosNode {
+        &self.node
+    }
+
+    /// Publishes what is left and ends; what it did.
+    pub fn stop(mut self) -> ServeStats {
+        self.end();
+        self.stats()
+    }
+
+    fn end(&mut self) {
+        self.stop.store(true, Ordering::SeqCst);
+        self.bell.ring();
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+impl Drop for Server {
+    fn drop(&mut self) {
+        self.end();
+    }
+}
+
+/// The publishers, declared as topics are first sent.
+struct Publish {
+    node: Arc<RosNode>,
+    publishers: BTreeMap<&'static str, RosPublisher>,
+    stats: Arc<Mutex<ServeStats>>,
+}
+
+impl Publish {
+    fn put(&mut self, topic: Topic, data: Vec<u8>) {
+        if !self.publishers.contains_key(topic.name) {
+            match self.node.publisher(&topic) {
+                Ok(p) => {
+                    self.publishers.insert(topic.name, p);
+                }
+                Err(_) => {
+                    self.stats.lock().failed += 1;
+                    return;
+                }
+            }
+        }
+        let ok = self.publishers.get(topic.name).map(|p| p.put(data).is_ok());
+        let mut s = self.stats.lock();
+        match ok {
+            Some(true) => *s.published.entry(topic.name.to_string()).or_default() += 1,
+            _ => s.failed += 1,
+        }
+    }
+}
+
+fn run(
+    feeds: Feeds,
+    mut messages: Messages,
+    mut publish: Publish,
+    stop: Arc<AtomicBool>,
+    bell: Arc<Bell>,
+) {
+    loop {
+        let stopping = stop.load(Ordering::SeqCst);
+        for item in feeds.take() {
+            for (topic, data) in messages.of(&item) {
+                // `/cmd_vel` is the robot's input on ROS 2: the base's commands are not echoed
+                // on it (they are on `/ferrobot/commands`).
+                if topic.name != topics::CMD_VEL.name {
+                    publish.put(topic, data);
+                }
+            }
+        }
+        let dropped = feeds.telemetry.dropped()
+            + feeds.events.dropped()
+            + feeds.frames.as_ref().map_or(0, |f| f.dropped());
+        publish.stats.lock().dropped = dropped;
+        if stopping {
+            return;
+        }
+        bell.wait(Duration::from_millis(200));
+    }
+}
+
+/// `/cmd_vel`: each message drives the base at its forward speed (m/s) and yaw rate (rad/s)
+/// for `hold` s, or until the next one.
+fn cmd_vel(
+    robot: &Robot,
+    node: &RosNode,
+    hold: f64,
+    stats: Arc<Mutex<ServeStats>>,
+) -> Result<RosSubscription, BridgeError> {
+    let base = robot.base()?;
+    node.subscription(&topics::CMD_VEL, move |payload, _| {
+        let outcome = ferrobot_ros2::decode::twist(payload)
+            .map_err(|e| e.to_string())
+            .and_then(|[v, w]| base.set_vel_async(v, w, hold).map_err(|e| e.to_string()));
+        let mut s = stats.lock();
+        match outcome {
+            Ok(_motion) => s.cmd_vel_accepted += 1,
+            Err(why) => {
+                s.cmd_vel_refused += 1;
+                s.last_refusal = Some(why);
+            }
+        }
+    })
+}
