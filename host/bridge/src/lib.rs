@@ -6,6 +6,8 @@
 //!   hashes, announced by rmw_zenoh's liveliness tokens; `/cmd_vel` drives its base. Every
 //!   ROS 2 tool on rmw_zenoh (`ros2 topic`, rviz2, rosbag2) is a peer, and nothing of ROS is
 //!   installed here.
+//! - [`remote`]: the remote backend: a served robot driven from another process or machine
+//!   through the same API ([`remote::connect`]), with the server's watchdog on its clients.
 //! - [`access`]: the zenoh session's configuration from where it listens and connects and with
 //!   which credentials; a robot served beyond loopback needs them.
 //!
@@ -14,6 +16,7 @@
 pub mod access;
 pub mod error;
 pub mod node;
+pub mod remote;
 pub mod serve;
 
 pub use access::{Access, Credentials};

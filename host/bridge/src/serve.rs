@@ -11,13 +11,16 @@ use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::Duration;
 
+use ferrobot::events::Event;
 use ferrobot::{Bell, Robot};
-use ferrobot_ros2::robot::{Feeds, Messages, RobotInfo};
+use ferrobot_ros2::robot::{Feeds, Item, Messages, RobotInfo};
 use ferrobot_ros2::topics::{self, Topic};
 use parking_lot::Mutex;
 
 use crate::error::BridgeError;
 use crate::node::{RosNode, RosPublisher, RosSubscription};
+use crate::remote::wire::{self, RemoteCamera, RemoteInfo};
+use crate::remote::{RemoteService, RemoteStats};
 
 /// How a robot is served.
 #[derive(Debug, Clone, PartialEq)]
@@ -36,6 +39,9 @@ pub struct ServeOptions {
     /// How long one `/cmd_vel` message drives the base (s): a teleoperator that falls silent
     /// stops it within this.
     pub cmd_vel_hold: f64,
+    /// Serve the remote backend too ([`crate::remote`]): other programs drive the robot through
+    /// the API.
+    pub remote: bool,
 }
 
 impl Default for ServeOptions {
@@ -47,6 +53,7 @@ impl Default for ServeOptions {
             camera: true,
             queue: 256,
             cmd_vel_hold: 0.5,
+            remote: true,
         }
     }
 }
@@ -66,6 +73,8 @@ pub struct ServeStats {
     pub last_refusal: Option<String>,
     /// Items dropped because the publisher fell behind.
     pub dropped: u64,
+    /// The remote backend's service.
+    pub remote: RemoteStats,
 }
 
 /// A robot served on zenoh; dropping it (or [`Server::stop`]) ends it.
@@ -76,6 +85,7 @@ pub struct Server {
     thread: Option<JoinHandle<()>>,
     _cmd_vel: Option<RosSubscription>,
     node: Arc<RosNode>,
+    remote: Option<Arc<RemoteService>>,
 }
 
 /// The topics a robot publishes from the start (others are declared when first sent).
@@ -143,11 +153,21 @@ impl Server {
             true => Some(cmd_vel(robot, &node, opts.cmd_vel_hold, stats.clone())?),
             false => None,
         };
+        let remote = match opts.remote {
+            true => Some(Arc::new(remote(robot, session, &opts, camera)?)),
+            false => None,
+        };
         let stop = Arc::new(AtomicBool::new(false));
         let (their_stop, their_bell) = (stop.clone(), bell.clone());
+        let serving = Serving {
+            feeds,
+            messages,
+            publish,
+            remote: remote.clone(),
+        };
         let thread = std::thread::Builder::new()
             .name("ferrobot-serve".into())
-            .spawn(move || run(feeds, messages, publish, their_stop, their_bell))
+            .spawn(move || serving.run(their_stop, their_bell))
             .map_err(|e| BridgeError::Usage(format!("starting the server's thread: {e}")))?;
         Ok(Server {
             stop,
@@ -156,12 +176,15 @@ impl Server {
             thread: Some(thread),
             _cmd_vel: cmd_vel,
             node,
+            remote,
         })
     }
 
     /// What it has done so far.
     pub fn stats(&self) -> ServeStats {
-        self.stats.lock().clone()
+        let mut s = self.stats.lock().clone();
+        s.remote = self.remote.as_ref().map(|r| r.stats()).unwrap_or_default();
+        s
     }
 
     /// The ROS 2 node it serves as.
@@ -219,33 +242,77 @@ impl Publish {
     }
 }
 
-fn run(
+/// The serving thread's work: the robot's items to messages, published; the remote backend's
+/// telemetry, faults and watchdog.
+struct Serving {
     feeds: Feeds,
-    mut messages: Messages,
-    mut publish: Publish,
-    stop: Arc<AtomicBool>,
-    bell: Arc<Bell>,
-) {
-    loop {
-        let stopping = stop.load(Ordering::SeqCst);
-        for item in feeds.take() {
-            for (topic, data) in messages.of(&item) {
-                // `/cmd_vel` is the robot's input on ROS 2: the base's commands are not echoed
-                // on it (they are on `/ferrobot/commands`).
-                if topic.name != topics::CMD_VEL.name {
-                    publish.put(topic, data);
+    messages: Messages,
+    publish: Publish,
+    remote: Option<Arc<RemoteService>>,
+}
+
+impl Serving {
+    fn run(mut self, stop: Arc<AtomicBool>, bell: Arc<Bell>) {
+        loop {
+            let stopping = stop.load(Ordering::SeqCst);
+            for item in self.feeds.take() {
+                if let Some(r) = &self.remote {
+                    match &item {
+                        Item::Telemetry(t) => r.telemetry(t),
+                        Item::Event(Event::Fault { fault, .. }) => r.fault(fault),
+                        _ => {}
+                    }
+                }
+                for (topic, data) in self.messages.of(&item) {
+                    // `/cmd_vel` is the robot's input on ROS 2: the base's commands are not
+                    // echoed on it (they are on `/ferrobot/commands`).
+                    if topic.name != topics::CMD_VEL.name {
+                        self.publish.put(topic, data);
+                    }
                 }
             }
+            let f = &self.feeds;
+            let dropped = f.telemetry.dropped()
+                + f.events.dropped()
+                + f.frames.as_ref().map_or(0, |f| f.dropped());
+            self.publish.stats.lock().dropped = dropped;
+            if stopping {
+                return;
+            }
+            if let Some(r) = &self.remote {
+                r.watchdog();
+            }
+            // Woken by each item; the remote backend's watchdog looks at least this often.
+            bell.wait(Duration::from_millis(20));
         }
-        let dropped = feeds.telemetry.dropped()
-            + feeds.events.dropped()
-            + feeds.frames.as_ref().map_or(0, |f| f.dropped());
-        publish.stats.lock().dropped = dropped;
-        if stopping {
-            return;
-        }
-        bell.wait(Duration::from_millis(200));
     }
+}
+
+/// The remote backend's service for `robot`.
+fn remote(
+    robot: &Robot,
+    session: &zenoh::Session,
+    opts: &ServeOptions,
+    camera: bool,
+) -> Result<RemoteService, BridgeError> {
+    let camera = match camera {
+        true => {
+            let i = robot.camera()?.intrinsics()?;
+            Some(RemoteCamera {
+                size: [i.width, i.height],
+                pinhole: [i.fx, i.fy, i.cx, i.cy],
+                rate: robot.config().camera.as_ref().map_or(30.0, |c| c.rate),
+            })
+        }
+        false => None,
+    };
+    let info = RemoteInfo {
+        robot: robot.name().to_string(),
+        device: robot.device_info(),
+        camera,
+        domain: opts.domain,
+    };
+    RemoteService::start(robot, session, &wire::prefix(&opts.namespace), info)
 }
 
 /// `/cmd_vel`: each message drives the base at its forward speed (m/s) and yaw rate (rad/s)

@@ -31,6 +31,8 @@ pub struct RobotBuilder {
     pub(crate) uses: Use,
     pub(crate) overrides: Vec<(String, toml::Value)>,
     pub(crate) camera_device: Option<Box<dyn CameraDevice>>,
+    /// A link the caller made ([`RobotBuilder::link`]), in place of the backend's.
+    pub(crate) link: Option<Box<dyn Link>>,
     pub(crate) camera_calibration: Option<std::path::PathBuf>,
     /// The simulated world, on the sim and emulated backends.
     #[cfg(feature = "sim")]
@@ -53,6 +55,7 @@ impl RobotBuilder {
             },
             overrides: Vec::new(),
             camera_device: None,
+            link: None,
             camera_calibration: None,
             #[cfg(feature = "sim")]
             world: Default::default(),
@@ -109,6 +112,15 @@ impl RobotBuilder {
     /// it a backend must be chosen).
     pub fn backend(mut self, backend: Backend) -> Self {
         self.backend = Some(backend);
+        self
+    }
+
+    /// Drive the robot through `link`, a backend made outside this crate (the remote backend
+    /// of `ferrobot-bridge`: a robot served by another process or machine), in place of
+    /// [`RobotBuilder::backend`]'s; its camera, if any, given with
+    /// [`RobotBuilder::camera_device`].
+    pub fn link(mut self, link: Box<dyn Link>) -> Self {
+        self.link = Some(link);
         self
     }
     /// Override one configuration value by its dotted key, e.g. `("arm.joint_tolerance", 0.005)`.

@@ -34,6 +34,15 @@ pub(crate) fn connect(
     };
     let uses_camera = b.uses.camera;
     let camera_device = b.camera_device;
+    if let Some(link) = b.link {
+        let uses_camera = uses_camera && cfg.camera.is_some();
+        return Ok(Connected {
+            link,
+            camera: camera_device.filter(|_| uses_camera),
+            #[cfg(feature = "sim")]
+            scene: world.scene,
+        });
+    }
     // The link, and the socket of a camera served from the backend's world, if any.
     let (mut link, served_camera): (Box<dyn Link>, Option<std::path::PathBuf>) = match &backend {
         #[cfg(feature = "sim")]

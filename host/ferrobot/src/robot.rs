@@ -364,6 +364,18 @@ impl Robot {
         self.lock_hub().link.command(msg, "a replayed command")
     }
 
+    /// The firmware's self-description from its handshake (protocol, robot, joint kinds,
+    /// base, loop period): what a tool serving this robot's link tells its clients.
+    pub fn device_info(&self) -> ferrobot_protocol::DeviceInfo {
+        self.lock_hub().link.info().clone()
+    }
+
+    /// The firmware's configuration of joint `index` (its row of the joint table), asked of
+    /// the firmware.
+    pub fn firmware_joint(&self, index: u8) -> Result<ferrobot_protocol::JointConfig> {
+        self.lock_hub().link.joint_config(index)
+    }
+
     /// The backend's clock, s.
     pub fn time(&self) -> f64 {
         self.lock_hub().link.now().as_secs_f64()

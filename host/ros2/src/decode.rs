@@ -36,6 +36,13 @@ fn header(r: &mut CdrReader<'_>) -> Result<(Duration, String), CdrError> {
     Ok((time(r)?, r.string()?))
 }
 
+/// The stamp of a message that starts with a `std_msgs/Header` (images, camera info, joint
+/// states, odometry, poses).
+pub fn stamp(data: &[u8]) -> Result<Duration, DecodeError> {
+    let mut r = CdrReader::new(data)?;
+    Ok(time(&mut r)?)
+}
+
 /// A `ferrobot_msgs/Command`'s message.
 pub fn command(data: &[u8]) -> Result<HostMsg, DecodeError> {
     let mut r = CdrReader::new(data)?;

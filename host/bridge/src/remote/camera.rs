@@ -1,0 +1,129 @@
+//! The remote backend's camera: a served robot's colour and depth, read from its ROS 2 topics
+//! (`sensor_msgs/Image`, `rgb8` and `32FC1`, decoded by [`ferrobot_ros2::decode`]) and paired by
+//! their stamps, which are on the served robot's clock.
+
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use ferrobot::backend::device::{CameraDevice, RawFrame};
+use ferrobot::backend::Link;
+use ferrobot::perception::{DepthImage, Intrinsics, RgbImage};
+use ferrobot_ros2::{decode, rmw_zenoh, topics};
+use parking_lot::{Condvar, Mutex};
+use zenoh::pubsub::Subscriber;
+use zenoh::{Session, Wait};
+
+use super::wire::RemoteCamera;
+use crate::error::BridgeError;
+
+#[derive(Default)]
+struct Latest {
+    rgb: Option<(Duration, RgbImage)>,
+    depth: Option<(Duration, DepthImage)>,
+    /// The stamp of the last frame given.
+    given: Option<Duration>,
+}
+
+/// A served robot's camera.
+pub struct RemoteCameraDevice {
+    intrinsics: Intrinsics,
+    rate: f64,
+    latest: Arc<(Mutex<Latest>, Condvar)>,
+    _subscribers: [Subscriber<()>; 2],
+}
+
+impl RemoteCameraDevice {
+    /// The camera `camera` of the robot served in `namespace` of ROS domain `domain`.
+    pub fn connect(
+        session: &Session,
+        domain: u32,
+        namespace: &str,
+        camera: &RemoteCamera,
+    ) -> Result<RemoteCameraDevice, BridgeError> {
+        let [fx, fy, cx, cy] = camera.pinhole;
+        let intrinsics = Intrinsics::new(camera.size[0], camera.size[1], fx, fy, cx, cy)
+            .map_err(|e| BridgeError::Usage(format!("the served camera's intrinsics: {e}")))?;
+        let latest: Arc<(Mutex<Latest>, Condvar)> = Arc::default();
+        let full = |t: &str| match namespace.trim_end_matches('/') {
+            "" => t.to_string(),
+            ns => format!("{ns}{t}"),
+        };
+        let z = |e| BridgeError::zenoh("subscribing to the served camera", e);
+        let mine = latest.clone();
+        let rgb = session
+            .declare_subscriber(rmw_zenoh::topic_key(
+                domain,
+                &full(topics::COLOR.name),
+                topics::COLOR.msg,
+            )?)
+            .callback(move |s| {
+                let b = s.payload().to_bytes();
+                if let (Ok(t), Ok(img)) = (decode::stamp(&b), decode::rgb(&b)) {
+                    mine.0.lock().rgb = Some((t, img));
+                    mine.1.notify_all();
+                }
+            })
+            .wait()
+            .map_err(z)?;
+        let mine = latest.clone();
+        let depth = session
+            .declare_subscriber(rmw_zenoh::topic_key(
+                domain,
+                &full(topics::DEPTH.name),
+                topics::DEPTH.msg,
+            )?)
+            .callback(move |s| {
+                let b = s.payload().to_bytes();
+                if let (Ok(t), Ok(img)) = (decode::stamp(&b), decode::depth(&b)) {
+                    mine.0.lock().depth = Some((t, img));
+                    mine.1.notify_all();
+                }
+            })
+            .wait()
+            .map_err(z)?;
+        Ok(RemoteCameraDevice {
+            intrinsics,
+            rate: camera.rate,
+            latest,
+            _subscribers: [rgb, depth],
+        })
+    }
+}
+
+impl CameraDevice for RemoteCameraDevice {
+    fn intrinsics(&self) -> Intrinsics {
+        self.intrinsics
+    }
+
+    fn rate(&self) -> f64 {
+        self.rate
+    }
+
+    fn capture(&mut self, _link: &mut dyn Link) -> ferrobot::Result<RawFrame> {
+        // The next colour and depth pair of one stamp, newer than the last given: within two
+        // frame periods and a second of slack for the network.
+        let period = Duration::from_secs_f64(1.0 / self.rate.max(1.0));
+        let deadline = Instant::now() + period * 2 + Duration::from_secs(1);
+        let (lock, cv) = &*self.latest;
+        let mut l = lock.lock();
+        loop {
+            if let (Some((tc, rgb)), Some((td, depth))) = (&l.rgb, &l.depth) {
+                if tc == td && l.given.is_none_or(|g| *tc > g) {
+                    let frame = RawFrame {
+                        rgb: rgb.clone(),
+                        depth: depth.clone(),
+                        time: *tc,
+                        device_time: None,
+                    };
+                    l.given = Some(*tc);
+                    return Ok(frame);
+                }
+            }
+            if cv.wait_until(&mut l, deadline).timed_out() {
+                return Err(ferrobot::Error::Link(
+                    "no frame from the served camera within two frame periods and 1 s".into(),
+                ));
+            }
+        }
+    }
+}
