@@ -114,13 +114,16 @@ export FERROBOT_PYTHON="$PWD/target/py-venv/bin/python"
 # With them, the host-run firmware's tests (hil-tests/tests/host_run.rs: the stock robots on
 # emulated devices, and each fault of a real wire on the host-run firmware and in QEMU); and,
 # in a job of its own beside them, PyRobot's listings on the host-run firmware
-# (FERROBOT_BACKEND=direct-emulated, about six minutes). Both are paced at real time and use
-# little CPU; nextest leaves the listings out below.
+# (FERROBOT_BACKEND=direct-emulated, about six minutes), then through the remote backend (two
+# LoCoBots served on zenoh by the test, the listings a second process; about two and a half
+# minutes). All are paced at real time and use little CPU; nextest leaves the listings out
+# below.
 host_run_listings=pyrobot_listings_on_the_host_run_firmware
-step "started: the HIL tests (hil-tests/tests/hil.rs: the firmware in QEMU; host_run.rs: the host-run firmware) and PyRobot's listings on the host-run firmware, real-time paced"
+remote_listings=pyrobot_listings_through_the_remote_backend
+step "started: the HIL tests (hil-tests/tests/hil.rs: the firmware in QEMU; host_run.rs: the host-run firmware) and PyRobot's listings on the host-run firmware and through the remote backend, real-time paced"
 run=scripts/run-test-binary.sh
 background hil "rc=0; for t in firmware-process hil host_run; do $run $hil_binaries \$t || rc=1; done; exit \$rc"
-background listings "$run $hil_binaries pytest --exact $host_run_listings"
+background listings "rc=0; for t in $host_run_listings $remote_listings; do $run $hil_binaries pytest --exact \$t || rc=1; done; exit \$rc"
 
 step "cargo test --no-run: every other test"
 other_binaries=$logs/other-binaries.txt
@@ -163,13 +166,13 @@ join demos
 if cargo nextest --version >/dev/null 2>&1; then
     step "cargo nextest run: every other test"
     check "cargo nextest" cargo nextest run "${tested[@]}" --no-fail-fast --exclude ferrobot-hil \
-        -E "not test(=$host_run_listings) and not test(/$host_run_demos/)"
+        -E "not test(=$host_run_listings) and not test(=$remote_listings) and not test(/$host_run_demos/)"
     step "cargo test --doc"
     check "cargo test --doc" cargo test "${tested[@]}" --doc --exclude ferrobot-hil
 else
     step "cargo test: every other test (cargo-nextest is not installed)"
     check "cargo test" cargo test "${tested[@]}" --no-fail-fast --exclude ferrobot-hil -- \
-        --skip "$host_run_listings" --skip "$host_run_demos"
+        --skip "$host_run_listings" --skip "$remote_listings" --skip "$host_run_demos"
 fi
 
 if [ ${#failed[@]} -gt 0 ]; then

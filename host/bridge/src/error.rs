@@ -43,3 +43,16 @@ impl BridgeError {
         }
     }
 }
+
+/// The API's error for a bridge's: a robot's own stays itself, a setting is a usage error, the
+/// network's is the link's.
+impl From<BridgeError> for ferrobot::Error {
+    fn from(e: BridgeError) -> ferrobot::Error {
+        match e {
+            BridgeError::Robot(e) => e,
+            BridgeError::Usage(w) => ferrobot::Error::Usage(w),
+            e @ BridgeError::Unauthenticated { .. } => ferrobot::Error::Usage(e.to_string()),
+            e => ferrobot::Error::Link(e.to_string()),
+        }
+    }
+}

@@ -22,4 +22,4 @@ pub mod serve;
 pub use access::{Access, Credentials};
 pub use error::BridgeError;
 pub use node::{RosNode, RosPublisher};
-pub use serve::{ServeOptions, ServeStats, Server};
+pub use serve::{Clock, ServeOptions, ServeStats, Server};

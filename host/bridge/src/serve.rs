@@ -338,3 +338,39 @@ fn cmd_vel(
         }
     })
 }
+
+/// A thread that lets a robot's time pass, `step` at a time, until dropped: what a simulated
+/// robot being served needs (the simulator's time passes only while someone waits), paced to
+/// the wall clock when the simulator is (`realtime`).
+pub struct Clock {
+    stop: Arc<AtomicBool>,
+    thread: Option<JoinHandle<()>>,
+}
+
+impl Clock {
+    /// Starts letting `robot`'s time pass.
+    pub fn start(robot: &Robot, step: Duration) -> Clock {
+        let stop = Arc::new(AtomicBool::new(false));
+        let (r, s) = (robot.clone(), stop.clone());
+        let thread = std::thread::Builder::new()
+            .name("ferrobot-clock".into())
+            .spawn(move || {
+                while !s.load(Ordering::SeqCst) {
+                    if r.wait(step.as_secs_f64()).is_err() {
+                        std::thread::sleep(step);
+                    }
+                }
+            })
+            .ok();
+        Clock { stop, thread }
+    }
+}
+
+impl Drop for Clock {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::SeqCst);
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}

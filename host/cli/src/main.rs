@@ -8,6 +8,7 @@
 //! ferrobot ik locobot --position 0.35 0 0.15 --pitch 1.5708 --roll 0
 //! ferrobot ik sawyer --position 0.6 0.1 0.4 --quaternion 0 1 0 0 --seed 0 -1 0 2 0 0.5 3
 //! ferrobot demo
+//! ferrobot serve locobot --scene tabletop --namespace /locobot
 //! ferrobot scene tabletop --json
 //! ferrobot snapshot locobot --scene tabletop --tilt 0.8 --out target/snapshot
 //! ferrobot base-move locobot --relative 1 1 1.5708 --controller lqr --smooth --json
@@ -74,6 +75,12 @@ enum Command {
     /// its telemetry (a stopped control loop), `freeze` and `thaw` stop and restart the
     /// world's clock (the firmware still answers), `stall MS` stops the server for MS.
     SimFirmware(cmd::sim_firmware::Args),
+    /// Serve a robot on zenoh: its topics as a ROS 2 node publishes them (rmw_zenoh's layout:
+    /// joint states, transforms, odometry, camera, URDF), `/cmd_vel` to drive its base, and the
+    /// remote backend for programs on other machines. Listens on loopback unless told
+    /// otherwise; beyond it, --credentials is required. Prints one JSON line, then serves
+    /// until standard input closes or a signal ends it.
+    Serve(cmd::serve::Args),
     /// Serve the host-run firmware of a stock robot (the firmware core on this computer, the
     /// servo bus and the base on the robot's own USB cables: a U2D2, the base's cable) on a
     /// PTY behind the symlink LINK, for the serial backend, after the hardware check has
@@ -206,6 +213,7 @@ fn run(cli: Cli) -> Result<(), (ferrobot::Error, bool)> {
         Command::Ik(a) => (cmd::ik::run(&a), a.json),
         // Its one line on standard output is JSON, and so are its errors.
         Command::SimFirmware(a) => (cmd::sim_firmware::run(&a), true),
+        Command::Serve(a) => (cmd::serve::run(&a), true),
         Command::Drive(a) => (cmd::drive::run(&a), true),
         Command::Hardware {
             which: HardwareCommand::Check(a),

@@ -132,6 +132,53 @@ fn direct(spec: &str) -> Option<Backend> {
     })
 }
 
+/// The remote backend a string names: `"remote:ENDPOINT"` with, after commas,
+/// `namespace=NS` and `credentials=FILE` (a `user:password` file), e.g.
+/// `"remote:tcp/127.0.0.1:7447,namespace=/locobot"`; `None` for another backend, an error for
+/// a malformed remote one.
+pub fn remote(py: Python<'_>, spec: &str) -> PyResult<Option<Remote>> {
+    let Some(rest) = spec.strip_prefix("remote:") else {
+        return Ok(None);
+    };
+    let bad = |why: &str| {
+        invalid(
+            py,
+            "backend",
+            "\"remote:ENDPOINT[,namespace=NS][,credentials=FILE]\"",
+            format!("{spec:?} ({why})"),
+        )
+    };
+    let mut parts = rest.split(',');
+    let endpoint = parts
+        .next()
+        .filter(|e| !e.is_empty())
+        .ok_or_else(|| bad("no endpoint"))?;
+    let mut r = Remote {
+        access: ferrobot_bridge::Access::connect(endpoint),
+        namespace: "/".into(),
+    };
+    for pair in parts {
+        match pair.split_once('=') {
+            Some(("namespace", ns)) if !ns.is_empty() => r.namespace = ns.into(),
+            Some(("credentials", file)) if !file.is_empty() => {
+                let c = ferrobot_bridge::Credentials::from_file(file)
+                    .map_err(|e| bad(&e.to_string()))?;
+                r.access.credentials = Some(c);
+            }
+            _ => return Err(bad(&format!("unknown option {pair:?}"))),
+        }
+    }
+    Ok(Some(r))
+}
+
+/// A served robot to drive through the remote backend ([`remote`]).
+pub struct Remote {
+    /// Where it is served, and the credentials.
+    pub access: ferrobot_bridge::Access,
+    /// Its namespace.
+    pub namespace: String,
+}
+
 /// The backend a string names: `"sim"`, `"serial:PATH"`, `"emulated"`, `"emulated:ELF"`,
 /// `"direct"`, `"direct:servo=PATH,base=PATH,camera=SOCKET"` or `"direct-emulated"`.
 pub fn backend(py: Python<'_>, spec: &str, seed: u64, realtime: bool) -> PyResult<Backend> {

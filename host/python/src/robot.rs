@@ -103,7 +103,9 @@ impl Robot {
     /// Ferrobot's keywords: `scene` (a bundled scene's name or a scene file), `backend`
     /// (`"sim"`, `"serial:PATH"`, `"emulated"`, `"direct"` for the host-run firmware on the
     /// robot's own cables, `"direct:servo=PATH,base=PATH,camera=SOCKET"` with its devices
-    /// named, `"direct-emulated"`; when absent, the environment's `FERROBOT_BACKEND`, else
+    /// named, `"direct-emulated"`, `"remote:tcp/HOST:PORT[,namespace=NS][,credentials=FILE]"`
+    /// for a robot served on zenoh by another process or machine (`ferrobot serve`); when
+    /// absent, the environment's `FERROBOT_BACKEND`, else
     /// `"sim"`: an unchanged program runs on the robot), `seed` (the simulator's noise), `realtime`
     /// (pace simulated time to the wall clock), `start_pose` (`[x, y, theta]` in the scene),
     /// `depth_noise`, `slam` (start SLAM at the start pose), `overrides` (dotted keys of the
@@ -162,13 +164,25 @@ impl Robot {
             .use_base(use_base)
             .use_camera(use_camera)
             .use_gripper(use_gripper && use_arm)
-            .depth_noise(depth_noise)
-            .backend(options::backend(
-                py,
-                &options::backend_spec(py, backend)?,
-                seed,
-                realtime,
-            )?);
+            .depth_noise(depth_noise);
+        let spec = options::backend_spec(py, backend)?;
+        builder = match options::remote(py, &spec)? {
+            Some(r) => {
+                let name = bundled_name(robot_name).to_string();
+                py.detach(move || {
+                    ferrobot_bridge::remote::attach(
+                        builder,
+                        &name,
+                        &r.access,
+                        &r.namespace,
+                        std::time::Duration::from_secs(10),
+                    )
+                })
+                .map_err(ferrobot::Error::from)
+                .py()?
+            }
+            None => builder.backend(options::backend(py, &spec, seed, realtime)?),
+        };
         let scene = scene
             .or(options::string(&common, "scene")?)
             .or(options::string(&common, "scene_path")?);

@@ -184,3 +184,56 @@ fn pyrobot_listings_on_the_host_run_firmware() {
         }
     });
 }
+
+/// PyRobot's listings through the remote backend: two LoCoBots served by this process (each in
+/// a simulated world of its own, paced at real time, under `/robot1` and `/robot2`), each
+/// file run by pytest, a second process, against one of them (`FERROBOT_BACKEND=remote:…`),
+/// two files at a time. Every robot each listing makes is a client of a served robot.
+#[test]
+fn pyrobot_listings_through_the_remote_backend() {
+    use ferrobot_bridge::{access, Access, Clock, ServeOptions, Server};
+    let served: Vec<_> = ["/robot1", "/robot2"]
+        .iter()
+        .map(|ns| {
+            let robot = ferrobot::Robot::builder("locobot")
+                .backend(ferrobot::Backend::Sim {
+                    seed: 1,
+                    realtime: true,
+                })
+                .build()
+                .expect("robot");
+            let port = std::net::TcpListener::bind("127.0.0.1:0")
+                .and_then(|l| l.local_addr())
+                .expect("a free port")
+                .port();
+            let endpoint = format!("tcp/127.0.0.1:{port}");
+            let session = access::open(&Access::listen(&endpoint)).expect("session");
+            let opts = ServeOptions {
+                namespace: ns.to_string(),
+                ..ServeOptions::default()
+            };
+            let server = Server::start(&robot, &session, opts).expect("served");
+            let clock = Clock::start(&robot, std::time::Duration::from_millis(10));
+            let spec = format!("remote:{endpoint},namespace={ns}");
+            (spec, (clock, server, session, robot))
+        })
+        .collect();
+    let queue = std::sync::Mutex::new(vec![
+        "test_pyrobot_make_robots.py",
+        "test_pyrobot_camera.py",
+        "test_pyrobot_arm_utils.py",
+        "test_pyrobot_arm_controls.py",
+        "test_pyrobot_base_velocity_control.py",
+        "test_pyrobot_base_controllers.py",
+    ]);
+    std::thread::scope(|s| {
+        for (spec, _) in &served {
+            let queue = &queue;
+            s.spawn(move || loop {
+                let next = queue.lock().map(|mut q| q.pop()).unwrap_or(None);
+                let Some(file) = next else { return };
+                pytest_env(file, &[], &[("FERROBOT_BACKEND", spec.as_str())]);
+            });
+        }
+    });
+}

@@ -32,6 +32,18 @@ pub fn connect(
     namespace: &str,
     timeout: Duration,
 ) -> Result<RobotBuilder, BridgeError> {
+    attach(Robot::builder(name), name, access, namespace, timeout)
+}
+
+/// [`connect`], for a builder made elsewhere (from a configuration file, with its components
+/// and overrides chosen): `builder` with the served robot's link and camera.
+pub fn attach(
+    builder: RobotBuilder,
+    name: &str,
+    access: &Access,
+    namespace: &str,
+    timeout: Duration,
+) -> Result<RobotBuilder, BridgeError> {
     let session = access::open(access)?;
     let prefix = wire::prefix(namespace);
     let link = RemoteLink::connect(&session, &prefix, timeout)?;
@@ -42,7 +54,7 @@ pub fn connect(
             info.robot
         )));
     }
-    let mut b = Robot::builder(name).link(Box::new(link));
+    let mut b = builder.link(Box::new(link));
     match &info.camera {
         Some(c) => {
             let cam = RemoteCameraDevice::connect(&session, info.domain, namespace, c)?;

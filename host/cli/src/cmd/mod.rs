@@ -33,6 +33,7 @@ pub mod replay;
 pub mod robots;
 pub mod route;
 pub mod scene;
+pub mod serve;
 pub mod sim_firmware;
 pub mod slam;
 pub mod snapshot;

@@ -276,6 +276,19 @@ def test_backend_specs_are_refused_with_typed_errors(monkeypatch):
     for spec in ["direct:", "direct:servo=", "direct:bogus=1", "direct:servo=a,servo=b", "directx", "direct-emulated:1"]:
         with pytest.raises(ferrobot.errors.InvalidArgument):
             Robot("locobot", backend=spec)
+    # The remote backend's spec: an endpoint, then known options with values.
+    for spec in [
+        "remote:",
+        "remote:,namespace=/a",
+        "remote:tcp/127.0.0.1:1,bogus=1",
+        "remote:tcp/127.0.0.1:1,namespace=",
+        "remote:tcp/127.0.0.1:1,credentials=/nonexistent/usrpwd",
+    ]:
+        with pytest.raises(ferrobot.errors.InvalidArgument):
+            Robot("locobot", backend=spec)
+    # An endpoint of a transport this build does not speak is refused before any connection.
+    with pytest.raises(ferrobot.errors.Usage):
+        Robot("locobot", backend="remote:udp/127.0.0.1:1")
     # The host-run firmware refuses to start before its hardware check passes: a typed error
     # that names each missing device.
     with pytest.raises(ferrobot.errors.HardwareCheck) as e:
