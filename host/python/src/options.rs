@@ -10,7 +10,7 @@ use pyo3::prelude::*;
 
 use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyString};
 
-use crate::errors::invalid;
+use crate::errors::{invalid, OrRaise};
 
 /// The keys each PyRobot dictionary takes: PyRobot's LoCoBot classes' keyword arguments.
 pub const ARM_KEYS: [&str; 5] = [
@@ -169,6 +169,29 @@ pub fn remote(py: Python<'_>, spec: &str) -> PyResult<Option<Remote>> {
         }
     }
     Ok(Some(r))
+}
+
+/// `builder` on the backend `spec` names ([`backend`], [`remote`]); a remote robot is the
+/// description `name` served elsewhere, and is connected to here (waiting up to 10 s for it).
+pub fn with_backend(
+    py: Python<'_>,
+    builder: RobotBuilder,
+    spec: &str,
+    name: &str,
+    seed: u64,
+    realtime: bool,
+) -> PyResult<RobotBuilder> {
+    match remote(py, spec)? {
+        Some(r) => {
+            let timeout = std::time::Duration::from_secs(10);
+            py.detach(|| {
+                ferrobot_bridge::remote::attach(builder, name, &r.access, &r.namespace, timeout)
+            })
+            .map_err(ferrobot::Error::from)
+            .py()
+        }
+        None => Ok(builder.backend(backend(py, spec, seed, realtime)?)),
+    }
 }
 
 /// A served robot to drive through the remote backend ([`remote`]).

@@ -166,23 +166,8 @@ impl Robot {
             .use_gripper(use_gripper && use_arm)
             .depth_noise(depth_noise);
         let spec = options::backend_spec(py, backend)?;
-        builder = match options::remote(py, &spec)? {
-            Some(r) => {
-                let name = bundled_name(robot_name).to_string();
-                py.detach(move || {
-                    ferrobot_bridge::remote::attach(
-                        builder,
-                        &name,
-                        &r.access,
-                        &r.namespace,
-                        std::time::Duration::from_secs(10),
-                    )
-                })
-                .map_err(ferrobot::Error::from)
-                .py()?
-            }
-            None => builder.backend(options::backend(py, &spec, seed, realtime)?),
-        };
+        builder =
+            options::with_backend(py, builder, &spec, bundled_name(robot_name), seed, realtime)?;
         let scene = scene
             .or(options::string(&common, "scene")?)
             .or(options::string(&common, "scene_path")?);
