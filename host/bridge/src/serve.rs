@@ -130,7 +130,7 @@ impl Server {
             &opts.node,
         )?);
         let info = RobotInfo::of(robot)?;
-        let camera = opts.camera && info.optical.is_some();
+        let camera = opts.camera && info.optical.is_some() && robot.camera().is_ok();
         let mut publishers = BTreeMap::new();
         for t in announced(&info, camera) {
             publishers.insert(t.name, node.publisher(&t)?);
