@@ -88,6 +88,9 @@ def main():
     def info(r, m):
         r["last"] = {"k": [float(x) for x in m.k], "width": m.width, "height": m.height}
 
+    def clock(r, m):
+        r["last"] = m.clock.sec + m.clock.nanosec * 1e-9
+
     def text(r, m):
         r["length"] = len(m.data)
 
@@ -97,6 +100,7 @@ def main():
         ("/tf", "tf2_msgs/msg/TFMessage", tf),
         ("/camera/color/image_raw", "sensor_msgs/msg/Image", image),
         ("/camera/color/camera_info", "sensor_msgs/msg/CameraInfo", info),
+        ("/clock", "rosgraph_msgs/msg/Clock", clock),
     ]
     latched = [
         ("/robot_description", "std_msgs/msg/String", text),

@@ -23,3 +23,5 @@ pub use access::{Access, Credentials};
 pub use error::BridgeError;
 pub use node::{RosNode, RosPublisher};
 pub use serve::{Clock, ServeOptions, ServeStats, Server};
+/// The zenoh this crate is built on, for programs that use its sessions too.
+pub use zenoh;

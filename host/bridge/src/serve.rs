@@ -96,6 +96,7 @@ fn announced(info: &RobotInfo, camera: bool) -> Vec<Topic> {
         topics::TF,
         topics::JOINT_STATES,
         topics::ROSOUT,
+        topics::CLOCK,
     ];
     if info.base {
         t.push(topics::ODOM);
@@ -256,6 +257,11 @@ impl Serving {
         loop {
             let stopping = stop.load(Ordering::SeqCst);
             for item in self.feeds.take() {
+                if let Item::Telemetry(t) = &item {
+                    let at = Duration::from_micros(t.time_us);
+                    self.publish
+                        .put(topics::CLOCK, ferrobot_ros2::encode::clock(at));
+                }
                 if let Some(r) = &self.remote {
                     match &item {
                         Item::Telemetry(t) => r.telemetry(t),

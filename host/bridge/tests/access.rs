@@ -26,8 +26,8 @@ fn credentials(password: &str) -> Credentials {
 /// Joint states a session with `access` receives in 1.5 s.
 fn joint_states_seen(access: &Access) -> u64 {
     let session = access::open(access).expect("a session opens (its connection may not)");
-    let key = rmw_zenoh::topic_key(0, topics::JOINT_STATES.name, topics::JOINT_STATES.msg)
-        .expect("key");
+    let key =
+        rmw_zenoh::topic_key(0, topics::JOINT_STATES.name, topics::JOINT_STATES.msg).expect("key");
     let n = Arc::new(AtomicU64::new(0));
     let seen = n.clone();
     let _sub = session
@@ -61,10 +61,17 @@ fn without_the_credentials_nobody_sees_or_commands_the_robot() {
     let wrong = Access::connect(&endpoint).with_credentials(credentials("guess"));
     let right = Access::connect(&endpoint).with_credentials(credentials("s3cret"));
     let seen = [&none, &wrong, &right].map(joint_states_seen);
-    eprintln!("joint states seen in 1.5 s: none {}, wrong {}, right {}", seen[0], seen[1], seen[2]);
+    eprintln!(
+        "joint states seen in 1.5 s: none {}, wrong {}, right {}",
+        seen[0], seen[1], seen[2]
+    );
     assert_eq!(seen[0], 0, "a session without credentials saw the robot");
     assert_eq!(seen[1], 0, "a session with a wrong password saw the robot");
-    assert!(seen[2] > 50, "{} joint states with the credentials", seen[2]);
+    assert!(
+        seen[2] > 50,
+        "{} joint states with the credentials",
+        seen[2]
+    );
 
     let timeout = Duration::from_secs(2);
     for (who, a) in [("no credentials", &none), ("a wrong password", &wrong)] {
@@ -87,7 +94,9 @@ fn without_the_credentials_nobody_sees_or_commands_the_robot() {
         .expect("a motion");
     other.wait(0.3).expect("time passes");
     // The other session, which commanded nothing, stops the robot.
-    other.emergency_stop().expect("the other session's emergency stop");
+    other
+        .emergency_stop()
+        .expect("the other session's emergency stop");
     let ended = motion.wait();
     assert!(
         matches!(ended, Err(Error::EmergencyStop) | Err(Error::Fault { .. })),

@@ -79,6 +79,7 @@ fn a_ros_2_peer_reads_the_robots_topics_and_drives_its_base() {
         "/camera/color/camera_info",
         "/robot_description",
         "/tf_static",
+        "/clock",
     ] {
         let r = &got[topic];
         assert!(
@@ -123,6 +124,17 @@ fn a_ros_2_peer_reads_the_robots_topics_and_drives_its_base() {
             );
         }
     }
+
+    // The robot's clock, as a node with use_sim_time keeps time: as far as the last joint state.
+    let clock = got["/clock"]["last"].as_f64().expect("a clock");
+    let last = samples
+        .last()
+        .and_then(|s| s["stamp"].as_f64())
+        .expect("a stamp");
+    assert!(
+        clock >= last - 0.05,
+        "clock {clock} s, last joint state {last} s"
+    );
 
     // The URDF as the robot parsed it; the camera's image and intrinsics.
     assert!(got["/robot_description"]["length"].as_u64().unwrap_or(0) > 1000);

@@ -197,6 +197,9 @@ enum BenchCommand {
     /// What recording costs: the simulated LoCoBot with its camera, with and without the
     /// recorder (real-time factor, the recorder's CPU time, MB/s, drops, loop overruns).
     Record(cmd::bench_record::Args),
+    /// What driving a robot over zenoh costs: command round trips and joint states' age and
+    /// rate, in-process against the remote backend with one and two served robots.
+    Remote(cmd::bench_remote::Args),
     /// Navigation on the scene's ground-truth floor plan: the simulated robot drives to N
     /// random reachable goals; success rate, bumper hits, path length against the shortest
     /// path, time per goal.
@@ -251,6 +254,7 @@ fn run_bench(which: BenchCommand) -> (ferrobot::Result<()>, bool) {
         BenchCommand::Nav(a) => (cmd::bench_nav::run(&a), a.json),
         BenchCommand::HostLoop(a) => (cmd::bench_host_loop::run(&a), a.json),
         BenchCommand::Record(a) => (cmd::bench_record::run(&a), a.json),
+        BenchCommand::Remote(a) => (cmd::bench_remote::run(&a), a.json),
     }
 }
 

@@ -122,6 +122,9 @@ impl Link for Tapped {
     fn now(&self) -> Duration {
         self.inner.now()
     }
+    fn pace(&mut self) -> Duration {
+        self.inner.pace()
+    }
     fn take_faults(&mut self) -> Vec<Fault> {
         self.inner.take_faults()
     }

@@ -61,8 +61,13 @@ impl Motion {
                 io.pump(cfg, POLL);
                 self.result = io.goals.take(self.id);
             }
-            // Hand the link to a thread that is waiting for it.
+            // Hand the link to a thread that is waiting for it; a simulator paced to the wall
+            // clock waits for it without the lock.
+            let rest = io.link.pace();
             parking_lot::MutexGuard::unlock_fair(io);
+            if !rest.is_zero() {
+                std::thread::sleep(rest);
+            }
         }
         self.result.as_ref()
     }

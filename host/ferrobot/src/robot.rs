@@ -316,7 +316,12 @@ impl Robot {
                 // over; the next call reports the link's state.
                 break;
             }
+            // A simulator paced to the wall clock waits for it without the lock.
+            let rest = io.link.pace();
             MutexGuard::unlock_fair(io);
+            if !rest.is_zero() {
+                std::thread::sleep(rest);
+            }
         }
     }
 

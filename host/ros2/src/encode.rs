@@ -8,6 +8,13 @@ use nalgebra::Isometry3;
 
 use crate::cdr::CdrWriter;
 
+/// A `rosgraph_msgs/Clock` at `t`.
+pub fn clock(t: Duration) -> Vec<u8> {
+    let mut w = CdrWriter::with_capacity(16);
+    time(&mut w, t);
+    w.into_bytes()
+}
+
 /// A `builtin_interfaces/Time` (or `Duration`) of `t`.
 pub fn time(w: &mut CdrWriter, t: Duration) {
     w.i32(t.as_secs().min(i32::MAX as u64) as i32);

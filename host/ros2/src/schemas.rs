@@ -29,6 +29,12 @@ msg!(
     "int32 sec\nuint32 nanosec\n"
 );
 msg!(
+    CLOCK,
+    "rosgraph_msgs/msg/Clock",
+    [TIME],
+    "builtin_interfaces/Time clock\n"
+);
+msg!(
     DURATION,
     "builtin_interfaces/msg/Duration",
     [],
@@ -189,8 +195,9 @@ msg!(
 );
 
 /// Every message type here.
-pub const ALL: [&MsgType; 29] = [
+pub const ALL: [&MsgType; 30] = [
     &TIME,
+    &CLOCK,
     &DURATION,
     &HEADER,
     &STRING,

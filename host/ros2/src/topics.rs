@@ -119,6 +119,12 @@ topic!(
     "every command the firmware acknowledged, exactly: its kind, and the message in the wire protocol's postcard encoding (what replay sends)."
 );
 topic!(
+    CLOCK,
+    "/clock",
+    CLOCK,
+    "the robot's clock (the firmware's, from its start) at each telemetry report: what a ROS 2 node with `use_sim_time` keeps time by (the bridge publishes it; recordings leave it out)."
+);
+topic!(
     SLAM_POSE,
     "/slam/pose",
     POSE_STAMPED,
@@ -126,7 +132,7 @@ topic!(
 );
 
 /// Every topic, in the order of this table.
-pub const ALL: [Topic; 17] = [
+pub const ALL: [Topic; 18] = [
     ROBOT_DESCRIPTION,
     TF_STATIC,
     TF,
@@ -143,6 +149,7 @@ pub const ALL: [Topic; 17] = [
     CAMERA_POSE,
     CAMERA_ODOM,
     COMMANDS,
+    CLOCK,
     SLAM_POSE,
 ];
 

@@ -17,7 +17,7 @@ use std::time::{Duration, Instant};
 use ferrobot::backend::{Link, LinkEvent, StopLine};
 use ferrobot::{Diagnostics, Fault, Telemetry};
 use ferrobot_protocol::session::REPORTS;
-use ferrobot_protocol::{DeviceInfo, HostMsg, JointConfig};
+use ferrobot_protocol::{DeviceInfo, FaultKind, HostMsg, JointConfig};
 use parking_lot::{Condvar, Mutex};
 use zenoh::pubsub::Subscriber;
 use zenoh::{Session, Wait};
@@ -40,6 +40,26 @@ struct State {
     heard: Option<Instant>,
     lost_at: Option<Instant>,
     commanded: bool,
+    /// The served robot's clock when this client's last resume was acknowledged, µs: an
+    /// emergency stop's fault from before it, arriving late (faults and replies travel apart),
+    /// is not news.
+    resumed_us: u64,
+}
+
+impl State {
+    fn fault(&mut self, f: Fault) {
+        let stale = f.kind == FaultKind::EmergencyStop && f.time_us <= self.resumed_us;
+        if !stale {
+            push(&mut self.faults, QUEUE, f);
+        }
+    }
+
+    fn resumed(&mut self, time_us: u64) {
+        self.resumed_us = self.resumed_us.max(time_us);
+        let r = self.resumed_us;
+        self.faults
+            .retain(|f| !(f.kind == FaultKind::EmergencyStop && f.time_us <= r));
+    }
 }
 
 fn push<T>(q: &mut VecDeque<T>, cap: usize, v: T) {
@@ -250,7 +270,7 @@ fn subscribe(
         .declare_subscriber(wire::fault_key(prefix))
         .callback(move |s| {
             if let Ok(f) = wire::decode::<Fault>(&s.payload().to_bytes()) {
-                push(&mut mine.state.lock().faults, QUEUE, f);
+                mine.state.lock().fault(f);
             }
         })
         .wait()
@@ -314,9 +334,11 @@ impl Link for RemoteLink {
             return Err(e);
         }
         self.shared.state.lock().commanded = true;
-        self.caller
-            .call(Call::Command(msg.clone()), what)
-            .map(|_| ())
+        let answer = self.caller.call(Call::Command(msg.clone()), what)?;
+        if let (HostMsg::Resume, Answer::Done { time_us }) = (msg, answer) {
+            self.shared.state.lock().resumed(time_us);
+        }
+        Ok(())
     }
 
     fn joint_config(&mut self, index: u8) -> ferrobot::Result<JointConfig> {

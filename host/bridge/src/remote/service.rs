@@ -222,7 +222,9 @@ impl Answerer {
             Call::Command(msg) => self
                 .robot
                 .send_command(&msg)
-                .map(|_| Answer::Done)
+                .map(|_| Answer::Done {
+                    time_us: (self.robot.time() * 1e6) as u64,
+                })
                 .map_err(|e| Refusal::of(&e)),
             Call::JointConfig(i) => self
                 .robot

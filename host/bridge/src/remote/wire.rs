@@ -106,8 +106,11 @@ pub struct RemoteCamera {
 pub enum Answer {
     /// The served robot.
     Info(RemoteInfo),
-    /// Acknowledged.
-    Done,
+    /// Acknowledged, when the served robot's clock (the firmware's) read `time_us` µs.
+    Done {
+        /// The served robot's clock after the acknowledgement, µs.
+        time_us: u64,
+    },
     /// A joint's configuration.
     Joint(JointConfig),
     /// The counters.

@@ -13,6 +13,7 @@ pub mod bench_nav;
 pub mod bench_plan;
 pub mod bench_push;
 pub mod bench_record;
+pub mod bench_remote;
 pub mod calibrate_camera;
 pub mod calibrate_odometry;
 pub mod cluster;

@@ -170,6 +170,13 @@ pub trait Link: Send {
     fn wait(&mut self, dt: Duration);
     /// The backend's clock.
     fn now(&self) -> Duration;
+    /// How far the link's clock is ahead of the wall clock it is paced to (the simulator run
+    /// in real time): the caller sleeps this long *after* releasing the robot's lock, so that
+    /// other threads reach the link meanwhile; zero for a link whose clock is the wall's or
+    /// is not paced.
+    fn pace(&mut self) -> Duration {
+        Duration::ZERO
+    }
     /// Faults received since the last call.
     fn take_faults(&mut self) -> Vec<Fault>;
     /// What happened to the link itself since the last call (lost, back), oldest first;

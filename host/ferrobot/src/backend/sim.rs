@@ -13,6 +13,9 @@ use super::{rejection, Link};
 use crate::config::RobotConfig;
 use crate::error::{Error, Result};
 
+/// How far a simulator paced to the wall clock may run ahead of it ([`Link::pace`]).
+pub const MAX_LEAD: Duration = Duration::from_millis(100);
+
 /// The simulated robot a configuration describes ([`ferrobot_sim::robots::from_description`]).
 pub fn sim_robot(cfg: &RobotConfig) -> SimRobot {
     ferrobot_sim::robots::from_description(cfg)
@@ -113,12 +116,27 @@ impl Link for SimLink {
 
     fn wait(&mut self, dt: Duration) {
         self.session.run_for(dt.as_micros() as u64);
-        if let Some((wall0, sim0)) = self.realtime {
-            let due = Duration::from_micros(self.session.sim.now_us() - sim0);
-            if let Some(rest) = due.checked_sub(wall0.elapsed()) {
-                std::thread::sleep(rest);
-            }
+    }
+
+    fn pace(&mut self) -> Duration {
+        let Some((wall0, sim0)) = &mut self.realtime else {
+            return Duration::ZERO;
+        };
+        let due = Duration::from_micros(self.session.sim.now_us() - *sim0);
+        let lead = due.saturating_sub(wall0.elapsed());
+        // Commands are acknowledged in the simulator's own time (a millisecond each): a flood
+        // of them runs its clock ahead of the wall's. It leads by at most MAX_LEAD; beyond, the
+        // pace starts again from there rather than stopping the world to let the wall catch up.
+        if lead > MAX_LEAD {
+            *wall0 = Instant::now();
+            *sim0 = self
+                .session
+                .sim
+                .now_us()
+                .saturating_sub(MAX_LEAD.as_micros() as u64);
+            return MAX_LEAD;
         }
+        lead
     }
 
     fn now(&self) -> Duration {
