@@ -12,7 +12,8 @@
 # one reason its test may skip) and the step succeeds; with `record`, the independent readers
 # of our recordings (Foxglove's mcap and rosbags) and of our LeRobot exports (pyarrow, pandas),
 # host/record/peer/requirements.txt; with `zenoh`, the zenoh bridge's ROS 2 peer (eclipse-zenoh at
-# rmw_zenoh Jazzy's version, rosbags), host/bridge/peer/requirements.txt.
+# rmw_zenoh Jazzy's version, rosbags), host/bridge/peer/requirements.txt; with `view`, the live
+# view's viewer (websockets, rosbags), host/view/peer/requirements.txt.
 # Idempotent: does nothing when
 # they are already there.
 set -euo pipefail
@@ -68,6 +69,7 @@ case "${1:-}" in
     python) install host/python/requirements-test.txt .installed-python-requirements "numpy, pytest, yourdfpy, absl, ipykernel, nbclient" ;;
     record) install host/record/peer/requirements.txt .installed-record-requirements "mcap, rosbags.highlevel, numpy, pyarrow.parquet, pandas, PIL" ;;
     zenoh) install host/bridge/peer/requirements.txt .installed-zenoh-requirements "zenoh, zenoh.ext, rosbags.typesys" ;;
+    view) install host/view/peer/requirements.txt .installed-view-requirements "websockets, rosbags.typesys" ;;
     realsense) install_wheel host/peers/realsense/requirements.txt .installed-realsense-requirements "pyrealsense2, numpy" pyrealsense2 ;;
-    *) echo "usage: $0 [bench|plan|cluster|slam|python|realsense|record|zenoh]" >&2; exit 2 ;;
+    *) echo "usage: $0 [bench|plan|cluster|slam|python|realsense|record|zenoh|view]" >&2; exit 2 ;;
 esac

@@ -64,7 +64,7 @@ step "cross toolchain for the boards (Debian's rustc-web, lld, QEMU)"
 scripts/setup-cross.sh
 
 step "started: Python (dynamixel-sdk; OMPL and FCL for the planning peer; scikit-learn for the clustering peer; PyBullet for SLAM's independent sequences; pytest, yourdfpy, absl-py and a Jupyter kernel for the Python package's tests; pyrealsense2 for the RealSense server; mcap and rosbags to read our recordings, pyarrow and pandas our LeRobot exports) in target/py-venv, and the board builds, the OpenCR image's check and clippy (mps2-an386 for QEMU, opencr for OpenCR 1.0)"
-background python 'scripts/python-env.sh && scripts/python-env.sh plan && scripts/python-env.sh cluster && scripts/python-env.sh slam && scripts/python-env.sh python && scripts/python-env.sh realsense && scripts/python-env.sh record && scripts/python-env.sh zenoh'
+background python 'scripts/python-env.sh && scripts/python-env.sh plan && scripts/python-env.sh cluster && scripts/python-env.sh slam && scripts/python-env.sh python && scripts/python-env.sh realsense && scripts/python-env.sh record && scripts/python-env.sh zenoh && scripts/python-env.sh view'
 # The boards' clippy (Debian's, -D warnings) right after their builds: both boards share one
 # target directory (boards/target), so it reuses the host-side build dependencies, and it keeps
 # off the workspace's target directory, whose lock the steps below hold. Between the two, the

@@ -36,6 +36,10 @@ pub struct Args {
     /// Leave the camera's topics out.
     #[arg(long)]
     pub no_camera: bool,
+    /// Also serve a live view for Foxglove and Lichtblick (their Foxglove WebSocket
+    /// connection) on this address, e.g. 127.0.0.1:8765.
+    #[arg(long)]
+    pub view: Option<String>,
     /// Where it runs (the in-process simulator by default, paced at real time).
     #[command(flatten)]
     pub backend: BackendArgs,
@@ -50,10 +54,32 @@ struct Serving<'a> {
     namespace: &'a str,
     domain: u32,
     authenticated: bool,
+    view: Option<&'a str>,
 }
 
 fn bridge(e: BridgeError) -> ferrobot::Error {
     e.into()
+}
+
+/// The live view of `robot` on `addr`.
+fn view(
+    robot: &ferrobot::Robot,
+    addr: &str,
+    camera: bool,
+) -> ferrobot::Result<ferrobot_view::ViewServer> {
+    let opts = ferrobot_view::ViewOptions {
+        camera,
+        ..Default::default()
+    };
+    let v = ferrobot_view::ViewServer::start(robot, addr, opts).map_err(|e| match e {
+        ferrobot_view::ViewError::Robot(e) => e,
+        e => ferrobot::Error::Usage(e.to_string()),
+    })?;
+    eprintln!(
+        "live view on ws://{} (Foxglove or Lichtblick: open a Foxglove WebSocket connection)",
+        v.addr()
+    );
+    Ok(v)
 }
 
 /// Serves the robot until standard input closes or the process is asked to end (SIGINT,
@@ -85,6 +111,11 @@ pub fn run(a: &Args) -> ferrobot::Result<()> {
         ..ServeOptions::default()
     };
     let server = Server::start(&robot, &session, opts).map_err(bridge)?;
+    let view = a
+        .view
+        .as_deref()
+        .map(|addr| view(&robot, addr, !a.no_camera))
+        .transpose()?;
     let authenticated = access.credentials.is_some();
     eprintln!(
         "serving {} on {:?}: {}",
@@ -103,6 +134,7 @@ pub fn run(a: &Args) -> ferrobot::Result<()> {
         namespace: &a.namespace,
         domain: a.domain,
         authenticated,
+        view: a.view.as_deref(),
     });
     let stop = Arc::new(AtomicBool::new(false));
     for sig in [
@@ -123,5 +155,8 @@ pub fn run(a: &Args) -> ferrobot::Result<()> {
     }
     let stats = server.stop();
     eprintln!("served: {stats:?}");
+    if let Some(v) = view {
+        eprintln!("view: {:?}", v.stats());
+    }
     Ok(())
 }

@@ -13,6 +13,7 @@ mod hardware_check;
 mod hostile_plots;
 mod nav_plan;
 mod record;
+mod serve;
 mod slam;
 mod slam_peer;
 mod support;

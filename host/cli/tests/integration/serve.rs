@@ -1,0 +1,90 @@
+//! `ferrobot serve`: beyond loopback only with credentials (refused before anything starts,
+//! as an input error); on loopback it serves, says whether sessions must authenticate, and ends
+//! when its standard input closes.
+
+use std::io::{BufRead, BufReader};
+use std::process::{Command, Stdio};
+
+fn free_port() -> u16 {
+    let l = std::net::TcpListener::bind("127.0.0.1:0").expect("a free port");
+    l.local_addr().expect("its address").port()
+}
+
+fn refused(args: &[&str]) -> serde_json::Value {
+    let out = Command::new(env!("CARGO_BIN_EXE_ferrobot"))
+        .args(["serve", "locobot"])
+        .args(args)
+        .stdin(Stdio::null())
+        .output()
+        .expect("runs");
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap_or_default();
+    assert!(!out.status.success(), "served with {args:?}");
+    assert_eq!(v["input_error"], true, "{args:?}: {v}");
+    v
+}
+
+#[test]
+fn serve_refuses_other_machines_without_credentials() {
+    let v = refused(&["--listen", "tcp/0.0.0.0:7447"]);
+    assert!(
+        v["error"].as_str().unwrap_or("").contains("credentials"),
+        "{v}"
+    );
+    refused(&["--listen", "udp/127.0.0.1:7447"]);
+    refused(&["--credentials", "/nonexistent/lab.pass"]);
+    let dir = std::env::temp_dir().join(format!("ferrobot-serve-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("dir");
+    let bad = dir.join("bad.pass");
+    std::fs::write(&bad, "no colon here\n").expect("file");
+    refused(&["--credentials", bad.to_str().expect("path")]);
+    refused(&["--namespace", "robot"]);
+    refused(&["--namespace", "/1robot"]);
+}
+
+/// Serves with `args` until its standard input closes: its JSON line and its standard error.
+fn serve(args: &[&str]) -> (serde_json::Value, String) {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_ferrobot"))
+        .args(["serve", "locobot", "--no-camera"])
+        .args(args)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("starts");
+    let mut line = String::new();
+    BufReader::new(child.stdout.take().expect("stdout"))
+        .read_line(&mut line)
+        .expect("its line");
+    drop(child.stdin.take());
+    let out = child.wait_with_output().expect("ends");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v = serde_json::from_str(line.trim()).expect("JSON");
+    (v, String::from_utf8_lossy(&out.stderr).into_owned())
+}
+
+#[test]
+fn serve_says_whether_sessions_must_authenticate_and_ends_with_its_input() {
+    let listen = format!("tcp/127.0.0.1:{}", free_port());
+    let (v, said) = serve(&["--listen", &listen, "--view", "127.0.0.1:0"]);
+    assert_eq!(v["authenticated"], false, "{v}");
+    assert_eq!(v["listen"][0], listen.as_str());
+    assert!(said.contains("no authentication (loopback only)"), "{said}");
+    assert!(said.contains("live view on ws://127.0.0.1:"), "{said}");
+    let dir = std::env::temp_dir().join(format!("ferrobot-serve-ok-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("dir");
+    let pass = dir.join("lab.pass");
+    std::fs::write(&pass, "lab:s3cret\n").expect("file");
+    let listen = format!("tcp/127.0.0.1:{}", free_port());
+    let (v, said) = serve(&[
+        "--listen",
+        &listen,
+        "--credentials",
+        pass.to_str().expect("path"),
+    ]);
+    assert_eq!(v["authenticated"], true, "{v}");
+    assert!(said.contains("must present the credentials"), "{said}");
+}

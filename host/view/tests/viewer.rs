@@ -1,0 +1,122 @@
+//! A viewer written from Foxglove's protocol spec (`peer/view_peer.py`: the `websockets`
+//! package, rosbags to decode by schema name) connects to the live view of a moving LoCoBot:
+//! it gets the subprotocol, the server's info and the channels, the latched URDF and fixed
+//! transforms on subscribing, joint states equal to the robot's reports, camera frames until it
+//! unsubscribes, and nothing of the camera after.
+
+use std::collections::BTreeMap;
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use ferrobot::{Backend, Robot};
+use ferrobot_view::{ViewOptions, ViewServer};
+
+#[test]
+fn a_viewer_sees_the_robot_as_foxglove_would() {
+    let Some(py) =
+        ferrobot_peers::for_test("websockets, rosbags.typesys", "scripts/python-env.sh view")
+    else {
+        return;
+    };
+    let robot = Robot::builder("locobot")
+        .backend(Backend::Sim {
+            seed: 1,
+            realtime: true,
+        })
+        .build()
+        .expect("robot");
+    let view = ViewServer::start(&robot, "127.0.0.1:0", ViewOptions::default()).expect("served");
+    let telemetry = robot.subscribe_telemetry(100_000).expect("telemetry");
+    let url = format!("ws://{}", view.addr());
+    let mut peer = Command::new(py)
+        .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/peer/view_peer.py"))
+        .args([&url, "4"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("the viewer starts");
+    let arm = robot.arm().expect("arm");
+    let _m = arm
+        .move_joints(
+            &[0.5, 0.3, -0.3, 0.2, 0.0],
+            ferrobot::MoveOptions::default(),
+        )
+        .expect("a motion");
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while peer.try_wait().expect("the viewer").is_none() {
+        assert!(
+            Instant::now() < deadline,
+            "the viewer did not finish in 60 s"
+        );
+        robot.wait(0.05).expect("time passes");
+    }
+    let out = peer.wait_with_output().expect("its output");
+    let said = String::from_utf8_lossy(&out.stdout);
+    eprintln!("{}", String::from_utf8_lossy(&out.stderr));
+    assert!(out.status.success(), "the viewer failed: {said}");
+    let v: serde_json::Value = serde_json::from_str(said.trim()).expect("its JSON");
+    eprintln!("view: {:?}", view.stats());
+    assert_eq!(v["subprotocol"], "foxglove.websocket.v1");
+    assert_eq!(v["server"]["op"], "serverInfo");
+    assert_eq!(
+        v["errors"].as_array().map(Vec::len),
+        Some(0),
+        "{}",
+        v["errors"]
+    );
+    let got = &v["received"];
+    for t in [
+        "/joint_states",
+        "/robot_description",
+        "/tf_static",
+        "/tf",
+        "/camera/color/image_raw",
+    ] {
+        assert!(
+            got[t]["count"].as_u64().unwrap_or(0) > 0,
+            "nothing on {t}: {got}"
+        );
+    }
+    assert_eq!(
+        got["/robot_description"]["count"], 1,
+        "the URDF once, on subscribing"
+    );
+    assert!(got["/robot_description"]["length"].as_u64().unwrap_or(0) > 1000);
+    assert!(
+        got["/joint_states"]["count"].as_u64().unwrap_or(0) > 200,
+        "{got}"
+    );
+
+    // The last joint state the viewer decoded is the robot's report of its stamp.
+    let reports: BTreeMap<u64, Vec<f64>> = telemetry
+        .drain()
+        .into_iter()
+        .map(|t| {
+            (
+                t.time_us,
+                t.joints.iter().map(|j| f64::from(j.position)).collect(),
+            )
+        })
+        .collect();
+    let last = &got["/joint_states"]["last"];
+    let us = (last["stamp"].as_f64().expect("stamp") * 1e6).round() as u64;
+    let ours = reports.get(&us).expect("a report of that stamp");
+    let theirs: Vec<f64> = serde_json::from_value(last["position"].clone()).expect("positions");
+    for (a, b) in theirs.iter().zip(ours) {
+        assert!((a - b).abs() < 1e-9, "{theirs:?} against {ours:?}");
+    }
+    assert_eq!(
+        got["/joint_states"]["last_time_ns"].as_u64(),
+        Some(us * 1000)
+    );
+
+    // The camera, until unsubscribed: at most the frames already queued after.
+    let img = &got["/camera/color/image_raw"];
+    assert_eq!(img["last"]["encoding"], "rgb8");
+    let at = v["camera_count_at_unsubscribe"]
+        .as_u64()
+        .expect("unsubscribed");
+    let total = img["count"].as_u64().unwrap_or(0);
+    eprintln!("camera frames: {at} when unsubscribing, {total} in all");
+    assert!(at > 10 && total <= at + 3, "{at} then {total}");
+}
