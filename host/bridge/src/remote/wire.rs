@@ -9,8 +9,8 @@
 //! | key | what |
 //! |---|---|
 //! | `<prefix>/remote/call` | queryable: a [`Request`] in, a [`Reply`] out |
-//! | `<prefix>/remote/telemetry` | each [`Telemetry`] report |
-//! | `<prefix>/remote/fault` | each [`Fault`] |
+//! | `<prefix>/remote/telemetry` | each [`ferrobot::Telemetry`] report |
+//! | `<prefix>/remote/fault` | each [`ferrobot::Fault`] |
 //! | `<prefix>/remote/heartbeat` | each client's id, every [`HEARTBEAT`] |
 
 use std::time::Duration;
