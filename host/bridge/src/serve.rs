@@ -22,6 +22,10 @@ use crate::node::{RosNode, RosPublisher, RosSubscription};
 use crate::remote::wire::{self, RemoteCamera, RemoteInfo};
 use crate::remote::{RemoteService, RemoteStats};
 
+/// Each frame's points are every this many pixels of every this many rows (160 × 120 of a
+/// 640 × 480 frame: 300 kB at most).
+pub const POINTS_STRIDE: u32 = 4;
+
 /// How a robot is served.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ServeOptions {
@@ -105,7 +109,12 @@ fn announced(info: &RobotInfo, camera: bool) -> Vec<Topic> {
         t.push(topics::GRIPPER_STATE);
     }
     if camera && info.optical.is_some() {
-        t.extend([topics::COLOR, topics::DEPTH, topics::CAMERA_INFO]);
+        t.extend([
+            topics::COLOR,
+            topics::DEPTH,
+            topics::CAMERA_INFO,
+            topics::POINTS,
+        ]);
     }
     t
 }
@@ -136,7 +145,7 @@ impl Server {
         for t in announced(&info, camera) {
             publishers.insert(t.name, node.publisher(&t)?);
         }
-        let messages = Messages::new(info);
+        let messages = Messages::new(info).with_points(POINTS_STRIDE);
         let start = Duration::from_secs_f64(robot.time());
         let stats = Arc::new(Mutex::new(ServeStats::default()));
         let mut publish = Publish {

@@ -136,6 +136,18 @@ fn a_ros_2_peer_reads_the_robots_topics_and_drives_its_base() {
         "clock {clock} s, last joint state {last} s"
     );
 
+    // The points: as many as the valid depths at the stride, each where the peer's own
+    // reconstruction from the depth image and camera info of the same stamp puts it.
+    let pc = &v["points_check"];
+    eprintln!("points: {pc}");
+    assert!(pc["theirs"].as_u64().unwrap_or(0) > 1000, "{pc}");
+    assert_eq!(pc["mine"], pc["theirs"], "{pc}");
+    assert!(pc["max_error"].as_f64().is_some_and(|e| e < 1e-5), "{pc}");
+    assert_eq!(
+        got["/camera/depth/color/points"]["last"]["fields"],
+        serde_json::json!(["x", "y", "z", "rgb"])
+    );
+
     // The URDF as the robot parsed it; the camera's image and intrinsics.
     assert!(got["/robot_description"]["length"].as_u64().unwrap_or(0) > 1000);
     let img = &got["/camera/color/image_raw"]["last"];

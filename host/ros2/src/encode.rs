@@ -3,10 +3,63 @@
 
 use std::time::Duration;
 
-use ferrobot_perception::Intrinsics;
+use ferrobot_perception::{DepthImage, Intrinsics, RgbImage};
 use nalgebra::Isometry3;
 
 use crate::cdr::CdrWriter;
+
+/// `sensor_msgs/PointCloud2` of an RGB-D frame, in the camera's optical frame `frame` (x
+/// right, y down, z forward, m): every `stride`-th pixel of every `stride`-th row with a valid
+/// depth (> 0), unordered (height 1) and dense. Fields `x`, `y`, `z` (float32) and `rgb` (a
+/// float32 holding `0x00RRGGBB`, as PCL and rviz pack it); 16 bytes a point.
+pub fn point_cloud(
+    t: Duration,
+    frame: &str,
+    depth: &DepthImage,
+    rgb: &RgbImage,
+    c: &Intrinsics,
+    stride: u32,
+) -> Vec<u8> {
+    let stride = stride.max(1) as usize;
+    let (w, h) = (depth.width as usize, depth.height as usize);
+    let mut data = Vec::with_capacity(w * h / (stride * stride) * 16);
+    let mut n = 0u32;
+    for v in (0..h).step_by(stride) {
+        for u in (0..w).step_by(stride) {
+            let i = v * w + u;
+            let z = depth.data.get(i).copied().unwrap_or(0.0);
+            if !(z > 0.0 && z.is_finite()) {
+                continue;
+            }
+            let x = ((u as f64 - c.cx) / c.fx * f64::from(z)) as f32;
+            let y = ((v as f64 - c.cy) / c.fy * f64::from(z)) as f32;
+            let px = rgb.data.get(3 * i..3 * i + 3).unwrap_or(&[0, 0, 0]);
+            let packed = u32::from(px[0]) << 16 | u32::from(px[1]) << 8 | u32::from(px[2]);
+            for f in [x, y, z] {
+                data.extend_from_slice(&f.to_le_bytes());
+            }
+            data.extend_from_slice(&packed.to_le_bytes());
+            n += 1;
+        }
+    }
+    let mut w = CdrWriter::with_capacity(data.len() + 200);
+    header(&mut w, t, frame);
+    w.u32(1);
+    w.u32(n);
+    w.seq_len(4);
+    for (k, name) in ["x", "y", "z", "rgb"].iter().enumerate() {
+        w.string(name);
+        w.u32(4 * k as u32);
+        w.u8(7); // FLOAT32
+        w.u32(1);
+    }
+    w.u8(0);
+    w.u32(16);
+    w.u32(16 * n);
+    w.bytes(&data);
+    w.u8(1);
+    w.into_bytes()
+}
 
 /// A `rosgraph_msgs/Clock` at `t`.
 pub fn clock(t: Duration) -> Vec<u8> {

@@ -130,6 +130,7 @@ pub struct Messages {
     robot: RobotInfo,
     gripper: Option<GripperState>,
     faults: u16,
+    points: Option<u32>,
 }
 
 impl Messages {
@@ -139,7 +140,15 @@ impl Messages {
             robot,
             gripper: None,
             faults: 0,
+            points: None,
         }
+    }
+
+    /// Each frame's points too ([`topics::POINTS`]), every `stride`-th pixel of every
+    /// `stride`-th row: for live viewers, which draw points but not depth images.
+    pub fn with_points(mut self, stride: u32) -> Self {
+        self.points = Some(stride.max(1));
+        self
     }
 
     /// The robot it maps.
@@ -255,12 +264,17 @@ impl Messages {
         let info = encode::camera_info(t, &frame_id, &f.intrinsics);
         let pose = encode::pose_stamped(t, ferrobot::frames::BASE_FRAME, &f.camera_pose);
         let odom = encode::pose_stamped(t, topics::ODOM_FRAME, &encode::planar_pose(f.odometry));
-        vec![
+        let mut out = vec![
             (topics::COLOR, color),
             (topics::DEPTH, depth),
             (topics::CAMERA_INFO, info),
             (topics::CAMERA_POSE, pose),
             (topics::CAMERA_ODOM, odom),
-        ]
+        ];
+        if let Some(stride) = self.points {
+            let cloud = encode::point_cloud(t, &frame_id, d, rgb, &f.intrinsics, stride);
+            out.push((topics::POINTS, cloud));
+        }
+        out
     }
 }

@@ -84,7 +84,7 @@ impl ViewServer {
         let feeds = Feeds::subscribe(robot, 256, camera)?;
         let bell = Bell::new();
         feeds.ring(&bell);
-        let messages = Messages::new(info);
+        let messages = Messages::new(info).with_points(4);
         let start = std::time::Duration::from_secs_f64(robot.time());
         {
             let mut h = hub.lock();
