@@ -220,7 +220,11 @@ impl Goal for VelocityGoal {
         }
         if now >= self.next_send {
             self.next_send = now + Duration::from_millis(100);
-            let left = (self.until - now).as_millis().min(250) as u16;
+            let horizon = s.link.command_horizon().as_millis();
+            let left = (self.until - now)
+                .as_millis()
+                .min(horizon)
+                .min(u16::MAX.into()) as u16;
             return send_base_velocity(s.link, self.v, self.w, left);
         }
         None

@@ -125,6 +125,9 @@ impl Link for Tapped {
     fn pace(&mut self) -> Duration {
         self.inner.pace()
     }
+    fn command_horizon(&self) -> Duration {
+        self.inner.command_horizon()
+    }
     fn take_faults(&mut self) -> Vec<Fault> {
         self.inner.take_faults()
     }

@@ -410,6 +410,13 @@ impl Link for RemoteLink {
         self
     }
 
+    /// A base command lasts the server's watchdog period and a margin: a client starved or
+    /// delayed on the network keeps the base's motion smooth, and one that is gone has it
+    /// stopped by the server within [`WATCHDOG`].
+    fn command_horizon(&self) -> Duration {
+        WATCHDOG + Duration::from_millis(100)
+    }
+
     fn stop_line(&self) -> Option<Arc<dyn StopLine>> {
         Some(Arc::new(RemoteStopLine {
             caller: self.caller.clone(),

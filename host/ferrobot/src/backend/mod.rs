@@ -170,6 +170,13 @@ pub trait Link: Send {
     fn wait(&mut self, dt: Duration);
     /// The backend's clock.
     fn now(&self) -> Duration;
+    /// How long a base velocity command stays valid on the firmware (it is resent every
+    /// 100 ms while a velocity goal runs, and the base stops when one is not renewed in time):
+    /// 250 ms on a link whose host steps goals beside the firmware. A link over a network
+    /// (the remote backend) may say more, its own watchdog standing in for the lost renewal.
+    fn command_horizon(&self) -> Duration {
+        Duration::from_millis(250)
+    }
     /// How far the link's clock is ahead of the wall clock it is paced to (the simulator run
     /// in real time): the caller sleeps this long *after* releasing the robot's lock, so that
     /// other threads reach the link meanwhile; zero for a link whose clock is the wall's or
