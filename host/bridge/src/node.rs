@@ -92,6 +92,15 @@ impl RosNode {
         })
     }
 
+    /// Declares an entity's liveliness token (`what` names it in an error).
+    fn announce(&self, token: String, what: &str) -> Result<LivelinessToken, BridgeError> {
+        self.session
+            .liveliness()
+            .declare_token(token)
+            .wait()
+            .map_err(|e| BridgeError::zenoh(what, e))
+    }
+
     /// The topic's fully qualified name in this node's namespace.
     pub fn full_name(&self, topic: &str) -> String {
         match self.node.namespace.as_str() {
@@ -128,12 +137,7 @@ impl RosNode {
                 .publisher_detection();
         }
         let publisher = b.wait().map_err(|e| BridgeError::zenoh(&what, e))?;
-        let token = self
-            .session
-            .liveliness()
-            .declare_token(token)
-            .wait()
-            .map_err(|e| BridgeError::zenoh(&what, e))?;
+        let token = self.announce(token, &what)?;
         Ok(RosPublisher {
             publisher,
             key,
@@ -165,12 +169,7 @@ impl RosNode {
             })
             .wait()
             .map_err(|e| BridgeError::zenoh(&what, e))?;
-        let token = self
-            .session
-            .liveliness()
-            .declare_token(token)
-            .wait()
-            .map_err(|e| BridgeError::zenoh(&what, e))?;
+        let token = self.announce(token, &what)?;
         Ok(RosSubscription {
             _subscriber: subscriber,
             _token: token,

@@ -11,11 +11,6 @@ use ferrobot_bridge::{access, remote, Access, Clock, Credentials, ServeOptions, 
 use ferrobot_ros2::{rmw_zenoh, topics};
 use zenoh::Wait;
 
-fn free_port() -> u16 {
-    let l = std::net::TcpListener::bind("127.0.0.1:0").expect("a free port");
-    l.local_addr().expect("its address").port()
-}
-
 fn credentials(password: &str) -> Credentials {
     Credentials {
         user: "lab".into(),
@@ -51,7 +46,7 @@ fn without_the_credentials_nobody_sees_or_commands_the_robot() {
         .use_camera(false)
         .build()
         .expect("robot");
-    let endpoint = format!("tcp/127.0.0.1:{}", free_port());
+    let endpoint = format!("tcp/127.0.0.1:{}", ferrobot_peers::free_port());
     let served = Access::listen(&endpoint).with_credentials(credentials("s3cret"));
     let session = access::open(&served).expect("served session");
     let _server = Server::start(&robot, &session, ServeOptions::default()).expect("served");

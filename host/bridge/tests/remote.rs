@@ -13,12 +13,6 @@ use ferrobot::{Backend, Error, Robot};
 use ferrobot_bridge::remote::{self, wire::WATCHDOG};
 use ferrobot_bridge::{access, Access, ServeOptions, Server};
 
-/// A TCP port free on loopback now.
-fn free_port() -> u16 {
-    let l = std::net::TcpListener::bind("127.0.0.1:0").expect("a free port");
-    l.local_addr().expect("its address").port()
-}
-
 /// A served LoCoBot whose time passes on a thread of its own, paced to the wall clock.
 struct Served {
     robot: Robot,
@@ -38,7 +32,7 @@ impl Served {
             })
             .build()
             .expect("robot");
-        let endpoint = format!("tcp/127.0.0.1:{}", free_port());
+        let endpoint = format!("tcp/127.0.0.1:{}", ferrobot_peers::free_port());
         let session = access::open(&Access::listen(&endpoint)).expect("session");
         let opts = ServeOptions {
             namespace: namespace.into(),

@@ -11,12 +11,6 @@ use std::time::{Duration, Instant};
 use ferrobot::{Backend, Robot};
 use ferrobot_bridge::{access, Access, ServeOptions, Server};
 
-/// A TCP port free on loopback now.
-fn free_port() -> u16 {
-    let l = std::net::TcpListener::bind("127.0.0.1:0").expect("a free port");
-    l.local_addr().expect("its address").port()
-}
-
 #[test]
 fn a_ros_2_peer_reads_the_robots_topics_and_drives_its_base() {
     let Some(py) = ferrobot_peers::for_test(
@@ -32,7 +26,7 @@ fn a_ros_2_peer_reads_the_robots_topics_and_drives_its_base() {
         })
         .build()
         .expect("robot");
-    let endpoint = format!("tcp/127.0.0.1:{}", free_port());
+    let endpoint = format!("tcp/127.0.0.1:{}", ferrobot_peers::free_port());
     let session = access::open(&Access::listen(&endpoint)).expect("session");
     let opts = ServeOptions {
         namespace: "/locobot".into(),

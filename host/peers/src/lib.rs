@@ -104,6 +104,16 @@ pub fn for_bench(modules: &str) -> Option<PathBuf> {
     can_import(&py, modules).then_some(py)
 }
 
+/// A TCP port free on loopback now, for a test's server to listen on (another process could
+/// take it before the server binds it; tests that share a machine take their chances with
+/// that, as with any free port).
+pub fn free_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .and_then(|l| l.local_addr())
+        .map(|a| a.port())
+        .expect("a free loopback port")
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -202,10 +202,7 @@ fn pyrobot_listings_through_the_remote_backend() {
                 })
                 .build()
                 .expect("robot");
-            let port = std::net::TcpListener::bind("127.0.0.1:0")
-                .and_then(|l| l.local_addr())
-                .expect("a free port")
-                .port();
+            let port = ferrobot_peers::free_port();
             let endpoint = format!("tcp/127.0.0.1:{port}");
             let session = access::open(&Access::listen(&endpoint)).expect("session");
             let opts = ServeOptions {

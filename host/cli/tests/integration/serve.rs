@@ -5,11 +5,6 @@
 use std::io::{BufRead, BufReader};
 use std::process::{Command, Stdio};
 
-fn free_port() -> u16 {
-    let l = std::net::TcpListener::bind("127.0.0.1:0").expect("a free port");
-    l.local_addr().expect("its address").port()
-}
-
 fn refused(args: &[&str]) -> serde_json::Value {
     let out = Command::new(env!("CARGO_BIN_EXE_ferrobot"))
         .args(["serve", "locobot"])
@@ -68,7 +63,7 @@ fn serve(args: &[&str]) -> (serde_json::Value, String) {
 
 #[test]
 fn serve_says_whether_sessions_must_authenticate_and_ends_with_its_input() {
-    let listen = format!("tcp/127.0.0.1:{}", free_port());
+    let listen = format!("tcp/127.0.0.1:{}", ferrobot_peers::free_port());
     let (v, said) = serve(&["--listen", &listen, "--view", "127.0.0.1:0"]);
     assert_eq!(v["authenticated"], false, "{v}");
     assert_eq!(v["listen"][0], listen.as_str());
@@ -78,7 +73,7 @@ fn serve_says_whether_sessions_must_authenticate_and_ends_with_its_input() {
     std::fs::create_dir_all(&dir).expect("dir");
     let pass = dir.join("lab.pass");
     std::fs::write(&pass, "lab:s3cret\n").expect("file");
-    let listen = format!("tcp/127.0.0.1:{}", free_port());
+    let listen = format!("tcp/127.0.0.1:{}", ferrobot_peers::free_port());
     let (v, said) = serve(&[
         "--listen",
         &listen,
