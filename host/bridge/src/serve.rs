@@ -2,7 +2,8 @@
 //! streams, as [`ferrobot_ros2::robot`] maps them, as they arrive; `/cmd_vel` drives the base.
 //!
 //! The robot's time must pass for its streams to flow: on the simulator, whoever serves it
-//! lets it pass (`ferrobot serve` waits in a loop, paced to the wall clock); a real robot's
+//! lets it pass (`ferrobot serve` waits in a loop, paced to the wall clock), or, served in
+//! lockstep ([`ServeOptions::lockstep`]), its remote clients do as they wait; a real robot's
 //! passes by itself.
 
 use std::collections::BTreeMap;
@@ -46,6 +47,11 @@ pub struct ServeOptions {
     /// Serve the remote backend too ([`crate::remote`]): other programs drive the robot through
     /// the API.
     pub remote: bool,
+    /// The robot's time passes only while a remote client waits (a simulator not paced to the
+    /// wall clock, which nobody else lets pass): virtual time, as in-process, so that what a
+    /// client does is the same on a busy machine as on a quiet one. Off for a robot whose time
+    /// runs by itself (a real one, or a simulator paced to the wall clock and waited on).
+    pub lockstep: bool,
 }
 
 impl Default for ServeOptions {
@@ -58,6 +64,7 @@ impl Default for ServeOptions {
             queue: 256,
             cmd_vel_hold: 0.5,
             remote: true,
+            lockstep: false,
         }
     }
 }
@@ -132,6 +139,12 @@ impl Server {
                 "cmd_vel_hold {} s: between 0 and 10 s",
                 opts.cmd_vel_hold
             )));
+        }
+        if opts.lockstep && !opts.remote {
+            return Err(BridgeError::Usage(
+                "lockstep serving needs the remote backend: its clients let the robot's time pass"
+                    .into(),
+            ));
         }
         let node = Arc::new(RosNode::new(
             session,
@@ -296,6 +309,7 @@ impl Serving {
             }
             if let Some(r) = &self.remote {
                 r.watchdog();
+                r.alive();
             }
             // Woken by each item; the remote backend's watchdog looks at least this often.
             bell.wait(Duration::from_millis(20));
@@ -326,6 +340,7 @@ fn remote(
         device: robot.device_info(),
         camera,
         domain: opts.domain,
+        lockstep: opts.lockstep,
     };
     RemoteService::start(robot, session, &wire::prefix(&opts.namespace), info)
 }

@@ -186,19 +186,21 @@ fn pyrobot_listings_on_the_host_run_firmware() {
 }
 
 /// PyRobot's listings through the remote backend: two LoCoBots served by this process (each in
-/// a simulated world of its own, paced at real time, under `/robot1` and `/robot2`), each
-/// file run by pytest, a second process, against one of them (`FERROBOT_BACKEND=remote:…`),
-/// two files at a time. Every robot each listing makes is a client of a served robot.
+/// a simulated world of its own, in lockstep with its clients, under `/robot1` and `/robot2`),
+/// each file run by pytest, a second process, against one of them
+/// (`FERROBOT_BACKEND=remote:…`), two files at a time. Every robot each listing makes is a
+/// client of a served robot; the served robots' time passes as the listings wait, as it does
+/// in-process, however busy the machine.
 #[test]
 fn pyrobot_listings_through_the_remote_backend() {
-    use ferrobot_bridge::{access, Access, Clock, ServeOptions, Server};
+    use ferrobot_bridge::{access, Access, ServeOptions, Server};
     let served: Vec<_> = ["/robot1", "/robot2"]
         .iter()
         .map(|ns| {
             let robot = ferrobot::Robot::builder("locobot")
                 .backend(ferrobot::Backend::Sim {
                     seed: 1,
-                    realtime: true,
+                    realtime: false,
                 })
                 .build()
                 .expect("robot");
@@ -207,12 +209,12 @@ fn pyrobot_listings_through_the_remote_backend() {
             let session = access::open(&Access::listen(&endpoint)).expect("session");
             let opts = ServeOptions {
                 namespace: ns.to_string(),
+                lockstep: true,
                 ..ServeOptions::default()
             };
             let server = Server::start(&robot, &session, opts).expect("served");
-            let clock = Clock::start(&robot, std::time::Duration::from_millis(10));
             let spec = format!("remote:{endpoint},namespace={ns}");
-            (spec, (clock, server, session, robot))
+            (spec, (server, session, robot))
         })
         .collect();
     let queue = std::sync::Mutex::new(vec![

@@ -1,6 +1,7 @@
 //! The remote backend's camera: a served robot's colour and depth, read from its ROS 2 topics
 //! (`sensor_msgs/Image`, `rgb8` and `32FC1`, decoded by [`ferrobot_ros2::decode`]) and paired by
-//! their stamps, which are on the served robot's clock.
+//! their stamps, which are on the served robot's clock. A robot served in lockstep renders its
+//! frames only as its time passes: a capture lets it pass, a third of a frame period at a time.
 
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -28,17 +29,20 @@ struct Latest {
 pub struct RemoteCameraDevice {
     intrinsics: Intrinsics,
     rate: f64,
+    lockstep: bool,
     latest: Arc<(Mutex<Latest>, Condvar)>,
     _subscribers: [Subscriber<()>; 2],
 }
 
 impl RemoteCameraDevice {
-    /// The camera `camera` of the robot served in `namespace` of ROS domain `domain`.
+    /// The camera `camera` of the robot served in `namespace` of ROS domain `domain`, in
+    /// lockstep or not ([`super::wire::RemoteInfo::lockstep`]).
     pub fn connect(
         session: &Session,
         domain: u32,
         namespace: &str,
         camera: &RemoteCamera,
+        lockstep: bool,
     ) -> Result<RemoteCameraDevice, BridgeError> {
         let [fx, fy, cx, cy] = camera.pinhole;
         let intrinsics = Intrinsics::new(camera.size[0], camera.size[1], fx, fy, cx, cy)
@@ -84,9 +88,46 @@ impl RemoteCameraDevice {
         Ok(RemoteCameraDevice {
             intrinsics,
             rate: camera.rate,
+            lockstep,
             latest,
             _subscribers: [rgb, depth],
         })
+    }
+}
+
+impl RemoteCameraDevice {
+    /// The newest colour and depth pair of one stamp, if newer than the last given and not
+    /// stamped before `not_before`.
+    fn take(l: &mut Latest, not_before: Duration) -> Option<RawFrame> {
+        let (Some((tc, rgb)), Some((td, depth))) = (&l.rgb, &l.depth) else {
+            return None;
+        };
+        if tc != td || *tc < not_before || l.given.is_some_and(|g| *tc <= g) {
+            return None;
+        }
+        let frame = RawFrame {
+            rgb: rgb.clone(),
+            depth: depth.clone(),
+            time: *tc,
+            device_time: None,
+        };
+        l.given = Some(*tc);
+        Some(frame)
+    }
+
+    /// Waits up to `wall` for a new frame stamped `not_before` or later.
+    fn await_frame(&self, wall: Duration, not_before: Duration) -> Option<RawFrame> {
+        let (lock, cv) = &*self.latest;
+        let deadline = Instant::now() + wall;
+        let mut l = lock.lock();
+        loop {
+            if let Some(f) = Self::take(&mut l, not_before) {
+                return Some(f);
+            }
+            if cv.wait_until(&mut l, deadline).timed_out() {
+                return Self::take(&mut l, not_before);
+            }
+        }
     }
 }
 
@@ -99,31 +140,30 @@ impl CameraDevice for RemoteCameraDevice {
         self.rate
     }
 
-    fn capture(&mut self, _link: &mut dyn Link) -> ferrobot::Result<RawFrame> {
-        // The next colour and depth pair of one stamp, newer than the last given: within two
-        // frame periods and a second of slack for the network.
+    fn capture(&mut self, link: &mut dyn Link) -> ferrobot::Result<RawFrame> {
+        // The next colour and depth pair of one stamp, newer than the last given and at most a
+        // frame period older than the call: within two frame periods and a second of slack for
+        // the network (of the robot's time, in lockstep, whose frames come as it passes).
         let period = Duration::from_secs_f64(1.0 / self.rate.max(1.0));
-        let deadline = Instant::now() + period * 2 + Duration::from_secs(1);
-        let (lock, cv) = &*self.latest;
-        let mut l = lock.lock();
+        let patience = period * 2 + Duration::from_secs(1);
+        let start = link.now();
+        let not_before = start.saturating_sub(period);
+        if !self.lockstep {
+            return self.await_frame(patience, not_before).ok_or_else(no_frame);
+        }
         loop {
-            if let (Some((tc, rgb)), Some((td, depth))) = (&l.rgb, &l.depth) {
-                if tc == td && l.given.is_none_or(|g| *tc > g) {
-                    let frame = RawFrame {
-                        rgb: rgb.clone(),
-                        depth: depth.clone(),
-                        time: *tc,
-                        device_time: None,
-                    };
-                    l.given = Some(*tc);
-                    return Ok(frame);
-                }
+            // A frame rendered by the time passed so far is on its way.
+            if let Some(f) = self.await_frame(Duration::from_millis(50), not_before) {
+                return Ok(f);
             }
-            if cv.wait_until(&mut l, deadline).timed_out() {
-                return Err(ferrobot::Error::Link(
-                    "no frame from the served camera within two frame periods and 1 s".into(),
-                ));
+            if link.now().saturating_sub(start) > patience {
+                return Err(no_frame());
             }
+            link.wait(period / 3);
         }
     }
+}
+
+fn no_frame() -> ferrobot::Error {
+    ferrobot::Error::Link("no frame from the served camera within two frame periods and 1 s".into())
 }

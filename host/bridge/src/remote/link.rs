@@ -7,6 +7,10 @@
 //! with [`ferrobot::Error::Link`], motions under way end with it, and when its telemetry
 //! returns the link is back ([`LinkEvent::Reconnected`]). Meanwhile the server, not hearing this
 //! client's heartbeat for [`WATCHDOG`], has stopped the robot if this client had commanded it.
+//!
+//! A robot served in lockstep ([`RemoteInfo::lockstep`]) has its time passed by the link's
+//! waits ([`Call::Advance`]), the link's clock the served robot's; its server's `alive` beats,
+//! not its telemetry, say that it is there.
 
 use std::collections::VecDeque;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -39,6 +43,8 @@ struct State {
     events: VecDeque<LinkEvent>,
     heard: Option<Instant>,
     lost_at: Option<Instant>,
+    /// The served robot's clock after the last [`Call::Advance`], µs (lockstep only).
+    advanced_us: u64,
     commanded: bool,
     /// The served robot's clock when this client's last resume was acknowledged, µs: an
     /// emergency stop's fault from before it, arriving late (faults and replies travel apart),
@@ -73,11 +79,28 @@ struct Shared {
     state: Mutex<State>,
     cv: Condvar,
     stop: AtomicBool,
+    lockstep: bool,
 }
 
 impl Shared {
     fn telemetry(&self, t: Telemetry) {
         let mut s = self.state.lock();
+        Self::heard(&mut s);
+        push(&mut s.reports, REPORTS, t.clone());
+        s.newest = Some(t);
+        self.cv.notify_all();
+    }
+
+    /// The server's `alive` beat: what says a lockstep robot is there.
+    fn alive(&self) {
+        if self.lockstep {
+            Self::heard(&mut self.state.lock());
+            self.cv.notify_all();
+        }
+    }
+
+    /// The served robot was heard from: back, if it had been lost.
+    fn heard(s: &mut State) {
         if let Some(at) = s.lost_at.take() {
             let down_for = at.elapsed();
             let watchdog_stopped = s.commanded && down_for > WATCHDOG;
@@ -91,9 +114,6 @@ impl Shared {
             );
         }
         s.heard = Some(Instant::now());
-        push(&mut s.reports, REPORTS, t.clone());
-        s.newest = Some(t);
-        self.cv.notify_all();
     }
 
     /// Declares the robot lost when it has been silent too long.
@@ -157,7 +177,7 @@ pub struct RemoteLink {
     info: RemoteInfo,
     shared: Arc<Shared>,
     heartbeat: Option<JoinHandle<()>>,
-    _subscribers: [Subscriber<()>; 2],
+    _subscribers: [Subscriber<()>; 3],
 }
 
 impl RemoteLink {
@@ -195,17 +215,28 @@ impl RemoteLink {
             state: Mutex::new(State::default()),
             cv: Condvar::new(),
             stop: AtomicBool::new(false),
+            lockstep: info.lockstep,
         });
         let subscribers = subscribe(session, prefix, &shared)?;
         let heartbeat = heartbeat(session, prefix, caller.client, shared.clone())?;
-        let link = RemoteLink {
+        let mut link = RemoteLink {
             caller,
             info,
             shared,
             heartbeat: Some(heartbeat),
             _subscribers: subscribers,
         };
-        // The clock starts with the first report.
+        // The clock starts with the first report (a lockstep robot's comes with its time).
+        if link.info.lockstep {
+            // Where its clock stands, then two of its 10 ms reports on.
+            if let Ok(Answer::Advanced { time_us, .. }) = link
+                .caller
+                .call(Call::Advance { until_us: 0 }, "connecting")
+            {
+                link.shared.state.lock().advanced_us = time_us;
+            }
+            link.advance(Duration::from_millis(20));
+        }
         let first = link.wait_until(timeout, |s| s.newest.is_some());
         if !first {
             return Err(BridgeError::Usage(format!(
@@ -218,6 +249,36 @@ impl RemoteLink {
     /// What the server said the robot is.
     pub fn remote_info(&self) -> &RemoteInfo {
         &self.info
+    }
+
+    /// Lets a lockstep robot's time pass `dt` on: [`Call::Advance`] until its clock is there,
+    /// each answer followed by the telemetry it names. A refused or lost call ends the wait
+    /// (the silence shows as a lost link).
+    fn advance(&mut self, dt: Duration) {
+        let target = (self.now() + dt).as_micros() as u64;
+        loop {
+            if self.shared.lost().is_some() {
+                return;
+            }
+            let call = Call::Advance { until_us: target };
+            let Ok(Answer::Advanced {
+                time_us,
+                telemetry_us,
+            }) = self.caller.call(call, "letting time pass")
+            else {
+                return;
+            };
+            {
+                let mut s = self.shared.state.lock();
+                s.advanced_us = s.advanced_us.max(time_us);
+            }
+            self.wait_until(CALL_TIMEOUT, |s| {
+                s.lost_at.is_some() || s.newest.as_ref().is_some_and(|t| t.time_us >= telemetry_us)
+            });
+            if time_us >= target {
+                return;
+            }
+        }
     }
 
     /// Waits up to `timeout` for `ready`; whether it became true.
@@ -253,7 +314,7 @@ fn subscribe(
     session: &Session,
     prefix: &str,
     shared: &Arc<Shared>,
-) -> Result<[Subscriber<()>; 2], BridgeError> {
+) -> Result<[Subscriber<()>; 3], BridgeError> {
     let z = |e| BridgeError::zenoh("subscribing to the served robot", e);
     let mine = shared.clone();
     let telemetry = session
@@ -275,7 +336,13 @@ fn subscribe(
         })
         .wait()
         .map_err(z)?;
-    Ok([telemetry, faults])
+    let mine = shared.clone();
+    let alive = session
+        .declare_subscriber(wire::alive_key(prefix))
+        .callback(move |_| mine.alive())
+        .wait()
+        .map_err(z)?;
+    Ok([telemetry, faults, alive])
 }
 
 /// Puts this client's id every [`HEARTBEAT`] and watches the served robot's silence.
@@ -303,10 +370,15 @@ fn heartbeat(
 }
 
 impl Drop for RemoteLink {
+    /// Stops the heartbeat and says goodbye: a client that leaves has nothing stopped (what it
+    /// set going ends as its commands do), one that vanishes has the robot stopped.
     fn drop(&mut self) {
         self.shared.stop.store(true, Ordering::SeqCst);
         if let Some(t) = self.heartbeat.take() {
             let _ = t.join();
+        }
+        if self.shared.lost().is_none() {
+            let _ = self.caller.call(Call::Bye, "leaving");
         }
     }
 }
@@ -335,8 +407,15 @@ impl Link for RemoteLink {
         }
         self.shared.state.lock().commanded = true;
         let answer = self.caller.call(Call::Command(msg.clone()), what)?;
-        if let (HostMsg::Resume, Answer::Done { time_us }) = (msg, answer) {
-            self.shared.state.lock().resumed(time_us);
+        if let Answer::Done { time_us } = answer {
+            let mut s = self.shared.state.lock();
+            if let HostMsg::Resume = msg {
+                s.resumed(time_us);
+            }
+            // In lockstep the acknowledgement's wait is time passed, as on a link of one's own.
+            if self.info.lockstep {
+                s.advanced_us = s.advanced_us.max(time_us);
+            }
         }
         Ok(())
     }
@@ -379,6 +458,9 @@ impl Link for RemoteLink {
     }
 
     fn wait(&mut self, dt: Duration) {
+        if self.info.lockstep {
+            return self.advance(dt);
+        }
         // Until the served firmware's clock has moved `dt` on, or the robot is lost.
         let target = self.now() + dt;
         let cap = dt.saturating_mul(100).saturating_add(TELEMETRY_SILENCE);
@@ -392,10 +474,8 @@ impl Link for RemoteLink {
 
     fn now(&self) -> Duration {
         let s = self.shared.state.lock();
-        s.newest
-            .as_ref()
-            .map(|t| Duration::from_micros(t.time_us))
-            .unwrap_or_default()
+        let telemetry = s.newest.as_ref().map_or(0, |t| t.time_us);
+        Duration::from_micros(telemetry.max(s.advanced_us))
     }
 
     fn take_faults(&mut self) -> Vec<Fault> {

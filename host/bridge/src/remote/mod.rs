@@ -57,7 +57,8 @@ pub fn attach(
     let mut b = builder.link(Box::new(link));
     match &info.camera {
         Some(c) => {
-            let cam = RemoteCameraDevice::connect(&session, info.domain, namespace, c)?;
+            let cam =
+                RemoteCameraDevice::connect(&session, info.domain, namespace, c, info.lockstep)?;
             b = b.camera_device(Box::new(cam));
         }
         None => b = b.use_camera(false),

@@ -2,9 +2,13 @@
 //! telemetry and faults are published, and a client that has commanded the robot and falls
 //! silent for [`WATCHDOG`] has the robot stopped (the joints hold, the base stops), as the
 //! firmware's own watchdog does for its host.
+//!
+//! Silence is counted on two clocks: the wall's and the served robot's. A client starved of
+//! the processor while it alone lets a lockstep robot's time pass has not left the robot
+//! unattended (its time stood still too), and is not stopped for it.
 
 use std::collections::HashMap;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
@@ -16,7 +20,9 @@ use zenoh::pubsub::{Publisher, Subscriber};
 use zenoh::query::Query;
 use zenoh::{Session, Wait};
 
-use super::wire::{self, Answer, Call, Refusal, RemoteInfo, Reply, Request, WATCHDOG};
+use super::wire::{
+    self, Answer, Call, Refusal, RemoteInfo, Reply, Request, HEARTBEAT, MAX_ADVANCE_US, WATCHDOG,
+};
 use crate::error::BridgeError;
 
 /// A client, as the server knows it.
@@ -24,12 +30,14 @@ use crate::error::BridgeError;
 struct Client {
     /// Its last heartbeat (or call).
     heard: Instant,
+    /// The served robot's clock then, µs.
+    heard_us: u64,
     /// Whether it has commanded the robot since it was last heard of.
     commanded: bool,
 }
 
 /// What the service has done.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct RemoteStats {
     /// Calls answered.
     pub calls: u64,
@@ -37,6 +45,8 @@ pub struct RemoteStats {
     pub bad_calls: u64,
     /// Times a silent client had the robot stopped.
     pub watchdog_stops: u64,
+    /// Time let pass for clients of a robot served in lockstep, s.
+    pub advanced: f64,
 }
 
 /// The remote backend's server side for one served robot.
@@ -44,6 +54,10 @@ pub struct RemoteService {
     robot: Robot,
     telemetry: Publisher<'static>,
     faults: Publisher<'static>,
+    alive: Publisher<'static>,
+    alive_at: Mutex<Option<Instant>>,
+    /// The newest telemetry's time, µs: the served robot's clock as the watchdog reads it.
+    robot_us: Arc<AtomicU64>,
     clients: Arc<Mutex<HashMap<u64, Client>>>,
     stats: Arc<Mutex<RemoteStats>>,
     stop: Arc<AtomicBool>,
@@ -72,18 +86,20 @@ impl RemoteService {
         };
         let telemetry = publisher(wire::telemetry_key(prefix))?;
         let faults = publisher(wire::fault_key(prefix))?;
+        let alive = publisher(wire::alive_key(prefix))?;
+        let robot_us = Arc::new(AtomicU64::new((robot.time() * 1e6) as u64));
         let clients: Arc<Mutex<HashMap<u64, Client>>> = Arc::default();
-        let theirs = clients.clone();
+        let (theirs, their_us) = (clients.clone(), robot_us.clone());
         let heartbeats = session
             .declare_subscriber(wire::heartbeat_key(prefix))
             .callback(move |s| {
                 if let Ok(id) = wire::decode::<u64>(&s.payload().to_bytes()) {
-                    let mut c = theirs.lock();
-                    let e = c.entry(id).or_insert(Client {
-                        heard: Instant::now(),
-                        commanded: false,
-                    });
-                    e.heard = Instant::now();
+                    heard(
+                        &mut theirs.lock(),
+                        id,
+                        their_us.load(Ordering::SeqCst),
+                        false,
+                    );
                 }
             })
             .wait()
@@ -99,6 +115,7 @@ impl RemoteService {
             robot: robot.clone(),
             info,
             clients: clients.clone(),
+            robot_us: robot_us.clone(),
             stats: stats.clone(),
         };
         let their_stop = stop.clone();
@@ -118,6 +135,9 @@ impl RemoteService {
             robot: robot.clone(),
             telemetry,
             faults,
+            alive,
+            alive_at: Mutex::new(None),
+            robot_us,
             clients,
             stats,
             stop,
@@ -128,7 +148,19 @@ impl RemoteService {
 
     /// Publishes a telemetry report.
     pub fn telemetry(&self, t: &Telemetry) {
+        self.robot_us.fetch_max(t.time_us, Ordering::SeqCst);
         let _ = self.telemetry.put(wire::encode(t)).wait();
+    }
+
+    /// Says the server is there, at most every [`HEARTBEAT`] however often it is called.
+    pub fn alive(&self) {
+        let mut at = self.alive_at.lock();
+        if at.is_some_and(|a| a.elapsed() < HEARTBEAT) {
+            return;
+        }
+        *at = Some(Instant::now());
+        let us = self.robot_us.load(Ordering::SeqCst);
+        let _ = self.alive.put(wire::encode(&us)).wait();
     }
 
     /// Publishes a fault.
@@ -136,14 +168,18 @@ impl RemoteService {
         let _ = self.faults.put(wire::encode(f)).wait();
     }
 
-    /// Stops the robot if a client that commanded it has been silent for [`WATCHDOG`]; it is
-    /// forgotten (it commands again when it is back).
+    /// Stops the robot if a client that commanded it has been silent for [`WATCHDOG`], on the
+    /// wall clock and on the robot's; it is forgotten (it commands again when it is back).
     pub fn watchdog(&self) {
+        let now_us = self.robot_us.load(Ordering::SeqCst);
+        let period_us = WATCHDOG.as_micros() as u64;
         let silent: Vec<u64> = self
             .clients
             .lock()
             .iter()
-            .filter(|(_, c)| c.heard.elapsed() > WATCHDOG)
+            .filter(|(_, c)| {
+                c.heard.elapsed() > WATCHDOG && now_us.saturating_sub(c.heard_us) > period_us
+            })
             .map(|(id, c)| (*id, c.commanded))
             .filter(|(_, commanded)| *commanded)
             .map(|(id, _)| id)
@@ -187,7 +223,21 @@ struct Answerer {
     robot: Robot,
     info: RemoteInfo,
     clients: Arc<Mutex<HashMap<u64, Client>>>,
+    robot_us: Arc<AtomicU64>,
     stats: Arc<Mutex<RemoteStats>>,
+}
+
+/// Client `id` was heard from (and has commanded the robot, if `commands`) when the robot's
+/// clock read `robot_us`.
+fn heard(clients: &mut HashMap<u64, Client>, id: u64, robot_us: u64, commands: bool) {
+    let e = clients.entry(id).or_insert(Client {
+        heard: Instant::now(),
+        heard_us: robot_us,
+        commanded: false,
+    });
+    e.heard = Instant::now();
+    e.heard_us = e.heard_us.max(robot_us);
+    e.commanded |= commands;
 }
 
 impl Answerer {
@@ -208,16 +258,13 @@ impl Answerer {
 
     fn call(&self, r: Request) -> Reply {
         let commands = matches!(r.call, Call::Command(_));
-        {
-            let mut c = self.clients.lock();
-            let e = c.entry(r.client).or_insert(Client {
-                heard: Instant::now(),
-                commanded: false,
-            });
-            e.heard = Instant::now();
-            e.commanded |= commands;
-        }
+        let robot_us = self.robot_us.load(Ordering::SeqCst);
+        heard(&mut self.clients.lock(), r.client, robot_us, commands);
         match r.call {
+            Call::Bye => {
+                self.clients.lock().remove(&r.client);
+                Ok(Answer::Done { time_us: robot_us })
+            }
             Call::Info => Ok(Answer::Info(self.info.clone())),
             Call::Command(msg) => self
                 .robot
@@ -236,6 +283,28 @@ impl Answerer {
                 .diagnostics()
                 .map(Answer::Diagnostics)
                 .map_err(|e| Refusal::of(&e)),
+            Call::Advance { until_us } => self.advance(until_us),
         }
+    }
+
+    /// Lets the lockstep robot's time pass until `until_us` (at most [`MAX_ADVANCE_US`] on).
+    fn advance(&self, until_us: u64) -> Reply {
+        if !self.info.lockstep {
+            return Err(Refusal::Other(
+                "the served robot's time runs by itself: it is not served in lockstep".into(),
+            ));
+        }
+        let now_us = (self.robot.time() * 1e6) as u64;
+        let to_us = until_us.min(now_us.saturating_add(MAX_ADVANCE_US));
+        if to_us > now_us {
+            let dt = (to_us - now_us) as f64 * 1e-6;
+            self.robot.wait(dt).map_err(|e| Refusal::of(&e))?;
+            self.stats.lock().advanced += dt;
+        }
+        let telemetry = self.robot.telemetry().map_err(|e| Refusal::of(&e))?;
+        Ok(Answer::Advanced {
+            time_us: (self.robot.time() * 1e6) as u64,
+            telemetry_us: telemetry.time_us,
+        })
     }
 }

@@ -4,6 +4,12 @@
 //! [`HEARTBEAT`]. All in the wire protocol's own encoding, postcard. The camera's frames go on
 //! the robot's ROS 2 topics, decoded by the client.
 //!
+//! A robot served in lockstep ([`RemoteInfo::lockstep`]: a simulator whose time passes only
+//! while someone waits) has its time passed by its clients' [`Call::Advance`], as the
+//! in-process simulator's is by its program's waits: virtual time, the same on a busy machine
+//! as on a quiet one. Its server says it is there on `alive` every [`HEARTBEAT`], telemetry
+//! flowing only while time passes.
+//!
 //! Keys, under the robot's prefix ([`prefix`]: `ferrobot` and its namespace):
 //!
 //! | key | what |
@@ -12,6 +18,7 @@
 //! | `<prefix>/remote/telemetry` | each [`ferrobot::Telemetry`] report |
 //! | `<prefix>/remote/fault` | each [`ferrobot::Fault`] |
 //! | `<prefix>/remote/heartbeat` | each client's id, every [`HEARTBEAT`] |
+//! | `<prefix>/remote/alive` | the server's robot clock (µs), every [`HEARTBEAT`] |
 
 use std::time::Duration;
 
@@ -26,6 +33,9 @@ pub const HEARTBEAT: Duration = Duration::from_millis(100);
 pub const WATCHDOG: Duration = Duration::from_millis(500);
 /// How long a call waits for its reply.
 pub const CALL_TIMEOUT: Duration = Duration::from_secs(2);
+/// The most one [`Call::Advance`] lets pass, µs: a longer wait is several calls, so that no
+/// call holds the served robot longer than about this much simulated time.
+pub const MAX_ADVANCE_US: u64 = 1_000_000;
 
 /// The key prefix of the robot served in `namespace` (`/` for none).
 pub fn prefix(namespace: &str) -> String {
@@ -55,6 +65,11 @@ pub fn heartbeat_key(prefix: &str) -> String {
     format!("{prefix}/remote/heartbeat")
 }
 
+/// The server's liveness key.
+pub fn alive_key(prefix: &str) -> String {
+    format!("{prefix}/remote/alive")
+}
+
 /// What a client asks of the served robot's link.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub enum Call {
@@ -66,6 +81,16 @@ pub enum Call {
     JointConfig(u8),
     /// The firmware's counters: [`Answer::Diagnostics`].
     Diagnostics,
+    /// Let the served robot's time pass until its clock reads `until_us` µs (at most
+    /// [`MAX_ADVANCE_US`] from where it stands; nothing if it is there already):
+    /// [`Answer::Advanced`]. Only a robot served in lockstep accepts it.
+    Advance {
+        /// The clock to reach, µs.
+        until_us: u64,
+    },
+    /// The client leaves: the server forgets it, and its silence from now on stops nothing
+    /// ([`Answer::Done`]).
+    Bye,
 }
 
 /// A call, with the id of the client making it (random, per connection).
@@ -88,6 +113,9 @@ pub struct RemoteInfo {
     pub camera: Option<RemoteCamera>,
     /// The ROS domain the robot's topics are on.
     pub domain: u32,
+    /// The robot's time passes only through its clients' [`Call::Advance`] (a simulator served
+    /// in lockstep); otherwise it runs by itself (paced to the wall clock, or a real robot).
+    pub lockstep: bool,
 }
 
 /// The served camera: its intrinsics and rate.
@@ -115,6 +143,14 @@ pub enum Answer {
     Joint(JointConfig),
     /// The counters.
     Diagnostics(Diagnostics),
+    /// Time has passed: the served robot's clock, and the time of its newest telemetry report
+    /// (published before or soon after this answer), µs.
+    Advanced {
+        /// The served robot's clock, µs.
+        time_us: u64,
+        /// Its newest telemetry report's time, µs.
+        telemetry_us: u64,
+    },
 }
 
 /// Why a call was refused.

@@ -40,6 +40,11 @@ pub struct Args {
     /// connection) on this address, e.g. 127.0.0.1:8765.
     #[arg(long)]
     pub view: Option<String>,
+    /// On the simulator: its time passes only while a remote client waits (virtual time, as
+    /// in-process: what a client does is the same beside a busy core), not paced to the wall
+    /// clock. ROS 2 peers see time pass only while a client drives the robot.
+    #[arg(long)]
+    pub lockstep: bool,
     /// Where it runs (the in-process simulator by default, paced at real time).
     #[command(flatten)]
     pub backend: BackendArgs,
@@ -54,6 +59,7 @@ struct Serving<'a> {
     namespace: &'a str,
     domain: u32,
     authenticated: bool,
+    lockstep: bool,
     view: Option<&'a str>,
 }
 
@@ -96,8 +102,14 @@ pub fn run(a: &Args) -> ferrobot::Result<()> {
     };
     access.check_serving().map_err(bridge)?;
     let mut backend = a.backend.backend()?;
-    if let ferrobot::Backend::Sim { realtime, .. } = &mut backend {
-        *realtime = true;
+    match &mut backend {
+        ferrobot::Backend::Sim { realtime, .. } => *realtime = !a.lockstep,
+        _ if a.lockstep => {
+            return Err(ferrobot::Error::Usage(
+                "--lockstep serves the simulator: another backend's time runs by itself".into(),
+            ))
+        }
+        _ => {}
     }
     let robot = super::common::robot_builder(&a.robot)
         .backend(backend)
@@ -108,6 +120,7 @@ pub fn run(a: &Args) -> ferrobot::Result<()> {
         domain: a.domain,
         namespace: a.namespace.clone(),
         camera: !a.no_camera,
+        lockstep: a.lockstep,
         ..ServeOptions::default()
     };
     let server = Server::start(&robot, &session, opts).map_err(bridge)?;
@@ -134,6 +147,7 @@ pub fn run(a: &Args) -> ferrobot::Result<()> {
         namespace: &a.namespace,
         domain: a.domain,
         authenticated,
+        lockstep: a.lockstep,
         view: a.view.as_deref(),
     });
     let stop = Arc::new(AtomicBool::new(false));
@@ -149,9 +163,13 @@ pub fn run(a: &Args) -> ferrobot::Result<()> {
         let _ = std::io::stdin().read_to_end(&mut Vec::new());
         eof.store(true, Ordering::SeqCst);
     });
-    // The robot's time passes (the simulator's paced to the wall clock) and its streams flow.
+    // The robot's time passes (the simulator's paced to the wall clock) and its streams flow;
+    // in lockstep, its clients let it pass.
     while !stop.load(Ordering::SeqCst) {
-        robot.wait(0.02)?;
+        match a.lockstep {
+            true => std::thread::sleep(std::time::Duration::from_millis(20)),
+            false => robot.wait(0.02)?,
+        }
     }
     let stats = server.stop();
     eprintln!("served: {stats:?}");

@@ -34,6 +34,49 @@ fn serve_refuses_other_machines_without_credentials() {
     refused(&["--credentials", bad.to_str().expect("path")]);
     refused(&["--namespace", "robot"]);
     refused(&["--namespace", "/1robot"]);
+    let v = refused(&["--lockstep", "--backend", "serial", "--port", "/dev/null"]);
+    assert!(
+        v["error"].as_str().unwrap_or("").contains("lockstep"),
+        "{v}"
+    );
+}
+
+/// `--lockstep`: the served simulator's time stands still until a remote client waits, then
+/// passes exactly as far as it waits.
+#[test]
+fn serve_in_lockstep_lets_its_clients_pass_the_robots_time() {
+    let listen = format!("tcp/127.0.0.1:{}", ferrobot_peers::free_port());
+    let mut child = Command::new(env!("CARGO_BIN_EXE_ferrobot"))
+        .args(["serve", "locobot", "--no-camera", "--lockstep", "--listen"])
+        .arg(&listen)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .expect("starts");
+    let mut line = String::new();
+    BufReader::new(child.stdout.take().expect("stdout"))
+        .read_line(&mut line)
+        .expect("its line");
+    let v: serde_json::Value = serde_json::from_str(line.trim()).expect("JSON");
+    assert_eq!(v["lockstep"], true, "{v}");
+    let access = ferrobot_bridge::Access::connect(&listen);
+    let timeout = std::time::Duration::from_secs(10);
+    let bot = ferrobot_bridge::remote::connect("locobot", &access, "/", timeout)
+        .expect("connects")
+        .build()
+        .expect("builds");
+    let t0 = bot.time();
+    std::thread::sleep(std::time::Duration::from_millis(300));
+    let idle = bot.time() - t0;
+    bot.wait(1.0).expect("time passes");
+    let waited = bot.time() - t0;
+    eprintln!("the served robot's time: {idle} s in 0.3 s idle, {waited} s after a 1 s wait");
+    assert_eq!(idle, 0.0);
+    assert!((waited - 1.0).abs() < 0.011, "{waited}");
+    drop(bot);
+    drop(child.stdin.take());
+    assert!(child.wait().expect("ends").success());
 }
 
 /// Serves with `args` until its standard input closes: its JSON line and its standard error.
