@@ -88,6 +88,21 @@ fn view(
     Ok(v)
 }
 
+/// The backend to serve: the simulator paced at real time, or in lockstep with its clients.
+fn backend(a: &Args) -> ferrobot::Result<ferrobot::Backend> {
+    let mut backend = a.backend.backend()?;
+    match &mut backend {
+        ferrobot::Backend::Sim { realtime, .. } => *realtime = !a.lockstep,
+        _ if a.lockstep => {
+            return Err(ferrobot::Error::Usage(
+                "--lockstep serves the simulator: another backend's time runs by itself".into(),
+            ))
+        }
+        _ => {}
+    }
+    Ok(backend)
+}
+
 /// Serves the robot until standard input closes or the process is asked to end (SIGINT,
 /// SIGTERM, SIGHUP); prints one JSON line once it serves, and says on standard error whether
 /// sessions must authenticate.
@@ -101,16 +116,7 @@ pub fn run(a: &Args) -> ferrobot::Result<()> {
         },
     };
     access.check_serving().map_err(bridge)?;
-    let mut backend = a.backend.backend()?;
-    match &mut backend {
-        ferrobot::Backend::Sim { realtime, .. } => *realtime = !a.lockstep,
-        _ if a.lockstep => {
-            return Err(ferrobot::Error::Usage(
-                "--lockstep serves the simulator: another backend's time runs by itself".into(),
-            ))
-        }
-        _ => {}
-    }
+    let backend = backend(a)?;
     let robot = super::common::robot_builder(&a.robot)
         .backend(backend)
         .scene(&a.scene)

@@ -50,22 +50,48 @@ fn assert_all_finite(v: &serde_json::Value, at: &str) {
     }
 }
 
+/// The renderer's arguments for the sequence this test reads.
+const RENDER: [&str; 6] = ["--kind", "edges", "--frames", "600", "--seed", "2"];
+
+/// The sequence: rendered by `py` into `dir`, or, when `FERROBOT_SLAM_PEER_SEQUENCE` names a
+/// directory, the one the test command rendered there beforehand with the same arguments
+/// (`scripts/test.sh`, beside the build: rendering is most of this test's time), checked to
+/// be whole (its events and 600 depth images).
+fn sequence(py: &Path, dir: &Path) -> std::path::PathBuf {
+    if let Some(pre) = std::env::var_os("FERROBOT_SLAM_PEER_SEQUENCE").filter(|p| !p.is_empty()) {
+        let pre = std::path::PathBuf::from(pre);
+        let args = std::fs::read_to_string(pre.join("render-args.txt")).unwrap_or_default();
+        let depths = std::fs::read_dir(pre.join("depth")).map_or(0, |d| d.count());
+        assert_eq!(
+            args.trim(),
+            RENDER.join(" "),
+            "{}: another sequence",
+            pre.display()
+        );
+        assert_eq!(depths, 600, "{}: not whole", pre.display());
+        return pre;
+    }
+    let root = ferrobot_peers::workspace_root();
+    let rendered = Command::new(py)
+        .arg(root.join("host/slam/peer/render_sequence.py"))
+        .args(RENDER)
+        .arg("--out")
+        .arg(dir)
+        .status()
+        .expect("the renderer runs");
+    assert!(rendered.success());
+    dir.to_path_buf()
+}
+
 #[test]
 fn an_independently_rendered_sequence_with_its_hard_cases_is_tracked_or_reported_lost() {
     let Some(py) = ferrobot_peers::for_test("pybullet, numpy", "scripts/python-env.sh slam") else {
         return;
     };
-    let root = ferrobot_peers::workspace_root();
     let tmp = std::env::temp_dir().join(format!("ferrobot-slam-peer-{}", std::process::id()));
-    let (seq, out) = (tmp.join("seq"), tmp.join("out"));
     let _ = std::fs::remove_dir_all(&tmp);
-    let rendered = Command::new(&py)
-        .arg(root.join("host/slam/peer/render_sequence.py"))
-        .args(["--kind", "edges", "--frames", "600", "--seed", "2", "--out"])
-        .arg(&seq)
-        .status()
-        .expect("the renderer runs");
-    assert!(rendered.success());
+    let out = tmp.join("out");
+    let seq = sequence(&py, &tmp.join("seq"));
     let run = Command::new(env!("CARGO_BIN_EXE_ferrobot"))
         .args(["slam", "--dataset"])
         .arg(&seq)
