@@ -1,4 +1,5 @@
-// Screenshots a Ferrobot recording opened in a web build of Lichtblick, in a headless Chromium.
+// Screenshots a Ferrobot recording, or a live view, opened in a web build of Lichtblick, in a
+// headless Chromium.
 //
 // One local HTTP server (127.0.0.1 only) serves the Lichtblick build with our layout put in its
 // index.html (the LICHTBLICK_SUITE_DEFAULT_LAYOUT placeholder that Lichtblick's own Docker image
@@ -8,9 +9,13 @@
 // stopped changing, not after a fixed sleep alone; it fails if Lichtblick's Problems list is not
 // empty.
 //
-// node screenshot.mjs --web DIR --recording FILE.mcap --layout layout.json --out shot.png
-//   [--width 1600] [--height 1000] [--at 0.75] [--chromium /usr/bin/chromium] [--timeout 120]
-//   [--theme light|dark] [--port N (0: any free one; the app bar shows the recording's URL)]
+// A live view (`--live ws://127.0.0.1:8765`, a Ferrobot view server on this machine) opens as
+// `?ds=foxglove-websocket&ds.url=...`: Lichtblick's Foxglove WebSocket connection.
+//
+// node screenshot.mjs --web DIR (--recording FILE.mcap | --live WS-URL) --layout layout.json
+//   --out shot.png [--width 1600] [--height 1000] [--at 0.75] [--chromium /usr/bin/chromium]
+//   [--timeout 120] [--theme light|dark] [--port N (0: any free one; the app bar shows the
+//   recording's URL)] [--wait-for FILE (a live view: take it once FILE exists)]
 
 import fs from "node:fs";
 import http from "node:http";
@@ -37,10 +42,16 @@ function parseArgs(argv) {
     }
     args[key.slice(2)] = value;
   }
-  for (const required of ["web", "recording", "layout", "out"]) {
+  for (const required of ["web", "layout", "out"]) {
     if (!args[required]) {
       throw new Error(`--${required} is required`);
     }
+  }
+  if (!args.recording === !args.live) {
+    throw new Error("one of --recording and --live is required");
+  }
+  if (args.live && !/^ws:\/\/(127\.0\.0\.1|localhost):\d+\/?$/.test(args.live)) {
+    throw new Error(`--live ${args.live}: a ws:// URL on this machine`);
   }
   for (const number of ["width", "height", "at", "timeout", "port"]) {
     args[number] = Number(args[number]);
@@ -114,7 +125,7 @@ function serve({ web, recording, layout, port }) {
     throw new Error(`${indexPath} has no ${placeholder}: not a Lichtblick web build?`);
   }
   const indexWithLayout = index.replace(placeholder, JSON.stringify(layout));
-  const recordingSize = fs.statSync(recording).size;
+  const recordingSize = recording ? fs.statSync(recording).size : 0;
 
   const server = http.createServer((req, res) => {
     const url = new URL(req.url, "http://127.0.0.1");
@@ -123,7 +134,7 @@ function serve({ web, recording, layout, port }) {
       "cross-origin-embedder-policy": "credentialless",
       "cache-control": "no-store",
     };
-    if (url.pathname === "/recording.mcap") {
+    if (recording && url.pathname === "/recording.mcap") {
       headers["accept-ranges"] = "bytes";
       headers["content-type"] = "application/octet-stream";
       const range = /^bytes=(\d*)-(\d*)$/.exec(req.headers.range ?? "");
@@ -180,20 +191,27 @@ function serve({ web, recording, layout, port }) {
 async function main() {
   const args = parseArgs(process.argv.slice(2));
   const web = path.resolve(args.web);
-  const recording = path.resolve(args.recording);
+  const recording = args.recording ? path.resolve(args.recording) : undefined;
   const layout = JSON.parse(fs.readFileSync(args.layout, "utf8"));
-  const [startNs, endNs] = mcapTimeRange(recording);
-  const atNs = startNs + BigInt(Math.round(Number(endNs - startNs) * args.at));
+  let atNs;
+  if (recording) {
+    const [startNs, endNs] = mcapTimeRange(recording);
+    atNs = startNs + BigInt(Math.round(Number(endNs - startNs) * args.at));
+  }
 
   const server = await serve({ web, recording, layout, port: args.port });
   const origin = `http://127.0.0.1:${server.address().port}`;
-  const query = new URLSearchParams({
-    ds: "remote-file",
-    "ds.url": `${origin}/recording.mcap`,
-    time: rfc3339(atNs),
-  });
+  const query = recording
+    ? new URLSearchParams({
+        ds: "remote-file",
+        "ds.url": `${origin}/recording.mcap`,
+        time: rfc3339(atNs),
+      })
+    : new URLSearchParams({ ds: "foxglove-websocket", "ds.url": args.live });
+  // What the app bar names once the source is open.
+  const sourceName = recording ? "recording.mcap" : new URL(args.live).host;
   const pageUrl = `${origin}/?${query}`;
-  console.log(`serving ${web} and ${recording} at ${origin}; opening ${pageUrl}`);
+  console.log(`serving ${web} and ${recording ?? args.live} at ${origin}; opening ${pageUrl}`);
 
   const profile = fs.mkdtempSync(path.join(os.tmpdir(), "ferrobot-viewer-"));
   const context = await chromium.launchPersistentContext(profile, {
@@ -219,7 +237,8 @@ async function main() {
     // Nothing leaves this machine: only our own server answers.
     await context.route("**/*", (route) => {
       const url = route.request().url();
-      if (url.startsWith(`${origin}/`) || url.startsWith("data:") || url.startsWith("blob:")) {
+      const live = args.live && url.startsWith(args.live.replace(/\/$/, ""));
+      if (url.startsWith(`${origin}/`) || live || url.startsWith("data:") || url.startsWith("blob:")) {
         return route.continue();
       }
       problems.push(`refused ${url}`);
@@ -254,13 +273,13 @@ async function main() {
       timeout: left(),
       polling: 250,
     });
-    // ... the recording opened: its name in the app bar, and the seek applied (the time shown
-    // past the start), with no loading spinner left.
+    // ... the recording (or the live view) opened: its name in the app bar, with no loading
+    // spinner left.
     await page.waitForFunction(
-      () =>
-        document.body.innerText.includes("recording.mcap") &&
+      (name) =>
+        document.body.innerText.includes(name) &&
         document.querySelectorAll('[role="progressbar"]').length === 0,
-      null,
+      sourceName,
       { timeout: left(), polling: 250 },
     );
     // Lichtblick's Problems list (topics it could not read, schemas it could not parse, ...)
@@ -273,7 +292,7 @@ async function main() {
       .then(() => undefined)
       .catch(() => page.locator("body").innerText());
     if (listed !== undefined) {
-      throw new Error(`Lichtblick lists problems with the recording:\n${listed}`);
+      throw new Error(`Lichtblick lists problems with ${sourceName}:\n${listed}`);
     }
     console.log("Lichtblick's Problems list: no problems found");
     // The left sidebar closed: more room for the panels.
@@ -283,6 +302,13 @@ async function main() {
     }
     // The pointer off the buttons, so that no tooltip shows.
     await page.mouse.move(Math.round(args.width / 4), 18);
+    // A live view: until its program says the robot stands still (--wait-for FILE exists).
+    while (args["wait-for"] && !fs.existsSync(args["wait-for"])) {
+      if (Date.now() > deadline) {
+        throw new Error(`${args["wait-for"]} did not appear before the timeout`);
+      }
+      await page.waitForTimeout(250);
+    }
     // ... then wait until two screenshots a second apart are the same (the 3D panel, the
     // image and the plot have finished drawing), at least 2 s after the above.
     await page.waitForTimeout(2000);
@@ -302,7 +328,8 @@ async function main() {
     }
     fs.mkdirSync(path.dirname(path.resolve(args.out)), { recursive: true });
     fs.writeFileSync(args.out, previous);
-    console.log(`wrote ${args.out} (${args.width}x${args.height}) at ${rfc3339(atNs)}`);
+    const when = recording ? ` at ${rfc3339(atNs)}` : ` of ${args.live}`;
+    console.log(`wrote ${args.out} (${args.width}x${args.height})${when}`);
     for (const problem of problems) {
       console.log(`note: ${problem}`);
     }

@@ -32,6 +32,47 @@ def key(domain, ns, topic, msgtype):
     return f"{domain}/{full}/{pkg}::{kind}::dds_::{name}_/{TS.hash_rihs01(msgtype)}"
 
 
+def send_goals(s, ns, gid):
+    """A base goal on /goal_pose and an arm trajectory on /arm/joint_trajectory, each after a
+    hostile one (an unknown joint; a NaN position), as rviz2 and a trajectory controller's
+    client would send them; what was sent."""
+    types = TS.types
+    header = types["std_msgs/msg/Header"]
+    stamp = types["builtin_interfaces/msg/Time"](sec=0, nanosec=0)
+    dur = types["builtin_interfaces/msg/Duration"]
+    pose = types["geometry_msgs/msg/Pose"]
+    point = types["geometry_msgs/msg/Point"]
+    quat = types["geometry_msgs/msg/Quaternion"]
+    goal = [0.9, 0.3, 0.6]
+    msg = types["geometry_msgs/msg/PoseStamped"](
+        header=header(stamp=stamp, frame_id="odom"),
+        pose=pose(position=point(x=goal[0], y=goal[1], z=0.0),
+                  orientation=quat(x=0.0, y=0.0, z=math.sin(goal[2] / 2), w=math.cos(goal[2] / 2))))
+    pub = s.declare_publisher(key(0, ns, "/goal_pose", "geometry_msgs/msg/PoseStamped"))
+    pub.put(bytes(TS.serialize_cdr(msg, "geometry_msgs/msg/PoseStamped")),
+            attachment=struct.pack("<qqB16s", 1, time.time_ns(), 16, gid))
+    names = ["joint_1", "joint_2", "joint_3", "joint_4", "joint_5"]
+    points = [[0.3, 0.2, 0.2, 0.4, 0.0], [-0.3, 0.3, 0.1, 0.5, 0.2]]
+    jt = types["trajectory_msgs/msg/JointTrajectory"]
+    jtp = types["trajectory_msgs/msg/JointTrajectoryPoint"]
+    empty = np.zeros(0)
+
+    def trajectory(joint_names, pts):
+        return jt(header=header(stamp=stamp, frame_id=""), joint_names=joint_names,
+                  points=[jtp(positions=np.array(p, dtype=np.float64), velocities=empty,
+                              accelerations=empty, effort=empty,
+                              time_from_start=dur(sec=2 * (k + 1), nanosec=0))
+                          for k, p in enumerate(pts)])
+    pub = s.declare_publisher(key(0, ns, "/arm/joint_trajectory", "trajectory_msgs/msg/JointTrajectory"))
+    for seq, m in enumerate([trajectory(names[:4] + ["elbow"], points),
+                             trajectory(names, [[0.1, math.nan, 0.0, 0.0, 0.0]]),
+                             trajectory(names[::-1], [p[::-1] for p in points])], start=1):
+        pub.put(bytes(TS.serialize_cdr(m, "trajectory_msgs/msg/JointTrajectory")),
+                attachment=struct.pack("<qqB16s", seq, time.time_ns(), 16, gid))
+    time.sleep(0.5)
+    return {"base": goal, "arm": points}
+
+
 def main():
     endpoint, ns = sys.argv[1], sys.argv[2]
     listen_s, v, w, drive_s = (float(x) for x in sys.argv[3:7])
@@ -160,6 +201,8 @@ def main():
             time.sleep(0.05)
         out["cmd_vel_sent"] = sent
         time.sleep(1.0)
+        if os.environ.get("FERROBOT_PEER_GOALS"):
+            out["goals"] = send_goals(s, ns, gid)
     # The points of one frame against our own reconstruction from its depth and intrinsics
     # (every 4th pixel of every 4th row with a valid depth, as the topic's description says).
     whole = [f for f in frames.values() if {"depth", "k", "points"} <= f.keys()]

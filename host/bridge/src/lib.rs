@@ -3,7 +3,8 @@
 //!
 //! - [`Server`]: a robot served as a ROS 2 node sees one: its joint states, transforms,
 //!   odometry, camera and log on their ROS 2 topics, in CDR with ROS 2's type names and RIHS01
-//!   hashes, announced by rmw_zenoh's liveliness tokens; `/cmd_vel` drives its base. Every
+//!   hashes, announced by rmw_zenoh's liveliness tokens; `/cmd_vel` drives its base,
+//!   `/goal_pose` and `/arm/joint_trajectory` set goals ([`inputs`]). Every
 //!   ROS 2 tool on rmw_zenoh (`ros2 topic`, rviz2, rosbag2) is a peer, and nothing of ROS is
 //!   installed here.
 //! - [`remote`]: the remote backend: a served robot driven from another process or machine
@@ -15,6 +16,7 @@
 
 pub mod access;
 pub mod error;
+pub mod inputs;
 pub mod node;
 pub mod remote;
 pub mod serve;

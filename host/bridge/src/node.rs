@@ -25,11 +25,10 @@ pub struct RosNode {
 }
 
 /// The quality of service ROS 2 gives `topic`'s publishers: transient local, depth 1, for what
-/// is said once and holds (`/robot_description`, `/tf_static`); reliable, volatile, depth 10
-/// (ROS 2's default) for the rest.
+/// is said once and holds ([`Topic::latched`]: `/robot_description`, `/tf_static`, `/map`, …);
+/// reliable, volatile, depth 10 (ROS 2's default) for the rest.
 pub fn qos_of(topic: &Topic) -> Qos {
-    use ferrobot_ros2::topics;
-    if [topics::ROBOT_DESCRIPTION.name, topics::TF_STATIC.name].contains(&topic.name) {
+    if topic.latched() {
         Qos {
             reliable: true,
             transient_local: true,

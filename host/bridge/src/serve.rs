@@ -1,5 +1,7 @@
 //! A robot served on zenoh as a ROS 2 node ([`Server`]): a thread publishes the robot's
-//! streams, as [`ferrobot_ros2::robot`] maps them, as they arrive; `/cmd_vel` drives the base.
+//! streams, as [`ferrobot_ros2::robot`] maps them, as they arrive, and the world's bodies and
+//! map as [`WorldFeed`] reads them; `/cmd_vel` drives the base, and `/goal_pose` and
+//! `/arm/joint_trajectory` set goals ([`crate::inputs`]).
 //!
 //! The robot's time must pass for its streams to flow: on the simulator, whoever serves it
 //! lets it pass (`ferrobot serve` waits in a loop, paced to the wall clock), or, served in
@@ -16,10 +18,12 @@ use ferrobot::events::Event;
 use ferrobot::{Bell, Robot};
 use ferrobot_ros2::robot::{Feeds, Item, Messages, RobotInfo};
 use ferrobot_ros2::topics::{self, Topic};
+use ferrobot_ros2::view::WorldFeed;
 use parking_lot::Mutex;
 
 use crate::error::BridgeError;
-use crate::node::{RosNode, RosPublisher, RosSubscription};
+use crate::inputs::Inputs;
+use crate::node::{RosNode, RosPublisher};
 use crate::remote::wire::{self, RemoteCamera, RemoteInfo};
 use crate::remote::{RemoteService, RemoteStats};
 
@@ -80,7 +84,12 @@ pub struct ServeStats {
     pub cmd_vel_accepted: u64,
     /// `/cmd_vel` messages refused (malformed, beyond the base's limits), and the last reason.
     pub cmd_vel_refused: u64,
-    /// Why the last `/cmd_vel` message was refused.
+    /// `/goal_pose` and `/arm/joint_trajectory` messages taken as goals.
+    pub goals_accepted: u64,
+    /// Goals refused (malformed, not finite, beyond the robot's limits, unknown joints), or
+    /// that the arm refused or ended with an error on the way.
+    pub goals_refused: u64,
+    /// Why the last `/cmd_vel` message or goal was refused.
     pub last_refusal: Option<String>,
     /// Items dropped because the publisher fell behind.
     pub dropped: u64,
@@ -94,7 +103,7 @@ pub struct Server {
     bell: Arc<Bell>,
     stats: Arc<Mutex<ServeStats>>,
     thread: Option<JoinHandle<()>>,
-    _cmd_vel: Option<RosSubscription>,
+    _inputs: Inputs,
     node: Arc<RosNode>,
     remote: Option<Arc<RemoteService>>,
 }
@@ -172,10 +181,7 @@ impl Server {
         let feeds = Feeds::subscribe(robot, opts.queue.clamp(1, 100_000), camera)?;
         let bell = Bell::new();
         feeds.ring(&bell);
-        let cmd_vel = match robot.config().base.is_some() {
-            true => Some(cmd_vel(robot, &node, opts.cmd_vel_hold, stats.clone())?),
-            false => None,
-        };
+        let inputs = Inputs::subscribe(robot, &node, opts.cmd_vel_hold, &stats)?;
         let remote = match opts.remote {
             true => Some(Arc::new(remote(robot, session, &opts, camera)?)),
             false => None,
@@ -183,8 +189,10 @@ impl Server {
         let stop = Arc::new(AtomicBool::new(false));
         let (their_stop, their_bell) = (stop.clone(), bell.clone());
         let serving = Serving {
+            robot: robot.clone(),
             feeds,
             messages,
+            world: WorldFeed::default(),
             publish,
             remote: remote.clone(),
         };
@@ -197,7 +205,7 @@ impl Server {
             bell,
             stats,
             thread: Some(thread),
-            _cmd_vel: cmd_vel,
+            _inputs: inputs,
             node,
             remote,
         })
@@ -268,8 +276,10 @@ impl Publish {
 /// The serving thread's work: the robot's items to messages, published; the remote backend's
 /// telemetry, faults and watchdog.
 struct Serving {
+    robot: Robot,
     feeds: Feeds,
     messages: Messages,
+    world: WorldFeed,
     publish: Publish,
     remote: Option<Arc<RemoteService>>,
 }
@@ -298,6 +308,9 @@ impl Serving {
                         self.publish.put(topic, data);
                     }
                 }
+            }
+            for (topic, data) in self.world.poll(&self.robot) {
+                self.publish.put(topic, data);
             }
             let f = &self.feeds;
             let dropped = f.telemetry.dropped()
@@ -343,30 +356,6 @@ fn remote(
         lockstep: opts.lockstep,
     };
     RemoteService::start(robot, session, &wire::prefix(&opts.namespace), info)
-}
-
-/// `/cmd_vel`: each message drives the base at its forward speed (m/s) and yaw rate (rad/s)
-/// for `hold` s, or until the next one.
-fn cmd_vel(
-    robot: &Robot,
-    node: &RosNode,
-    hold: f64,
-    stats: Arc<Mutex<ServeStats>>,
-) -> Result<RosSubscription, BridgeError> {
-    let base = robot.base()?;
-    node.subscription(&topics::CMD_VEL, move |payload, _| {
-        let outcome = ferrobot_ros2::decode::twist(payload)
-            .map_err(|e| e.to_string())
-            .and_then(|[v, w]| base.set_vel_async(v, w, hold).map_err(|e| e.to_string()));
-        let mut s = stats.lock();
-        match outcome {
-            Ok(_motion) => s.cmd_vel_accepted += 1,
-            Err(why) => {
-                s.cmd_vel_refused += 1;
-                s.last_refusal = Some(why);
-            }
-        }
-    })
 }
 
 /// A thread that lets a robot's time pass, `step` at a time, until dropped: what a simulated

@@ -2,7 +2,9 @@
 //! PyPI, rosbags' Jazzy type store for CDR and type hashes, no code of ours): it finds the
 //! robot's node and publishers by their liveliness tokens, decodes the robot's topics with the
 //! robot's values, gets the latched URDF and fixed transforms as a late subscriber, and its
-//! `/cmd_vel` drives the base; its two hostile samples are refused.
+//! `/cmd_vel` drives the base; its two hostile samples are refused. Then its `/goal_pose`
+//! takes the base to a pose and its `/arm/joint_trajectory` the arm through two points (its
+//! joints named in reverse order), after two hostile trajectories that are refused.
 
 use std::collections::BTreeMap;
 use std::process::{Command, Stdio};
@@ -38,6 +40,7 @@ fn a_ros_2_peer_reads_the_robots_topics_and_drives_its_base() {
     let peer = Command::new(py)
         .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/peer/ros_peer.py"))
         .args([&endpoint, "/locobot", "1.5", "0.2", "0.0", "2.0"])
+        .env("FERROBOT_PEER_GOALS", "1")
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
@@ -54,6 +57,8 @@ fn a_ros_2_peer_reads_the_robots_topics_and_drives_its_base() {
     eprintln!("{}", String::from_utf8_lossy(&out.stderr));
     assert!(out.status.success(), "the peer failed: {said}");
     let v: serde_json::Value = serde_json::from_str(said.trim()).expect("the peer's JSON");
+    let moved_by_cmd_vel = robot.truth().expect("truth").root.translation.vector - start;
+    let goals = reach_goals(&robot, &v["goals"]);
     let stats = server.stop();
     eprintln!("served: {stats:?}");
     let got = &v["received"];
@@ -177,8 +182,7 @@ fn a_ros_2_peer_reads_the_robots_topics_and_drives_its_base() {
 
     // Its /cmd_vel drove the base forward: 0.2 m/s for 2 s, less the start and the stop; the
     // malformed and the NaN commands were refused.
-    let end = robot.truth().expect("truth").root.translation.vector;
-    let moved = (end - start).xy();
+    let moved = moved_by_cmd_vel.xy();
     eprintln!("the base moved {moved:?} m");
     // 0.2 m/s for the 2 s of commands and the last one's 0.5 s hold: 0.5 m at most.
     assert!(
@@ -189,4 +193,45 @@ fn a_ros_2_peer_reads_the_robots_topics_and_drives_its_base() {
     assert!(odom["x"].as_f64().unwrap_or(0.0) > 0.15, "{odom}");
     assert_eq!(stats.cmd_vel_refused, 2, "{stats:?}");
     assert!(stats.cmd_vel_accepted >= 30, "{stats:?}");
+
+    // Its goals: the base at the pose, the arm at the trajectory's last point; the hostile
+    // trajectories (a joint the arm does not have, a NaN) refused.
+    let (base_error, arm_error) = goals;
+    eprintln!("goals reached: base {base_error:.3} m off, arm {arm_error:.3} rad off");
+    assert!(base_error < 0.05, "{base_error}");
+    assert!(arm_error < 0.02, "{arm_error}");
+    assert_eq!(stats.goals_refused, 2, "{stats:?}");
+    assert_eq!(stats.goals_accepted, 2, "{stats:?}");
+}
+
+/// Lets the robot's time pass until the peer's goals are reached (60 s at most): how far the
+/// base's odometry is from the base goal (m), and the arm from the trajectory's last point
+/// (rad, the largest joint error).
+fn reach_goals(robot: &Robot, goals: &serde_json::Value) -> (f64, f64) {
+    let base_goal: Vec<f64> = serde_json::from_value(goals["base"].clone()).expect("base goal");
+    let points: Vec<Vec<f64>> = serde_json::from_value(goals["arm"].clone()).expect("arm goal");
+    let last = points.last().expect("points");
+    let errors = || {
+        let s = robot.base().expect("base").get_state().expect("odometry");
+        let b = (s[0] - base_goal[0]).hypot(s[1] - base_goal[1]);
+        let q = robot
+            .arm()
+            .expect("arm")
+            .get_joint_angles()
+            .expect("angles");
+        let a = q
+            .iter()
+            .zip(last)
+            .map(|(x, y)| (x - y).abs())
+            .fold(0.0, f64::max);
+        (b, a)
+    };
+    let deadline = Instant::now() + Duration::from_secs(60);
+    loop {
+        let (b, a) = errors();
+        if (b < 0.05 && a < 0.02) || Instant::now() > deadline {
+            return (b, a);
+        }
+        robot.wait(0.1).expect("time passes");
+    }
 }

@@ -214,13 +214,15 @@ impl Arm {
             RrtConnect.plan(&checker, &start, goal, &plan_opts)?
         };
         let trajectory = self.time_path(&checker, &plan.path, opts.max_deviation)?;
-        Ok(ArmTrajectory {
+        let planned = ArmTrajectory {
             joints: self.joint_names(),
             path: plan.path,
             trajectory,
             planning_time: plan.time,
             padding,
-        })
+        };
+        self.announce(&planned);
+        Ok(planned)
     }
 
     /// The measured `start` held to the limits, a checker for planning from it, and the pairs

@@ -1,6 +1,6 @@
 //! The robot's events as a stream ([`crate::Robot::subscribe_events`]): every command the host
-//! sends the firmware, every fault, what happens to the link, and SLAM's pose at each tracked
-//! frame, each stamped with the robot's clock. Recorders subscribe to it; reading it takes
+//! sends the firmware, every fault, what happens to the link, SLAM's pose at each tracked
+//! frame, and the arm's planned motions, each stamped with the robot's clock. Recorders subscribe to it; reading it takes
 //! nothing from [`crate::Robot::take_faults`] or [`crate::Robot::take_link_events`].
 //!
 //! The commands are tapped where they leave the API: a tap wraps the backend's link and
@@ -56,6 +56,36 @@ pub enum Event {
         /// tracking state, the keyframe and loop-closure flags.
         report: TrackReport,
     },
+    /// The arm planned a motion ([`crate::arm::Arm::plan_to`], and every move that plans).
+    ArmPlan {
+        /// When it was planned.
+        time: Duration,
+        /// The plan: its waypoints, and where the end effector goes along it.
+        plan: Arc<PlannedArmPath>,
+    },
+}
+
+/// An arm's planned motion, as a viewer draws it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlannedArmPath {
+    /// The arm's base frame (a URDF link): the frame of [`PlannedArmPath::ee_path`].
+    pub frame: String,
+    /// The end effector's frame (a URDF link).
+    pub ee_frame: String,
+    /// The arm's joints, in the order of every waypoint.
+    pub joints: Vec<String>,
+    /// The planner's waypoints, rad, joined by collision-free straight edges.
+    pub waypoints: Vec<Vec<f64>>,
+    /// The end effector's pose in `frame` along the timed trajectory: at its start, every
+    /// [`PlannedArmPath::EE_STEP`] s, and at its end; each with its time from the start, s.
+    pub ee_path: Vec<(f64, nalgebra::Isometry3<f64>)>,
+    /// The trajectory's duration, s.
+    pub duration: f64,
+}
+
+impl PlannedArmPath {
+    /// The end effector path's step, s.
+    pub const EE_STEP: f64 = 0.05;
 }
 
 impl Event {
@@ -65,7 +95,8 @@ impl Event {
             Event::Command { time, .. }
             | Event::Fault { time, .. }
             | Event::Link { time, .. }
-            | Event::Slam { time, .. } => *time,
+            | Event::Slam { time, .. }
+            | Event::ArmPlan { time, .. } => *time,
         }
     }
 }

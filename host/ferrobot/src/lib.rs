@@ -23,6 +23,7 @@ pub mod arm;
 mod arm_kinematics;
 mod arm_parts;
 pub mod arm_plan;
+mod arm_plan_event;
 mod arm_scene;
 pub mod arm_teach;
 pub mod backend;

@@ -64,6 +64,18 @@ impl CdrWriter {
         self.buf.extend_from_slice(&v.to_le_bytes());
     }
 
+    /// A `float32`.
+    pub fn f32(&mut self, v: f32) {
+        self.align(4);
+        self.buf.extend_from_slice(&v.to_le_bytes());
+    }
+
+    /// An `int8[]`.
+    pub fn i8_seq(&mut self, v: &[i8]) {
+        self.seq_len(v.len());
+        self.buf.extend(v.iter().map(|&x| x as u8));
+    }
+
     /// A `float64`.
     pub fn f64(&mut self, v: f64) {
         self.align(8);

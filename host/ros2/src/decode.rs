@@ -158,3 +158,25 @@ pub fn joint_state(data: &[u8]) -> Result<JointStates, DecodeError> {
     let (t, _) = header(&mut r)?;
     Ok((t, r.string_seq()?, r.f64_seq()?, r.f64_seq()?, r.f64_seq()?))
 }
+
+/// A `trajectory_msgs/JointTrajectory`: its joint names, and each point's positions with its
+/// time from the trajectory's start.
+pub type JointTrajectoryGoal = (Vec<String>, Vec<(Vec<f64>, Duration)>);
+
+/// A `trajectory_msgs/JointTrajectory`'s names and points (positions and times; the
+/// velocities, accelerations and efforts are read past).
+pub fn joint_trajectory(data: &[u8]) -> Result<JointTrajectoryGoal, DecodeError> {
+    let mut r = CdrReader::new(data)?;
+    let _ = header(&mut r)?;
+    let names = r.string_seq()?;
+    let n = r.u32()? as usize;
+    let mut points = Vec::with_capacity(n.min(1024));
+    for _ in 0..n {
+        let positions = r.f64_seq()?;
+        let _velocities = r.f64_seq()?;
+        let _accelerations = r.f64_seq()?;
+        let _effort = r.f64_seq()?;
+        points.push((positions, time(&mut r)?));
+    }
+    Ok((names, points))
+}

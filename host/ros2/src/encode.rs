@@ -81,7 +81,7 @@ pub fn header(w: &mut CdrWriter, t: Duration, frame: &str) {
 }
 
 /// A pose as `geometry_msgs/Point` (or `Vector3`) and `Quaternion`.
-fn pose(w: &mut CdrWriter, p: &Isometry3<f64>) {
+pub(crate) fn pose(w: &mut CdrWriter, p: &Isometry3<f64>) {
     let t = p.translation.vector;
     let q = p.rotation.coords; // [x, y, z, w]
     w.f64_array(&[t.x, t.y, t.z, q.x, q.y, q.z, q.w]);

@@ -1,6 +1,6 @@
 //! The robot's events as ROS 2 messages: commands on `/cmd_vel`, `/joint_commands` and
 //! `/gripper/command`; everything else (faults, emergency stops, mode changes, link events) as
-//! `/rosout` log lines; SLAM's poses on `/slam/pose`.
+//! `/rosout` log lines; SLAM's poses on `/slam/pose`; the arm's plans on `/arm/planned_path`.
 
 use std::time::Duration;
 
@@ -56,6 +56,9 @@ pub fn encode(robot: &RobotInfo, e: &Event) -> Vec<(Topic, Vec<u8>)> {
                 out.push(log(level::INFO, "SLAM closed a loop"));
             }
             out
+        }
+        Event::ArmPlan { plan, .. } => {
+            vec![(topics::ARM_PLANNED_PATH, crate::view::planned_path(t, plan))]
         }
         _ => vec![log(level::INFO, &format!("{e:?}"))],
     }

@@ -8,6 +8,8 @@
 //! - [`robot`]: a robot's telemetry, camera frames and events as messages on those topics
 //!   ([`events`] for the events).
 //! - [`type_hash`]: each definition's RIHS01 type hash, as `rosidl` computes it.
+//! - [`view`]: what a viewer draws besides the robot's streams: planned paths, maps, the
+//!   simulated world's bodies.
 //! - [`rmw_zenoh`]: the names rmw_zenoh gives topics, services and entities on zenoh (key
 //!   expressions, liveliness tokens, QoS strings, GIDs) and the attachment on every sample.
 //!
@@ -24,3 +26,4 @@ pub mod robot;
 pub mod schemas;
 pub mod topics;
 pub mod type_hash;
+pub mod view;

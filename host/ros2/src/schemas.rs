@@ -181,6 +181,48 @@ msg!(
     "std_msgs/Header header\nMapMetaData info\nint8[] data\n"
 );
 msg!(
+    PATH,
+    "nav_msgs/msg/Path",
+    [HEADER, POSE_STAMPED],
+    "std_msgs/Header header\ngeometry_msgs/PoseStamped[] poses\n"
+);
+msg!(
+    COLOR_RGBA,
+    "std_msgs/msg/ColorRGBA",
+    [],
+    "float32 r\nfloat32 g\nfloat32 b\nfloat32 a\n"
+);
+msg!(
+    COMPRESSED_IMAGE,
+    "sensor_msgs/msg/CompressedImage",
+    [HEADER],
+    "std_msgs/Header header\nstring format\nuint8[] data\n"
+);
+msg!(
+    UV_COORDINATE,
+    "visualization_msgs/msg/UVCoordinate",
+    [],
+    "float32 u\nfloat32 v\n"
+);
+msg!(
+    MESH_FILE,
+    "visualization_msgs/msg/MeshFile",
+    [],
+    "string filename\nuint8[] data\n"
+);
+msg!(
+    MARKER,
+    "visualization_msgs/msg/Marker",
+    [HEADER, POSE, VECTOR3, COLOR_RGBA, DURATION, POINT, COMPRESSED_IMAGE, UV_COORDINATE, MESH_FILE],
+    "int32 ARROW=0\nint32 CUBE=1\nint32 SPHERE=2\nint32 CYLINDER=3\nint32 LINE_STRIP=4\nint32 LINE_LIST=5\nint32 CUBE_LIST=6\nint32 SPHERE_LIST=7\nint32 POINTS=8\nint32 TEXT_VIEW_FACING=9\nint32 MESH_RESOURCE=10\nint32 TRIANGLE_LIST=11\nint32 ARROW_STRIP=12\nint32 ADD=0\nint32 MODIFY=0\nint32 DELETE=2\nint32 DELETEALL=3\nstd_msgs/Header header\nstring ns\nint32 id\nint32 type\nint32 action\ngeometry_msgs/Pose pose\ngeometry_msgs/Vector3 scale\nstd_msgs/ColorRGBA color\nbuiltin_interfaces/Duration lifetime\nbool frame_locked\ngeometry_msgs/Point[] points\nstd_msgs/ColorRGBA[] colors\nstring texture_resource\nsensor_msgs/CompressedImage texture\nvisualization_msgs/UVCoordinate[] uv_coordinates\nstring text\nstring mesh_resource\nvisualization_msgs/MeshFile mesh_file\nbool mesh_use_embedded_materials\n"
+);
+msg!(
+    MARKER_ARRAY,
+    "visualization_msgs/msg/MarkerArray",
+    [MARKER],
+    "Marker[] markers\n"
+);
+msg!(
     LOG,
     "rcl_interfaces/msg/Log",
     [TIME],
@@ -195,7 +237,7 @@ msg!(
 );
 
 /// Every message type here.
-pub const ALL: [&MsgType; 30] = [
+pub const ALL: [&MsgType; 37] = [
     &TIME,
     &CLOCK,
     &DURATION,
@@ -224,6 +266,13 @@ pub const ALL: [&MsgType; 30] = [
     &POINT_CLOUD2,
     &MAP_META_DATA,
     &OCCUPANCY_GRID,
+    &PATH,
+    &COLOR_RGBA,
+    &COMPRESSED_IMAGE,
+    &UV_COORDINATE,
+    &MESH_FILE,
+    &MARKER,
+    &MARKER_ARRAY,
     &LOG,
     &FERROBOT_COMMAND,
 ];

@@ -137,8 +137,40 @@ topic!(
     "SLAM's pose of the body in `map`, at each tracked frame."
 );
 
+topic!(
+    ARM_PLANNED_PATH,
+    "/arm/planned_path",
+    PATH,
+    "each motion the arm planned: its end effector's poses in the arm's base frame along the timed trajectory, every 50 ms, each stamped when it would be reached."
+);
+topic!(
+    MAP,
+    "/map",
+    OCCUPANCY_GRID,
+    "the navigation map in `map` (0 free, 100 occupied, -1 unknown), at the start and at each change, at most once a second (served, not recorded)."
+);
+topic!(
+    SCENE_MARKERS,
+    "/scene/markers",
+    MARKER_ARRAY,
+    "the simulated world's bodies (boxes, cylinders, spheres, capsules) in `odom` where the robot started, with their live poses, twice a second (served on the simulator, not recorded)."
+);
+
+topic!(
+    GOAL_POSE,
+    "/goal_pose",
+    POSE_STAMPED,
+    "a goal for the base (rviz2's \"2D Goal Pose\"): its pose in `odom`, or in `map` while SLAM runs (served robots subscribe)."
+);
+topic!(
+    ARM_JOINT_TRAJECTORY,
+    "/arm/joint_trajectory",
+    JOINT_TRAJECTORY,
+    "a trajectory for the arm: every arm joint named, the arm moved through its points in order, each a planned motion (served robots subscribe)."
+);
+
 /// Every topic, in the order of this table.
-pub const ALL: [Topic; 19] = [
+pub const ALL: [Topic; 24] = [
     ROBOT_DESCRIPTION,
     TF_STATIC,
     TF,
@@ -158,7 +190,28 @@ pub const ALL: [Topic; 19] = [
     COMMANDS,
     CLOCK,
     SLAM_POSE,
+    ARM_PLANNED_PATH,
+    MAP,
+    SCENE_MARKERS,
+    GOAL_POSE,
+    ARM_JOINT_TRAJECTORY,
 ];
+
+impl Topic {
+    /// Whether the topic says what holds until said again (the URDF, the fixed transforms, the
+    /// map, the world's bodies, the last plan): publishers keep its last message for late
+    /// subscribers (ROS 2's transient local durability, a viewer's latched channel).
+    pub fn latched(&self) -> bool {
+        [
+            ROBOT_DESCRIPTION.name,
+            TF_STATIC.name,
+            MAP.name,
+            SCENE_MARKERS.name,
+            ARM_PLANNED_PATH.name,
+        ]
+        .contains(&self.name)
+    }
+}
 
 /// The odometry's frame.
 pub const ODOM_FRAME: &str = "odom";

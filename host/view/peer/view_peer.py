@@ -19,7 +19,12 @@ import websockets
 from rosbags.typesys import Stores, get_typestore
 
 TS = get_typestore(Stores.ROS2_JAZZY)
-WANTED = ["/joint_states", "/robot_description", "/tf_static", "/tf", "/camera/color/image_raw"]
+WANTED = ["/joint_states", "/robot_description", "/tf_static", "/tf", "/camera/color/image_raw",
+          "/arm/planned_path", "/scene/markers"]
+
+
+def xyz(p):
+    return [p.x, p.y, p.z]
 
 
 async def main(url, seconds):
@@ -72,6 +77,20 @@ async def main(url, seconds):
                 r["last"] = {"width": msg.width, "height": msg.height, "encoding": msg.encoding}
             elif c["topic"] in ("/tf", "/tf_static"):
                 r["frames"] = len(msg.transforms)
+            elif c["topic"] == "/arm/planned_path":
+                poses = msg.poses
+                r["last"] = {"frame": msg.header.frame_id, "n": len(poses),
+                             "first": xyz(poses[0].pose.position) if poses else None,
+                             "end": xyz(poses[-1].pose.position) if poses else None,
+                             "end_stamp": (poses[-1].header.stamp.sec + poses[-1].header.stamp.nanosec * 1e-9)
+                             if poses else None,
+                             "stamp": msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9}
+            elif c["topic"] == "/scene/markers":
+                r["last"] = {"n": len(msg.markers),
+                             "frames": sorted({m.header.frame_id for m in msg.markers}),
+                             "bodies": {m.ns: {"type": m.type, "position": xyz(m.pose.position),
+                                               "scale": xyz(m.scale), "alpha": m.color.a}
+                                        for m in msg.markers if m.id == 0}}
             # Halfway, the view is told to stop sending the camera.
             if not unsubscribed and time.time() > end - seconds / 2:
                 cam = [s for s, ch in subs.items() if ch["topic"] == "/camera/color/image_raw"]

@@ -11,7 +11,7 @@ use std::time::Duration;
 
 use ferrobot::{Bell, Robot};
 use ferrobot_ros2::robot::{Feeds, Messages, RobotInfo};
-use ferrobot_ros2::topics;
+use ferrobot_ros2::view::WorldFeed;
 use parking_lot::Mutex;
 use tungstenite::handshake::server::{ErrorResponse, Request, Response};
 use tungstenite::{Message, WebSocket};
@@ -94,9 +94,10 @@ impl ViewServer {
         }
         let stop = Arc::new(AtomicBool::new(false));
         let (h, s, b) = (hub.clone(), stop.clone(), bell.clone());
+        let r = robot.clone();
         let feed = std::thread::Builder::new()
             .name("ferrobot-view-feed".into())
-            .spawn(move || feed(feeds, messages, h, s, b))
+            .spawn(move || feed(&r, feeds, messages, h, s, b))
             .map_err(listen)?;
         let (h, s) = (hub.clone(), stop.clone());
         let queue = opts.queue.clamp(1, 100_000);
@@ -134,21 +135,27 @@ impl Drop for ViewServer {
     }
 }
 
+/// The robot's streams and world, to the viewers, until `stop`.
 fn feed(
+    robot: &Robot,
     feeds: Feeds,
     mut messages: Messages,
     hub: Arc<Mutex<Hub>>,
     stop: Arc<AtomicBool>,
     bell: Arc<Bell>,
 ) {
+    let mut world = WorldFeed::default();
     while !stop.load(Ordering::SeqCst) {
         for item in feeds.take() {
             let t = item.time().as_nanos() as u64;
             for (topic, data) in messages.of(&item) {
-                let latched = topic.name == topics::ROBOT_DESCRIPTION.name
-                    || topic.name == topics::TF_STATIC.name;
+                let latched = topic.latched();
                 hub.lock().publish(&topic, t, data, latched);
             }
+        }
+        let t = (robot.time().max(0.0) * 1e9) as u64;
+        for (topic, data) in world.poll(robot) {
+            hub.lock().publish(&topic, t, data, topic.latched());
         }
         bell.wait(Duration::from_millis(100));
     }

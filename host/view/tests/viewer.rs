@@ -2,7 +2,9 @@
 //! package, rosbags to decode by schema name) connects to the live view of a moving LoCoBot:
 //! it gets the subprotocol, the server's info and the channels, the latched URDF and fixed
 //! transforms on subscribing, joint states equal to the robot's reports, camera frames until it
-//! unsubscribes, and nothing of the camera after.
+//! unsubscribes, and nothing of the camera after; the arm's planned path, its end where forward
+//! kinematics puts the goal; and the tabletop scene's bodies as markers, where the simulator
+//! has them.
 
 use std::collections::BTreeMap;
 use std::process::{Command, Stdio};
@@ -23,6 +25,7 @@ fn a_viewer_sees_the_robot_as_foxglove_would() {
             seed: 1,
             realtime: true,
         })
+        .scene("tabletop")
         .build()
         .expect("robot");
     let view = ViewServer::start(&robot, "127.0.0.1:0", ViewOptions::default()).expect("served");
@@ -36,12 +39,13 @@ fn a_viewer_sees_the_robot_as_foxglove_would() {
         .spawn()
         .expect("the viewer starts");
     let arm = robot.arm().expect("arm");
-    let _m = arm
-        .move_joints(
-            &[0.5, 0.3, -0.3, 0.2, 0.0],
-            ferrobot::MoveOptions::default(),
-        )
-        .expect("a motion");
+    let goal = [0.4, 0.2, 0.3, 0.1, 0.0];
+    let plan = arm
+        .plan_to(&goal, &ferrobot::arm_plan::PlanningOptions::default())
+        .expect("a plan");
+    let ee = robot.config().arm.as_ref().expect("arm").ee_frame.clone();
+    let goal_ee = arm.compute_fk_position(&goal, &ee).expect("fk");
+    let _m = arm.execute(&plan).expect("a motion");
     let deadline = Instant::now() + Duration::from_secs(60);
     while peer.try_wait().expect("the viewer").is_none() {
         assert!(
@@ -71,6 +75,8 @@ fn a_viewer_sees_the_robot_as_foxglove_would() {
         "/tf_static",
         "/tf",
         "/camera/color/image_raw",
+        "/arm/planned_path",
+        "/scene/markers",
     ] {
         assert!(
             got[t]["count"].as_u64().unwrap_or(0) > 0,
@@ -119,4 +125,62 @@ fn a_viewer_sees_the_robot_as_foxglove_would() {
     let total = img["count"].as_u64().unwrap_or(0);
     eprintln!("camera frames: {at} when unsubscribing, {total} in all");
     assert!(at > 10 && total <= at + 3, "{at} then {total}");
+
+    // The plan: its end effector path ends where forward kinematics puts the goal, reached
+    // the trajectory's duration after it was planned.
+    let path = &got["/arm/planned_path"]["last"];
+    let end: Vec<f64> = serde_json::from_value(path["end"].clone()).expect("an end");
+    let want = goal_ee.position;
+    eprintln!("planned path: {path}; the goal's end effector at {want:?}");
+    assert_eq!(
+        path["frame"],
+        robot
+            .config()
+            .arm
+            .as_ref()
+            .expect("arm")
+            .base_frame
+            .as_str()
+    );
+    for k in 0..3 {
+        assert!((end[k] - want[k]).abs() < 1e-6, "{end:?} against {want:?}");
+    }
+    let n = path["n"].as_u64().expect("poses") as f64;
+    assert!(
+        (n - (plan.duration() / 0.05).ceil() - 1.0).abs() <= 1.0,
+        "{n} poses"
+    );
+    let span = path["end_stamp"].as_f64().expect("stamp") - path["stamp"].as_f64().expect("stamp");
+    assert!((span - plan.duration()).abs() < 1e-6, "{span} s");
+
+    // The scene: every body a marker in `odom`, each movable one where the simulator has it
+    // (within 1 mm: it may have settled since the last markers were sent).
+    let scene = robot.scene();
+    let truth = robot.truth().expect("truth");
+    let markers = &got["/scene/markers"]["last"];
+    eprintln!(
+        "scene markers: {} for {} bodies",
+        markers["n"],
+        scene.bodies.len()
+    );
+    assert_eq!(markers["frames"], serde_json::json!(["odom"]));
+    let bodies = markers["bodies"].as_object().expect("bodies");
+    assert_eq!(bodies.len(), scene.bodies.len());
+    let [x, y, yaw] = scene.robot_pose;
+    let odom = nalgebra::Isometry3::new(
+        nalgebra::Vector3::new(x, y, scene.robot_height),
+        nalgebra::Vector3::new(0.0, 0.0, yaw),
+    );
+    for (body, pose) in scene.bodies.iter().zip(&truth.bodies) {
+        let theirs: Vec<f64> =
+            serde_json::from_value(bodies[&body.id]["position"].clone()).expect("position");
+        let ours = (odom.inverse() * pose).translation.vector;
+        for k in 0..3 {
+            assert!(
+                (theirs[k] - ours[k]).abs() < 1e-3,
+                "{}: {theirs:?} against {ours:?}",
+                body.id
+            );
+        }
+    }
 }
