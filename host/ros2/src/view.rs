@@ -235,3 +235,41 @@ impl WorldFeed {
         out
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cdr::CdrReader;
+
+    #[test]
+    fn an_occupancy_grid_reads_back_as_nav_msgs_lays_it_out() {
+        let map = MapImage {
+            origin: [-1.5, 2.0],
+            resolution: 0.05,
+            width: 3,
+            height: 2,
+            cells: vec![
+                Cell::Free,
+                Cell::Occupied,
+                Cell::Unknown,
+                Cell::Occupied,
+                Cell::Free,
+                Cell::Free,
+            ],
+        };
+        let t = Duration::from_millis(2500);
+        let bytes = occupancy_grid(t, "map", &map);
+        let mut r = CdrReader::new(&bytes).unwrap();
+        assert_eq!((r.i32().unwrap(), r.u32().unwrap()), (2, 500_000_000));
+        assert_eq!(r.string().unwrap(), "map");
+        assert_eq!((r.i32().unwrap(), r.u32().unwrap()), (2, 500_000_000));
+        assert_eq!(f32::from_bits(r.u32().unwrap()), 0.05);
+        assert_eq!((r.u32().unwrap(), r.u32().unwrap()), (3, 2));
+        assert_eq!(
+            r.f64_array(7).unwrap(),
+            [-1.5, 2.0, 0.0, 0.0, 0.0, 0.0, 1.0]
+        );
+        let cells: Vec<i8> = r.bytes().unwrap().iter().map(|&b| b as i8).collect();
+        assert_eq!(cells, [0, 100, -1, 100, 0, 0]);
+    }
+}
