@@ -186,6 +186,14 @@ pub struct RosPublisher {
 }
 
 impl RosPublisher {
+    /// Whether any subscriber matches this publisher now (yes when zenoh cannot say).
+    pub fn matched(&self) -> bool {
+        self.publisher
+            .matching_status()
+            .wait()
+            .map_or(true, |m| m.matching())
+    }
+
     /// Puts one sample: `cdr` (with its encapsulation header), with the next sequence number and
     /// this instant as its source time.
     pub fn put(&self, cdr: Vec<u8>) -> Result<(), BridgeError> {

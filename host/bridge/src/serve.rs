@@ -178,7 +178,9 @@ impl Server {
         for (topic, data) in messages.latched(start) {
             publish.put(topic, data);
         }
-        let feeds = Feeds::subscribe(robot, opts.queue.clamp(1, 100_000), camera)?;
+        // The camera's frames are read (rendered, on the simulator) only while someone
+        // subscribes to its topics ([`Serving::camera_on_demand`]).
+        let feeds = Feeds::subscribe(robot, opts.queue.clamp(1, 100_000), false)?;
         let bell = Bell::new();
         feeds.ring(&bell);
         let inputs = Inputs::subscribe(robot, &node, opts.cmd_vel_hold, &stats)?;
@@ -190,6 +192,7 @@ impl Server {
         let (their_stop, their_bell) = (stop.clone(), bell.clone());
         let serving = Serving {
             robot: robot.clone(),
+            camera: camera.then(|| (opts.queue.clamp(1, 100_000), None)),
             feeds,
             messages,
             world: WorldFeed::default(),
@@ -252,6 +255,15 @@ struct Publish {
 }
 
 impl Publish {
+    /// Whether anyone subscribes to any of `topics`.
+    fn matched(&self, topics: &[Topic]) -> bool {
+        topics.iter().any(|t| {
+            self.publishers
+                .get(t.name)
+                .is_some_and(RosPublisher::matched)
+        })
+    }
+
     fn put(&mut self, topic: Topic, data: Vec<u8>) {
         if !self.publishers.contains_key(topic.name) {
             match self.node.publisher(&topic) {
@@ -277,6 +289,8 @@ impl Publish {
 /// telemetry, faults and watchdog.
 struct Serving {
     robot: Robot,
+    /// With a camera served: its frames' queue, and when its subscribers were last looked for.
+    camera: Option<(usize, Option<std::time::Instant>)>,
     feeds: Feeds,
     messages: Messages,
     world: WorldFeed,
@@ -284,10 +298,45 @@ struct Serving {
     remote: Option<Arc<RemoteService>>,
 }
 
+/// The camera's topics: someone subscribed to any of them has the camera's frames read.
+const CAMERA_TOPICS: [Topic; 6] = [
+    topics::COLOR,
+    topics::DEPTH,
+    topics::CAMERA_INFO,
+    topics::POINTS,
+    topics::CAMERA_POSE,
+    topics::CAMERA_ODOM,
+];
+
+/// How often the camera's subscribers are looked for, wall time.
+const CAMERA_LOOK: Duration = Duration::from_millis(100);
+
 impl Serving {
+    /// Reads the camera's frames while anyone subscribes to its topics, and lets them go when
+    /// nobody does: a served simulator renders no frame nobody takes (a remote client reads its
+    /// camera's topics only once it captures).
+    fn camera_on_demand(&mut self, bell: &Arc<Bell>) {
+        let Some((queue, looked)) = &mut self.camera else {
+            return;
+        };
+        if looked.is_some_and(|at| at.elapsed() < CAMERA_LOOK) {
+            return;
+        }
+        *looked = Some(std::time::Instant::now());
+        let wanted = self.publish.matched(&CAMERA_TOPICS);
+        if self
+            .feeds
+            .set_camera(&self.robot, wanted, *queue, bell)
+            .is_err()
+        {
+            self.camera = None;
+        }
+    }
+
     fn run(mut self, stop: Arc<AtomicBool>, bell: Arc<Bell>) {
         loop {
             let stopping = stop.load(Ordering::SeqCst);
+            self.camera_on_demand(&bell);
             for item in self.feeds.take() {
                 if let Item::Telemetry(t) = &item {
                     let at = Duration::from_micros(t.time_us);

@@ -94,6 +94,28 @@ impl Feeds {
         })
     }
 
+    /// Subscribes to `robot`'s camera frames (`on`, when it has a camera) or lets them go
+    /// (the camera then renders or reads nothing for this reader), each queue `queue` frames
+    /// long; the new subscription rings `bell`.
+    pub fn set_camera(
+        &mut self,
+        robot: &Robot,
+        on: bool,
+        queue: usize,
+        bell: &Arc<Bell>,
+    ) -> ferrobot::Result<()> {
+        match (on && robot.config().camera.is_some(), self.frames.is_some()) {
+            (true, false) => {
+                let frames = robot.camera()?.subscribe(queue)?;
+                frames.ring(bell.clone());
+                self.frames = Some(frames);
+            }
+            (false, true) => self.frames = None,
+            _ => {}
+        }
+        Ok(())
+    }
+
     /// Rings `bell` at every delivery to any of them.
     pub fn ring(&self, bell: &Arc<Bell>) {
         self.telemetry.ring(bell.clone());

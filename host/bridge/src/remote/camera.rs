@@ -25,13 +25,18 @@ struct Latest {
     given: Option<Duration>,
 }
 
-/// A served robot's camera.
+/// A served robot's camera. Its topics are subscribed to at the first capture: a served
+/// robot reads (renders, on the simulator) its camera only while someone subscribes, and a
+/// program that never captures costs it nothing.
 pub struct RemoteCameraDevice {
     intrinsics: Intrinsics,
     rate: f64,
     lockstep: bool,
+    session: Session,
+    /// The colour and depth topics' keys.
+    keys: [String; 2],
     latest: Arc<(Mutex<Latest>, Condvar)>,
-    _subscribers: [Subscriber<()>; 2],
+    subscribers: Option<[Subscriber<()>; 2]>,
 }
 
 impl RemoteCameraDevice {
@@ -47,19 +52,32 @@ impl RemoteCameraDevice {
         let [fx, fy, cx, cy] = camera.pinhole;
         let intrinsics = Intrinsics::new(camera.size[0], camera.size[1], fx, fy, cx, cy)
             .map_err(|e| BridgeError::Usage(format!("the served camera's intrinsics: {e}")))?;
-        let latest: Arc<(Mutex<Latest>, Condvar)> = Arc::default();
         let full = |t: &str| match namespace.trim_end_matches('/') {
             "" => t.to_string(),
             ns => format!("{ns}{t}"),
         };
-        let z = |e| BridgeError::zenoh("subscribing to the served camera", e);
-        let mine = latest.clone();
-        let rgb = session
-            .declare_subscriber(rmw_zenoh::topic_key(
-                domain,
-                &full(topics::COLOR.name),
-                topics::COLOR.msg,
-            )?)
+        let key = |t: &topics::Topic| rmw_zenoh::topic_key(domain, &full(t.name), t.msg);
+        Ok(RemoteCameraDevice {
+            intrinsics,
+            rate: camera.rate,
+            lockstep,
+            session: session.clone(),
+            keys: [key(&topics::COLOR)?, key(&topics::DEPTH)?],
+            latest: Arc::default(),
+            subscribers: None,
+        })
+    }
+
+    /// Subscribes to the colour and depth topics, once.
+    fn subscribe(&mut self) -> ferrobot::Result<()> {
+        if self.subscribers.is_some() {
+            return Ok(());
+        }
+        let z = |e| ferrobot::Error::Link(format!("subscribing to the served camera: {e}"));
+        let mine = self.latest.clone();
+        let rgb = self
+            .session
+            .declare_subscriber(self.keys[0].clone())
             .callback(move |s| {
                 let b = s.payload().to_bytes();
                 if let (Ok(t), Ok(img)) = (decode::stamp(&b), decode::rgb(&b)) {
@@ -69,13 +87,10 @@ impl RemoteCameraDevice {
             })
             .wait()
             .map_err(z)?;
-        let mine = latest.clone();
-        let depth = session
-            .declare_subscriber(rmw_zenoh::topic_key(
-                domain,
-                &full(topics::DEPTH.name),
-                topics::DEPTH.msg,
-            )?)
+        let mine = self.latest.clone();
+        let depth = self
+            .session
+            .declare_subscriber(self.keys[1].clone())
             .callback(move |s| {
                 let b = s.payload().to_bytes();
                 if let (Ok(t), Ok(img)) = (decode::stamp(&b), decode::depth(&b)) {
@@ -85,13 +100,8 @@ impl RemoteCameraDevice {
             })
             .wait()
             .map_err(z)?;
-        Ok(RemoteCameraDevice {
-            intrinsics,
-            rate: camera.rate,
-            lockstep,
-            latest,
-            _subscribers: [rgb, depth],
-        })
+        self.subscribers = Some([rgb, depth]);
+        Ok(())
     }
 }
 
@@ -141,6 +151,7 @@ impl CameraDevice for RemoteCameraDevice {
     }
 
     fn capture(&mut self, link: &mut dyn Link) -> ferrobot::Result<RawFrame> {
+        self.subscribe()?;
         // The next colour and depth pair of one stamp, newer than the last given and at most a
         // frame period older than the call: within two frame periods and a second of slack for
         // the network (of the robot's time, in lockstep, whose frames come as it passes).
