@@ -16,11 +16,6 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 start=$(date +%s)
 last=$start
-# One compile job more than the machine has cores: beside another busy process (CI's budget is
-# met with one core kept busy) the scheduler shares the cores among runnable processes, and a
-# third job takes back part of what the other process takes; alone, it fills the gaps while a
-# job links. Set CARGO_BUILD_JOBS to choose.
-export CARGO_BUILD_JOBS=${CARGO_BUILD_JOBS:-$(( $(nproc) + 1 ))}
 # Each step's header also says how long the one before it took, so CI time can be read by step.
 step() {
     now=$(date +%s)
@@ -143,12 +138,9 @@ cargo test "${tested[@]}" --no-run --timings --message-format=json-render-diagno
 # The demo on the host-run firmware of both LoCoBots (ferrobot-cli's demo_host_run: the
 # command line's binary, just built, on emulated devices paced at real time, little CPU),
 # beside clippy and the docs; nextest leaves it out below.
-# With it, the grasp trial with the firmware in QEMU (60 s, QEMU paced at real time): in the
-# tests' queue below it held one of its two places for that long at little CPU.
 host_run_demos=demo_host_run
-qemu_grasp=bench_grasp::one_grasp_trial_through_the_firmware_in_qemu
-step "started: the demo on the host-run firmware (ferrobot-cli's $host_run_demos) and the grasp trial in QEMU, real-time paced"
-background demos "rc=0; $run $other_binaries ferrobot-cli:integration $host_run_demos || rc=1; $run $other_binaries ferrobot-cli:integration --exact $qemu_grasp || rc=1; exit \$rc"
+step "started: the demo on the host-run firmware (ferrobot-cli's $host_run_demos), real-time paced"
+background demos "$run $other_binaries ferrobot-cli:integration $host_run_demos"
 
 # The workspace includes the fuzz targets (fuzz/, built without libFuzzer as programs that
 # replay inputs), so they are linted here too.
@@ -166,7 +158,7 @@ check doc env RUSTDOCFLAGS="-D warnings" cargo doc "${tested[@]}" --no-deps
 step "ferrobot with one backend each (sim without serialport, serial without the simulator)"
 check "backend builds" scripts/backend-builds.sh
 
-step "waited for: the HIL tests, PyRobot's listings, the demo on the host-run firmware and the grasp trial in QEMU"
+step "waited for: the HIL tests, PyRobot's listings and the demo on the host-run firmware"
 join hil
 join listings
 join demos
@@ -179,13 +171,13 @@ join demos
 if cargo nextest --version >/dev/null 2>&1; then
     step "cargo nextest run: every other test"
     check "cargo nextest" cargo nextest run "${tested[@]}" --no-fail-fast --exclude ferrobot-hil \
-        -E "not test(=$host_run_listings) and not test(=$remote_listings) and not test(/$host_run_demos/) and not test(=$qemu_grasp)"
+        -E "not test(=$host_run_listings) and not test(=$remote_listings) and not test(/$host_run_demos/)"
     step "cargo test --doc"
     check "cargo test --doc" cargo test "${tested[@]}" --doc --exclude ferrobot-hil
 else
     step "cargo test: every other test (cargo-nextest is not installed)"
     check "cargo test" cargo test "${tested[@]}" --no-fail-fast --exclude ferrobot-hil -- \
-        --skip "$host_run_listings" --skip "$remote_listings" --skip "$host_run_demos" --skip "$qemu_grasp"
+        --skip "$host_run_listings" --skip "$remote_listings" --skip "$host_run_demos"
 fi
 
 if [ ${#failed[@]} -gt 0 ]; then
