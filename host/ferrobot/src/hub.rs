@@ -200,8 +200,24 @@ impl Hub {
                     })
                 })
             });
+            let id = g.id;
             match r {
                 None => i += 1,
+                // A command the firmware refused because of a fault it reported first (a base
+                // lost, then its drive refused as unsafe): the goal ends with the fault, its
+                // cause, as it would had the fault been read a step earlier. The fault is on
+                // the wire before the refusal, so it is with the link already.
+                Some(Err(e @ Error::Rejected { .. })) => {
+                    self.collect_faults(cfg);
+                    if let Some(k) = self.goals.running.iter().position(|g| g.id == id) {
+                        let mut g = self.goals.running.remove(k);
+                        g.goal.halt(self.link.as_mut());
+                        self.goals.finish(g.id, Err(e));
+                    }
+                    // The faults may have ended goals before this one: look again (those
+                    // stepped at this instant are passed over).
+                    i = 0;
+                }
                 Some(r) => {
                     let mut g = self.goals.running.remove(i);
                     if r.is_err() {
