@@ -280,27 +280,7 @@ fn a_base_that_stops_answering_is_stopped_and_drives_again_when_it_answers(fw: F
     rig.until(Duration::from_secs(2), "BaseRecovered", |r| {
         r.faults().contains(&FaultKind::BaseRecovered)
     });
-    // Driven again once the base answers steadily: a base that falls silent again for the
-    // firmware's feedback timeout right after its return (QEMU starved beside a busy core) is
-    // refused (`BaseSafety`: it may only be stopped) until it answers again.
-    let mut refused = Vec::new();
-    let back = rig.until(Duration::from_secs(3), "drives again", |_| {
-        match base.go_to_relative([0.2, 0.0, 0.0]) {
-            Ok(()) => true,
-            Err(e) => {
-                refused.push(e.to_string());
-                false
-            }
-        }
-    });
-    eprintln!(
-        "drives again {back:?} after BaseRecovered; refused meanwhile: {refused:?}; faults {:?}",
-        rig.faults()
-    );
-    assert!(
-        refused.iter().all(|e| e.contains("BaseSafety")),
-        "{refused:?}"
-    );
+    base.go_to_relative([0.2, 0.0, 0.0]).expect("drives again");
 }
 
 fn a_servo_that_stops_answering_is_lost_and_recovered(fw: Firmware) {
