@@ -22,24 +22,9 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-: "${LICHTBLICK_WEB:?set LICHTBLICK_WEB to a Lichtblick web build (the directory with its index.html)}"
-if [ ! -f "$LICHTBLICK_WEB/index.html" ]; then
-  echo "no index.html in LICHTBLICK_WEB=$LICHTBLICK_WEB" >&2
-  exit 1
-fi
+. scripts/viewer/setup.sh
 OUT=${OUT:-docs/img/live-view-lichtblick.png}
-CHROMIUM=${CHROMIUM:-/usr/bin/chromium}
 VIEW_PORT=${VIEW_PORT:-47615}
-
-if [ ! -x "$CHROMIUM" ]; then
-  echo "== installing chromium (apt)"
-  apt-get update -q
-  DEBIAN_FRONTEND=noninteractive apt-get install -y -q chromium
-fi
-if [ ! -f scripts/viewer/node_modules/playwright-core/package.json ]; then
-  echo "== installing playwright-core (npm)"
-  (cd scripts/viewer && PLAYWRIGHT_SKIP_BROWSER_DOWNLOAD=1 npm install --no-audit --no-fund --no-package-lock)
-fi
 
 echo "== building the example"
 cargo build -q --release -p ferrobot-view --example tabletop_live

@@ -46,18 +46,7 @@ fn serve_refuses_other_machines_without_credentials() {
 #[test]
 fn serve_in_lockstep_lets_its_clients_pass_the_robots_time() {
     let listen = format!("tcp/127.0.0.1:{}", ferrobot_peers::free_port());
-    let mut child = Command::new(env!("CARGO_BIN_EXE_ferrobot"))
-        .args(["serve", "locobot", "--no-camera", "--lockstep", "--listen"])
-        .arg(&listen)
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::inherit())
-        .spawn()
-        .expect("starts");
-    let mut line = String::new();
-    BufReader::new(child.stdout.take().expect("stdout"))
-        .read_line(&mut line)
-        .expect("its line");
+    let (mut child, line) = start(&["--lockstep", "--listen", &listen], Stdio::inherit());
     let v: serde_json::Value = serde_json::from_str(line.trim()).expect("JSON");
     assert_eq!(v["lockstep"], true, "{v}");
     let access = ferrobot_bridge::Access::connect(&listen);
@@ -79,20 +68,27 @@ fn serve_in_lockstep_lets_its_clients_pass_the_robots_time() {
     assert!(child.wait().expect("ends").success());
 }
 
-/// Serves with `args` until its standard input closes: its JSON line and its standard error.
-fn serve(args: &[&str]) -> (serde_json::Value, String) {
+/// `ferrobot serve locobot --no-camera` with `args`, its standard error to `stderr`, once it
+/// serves: the process (its standard input open) and the line it printed.
+fn start(args: &[&str], stderr: Stdio) -> (std::process::Child, String) {
     let mut child = Command::new(env!("CARGO_BIN_EXE_ferrobot"))
         .args(["serve", "locobot", "--no-camera"])
         .args(args)
         .stdin(Stdio::piped())
         .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
+        .stderr(stderr)
         .spawn()
         .expect("starts");
     let mut line = String::new();
     BufReader::new(child.stdout.take().expect("stdout"))
         .read_line(&mut line)
         .expect("its line");
+    (child, line)
+}
+
+/// Serves with `args` until its standard input closes: its JSON line and its standard error.
+fn serve(args: &[&str]) -> (serde_json::Value, String) {
+    let (mut child, line) = start(args, Stdio::piped());
     drop(child.stdin.take());
     let out = child.wait_with_output().expect("ends");
     assert!(
