@@ -17,14 +17,21 @@ impl Arm {
         let Ok((chain, _)) = self.chain_q(&cfg.home, &cfg.ee_frame) else {
             return;
         };
+        // The chain's joints among the arm's (chain_q has checked that each is one), found
+        // once rather than at every sample.
+        let at: Vec<usize> = chain
+            .joints
+            .iter()
+            .filter_map(|j| cfg.joints.iter().position(|n| *n == j.name))
+            .collect();
         let samples = planned.trajectory.samples(PlannedArmPath::EE_STEP);
-        let mut ee_path = Vec::with_capacity(samples.len());
-        for p in &samples {
-            let Ok((_, sub)) = self.chain_q(&p.position, &cfg.ee_frame) else {
-                return;
-            };
-            ee_path.push((p.time, chain.fk(&sub)));
-        }
+        let ee_path = samples
+            .iter()
+            .map(|p| {
+                let sub: Vec<f64> = at.iter().map(|&k| p.position[k]).collect();
+                (p.time, chain.fk(&sub))
+            })
+            .collect();
         let plan = PlannedArmPath {
             frame: cfg.base_frame.clone(),
             ee_frame: cfg.ee_frame.clone(),
