@@ -19,6 +19,7 @@ use ferrobot_firmware::time;
 use ferrobot_firmware::{config, Firmware, Link};
 use ferrobot_protocol::*;
 use ferrobot_sim::lockstep::locobot_busy;
+use ferrobot_sim::HostSide;
 use ferrobot_sim::LockstepSim;
 use std::hint::black_box;
 use std::time::Instant;

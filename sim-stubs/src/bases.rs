@@ -167,6 +167,15 @@ impl BasePlant {
         self.advance_among(t_us, None);
     }
 
+    /// Start the base's clock at `t_us` (µs), before it ran: its first feedback a period
+    /// later.
+    pub fn start_at(&mut self, t_us: u64) {
+        if t_us > self.time_us {
+            self.time_us = t_us;
+            self.next_feedback = t_us + self.period_us;
+        }
+    }
+
     /// [`BasePlant::advance_to`] with the body among `world`'s colliders (see
     /// [`DiffDrive::step_among`]).
     pub fn advance_among(&mut self, t_us: u64, world: Option<&dyn Surroundings>) {

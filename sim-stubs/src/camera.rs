@@ -229,6 +229,13 @@ pub struct SimCamera {
     decals: Vec<(usize, Isometry3<f64>, [f64; 3])>,
     /// Scratch image of the supersampled crops.
     crop: RenderedImage,
+    /// The other robots the renderer draws ([`Truth::others`]' bodies, in order).
+    others: Vec<std::sync::Arc<RobotBody>>,
+}
+
+/// Where the other robots' links are in `truth`, robot by robot.
+fn others_links(truth: &Truth) -> Vec<&[Isometry3<f64>]> {
+    truth.others.iter().map(|o| o.links.as_slice()).collect()
 }
 
 /// Sub-pixels per pixel side where a decal (the calibration marker) is in view: a real
@@ -264,6 +271,7 @@ impl SimCamera {
                 })
                 .collect(),
             crop: RenderedImage::new(0, 0),
+            others: Vec::new(),
         })
     }
 
@@ -317,7 +325,10 @@ impl SimCamera {
     /// Render the world of `truth` into `out` (reusing its buffers) and return the camera.
     pub fn capture_into(&mut self, truth: &Truth, out: &mut RenderedImage) -> PinholeCamera {
         let cam = self.pinhole(truth);
-        self.renderer.render(&cam, &truth.bodies, &truth.links, out);
+        self.meet_others(truth);
+        let others = others_links(truth);
+        self.renderer
+            .render_among(&cam, &truth.bodies, &truth.links, &others, out);
         if self.renderer.decals {
             for i in 0..self.decals.len() {
                 self.supersample_decal(i, &cam, truth, out);
@@ -327,6 +338,21 @@ impl SimCamera {
             n.apply(&mut out.depth, cam.width as usize, cam.fx, &mut self.rng);
         }
         cam
+    }
+
+    /// Draw the other robots of `truth` from now on, when they are not those drawn so far.
+    fn meet_others(&mut self, truth: &Truth) {
+        let same = self.others.len() == truth.others.len()
+            && self
+                .others
+                .iter()
+                .zip(&truth.others)
+                .all(|(a, b)| std::sync::Arc::ptr_eq(a, &b.body));
+        if !same {
+            self.others = truth.others.iter().map(|o| o.body.clone()).collect();
+            let bodies: Vec<&RobotBody> = self.others.iter().map(|b| b.as_ref()).collect();
+            self.renderer.set_others(&bodies);
+        }
     }
 
     /// Re-render the colour of the pixels round decal `i` with [`SUPERSAMPLE`]² samples each,
@@ -375,8 +401,13 @@ impl SimCamera {
             cy: sf * (cam.cy - r0 + 0.5) - 0.5,
             pose: cam.pose,
         };
-        self.renderer
-            .render(&crop, &truth.bodies, &truth.links, &mut self.crop);
+        self.renderer.render_among(
+            &crop,
+            &truth.bodies,
+            &truth.links,
+            &others_links(truth),
+            &mut self.crop,
+        );
         let (c0, r0, w) = (c0 as usize, r0 as usize, cam.width as usize);
         let cw_s = cw * s;
         for r in 0..ch {

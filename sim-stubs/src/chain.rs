@@ -112,6 +112,11 @@ impl ServoChain {
         self.time_us
     }
 
+    /// Start the chain's clock at `t_us` (µs), before it ran: nothing happened before.
+    pub fn start_at(&mut self, t_us: u64) {
+        self.time_us = self.time_us.max(t_us);
+    }
+
     /// The servo with `id`.
     pub fn servo(&self, id: u8) -> Option<&ServoSim> {
         self.servos.iter().find(|s| s.id == id)

@@ -81,10 +81,7 @@ impl Hardware {
     /// scene body overlaps the robot at the start, naming both.
     pub fn in_scene(desc: &SimRobot, seed: u64, scene: &Scene) -> Result<Self, SceneError> {
         let mut hw = Self::new(desc, seed);
-        hw.fixed_pose = scene.robot_pose;
-        if let Some(b) = hw.base.as_mut() {
-            b.drive.truth = scene.robot_pose;
-        }
+        hw.place(scene.robot_pose);
         if !scene.bodies.is_empty() {
             let theta: Vec<f64> = hw.chain.servos.iter().map(|s| s.theta).collect();
             hw.world = Some(World::new(
@@ -148,18 +145,28 @@ impl Hardware {
 
     /// Step the world (with the chain and the base advanced in step with it) through `now`.
     fn run_world(&mut self, now: u64) {
-        let Some(w) = self.world.as_mut() else { return };
-        while w.next_step() <= now {
-            let t = w.next_step();
-            self.chain.advance_to(t);
-            let pose = match self.base.as_mut() {
-                Some(b) => {
-                    b.advance_among(t, Some(&*w));
-                    b.drive.truth
-                }
-                None => self.fixed_pose,
-            };
-            w.step(pose, &mut self.chain);
+        let Some(mut w) = self.world.take() else {
+            return;
+        };
+        step_world(&mut w, &mut [self], now);
+        self.world = Some(w);
+    }
+
+    /// Start the plants' clocks at `t_us` (µs) instead of zero, before anything ran: a robot
+    /// that joins a world whose time has already passed ([`crate::shared`]).
+    pub fn start_at(&mut self, t_us: u64) {
+        self.chain.start_at(t_us);
+        if let Some(b) = self.base.as_mut() {
+            b.start_at(t_us);
+        }
+    }
+
+    /// Move the robot, by its plants alone, to `pose` (`[x, y, θ]` in the world, m and rad):
+    /// the base's true pose, or the pedestal's.
+    pub fn place(&mut self, pose: Pose) {
+        self.fixed_pose = pose;
+        if let Some(b) = self.base.as_mut() {
+            b.drive.truth = pose;
         }
     }
 
@@ -259,5 +266,30 @@ impl Hardware {
     /// a robot without a base.
     pub fn robot_pose(&self) -> Pose {
         self.base_truth().unwrap_or(self.fixed_pose)
+    }
+}
+
+/// Step `world` through `now` (µs), each step with every robot's plants (`plants`, in the
+/// world's robot order) advanced to it first: the servo chain, and the base among the world
+/// around it (its bumper meeting the scene and the other robots).
+pub fn step_world(world: &mut World, plants: &mut [&mut Hardware], now: u64) {
+    while world.next_step() <= now {
+        let t = world.next_step();
+        let mut poses = Vec::with_capacity(plants.len());
+        for (i, hw) in plants.iter_mut().enumerate() {
+            hw.chain.advance_to(t);
+            poses.push(match hw.base.as_mut() {
+                Some(b) => {
+                    b.advance_among(t, Some(&world.around(i)));
+                    b.drive.truth
+                }
+                None => hw.fixed_pose,
+            });
+        }
+        let mut robots: Vec<(Pose, &mut crate::chain::ServoChain)> = poses
+            .into_iter()
+            .zip(plants.iter_mut().map(|h| &mut h.chain))
+            .collect();
+        world.step_robots(&mut robots);
     }
 }

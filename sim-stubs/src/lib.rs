@@ -12,6 +12,7 @@
 //!   host session;
 //! * [`world`]: the scene's rigid bodies and the robot's links in rapier3d, in lockstep with
 //!   the plants (contacts drive the bumpers and the gripper's load);
+//! * [`shared`]: several robots in one world on one clock;
 //! * [`serve`]: the plants on pseudo-terminals in real time (`ferrobot-sim serve`).
 //!
 //! Every plant is deterministic for a seed.
@@ -46,6 +47,7 @@ pub mod serial_line;
 #[cfg(feature = "serve")]
 pub mod serve;
 pub mod servo;
+pub mod shared;
 pub mod world;
 
-pub use lockstep::{LockstepSim, SimError, SimHost};
+pub use lockstep::{HostSide, LockstepSim, SimError, SimHost};

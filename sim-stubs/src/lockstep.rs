@@ -15,18 +15,17 @@ use crate::body::RobotBody;
 use crate::scene::{Scene, SceneError};
 use ferrobot_firmware::time::Instant;
 use ferrobot_firmware::{config, Firmware, Link};
-use ferrobot_protocol::session::{Answer, HostSession, Request, SessionError};
-use ferrobot_protocol::{
-    DeviceMsg, HostMsg, RejectReason, Telemetry, MAX_WIRE, PROTOCOL_VERSION, SCHEMA_HASH,
-};
+use ferrobot_protocol::{HostMsg, RejectReason};
 
 use crate::diff_drive::Pose;
 use crate::hardware::Hardware;
 use crate::robots;
 
 mod demo;
+mod host;
 
 pub use demo::demo;
+pub use host::{HostEnd, HostSide, SimHost, INBOX_CAP, KEEPALIVE_US};
 
 /// Errors of the simulator.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -88,6 +87,26 @@ pub struct Truth {
     /// Pose of every scene body in the world now ([`Scene::bodies`] order): the physics
     /// world's live poses.
     pub bodies: Vec<Isometry3<f64>>,
+    /// The other robots in the same world ([`crate::shared`]), in the order they joined;
+    /// empty for a robot alone.
+    pub others: Vec<OtherRobot>,
+}
+
+/// Another robot in the same world, as a camera sees it: its body and where its links are.
+#[derive(Debug, Clone)]
+pub struct OtherRobot {
+    /// Its body (links and shapes).
+    pub body: Arc<RobotBody>,
+    /// Pose of every one of its links in the world ([`ferrobot_kinematics::LinkTree::links`]
+    /// order).
+    pub links: Vec<Isometry3<f64>>,
+}
+
+impl PartialEq for OtherRobot {
+    /// The same body (the same allocation) with its links at the same poses.
+    fn eq(&self, other: &Self) -> bool {
+        Arc::ptr_eq(&self.body, &other.body) && self.links == other.links
+    }
 }
 
 /// The ground truth of the plants `hw` at `now_us` in `scene`, for the robot's `body`: the
@@ -113,6 +132,7 @@ pub fn truth_of(hw: &Hardware, now_us: u64, scene: &Scene, body: Option<&RobotBo
         bodies: hw
             .body_poses()
             .unwrap_or_else(|| scene.bodies.iter().map(|b| b.pose).collect()),
+        others: Vec::new(),
     }
 }
 
@@ -155,9 +175,20 @@ impl LockstepSim {
         profile: config::RobotProfile,
         scene: Arc<Scene>,
     ) -> Self {
+        Self::assemble_at(hw, desc, profile, scene, 0)
+    }
+
+    /// Firmware started at `now` (µs) over the plants `hw` (started then too).
+    pub(crate) fn assemble_at(
+        hw: Hardware,
+        desc: robots::SimRobot,
+        profile: config::RobotProfile,
+        scene: Arc<Scene>,
+        now: u64,
+    ) -> Self {
         Self {
-            now: 0,
-            fw: Firmware::new(profile, "sim", Instant::ZERO),
+            now,
+            fw: Firmware::new(profile, "sim", Instant::from_micros(now)),
             hw,
             host_in: Vec::new(),
             host_out: Vec::new(),
@@ -243,261 +274,58 @@ impl LockstepSim {
     /// Run until simulated time `t_end` (µs).
     pub fn run_until(&mut self, t_end: u64) {
         loop {
-            // The plants' clock (µs) as the firmware's.
-            let now = Instant::from_micros(self.now);
-            if !self.host_in.is_empty() {
-                let bytes = std::mem::take(&mut self.host_in);
-                self.fw.on_host_bytes(now, &bytes);
-            }
-            if self.fw.next_deadline() <= now {
-                self.fw.poll(now);
-            }
-            self.flush();
-            // Deliveries due now.
-            self.hw.step(self.now);
-            if let Some(b) = self.hw.to_firmware(Link::Servo, self.now) {
-                self.fw.on_servo_bytes(now, &b);
-            }
-            if let Some(b) = self.hw.to_firmware(Link::Base, self.now) {
-                self.fw.on_base_bytes(now, &b);
-            }
-            if self.fw.next_deadline() <= now {
-                self.fw.poll(now);
-            }
-            self.flush();
+            self.events_now();
             if self.now >= t_end {
                 break;
             }
-            let deadline = self.fw.next_deadline().as_micros();
-            let next = self.hw.next_event().map_or(deadline, |t| t.min(deadline));
-            self.now = next.max(self.now + 1).min(t_end);
+            self.now = self.next_event().max(self.now + 1).min(t_end);
             self.events += 1;
         }
         self.hw.chain.advance_to(self.now);
     }
 
+    /// Everything due at the current time: host bytes to the firmware, its deadlines, bytes
+    /// to and from the plants, the plants' own events.
+    pub(crate) fn events_now(&mut self) {
+        // The plants' clock (µs) as the firmware's.
+        let now = Instant::from_micros(self.now);
+        if !self.host_in.is_empty() {
+            let bytes = std::mem::take(&mut self.host_in);
+            self.fw.on_host_bytes(now, &bytes);
+        }
+        if self.fw.next_deadline() <= now {
+            self.fw.poll(now);
+        }
+        self.flush();
+        // Deliveries due now.
+        self.hw.step(self.now);
+        if let Some(b) = self.hw.to_firmware(Link::Servo, self.now) {
+            self.fw.on_servo_bytes(now, &b);
+        }
+        if let Some(b) = self.hw.to_firmware(Link::Base, self.now) {
+            self.fw.on_base_bytes(now, &b);
+        }
+        if self.fw.next_deadline() <= now {
+            self.fw.poll(now);
+        }
+        self.flush();
+    }
+
+    /// Set the clock to `now_us` (µs), no earlier than it is: a floor that runs several
+    /// robots on one clock moves them together.
+    pub(crate) fn set_now(&mut self, now_us: u64) {
+        self.now = self.now.max(now_us);
+    }
+
+    /// When anything next happens (µs): a firmware deadline or a plant's event.
+    pub(crate) fn next_event(&self) -> u64 {
+        let deadline = self.fw.next_deadline().as_micros();
+        self.hw.next_event().map_or(deadline, |t| t.min(deadline))
+    }
+
     /// Run for `dt_us` of simulated time.
     pub fn run_for(&mut self, dt_us: u64) {
         self.run_until(self.now + dt_us);
-    }
-}
-
-/// Messages a [`SimHost`] keeps for callers to wait for, at most.
-pub const INBOX_CAP: usize = 1024;
-
-/// A host talking frames to a [`LockstepSim`]: the protocol's host session
-/// ([`HostSession`], the one the API's links drive too) in lockstep with the simulator, plus
-/// raw access for tests and hostile hosts (send any message, see every message the session
-/// did not route).
-pub struct SimHost {
-    /// The simulator.
-    pub sim: LockstepSim,
-    /// The host session.
-    pub session: HostSession,
-    /// Messages received that answered nothing pending (hellos, faults, logs, answers to
-    /// [`SimHost::send`]), oldest first, at most [`INBOX_CAP`].
-    pub inbox: Vec<DeviceMsg>,
-    /// The newest telemetry.
-    pub telemetry: Option<Telemetry>,
-    /// Send a heartbeat every [`KEEPALIVE_US`] of simulated time, as a host's I/O thread does,
-    /// so the firmware's watchdog stays fed (on by default).
-    pub keepalive: bool,
-    last_keepalive: u64,
-}
-
-/// Heartbeat period of a [`SimHost`] with keepalive on, µs.
-pub const KEEPALIVE_US: u64 = 100_000;
-
-impl SimHost {
-    /// Start `robot` with `seed` and perform the handshake.
-    pub fn start(robot: &str, seed: u64) -> Result<Self, SimError> {
-        let mut s = Self::new(LockstepSim::new(robot, seed)?);
-        s.handshake()?;
-        Ok(s)
-    }
-
-    /// Wrap a simulator without a handshake.
-    pub fn new(sim: LockstepSim) -> Self {
-        Self {
-            sim,
-            session: HostSession::new(),
-            inbox: Vec::new(),
-            telemetry: None,
-            keepalive: true,
-            last_keepalive: 0,
-        }
-    }
-
-    /// Send the handshake and wait for the firmware's answer.
-    pub fn handshake(&mut self) -> Result<ferrobot_protocol::DeviceInfo, SimError> {
-        self.send(&HostMsg::Hello {
-            protocol_version: PROTOCOL_VERSION,
-            schema_hash: SCHEMA_HASH,
-        });
-        let m = self.wait_msg(200_000, |m| matches!(m, DeviceMsg::Hello(_)))?;
-        match m {
-            DeviceMsg::Hello(info) => Ok(info),
-            _ => Err(SimError::Timeout("hello")),
-        }
-    }
-
-    /// Send raw bytes to the firmware (garbage, corrupted frames).
-    pub fn send_raw(&mut self, bytes: &[u8]) {
-        self.sim.write_host(bytes);
-    }
-
-    /// Send any message without waiting for its answer (which arrives in the inbox); returns
-    /// its sequence number.
-    pub fn send(&mut self, msg: &HostMsg) -> u16 {
-        let mut buf = [0u8; MAX_WIRE];
-        match self.session.send_unrouted(msg, self.sim.now_us(), &mut buf) {
-            Ok((seq, n)) => {
-                self.sim.write_host(&buf[..n]);
-                seq
-            }
-            Err(_) => 0,
-        }
-    }
-
-    fn keep_alive(&mut self) {
-        if self.keepalive && self.sim.now_us() >= self.last_keepalive + KEEPALIVE_US {
-            self.last_keepalive = self.sim.now_us();
-            let mut buf = [0u8; MAX_WIRE];
-            if let Some(n) = self.session.heartbeat_due(self.sim.now_us(), 0, &mut buf) {
-                self.sim.write_host(&buf[..n]);
-            }
-        }
-    }
-
-    /// Advance the simulation by up to `dt_us`, feeding the watchdog on the way.
-    fn step(&mut self, dt_us: u64) {
-        let end = self.sim.now_us() + dt_us;
-        while self.sim.now_us() < end {
-            self.keep_alive();
-            let chunk = if self.keepalive {
-                KEEPALIVE_US.min(end - self.sim.now_us())
-            } else {
-                end - self.sim.now_us()
-            };
-            self.sim.run_for(chunk);
-        }
-    }
-
-    fn pump(&mut self) {
-        let bytes = self.sim.take_host_output();
-        let inbox = &mut self.inbox;
-        self.session.on_bytes_with(&bytes, |m| {
-            // Bounded: messages nobody waits for are dropped oldest first.
-            if inbox.len() >= INBOX_CAP {
-                inbox.remove(0);
-            }
-            inbox.push(m.clone());
-        });
-        // Faults are kept in the inbox, in order with the other messages.
-        while self.session.take_fault().is_some() {}
-        if let Some(t) = self.session.telemetry() {
-            if self.telemetry.as_ref() != Some(t) {
-                self.telemetry = Some(t.clone());
-            }
-        }
-    }
-
-    /// Run the simulation for `dt_us`, collecting messages.
-    pub fn run_for(&mut self, dt_us: u64) {
-        self.step(dt_us);
-        self.pump();
-    }
-
-    /// Run in 1 ms steps until `ready` has an answer (checked after each pump), or
-    /// `timeout_us` of simulated time pass (a timeout naming `what`).
-    fn run_until<T>(
-        &mut self,
-        timeout_us: u64,
-        what: &'static str,
-        mut ready: impl FnMut(&mut Self) -> Option<T>,
-    ) -> Result<T, SimError> {
-        let end = self.sim.now_us() + timeout_us;
-        loop {
-            self.pump();
-            if let Some(r) = ready(self) {
-                return Ok(r);
-            }
-            if self.sim.now_us() >= end {
-                return Err(SimError::Timeout(what));
-            }
-            self.step(1000);
-        }
-    }
-
-    /// Run in 1 ms steps until a received message satisfies `pred` (it is removed from the
-    /// inbox and returned) or `timeout_us` of simulated time pass.
-    pub fn wait_msg(
-        &mut self,
-        timeout_us: u64,
-        pred: impl Fn(&DeviceMsg) -> bool,
-    ) -> Result<DeviceMsg, SimError> {
-        self.run_until(timeout_us, "a message", |s| {
-            let i = s.inbox.iter().position(&pred)?;
-            Some(s.inbox.remove(i))
-        })
-    }
-
-    /// Encode with `encode` (a command or a request), send it and wait (1 ms steps, at most
-    /// `timeout_us`) for its answer, routed by the session.
-    fn exchange(
-        &mut self,
-        timeout_us: u64,
-        encode: impl FnOnce(&mut HostSession, u64, &mut [u8]) -> Result<(u16, usize), SessionError>,
-    ) -> Result<Answer, SimError> {
-        let mut buf = [0u8; MAX_WIRE];
-        let (seq, n) = encode(&mut self.session, self.sim.now_us(), &mut buf)
-            .map_err(|_| SimError::Rejected(RejectReason::Unsupported))?;
-        self.sim.write_host(&buf[..n]);
-        let r = self.run_until(timeout_us, "a message", |s| s.session.take_answer(seq));
-        if r.is_err() {
-            self.session.forget(seq);
-        }
-        match r? {
-            Answer::Rejected(reason) => Err(SimError::Rejected(reason)),
-            a => Ok(a),
-        }
-    }
-
-    /// Send a command and wait for its acknowledgement (routed by the session).
-    pub fn command(&mut self, msg: &HostMsg) -> Result<(), SimError> {
-        self.exchange(100_000, |s, now, out| s.command(msg, now, out))
-            .map(|_| ())
-    }
-
-    /// Send a typed request and wait for its reply (routed by the session).
-    pub fn request<R: Request>(&mut self, r: &R) -> Result<R::Reply, SimError> {
-        let a = self.exchange(200_000, |s, now, out| s.request(r, now, out))?;
-        R::reply(a).ok_or(SimError::Timeout("a reply of the right kind"))
-    }
-
-    /// Run in 1 ms steps until the newest telemetry satisfies `pred`, or time out.
-    pub fn wait_telemetry(
-        &mut self,
-        timeout_us: u64,
-        pred: impl Fn(&Telemetry) -> bool,
-    ) -> Result<Telemetry, SimError> {
-        self.run_until(timeout_us, "telemetry", |s| {
-            s.telemetry.as_ref().filter(|t| pred(t)).cloned()
-        })
-    }
-
-    /// Take every fault received so far.
-    pub fn take_faults(&mut self) -> Vec<ferrobot_protocol::Fault> {
-        self.pump();
-        let mut out = Vec::new();
-        self.inbox.retain(|m| match m {
-            DeviceMsg::Fault(x) => {
-                out.push(*x);
-                false
-            }
-            _ => true,
-        });
-        out
     }
 }
 

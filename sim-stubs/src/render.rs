@@ -106,11 +106,12 @@ struct DrawMesh {
     radius: f32,
 }
 
-/// Where a mesh sits: a scene body or a robot link.
+/// Where a mesh sits: a scene body, a link of the robot, or link `.1` of other robot `.0`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Owner {
     Body(usize),
     Link(usize),
+    Other(usize, usize),
 }
 
 /// The renderer of one scene with one robot body.
@@ -125,6 +126,10 @@ pub struct Renderer {
     pub background: [f32; 3],
     /// Index in `meshes` of the first of the robot's decals (they come last).
     first_decal: usize,
+    /// The other robots' links ([`Renderer::set_others`]), drawn after the robot's own.
+    others: Vec<(Owner, DrawMesh)>,
+    /// Labels and materials of the scene and the robot itself (the others' come after).
+    own: (usize, usize),
     /// Whether the decals (the hand-eye marker) are drawn.
     pub decals: bool,
 }
@@ -194,6 +199,8 @@ impl Renderer {
             background: [0.75, 0.8, 0.85],
             first_decal: usize::MAX,
             decals: false,
+            others: Vec::new(),
+            own: (0, 0),
         };
         for (i, b) in scene.bodies.iter().enumerate() {
             r.add_body(i, b);
@@ -233,7 +240,38 @@ impl Renderer {
                 ));
             }
         }
+        r.own = (r.labels.len(), r.materials.len());
         r
+    }
+
+    /// Draw the other robots `others` too (their links, labelled `robots/K/LINK` for the
+    /// `K`th), in place of those set before; their link poses come with each frame
+    /// ([`Renderer::render_among`]).
+    pub fn set_others(&mut self, others: &[&RobotBody]) {
+        self.labels.truncate(self.own.0);
+        self.materials.truncate(self.own.1);
+        self.others.clear();
+        for (k, body) in others.iter().enumerate() {
+            for (li, (name, shapes)) in body.tree.links().zip(&body.shapes).enumerate() {
+                if shapes.is_empty() {
+                    continue;
+                }
+                self.labels.push(format!("robots/{k}/{name}"));
+                let label = (self.labels.len() - 1) as u32;
+                for s in shapes {
+                    let (m, closed) = tessellate(&s.shape);
+                    self.materials.push(Material {
+                        colour: s.colour,
+                        texture: None,
+                    });
+                    let mat = (self.materials.len() - 1) as u32;
+                    self.others.push((
+                        Owner::Other(k, li),
+                        draw_mesh(&m, closed, s.origin, mat, label),
+                    ));
+                }
+            }
+        }
     }
 
     fn add_body(&mut self, i: usize, b: &Body) {
@@ -259,7 +297,11 @@ impl Renderer {
 
     /// Triangles drawn per frame (before culling).
     pub fn triangles(&self) -> usize {
-        self.meshes.iter().map(|(_, m)| m.tris.len()).sum()
+        self.meshes
+            .iter()
+            .chain(&self.others)
+            .map(|(_, m)| m.tris.len())
+            .sum()
     }
 
     /// Render the world seen by `camera`, the scene's bodies at `bodies` (world poses, scene
@@ -272,6 +314,19 @@ impl Renderer {
         links: &[Isometry3<f64>],
         out: &mut RenderedImage,
     ) {
+        self.render_among(camera, bodies, links, &[], out);
+    }
+
+    /// [`Renderer::render`] among the other robots of [`Renderer::set_others`], robot `k`'s
+    /// links at `others[k]` (world poses, link-tree order; a robot left out is not drawn).
+    pub fn render_among(
+        &self,
+        camera: &PinholeCamera,
+        bodies: &[Isometry3<f64>],
+        links: &[Isometry3<f64>],
+        others: &[&[Isometry3<f64>]],
+        out: &mut RenderedImage,
+    ) {
         let (w, h) = (camera.width as usize, camera.height as usize);
         if out.width != camera.width || out.height != camera.height || out.ids.len() != w * h {
             *out = RenderedImage::new(camera.width, camera.height);
@@ -281,8 +336,33 @@ impl Renderer {
         out.depth.fill(0.0);
         out.ids.fill(u32::MAX);
         let view = View::new(camera, self.sun);
-        let shades = self.rasterise(&view, bodies, links, out);
+        let shades = self.rasterise(
+            &view,
+            &Poses {
+                bodies,
+                links,
+                others,
+            },
+            out,
+        );
         self.shade(&shades, &view.k, out);
+    }
+}
+
+/// Where the owners of the meshes are in one frame (world poses).
+struct Poses<'a> {
+    bodies: &'a [Isometry3<f64>],
+    links: &'a [Isometry3<f64>],
+    others: &'a [&'a [Isometry3<f64>]],
+}
+
+impl Poses<'_> {
+    fn of(&self, owner: Owner) -> Option<&Isometry3<f64>> {
+        match owner {
+            Owner::Body(i) => self.bodies.get(i),
+            Owner::Link(i) => self.links.get(i),
+            Owner::Other(k, i) => self.others.get(k).and_then(|l| l.get(i)),
+        }
     }
 }
 

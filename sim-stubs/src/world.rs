@@ -22,7 +22,7 @@ mod links;
 
 use colliders::{collider, link_collider};
 use contacts::Watch;
-pub use contacts::{ContactError, RobotContact, RobotContactRecord};
+pub use contacts::{Around, ContactError, RobotContact, RobotContactRecord};
 
 /// The world's fixed step, µs.
 pub const STEP_US: u64 = 1000;
@@ -98,7 +98,12 @@ pub mod convert {
     }
 }
 
-/// The robot's links in the world.
+/// The user data of robot `i`'s link colliders (a scene body's is its scene index).
+fn link_tag(i: usize) -> u128 {
+    u128::MAX - i as u128
+}
+
+/// A robot's links in the world.
 struct Robot {
     body: Arc<RobotBody>,
     /// Height of the root above the floor (a pedestal), m.
@@ -129,7 +134,12 @@ pub struct World {
     bodies: Vec<RigidBodyHandle>,
     /// Their ids.
     ids: Vec<String>,
-    robot: Option<Robot>,
+    /// The robots, in the order they were placed (`None`: a robot without a body); the
+    /// single-robot queries ([`World::robot_contacts`], [`World::held`], the contact watch)
+    /// are of the first.
+    robots: Vec<Option<Robot>>,
+    /// Height of a robot's root above the floor (a pedestal), m: the scene's.
+    robot_height: f64,
     /// Physics steps taken.
     steps: u64,
     /// Steps in which rapier ran (the others found the world at rest).
@@ -148,6 +158,26 @@ impl World {
         base: BasePose,
         theta: &[f64],
     ) -> Result<World, SceneError> {
+        let mut w = World::bodies_of(scene);
+        w.add_robot(scene, robot, base, theta)?;
+        // Every movable body starts awake (rapier may sleep it once it rests).
+        w.wake_all();
+        Ok(w)
+    }
+
+    /// The world of `scene`'s bodies, no robot yet ([`World::add_robot`] places them). Every
+    /// movable body starts awake (rapier may sleep it once it rests).
+    pub fn of_scene(scene: &Scene) -> World {
+        let mut w = World::bodies_of(scene);
+        // Place the colliders with their bodies and fill the broad phase, so that the first
+        // queries see the scene.
+        w.pw.detect_collisions(&(), &());
+        w.wake_all();
+        w
+    }
+
+    /// The scene's bodies in a new physics world.
+    fn bodies_of(scene: &Scene) -> World {
         let mut pw = PhysicsWorld::new();
         pw.gravity = Vector::new(0.0, 0.0, -GRAVITY as f32);
         pw.integration_parameters.dt = STEP_US as f32 * 1e-6;
@@ -171,50 +201,83 @@ impl World {
             }
             bodies.push(h);
         }
-        let robot = match robot {
-            Some(body) => {
-                let mut links = Vec::new();
-                for shapes in &body.shapes {
-                    let colliders: Vec<ColliderBuilder> =
-                        shapes.iter().filter_map(link_collider).collect();
-                    if colliders.is_empty() {
-                        links.push(None);
-                        continue;
-                    }
-                    let h = pw.insert_body(RigidBodyBuilder::kinematic_position_based());
-                    for c in colliders {
-                        pw.insert_collider(c.user_data(u128::MAX), Some(h));
-                    }
-                    links.push(Some(h));
-                }
-                Some(Robot {
-                    body: body.clone(),
-                    height: scene.robot_height,
-                    links,
-                    grasp: None,
-                })
-            }
-            None => None,
-        };
-        let mut w = World {
+        World {
             pw,
             time_us: 0,
             bodies,
             ids: scene.bodies.iter().map(|b| b.id.clone()).collect(),
-            robot,
+            robots: Vec::new(),
+            robot_height: scene.robot_height,
             steps: 0,
             active_steps: 0,
             watch: None,
-        };
-        let targets = w.link_targets(base, theta);
-        w.teleport(&targets);
+        }
+    }
+
+    /// Place another robot: `robot`'s links (`None`: a robot without a body, which takes an
+    /// index and touches nothing) at the base pose `base` (x, y in m, heading in rad) and the
+    /// servos' angles `theta` (rad, chain order). Its index (the order of
+    /// [`World::step_robots`]). Fails, and places nothing, when a scene body or another
+    /// robot's link overlaps one of its links, naming both.
+    pub fn add_robot(
+        &mut self,
+        scene: &Scene,
+        robot: Option<&Arc<RobotBody>>,
+        base: BasePose,
+        theta: &[f64],
+    ) -> Result<usize, SceneError> {
+        let index = self.robots.len();
+        let robot = robot.map(|body| {
+            let mut links = Vec::new();
+            for shapes in &body.shapes {
+                let colliders: Vec<ColliderBuilder> =
+                    shapes.iter().filter_map(link_collider).collect();
+                if colliders.is_empty() {
+                    links.push(None);
+                    continue;
+                }
+                let h = self
+                    .pw
+                    .insert_body(RigidBodyBuilder::kinematic_position_based());
+                for c in colliders {
+                    self.pw
+                        .insert_collider(c.user_data(link_tag(index)), Some(h));
+                }
+                links.push(Some(h));
+            }
+            Robot {
+                body: body.clone(),
+                height: self.robot_height,
+                links,
+                grasp: None,
+            }
+        });
+        self.robots.push(robot);
+        let targets = self.link_targets(index, base, theta);
+        self.teleport(&targets);
         // Place the colliders with their bodies and fill the broad phase, so that the first
         // queries see the scene.
-        w.pw.detect_collisions(&(), &());
-        w.check_overlap(scene)?;
-        // Every movable body starts awake (rapier may sleep it once it rests).
-        w.wake_all();
-        Ok(w)
+        self.pw.detect_collisions(&(), &());
+        if let Err(e) = self.check_overlap(index, scene) {
+            if let Some(Some(r)) = self.robots.pop() {
+                for h in r.links.into_iter().flatten() {
+                    self.pw.remove_body_with_colliders(h, true);
+                }
+                self.pw.detect_collisions(&(), &());
+            }
+            return Err(e);
+        }
+        Ok(index)
+    }
+
+    /// The robots placed ([`World::add_robot`]), with or without a body.
+    pub fn robots(&self) -> usize {
+        self.robots.len()
+    }
+
+    /// Robot `i`, when it has a body.
+    fn robot(&self, i: usize) -> Option<&Robot> {
+        self.robots.get(i).and_then(Option::as_ref)
     }
 
     /// Wake every movable body: the engine moves each again until it has been at rest long
@@ -250,14 +313,28 @@ impl World {
         self.active_steps
     }
 
-    /// Take the step that ends at [`World::next_step`]: move the robot's links to the plants'
-    /// state there (`base`: the base's true pose; the chain: the servos' true angles), step
-    /// the physics, and let the gripper grasp or release (which sets or clears the gripper
-    /// servo's obstacle in `chain`). A world at rest (every movable body asleep, no link
-    /// within [`NEAR`] of one) is not stepped: only the links move, and they are put in place.
+    /// Take the step that ends at [`World::next_step`] with the only robot
+    /// ([`World::step_robots`]).
     pub fn step(&mut self, base: BasePose, chain: &mut ServoChain) {
-        let theta: Vec<f64> = chain.servos.iter().map(|s| s.theta).collect();
-        let targets = self.link_targets(base, &theta);
+        self.step_robots(&mut [(base, chain)]);
+    }
+
+    /// Take the step that ends at [`World::next_step`]: move each robot's links to its
+    /// plants' state there (`robots`, in [`World::add_robot`] order: the base's true pose and
+    /// the chain, whose servos' true angles place the links), step the physics, and let each
+    /// gripper grasp or release (which sets or clears its servo's obstacle in the chain). A
+    /// world at rest (every movable body asleep, no link within [`NEAR`] of one) is not
+    /// stepped: only the links move, and they are put in place. Robots beyond `robots` stay
+    /// where they are.
+    pub fn step_robots(&mut self, robots: &mut [(BasePose, &mut ServoChain)]) {
+        let thetas: Vec<Vec<f64>> = robots
+            .iter()
+            .map(|(_, c)| c.servos.iter().map(|s| s.theta).collect())
+            .collect();
+        let mut targets = Vec::new();
+        for (i, ((base, _), theta)) in robots.iter().zip(&thetas).enumerate() {
+            targets.extend(self.link_targets(i, *base, theta));
+        }
         if self.busy(&targets) {
             self.drive(&targets);
             self.pw.step();
@@ -269,7 +346,9 @@ impl World {
         }
         self.time_us += STEP_US;
         self.steps += 1;
-        self.grip(&theta, chain);
+        for (i, ((_, chain), theta)) in robots.iter_mut().zip(&thetas).enumerate() {
+            self.grip(i, theta, chain);
+        }
         if self.watch.is_some() {
             self.record_contacts();
         }
@@ -279,8 +358,7 @@ impl World {
     /// index) in the world now.
     pub fn link_collider_poses(&self, link: usize) -> Vec<Isometry3<f64>> {
         let Some(h) = self
-            .robot
-            .as_ref()
+            .robot(0)
             .and_then(|r| r.links.get(link).copied().flatten())
         else {
             return Vec::new();
@@ -294,9 +372,14 @@ impl World {
         })
     }
 
-    /// The scene body the gripper holds ([`Scene::bodies`] index), if any.
+    /// The scene body the (first robot's) gripper holds ([`Scene::bodies`] index), if any.
     pub fn held(&self) -> Option<usize> {
-        self.robot.as_ref()?.grasp.map(|g| g.object)
+        self.held_by(0)
+    }
+
+    /// The scene body robot `i`'s gripper holds ([`Scene::bodies`] index), if any.
+    pub fn held_by(&self, i: usize) -> Option<usize> {
+        self.robot(i)?.grasp.map(|g| g.object)
     }
 
     /// The scene bodies' ids ([`Scene::bodies`] order).

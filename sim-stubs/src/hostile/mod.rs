@@ -15,6 +15,7 @@ pub mod strict;
 pub use checker::*;
 pub use stream::{message, mixed_message, model_burst, pointed_message, Mix};
 
+use crate::lockstep::HostSide;
 use crate::SimHost;
 use ferrobot_firmware::config;
 use ferrobot_protocol::*;

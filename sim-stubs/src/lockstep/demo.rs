@@ -1,6 +1,7 @@
 //! The simulated demo (`ferrobot demo`): handshake, move the arm, work the gripper, drive the
 //! base, all through the protocol and the firmware core, in lockstep.
 
+use crate::lockstep::HostSide;
 use ferrobot_protocol::HostMsg;
 
 use super::{LockstepSim, SimError, SimHost};

@@ -1,38 +1,31 @@
 //! Rasterising: triangles clipped at the near plane and scan-converted into the buffers of
 //! 1/z and shading-record ids (top-left fill rule, no cracks along shared edges).
 
-use nalgebra::{Isometry3, Matrix3, Vector3};
+use nalgebra::{Matrix3, Vector3};
 
 use super::shading::Shade;
-use super::{Intr, Owner, RenderedImage, Renderer, View, NEAR};
+use super::{Intr, Poses, RenderedImage, Renderer, View, NEAR};
 
 impl Renderer {
-    /// Rasterise every drawn mesh at its owner's pose (`bodies`, `links`: world poses) into
-    /// `out`'s buffers of 1/z and ids; the shading record of each triangle that wrote a pixel,
-    /// by id. Meshes wholly behind the near plane or outside the view, and the back faces of
-    /// closed meshes, are skipped.
+    /// Rasterise every drawn mesh at its owner's pose (`poses`) into `out`'s buffers of 1/z
+    /// and ids; the shading record of each triangle that wrote a pixel, by id. Meshes wholly
+    /// behind the near plane or outside the view, and the back faces of closed meshes, are
+    /// skipped. The robot's decals, when drawn, come last.
     pub(super) fn rasterise(
         &self,
         view: &View,
-        bodies: &[Isometry3<f64>],
-        links: &[Isometry3<f64>],
+        poses: &Poses<'_>,
         out: &mut RenderedImage,
     ) -> Vec<Shade> {
         let (k, frustum) = (&view.k, &view.frustum);
         // Every triangle that survives culling gets a shading record; the id buffer names the
         // nearest one per pixel (deferred shading: each pixel is shaded once).
         let mut shades: Vec<Shade> = Vec::with_capacity(self.triangles());
-        let drawn = if self.decals {
-            self.meshes.len()
-        } else {
-            self.first_decal.min(self.meshes.len())
-        };
-        for (owner, m) in &self.meshes[..drawn] {
-            let owner_pose = match owner {
-                Owner::Body(i) => bodies.get(*i),
-                Owner::Link(i) => links.get(*i),
-            };
-            let Some(owner_pose) = owner_pose else {
+        let first_decal = self.first_decal.min(self.meshes.len());
+        let (solid, decals) = self.meshes.split_at(first_decal);
+        let decals = if self.decals { decals } else { &[] };
+        for (owner, m) in solid.iter().chain(&self.others).chain(decals) {
+            let Some(owner_pose) = poses.of(*owner) else {
                 continue;
             };
             let t = view.world_to_cam * owner_pose * m.origin;

@@ -75,7 +75,7 @@ impl World {
     /// Names (URDF) of the robot's links that have collision shapes, in
     /// [`ferrobot_kinematics::LinkTree::links`] order; empty without a robot body.
     pub fn robot_links(&self) -> Vec<String> {
-        let Some(r) = &self.robot else {
+        let Some(r) = self.robot(0) else {
             return Vec::new();
         };
         r.body
@@ -94,7 +94,7 @@ impl World {
     /// link entirely inside a static mesh, which has no inside, is not seen). The object the
     /// gripper holds is in contact with its fingers. Empty without a robot body.
     pub fn robot_contacts(&self) -> Vec<RobotContact> {
-        let Some(r) = &self.robot else {
+        let Some(r) = self.robot(0) else {
             return Vec::new();
         };
         let links: Vec<usize> = (0..r.links.len()).collect();
@@ -124,7 +124,7 @@ impl World {
     /// [`ContactError::UnknownLink`] when the robot has no link of a given name (nothing is
     /// watched then).
     pub fn watch_robot_contacts<S: AsRef<str>>(&mut self, links: &[S]) -> Result<(), ContactError> {
-        let (names, indices) = match &self.robot {
+        let (names, indices) = match self.robot(0) {
             Some(r) => (
                 r.body.tree.links().collect::<Vec<_>>().join(", "),
                 links
@@ -190,8 +190,7 @@ impl World {
 
     /// Name (URDF) of link `i` ([`ferrobot_kinematics::LinkTree::links`] index).
     fn link_name(&self, i: usize) -> String {
-        self.robot
-            .as_ref()
+        self.robot(0)
             .and_then(|r| r.body.tree.links().nth(i))
             .unwrap_or("?")
             .to_string()
@@ -226,7 +225,7 @@ impl World {
     /// scene order. Poses from the bodies (a link put in place while the world rests has
     /// moved its body, not yet its colliders).
     fn contacts_of(&self, links: &[usize]) -> Vec<(usize, usize, f64)> {
-        let Some(r) = &self.robot else {
+        let Some(r) = self.robot(0) else {
             return Vec::new();
         };
         let placed = |rb: &RigidBody, c: &Collider| match c.position_wrt_parent() {
@@ -298,7 +297,33 @@ impl World {
     }
 }
 
+/// The world around robot `robot`'s base, as its bumper ring meets it: every scene body and
+/// every other robot's links (fixed to it: a bumper does not push a robot), not its own links
+/// ([`World::around`]).
+#[derive(Clone, Copy)]
+pub struct Around<'a> {
+    world: &'a World,
+    robot: usize,
+}
+
+impl World {
+    /// The world around robot `i`'s base ([`Around`]).
+    pub fn around(&self, i: usize) -> Around<'_> {
+        Around {
+            world: self,
+            robot: i,
+        }
+    }
+}
+
 impl Surroundings for World {
+    /// The world around the first robot ([`World::around`]).
+    fn touches(&self, x: f64, y: f64, radius: f64, gap: f64) -> Vec<Touch> {
+        self.around(0).touches(x, y, radius, gap)
+    }
+}
+
+impl Surroundings for Around<'_> {
     fn touches(&self, x: f64, y: f64, radius: f64, gap: f64) -> Vec<Touch> {
         let (lo, hi) = BUMPER_BAND;
         let ring = rapier3d::parry::shape::Cylinder::new(((hi - lo) / 2.0) as f32, radius as f32);
@@ -308,21 +333,24 @@ impl Surroundings for World {
         );
         let pose = convert::pose(&at);
         let aabb = rapier3d::parry::shape::Shape::compute_aabb(&ring, &pose).loosened(gap as f32);
+        let own = super::link_tag(self.robot);
+        let not_own = |_: ColliderHandle, c: &Collider| c.user_data != own;
+        let filter = QueryFilter::default().predicate(&not_own);
+        let pw = &self.world.pw;
         let mut out = Vec::new();
-        for (h, c) in self
-            .pw
-            .intersect_aabb_conservative(aabb, QueryFilter::exclude_kinematic())
-        {
+        for (h, c) in pw.intersect_aabb_conservative(aabb, filter) {
             let Ok(Some(k)) =
                 rapier3d::parry::query::contact(&pose, &ring, c.position(), c.shape(), gap as f32)
             else {
                 continue;
             };
             let n = convert::from_vector(k.normal1);
+            // Only a scene's movable body gives way; the others' links are driven by their
+            // plants, as fixed as a wall to this one.
             let fixed = c
                 .parent()
-                .and_then(|b| self.pw.bodies.get(b))
-                .is_none_or(|b| b.is_fixed());
+                .and_then(|b| pw.bodies.get(b))
+                .is_none_or(|b| !b.is_dynamic());
             let (i, g) = h.into_raw_parts();
             out.push(Touch {
                 id: (u64::from(g) << 32) | u64::from(i),

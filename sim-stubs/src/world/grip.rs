@@ -22,9 +22,10 @@ struct Hold {
 }
 
 impl World {
-    /// Grasp when both fingers touch one movable object; release when the servo has opened.
-    pub(super) fn grip(&mut self, theta: &[f64], chain: &mut ServoChain) {
-        let Some(r) = &self.robot else { return };
+    /// Robot `i`'s gripper: grasp when both fingers touch one movable object; release when
+    /// the servo has opened.
+    pub(super) fn grip(&mut self, i: usize, theta: &[f64], chain: &mut ServoChain) {
+        let Some(r) = self.robot(i) else { return };
         let Some(hand) = r.body.hand().cloned() else {
             return;
         };
@@ -40,19 +41,19 @@ impl World {
                 g.at - angle
             };
             if opened > RELEASE {
-                self.release(g, &hand, chain);
+                self.release(i, g, &hand, chain);
             }
             return;
         }
         let Some(hold) = self.held_between_fingers(r, &hand) else {
             return;
         };
-        self.grasp(hold, &hand, (angle, closing_down), chain);
+        self.grasp(i, hold, &hand, (angle, closing_down), chain);
     }
 
-    /// Let go of `g`: remove its joint, clear the servo's obstacle if still ours, wake the
-    /// object.
-    fn release(&mut self, g: Grasp, hand: &Hand, chain: &mut ServoChain) {
+    /// Robot `i` lets go of `g`: remove its joint, clear the servo's obstacle if still ours,
+    /// wake the object.
+    fn release(&mut self, i: usize, g: Grasp, hand: &Hand, chain: &mut ServoChain) {
         self.pw.remove_impulse_joint(g.joint);
         if let Some(s) = chain.servos.get_mut(hand.servo) {
             if s.obstacle == Some(g.obstacle) {
@@ -66,7 +67,7 @@ impl World {
         {
             rb.wake_up(true);
         }
-        if let Some(r) = &mut self.robot {
+        if let Some(Some(r)) = self.robots.get_mut(i) {
             r.grasp = None;
         }
     }
@@ -166,9 +167,16 @@ impl World {
         })
     }
 
-    /// Hold `hold`: a fixed joint from the palm, the object woken, the servo blocked at the
+    /// Robot `i` holds `hold`: a fixed joint from the palm, the object woken, the servo blocked at the
     /// `obstacle` (angle at contact, rad; whether closing lowers the angle).
-    fn grasp(&mut self, hold: Hold, hand: &Hand, obstacle: (f64, bool), chain: &mut ServoChain) {
+    fn grasp(
+        &mut self,
+        i: usize,
+        hold: Hold,
+        hand: &Hand,
+        obstacle: (f64, bool),
+        chain: &mut ServoChain,
+    ) {
         let joint = FixedJointBuilder::new()
             .local_frame1(hold.frame1)
             .local_frame2(Pose::IDENTITY)
@@ -180,7 +188,7 @@ impl World {
         if let Some(s) = chain.servos.get_mut(hand.servo) {
             s.obstacle = Some(obstacle);
         }
-        if let Some(r) = &mut self.robot {
+        if let Some(Some(r)) = self.robots.get_mut(i) {
             r.grasp = Some(Grasp {
                 object: hold.object,
                 joint,

@@ -10,14 +10,15 @@ use crate::diff_drive::Pose as BasePose;
 use crate::scene::{Scene, SceneError};
 
 impl World {
-    /// Where the robot's link bodies belong for the plants' state: each link body with its
+    /// Where robot `i`'s link bodies belong for its plants' state: each link body with its
     /// pose (the fingers held at the contact angle while the gripper holds an object).
     pub(super) fn link_targets(
         &self,
+        i: usize,
         base: BasePose,
         theta: &[f64],
     ) -> Vec<(RigidBodyHandle, Pose)> {
-        let Some(r) = &self.robot else {
+        let Some(r) = self.robot(i) else {
             return Vec::new();
         };
         let mut theta = theta.to_vec();
@@ -119,46 +120,76 @@ impl World {
         })
     }
 
-    pub(super) fn check_overlap(&self, scene: &Scene) -> Result<(), SceneError> {
-        let Some(r) = &self.robot else { return Ok(()) };
+    /// Robot `i`'s links against the scene's bodies and the other robots' links: the first
+    /// pair reaching more than [`OVERLAP`] into each other, as an error naming both.
+    pub(super) fn check_overlap(&self, i: usize, scene: &Scene) -> Result<(), SceneError> {
+        let Some(r) = self.robot(i) else {
+            return Ok(());
+        };
         let names: Vec<&str> = r.body.tree.links().collect();
-        for (i, h) in self.bodies.iter().enumerate() {
-            let Some(rb) = self.pw.bodies.get(*h) else {
+        let link_name = |li: usize| names.get(li).copied().unwrap_or("?").to_string();
+        for (si, h) in self.bodies.iter().enumerate() {
+            if let Some(li) = self.overlap(r, *h) {
+                return Err(SceneError::Overlap {
+                    object: scene
+                        .bodies
+                        .get(si)
+                        .map(|b| b.id.clone())
+                        .unwrap_or_default(),
+                    link: link_name(li),
+                });
+            }
+        }
+        for (oi, other) in self.robots.iter().enumerate() {
+            let Some(other) = other.as_ref().filter(|_| oi != i) else {
                 continue;
             };
-            for c in self.colliders_of(rb) {
-                let aabb = c.compute_aabb();
-                for (li, lh) in r.links.iter().enumerate() {
-                    let Some(lb) = lh.and_then(|h| self.pw.bodies.get(h)) else {
+            let other_names: Vec<&str> = other.body.tree.links().collect();
+            for (ol, oh) in other.links.iter().enumerate() {
+                let Some(li) = oh.and_then(|oh| self.overlap(r, oh)) else {
+                    continue;
+                };
+                return Err(SceneError::Overlap {
+                    object: format!(
+                        "robot {oi}'s link {}",
+                        other_names.get(ol).copied().unwrap_or("?")
+                    ),
+                    link: link_name(li),
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// The first of `r`'s links that a collider of body `h` reaches more than [`OVERLAP`]
+    /// into.
+    fn overlap(&self, r: &super::Robot, h: RigidBodyHandle) -> Option<usize> {
+        let rb = self.pw.bodies.get(h)?;
+        for c in self.colliders_of(rb) {
+            let aabb = c.compute_aabb();
+            for (li, lh) in r.links.iter().enumerate() {
+                let Some(lb) = lh.and_then(|h| self.pw.bodies.get(h)) else {
+                    continue;
+                };
+                for lc in self.colliders_of(lb) {
+                    if !aabb.intersects(&lc.compute_aabb()) {
                         continue;
-                    };
-                    for lc in self.colliders_of(lb) {
-                        if !aabb.intersects(&lc.compute_aabb()) {
-                            continue;
-                        }
-                        let hit = rapier3d::parry::query::contact(
-                            c.position(),
-                            c.shape(),
-                            lc.position(),
-                            lc.shape(),
-                            0.0,
-                        );
-                        if let Ok(Some(k)) = hit {
-                            if f64::from(k.dist) < -OVERLAP {
-                                return Err(SceneError::Overlap {
-                                    object: scene
-                                        .bodies
-                                        .get(i)
-                                        .map(|b| b.id.clone())
-                                        .unwrap_or_default(),
-                                    link: names.get(li).copied().unwrap_or("?").to_string(),
-                                });
-                            }
+                    }
+                    let hit = rapier3d::parry::query::contact(
+                        c.position(),
+                        c.shape(),
+                        lc.position(),
+                        lc.shape(),
+                        0.0,
+                    );
+                    if let Ok(Some(k)) = hit {
+                        if f64::from(k.dist) < -OVERLAP {
+                            return Some(li);
                         }
                     }
                 }
             }
         }
-        Ok(())
+        None
     }
 }

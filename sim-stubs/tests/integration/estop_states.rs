@@ -6,6 +6,7 @@
 //! Create 2 15 ms) of reaching the firmware, holds every arm joint where it is, and refuses
 //! motion until `Resume`.
 use crate::common;
+use ferrobot_sim::HostSide;
 
 use common::*;
 use ferrobot_protocol::*;

@@ -7,6 +7,7 @@
 
 use ferrobot_protocol::*;
 use ferrobot_sim::hostile::{run, Checker};
+use ferrobot_sim::HostSide;
 use ferrobot_sim::SimHost;
 
 /// A LoCoBot (or Lite) with its servos configured, and a checker from then on.

@@ -4,6 +4,7 @@
 use crate::common;
 use common::*;
 use ferrobot_protocol::*;
+use ferrobot_sim::HostSide;
 
 const TARGETS: [[f32; 5]; 3] = [
     [0.3, 0.5, -0.4, 0.2, 0.1],

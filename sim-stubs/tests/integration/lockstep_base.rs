@@ -3,6 +3,7 @@
 use crate::common;
 use common::*;
 use ferrobot_protocol::*;
+use ferrobot_sim::HostSide;
 
 fn drive_straight(robot: &str) -> (f64, f64, Odometry) {
     let mut s = session(robot);

@@ -5,6 +5,7 @@ use crate::common;
 use common::*;
 use ferrobot_firmware::Link;
 use ferrobot_protocol::*;
+use ferrobot_sim::HostSide;
 use ferrobot_sim::{SimError, SimHost};
 
 #[test]

@@ -19,4 +19,5 @@ mod mesh;
 mod physics;
 mod placement;
 mod scenes;
+mod shared;
 mod teach;

@@ -2,6 +2,7 @@
 //! put, the gripper pushes, grasps, carries and drops objects through the firmware, the bases'
 //! bumpers meet walls, runs are bit-identical for a seed, and bad scenes are typed errors.
 
+use ferrobot_sim::HostSide;
 use std::path::Path;
 use std::sync::Arc;
 

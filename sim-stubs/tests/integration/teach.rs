@@ -6,6 +6,7 @@
 
 use ferrobot_protocol::*;
 use ferrobot_sim::hostile::{strict::StrictChecker, Checker};
+use ferrobot_sim::HostSide;
 use ferrobot_sim::SimHost;
 
 use crate::common::{max_err, session_with, session_without_model, true_arm, waypoint, ARM};

@@ -2,6 +2,7 @@
 
 use ferrobot_protocol::dxl::units;
 use ferrobot_protocol::*;
+use ferrobot_sim::HostSide;
 use ferrobot_sim::SimHost;
 
 /// Arm joints of the LoCoBot profile (joint_1 … joint_5).
