@@ -150,6 +150,9 @@ pub(crate) struct Connected {
     pub(crate) camera: Option<Box<dyn CameraDevice>>,
     #[cfg(feature = "sim")]
     pub(crate) scene: Arc<ferrobot_sim::scene::Scene>,
+    /// The shared world the robot joined, if any.
+    #[cfg(feature = "sim")]
+    pub(crate) shared: Option<crate::SharedWorld>,
 }
 
 impl Robot {
@@ -208,8 +211,14 @@ impl Robot {
                 body: std::sync::OnceLock::new(),
                 #[cfg(feature = "sim")]
                 scene: connected.scene,
+                #[cfg(feature = "sim")]
+                shared: connected.shared.clone(),
             }),
         };
+        #[cfg(feature = "sim")]
+        if let Some(w) = &connected.shared {
+            w.admit(&robot.inner);
+        }
         robot.check_joint_table()?;
         if robot.inner.uses.arm {
             robot.send_arm_model()?;

@@ -32,6 +32,12 @@ pub(crate) fn connect(
                 .into(),
         )),
     };
+    #[cfg(feature = "sim")]
+    if world.shared.is_some() && !matches!(backend, Backend::Sim { .. }) {
+        return Err(crate::Error::Usage(format!(
+            "a shared world is simulated in-process: it takes the simulator backend, not {backend:?}"
+        )));
+    }
     let uses_camera = b.uses.camera;
     let camera_device = b.camera_device;
     if let Some(link) = b.link {
@@ -41,20 +47,34 @@ pub(crate) fn connect(
             camera: camera_device.filter(|_| uses_camera),
             #[cfg(feature = "sim")]
             scene: world.scene,
+            #[cfg(feature = "sim")]
+            shared: None,
         });
     }
     // The link, and the socket of a camera served from the backend's world, if any.
     let (mut link, served_camera): (Box<dyn Link>, Option<std::path::PathBuf>) = match &backend {
         #[cfg(feature = "sim")]
-        Backend::Sim { seed, realtime } => (
-            Box::new(crate::backend::sim::SimLink::start(
-                &world_cfg,
-                *seed,
-                *realtime,
-                world.scene.clone(),
-            )?),
-            None,
-        ),
+        Backend::Sim { seed, realtime } => match &world.shared {
+            Some((shared, pose)) => (
+                Box::new(crate::backend::sim::SimLink::join(
+                    &shared.hosts,
+                    &world_cfg,
+                    *seed,
+                    *realtime,
+                    *pose,
+                )?),
+                None,
+            ),
+            None => (
+                Box::new(crate::backend::sim::SimLink::start(
+                    &world_cfg,
+                    *seed,
+                    *realtime,
+                    world.scene.clone(),
+                )?),
+                None,
+            ),
+        },
         // `ferrobot sim-firmware` serves its world's camera beside the port.
         #[cfg(feature = "serial")]
         Backend::Serial { path } => {
@@ -138,6 +158,8 @@ pub(crate) fn connect(
         camera,
         #[cfg(feature = "sim")]
         scene: world.scene,
+        #[cfg(feature = "sim")]
+        shared: world.shared.map(|(w, _)| w),
     })
 }
 
@@ -157,11 +179,12 @@ fn backend_camera(
     world: WorldRef<'_>,
 ) -> Result<Option<Box<dyn CameraDevice>>> {
     #[cfg(feature = "sim")]
-    if let (Backend::Sim { seed, .. }, Some(sim)) =
-        (backend, crate::backend::world::simulator_of(link))
+    if let (Backend::Sim { seed, .. }, Some((scene, body))) =
+        (backend, crate::backend::world::scene_and_body_of(link))
     {
         return Ok(Some(Box::new(crate::backend::sim::SimCameraDevice::new(
-            sim,
+            &scene,
+            body.as_ref(),
             section,
             world.depth_noise,
             *seed,

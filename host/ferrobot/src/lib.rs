@@ -51,6 +51,8 @@ pub mod robot;
 mod sense;
 mod sensing;
 #[cfg(feature = "sim")]
+pub mod shared_world;
+#[cfg(feature = "sim")]
 mod simulated;
 pub mod slam;
 mod slam_runner;
@@ -92,6 +94,8 @@ pub use ferrobot_protocol::{fault_flags, Diagnostics, Fault, FaultKind, GripperS
 pub use ferrobot_sim::scene;
 pub use motion::Motion;
 pub use robot::Robot;
+#[cfg(feature = "sim")]
+pub use shared_world::SharedWorld;
 pub use slam::Source;
 pub use subscription::{Bell, Subscription};
 #[cfg(feature = "sim")]

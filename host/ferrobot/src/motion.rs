@@ -65,6 +65,7 @@ impl Motion {
             // clock waits for it without the lock.
             let rest = io.link.pace();
             parking_lot::MutexGuard::unlock_fair(io);
+            self.robot.step_neighbours();
             if !rest.is_zero() {
                 std::thread::sleep(rest);
             }

@@ -52,6 +52,9 @@ pub(crate) struct Inner {
     /// The simulated world the robot started in (the empty one on hardware).
     #[cfg(feature = "sim")]
     pub(crate) scene: Arc<ferrobot_sim::scene::Scene>,
+    /// The world shared with other robots, when the robot joined one.
+    #[cfg(feature = "sim")]
+    pub(crate) shared: Option<crate::SharedWorld>,
     /// The link's line for the emergency stop beside the I/O lock ([`Link::stop_line`]).
     pub(crate) stop_line: Option<Arc<dyn crate::backend::StopLine>>,
     pub(crate) io: Mutex<Hub>,
@@ -296,6 +299,25 @@ impl Robot {
         Ok(())
     }
 
+    /// Whether the robot shares its simulated world, and its clock, with other robots
+    /// ([`crate::SharedWorld`]): their waits pass its time too.
+    pub fn shares_world(&self) -> bool {
+        #[cfg(feature = "sim")]
+        return self.inner.shared.is_some();
+        #[cfg(not(feature = "sim"))]
+        false
+    }
+
+    /// In a shared world, step the other robots' motions at the present instant, as their
+    /// own waits would: one program's wait on one robot drives them all
+    /// ([`crate::SharedWorld`]).
+    pub(crate) fn step_neighbours(&self) {
+        #[cfg(feature = "sim")]
+        if let Some(w) = &self.inner.shared {
+            w.step_others(&self.inner);
+        }
+    }
+
     /// Let `dt` pass in steps of at most [`crate::goals::POLL`], stepping the motions under
     /// way, and let other threads at the link between steps.
     pub(crate) fn wait_for(&self, dt: Duration) {
@@ -319,6 +341,7 @@ impl Robot {
             // A simulator paced to the wall clock waits for it without the lock.
             let rest = io.link.pace();
             MutexGuard::unlock_fair(io);
+            self.step_neighbours();
             if !rest.is_zero() {
                 std::thread::sleep(rest);
             }

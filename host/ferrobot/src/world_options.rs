@@ -21,6 +21,8 @@ pub(crate) struct WorldOptions {
     start_pose: Option<[f64; 3]>,
     camera_mount_error: [f64; 6],
     marker: bool,
+    /// A world shared with other robots, joined instead of a world of the robot's own.
+    shared: Option<crate::SharedWorld>,
 }
 
 impl Default for WorldOptions {
@@ -32,6 +34,7 @@ impl Default for WorldOptions {
             start_pose: None,
             camera_mount_error: [0.0; 6],
             marker: false,
+            shared: None,
         }
     }
 }
@@ -43,6 +46,8 @@ pub(crate) struct World {
     pub(crate) depth_noise: bool,
     pub(crate) mount_error: Isometry3<f64>,
     pub(crate) marker: bool,
+    /// The shared world the robot joins, and where in it (`[x, y, θ]`, m and rad).
+    pub(crate) shared: Option<(crate::SharedWorld, [f64; 3])>,
 }
 
 impl WorldOptions {
@@ -54,14 +59,27 @@ impl WorldOptions {
         crate::validate::all_in_range("camera mount error (m)", &e[..3], -tmax, tmax)?;
         crate::validate::all_in_range("camera mount error (rad)", &e[3..], -rmax, rmax)?;
         let mount_error = mount_error_pose(&e);
+        if let Some(p) = self.start_pose {
+            let m = crate::validate::MAX_BASE_COORDINATE;
+            crate::validate::all_in_range("start position", &p[..2], -m, m)?;
+            crate::validate::in_range("start heading", p[2], -m, m)?;
+        }
+        if let Some(shared) = self.shared {
+            let scene = shared.scene();
+            let pose = self.start_pose.unwrap_or(scene.robot_pose);
+            return Ok(World {
+                scene,
+                depth_noise: self.depth_noise,
+                mount_error,
+                marker: self.marker,
+                shared: Some((shared, pose)),
+            });
+        }
         let mut scene = match self.loaded_scene {
             Some(s) => s,
             None => Scene::load(&self.scene)?,
         };
         if let Some(p) = self.start_pose {
-            let m = crate::validate::MAX_BASE_COORDINATE;
-            crate::validate::all_in_range("start position", &p[..2], -m, m)?;
-            crate::validate::in_range("start heading", p[2], -m, m)?;
             scene.robot_pose = p;
         }
         Ok(World {
@@ -69,13 +87,14 @@ impl WorldOptions {
             depth_noise: self.depth_noise,
             mount_error,
             marker: self.marker,
+            shared: None,
         })
     }
 }
 
 impl RobotBuilder {
     /// Start the simulated robot at `[x, y, θ]` (m, m, rad) in the scene's world frame instead
-    /// of the scene's own start pose.
+    /// of the scene's own start pose (in a shared world too: [`RobotBuilder::shared_world`]).
     pub fn start_pose(mut self, pose: [f64; 3]) -> Self {
         self.world.start_pose = Some(pose);
         self
@@ -87,6 +106,17 @@ impl RobotBuilder {
         self.world.scene = SceneSource::from_arg(scene);
         self
     }
+    /// Join `world`, a simulated world shared with other robots on one clock
+    /// ([`crate::SharedWorld`]), instead of a world of the robot's own: at
+    /// [`RobotBuilder::start_pose`] (default the world's scene's start pose), on the simulator
+    /// backend ([`Backend::Sim`](crate::Backend::Sim): its seed and pacing); the world's scene
+    /// replaces [`RobotBuilder::scene`]'s. Building fails with [`crate::Error::Scene`] where
+    /// the robot would overlap a scene body or another robot.
+    pub fn shared_world(mut self, world: &crate::SharedWorld) -> Self {
+        self.world.shared = Some(world.clone());
+        self
+    }
+
     /// The simulated world as a scene already loaded (and perhaps changed: objects placed at
     /// random for a benchmark's trial), instead of [`RobotBuilder::scene`].
     pub fn with_scene(mut self, scene: Scene) -> Self {

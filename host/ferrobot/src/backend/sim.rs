@@ -2,12 +2,15 @@
 //! time) on a lockstep simulator built from the robot's configuration (servo chain, gravity
 //! from the URDF's link masses, base): waiting for an answer runs the simulation.
 
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use ferrobot_protocol::session::{GetDiagnostics, GetJoint};
 use ferrobot_protocol::{DeviceInfo, Diagnostics, Fault, HostMsg, JointConfig, Telemetry};
 use ferrobot_sim::robots::SimRobot;
-use ferrobot_sim::{LockstepSim, SimError, SimHost};
+use ferrobot_sim::shared::{Seat, SharedHosts};
+use ferrobot_sim::{HostSide, LockstepSim, SimError, SimHost};
+use parking_lot::{Mutex, MutexGuard};
 
 use super::{rejection, Link};
 use crate::config::RobotConfig;
@@ -21,10 +24,51 @@ pub fn sim_robot(cfg: &RobotConfig) -> SimRobot {
     ferrobot_sim::robots::from_description(cfg)
 }
 
-/// The simulator backend: the lockstep simulator driven by [`SimHost`], the protocol's host
+/// What a [`SimLink`] drives: a simulated robot's host side ([`HostSide`]), alone on its
+/// simulator ([`SimHost`]) or among others in a shared world ([`SharedSeat`]).
+pub trait SimFloor: Send + 'static {
+    /// The host side, borrowed for one call.
+    type Side<'a>: HostSide
+    where
+        Self: 'a;
+    /// The host side.
+    fn side(&mut self) -> Self::Side<'_>;
+    /// Simulated time, µs.
+    fn now_us(&self) -> u64;
+}
+
+impl SimFloor for SimHost {
+    type Side<'a> = &'a mut SimHost;
+    fn side(&mut self) -> &mut SimHost {
+        self
+    }
+    fn now_us(&self) -> u64 {
+        self.sim.now_us()
+    }
+}
+
+/// A robot's seat in a shared world ([`crate::SharedWorld`]): robot `index` of the world's
+/// robots, whose waits pass every robot's time.
+pub struct SharedSeat {
+    pub(crate) hosts: Arc<Mutex<SharedHosts>>,
+    pub(crate) index: usize,
+}
+
+impl SimFloor for SharedSeat {
+    type Side<'a> = Seat<MutexGuard<'a, SharedHosts>>;
+    fn side(&mut self) -> Self::Side<'_> {
+        // A seat is made for a robot that joined, and robots never leave a world.
+        Seat::new(self.hosts.lock(), self.index).expect("a joined robot keeps its seat")
+    }
+    fn now_us(&self) -> u64 {
+        self.hosts.lock().sim.now_us()
+    }
+}
+
+/// The simulator backend: a simulated robot's host side ([`SimFloor`]), the protocol's host
 /// session in virtual time.
-pub struct SimLink {
-    session: SimHost,
+pub struct SimLink<F: SimFloor = SimHost> {
+    floor: F,
     info: DeviceInfo,
     realtime: Option<(Instant, u64)>,
 }
@@ -56,95 +100,128 @@ impl SimLink {
             seed,
             scene,
         )?;
-        let mut session = SimHost::new(sim);
-        let info = session.handshake().map_err(|e| sim_err("hello", e))?;
-        let mut link = SimLink {
-            session,
-            info,
-            realtime: None,
+        SimLink::connect(SimHost::new(sim), realtime)
+    }
+
+    /// The lockstep simulator this link drives.
+    pub fn simulator_mut(&mut self) -> &mut LockstepSim {
+        &mut self.floor.sim
+    }
+}
+
+impl SimLink<SharedSeat> {
+    /// The robot of `cfg` joining the shared world `hosts` at `pose` (`[x, y, θ]`, m and
+    /// rad) with plants seeded by `seed`.
+    pub(crate) fn join(
+        hosts: &Arc<Mutex<SharedHosts>>,
+        cfg: &RobotConfig,
+        seed: u64,
+        realtime: bool,
+        pose: [f64; 3],
+    ) -> Result<Self> {
+        let index = hosts.lock().join(
+            sim_robot(cfg),
+            ferrobot_profile::firmware_profile(cfg),
+            seed,
+            pose,
+        )?;
+        let seat = SharedSeat {
+            hosts: hosts.clone(),
+            index,
         };
+        SimLink::connect(seat, realtime)
+    }
+
+    /// The seat this link drives.
+    pub fn seat(&self) -> &SharedSeat {
+        &self.floor
+    }
+}
+
+impl<F: SimFloor> SimLink<F> {
+    /// Handshake on `floor` and let the firmware configure its servos; paced to the wall
+    /// clock from then on when `realtime`.
+    fn connect(mut floor: F, realtime: bool) -> Result<Self> {
+        let info = floor.side().handshake().map_err(|e| sim_err("hello", e))?;
         // Let the firmware configure its servos before the first command.
-        link.session
+        floor
+            .side()
             .wait_telemetry(2_000_000, |t| {
                 t.faults & ferrobot_protocol::fault_flags::CONFIGURING == 0
             })
             .map_err(|e| sim_err("servo configuration", e))?;
-        if realtime {
-            link.realtime = Some((Instant::now(), link.session.sim.now_us()));
-        }
-        Ok(link)
+        let realtime = realtime.then(|| (Instant::now(), floor.now_us()));
+        Ok(SimLink {
+            floor,
+            info,
+            realtime,
+        })
     }
 }
 
-impl SimLink {
-    /// The lockstep simulator this link drives.
-    pub fn simulator_mut(&mut self) -> &mut LockstepSim {
-        &mut self.session.sim
-    }
-}
-
-impl Link for SimLink {
+impl<F: SimFloor> Link for SimLink<F> {
     fn info(&self) -> &DeviceInfo {
         &self.info
     }
 
     fn command(&mut self, msg: &HostMsg, what: &str) -> Result<()> {
-        self.session.command(msg).map_err(|e| sim_err(what, e))
+        self.floor.side().command(msg).map_err(|e| sim_err(what, e))
     }
 
     fn joint_config(&mut self, index: u8) -> Result<JointConfig> {
-        self.session
+        self.floor
+            .side()
             .request(&GetJoint(index))
             .map_err(|e| sim_err("joint configuration", e))
     }
 
     fn diagnostics(&mut self) -> Result<Diagnostics> {
-        self.session
+        self.floor
+            .side()
             .request(&GetDiagnostics)
             .map_err(|e| sim_err("diagnostics", e))
     }
 
     fn telemetry(&mut self) -> Result<Telemetry> {
-        self.session
+        self.floor
+            .side()
             .wait_telemetry(200_000, |_| true)
             .map_err(|_| Error::Link("no telemetry".into()))
     }
 
     fn take_telemetry(&mut self) -> Vec<Telemetry> {
-        std::iter::from_fn(|| self.session.session.take_report()).collect()
+        let mut side = self.floor.side();
+        std::iter::from_fn(|| side.end().session.take_report()).collect()
     }
 
     fn wait(&mut self, dt: Duration) {
-        self.session.run_for(dt.as_micros() as u64);
+        self.floor.side().run_for(dt.as_micros() as u64);
     }
 
     fn pace(&mut self) -> Duration {
+        let now = self.floor.now_us();
         let Some((wall0, sim0)) = &mut self.realtime else {
             return Duration::ZERO;
         };
-        let due = Duration::from_micros(self.session.sim.now_us() - *sim0);
+        let due = Duration::from_micros(now - *sim0);
         let lead = due.saturating_sub(wall0.elapsed());
         // Commands are acknowledged in the simulator's own time (a millisecond each): a flood
         // of them runs its clock ahead of the wall's. It leads by at most MAX_LEAD; beyond, the
         // pace starts again from there rather than stopping the world to let the wall catch up.
         if lead > MAX_LEAD {
             *wall0 = Instant::now();
-            *sim0 = self
-                .session
-                .sim
-                .now_us()
-                .saturating_sub(MAX_LEAD.as_micros() as u64);
+            *sim0 = now.saturating_sub(MAX_LEAD.as_micros() as u64);
             return MAX_LEAD;
         }
         lead
     }
 
     fn now(&self) -> Duration {
-        Duration::from_micros(self.session.sim.now_us())
+        Duration::from_micros(self.floor.now_us())
     }
 
     fn take_faults(&mut self) -> Vec<Fault> {
-        self.session.take_faults()
+        self.floor.side().take_faults()
     }
 
     fn as_any_mut(&mut self) -> &mut dyn std::any::Any {
@@ -163,13 +240,15 @@ pub struct SimCameraDevice {
 }
 
 impl SimCameraDevice {
-    /// The camera of `section` in the simulator `sim` (its scene and the robot's body), depth
-    /// noise on or off, seeded by `seed`, at the section's rate (frames at whole multiples of
+    /// The camera of `section` on the robot's `body` in `scene` (a simulated world, whose
+    /// other robots it sees too: [`ferrobot_sim::lockstep::Truth::others`]), depth noise on or
+    /// off, seeded by `seed`, at the section's rate (frames at whole multiples of
     /// the period on the simulator's clock; each capture takes the next one not yet taken),
     /// mounted off its URDF pose by `mount_error` (the camera link's frame; identity for
     /// none), the hand-eye marker drawn or not (`marker`).
     pub fn new(
-        sim: &LockstepSim,
+        scene: &ferrobot_sim::scene::Scene,
+        body: Option<&Arc<ferrobot_sim::body::RobotBody>>,
         section: &ferrobot_description::CameraSection,
         noise: bool,
         seed: u64,
@@ -189,17 +268,15 @@ impl SimCameraDevice {
             key: "camera".into(),
             problem,
         };
-        let body = sim
-            .body()
-            .ok_or_else(|| bad("the simulated robot has no body to mount a camera on".into()))?;
-        let mut camera =
-            ferrobot_sim::camera::BandedCamera::new(sim.scene(), body, section, seed, noise)
-                .ok_or_else(|| {
-                    bad(format!(
-                        "the URDF has no optical frame {:?}, or the image is under 4 rows",
-                        section.frame
-                    ))
-                })?;
+        let body =
+            body.ok_or_else(|| bad("the simulated robot has no body to mount a camera on".into()))?;
+        let mut camera = ferrobot_sim::camera::BandedCamera::new(scene, body, section, seed, noise)
+            .ok_or_else(|| {
+                bad(format!(
+                    "the URDF has no optical frame {:?}, or the image is under 4 rows",
+                    section.frame
+                ))
+            })?;
         camera.set_mount_error(body, mount_error);
         camera.show_decals(marker);
         let clock = ferrobot_sim::camera::FrameClock::new(section.rate)
@@ -237,10 +314,9 @@ impl super::device::CameraDevice for SimCameraDevice {
         if next > now {
             link.wait(Duration::from_micros(next - now));
         }
-        let sim = super::world::simulator_of(link).ok_or_else(|| {
+        let truth = super::world::truth_of(link).ok_or_else(|| {
             Error::Link("the simulated camera needs the simulator backend".into())
         })?;
-        let truth = sim.truth();
         let (rgb, depth) = self.camera.capture(&truth);
         let (w, h) = self.camera.width_height();
         Ok(super::device::RawFrame {

@@ -6,7 +6,7 @@
 use ferrobot_sim::lockstep::Truth;
 use ferrobot_sim::LockstepSim;
 
-use super::sim::SimLink;
+use super::sim::{SharedSeat, SimLink};
 use super::Link;
 
 /// The in-process simulator behind `link`, when it is the sim backend's.
@@ -16,11 +16,15 @@ pub fn simulator_of(link: &mut dyn Link) -> Option<&mut LockstepSim> {
         .map(|l| l.simulator_mut())
 }
 
-/// The simulated world's ground truth now, when `link`'s plants are simulated (in-process or
-/// behind an emulated board); `None` on a real robot.
+/// The simulated world's ground truth now, when `link`'s plants are simulated (in-process,
+/// alone or in a shared world, or behind an emulated board); `None` on a real robot.
 pub fn truth_of(link: &mut dyn Link) -> Option<Truth> {
     if let Some(sim) = simulator_of(link) {
         return Some(sim.truth());
+    }
+    if let Some(l) = link.as_any_mut().downcast_mut::<SimLink<SharedSeat>>() {
+        let seat = l.seat();
+        return seat.hosts.lock().sim.truth(seat.index);
     }
     #[cfg(feature = "emulated")]
     if let Some(e) = link
@@ -30,4 +34,22 @@ pub fn truth_of(link: &mut dyn Link) -> Option<Truth> {
         return Some(e.truth());
     }
     None
+}
+
+/// The scene and the robot's body of `link`'s in-process simulator (alone or in a shared
+/// world): what its camera renders.
+pub fn scene_and_body_of(
+    link: &mut dyn Link,
+) -> Option<(
+    std::sync::Arc<ferrobot_sim::scene::Scene>,
+    Option<std::sync::Arc<ferrobot_sim::body::RobotBody>>,
+)> {
+    if let Some(sim) = simulator_of(link) {
+        return Some((sim.scene().clone(), sim.body().cloned()));
+    }
+    let l = link.as_any_mut().downcast_mut::<SimLink<SharedSeat>>()?;
+    let seat = l.seat();
+    let hosts = seat.hosts.lock();
+    let body = hosts.sim.station(seat.index)?.body().cloned();
+    Some((hosts.sim.scene().clone(), body))
 }

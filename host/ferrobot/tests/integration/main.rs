@@ -11,6 +11,7 @@ mod navigation;
 mod planning;
 #[cfg(feature = "serial")]
 mod realsense;
+mod shared_world;
 mod slam;
 mod stow;
 mod subscriptions;
