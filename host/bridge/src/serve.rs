@@ -403,6 +403,7 @@ fn remote(
         camera,
         domain: opts.domain,
         lockstep: opts.lockstep,
+        shared: robot.shares_world(),
     };
     RemoteService::start(robot, session, &wire::prefix(&opts.namespace), info)
 }

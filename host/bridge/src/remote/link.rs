@@ -255,6 +255,17 @@ impl RemoteLink {
     /// each answer followed by the telemetry it names. A refused or lost call ends the wait
     /// (the silence shows as a lost link).
     fn advance(&mut self, dt: Duration) {
+        if self.info.shared {
+            // Other robots' clients pass this robot's time too: `dt` on from where the clock
+            // stands now, not from the newest report here.
+            if let Ok(Answer::Advanced { time_us, .. }) = self
+                .caller
+                .call(Call::Advance { until_us: 0 }, "reading the clock")
+            {
+                let mut s = self.shared.state.lock();
+                s.advanced_us = s.advanced_us.max(time_us);
+            }
+        }
         let target = (self.now() + dt).as_micros() as u64;
         loop {
             if self.shared.lost().is_some() {

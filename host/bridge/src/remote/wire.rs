@@ -116,6 +116,10 @@ pub struct RemoteInfo {
     /// The robot's time passes only through its clients' [`Call::Advance`] (a simulator served
     /// in lockstep); otherwise it runs by itself (paced to the wall clock, or a real robot).
     pub lockstep: bool,
+    /// The robot shares its simulated world, and its clock, with other robots
+    /// ([`ferrobot::SharedWorld`]): their clients pass its time too, so a lockstep client
+    /// asks where the clock stands before it waits.
+    pub shared: bool,
 }
 
 /// The served camera: its intrinsics and rate.

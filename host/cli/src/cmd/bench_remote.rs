@@ -4,7 +4,10 @@
 //! - in-process: --clients threads call the served robot's own API;
 //! - remote, one robot: --clients programs (each its own zenoh session, as on another machine)
 //!   drive it through the remote backend;
-//! - remote, two robots: the same clients, half on each robot.
+//! - remote, two robots in two worlds: the same clients, half on each robot, each robot
+//!   simulated alone;
+//! - remote, two robots in one world: the same, both robots in one shared world on one clock
+//!   ([`ferrobot::SharedWorld`]).
 //!
 //! Commands: the round trip of an acknowledged command (a heartbeat: sent, checked by the
 //! firmware, acknowledged) through the API, p50 and p99, and how many all clients get through
@@ -111,14 +114,42 @@ fn latency_ms(steps: &Steps, time_us: u64) -> Option<f64> {
     Some(now.saturating_duration_since(*at).as_secs_f64() * 1e3)
 }
 
-fn serve(namespace: &str) -> ferrobot::Result<Served> {
-    let robot = Robot::builder("locobot")
+/// A LoCoBot paced at real time, without its camera, alone or in `world` at `pose`.
+fn locobot(
+    world: Option<(&ferrobot::SharedWorld, [f64; 3])>,
+    seed: u64,
+) -> ferrobot::Result<Robot> {
+    let mut b = Robot::builder("locobot")
         .backend(Backend::Sim {
-            seed: 1,
+            seed,
             realtime: true,
         })
-        .use_camera(false)
-        .build()?;
+        .use_camera(false);
+    if let Some((w, pose)) = world {
+        b = b.shared_world(w).start_pose(pose);
+    }
+    b.build()
+}
+
+/// A LoCoBot alone in its world, served under `namespace`, its clock passed by a thread.
+fn serve(namespace: &str) -> ferrobot::Result<Served> {
+    serve_robot(locobot(None, 1)?, namespace, None)
+}
+
+/// Two LoCoBots in one world, served under `/robot1` and `/robot2`; the first one's clock
+/// thread passes the world's time (and notes its steps for both).
+fn serve_shared() -> ferrobot::Result<[Served; 2]> {
+    let world = ferrobot::SharedWorld::new("empty")?;
+    let a = locobot(Some((&world, [0.0, 0.0, 0.0])), 1)?;
+    let b = locobot(Some((&world, [1.5, 0.0, std::f64::consts::PI])), 2)?;
+    let a = serve_robot(a, "/robot1", None)?;
+    let b = serve_robot(b, "/robot2", Some(a.steps.clone()))?;
+    Ok([a, b])
+}
+
+/// `robot` served under `namespace`; its clock passed by a thread of its own noting the steps,
+/// or, given `steps`, by another robot's in the same world.
+fn serve_robot(robot: Robot, namespace: &str, steps: Option<Steps>) -> ferrobot::Result<Served> {
     let port = std::net::TcpListener::bind("127.0.0.1:0")
         .and_then(|l| l.local_addr())?
         .port();
@@ -130,16 +161,22 @@ fn serve(namespace: &str) -> ferrobot::Result<Served> {
         ..ServeOptions::default()
     };
     let server = Server::start(&robot, &session, opts)?;
-    let steps: Steps = Arc::default();
     let stop = Arc::new(AtomicBool::new(false));
-    let clock = clock(robot.clone(), steps.clone(), stop.clone());
+    let (steps, clock) = match steps {
+        Some(s) => (s, None),
+        None => {
+            let s: Steps = Arc::default();
+            let c = clock(robot.clone(), s.clone(), stop.clone());
+            (s, Some(c))
+        }
+    };
     Ok(Served {
         robot,
         namespace: namespace.into(),
         endpoint,
         steps,
         stop,
-        clock: Some(clock),
+        clock,
         _server: server,
         _session: session,
     })
@@ -297,7 +334,8 @@ pub fn run(a: &Args) -> ferrobot::Result<()> {
     let one = serve("/robot1")?;
     let remote_one = remote_setup(std::slice::from_ref(&one), a.clients, seconds)?;
     let two = [one, serve("/robot2")?];
-    let remote_two = remote_setup(&two, a.clients, seconds)?;
+    let mut remote_two = remote_setup(&two, a.clients, seconds)?;
+    remote_two.setup = "remote, two robots in two worlds".into();
     // Last: its commands, acknowledged in the simulator's own time, run its clock ahead.
     let served = &two[0];
     let local = [served.robot.clone()];
@@ -313,7 +351,13 @@ pub fn run(a: &Args) -> ferrobot::Result<()> {
         })?;
         Ok((ages.concat(), a.clients))
     })?;
-    let rows = [in_process, remote_one, remote_two];
+    drop(two);
+    // Alone on the machine: the two robots of one world.
+    let shared = serve_shared()?;
+    let mut remote_shared = remote_setup(&shared, a.clients, seconds)?;
+    remote_shared.setup = "remote, two robots in one world".into();
+    drop(shared);
+    let rows = [in_process, remote_one, remote_two, remote_shared];
     if a.json {
         print_json(&rows);
         return Ok(());

@@ -45,9 +45,108 @@ pub struct Args {
     /// clock. ROS 2 peers see time pass only while a client drives the robot.
     #[arg(long)]
     pub lockstep: bool,
+    /// On the simulator: where the robot starts, X Y THETA (m, m, rad) in the world
+    /// (default: the scene's start pose).
+    #[arg(long, num_args = 3, allow_negative_numbers = true, value_names = ["X", "Y", "THETA"])]
+    pub start_pose: Option<Vec<f64>>,
+    /// On the simulator: serve another robot in the same world, on one clock, under its own
+    /// namespace: NAMESPACE=ROBOT@X,Y,THETA (m, m, rad), e.g. `/b=locobot@1.5,0,3.14`. Repeat
+    /// for more; each needs a namespace of its own.
+    #[arg(
+        long,
+        value_name = "NAMESPACE=ROBOT@X,Y,THETA",
+        allow_hyphen_values = true
+    )]
+    pub also: Vec<String>,
     /// Where it runs (the in-process simulator by default, paced at real time).
     #[command(flatten)]
     pub backend: BackendArgs,
+}
+
+/// Another robot to serve in the same world (`--also`).
+#[derive(Debug, Clone, PartialEq)]
+struct Also {
+    namespace: String,
+    robot: String,
+    pose: [f64; 3],
+}
+
+/// `NAMESPACE=ROBOT@X,Y,THETA`.
+fn parse_also(s: &str) -> ferrobot::Result<Also> {
+    let bad = |why: &str| {
+        ferrobot::Error::Usage(format!(
+            "--also {s:?}: {why} (NAMESPACE=ROBOT@X,Y,THETA, e.g. /b=locobot@1.5,0,3.14)"
+        ))
+    };
+    let (namespace, rest) = s.split_once('=').ok_or_else(|| bad("no '='"))?;
+    let (robot, pose) = rest.rsplit_once('@').ok_or_else(|| bad("no '@'"))?;
+    let v: Vec<f64> = pose
+        .split(',')
+        .map(|x| x.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| bad("the pose is not three numbers"))?;
+    let pose: [f64; 3] = v
+        .try_into()
+        .map_err(|_| bad("the pose is not three numbers"))?;
+    if robot.is_empty() {
+        return Err(bad("no robot"));
+    }
+    Ok(Also {
+        namespace: namespace.to_string(),
+        robot: robot.to_string(),
+        pose,
+    })
+}
+
+/// The robots to serve: the first (`ROBOT`, `--namespace`, `--start-pose`) and the others
+/// (`--also`), each under a namespace of its own; in one shared world when there are others.
+fn robots(
+    a: &Args,
+    backend: &ferrobot::Backend,
+) -> ferrobot::Result<Vec<(String, ferrobot::Robot)>> {
+    let others = a
+        .also
+        .iter()
+        .map(|s| parse_also(s))
+        .collect::<ferrobot::Result<Vec<_>>>()?;
+    let mut seen = std::collections::BTreeSet::from([a.namespace.clone()]);
+    for o in &others {
+        if !seen.insert(o.namespace.clone()) {
+            return Err(ferrobot::Error::Usage(format!(
+                "namespace {:?} is served twice: each robot needs its own",
+                o.namespace
+            )));
+        }
+    }
+    if !others.is_empty() && !matches!(backend, ferrobot::Backend::Sim { .. }) {
+        return Err(ferrobot::Error::Usage(
+            "--also serves robots in one simulated world: it takes the simulator backend".into(),
+        ));
+    }
+    let start = a.start_pose.as_ref().map(|p| [p[0], p[1], p[2]]);
+    let mut b = super::common::robot_builder(&a.robot).backend(backend.clone());
+    if let Some(p) = start {
+        b = b.start_pose(p);
+    }
+    if others.is_empty() {
+        return Ok(vec![(a.namespace.clone(), b.scene(&a.scene).build()?)]);
+    }
+    let world = ferrobot::SharedWorld::new(&a.scene)?;
+    let mut out = vec![(a.namespace.clone(), b.shared_world(&world).build()?)];
+    for (k, o) in others.into_iter().enumerate() {
+        let mut backend = backend.clone();
+        if let ferrobot::Backend::Sim { seed, .. } = &mut backend {
+            // Each robot's plants their own noise.
+            *seed = seed.wrapping_add(k as u64 + 1);
+        }
+        let bot = super::common::robot_builder(&o.robot)
+            .backend(backend)
+            .shared_world(&world)
+            .start_pose(o.pose)
+            .build()?;
+        out.push((o.namespace, bot));
+    }
+    Ok(out)
 }
 
 /// The line `ferrobot serve` prints once it serves.
@@ -57,6 +156,8 @@ struct Serving<'a> {
     listen: &'a [String],
     connect: &'a [String],
     namespace: &'a str,
+    /// The other robots' namespaces (`--also`).
+    also: &'a [&'a str],
     domain: u32,
     authenticated: bool,
     lockstep: bool,
@@ -117,23 +218,25 @@ pub fn run(a: &Args) -> ferrobot::Result<()> {
     };
     access.check_serving().map_err(bridge)?;
     let backend = backend(a)?;
-    let robot = super::common::robot_builder(&a.robot)
-        .backend(backend)
-        .scene(&a.scene)
-        .build()?;
+    let robots = robots(a, &backend)?;
     let session = access::open(&access).map_err(bridge)?;
-    let opts = ServeOptions {
-        domain: a.domain,
-        namespace: a.namespace.clone(),
-        camera: !a.no_camera,
-        lockstep: a.lockstep,
-        ..ServeOptions::default()
-    };
-    let server = Server::start(&robot, &session, opts).map_err(bridge)?;
+    let mut servers = Vec::new();
+    for (namespace, robot) in &robots {
+        let opts = ServeOptions {
+            domain: a.domain,
+            namespace: namespace.clone(),
+            camera: !a.no_camera,
+            lockstep: a.lockstep,
+            ..ServeOptions::default()
+        };
+        servers.push(Server::start(robot, &session, opts).map_err(bridge)?);
+    }
+    // The first robot: its waits pass the others' time too (one world, one clock).
+    let robot = &robots[0].1;
     let view = a
         .view
         .as_deref()
-        .map(|addr| view(&robot, addr, !a.no_camera))
+        .map(|addr| view(robot, addr, !a.no_camera))
         .transpose()?;
     let authenticated = access.credentials.is_some();
     eprintln!(
@@ -151,11 +254,30 @@ pub fn run(a: &Args) -> ferrobot::Result<()> {
         listen: &a.listen,
         connect: &a.connect,
         namespace: &a.namespace,
+        also: &robots[1..]
+            .iter()
+            .map(|(n, _)| n.as_str())
+            .collect::<Vec<_>>(),
         domain: a.domain,
         authenticated,
         lockstep: a.lockstep,
         view: a.view.as_deref(),
     });
+    until_asked_to_end(robot, a.lockstep)?;
+    for (server, (namespace, _)) in servers.into_iter().zip(&robots) {
+        let stats = server.stop();
+        eprintln!("served {namespace}: {stats:?}");
+    }
+    if let Some(v) = view {
+        eprintln!("view: {:?}", v.stats());
+    }
+    Ok(())
+}
+
+/// Lets `robot`'s time pass (a simulator paced to the wall clock; in `lockstep`, its clients
+/// let it pass) until standard input closes or the process is asked to end (SIGINT, SIGTERM,
+/// SIGHUP).
+fn until_asked_to_end(robot: &ferrobot::Robot, lockstep: bool) -> ferrobot::Result<()> {
     let stop = Arc::new(AtomicBool::new(false));
     for sig in [
         signal_hook::consts::SIGINT,
@@ -172,15 +294,10 @@ pub fn run(a: &Args) -> ferrobot::Result<()> {
     // The robot's time passes (the simulator's paced to the wall clock) and its streams flow;
     // in lockstep, its clients let it pass.
     while !stop.load(Ordering::SeqCst) {
-        match a.lockstep {
+        match lockstep {
             true => std::thread::sleep(std::time::Duration::from_millis(20)),
             false => robot.wait(0.02)?,
         }
-    }
-    let stats = server.stop();
-    eprintln!("served: {stats:?}");
-    if let Some(v) = view {
-        eprintln!("view: {:?}", v.stats());
     }
     Ok(())
 }

@@ -68,6 +68,78 @@ fn serve_in_lockstep_lets_its_clients_pass_the_robots_time() {
     assert!(child.wait().expect("ends").success());
 }
 
+/// `--also`: two robots in one simulated world, served side by side under their namespaces
+/// and driven by one program through the remote backend. A drives into B and its goal ends
+/// on the bumper's typed fault where B's plate stands; B's odometry never moved; B's time is
+/// the world's, which A's motion passed.
+#[test]
+fn serve_two_robots_in_one_world_driven_by_one_program() {
+    let listen = format!("tcp/127.0.0.1:{}", ferrobot_peers::free_port());
+    let (mut child, line) = start(
+        &[
+            "--lockstep",
+            "--listen",
+            &listen,
+            "--namespace",
+            "/a",
+            "--also",
+            "/b=locobot@1.2,0,3.14159265",
+        ],
+        Stdio::inherit(),
+    );
+    let v: serde_json::Value = serde_json::from_str(line.trim()).expect("JSON");
+    assert_eq!(v["also"], serde_json::json!(["/b"]), "{v}");
+    let access = ferrobot_bridge::Access::connect(&listen);
+    let timeout = std::time::Duration::from_secs(10);
+    let connect = |ns: &str| {
+        ferrobot_bridge::remote::connect("locobot", &access, ns, timeout)
+            .expect("connects")
+            .build()
+            .expect("builds")
+    };
+    let (a, b) = (connect("/a"), connect("/b"));
+    let t0 = b.time();
+    let e = a
+        .base()
+        .unwrap()
+        .go_to_relative([1.0, 0.0, 0.0])
+        .expect_err("B is in the way");
+    assert!(
+        matches!(
+            e,
+            ferrobot::Error::Fault {
+                kind: ferrobot::FaultKind::Bumper,
+                ..
+            }
+        ),
+        "{e}"
+    );
+    // A's bumper ring (0.177 m) against B's plate (0.247 m ahead of B's centre): 0.424 m
+    // from B, by A's odometry (within 2 cm: the odometry's 1 % and the bumper's travel).
+    let xa = a.base().unwrap().get_state().unwrap()[0];
+    let sb = b.base().unwrap().get_state().unwrap();
+    eprintln!("A stopped at x = {xa:.4} m by its odometry ({e}); B's odometry {sb:?}");
+    assert!((1.2 - xa - 0.4243).abs() < 0.02, "{xa}");
+    // B's wheels never turned; its heading drifts with the Kobuki's gyro bias (at most
+    // 0.2 mrad/s in the simulator) over the few seconds.
+    assert!(
+        sb[0].abs() < 1e-4 && sb[1].abs() < 1e-4 && sb[2].abs() < 5e-3,
+        "B moved: {sb:?}"
+    );
+    // One clock: A's drive passed B's time, although B's client never waited.
+    let ta = a.time();
+    b.wait(0.5).expect("time passes");
+    eprintln!(
+        "world time {t0:.2} s -> A's drive ended at {ta:.2} s -> B after 0.5 s: {:.2} s",
+        b.time()
+    );
+    assert!(ta - t0 > 1.0, "{ta} {t0}");
+    assert!((b.time() - ta - 0.5).abs() < 0.05, "{} {ta}", b.time());
+    drop((a, b));
+    drop(child.stdin.take());
+    assert!(child.wait().expect("ends").success());
+}
+
 /// `ferrobot serve locobot --no-camera` with `args`, its standard error to `stderr`, once it
 /// serves: the process (its standard input open) and the line it printed.
 fn start(args: &[&str], stderr: Stdio) -> (std::process::Child, String) {
