@@ -20,6 +20,7 @@ mod options;
 mod record;
 mod robot;
 mod skills;
+mod world;
 
 use pyo3::prelude::*;
 
@@ -34,6 +35,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<base::Base>()?;
     m.add_class::<motion::Motion>()?;
     m.add_class::<record::Recorder>()?;
+    m.add_class::<world::SharedWorld>()?;
     m.add_function(wrap_pyfunction!(record::export_lerobot, m)?)?;
     m.add_function(wrap_pyfunction!(skills::grasp, m)?)?;
     m.add_function(wrap_pyfunction!(skills::push, m)?)?;

@@ -112,14 +112,15 @@ impl Robot {
     /// description, e.g. `{"arm.joint_tolerance": 0.01}`), and for hand-eye calibration in
     /// the simulator `calibration_marker` (draw the gripper's marker) and
     /// `camera_mount_error` (`[dx, dy, dz, droll, dpitch, dyaw]`, m and rad: the simulated
-    /// camera sits that far off its URDF pose, which the host keeps believing).
+    /// camera sits that far off its URDF pose, which the host keeps believing), and `world` (a
+    /// `SharedWorld` to join, with other robots, at `start_pose`, instead of `scene`).
     #[new]
     #[pyo3(signature = (
         robot_name, use_arm=true, use_base=true, use_camera=true, use_gripper=true,
         arm_config=None, base_config=None, camera_config=None, gripper_config=None,
         common_config=None, *, scene=None, backend=None, seed=1, realtime=false,
         config_file=None, start_pose=None, depth_noise=true, slam=false, overrides=None,
-        calibration_marker=false, camera_mount_error=None
+        calibration_marker=false, camera_mount_error=None, world=None
     ))]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -145,6 +146,7 @@ impl Robot {
         overrides: Option<&Bound<'_, PyDict>>,
         #[pyo3(from_py_with = truthy)] calibration_marker: bool,
         camera_mount_error: Option<&Bound<'_, PyAny>>,
+        world: Option<PyRef<'_, crate::world::SharedWorld>>,
     ) -> PyResult<Self> {
         let base_cfg = options::checked(base_config, "base_config", &options::BASE_KEYS)?;
         options::checked(arm_config, "arm_config", &options::ARM_KEYS)?;
@@ -171,8 +173,16 @@ impl Robot {
         let scene = scene
             .or(options::string(&common, "scene")?)
             .or(options::string(&common, "scene_path")?);
-        if let Some(s) = scene {
-            builder = builder.scene(&s);
+        match (scene, &world) {
+            (Some(_), Some(_)) => {
+                return Err(ferrobot::Error::Usage(
+                    "scene and world: a robot joining a shared world is in its scene".into(),
+                ))
+                .py()
+            }
+            (Some(s), None) => builder = builder.scene(&s),
+            (None, Some(w)) => builder = builder.shared_world(&w.world),
+            (None, None) => {}
         }
         if let Some(p) = start_pose {
             builder = builder.start_pose(convert::array::<3>(p, "start_pose")?);

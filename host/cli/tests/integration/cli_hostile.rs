@@ -932,6 +932,56 @@ fn cases() -> Vec<Case> {
         ));
     }
     // collision-matrix: unknown robots, absurd sample counts.
+    // `serve`: robots of one world (`--also`) and start poses, refused before anything serves.
+    fn serve<'a>(extra: &[&'a str]) -> Vec<&'a str> {
+        let mut a = vec![
+            "serve",
+            "locobot",
+            "--no-camera",
+            "--listen",
+            "tcp/127.0.0.1:0",
+        ];
+        a.extend_from_slice(extra);
+        a
+    }
+    for also in [
+        "",
+        "/b",
+        "/b=locobot",
+        "/b=locobot@1,2",
+        "/b=locobot@1,2,3,4",
+        "/b=locobot@nan,0,0",
+        "/b=locobot@1e300,0,0",
+        "/b=locobot@inf,0,0",
+        "/b=@2,0,0",
+        "/b=wall-e@2,0,0",
+        "/b=./binary.toml@2,0,0",
+        "/b=/dev/zero@2,0,0",
+        "/=locobot@2,0,0",
+        "/b=locobot@0.1,0,0",
+        "bad ns=locobot@2,0,0",
+    ] {
+        c.push(case(&serve(&["--also", also]), Input));
+    }
+    c.push(case(
+        &serve(&["--also", "/b=locobot@2,0,0", "--also", "/b=locobot@-2,0,0"]),
+        Input,
+    ));
+    c.push(case(
+        &serve(&[
+            "--also",
+            "/b=locobot@2,0,0",
+            "--backend",
+            "serial",
+            "--port",
+            "/dev/null",
+        ]),
+        Input,
+    ));
+    for v in HOSTILE {
+        c.push(case(&serve(&["--start-pose", v, "0", "0"]), Input));
+    }
+    c.push(case(&serve(&["--start-pose", "0", "0"]), Input));
     for robot in ["wall-e", "", "./binary.toml", "./huge.toml", "/dev/zero"] {
         c.push(case(&["collision-matrix", robot], Input));
     }

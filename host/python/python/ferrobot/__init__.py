@@ -21,6 +21,7 @@ from ._native import (
     Plan,
     Recorder,
     Robot,
+    SharedWorld,
     __version__,
     bench_base,
     calibrate_camera,
@@ -34,6 +35,7 @@ from .errors import Error
 
 __all__ = [
     "Robot",
+    "SharedWorld",
     "Arm",
     "Base",
     "Camera",

@@ -336,3 +336,25 @@ def test_hand_eye_calibration_finds_the_cameras_true_mount(repo):
     assert np.degrees(angle) < 0.5
     # The nominal mount is 2 cm and 3 degrees away: the fit is not the URDF's.
     assert np.linalg.norm(np.array(c["xyz"]) - nominal[:3, 3]) > 0.015
+
+
+def test_two_robots_share_one_world_and_one_clock():
+    import math
+
+    world = ferrobot.SharedWorld("empty")
+    a = Robot("locobot", world=world, start_pose=[0.0, 0.0, 0.0])
+    b = Robot("locobot", world=world, start_pose=[1.2, 0.0, math.pi])
+    assert world.robots() == 2
+    # B's arm moves while A drives into B; A's bumper ends its goal with a typed fault.
+    q = [0.4, 0.3, -0.3, 0.2, 0.0]
+    arm = b.arm.set_joint_positions(q, plan=False, wait=False)
+    with pytest.raises(errors.Fault):
+        a.base.go_to_relative([1.0, 0.0, 0.0])
+    a.wait(3.0)
+    assert arm.done()
+    assert np.allclose(b.arm.get_joint_angles(), q, atol=0.02)
+    # A stands against B's plate: its bumper ring (0.177 m) and the plate's reach (0.247 m).
+    pa, pb = world.true_pose(0), world.true_pose(1)
+    assert abs(pb[0] - pa[0] - 0.4243) < 0.005, (pa, pb)
+    assert abs(pb[0] - 1.2) < 1e-9 and abs(pb[1]) < 1e-9, pb  # B was not pushed
+    assert abs(a.time() - b.time()) < 1e-6 and abs(a.time() - world.time()) < 1e-6

@@ -300,3 +300,30 @@ def test_backend_specs_are_refused_with_typed_errors(monkeypatch):
     monkeypatch.setenv("FERROBOT_BACKEND", "serial:")
     with pytest.raises(ferrobot.errors.InvalidArgument):
         Robot("locobot")
+
+
+def test_shared_worlds_refuse_bad_scenes_places_and_companions():
+    for scene in ["kitchen", "", "/dev/zero", "/nonexistent/scene.toml"]:
+        with pytest.raises(ferrobot.Error):
+            ferrobot.SharedWorld(scene)
+    for scene in [None, 3, 1.5, ["empty"]]:
+        with pytest.raises((TypeError, ferrobot.Error)):
+            ferrobot.SharedWorld(scene)
+    world = ferrobot.SharedWorld("empty")
+    Robot("locobot", world=world, start_pose=[0.0, 0.0, 0.0])
+    # On top of the first robot; beyond any floor; not finite; not three numbers.
+    for pose in [[0.1, 0.0, 0.0], [1e300, 0.0, 0.0], [math.nan, 0.0, 0.0], [0.0, math.inf, 0.0], [1.0, 2.0]]:
+        with pytest.raises(ferrobot.Error):
+            Robot("locobot", world=world, start_pose=pose)
+    # A scene beside a world, another backend, something that is not a world.
+    with pytest.raises(ferrobot.errors.Usage):
+        Robot("locobot", world=world, scene="tabletop", start_pose=[2.0, 0.0, 0.0])
+    with pytest.raises(ferrobot.Error):
+        Robot("locobot", world=world, backend="serial:/dev/null", start_pose=[2.0, 0.0, 0.0])
+    for not_a_world in ["empty", 1, object()]:
+        with pytest.raises(TypeError):
+            Robot("locobot", world=not_a_world, start_pose=[2.0, 0.0, 0.0])
+    assert world.robots() == 1
+    for i in [1, -1, 2**70]:
+        with pytest.raises((ferrobot.Error, OverflowError)):
+            world.true_pose(i)
