@@ -298,16 +298,6 @@ struct Serving {
     remote: Option<Arc<RemoteService>>,
 }
 
-/// The camera's topics: someone subscribed to any of them has the camera's frames read.
-const CAMERA_TOPICS: [Topic; 6] = [
-    topics::COLOR,
-    topics::DEPTH,
-    topics::CAMERA_INFO,
-    topics::POINTS,
-    topics::CAMERA_POSE,
-    topics::CAMERA_ODOM,
-];
-
 /// How often the camera's subscribers are looked for, wall time.
 const CAMERA_LOOK: Duration = Duration::from_millis(100);
 
@@ -323,7 +313,7 @@ impl Serving {
             return;
         }
         *looked = Some(std::time::Instant::now());
-        let wanted = self.publish.matched(&CAMERA_TOPICS);
+        let wanted = self.publish.matched(&topics::CAMERA);
         if self
             .feeds
             .set_camera(&self.robot, wanted, *queue, bell)

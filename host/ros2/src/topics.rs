@@ -169,6 +169,10 @@ topic!(
     "a trajectory for the arm: every arm joint named, the arm moved through its points in order, each a planned motion (served robots subscribe)."
 );
 
+/// The topics a camera frame is published on: a server reads (renders, on the simulator) the
+/// camera's frames only while someone subscribes to one of them.
+pub const CAMERA: [Topic; 6] = [COLOR, DEPTH, CAMERA_INFO, POINTS, CAMERA_POSE, CAMERA_ODOM];
+
 /// Every topic, in the order of this table.
 pub const ALL: [Topic; 24] = [
     ROBOT_DESCRIPTION,

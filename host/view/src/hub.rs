@@ -49,6 +49,8 @@ pub struct Hub {
     clients: HashMap<u64, Client>,
     next_client: u64,
     stats: HubStats,
+    /// Messages published on each channel (by id − 1), whether or not anyone took them.
+    published: Vec<u64>,
 }
 
 fn json(m: &ServerMsg<'_>) -> String {
@@ -93,6 +95,26 @@ impl Hub {
             let _ = client.out.try_send(Out::Text(text.clone()));
         }
         id
+    }
+
+    /// Messages published on the topic named `topic` so far, whether or not anyone took them.
+    pub fn published(&self, topic: &str) -> u64 {
+        self.by_topic
+            .get(topic)
+            .and_then(|&id| self.published.get(id as usize - 1))
+            .copied()
+            .unwrap_or(0)
+    }
+
+    /// Whether any client subscribes to one of `topics`.
+    pub fn wanted(&self, topics: &[Topic]) -> bool {
+        let ids: Vec<u32> = topics
+            .iter()
+            .filter_map(|t| self.by_topic.get(t.name).copied())
+            .collect();
+        self.clients
+            .values()
+            .any(|c| ids.iter().any(|id| c.subs.contains_key(id)))
     }
 
     /// A new client: told who the server is and every channel so far; its id.
@@ -160,6 +182,11 @@ impl Hub {
     /// message is also kept for later subscribers.
     pub fn publish(&mut self, topic: &Topic, time_ns: u64, data: Vec<u8>, latched: bool) {
         let ch = self.channel(topic);
+        let i = ch as usize - 1;
+        if self.published.len() <= i {
+            self.published.resize(i + 1, 0);
+        }
+        self.published[i] += 1;
         for client in self.clients.values() {
             let Some(&sub) = client.subs.get(&ch) else {
                 continue;

@@ -11,6 +11,7 @@ use std::time::Duration;
 
 use ferrobot::{Bell, Robot};
 use ferrobot_ros2::robot::{Feeds, Messages, RobotInfo};
+use ferrobot_ros2::topics;
 use ferrobot_ros2::view::WorldFeed;
 use parking_lot::Mutex;
 use tungstenite::handshake::server::{ErrorResponse, Request, Response};
@@ -81,7 +82,9 @@ impl ViewServer {
         )));
         let info = RobotInfo::of(robot)?;
         let camera = opts.camera && info.optical.is_some() && robot.camera().is_ok();
-        let feeds = Feeds::subscribe(robot, 256, camera)?;
+        // The camera's frames are read (rendered, on the simulator) only while a viewer
+        // subscribes to one of their channels, advertised from the start.
+        let feeds = Feeds::subscribe(robot, CAMERA_QUEUE, false)?;
         let bell = Bell::new();
         feeds.ring(&bell);
         let messages = Messages::new(info).with_points(4);
@@ -91,13 +94,18 @@ impl ViewServer {
             for (topic, data) in messages.latched(start) {
                 h.publish(&topic, start.as_nanos() as u64, data, true);
             }
+            if camera {
+                for t in &topics::CAMERA {
+                    h.channel(t);
+                }
+            }
         }
         let stop = Arc::new(AtomicBool::new(false));
         let (h, s, b) = (hub.clone(), stop.clone(), bell.clone());
         let r = robot.clone();
         let feed = std::thread::Builder::new()
             .name("ferrobot-view-feed".into())
-            .spawn(move || feed(&r, feeds, messages, h, s, b))
+            .spawn(move || feed(&r, feeds, camera, messages, h, s, b))
             .map_err(listen)?;
         let (h, s) = (hub.clone(), stop.clone());
         let queue = opts.queue.clamp(1, 100_000);
@@ -123,6 +131,12 @@ impl ViewServer {
     pub fn stats(&self) -> HubStats {
         self.hub.lock().stats()
     }
+
+    /// Messages published on the topic named `topic` so far (`/camera/color/image_raw`),
+    /// whether or not a viewer took them.
+    pub fn published(&self, topic: &str) -> u64 {
+        self.hub.lock().published(topic)
+    }
 }
 
 impl Drop for ViewServer {
@@ -135,10 +149,15 @@ impl Drop for ViewServer {
     }
 }
 
-/// The robot's streams and world, to the viewers, until `stop`.
+/// Frames a viewer's camera feed may fall behind before the oldest is dropped.
+const CAMERA_QUEUE: usize = 256;
+
+/// The robot's streams and world, to the viewers, until `stop`; the camera's frames (when
+/// `camera`) while a viewer subscribes to them.
 fn feed(
     robot: &Robot,
-    feeds: Feeds,
+    mut feeds: Feeds,
+    mut camera: bool,
     mut messages: Messages,
     hub: Arc<Mutex<Hub>>,
     stop: Arc<AtomicBool>,
@@ -146,6 +165,14 @@ fn feed(
 ) {
     let mut world = WorldFeed::default();
     while !stop.load(Ordering::SeqCst) {
+        let wanted = camera && hub.lock().wanted(&topics::CAMERA);
+        if feeds
+            .set_camera(robot, wanted, CAMERA_QUEUE, &bell)
+            .is_err()
+        {
+            // A camera that cannot be read is left alone: the rest flows on.
+            camera = false;
+        }
         for item in feeds.take() {
             let t = item.time().as_nanos() as u64;
             for (topic, data) in messages.of(&item) {

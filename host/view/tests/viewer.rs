@@ -13,6 +13,32 @@ use std::time::{Duration, Instant};
 use ferrobot::{Backend, Robot};
 use ferrobot_view::{ViewOptions, ViewServer};
 
+/// Nobody watching: the view reads no camera frame (the simulator renders none for it) while
+/// the robot's other streams flow.
+#[test]
+fn without_a_viewer_of_the_camera_no_frame_is_read() {
+    let robot = Robot::builder("locobot")
+        .backend(Backend::Sim {
+            seed: 1,
+            realtime: false,
+        })
+        .build()
+        .expect("robot");
+    let view = ViewServer::start(&robot, "127.0.0.1:0", ViewOptions::default()).expect("served");
+    robot.wait(1.0).expect("time passes");
+    // The feed thread takes what the robot's streams delivered.
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while view.published("/joint_states") < 50 && Instant::now() < deadline {
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    assert!(view.published("/joint_states") >= 50);
+    assert_eq!(view.published("/camera/color/image_raw"), 0);
+    assert_eq!(
+        view.published("/camera/aligned_depth_to_color/image_raw"),
+        0
+    );
+}
+
 #[test]
 fn a_viewer_sees_the_robot_as_foxglove_would() {
     let Some(py) =
@@ -60,6 +86,16 @@ fn a_viewer_sees_the_robot_as_foxglove_would() {
     assert!(out.status.success(), "the viewer failed: {said}");
     let v: serde_json::Value = serde_json::from_str(said.trim()).expect("its JSON");
     eprintln!("view: {:?}", view.stats());
+    // The camera was read while the viewer subscribed, and is not since it left.
+    let color = "/camera/color/image_raw";
+    let n = view.published(color);
+    robot.wait(0.5).expect("time passes");
+    eprintln!(
+        "camera frames published: {n}, then {}",
+        view.published(color)
+    );
+    assert!(n > 0);
+    assert_eq!(view.published(color), n);
     assert_eq!(v["subprotocol"], "foxglove.websocket.v1");
     assert_eq!(v["server"]["op"], "serverInfo");
     assert_eq!(
