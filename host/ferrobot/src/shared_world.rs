@@ -1,6 +1,6 @@
 //! A simulated world several robots share (cargo feature `sim`): one scene, one physics
 //! world, one clock ([`ferrobot_sim::shared`]). Robots join it with
-//! [`RobotBuilder::shared_world`](crate::RobotBuilder::shared_world); each is a [`Robot`] of
+//! [`RobotBuilder::shared_world`](crate::RobotBuilder::shared_world); each is a [`Robot`](crate::Robot) of
 //! its own, driven by the same API, and what one does the others meet: its bumper stops
 //! against them, their cameras see it.
 //!
