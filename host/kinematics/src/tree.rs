@@ -120,26 +120,30 @@ fn check_joints(urdf: &urdf_rs::Robot, links: &HashSet<&str>) -> Result<()> {
     Ok(())
 }
 
-/// [`check_urdf`]'s mimic joints: each follows a joint that moves and mimics none, with a
-/// finite multiplier and offset.
+/// Whether a URDF joint moves (revolute, continuous or prismatic): the joints a tree and a
+/// chain give values.
+fn moves(j: &urdf_rs::Joint) -> bool {
+    matches!(
+        j.joint_type,
+        urdf_rs::JointType::Revolute
+            | urdf_rs::JointType::Continuous
+            | urdf_rs::JointType::Prismatic
+    )
+}
+
+/// [`check_urdf`]'s mimic joints: each joint that moves and mimics follows a joint that moves
+/// and mimics none, with a finite multiplier and offset. A `<mimic>` on a joint that does not
+/// move is meaningless and ignored, as urdfdom, pinocchio and MoveIt ignore it (VAMP's
+/// `panda_spherized.urdf` fixes both finger joints and keeps the follower's tag).
 fn check_mimics(urdf: &urdf_rs::Robot) -> Result<()> {
     let bad = |why: String| Error::Unreachable { why };
-    for j in &urdf.joints {
+    for j in urdf.joints.iter().filter(|j| moves(j)) {
         let Some(m) = &j.mimic else { continue };
         let leader = urdf.joints.iter().find(|l| l.name == m.joint);
         let why = match leader {
             None => Some("which the URDF does not define".to_string()),
+            Some(l) if !moves(l) => Some("which does not move".into()),
             Some(l) if l.mimic.is_some() => Some("which mimics another joint itself".into()),
-            Some(l)
-                if !matches!(
-                    l.joint_type,
-                    urdf_rs::JointType::Revolute
-                        | urdf_rs::JointType::Continuous
-                        | urdf_rs::JointType::Prismatic
-                ) =>
-            {
-                Some("which does not move".into())
-            }
             _ => None,
         };
         if let Some(why) = why {
@@ -547,5 +551,40 @@ mod tests {
         let urdf = urdf_rs::read_from_string(&chained).unwrap();
         let err = LinkTree::from_urdf(&urdf).unwrap_err();
         assert!(err.to_string().contains("mimics another"), "{err}");
+        // A moving joint that mimics a fixed one would mislead: refused.
+        let fixed_leader = gripper(r#"<mimic joint="finger_l"/>"#).replace(
+            r#"<joint name="finger_l" type="prismatic">"#,
+            r#"<joint name="finger_l" type="fixed">"#,
+        );
+        let urdf = urdf_rs::read_from_string(&fixed_leader).unwrap();
+        let err = LinkTree::from_urdf(&urdf).unwrap_err();
+        assert!(err.to_string().contains("does not move"), "{err}");
+    }
+
+    /// A `<mimic>` on a joint that does not move is ignored, as urdfdom ignores it: VAMP's
+    /// Panda fixes both finger joints and keeps the follower's tag. The tree and a chain
+    /// through the fixed joint build, and the fixed finger sits where its origin puts it.
+    #[test]
+    fn a_mimic_on_a_fixed_joint_is_ignored() {
+        let both_fixed = gripper(r#"<mimic joint="finger_l" multiplier="-1"/>"#)
+            .replace(
+                r#"<joint name="finger_l" type="prismatic">"#,
+                r#"<joint name="finger_l" type="fixed">"#,
+            )
+            .replace(
+                r#"<joint name="finger_r" type="prismatic">"#,
+                r#"<joint name="finger_r" type="fixed">"#,
+            );
+        let urdf = urdf_rs::read_from_string(&both_fixed).unwrap();
+        let tree = LinkTree::from_urdf(&urdf).expect("a fixed joint's mimic is ignored");
+        assert_eq!(tree.joints().len(), 1, "only the wrist moves");
+        let poses = tree.poses(&[0.0]);
+        let right = poses[tree.link_index("right").unwrap()].translation.vector;
+        assert!((right - nalgebra::Vector3::new(0.1, 0.0, 0.0)).norm() < 1e-12);
+        assert!(Chain::from_urdf(&urdf, "base", "right").is_ok());
+        // Its leader need not exist either: the tag says nothing.
+        let dangling = both_fixed.replace(r#"joint="finger_l""#, r#"joint="thumb""#);
+        let urdf = urdf_rs::read_from_string(&dangling).unwrap();
+        assert!(LinkTree::from_urdf(&urdf).is_ok());
     }
 }
