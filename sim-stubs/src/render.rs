@@ -206,23 +206,8 @@ impl Renderer {
             r.add_body(i, b);
         }
         if let Some(body) = body {
-            for (li, (name, shapes)) in body.tree.links().zip(&body.shapes).enumerate() {
-                if shapes.is_empty() {
-                    continue;
-                }
-                r.labels.push(format!("robot/{name}"));
-                let label = (r.labels.len() - 1) as u32;
-                for s in shapes {
-                    let (m, closed) = tessellate(&s.shape);
-                    r.materials.push(Material {
-                        colour: s.colour,
-                        texture: None,
-                    });
-                    let mat = (r.materials.len() - 1) as u32;
-                    r.meshes
-                        .push((Owner::Link(li), draw_mesh(&m, closed, s.origin, mat, label)));
-                }
-            }
+            let links = r.link_meshes(body, "robot", Owner::Link);
+            r.meshes.extend(links);
             r.first_decal = r.meshes.len();
             for (li, s) in &body.decals {
                 let name = body.tree.links().nth(*li).unwrap_or_default();
@@ -252,26 +237,37 @@ impl Renderer {
         self.materials.truncate(self.own.1);
         self.others.clear();
         for (k, body) in others.iter().enumerate() {
-            for (li, (name, shapes)) in body.tree.links().zip(&body.shapes).enumerate() {
-                if shapes.is_empty() {
-                    continue;
-                }
-                self.labels.push(format!("robots/{k}/{name}"));
-                let label = (self.labels.len() - 1) as u32;
-                for s in shapes {
-                    let (m, closed) = tessellate(&s.shape);
-                    self.materials.push(Material {
-                        colour: s.colour,
-                        texture: None,
-                    });
-                    let mat = (self.materials.len() - 1) as u32;
-                    self.others.push((
-                        Owner::Other(k, li),
-                        draw_mesh(&m, closed, s.origin, mat, label),
-                    ));
-                }
+            let links = self.link_meshes(body, &format!("robots/{k}"), |li| Owner::Other(k, li));
+            self.others.extend(links);
+        }
+    }
+
+    /// The meshes of `body`'s links with shapes, each link labelled `PREFIX/LINK` and owned
+    /// by `owner(link index)`; their labels and materials added.
+    fn link_meshes(
+        &mut self,
+        body: &RobotBody,
+        prefix: &str,
+        owner: impl Fn(usize) -> Owner,
+    ) -> Vec<(Owner, DrawMesh)> {
+        let mut out = Vec::new();
+        for (li, (name, shapes)) in body.tree.links().zip(&body.shapes).enumerate() {
+            if shapes.is_empty() {
+                continue;
+            }
+            self.labels.push(format!("{prefix}/{name}"));
+            let label = (self.labels.len() - 1) as u32;
+            for s in shapes {
+                let (m, closed) = tessellate(&s.shape);
+                self.materials.push(Material {
+                    colour: s.colour,
+                    texture: None,
+                });
+                let mat = (self.materials.len() - 1) as u32;
+                out.push((owner(li), draw_mesh(&m, closed, s.origin, mat, label)));
             }
         }
+        out
     }
 
     fn add_body(&mut self, i: usize, b: &Body) {
