@@ -14,6 +14,12 @@
 # when an earlier one failed, and the script fails at the end naming what failed.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+# Every test's temporary files go to a directory of this run's own, which must be empty at the
+# end: a test that leaves files behind fails the run (on a shared disk they pile up run after
+# run). A short path, since Unix sockets' paths are limited to 107 bytes.
+run_tmp=$(mktemp -d "${TMPDIR:-/tmp}/ferrobot-ci.XXXXXX")
+export TMPDIR=$run_tmp
+echo "disk: $(df -h --output=avail . | tail -1 | tr -d ' ') free where the build goes; temporary files in $TMPDIR"
 start=$(date +%s)
 last=$start
 # Each step's header also says how long the one before it took, so CI time can be read by step.
@@ -179,6 +185,17 @@ else
     check "cargo test" cargo test "${tested[@]}" --no-fail-fast --exclude ferrobot-hil -- \
         --skip "$host_run_listings" --skip "$remote_listings" --skip "$host_run_demos"
 fi
+
+step "what the tests left in the temporary directory, and the build's size on disk"
+left=$(find "$run_tmp" -mindepth 1 -maxdepth 1 -printf '%f\n' | sort)
+if [ -n "$left" ]; then
+    echo "left behind in $run_tmp:"
+    echo "$left" | sed 's/^/    /'
+    failed+=("temporary files left behind")
+else
+    rmdir "$run_tmp"
+fi
+echo "target/: $(du -sh target | cut -f1); $(df -h --output=avail . | tail -1 | tr -d ' ') free"
 
 if [ ${#failed[@]} -gt 0 ]; then
     step "FAILED: ${failed[*]}"

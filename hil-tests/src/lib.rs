@@ -235,7 +235,6 @@ impl Drop for Hil {
         if std::thread::panicking() || std::env::var_os("FERROBOT_HIL_REPORT").is_some() {
             eprintln!("{}", self.diagnosis());
         }
-        let _ = std::fs::remove_file(&self.board.log);
     }
 }
 

@@ -557,10 +557,8 @@ fn a_board_without_its_plants_fails_within_15_s_naming_them() {
         },
     )
     .expect("ports");
-    let log = std::env::temp_dir().join(format!(
-        "ferrobot-hil-noplants-{}.defmt",
-        std::process::id()
-    ));
+    let log_dir = tempfile::tempdir().expect("temporary directory");
+    let log = log_dir.path().join("noplants.defmt");
     let (mut qemu, _err) =
         ferrobot::backend::emulated::start_qemu(&elf, &server.board, &log).expect("qemu");
     let t0 = Instant::now();
@@ -613,7 +611,8 @@ fn wrong_ports_fail_within_15_s_naming_the_port() {
         ferrobot_sim::board::BoardServer::start("locobot", Default::default()).expect("ports");
     let mut ports = server.board.clone();
     ports.servo_bus = "/dev/pts/987655".into();
-    let log = std::env::temp_dir().join(format!("ferrobot-hil-wrong-{}.defmt", std::process::id()));
+    let log_dir = tempfile::tempdir().expect("temporary directory");
+    let log = log_dir.path().join("wrong.defmt");
     let tq = Instant::now();
     let (mut qemu, mut err) =
         ferrobot::backend::emulated::start_qemu(&elf, &ports, &log).expect("qemu starts");
@@ -898,7 +897,8 @@ fn the_base_driving_into_a_wall_raises_the_bumper_fault_and_stops() {
         &scene,
     )
     .expect("plants");
-    let log = std::env::temp_dir().join(format!("ferrobot-hil-wall-{}.defmt", std::process::id()));
+    let log_dir = tempfile::tempdir().expect("temporary directory");
+    let log = log_dir.path().join("wall.defmt");
     let (qemu, _err) =
         ferrobot::backend::emulated::start_qemu(&elf, &server.board, &log).expect("qemu");
     let _qemu = Qemu(qemu);

@@ -472,20 +472,21 @@ fn read_text_vertex(
 mod tests {
     use super::*;
 
-    fn tmp(name: &str) -> std::path::PathBuf {
-        let d = std::env::temp_dir().join(format!("ferrobot-perception-{}", std::process::id()));
-        std::fs::create_dir_all(&d).unwrap();
-        d.join(name)
+    /// `name` in a temporary directory removed with the guard.
+    fn tmp(name: &str) -> (tempfile::TempDir, std::path::PathBuf) {
+        let dir = tempfile::tempdir().expect("temporary directory");
+        let path = dir.path().join(name);
+        (dir, path)
     }
 
     #[test]
     fn images_and_clouds_round_trip() {
         let rgb = RgbImage::new(3, 2, (0..18).collect()).unwrap();
-        let pr = tmp("rgb.png");
+        let (_pr_dir, pr) = tmp("rgb.png");
         write_rgb_png(&pr, &rgb).unwrap();
         assert_eq!(read_rgb_png(&pr).unwrap(), rgb);
         let depth = DepthImage::new(3, 2, vec![0.0, 0.2004, 1.0, 1.2346, 65.0, 70.0]).unwrap();
-        let pd = tmp("depth.png");
+        let (_pd_dir, pd) = tmp("depth.png");
         write_depth_png(&pd, &depth).unwrap();
         let back = read_depth_png(&pd).unwrap();
         let want = [0.0, 0.2, 1.0, 1.235, 65.0, 65.535];
@@ -498,7 +499,7 @@ mod tests {
             points: vec![Point3::new(0.5, -0.25, 1.0), Point3::new(1.0, 2.0, 3.0)],
             colours: vec![[1, 2, 3], [250, 128, 0]],
         };
-        let pp = tmp("cloud.ply");
+        let (_pp_dir, pp) = tmp("cloud.ply");
         write_ply(&pp, &cloud).unwrap();
         assert_eq!(read_ply(&pp).unwrap(), cloud);
     }
@@ -514,7 +515,7 @@ mod tests {
             ("huge", b"ply\nformat binary_little_endian 1.0\nelement vertex 99999999999\nproperty float x\nend_header\n"),
         ];
         for (name, bytes) in cases {
-            let p = tmp(&format!("{name}.ply"));
+            let (_p_dir, p) = tmp(&format!("{name}.ply"));
             std::fs::write(&p, bytes).unwrap();
             let e = read_ply(&p).expect_err(name);
             assert!(
@@ -525,14 +526,14 @@ mod tests {
         // A count the file's bytes cannot hold (60 bytes of vertices claimed in a file of a
         // few hundred): refused before anything is reserved for it (a 1 GiB file could ask
         // for tens of gigabytes).
-        let p = tmp("count.ply");
+        let (_p_dir, p) = tmp("count.ply");
         let mut bytes = b"ply\nformat binary_little_endian 1.0\nelement vertex 20\nproperty float x\nproperty float y\nproperty float z\nend_header\n".to_vec();
         bytes.extend_from_slice(&[0u8; 60]);
         std::fs::write(&p, &bytes).unwrap();
         let e = read_ply(&p).expect_err("count");
         assert!(e.to_string().contains("20 vertices"), "{e}");
         // A cloud with fewer colours than points is refused, and no file is made.
-        let p = tmp("uneven.ply");
+        let (_p_dir, p) = tmp("uneven.ply");
         let _ = std::fs::remove_file(&p);
         let uneven = PointCloud {
             points: vec![Point3::new(0.5, -0.25, 1.0), Point3::new(1.0, 2.0, 3.0)],
@@ -543,7 +544,7 @@ mod tests {
             Err(PerceptionError::Size(_))
         ));
         assert!(!p.exists());
-        let ok = tmp("ascii.ply");
+        let (_ok_dir, ok) = tmp("ascii.ply");
         std::fs::write(&ok, b"ply\nformat ascii 1.0\nelement vertex 1\nproperty double x\nproperty double y\nproperty double z\nend_header\n1 2 3\n").unwrap();
         assert_eq!(read_ply(&ok).unwrap().points[0], Point3::new(1.0, 2.0, 3.0));
     }

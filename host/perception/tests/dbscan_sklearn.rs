@@ -37,10 +37,9 @@ fn peer_python() -> Option<PathBuf> {
     )
 }
 
-fn scratch() -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("ferrobot-dbscan-sklearn-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("scratch");
-    dir
+/// A scratch directory, removed with the guard.
+fn scratch() -> tempfile::TempDir {
+    tempfile::tempdir().expect("temporary directory")
 }
 
 /// One scikit-learn run: labels, core flags, the neighbour search it chose.
@@ -162,7 +161,8 @@ struct Seen {
 /// with ours and scikit-learn's for each (eps, min_samples), and checks every label and core
 /// flag; what each run saw, case by case.
 fn compare(py: &Path, cases: &[Case]) -> Vec<Vec<Seen>> {
-    let dir = scratch();
+    let scratch = scratch();
+    let dir = scratch.path();
     let plys: Vec<PathBuf> = cases
         .iter()
         .map(|case| {

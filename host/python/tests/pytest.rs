@@ -79,8 +79,13 @@ fn pytest_env(file: &str, args: &[&str], env: &[(&str, &str)]) {
     };
     let test = format!("{}{}", file.trim_end_matches(".py"), args.concat());
     let dir = stage(&test);
+    // pytest's own `tmp_path`s under a directory removed when this test ends (by default they
+    // stay in the system's temporary directory, three runs' worth).
+    let basetemp = tempfile::tempdir().expect("temporary directory");
     let status = Command::new(python)
         .args(["-m", "pytest", "-q", "-p", "no:cacheprovider", "-rs", file])
+        .arg("--basetemp")
+        .arg(basetemp.path().join("pytest"))
         .args(args)
         .current_dir(root().join("tests/python"))
         .env("PYTHONPATH", &dir)

@@ -26,8 +26,8 @@ fn every_type_we_speak_hashes_as_rosbags_and_ros_2_jazzy_do() {
             )
         })
         .collect();
-    let dir = std::env::temp_dir().join(format!("ferrobot-ros2-types-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let tmp = tempfile::tempdir().expect("temporary directory");
+    let dir = tmp.path();
     let file = dir.join("types.json");
     std::fs::write(&file, format!("[{}]", entries.join(", "))).unwrap();
     let checker = Path::new(env!("CARGO_MANIFEST_DIR")).join("peer/check_types.py");

@@ -264,8 +264,8 @@ fn unknown_scenes_and_unreadable_files_are_typed_errors() {
 
 #[test]
 fn a_scene_file_reads_its_meshes_beside_it() {
-    let dir = std::env::temp_dir().join(format!("ferrobot-scene-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let tmp = tempfile::tempdir().expect("temporary directory");
+    let dir = tmp.path();
     std::fs::write(
         dir.join("tri.obj"),
         "v 0 0 0\nv 0.1 0 0\nv 0 0.1 0\nv 0 0 0.1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n",
@@ -281,7 +281,6 @@ fn a_scene_file_reads_its_meshes_beside_it() {
     assert_eq!(t.shape.kind(), "mesh");
     let v = t.shape.volume();
     assert!((v - 0.2f64.powi(3) / 6.0).abs() < 1e-9, "{v}");
-    std::fs::remove_dir_all(&dir).ok();
 }
 
 /// A number as TOML writes it (`nan`, `inf`, `-inf` included).

@@ -14,6 +14,9 @@ pub(crate) struct Firmware {
     child: Child,
     stdin: Option<ChildStdin>,
     pub(crate) link: PathBuf,
+    /// The link's directory (one per tag: a firmware started again with the same tag is
+    /// behind the same path), removed after the process has ended.
+    dir: PathBuf,
 }
 
 impl Drop for Firmware {
@@ -23,6 +26,7 @@ impl Drop for Firmware {
         let _ = self.child.wait();
         let _ = std::fs::remove_file(&self.link);
         let _ = std::fs::remove_file(ferrobot_sim::camera_server::socket_beside(&self.link));
+        let _ = std::fs::remove_dir_all(&self.dir);
     }
 }
 
@@ -51,7 +55,12 @@ impl Firmware {
         let v: serde_json::Value = serde_json::from_str(&line).expect("JSON");
         assert_eq!(v["host"].as_str(), Some(link.to_str().expect("utf-8")));
         let stdin = child.stdin.take();
-        Firmware { child, stdin, link }
+        Firmware {
+            child,
+            stdin,
+            link,
+            dir,
+        }
     }
 
     /// Send a control line (`ferrobot sim-firmware`'s standard input).

@@ -393,8 +393,8 @@ fn snapshot_writes_images_and_a_cloud_in_the_world_frame() {
 /// physics engine and ends at the goal; the picture is drawn, the gripper's path in red.
 #[test]
 fn arm_plan_executes_around_the_tabletop_without_contact_and_draws_it() {
-    let dir = std::env::temp_dir().join(format!("ferrobot-arm-plan-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let tmp = tempfile::tempdir().expect("temporary directory");
+    let dir = tmp.path();
     let png = dir.join("motion.png");
     let goal = [0.6932, -0.0235, 0.6592, 1.3374, -0.4848];
     let goal_s: Vec<String> = goal.iter().map(|v| v.to_string()).collect();
@@ -427,7 +427,6 @@ fn arm_plan_executes_around_the_tabletop_without_contact_and_draws_it() {
         .filter(|p| p[0] == 214 && p[1] == 39 && p[2] == 40)
         .count();
     assert!(red > 300, "{red} px of the gripper's path");
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 /// Any robot in any scene: Sawyer's seven joints from high above its pedestal down beside the
@@ -452,8 +451,8 @@ fn cluster_prints_the_librarys_labels_in_file_order() {
     use ferrobot::perception::io::{read_ply, write_ply};
     use ferrobot::perception::synthetic::blobs;
     use ferrobot::perception::{Clusterer, Dbscan, PointCloud};
-    let dir = std::env::temp_dir().join(format!("ferrobot-cli-cluster-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("dir");
+    let tmp = tempfile::tempdir().expect("temporary directory");
+    let dir = tmp.path();
     // Blobs with noise, binary PLY: the labels are the library's, point for point.
     let centres = [[0.0, 0.0, 0.0], [0.1, 0.0, 0.0], [0.0, 0.2, 0.05]];
     let pts = blobs(4, &centres, 300, 0.01, 150, [-0.1; 3], [0.2, 0.3, 0.1]);
@@ -524,5 +523,4 @@ fn cluster_prints_the_librarys_labels_in_file_order() {
     ]);
     assert!(ok);
     assert_eq!(v["labels"], serde_json::json!([0, 0, -1, 0]));
-    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -16,8 +16,8 @@ fn run(args: &[&str]) -> (i32, serde_json::Value) {
 }
 
 /// A 3 m × 3 m map of 5 cm cells with a wall across y = 1.5 m from x = 0 to `end` and a
-/// pillar at (2.2, 0.7), saved under the temp folder as `NAME.yaml`.
-fn map(name: &str, end: f64) -> (std::path::PathBuf, OccupancyGrid) {
+/// pillar at (2.2, 0.7), saved as `NAME.yaml` in a temporary directory removed with the guard.
+fn map(name: &str, end: f64) -> (tempfile::TempDir, std::path::PathBuf, OccupancyGrid) {
     let mut g = OccupancyGrid::new([0.025, 0.025], 0.05, 60, 60).expect("grid");
     for j in 0..g.height {
         for i in 0..g.width {
@@ -27,16 +27,15 @@ fn map(name: &str, end: f64) -> (std::path::PathBuf, OccupancyGrid) {
             }
         }
     }
-    let d = std::env::temp_dir().join(format!("ferrobot-nav-plan-{}", std::process::id()));
-    std::fs::create_dir_all(&d).expect("dir");
-    let yaml = d.join(format!("{name}.yaml"));
+    let d = tempfile::tempdir().expect("temporary directory");
+    let yaml = d.path().join(format!("{name}.yaml"));
     MapImage::from_grid(&g).save(&yaml).expect("save");
-    (yaml, g)
+    (d, yaml, g)
 }
 
 #[test]
 fn the_path_printed_is_the_librarys() {
-    let (yaml, grid) = map("wall", 2.0);
+    let (_tmp, yaml, grid) = map("wall", 2.0);
     let plot = yaml.with_file_name("wall-path.png");
     let y = yaml.to_str().expect("utf-8");
     let (code, v) = run(&[
@@ -84,7 +83,7 @@ fn the_path_printed_is_the_librarys() {
 
 #[test]
 fn failures_have_their_exit_codes() {
-    let (yaml, _) = map("closed", 3.0);
+    let (_tmp, yaml, _) = map("closed", 3.0);
     let y = yaml.to_str().expect("utf-8");
     let plan = |from: [&str; 2], to: [&str; 2], r: &str| {
         run(&[

@@ -27,8 +27,8 @@ fn serve_refuses_other_machines_without_credentials() {
     );
     refused(&["--listen", "udp/127.0.0.1:7447"]);
     refused(&["--credentials", "/nonexistent/lab.pass"]);
-    let dir = std::env::temp_dir().join(format!("ferrobot-serve-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("dir");
+    let tmp = tempfile::tempdir().expect("temporary directory");
+    let dir = tmp.path();
     let bad = dir.join("bad.pass");
     std::fs::write(&bad, "no colon here\n").expect("file");
     refused(&["--credentials", bad.to_str().expect("path")]);
@@ -180,8 +180,8 @@ fn serve_says_whether_sessions_must_authenticate_and_ends_with_its_input() {
     assert_eq!(v["listen"][0], listen.as_str());
     assert!(said.contains("no authentication (loopback only)"), "{said}");
     assert!(said.contains("live view on ws://127.0.0.1:"), "{said}");
-    let dir = std::env::temp_dir().join(format!("ferrobot-serve-ok-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("dir");
+    let tmp = tempfile::tempdir().expect("temporary directory");
+    let dir = tmp.path();
     let pass = dir.join("lab.pass");
     std::fs::write(&pass, "lab:s3cret\n").expect("file");
     let listen = format!("tcp/127.0.0.1:{}", ferrobot_peers::free_port());

@@ -20,10 +20,11 @@ fn run(args: &[&str]) -> (i32, serde_json::Value) {
     (out.status.code().unwrap_or(-1), v)
 }
 
-fn dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("ferrobot-slam-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    d
+/// A path `name` that does not exist yet, in a temporary directory removed with the guard.
+fn dir(name: &str) -> (tempfile::TempDir, PathBuf) {
+    let tmp = tempfile::tempdir().expect("temporary directory");
+    let d = tmp.path().join(name);
+    (tmp, d)
 }
 
 fn tum(p: &Path) -> Vec<ferrobot::slam::Stamped> {
@@ -32,7 +33,7 @@ fn tum(p: &Path) -> Vec<ferrobot::slam::Stamped> {
 
 #[test]
 fn a_drive_is_mapped_within_a_centimetre_and_its_files_agree_with_the_json() {
-    let out = dir("drive");
+    let (_tmp, out) = dir("drive");
     let o = out.to_str().expect("utf-8");
     let (code, v) = run(&[
         "slam", "locobot", "--route", "short", "--seed", "3", "--out", o, "--json",
@@ -73,7 +74,7 @@ fn a_drive_is_mapped_within_a_centimetre_and_its_files_agree_with_the_json() {
     assert!(out.join("trajectory.png").is_file());
     // The saved map reloads, and a second drive (another seed) finds itself in it within
     // 10 s, SLAM not told where it starts.
-    let again = dir("again");
+    let (_tmp_again, again) = dir("again");
     let map = out.join("map.slam");
     let (code, v) = run(&[
         "slam",
@@ -109,7 +110,7 @@ fn a_drive_is_mapped_within_a_centimetre_and_its_files_agree_with_the_json() {
 
 #[test]
 fn a_recorded_sequence_reads_back_and_slam_tracks_it_without_odometry() {
-    let out = dir("record");
+    let (_tmp, out) = dir("record");
     let o = out.to_str().expect("utf-8");
     let (code, v) = run(&["record-rgbd", "locobot", "--route", "short", "--out", o]);
     assert_eq!(code, 0, "{v}");
@@ -124,7 +125,7 @@ fn a_recorded_sequence_reads_back_and_slam_tracks_it_without_odometry() {
     // Recording again into the same folder is refused.
     let (code, _) = run(&["record-rgbd", "locobot", "--route", "short", "--out", o]);
     assert_eq!(code, 2);
-    let est_dir = dir("record-est");
+    let (_tmp_est, est_dir) = dir("record-est");
     let (code, v) = run(&[
         "slam",
         "--dataset",
@@ -145,7 +146,7 @@ fn a_recorded_sequence_reads_back_and_slam_tracks_it_without_odometry() {
 
 #[test]
 fn bad_requests_are_refused_with_exit_code_2() {
-    let out = dir("bad");
+    let (_tmp, out) = dir("bad");
     let o = out.to_str().expect("utf-8");
     // A route the scene does not have.
     let (code, v) = run(&[

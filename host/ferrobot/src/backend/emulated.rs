@@ -143,13 +143,14 @@ pub struct EmulatedBoard {
     firmware: BoardFirmware,
     /// The plants and their clock (ground truth, fault injection, diagnostics).
     pub server: BoardServer,
-    /// The firmware's defmt log (UART3), a file.
+    /// The firmware's defmt log (UART3), a file. The board removes it when dropped, unless
+    /// the thread is panicking (then it is kept, for the post-mortem).
     pub log: PathBuf,
 }
 
 impl EmulatedBoard {
     /// Serve the plants of `robot`, boot `firmware` in QEMU and wait for its first report on
-    /// the clock link; the defmt log goes to `log`.
+    /// the clock link; the defmt log goes to `log` (removed when the board is dropped).
     pub fn start_with(
         robot: &str,
         firmware: &Path,
@@ -240,9 +241,7 @@ impl EmulatedBoard {
     /// [`EmulatedBoard::start_with`] with seed 1, real-time pace and a log in the temporary
     /// directory.
     pub fn start(robot: &str, firmware: &Path) -> Result<EmulatedBoard> {
-        let log =
-            std::env::temp_dir().join(format!("ferrobot-emulated-{}.defmt", std::process::id()));
-        Self::start_with(robot, firmware, BoardOptions::default(), log)
+        Self::start_with(robot, firmware, BoardOptions::default(), temp_log())
     }
 
     /// `Some(why)` once the firmware has stopped (QEMU exited).
@@ -273,11 +272,24 @@ impl EmulatedBoard {
     }
 }
 
+/// A fresh path for a board's defmt log in the temporary directory.
+fn temp_log() -> PathBuf {
+    static NEXT: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let n = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    std::env::temp_dir().join(format!(
+        "ferrobot-emulated-{}-{n}.defmt",
+        std::process::id()
+    ))
+}
+
 impl Drop for EmulatedBoard {
     fn drop(&mut self) {
         if let BoardFirmware::Qemu { child, .. } = &mut self.firmware {
             let _ = child.kill();
             let _ = child.wait();
+            if !std::thread::panicking() {
+                let _ = std::fs::remove_file(&self.log);
+            }
         }
     }
 }
@@ -311,11 +323,8 @@ impl EmulatedLink {
         scene: std::sync::Arc<ferrobot_sim::scene::Scene>,
         camera: Option<ferrobot_sim::camera_server::CameraOptions>,
     ) -> Result<Self> {
-        static NEXT: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
-        let n = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        let tag = format!("ferrobot-emulated-{}-{n}", std::process::id());
-        let log = std::env::temp_dir().join(format!("{tag}.defmt"));
-        let board = EmulatedBoard::start_in(robot, firmware, BoardOptions::default(), log, scene)?;
+        let board =
+            EmulatedBoard::start_in(robot, firmware, BoardOptions::default(), temp_log(), scene)?;
         Self::connect(board, camera)
     }
 }

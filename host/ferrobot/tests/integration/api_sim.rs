@@ -507,8 +507,8 @@ fn builder_overrides_and_config_files() {
         "{e}"
     );
     // Any robot given by a URDF and a TOML file.
-    let dir = std::env::temp_dir().join(format!("ferrobot-cfg-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("dir");
+    let tmp = tempfile::tempdir().expect("temporary directory");
+    let dir = tmp.path();
     std::fs::write(
         dir.join("mybot.urdf"),
         include_str!("../../../description/robots/locobot_lite.urdf"),

@@ -309,8 +309,8 @@ fn bad_input_is_a_typed_error() {
         "{e}"
     );
 
-    let dir = std::env::temp_dir().join(format!("ferrobot-camera-test-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let tmp = tempfile::tempdir().expect("temporary directory");
+    let dir = tmp.path();
     let bad = dir.join("bad.toml");
     std::fs::write(&bad, "name = \"bad\"\n[[object]]\nid = \"a\"\nshape = \"box\"\ncolour = [1.0, 0.0, 0.0]\nsize = [0.1, -0.1, 0.1]\nposition = [1.0, 0.0, 0.05]\n").unwrap();
     let e = Robot::builder("locobot")
@@ -441,8 +441,8 @@ fn a_hostile_camera_socket_is_a_clear_error() {
         ),
         ("silence", Vec::new()),
     ];
-    let dir = std::env::temp_dir().join(format!("ferrobot-hostile-socket-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let tmp = tempfile::tempdir().expect("temporary directory");
+    let dir = tmp.path();
     let bot = Robot::builder("locobot").use_camera(false).build().unwrap();
     for (i, (name, reply)) in cases.into_iter().enumerate() {
         let path = dir.join(format!("cam{i}"));

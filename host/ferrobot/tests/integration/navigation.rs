@@ -9,10 +9,10 @@ use ferrobot_protocol::FaultKind;
 
 /// A scene file: an empty floor with the robot at the origin facing +x and `objects` (TOML
 /// `[[object]]` tables).
-fn scene(name: &str, objects: &str) -> std::path::PathBuf {
-    let dir = std::env::temp_dir().join(format!("ferrobot-nav-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("dir");
-    let file = dir.join("scene.toml");
+/// The file lives in a temporary directory removed with the guard.
+fn scene(name: &str, objects: &str) -> (tempfile::TempDir, std::path::PathBuf) {
+    let dir = tempfile::tempdir().expect("temporary directory");
+    let file = dir.path().join("scene.toml");
     std::fs::write(
         &file,
         format!(
@@ -20,7 +20,7 @@ fn scene(name: &str, objects: &str) -> std::path::PathBuf {
         ),
     )
     .expect("scene");
-    file
+    (dir, file)
 }
 
 /// The robot in `scene`, its arm at home.
@@ -59,7 +59,7 @@ const BOX: &str = "[[object]]\nid = \"box\"\nshape = \"box\"\nsize = [0.4, 0.6, 
 
 #[test]
 fn a_box_only_the_camera_sees_is_driven_round_and_blind_it_is_hit() {
-    let file = scene("box", BOX);
+    let (_tmp, file) = scene("box", BOX);
     for name in ["locobot", "locobot_lite"] {
         let bot = robot(name, &file);
         bot.head()
@@ -129,7 +129,7 @@ fn a_wall_the_map_lacks_is_seen_and_the_goal_behind_it_fails_typed() {
                  [[object]]\nid = \"w2\"\nshape = \"box\"\nsize = [2.4, 0.1, 0.6]\nposition = [0.0, 2.0, 0.3]\ncolour = [0.7, 0.7, 0.6]\nstatic = true\n\
                  [[object]]\nid = \"w3\"\nshape = \"box\"\nsize = [2.4, 0.1, 0.6]\nposition = [0.0, -2.0, 0.3]\ncolour = [0.7, 0.7, 0.6]\nstatic = true\n\
                  [[object]]\nid = \"w4\"\nshape = \"box\"\nsize = [0.1, 4.0, 0.6]\nposition = [-1.2, 0.0, 0.3]\ncolour = [0.7, 0.7, 0.6]\nstatic = true\n";
-    let file = scene("walled", walls);
+    let (_tmp, file) = scene("walled", walls);
     let bot = robot("locobot", &file);
     bot.head()
         .expect("head")
@@ -179,7 +179,7 @@ fn exploring_a_small_flat_maps_it_and_ends() {
     // The dividing wall at x = 2, a 0.9 m door from y = -0.45.
     scene_text += "[[wall]]\nfrom = [2.0, -1.25]\nto = [2.0, 1.25]\ncolour = [0.8, 0.85, 0.9]\ntexture = { pattern = \"noise\", scale = 0.25, colour = [0.6, 0.62, 0.7] }\ndoors = [{ at = 0.8, width = 0.9, height = 2.0 }]\n";
     scene_text += "[[object]]\nid = \"table\"\nshape = \"box\"\nsize = [0.6, 0.4, 0.45]\nposition = [0.6, 0.9, 0.225]\ncolour = [0.45, 0.3, 0.2]\ntexture = { pattern = \"noise\", scale = 0.04, colour = [0.3, 0.2, 0.1] }\nstatic = true\n";
-    let file = scene("flat", &scene_text);
+    let (_tmp, file) = scene("flat", &scene_text);
     let bot = robot("locobot", &file);
     bot.head()
         .expect("head")
@@ -225,7 +225,7 @@ fn exploring_a_small_flat_maps_it_and_ends() {
 /// once, nothing moves; hostile maps and circles with a map are refused before any work.
 #[test]
 fn slam_goals_without_slam_and_hostile_maps_are_refused() {
-    let file = scene("refuse", "");
+    let (_tmp, file) = scene("refuse", "");
     // Refused before the arm's reach matters.
     let bot = robot_at_home("locobot", &file);
     let base = bot.base().expect("base");

@@ -315,8 +315,8 @@ fn a_realsense_software_device_is_served_aligned_in_metres_with_its_intrinsics_a
     let started = Instant::now();
     let section = RobotConfig::bundled("locobot").unwrap().camera.unwrap();
     let scene = Scene::new(section.width, section.height);
-    let dir = std::env::temp_dir().join(format!("ferrobot-realsense-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let tmp = tempfile::tempdir().expect("temporary directory");
+    let dir = tmp.path();
     let args: Vec<String> = [
         "--width",
         &section.width.to_string(),
@@ -415,7 +415,6 @@ fn a_realsense_software_device_is_served_aligned_in_metres_with_its_intrinsics_a
     assert!(status.success(), "{status}: {}", server.stderr());
     assert!(!server.socket.exists(), "the socket is left behind");
     drop(server);
-    let _ = std::fs::remove_dir_all(&dir);
     eprintln!(
         "served, checked and stopped in {:.2} s",
         started.elapsed().as_secs_f64()
@@ -428,8 +427,8 @@ fn a_missing_realsense_or_pyrealsense2_is_said_plainly() {
     let Some(py) = realsense_python() else {
         return;
     };
-    let dir = std::env::temp_dir().join(format!("ferrobot-realsense-none-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let tmp = tempfile::tempdir().expect("temporary directory");
+    let dir = tmp.path();
     let socket = dir.join("cam").display().to_string();
     let size = ["--width", "640", "--height", "480", "--rate", "30"];
     let serial = ["--serial", "ferrobot-no-such-camera"];
@@ -450,5 +449,4 @@ fn a_missing_realsense_or_pyrealsense2_is_said_plainly() {
         "{err}"
     );
     assert!(!Path::new(&socket).exists());
-    let _ = std::fs::remove_dir_all(&dir);
 }

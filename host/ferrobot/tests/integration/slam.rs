@@ -69,7 +69,8 @@ fn slam_beside_the_robot_follows_it_within_a_centimetre() {
     assert_eq!(grid.resolution, 0.02);
     // Saved, reloaded, and found again by a robot not told where it is.
     let map = bot.stop_slam().expect("map");
-    let file = std::env::temp_dir().join(format!("ferrobot-api-slam-{}.slam", std::process::id()));
+    let file_dir = tempfile::tempdir().expect("temporary directory");
+    let file = file_dir.path().join("api-slam.slam");
     map.save(&file).expect("save");
     let bot2 = apartment(2);
     bot2.head()

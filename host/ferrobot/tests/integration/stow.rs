@@ -80,10 +80,11 @@ fn stow_pose_is_folded_free_and_out_of_view() {
 }
 
 /// A wall across the way at x = 1.5 m with a 0.7 m door, in the world and on the map (2 cm cells).
-fn door_scene() -> (std::path::PathBuf, OccupancyGrid) {
+/// The scene file lives in a temporary directory removed with the guard.
+fn door_scene() -> (tempfile::TempDir, std::path::PathBuf, OccupancyGrid) {
     let (door, wall) = ([-0.35, 0.35], 0.1);
-    let dir = std::env::temp_dir().join(format!("ferrobot-stow-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("dir");
+    let tmp = tempfile::tempdir().expect("temporary directory");
+    let dir = tmp.path();
     let file = dir.join("scene.toml");
     let piece = |id: &str, y0: f64, y1: f64| {
         format!(
@@ -110,12 +111,12 @@ fn door_scene() -> (std::path::PathBuf, OccupancyGrid) {
             }
         }
     }
-    (file, map)
+    (tmp, file, map)
 }
 
 #[test]
 fn a_map_goal_takes_the_arm_s_reach_as_the_robot_s_radius() {
-    let (file, map) = door_scene();
+    let (_tmp, file, map) = door_scene();
     let bot = robot("locobot", file.to_str().expect("path"));
     let base = bot.base().expect("base");
     let opts = GoalOptions {

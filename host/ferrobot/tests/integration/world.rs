@@ -9,13 +9,13 @@ use ferrobot::{Error, GripperState, Robot};
 use ferrobot_protocol::FaultKind;
 use nalgebra::Vector3;
 
-/// A scene file in a scratch directory.
-fn scene_file(name: &str, text: &str) -> String {
-    let dir = std::env::temp_dir().join(format!("ferrobot-world-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let p = dir.join(format!("{name}.toml"));
+/// A scene file in a scratch directory removed with the guard.
+fn scene_file(name: &str, text: &str) -> (tempfile::TempDir, String) {
+    let tmp = tempfile::tempdir().expect("temporary directory");
+    let p = tmp.path().join(format!("{name}.toml"));
     std::fs::write(&p, text).unwrap();
-    p.to_str().unwrap().to_string()
+    let p = p.to_str().unwrap().to_string();
+    (tmp, p)
 }
 
 /// Where scene body `id` is now (world, m), by the simulator's ground truth.
@@ -28,7 +28,7 @@ fn body(bot: &Robot, id: &str) -> Vector3<f64> {
 #[test]
 fn the_base_stops_at_a_wall_with_the_bumper_fault() {
     // The wall's face is at x = 0.55 m; the Kobuki's radius is 0.175 m.
-    let wall = scene_file(
+    let (_tmp, wall) = scene_file(
         "wall",
         "name = \"wall\"\n[floor]\nsize = [4.0, 4.0]\n[[wall]]\nfrom = [0.6, -1.5]\nto = [0.6, 1.5]\n",
     );
@@ -65,7 +65,7 @@ fn the_base_stops_at_a_wall_with_the_bumper_fault() {
 
 #[test]
 fn an_object_where_the_robot_stands_is_a_typed_error() {
-    let crowded = scene_file(
+    let (_tmp, crowded) = scene_file(
         "crowded",
         "name = \"crowded\"\n[floor]\nsize = [4.0, 4.0]\n[[object]]\nid = \"crate\"\n\
          shape = \"box\"\nsize = [0.3, 0.3, 0.3]\nposition = [0.0, 0.0, 0.15]\n\

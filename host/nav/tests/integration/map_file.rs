@@ -2,14 +2,13 @@
 //! map_server's rules (thresholds on (255 − grey) / 255, `negate`, channel means, the first
 //! image row at the top), and every malformed file refused with the key at fault.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use ferrobot_nav::{Cell, Error, MapImage};
 
-fn dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("ferrobot-map-{name}-{}", std::process::id()));
-    std::fs::create_dir_all(&d).expect("temp dir");
-    d
+/// A temporary directory, removed when the guard drops.
+fn dir() -> tempfile::TempDir {
+    tempfile::tempdir().expect("temporary directory")
 }
 
 fn write_png(path: &Path, w: u32, h: u32, color: png::ColorType, data: &[u8]) {
@@ -42,7 +41,8 @@ fn a_saved_map_reads_back_unchanged() {
         height: h,
         cells,
     };
-    let d = dir("roundtrip");
+    let tmp = dir();
+    let d = tmp.path();
     let png = map.save(&d.join("house.yaml")).expect("save");
     assert_eq!(png, d.join("house.png"));
     let text = std::fs::read_to_string(d.join("house.yaml")).expect("yaml");
@@ -71,7 +71,8 @@ fn a_saved_map_reads_back_unchanged() {
 /// row is the map's top.
 #[test]
 fn grey_levels_read_as_map_server_reads_them() {
-    let d = dir("grey");
+    let tmp = dir();
+    let d = tmp.path();
     // Bottom row (second in the image): the grey levels; top row: black.
     let levels = [0u8, 89, 90, 128, 204, 205, 206, 254, 255];
     let w = levels.len();
@@ -146,7 +147,8 @@ fn grey_levels_read_as_map_server_reads_them() {
 /// Malformed files: each refused with a [`Error::MapFile`] that names the file and the key.
 #[test]
 fn malformed_map_files_are_refused() {
-    let d = dir("bad");
+    let tmp = dir();
+    let d = tmp.path();
     write_png(
         &d.join("m.png"),
         2,

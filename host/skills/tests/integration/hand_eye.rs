@@ -104,7 +104,8 @@ fn calibration_recovers_the_mount_and_the_camera_uses_it() {
     assert!(report.rms_px < 1.0, "{}", report.rms_px);
     assert!(dt < 1e-3 && dr < 0.1, "{dt} m, {dr} deg");
 
-    let file = std::env::temp_dir().join(format!("ferrobot-hand-eye-{}.toml", std::process::id()));
+    let file_dir = tempfile::tempdir().expect("temporary directory");
+    let file = file_dir.path().join("hand-eye.toml");
     report.calibration.save(&file).unwrap();
     assert_eq!(CameraCalibration::load(&file).unwrap(), report.calibration);
     let build = |calibrated: bool| {
@@ -158,7 +159,8 @@ fn bad_input_and_an_unseen_marker_are_typed_errors() {
         .build()
         .expect_err("refused");
     assert!(matches!(e, Error::Config { .. }), "{e}");
-    let bad = std::env::temp_dir().join(format!("ferrobot-bad-cal-{}.toml", std::process::id()));
+    let bad_dir = tempfile::tempdir().expect("temporary directory");
+    let bad = bad_dir.path().join("bad-cal.toml");
     std::fs::write(
         &bad,
         "robot = \"locobot\"\nparent = \"head_tilt_link\"\nchild = \"camera_link\"\n\

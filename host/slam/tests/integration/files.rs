@@ -8,10 +8,11 @@ use ferrobot_slam::optimise::planar;
 use ferrobot_slam::{ate, parse_tum, to_tum, Dataset, DatasetWriter, Error, Stamped};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 
-fn dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("ferrobot-slam-files-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    d
+/// A path `name` that does not exist yet, in a temporary directory removed with the guard.
+fn dir(name: &str) -> (tempfile::TempDir, PathBuf) {
+    let tmp = tempfile::tempdir().expect("temporary directory");
+    let d = tmp.path().join(name);
+    (tmp, d)
 }
 
 fn circle(n: usize) -> Vec<Stamped> {
@@ -96,7 +97,7 @@ fn malformed_trajectories_name_the_line() {
 
 #[test]
 fn a_written_sequence_reads_back_pairs_its_images_and_keeps_its_depth() {
-    let d = dir("seq");
+    let (_tmp, d) = dir("seq");
     let k = Intrinsics::new(8, 6, 10.0, 10.0, 4.0, 3.0).expect("k");
     let mut w = DatasetWriter::create(&d, 5000.0).expect("create");
     for i in 0..5 {
@@ -140,7 +141,7 @@ fn a_written_sequence_reads_back_pairs_its_images_and_keeps_its_depth() {
 
 #[test]
 fn images_of_another_size_than_the_camera_are_refused() {
-    let d = dir("size");
+    let (_tmp, d) = dir("size");
     let mut w = DatasetWriter::create(&d, 1000.0).expect("create");
     let rgb = RgbImage::new(8, 6, vec![0; 144]).expect("rgb");
     let depth = DepthImage::new(8, 6, vec![1.0; 48]).expect("depth");
@@ -157,7 +158,8 @@ fn images_of_another_size_than_the_camera_are_refused() {
 
 /// A map file of one keyframe at `t` (camera at the body), no features, the given depth
 /// points, no landmarks or edges, as `Map::save` lays it out.
-fn map_file(name: &str, t: [f64; 3], cloud: &[[f32; 3]]) -> PathBuf {
+/// The map file lives in a temporary directory removed with the guard.
+fn map_file(name: &str, t: [f64; 3], cloud: &[[f32; 3]]) -> (tempfile::TempDir, PathBuf) {
     let pose = |b: &mut Vec<u8>, t: [f64; 3]| {
         for v in [t[0], t[1], t[2], 0.0, 0.0, 0.0, 1.0] {
             b.extend_from_slice(&v.to_le_bytes());
@@ -178,23 +180,23 @@ fn map_file(name: &str, t: [f64; 3], cloud: &[[f32; 3]]) -> PathBuf {
     }
     b.extend_from_slice(&0u32.to_le_bytes());
     b.extend_from_slice(&0u32.to_le_bytes());
-    let d = dir(name);
+    let (tmp, d) = dir(name);
     std::fs::create_dir_all(&d).expect("dir");
     let f = d.join("map.slam");
     std::fs::write(&f, b).expect("write");
-    f
+    (tmp, f)
 }
 
 #[test]
 fn maps_with_points_far_away_are_refused_or_too_large_to_grid_not_a_panic() {
     // (From review: a finite but huge point loaded, then overflowed the grid's size.)
-    let f = map_file("far", [0.0; 3], &[[3.0e38, 0.0, 0.5]]);
+    let (_tmp, f) = map_file("far", [0.0; 3], &[[3.0e38, 0.0, 0.5]]);
     assert!(matches!(
         ferrobot_slam::Map::load(&f),
         Err(Error::File { .. })
     ));
     // Within the file's bounds (10 km) but a grid of 2 cm cells would be too large.
-    let f = map_file(
+    let (_tmp, f) = map_file(
         "wide",
         [0.0; 3],
         &[[9.0e3, 0.0, 0.5], [0.0, 9.0e3, 0.5], [0.0, 0.0, 0.5]],
@@ -251,7 +253,7 @@ fn maps_with_points_far_away_are_refused_or_too_large_to_grid_not_a_panic() {
         assert!(matches!(e, Err(Error::InvalidSettings { .. })), "{s:?}");
     }
     // A small one grids, and holds its obstacle.
-    let f = map_file("small", [0.0; 3], &[[0.3, 0.0, 0.5]]);
+    let (_tmp, f) = map_file("small", [0.0; 3], &[[0.3, 0.0, 0.5]]);
     let map = ferrobot_slam::Map::load(&f).expect("loads");
     let grid = map.occupancy(&ferrobot_slam::GridSettings {
         min_hits: 1,
@@ -277,7 +279,7 @@ fn a_low_obstacle_is_not_cleared_by_the_rays_that_pass_over_it() {
     for k in 0..30 {
         cloud.push([2.0, 0.0005 * k as f32, 0.5 - 0.6]);
     }
-    let f = map_file("ball", [0.0, 0.0, 0.6], &cloud);
+    let (_tmp, f) = map_file("ball", [0.0, 0.0, 0.6], &cloud);
     let map = ferrobot_slam::Map::load(&f).expect("loads");
     let at = |g: &ferrobot_nav::MapImage, x: f64, y: f64| {
         let i = ((x - g.origin[0]) / g.resolution).floor() as usize;
@@ -327,7 +329,7 @@ fn a_flat_top_at_a_slab_s_edge_is_not_cleared_by_the_rays_grazing_over_it() {
             cloud.push([1.0 + 0.02 * i as f32 + 0.01, y, 0.501 - 0.6]);
         }
     }
-    let f = map_file("bed", [0.0, 0.0, 0.6], &cloud);
+    let (_tmp, f) = map_file("bed", [0.0, 0.0, 0.6], &cloud);
     let map = ferrobot_slam::Map::load(&f).expect("loads");
     let occupied = |settings: &ferrobot_slam::GridSettings| {
         let g = map.occupancy(settings).expect("grid").expect("some");

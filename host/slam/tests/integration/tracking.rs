@@ -472,7 +472,8 @@ fn a_saved_map_reloads_and_a_robot_localises_in_it_from_an_unknown_start() {
     let mut slam =
         Slam::new(SlamSettings::ground_robot(0.0), intrinsics(), planar(start)).expect("slam");
     run(&mut slam, &mut world, &poses, Some(&odo), 0..0);
-    let file = std::env::temp_dir().join(format!("ferrobot-slam-map-{}.slam", std::process::id()));
+    let tmp = tempfile::tempdir().expect("temporary directory");
+    let file = tmp.path().join("map.slam");
     slam.map().save(&file).expect("save");
     let map = ferrobot_slam::Map::load(&file).expect("load");
     assert_eq!(map.keyframes().len(), slam.map().keyframes().len());
@@ -509,7 +510,8 @@ fn damaged_map_files_are_refused_without_panicking() {
     let mut slam =
         Slam::new(SlamSettings::ground_robot(0.0), intrinsics(), planar(start)).expect("slam");
     run(&mut slam, &mut world, &poses, None, 0..0);
-    let file = std::env::temp_dir().join(format!("ferrobot-slam-bad-{}.slam", std::process::id()));
+    let tmp = tempfile::tempdir().expect("temporary directory");
+    let file = tmp.path().join("bad.slam");
     slam.map().save(&file).expect("save");
     let good = std::fs::read(&file).expect("read");
     let mut cases: Vec<Vec<u8>> = vec![
