@@ -136,11 +136,25 @@ def unit_tests_never_run(files):
         text = open(manifest).read()
         if not re.search(r"^\[lib\][^\[]*^test\s*=\s*false", text, re.M | re.S):
             continue
-        src = os.path.join(os.path.dirname(manifest), "src") + "/"
+        crate = os.path.dirname(manifest)
+        src = os.path.join(crate, "src") + "/"
         for f in files:
-            if f.startswith(src) and re.search(r"#\[(cfg\()?test\]?\)?\]", open(f).read()):
+            if (f.startswith(src) and f not in included_by_tests(files, crate)
+                    and re.search(r"#\[(cfg\()?test\]?\)?\]", open(f).read())):
                 found.append(f)
     return found
+
+
+def included_by_tests(files, crate):
+    """The files that a test target of `crate` (under its `tests/`) compiles by
+    `#[path = "..."]`: their unit tests run in that target."""
+    tests = os.path.join(crate, "tests") + "/"
+    out = set()
+    for f in files:
+        if f.startswith(tests):
+            for rel in re.findall(r'#\[path\s*=\s*"([^"]+)"\]', open(f).read()):
+                out.add(os.path.normpath(os.path.join(os.path.dirname(f), rel)))
+    return out
 
 
 def main():

@@ -87,29 +87,3 @@ pub fn run(a: &Args) -> ferrobot::Result<()> {
     say!("ground truth {:?}", round(&truth));
     r
 }
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::cmd::common::to_json;
-
-    /// A failed motion prints `error` first, as the sorted object of `serde_json::json!` did.
-    #[test]
-    fn failure_prints_as_the_sorted_object() {
-        let o = BaseMoveJson {
-            error: Some("timed out".into()),
-            ground_truth: [0.5, f64::NAN, -0.0],
-            odometry: [0.25, 0.0, 1e-17],
-            success: false,
-            target: [1.0, 0.0, 0.0],
-        };
-        let old = serde_json::json!({
-            "success": false,
-            "target": o.target,
-            "odometry": o.odometry,
-            "ground_truth": o.ground_truth,
-            "error": "timed out",
-        });
-        assert_eq!(to_json(&o), old.to_string());
-    }
-}

@@ -135,24 +135,42 @@ fn ik_succeeds_and_fails_with_json_and_exit_codes() {
     );
 }
 
-/// `base-move --json`: the documented shape, the odometry within 2 cm and 2° of the target,
-/// ground truth within 5 cm of the odometry; an unknown controller is a clear error.
+/// `base-move --json`: the documented shape, its keys in alphabetical order, the odometry
+/// within 2 cm and 2° of the target, ground truth within 5 cm of the odometry; an unknown
+/// controller is a clear error.
 #[test]
 fn base_move_reports_target_odometry_and_ground_truth() {
-    let (ok, v) = run(&[
-        "base-move",
-        "locobot",
-        "--relative",
-        "1",
-        "-0.5",
-        "-1.25",
-        "--controller",
-        "lqr",
-        "--smooth",
-        "--json",
-    ]);
-    assert!(ok, "{v}");
+    let out = Command::new(env!("CARGO_BIN_EXE_ferrobot"))
+        .args([
+            "base-move",
+            "locobot",
+            "--relative",
+            "1",
+            "-0.5",
+            "-1.25",
+            "--controller",
+            "lqr",
+            "--smooth",
+            "--json",
+        ])
+        .output()
+        .expect("runs");
+    let text = String::from_utf8_lossy(&out.stdout);
+    let v: serde_json::Value = serde_json::from_str(&text).unwrap_or_default();
+    assert!(out.status.success(), "{text}");
     assert_eq!(v["success"], true);
+    // `print_json`'s promise: the keys in alphabetical order, an absent error left out.
+    let at: Vec<usize> = [
+        "\"ground_truth\":",
+        "\"odometry\":",
+        "\"success\":",
+        "\"target\":",
+    ]
+    .iter()
+    .map(|k| text.find(k).unwrap_or_else(|| panic!("{k} in {text}")))
+    .collect();
+    assert!(at.windows(2).all(|w| w[0] < w[1]), "{text}");
+    assert!(!text.contains("\"error\""), "{text}");
     let f = |k: &str| -> Vec<f64> {
         v[k].as_array()
             .expect(k)
