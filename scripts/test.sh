@@ -18,6 +18,9 @@ cd "$(dirname "$0")/.."
 # end: a test that leaves files behind fails the run (on a shared disk they pile up run after
 # run). A short path, since Unix sockets' paths are limited to 107 bytes.
 run_tmp=$(mktemp -d "${TMPDIR:-/tmp}/ferrobot-ci.XXXXXX")
+# Readable by all, as /tmp is: the hardware check's permission test runs `ferrobot` as
+# `nobody`, who must reach the serial links the test makes here (mktemp's mode is 0700).
+chmod 755 "$run_tmp"
 export TMPDIR=$run_tmp
 echo "disk: $(df -h --output=avail . | tail -1 | tr -d ' ') free where the build goes; temporary files in $TMPDIR"
 start=$(date +%s)
