@@ -235,7 +235,7 @@ fn a_killed_remote_program_has_the_robot_stopped_by_the_watchdog() {
     let mut child = Command::new(std::env::current_exe().expect("this test"))
         .args([
             "--exact",
-            "remote_program_killed_mid_motion",
+            "remote::remote_program_killed_mid_motion",
             "--ignored",
             "--nocapture",
         ])
