@@ -30,9 +30,31 @@ static QEMU: std::sync::Mutex<()> = std::sync::Mutex::new(());
 /// the plants to inject faults into.
 struct Rig {
     bot: Robot,
-    board: EmulatedBoard,
+    board: Watched,
     firmware: Firmware,
     _qemu: Option<std::sync::MutexGuard<'static, ()>>,
+}
+
+/// The rig's board; a failing test prints what it saw when it drops: the plants' counters and
+/// last frames on each link, and whether the firmware stopped.
+struct Watched(EmulatedBoard);
+
+impl std::ops::Deref for Watched {
+    type Target = EmulatedBoard;
+    fn deref(&self) -> &EmulatedBoard {
+        &self.0
+    }
+}
+
+impl Drop for Watched {
+    fn drop(&mut self) {
+        if std::thread::panicking() {
+            eprintln!("{}", self.0.server.report());
+            if let Some(why) = self.0.qemu_exited() {
+                eprintln!("the firmware stopped: {why}");
+            }
+        }
+    }
 }
 
 impl Rig {
@@ -71,7 +93,7 @@ impl Rig {
             .unwrap_or_else(|e| panic!("connect: {e}"));
         Rig {
             bot,
-            board,
+            board: Watched(board),
             firmware,
             _qemu: guard,
         }
