@@ -49,7 +49,8 @@ pub struct Hub {
     clients: HashMap<u64, Client>,
     next_client: u64,
     stats: HubStats,
-    /// Messages published on each channel (by id − 1), whether or not anyone took them.
+    /// Messages published on each channel (by id − 1, one per channel), whether or not anyone
+    /// took them.
     published: Vec<u64>,
 }
 
@@ -90,6 +91,7 @@ impl Hub {
             channels: std::slice::from_ref(&c),
         });
         self.channels.push(c);
+        self.published.push(0);
         self.by_topic.insert(topic.name, id);
         for client in self.clients.values() {
             let _ = client.out.try_send(Out::Text(text.clone()));
@@ -108,13 +110,8 @@ impl Hub {
 
     /// Whether any client subscribes to one of `topics`.
     pub fn wanted(&self, topics: &[Topic]) -> bool {
-        let ids: Vec<u32> = topics
-            .iter()
-            .filter_map(|t| self.by_topic.get(t.name).copied())
-            .collect();
-        self.clients
-            .values()
-            .any(|c| ids.iter().any(|id| c.subs.contains_key(id)))
+        let mut ids = topics.iter().filter_map(|t| self.by_topic.get(t.name));
+        ids.any(|id| self.clients.values().any(|c| c.subs.contains_key(id)))
     }
 
     /// A new client: told who the server is and every channel so far; its id.
@@ -182,11 +179,7 @@ impl Hub {
     /// message is also kept for later subscribers.
     pub fn publish(&mut self, topic: &Topic, time_ns: u64, data: Vec<u8>, latched: bool) {
         let ch = self.channel(topic);
-        let i = ch as usize - 1;
-        if self.published.len() <= i {
-            self.published.resize(i + 1, 0);
-        }
-        self.published[i] += 1;
+        self.published[ch as usize - 1] += 1;
         for client in self.clients.values() {
             let Some(&sub) = client.subs.get(&ch) else {
                 continue;
