@@ -274,12 +274,7 @@ impl EmulatedBoard {
 
 /// A fresh path for a board's defmt log in the temporary directory.
 fn temp_log() -> PathBuf {
-    static NEXT: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
-    let n = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-    std::env::temp_dir().join(format!(
-        "ferrobot-emulated-{}-{n}.defmt",
-        std::process::id()
-    ))
+    super::direct::temp_link("emulated").with_extension("defmt")
 }
 
 impl Drop for EmulatedBoard {
