@@ -24,8 +24,7 @@ impl Drop for Firmware {
         drop(self.stdin.take());
         let _ = self.child.kill();
         let _ = self.child.wait();
-        let _ = std::fs::remove_file(&self.link);
-        let _ = std::fs::remove_file(ferrobot_sim::camera_server::socket_beside(&self.link));
+        // The link and the camera's socket beside it, with their directory.
         let _ = std::fs::remove_dir_all(&self.dir);
     }
 }
