@@ -138,8 +138,9 @@ def unit_tests_never_run(files):
             continue
         crate = os.path.dirname(manifest)
         src = os.path.join(crate, "src") + "/"
+        tested = included_by_tests(files, crate)
         for f in files:
-            if (f.startswith(src) and f not in included_by_tests(files, crate)
+            if (f.startswith(src) and f not in tested
                     and re.search(r"#\[(cfg\()?test\]?\)?\]", open(f).read())):
                 found.append(f)
     return found
