@@ -167,6 +167,38 @@ impl Shared {
     }
 }
 
+/// Read what the port holds into the session: until a read comes back short (the buffer was
+/// empty then) or times out. At most 64 reads (32 KiB), so that a firmware that never stops
+/// sending cannot hold the turn.
+fn read_pending(
+    p: &mut dyn serialport::SerialPort,
+    shared: &Shared,
+) -> std::result::Result<(), String> {
+    let mut buf = [0u8; 512];
+    for _ in 0..64 {
+        match p.read(&mut buf) {
+            Ok(0) => return Ok(()),
+            Ok(n) => {
+                if let Ok(mut s) = shared.state.lock() {
+                    s.on_bytes(&buf[..n], &shared.time);
+                }
+                shared.cv.notify_all();
+                if n < buf.len() {
+                    return Ok(());
+                }
+            }
+            Err(e)
+                if e.kind() == std::io::ErrorKind::TimedOut
+                    || e.kind() == std::io::ErrorKind::WouldBlock =>
+            {
+                return Ok(())
+            }
+            Err(e) => return Err(e.to_string()),
+        }
+    }
+    Ok(())
+}
+
 /// The serial backend.
 pub struct SerialLink {
     shared: Arc<Shared>,
@@ -253,24 +285,17 @@ fn turn(
     if let Some(n) = beat {
         p.write_all(&frame[..n]).map_err(|e| e.to_string())?;
     }
-    let mut buf = [0u8; 512];
-    match p.read(&mut buf) {
-        Ok(0) => {}
-        Ok(n) => {
-            if let Ok(mut s) = shared.state.lock() {
-                s.on_bytes(&buf[..n], &shared.time);
-            }
-            shared.cv.notify_all();
-        }
-        Err(e)
-            if e.kind() == std::io::ErrorKind::TimedOut
-                || e.kind() == std::io::ErrorKind::WouldBlock => {}
-        Err(e) => return Err(e.to_string()),
-    }
+    // The firmware's silence is judged at the clock's reading taken before the port is
+    // drained: everything the firmware sent before that reading is in the port's buffer by
+    // then and is read below, however long this thread was kept from running. Judged after the
+    // reads instead, a thread starved between its read and the judgement would count the
+    // board's time it missed as silence.
+    let before = shared.time.mark();
+    read_pending(p, shared)?;
     let silent = shared.state.lock().is_ok_and(|s| {
         matches!(s.session.handshake(), Handshake::Accepted(_))
             && s.telemetry_at
-                .is_some_and(|t| shared.time.passed(&t, TELEMETRY_SILENCE))
+                .is_some_and(|t| shared.time.passed_by(&t, &before, TELEMETRY_SILENCE))
     });
     if silent {
         return Err(format!(

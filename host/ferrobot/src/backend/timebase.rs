@@ -89,6 +89,18 @@ impl Timebase {
         since >= timeout || (still >= STALL.max(timeout) && mark.wall.elapsed() >= timeout)
     }
 
+    /// Whether `timeout` had passed since `mark` at `at`, a later mark: as [`Timebase::passed`],
+    /// judged at `at` rather than now (the stand-still clause still counts to now).
+    pub fn passed_by(&self, mark: &Mark, at: &Mark, timeout: Duration) -> bool {
+        let Some(b) = &self.board else {
+            return at.wall.saturating_duration_since(mark.wall) >= timeout;
+        };
+        let (now, still) = Self::read(b);
+        let at_us = at.board_us.unwrap_or(now);
+        let since = Duration::from_micros(at_us.saturating_sub(mark.board_us.unwrap_or(at_us)));
+        since >= timeout || (still >= STALL.max(timeout) && mark.wall.elapsed() >= timeout)
+    }
+
     /// How long to wait (wall) before looking at a timeout of `timeout` from `mark` again:
     /// until it passes on the wall clock; on a board's clock, which moves without telling,
     /// at most 20 ms.
@@ -136,5 +148,22 @@ mod tests {
         assert!(!wall.passed(&mark, Duration::from_secs(5)));
         std::thread::sleep(Duration::from_millis(12));
         assert!(wall.passed(&mark, Duration::from_millis(10)));
+    }
+
+    #[test]
+    fn a_timeout_judged_at_a_mark_ignores_the_board_time_after_it() {
+        let t = Arc::new(AtomicU64::new(1_000));
+        let clock = {
+            let t = t.clone();
+            Timebase::board(Arc::new(move || t.load(Ordering::Relaxed)))
+        };
+        let mark = clock.mark();
+        t.store(6_000, Ordering::Relaxed);
+        let at = clock.mark();
+        // The board ran on 1 s while the judge was kept from running: at `at`, 5 ms had passed.
+        t.store(1_001_000, Ordering::Relaxed);
+        assert!(clock.passed(&mark, Duration::from_millis(10)));
+        assert!(!clock.passed_by(&mark, &at, Duration::from_millis(10)));
+        assert!(clock.passed_by(&mark, &at, Duration::from_millis(5)));
     }
 }
