@@ -151,39 +151,58 @@ host_run_demos=demo_host_run
 step "started: the demo on the host-run firmware (ferrobot-cli's $host_run_demos), real-time paced"
 background demos "$run $other_binaries ferrobot-cli:integration $host_run_demos"
 
-# The workspace includes the fuzz targets (fuzz/, built without libFuzzer as programs that
-# replay inputs), so they are linted here too.
-step "cargo clippy --all-targets -D warnings (workspace)"
-check clippy cargo clippy --workspace --all-targets -- -D warnings
-
-# The workspace's docs, every rustdoc warning an error (a broken intra-doc link fails here).
-# Right after clippy, whose dependency metadata cargo doc reuses where the features agree (the
-# same selection as the tests: the benchmarks' crate left out).
-step "cargo doc -D warnings (workspace)"
-check doc env RUSTDOCFLAGS="-D warnings" cargo doc "${tested[@]}" --no-deps
-
-# A user's program with one backend: the simulator without serial-port libraries, the serial
-# port without the simulator (two small check builds of the API crate with other features).
-step "ferrobot with one backend each (sim without serialport, serial without the simulator)"
-check "backend builds" scripts/backend-builds.sh
-
-step "waited for: the HIL tests, PyRobot's listings and the demo on the host-run firmware"
-join hil
-join listings
-join demos
+# Clippy (every target, -D warnings; the workspace includes the fuzz targets, fuzz/, built
+# without libFuzzer as programs that replay inputs, so they are linted too), then the docs
+# (rustdoc's warnings as errors: a broken intra-doc link fails; right after clippy, whose
+# dependency metadata cargo doc reuses where the features agree), then a user's program with
+# one backend (the simulator without serial-port libraries, the serial port without the
+# simulator: two small check builds of the API crate with other features).
+lint="rc=0
+cargo clippy --workspace --all-targets -- -D warnings || { echo 'FAILED: clippy'; rc=1; }
+RUSTDOCFLAGS='-D warnings' cargo doc ${tested[*]} --no-deps || { echo 'FAILED: cargo doc'; rc=1; }
+scripts/backend-builds.sh || { echo 'FAILED: backend builds'; rc=1; }
+exit \$rc"
 
 # cargo-nextest (on every machine of this kind; cargo's own runner where it is missing) runs
 # the tests of all binaries in one queue, two at a time: cargo test runs one binary after the
 # other, and a binary whose last test is long leaves the second core idle until it ends.
 # The slowest tests start first (.config/nextest.toml), for the same reason.
 # Nextest does not run doc tests: cargo runs them after it.
+#
+# With nextest, the lint job runs beside the tests: nextest runs the binaries built above from
+# their list (--binaries-metadata, made first, which compiles nothing), so it never waits for
+# cargo's build lock, which clippy holds. Beside a busy core the two together get more of the
+# machine than one after the other (CI, 2 cores: about 140 s less), and the tests keep
+# simulated time, so a busier machine only makes them take longer.
 if cargo nextest --version >/dev/null 2>&1; then
+    step "nextest's list of every other test's binaries (built above: nothing is compiled)"
+    nextest_binaries=$logs/nextest-binaries.json
+    nextest_metadata=$logs/cargo-metadata.json
+    check "nextest list" cargo nextest list "${tested[@]}" --exclude ferrobot-hil \
+        --list-type binaries-only --message-format json >"$nextest_binaries"
+    check "cargo metadata" cargo metadata --format-version 1 --all-features --no-deps \
+        >"$nextest_metadata"
+    step "started: cargo clippy --all-targets -D warnings, cargo doc -D warnings, and ferrobot with one backend each (sim without serialport, serial without the simulator)"
+    background lint "$lint"
+    step "waited for: the HIL tests, PyRobot's listings and the demo on the host-run firmware"
+    join hil
+    join listings
+    join demos
     step "cargo nextest run: every other test"
-    check "cargo nextest" cargo nextest run "${tested[@]}" --no-fail-fast --exclude ferrobot-hil \
+    check "cargo nextest" cargo nextest run --binaries-metadata "$nextest_binaries" \
+        --cargo-metadata "$nextest_metadata" --no-fail-fast \
         -E "not test(=$host_run_listings) and not test(=$remote_listings) and not test(/$host_run_demos/)"
+    step "waited for: clippy, the docs and the one-backend builds"
+    join lint
     step "cargo test --doc"
     check "cargo test --doc" cargo test "${tested[@]}" --doc --exclude ferrobot-hil
 else
+    step "cargo clippy, cargo doc and ferrobot with one backend each"
+    check lint bash -c "$lint"
+    step "waited for: the HIL tests, PyRobot's listings and the demo on the host-run firmware"
+    join hil
+    join listings
+    join demos
     step "cargo test: every other test (cargo-nextest is not installed)"
     check "cargo test" cargo test "${tested[@]}" --no-fail-fast --exclude ferrobot-hil -- \
         --skip "$host_run_listings" --skip "$remote_listings" --skip "$host_run_demos"
