@@ -23,6 +23,7 @@ mod coarse;
 mod convert;
 pub mod error;
 pub mod joint_space;
+pub mod lanes;
 pub mod model;
 pub mod planner;
 pub mod scene;

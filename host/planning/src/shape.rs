@@ -2,6 +2,7 @@
 //! with the two things the checker needs of each: a signed distance from a point (the broad
 //! check, `f32`) and the exact shape for parry3d (made in the `convert` module).
 
+use crate::lanes::Lane;
 use crate::{Error, Result};
 use nalgebra::{Point3, Vector3};
 
@@ -186,7 +187,7 @@ impl Sdf {
     /// Signed distance of point `(x, y, z)` (shape frame, m) from the surface; negative
     /// inside.
     #[inline(always)]
-    pub(crate) fn distance(&self, x: f32, y: f32, z: f32) -> f32 {
+    pub(crate) fn distance<L: Lane>(&self, x: L, y: L, z: L) -> L {
         match *self {
             Sdf::Box { centre, half } => box_distance(centre, half, x, y, z),
             Sdf::Cylinder { radius, half } => cylinder_distance(radius, half, x, y, z),
@@ -195,62 +196,48 @@ impl Sdf {
     }
 }
 
-// Each signed distance is written with selects (`if a > b { a } else { b }`), not
-// `f32::max`/`min`, whose NaN rules keep the checker's loops over spheres from vectorising;
-// for finite values they are the same.
-
-#[inline(always)]
-fn max(a: f32, b: f32) -> f32 {
-    if a > b {
-        a
-    } else {
-        b
-    }
-}
-
-#[inline(always)]
-fn min(a: f32, b: f32) -> f32 {
-    if a < b {
-        a
-    } else {
-        b
-    }
-}
+// Each signed distance is written once over `Lane`: for one `f32` (the checker's loops over
+// spheres, which vectorise: `Lane`'s max and min on `f32` are selects, not `f32::max`/`min`,
+// whose NaN rules would keep them from it) and for the vectorised engine's lanes
+// (`crate::lanes`), which check many configurations at once.
 
 /// [`Sdf::Box`]'s signed distance.
 #[inline(always)]
-pub(crate) fn box_distance(centre: [f32; 3], half: [f32; 3], x: f32, y: f32, z: f32) -> f32 {
-    let qx = (x - centre[0]).abs() - half[0];
-    let qy = (y - centre[1]).abs() - half[1];
-    let qz = (z - centre[2]).abs() - half[2];
-    let (ox, oy, oz) = (max(qx, 0.0), max(qy, 0.0), max(qz, 0.0));
-    (ox * ox + oy * oy + oz * oz).sqrt() + min(max(max(qx, qy), qz), 0.0)
+pub(crate) fn box_distance<L: Lane>(centre: [f32; 3], half: [f32; 3], x: L, y: L, z: L) -> L {
+    let zero = L::splat(0.0);
+    let qx = (x - L::splat(centre[0])).abs() - L::splat(half[0]);
+    let qy = (y - L::splat(centre[1])).abs() - L::splat(half[1]);
+    let qz = (z - L::splat(centre[2])).abs() - L::splat(half[2]);
+    let (ox, oy, oz) = (qx.max(zero), qy.max(zero), qz.max(zero));
+    (ox * ox + oy * oy + oz * oz).sqrt() + qx.max(qy).max(qz).min(zero)
 }
 
 /// [`Sdf::Cylinder`]'s signed distance.
 #[inline(always)]
-pub(crate) fn cylinder_distance(radius: f32, half: f32, x: f32, y: f32, z: f32) -> f32 {
-    let dr = (x * x + y * y).sqrt() - radius;
-    let dz = z.abs() - half;
-    let (or, oz) = (max(dr, 0.0), max(dz, 0.0));
-    (or * or + oz * oz).sqrt() + min(max(dr, dz), 0.0)
+pub(crate) fn cylinder_distance<L: Lane>(radius: f32, half: f32, x: L, y: L, z: L) -> L {
+    let zero = L::splat(0.0);
+    let dr = (x * x + y * y).sqrt() - L::splat(radius);
+    let dz = z.abs() - L::splat(half);
+    let (or, oz) = (dr.max(zero), dz.max(zero));
+    (or * or + oz * oz).sqrt() + dr.max(dz).min(zero)
 }
 
 /// [`Sdf::Capsule`]'s signed distance.
 #[inline(always)]
-pub(crate) fn capsule_distance(radius: f32, half: f32, x: f32, y: f32, z: f32) -> f32 {
-    let dz = z - min(max(z, -half), half);
-    (x * x + y * y + dz * dz).sqrt() - radius
+pub(crate) fn capsule_distance<L: Lane>(radius: f32, half: f32, x: L, y: L, z: L) -> L {
+    let dz = z - z.max(L::splat(-half)).min(L::splat(half));
+    (x * x + y * y + dz * dz).sqrt() - L::splat(radius)
 }
 
 /// Point `(x, y, z)` (world, m) in the frame whose world-to-frame transform is `inv`
 /// (rotation rows, then translation).
 #[inline(always)]
-pub(crate) fn to_local(inv: &[f32; 12], x: f32, y: f32, z: f32) -> (f32, f32, f32) {
+pub(crate) fn to_local<L: Lane>(inv: &[f32; 12], x: L, y: L, z: L) -> (L, L, L) {
+    let m = inv.map(L::splat);
     (
-        inv[0] * x + inv[1] * y + inv[2] * z + inv[9],
-        inv[3] * x + inv[4] * y + inv[5] * z + inv[10],
-        inv[6] * x + inv[7] * y + inv[8] * z + inv[11],
+        m[0] * x + m[1] * y + m[2] * z + m[9],
+        m[3] * x + m[4] * y + m[5] * z + m[10],
+        m[6] * x + m[7] * y + m[8] * z + m[11],
     )
 }
 

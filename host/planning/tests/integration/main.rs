@@ -2,6 +2,7 @@
 
 mod acm;
 mod edges;
+mod lanes;
 mod planners;
 mod timing;
 

@@ -1,0 +1,102 @@
+//! The world as the vectorised engine checks it: each object's signed distance in `f32`, the
+//! same for every lane. Boxes, cylinders, spheres and capsules are exact; a mesh's convex
+//! hull is its bounding box, a lower bound of its distance, so a sphere found clear of it is
+//! clear and one that is not is inconclusive (the exact check decides).
+
+use nalgebra::Isometry3;
+
+use super::lane::Lane;
+use crate::scene::PlanningScene;
+use crate::shape::{to_local, Sdf, Shape};
+
+/// One object: world to object frame (rotation rows, translation) and its signed distance.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Object {
+    inv: [f32; 12],
+    sdf: Sdf,
+    exact: bool,
+}
+
+/// The world's objects for the vectorised engine.
+#[derive(Debug, Clone, Default)]
+pub struct Environment {
+    objects: Vec<Object>,
+    ids: Vec<String>,
+}
+
+impl Environment {
+    /// The world objects of `scene` (not its attached objects, which move with the robot, nor
+    /// its voxels, which the engine does not hold: see [`Environment::complete`]).
+    pub fn from_scene(scene: &PlanningScene) -> Self {
+        let mut env = Environment::default();
+        for o in scene.objects() {
+            env.push(&o.id, &o.shape, &o.pose);
+        }
+        env
+    }
+
+    /// Adds `shape` at `pose` (root frame).
+    pub fn push(&mut self, id: &str, shape: &Shape, pose: &Isometry3<f64>) {
+        let inv = pose.inverse();
+        let m = inv.rotation.to_rotation_matrix().into_inner();
+        let t = inv.translation.vector;
+        let mut a = [0f32; 12];
+        for (k, v) in a.iter_mut().take(9).enumerate() {
+            *v = m[(k / 3, k % 3)] as f32;
+        }
+        a[9..].copy_from_slice(&[t.x as f32, t.y as f32, t.z as f32]);
+        self.objects.push(Object {
+            inv: a,
+            sdf: shape.sdf(),
+            exact: !matches!(shape, Shape::Hull(_)),
+        });
+        self.ids.push(id.to_string());
+    }
+
+    /// Objects held.
+    pub fn len(&self) -> usize {
+        self.objects.len()
+    }
+
+    /// Whether it holds no object.
+    pub fn is_empty(&self) -> bool {
+        self.objects.is_empty()
+    }
+
+    /// Whether every object's distance is exact (no convex hull stands in as its box).
+    pub fn exact(&self) -> bool {
+        self.objects.iter().all(|o| o.exact)
+    }
+
+    /// Whether the engine holds all of `scene`'s world: it holds no voxels.
+    pub fn complete(scene: &PlanningScene) -> bool {
+        scene.voxels().is_none()
+    }
+
+    /// The id of object `i`.
+    pub fn id(&self, i: usize) -> &str {
+        &self.ids[i]
+    }
+
+    /// The smallest signed distance (m) from the point `p` (root frame) to any object, per
+    /// lane; `f32::MAX` without objects. Never more than the true distance.
+    #[inline]
+    pub fn distance<L: Lane>(&self, p: &[L; 3]) -> L {
+        let mut d = L::splat(f32::MAX);
+        for o in &self.objects {
+            d = d.min(object_distance(o, p));
+        }
+        d
+    }
+
+    /// [`Environment::distance`] to object `i` alone.
+    pub fn distance_to<L: Lane>(&self, i: usize, p: &[L; 3]) -> L {
+        object_distance(&self.objects[i], p)
+    }
+}
+
+#[inline(always)]
+fn object_distance<L: Lane>(o: &Object, p: &[L; 3]) -> L {
+    let (x, y, z) = to_local(&o.inv, p[0], p[1], p[2]);
+    o.sdf.distance(x, y, z)
+}

@@ -1,0 +1,343 @@
+//! The robot's spheres placed for many configurations at once: forward kinematics compiled
+//! from the collision model into a short list of steps with the fixed parts folded into
+//! constants (`f32`), then evaluated over [`Lane`]s.
+//!
+//! A step computes one moving link's frame in the robot's root frame: its parent's frame
+//! (computed before it, or a constant when the parent does not move) times the joint's origin
+//! times the joint's motion. A revolute joint's rotation is `c·A₀ + s·A₁ + (1 − c)·A₂` with
+//! `c, s` the cosine and sine of its angle and `A₀ = O`, `A₁ = O[a]ₓ`, `A₂ = O·a·aᵀ` constants
+//! (`O` the origin's rotation, or the whole fixed chain above a joint whose parent does not
+//! move; `a` the unit axis): Rodrigues' formula with the origin folded in.
+
+use nalgebra::{Isometry3, Matrix3, Vector3};
+
+use ferrobot_kinematics::JointType;
+
+use super::lane::{sin_cos, Lane};
+use crate::model::CollisionModel;
+use crate::{Error, Result};
+
+/// A frame in lanes: rotation (row-major 3 × 3) and translation, m.
+#[derive(Debug, Clone, Copy)]
+pub struct Frame<L> {
+    /// Rotation, row-major.
+    pub r: [L; 9],
+    /// Translation, m.
+    pub t: [L; 3],
+}
+
+/// Rotation (row-major) and translation of a constant frame, `f32`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Constant {
+    r: [f32; 9],
+    t: [f32; 3],
+}
+
+impl Constant {
+    fn of(pose: &Isometry3<f64>) -> Self {
+        let m = pose.rotation.to_rotation_matrix().into_inner();
+        Constant {
+            r: rows(&m),
+            t: [
+                pose.translation.x as f32,
+                pose.translation.y as f32,
+                pose.translation.z as f32,
+            ],
+        }
+    }
+
+    fn splat<L: Lane>(&self) -> Frame<L> {
+        Frame {
+            r: self.r.map(L::splat),
+            t: self.t.map(L::splat),
+        }
+    }
+}
+
+fn rows(m: &Matrix3<f64>) -> [f32; 9] {
+    std::array::from_fn(|k| m[(k / 3, k % 3)] as f32)
+}
+
+/// How a step's joint value follows the configuration: `mul · q[input] + add`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Input {
+    input: usize,
+    mul: f32,
+    add: f32,
+}
+
+/// A step's motion.
+#[derive(Debug, Clone, PartialEq)]
+enum Motion {
+    /// The link's frame is its base: a fixed joint, or one the planned joints do not drive.
+    None,
+    /// Rotation about the axis: the three constant matrices of Rodrigues' formula, row-major.
+    Revolute { input: Input, a: [[f32; 9]; 3] },
+    /// Translation along the unit axis (joint frame).
+    Prismatic { input: Input, axis: [f32; 3] },
+}
+
+/// One moving link's frame.
+#[derive(Debug, Clone, PartialEq)]
+struct Step {
+    /// The parent's step, or `None` when the parent does not move (then `base` is the
+    /// parent's constant frame times the origin).
+    parent: Option<usize>,
+    /// The joint's origin, or (without a moving parent) the whole constant chain above it.
+    base: Constant,
+    motion: Motion,
+}
+
+/// A sphere of a moving link: its step and its centre (link frame, m) and radius (m).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ProgramSphere {
+    /// Index of the step ([`SphereProgram::link_of_step`]) whose frame carries it.
+    pub step: usize,
+    /// Centre in the link's frame, m.
+    pub centre: [f32; 3],
+    /// Radius, m.
+    pub radius: f32,
+}
+
+/// The robot's moving spheres as a function of the planned joints, compiled for lanes.
+#[derive(Debug, Clone)]
+pub struct SphereProgram {
+    dof: usize,
+    steps: Vec<Step>,
+    /// [`CollisionModel::links`] index of each step's link.
+    links: Vec<usize>,
+    spheres: Vec<ProgramSphere>,
+}
+
+impl SphereProgram {
+    /// The program of `model`'s moving links, the joints it does not plan at their current
+    /// values.
+    pub fn new(model: &CollisionModel) -> Result<Self> {
+        let tree = model.tree();
+        let names = model.joint_names();
+        let planned: Vec<usize> = names
+            .iter()
+            .map(|n| tree.joint_index(n).ok_or_else(|| unknown(n)))
+            .collect::<Result<_>>()?;
+        let values = model.tree_values(&vec![0.0; names.len()]);
+        let fixed_poses = tree.poses(&values);
+        let mut step_of = vec![None; model.links().len()];
+        let mut steps = Vec::new();
+        let mut links = Vec::new();
+        for l in 0..model.links().len() {
+            if !model.is_moving(l) {
+                continue;
+            }
+            let origin = tree.link_origin(l).unwrap_or_else(Isometry3::identity);
+            let parent_step = tree.parent(l).and_then(|p| step_of[p]);
+            let mut base = match (parent_step, tree.parent(l)) {
+                (None, Some(p)) => fixed_poses[p] * origin,
+                _ => origin,
+            };
+            let joint = tree.link_joint(l);
+            let motion = match joint.map(|j| (j, driven(model, &planned, j))) {
+                Some((j, Some(input))) => motion(model, j, input, &base),
+                // A joint the plan does not drive keeps its value: folded into the base.
+                Some((j, None)) => {
+                    base *= joint_motion(model, j, values[j]);
+                    Motion::None
+                }
+                None => Motion::None,
+            };
+            step_of[l] = Some(steps.len());
+            steps.push(Step {
+                parent: parent_step,
+                base: Constant::of(&base),
+                motion,
+            });
+            links.push(l);
+        }
+        let spheres = links
+            .iter()
+            .enumerate()
+            .flat_map(|(s, &l)| {
+                model.links()[l]
+                    .spheres
+                    .iter()
+                    .map(move |sp| ProgramSphere {
+                        step: s,
+                        centre: [sp.centre.x as f32, sp.centre.y as f32, sp.centre.z as f32],
+                        radius: sp.radius as f32,
+                    })
+            })
+            .collect();
+        Ok(SphereProgram {
+            dof: names.len(),
+            steps,
+            links,
+            spheres,
+        })
+    }
+
+    /// Planned joints: the length of a configuration.
+    pub fn dof(&self) -> usize {
+        self.dof
+    }
+
+    /// The moving spheres, in the order [`SphereProgram::place`] writes their centres.
+    pub fn spheres(&self) -> &[ProgramSphere] {
+        &self.spheres
+    }
+
+    /// The [`CollisionModel::links`] index of step `step`'s link.
+    pub fn link_of_step(&self, step: usize) -> usize {
+        self.links[step]
+    }
+
+    /// Steps: the moving links.
+    pub fn steps(&self) -> usize {
+        self.steps.len()
+    }
+
+    /// Every moving link's frame for the configurations `q` (one value per planned joint,
+    /// rad or m, each holding [`Lane::LANES`] configurations), into `frames` (one per step).
+    pub fn frames<L: Lane>(&self, q: &[L], frames: &mut Vec<Frame<L>>) {
+        frames.clear();
+        for step in &self.steps {
+            let parent = step.parent.map(|p| frames[p]);
+            let f = match (&step.motion, &parent) {
+                (Motion::Revolute { input, a }, None) => Frame {
+                    r: rodrigues(a, value(q, input)),
+                    t: step.base.t.map(L::splat),
+                },
+                (Motion::Revolute { input, a }, Some(p)) => Frame {
+                    r: mat_mul(&p.r, &rodrigues(a, value(q, input))),
+                    t: transform(p, &step.base.t),
+                },
+                (Motion::None, None) => step.base.splat(),
+                (Motion::None, Some(p)) => compose(p, &step.base),
+                (Motion::Prismatic { input, axis }, _) => {
+                    let mut f = match &parent {
+                        Some(p) => compose(p, &step.base),
+                        None => step.base.splat(),
+                    };
+                    let v = value(q, input);
+                    let a = axis.map(L::splat);
+                    for i in 0..3 {
+                        let along =
+                            f.r[3 * i] * a[0] + f.r[3 * i + 1] * a[1] + f.r[3 * i + 2] * a[2];
+                        f.t[i] = f.t[i] + along * v;
+                    }
+                    f
+                }
+            };
+            frames.push(f);
+        }
+    }
+
+    /// The centre of every sphere ([`SphereProgram::spheres`]' order), root frame, m, for the
+    /// configurations `q`; `frames` is scratch.
+    pub fn place<L: Lane>(&self, q: &[L], frames: &mut Vec<Frame<L>>, centres: &mut Vec<[L; 3]>) {
+        self.frames(q, frames);
+        centres.clear();
+        centres.extend(self.spheres.iter().map(|s| {
+            let f = &frames[s.step];
+            let c = s.centre.map(L::splat);
+            std::array::from_fn(|i| {
+                f.r[3 * i] * c[0] + f.r[3 * i + 1] * c[1] + f.r[3 * i + 2] * c[2] + f.t[i]
+            })
+        }));
+    }
+}
+
+fn unknown(name: &str) -> Error {
+    Error::Invalid {
+        what: "sphere program".into(),
+        why: format!("planned joint {name:?} is not in the tree"),
+    }
+}
+
+#[inline(always)]
+fn value<L: Lane>(q: &[L], input: &Input) -> L {
+    q[input.input] * L::splat(input.mul) + L::splat(input.add)
+}
+
+/// The rotation `c·A₀ + s·A₁ + (1 − c)·A₂` of angle `v` (rad).
+#[inline(always)]
+fn rodrigues<L: Lane>(a: &[[f32; 9]; 3], v: L) -> [L; 9] {
+    let (s, c) = sin_cos(v);
+    let omc = L::splat(1.0) - c;
+    std::array::from_fn(|k| c * L::splat(a[0][k]) + s * L::splat(a[1][k]) + omc * L::splat(a[2][k]))
+}
+
+/// `a · b`, row-major 3 × 3.
+#[inline(always)]
+fn mat_mul<L: Lane>(a: &[L; 9], b: &[L; 9]) -> [L; 9] {
+    std::array::from_fn(|k| {
+        let (i, j) = (k / 3, k % 3);
+        a[3 * i] * b[j] + a[3 * i + 1] * b[3 + j] + a[3 * i + 2] * b[6 + j]
+    })
+}
+
+/// `f` applied to the point `p`.
+#[inline(always)]
+fn transform<L: Lane>(f: &Frame<L>, p: &[f32; 3]) -> [L; 3] {
+    let p = p.map(L::splat);
+    std::array::from_fn(|i| {
+        f.r[3 * i] * p[0] + f.r[3 * i + 1] * p[1] + f.r[3 * i + 2] * p[2] + f.t[i]
+    })
+}
+
+/// `f · c`.
+#[inline(always)]
+fn compose<L: Lane>(f: &Frame<L>, c: &Constant) -> Frame<L> {
+    Frame {
+        r: mat_mul(&f.r, &c.r.map(L::splat)),
+        t: transform(f, &c.t),
+    }
+}
+
+/// The rigid motion of joint `j` at value `v` (rad or m), in its joint frame.
+fn joint_motion(model: &CollisionModel, j: usize, v: f64) -> Isometry3<f64> {
+    let joint = &model.tree().joints()[j];
+    match joint.kind {
+        JointType::Revolute => Isometry3::rotation(joint.axis * v),
+        JointType::Prismatic => {
+            Isometry3::translation(joint.axis.x * v, joint.axis.y * v, joint.axis.z * v)
+        }
+    }
+}
+
+/// How the plan drives joint `j`: its own planned value, or its leader's when it mimics a
+/// planned joint; `None` when the plan does not move it.
+fn driven(model: &CollisionModel, planned: &[usize], j: usize) -> Option<Input> {
+    if let Some(k) = planned.iter().position(|&p| p == j) {
+        return Some(Input {
+            input: k,
+            mul: 1.0,
+            add: 0.0,
+        });
+    }
+    let m = model.tree().joints()[j].mimic?;
+    planned.iter().position(|&p| p == m.leader).map(|k| Input {
+        input: k,
+        mul: m.multiplier as f32,
+        add: m.offset as f32,
+    })
+}
+
+/// The motion of driven joint `j` for the step whose base is `base` (f64).
+fn motion(model: &CollisionModel, j: usize, input: Input, base: &Isometry3<f64>) -> Motion {
+    let joint = &model.tree().joints()[j];
+    let o = base.rotation.to_rotation_matrix().into_inner();
+    let a: Vector3<f64> = joint.axis;
+    match joint.kind {
+        JointType::Revolute => Motion::Revolute {
+            input,
+            a: [
+                rows(&o),
+                rows(&(o * a.cross_matrix())),
+                rows(&(o * a * a.transpose())),
+            ],
+        },
+        JointType::Prismatic => Motion::Prismatic {
+            input,
+            axis: [a.x as f32, a.y as f32, a.z as f32],
+        },
+    }
+}

@@ -1,0 +1,140 @@
+//! The vectorised collision engine (src/lanes/): spheres placed for many configurations at
+//! once agree with the `f64` kinematics and, bit for bit, with the scalar path.
+
+use ferrobot_description::RobotConfig;
+use ferrobot_planning::lanes::{Frame, Lane, SphereProgram, Wide, WIDTH};
+use ferrobot_planning::CollisionModel;
+use nalgebra::Point3;
+use rand::{Rng, SeedableRng};
+
+/// For 512 random configurations of each bundled robot: every sphere's centre within 2 µm
+/// of the `f64` forward kinematics (of the same configuration rounded to `f32`), and each
+/// lane of the vector path equal to the scalar path's bits.
+#[test]
+fn spheres_in_lanes_agree_with_the_kinematics_and_the_scalar_path() {
+    for robot in ["locobot", "locobot_lite", "sawyer"] {
+        let cfg = RobotConfig::bundled(robot).expect(robot);
+        let model = CollisionModel::from_config(&cfg).expect("model");
+        let program = SphereProgram::new(&model).expect("program");
+        assert!(program.spheres().len() > 10, "{robot}");
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        let (mut frames, mut centres) = (Vec::<Frame<Wide>>::new(), Vec::new());
+        let (mut one_frames, mut one) = (Vec::<Frame<f32>>::new(), Vec::new());
+        let mut worst = 0.0f64;
+        for _ in 0..512 / WIDTH {
+            let qs: Vec<Vec<f32>> = (0..WIDTH)
+                .map(|_| {
+                    let q = model
+                        .limits()
+                        .iter()
+                        .map(|&(lo, hi)| rng.random_range(lo..hi));
+                    q.map(|x| x as f32).collect()
+                })
+                .collect();
+            let lanes: Vec<Wide> = (0..program.dof())
+                .map(|j| Wide::load(&qs.iter().map(|q| q[j]).collect::<Vec<_>>()))
+                .collect();
+            program.place(&lanes, &mut frames, &mut centres);
+            for (k, q) in qs.iter().enumerate() {
+                program.place(q, &mut one_frames, &mut one);
+                let q64: Vec<f64> = q.iter().map(|&x| f64::from(x)).collect();
+                let poses = model.link_poses(&q64);
+                for (i, s) in program.spheres().iter().enumerate() {
+                    for a in 0..3 {
+                        assert_eq!(
+                            centres[i][a].to_array()[k].to_bits(),
+                            one[i][a].to_bits(),
+                            "{robot}: sphere {i}, axis {a}, lane {k}"
+                        );
+                    }
+                    let c = s.centre.map(f64::from);
+                    let truth = poses[program.link_of_step(s.step)] * Point3::new(c[0], c[1], c[2]);
+                    let got = Point3::new(one[i][0], one[i][1], one[i][2]).cast::<f64>();
+                    worst = worst.max((truth - got).norm());
+                }
+            }
+        }
+        assert!(worst < 2e-6, "{robot}: {worst} m");
+        eprintln!(
+            "{robot}: {} spheres on {} links, worst {worst:.2e} m",
+            program.spheres().len(),
+            program.steps()
+        );
+    }
+}
+
+/// The world's signed distances in lanes: each lane the scalar path's bits, and within 2 µm of
+/// the closed forms in `f64` (a box, a cylinder, a sphere and a capsule, turned and moved);
+/// a convex hull's never more than its true distance.
+#[test]
+fn world_distances_in_lanes_agree_with_closed_forms_and_the_scalar_path() {
+    use ferrobot_planning::lanes::Environment;
+    use ferrobot_planning::Shape;
+    use nalgebra::{Isometry3, Vector3};
+    let pose = Isometry3::new(Vector3::new(0.4, -0.2, 0.3), Vector3::new(0.3, -0.5, 0.8));
+    let cube: Vec<Point3<f64>> = (0..8)
+        .map(|i| {
+            Point3::new(
+                if i & 1 == 0 { -0.1 } else { 0.1 },
+                if i & 2 == 0 { -0.15 } else { 0.15 },
+                if i & 4 == 0 { -0.05 } else { 0.05 },
+            )
+        })
+        .collect();
+    // Each shape and its distance from a point in its own frame.
+    type Exact = fn(&Point3<f64>) -> f64;
+    let boxed: Exact = |p| {
+        let q = Vector3::new(p.x.abs() - 0.1, p.y.abs() - 0.15, p.z.abs() - 0.05);
+        q.map(|v| v.max(0.0)).norm() + q.max().min(0.0)
+    };
+    let shapes: [(Shape, Exact); 5] = [
+        (Shape::Box([0.2, 0.3, 0.1]), boxed),
+        (
+            Shape::Cylinder {
+                radius: 0.1,
+                length: 0.4,
+            },
+            |p| {
+                let (dr, dz) = ((p.x * p.x + p.y * p.y).sqrt() - 0.1, p.z.abs() - 0.2);
+                (dr.max(0.0).powi(2) + dz.max(0.0).powi(2)).sqrt() + dr.max(dz).min(0.0)
+            },
+        ),
+        (Shape::Sphere(0.12), |p| p.coords.norm() - 0.12),
+        (
+            Shape::Capsule {
+                radius: 0.05,
+                length: 0.3,
+            },
+            |p| {
+                let z = p.z - p.z.clamp(-0.15, 0.15);
+                (p.x * p.x + p.y * p.y + z * z).sqrt() - 0.05
+            },
+        ),
+        (Shape::Hull(cube), boxed),
+    ];
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+    for (shape, exact) in shapes {
+        let mut env = Environment::default();
+        env.push("it", &shape, &pose);
+        let hull = matches!(shape, Shape::Hull(_));
+        assert_eq!(env.exact(), !hull);
+        for _ in 0..256 {
+            let ps: Vec<[f32; 3]> = (0..WIDTH)
+                .map(|_| [0; 3].map(|_| rng.random_range(-0.5f32..0.9)))
+                .collect();
+            let lanes: [Wide; 3] =
+                std::array::from_fn(|a| Wide::load(&ps.iter().map(|p| p[a]).collect::<Vec<_>>()));
+            let d = env.distance(&lanes).to_array();
+            for (k, p) in ps.iter().enumerate() {
+                let one = env.distance(p);
+                assert_eq!(one.to_bits(), d[k].to_bits(), "{shape:?}");
+                let local = pose.inverse() * Point3::new(p[0], p[1], p[2]).cast::<f64>();
+                let truth = exact(&local);
+                assert!(
+                    (f64::from(one) - truth).abs() < 2e-6,
+                    "{shape:?} at {p:?}: {one} vs {truth}"
+                );
+            }
+        }
+    }
+}
