@@ -14,7 +14,6 @@ use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::Duration;
 
-use ferrobot::events::Event;
 use ferrobot::{Bell, Robot};
 use ferrobot_ros2::robot::{Feeds, Item, Messages, RobotInfo};
 use ferrobot_ros2::topics::{self, Topic};
@@ -327,18 +326,17 @@ impl Serving {
         loop {
             let stopping = stop.load(Ordering::SeqCst);
             self.camera_on_demand(&bell);
+            if let Some(r) = &self.remote {
+                r.publish_faults();
+            }
             for item in self.feeds.take() {
                 if let Item::Telemetry(t) = &item {
                     let at = Duration::from_micros(t.time_us);
                     self.publish
                         .put(topics::CLOCK, ferrobot_ros2::encode::clock(at));
                 }
-                if let Some(r) = &self.remote {
-                    match &item {
-                        Item::Telemetry(t) => r.telemetry(t),
-                        Item::Event(Event::Fault { fault, .. }) => r.fault(fault),
-                        _ => {}
-                    }
+                if let (Some(r), Item::Telemetry(t)) = (&self.remote, &item) {
+                    r.telemetry(t);
                 }
                 for (topic, data) in self.messages.of(&item) {
                     // `/cmd_vel` is the robot's input on ROS 2: the base's commands are not

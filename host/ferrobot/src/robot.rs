@@ -387,9 +387,16 @@ impl Robot {
     /// and waits for its acknowledgement: for tools that replay what a robot was sent
     /// ([`crate::events::Event::Command`]). The firmware checks it as it checks every
     /// message (ranges, limits, the emergency stop) and a refusal is [`crate::Error::Rejected`];
-    /// the API's components do not know of it (their goals may overrule it).
+    /// the API's components do not know of it (their goals may overrule it). The faults the
+    /// firmware reported before a refusal (often its cause: a bumper pressed, then a drive
+    /// forward refused) are on the events' stream ([`Robot::subscribe_events`]) when it returns.
     pub fn send_command(&self, msg: &crate::events::HostMsg) -> Result<()> {
-        self.lock_hub().link.command(msg, "a replayed command")
+        let mut io = self.lock_hub();
+        let r = io.link.command(msg, "a replayed command");
+        if matches!(r, Err(Error::Rejected { .. })) {
+            io.collect_faults(self.cfg());
+        }
+        r
     }
 
     /// The firmware's self-description from its handshake (protocol, robot, joint kinds,

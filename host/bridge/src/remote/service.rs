@@ -13,7 +13,9 @@ use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use ferrobot::{Fault, Robot, Telemetry};
+use ferrobot::events::Event;
+use ferrobot::subscription::Subscription;
+use ferrobot::{Robot, Telemetry};
 use ferrobot_protocol::HostMsg;
 use parking_lot::Mutex;
 use zenoh::pubsub::{Publisher, Subscriber};
@@ -53,7 +55,7 @@ pub struct RemoteStats {
 pub struct RemoteService {
     robot: Robot,
     telemetry: Publisher<'static>,
-    faults: Publisher<'static>,
+    faults: Arc<Faults>,
     alive: Publisher<'static>,
     alive_at: Mutex<Option<Instant>>,
     /// The newest telemetry's time, µs: the served robot's clock as the watchdog reads it.
@@ -85,7 +87,14 @@ impl RemoteService {
                 .map_err(z("declaring the remote backend's publishers"))
         };
         let telemetry = publisher(wire::telemetry_key(prefix))?;
-        let faults = publisher(wire::fault_key(prefix))?;
+        let faults = Arc::new(Faults {
+            feed: Mutex::new((
+                robot
+                    .subscribe_events(FAULT_FEED)
+                    .map_err(|e| BridgeError::Usage(format!("the robot's events: {e}")))?,
+                publisher(wire::fault_key(prefix))?,
+            )),
+        });
         let alive = publisher(wire::alive_key(prefix))?;
         let robot_us = Arc::new(AtomicU64::new((robot.time() * 1e6) as u64));
         let clients: Arc<Mutex<HashMap<u64, Client>>> = Arc::default();
@@ -113,6 +122,7 @@ impl RemoteService {
         let stop = Arc::new(AtomicBool::new(false));
         let answerer = Answerer {
             robot: robot.clone(),
+            faults: faults.clone(),
             info,
             clients: clients.clone(),
             robot_us: robot_us.clone(),
@@ -163,9 +173,9 @@ impl RemoteService {
         let _ = self.alive.put(wire::encode(&us)).wait();
     }
 
-    /// Publishes a fault.
-    pub fn fault(&self, f: &Fault) {
-        let _ = self.faults.put(wire::encode(f)).wait();
+    /// Publishes the faults the robot has reported since the last call.
+    pub fn publish_faults(&self) {
+        self.faults.publish();
     }
 
     /// Stops the robot if a client that commanded it has been silent for [`WATCHDOG`], on the
@@ -218,9 +228,35 @@ impl Drop for RemoteService {
     }
 }
 
+/// Events the fault feed holds before its oldest give way: far more than a robot reports
+/// between two turns of the serving loop.
+const FAULT_FEED: usize = 1024;
+
+/// The robot's faults on their way to the clients: its events, of which the faults are
+/// published, by the serving loop as they come and by the calls' thread before it answers a
+/// refused command. A refusal the firmware gave because of a fault it reported first (a
+/// bumper pressed, then a drive forward refused as unsafe) then reaches a client after that
+/// fault, as it reached the robot: zenoh delivers one session's messages in order, so the
+/// client ends its motion with the fault, its cause, rather than with the refusal.
+struct Faults {
+    feed: Mutex<(Subscription<Event>, Publisher<'static>)>,
+}
+
+impl Faults {
+    fn publish(&self) {
+        let feed = self.feed.lock();
+        for e in feed.0.drain() {
+            if let Event::Fault { fault, .. } = e {
+                let _ = feed.1.put(wire::encode(&fault)).wait();
+            }
+        }
+    }
+}
+
 /// Answers calls, on the calls' thread.
 struct Answerer {
     robot: Robot,
+    faults: Arc<Faults>,
     info: RemoteInfo,
     clients: Arc<Mutex<HashMap<u64, Client>>>,
     robot_us: Arc<AtomicU64>,
@@ -272,7 +308,11 @@ impl Answerer {
                 .map(|_| Answer::Done {
                     time_us: (self.robot.time() * 1e6) as u64,
                 })
-                .map_err(|e| Refusal::of(&e)),
+                .map_err(|e| {
+                    // The faults before the refusal go out first (see `Faults`).
+                    self.faults.publish();
+                    Refusal::of(&e)
+                }),
             Call::JointConfig(i) => self
                 .robot
                 .firmware_joint(i)
