@@ -87,14 +87,7 @@ impl RemoteService {
                 .map_err(z("declaring the remote backend's publishers"))
         };
         let telemetry = publisher(wire::telemetry_key(prefix))?;
-        let faults = Arc::new(Faults {
-            feed: Mutex::new((
-                robot
-                    .subscribe_events(FAULT_FEED)
-                    .map_err(|e| BridgeError::Usage(format!("the robot's events: {e}")))?,
-                publisher(wire::fault_key(prefix))?,
-            )),
-        });
+        let faults = Arc::new(Faults::new(robot, publisher(wire::fault_key(prefix))?)?);
         let alive = publisher(wire::alive_key(prefix))?;
         let robot_us = Arc::new(AtomicU64::new((robot.time() * 1e6) as u64));
         let clients: Arc<Mutex<HashMap<u64, Client>>> = Arc::default();
@@ -243,6 +236,15 @@ struct Faults {
 }
 
 impl Faults {
+    fn new(robot: &Robot, publisher: Publisher<'static>) -> Result<Self, BridgeError> {
+        let events = robot
+            .subscribe_events(FAULT_FEED)
+            .map_err(|e| BridgeError::Usage(format!("the robot's events: {e}")))?;
+        Ok(Faults {
+            feed: Mutex::new((events, publisher)),
+        })
+    }
+
     fn publish(&self) {
         let feed = self.feed.lock();
         for e in feed.0.drain() {

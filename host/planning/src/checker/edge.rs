@@ -144,7 +144,7 @@ impl Checker {
 
     /// Each body's largest point motion (m) over the edge from `a` to `b`, and each moving
     /// pair's largest relative motion.
-    fn speeds(&self, a: &[f64], b: &[f64]) -> Speeds {
+    pub(super) fn speeds(&self, a: &[f64], b: &[f64]) -> Speeds {
         let along = |r: &Vec<f64>| -> f64 {
             r.iter()
                 .zip(a.iter().zip(b))

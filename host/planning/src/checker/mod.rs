@@ -21,8 +21,11 @@ mod broad;
 mod build;
 mod edge;
 mod exact;
+mod lanes;
 mod measure;
 mod obstacle;
+
+pub use lanes::{LaneChecks, LaneScratch};
 
 use broad::Placed;
 use obstacle::{Grid, Obstacle};

@@ -15,6 +15,8 @@ struct Object {
     inv: [f32; 12],
     sdf: Sdf,
     exact: bool,
+    /// Clearance kept from it, m: subtracted from its distance.
+    padding: f32,
 }
 
 /// The world's objects for the vectorised engine.
@@ -37,6 +39,12 @@ impl Environment {
 
     /// Adds `shape` at `pose` (root frame).
     pub fn push(&mut self, id: &str, shape: &Shape, pose: &Isometry3<f64>) {
+        self.push_padded(id, shape, pose, 0.0);
+    }
+
+    /// Adds `shape` at `pose` (root frame), its distances less `padding` (m): the room kept
+    /// from it.
+    pub fn push_padded(&mut self, id: &str, shape: &Shape, pose: &Isometry3<f64>, padding: f64) {
         let inv = pose.inverse();
         let m = inv.rotation.to_rotation_matrix().into_inner();
         let t = inv.translation.vector;
@@ -49,6 +57,26 @@ impl Environment {
             inv: a,
             sdf: shape.sdf(),
             exact: !matches!(shape, Shape::Hull(_)),
+            padding: padding as f32,
+        });
+        self.ids.push(id.to_string());
+    }
+
+    /// Adds an object as the checker holds it: world to object frame `inv` (rotation rows,
+    /// translation) and its signed distance.
+    pub(crate) fn push_sdf(
+        &mut self,
+        id: &str,
+        inv: [f32; 12],
+        sdf: Sdf,
+        exact: bool,
+        padding: f64,
+    ) {
+        self.objects.push(Object {
+            inv,
+            sdf,
+            exact,
+            padding: padding as f32,
         });
         self.ids.push(id.to_string());
     }
@@ -98,5 +126,5 @@ impl Environment {
 #[inline(always)]
 fn object_distance<L: Lane>(o: &Object, p: &[L; 3]) -> L {
     let (x, y, z) = to_local(&o.inv, p[0], p[1], p[2]);
-    o.sdf.distance(x, y, z)
+    o.sdf.distance(x, y, z) - L::splat(o.padding)
 }

@@ -15,6 +15,7 @@ use ferrobot_kinematics::JointType;
 
 use super::lane::{sin_cos, Lane};
 use crate::model::CollisionModel;
+use crate::spheres::Sphere;
 use crate::{Error, Result};
 
 /// A frame in lanes: rotation (row-major 3 × 3) and translation, m.
@@ -107,12 +108,27 @@ pub struct SphereProgram {
     /// [`CollisionModel::links`] index of each step's link.
     links: Vec<usize>,
     spheres: Vec<ProgramSphere>,
+    /// Each body's spheres: a range of `spheres`.
+    bodies: Vec<std::ops::Range<usize>>,
 }
 
 impl SphereProgram {
     /// The program of `model`'s moving links, the joints it does not plan at their current
-    /// values.
+    /// values: one body per moving link with spheres.
     pub fn new(model: &CollisionModel) -> Result<Self> {
+        let bodies: Vec<(usize, &[Sphere])> = model
+            .links()
+            .iter()
+            .enumerate()
+            .filter(|(l, g)| model.is_moving(*l) && !g.spheres.is_empty())
+            .map(|(l, g)| (l, g.spheres.as_slice()))
+            .collect();
+        Self::with_bodies(model, &bodies)
+    }
+
+    /// The program of `bodies`: each a moving link of `model` ([`CollisionModel::links`]
+    /// index) and spheres in its frame (its own, or an object it carries).
+    pub fn with_bodies(model: &CollisionModel, bodies: &[(usize, &[Sphere])]) -> Result<Self> {
         let tree = model.tree();
         let names = model.joint_names();
         let planned: Vec<usize> = names
@@ -152,25 +168,31 @@ impl SphereProgram {
             });
             links.push(l);
         }
-        let spheres = links
-            .iter()
-            .enumerate()
-            .flat_map(|(s, &l)| {
-                model.links()[l]
-                    .spheres
-                    .iter()
-                    .map(move |sp| ProgramSphere {
-                        step: s,
-                        centre: [sp.centre.x as f32, sp.centre.y as f32, sp.centre.z as f32],
-                        radius: sp.radius as f32,
-                    })
-            })
-            .collect();
+        let mut spheres = Vec::new();
+        let mut ranges = Vec::with_capacity(bodies.len());
+        for &(l, list) in bodies {
+            let step = step_of
+                .get(l)
+                .copied()
+                .flatten()
+                .ok_or_else(|| Error::Invalid {
+                    what: "sphere program".into(),
+                    why: format!("link {l} does not move with the planned joints"),
+                })?;
+            let start = spheres.len();
+            spheres.extend(list.iter().map(|sp| ProgramSphere {
+                step,
+                centre: [sp.centre.x as f32, sp.centre.y as f32, sp.centre.z as f32],
+                radius: sp.radius as f32,
+            }));
+            ranges.push(start..spheres.len());
+        }
         Ok(SphereProgram {
             dof: names.len(),
             steps,
             links,
             spheres,
+            bodies: ranges,
         })
     }
 
@@ -182,6 +204,16 @@ impl SphereProgram {
     /// The moving spheres, in the order [`SphereProgram::place`] writes their centres.
     pub fn spheres(&self) -> &[ProgramSphere] {
         &self.spheres
+    }
+
+    /// Body `b`'s spheres: a range of [`SphereProgram::spheres`] (bodies in the order given).
+    pub fn body(&self, b: usize) -> std::ops::Range<usize> {
+        self.bodies[b].clone()
+    }
+
+    /// Bodies.
+    pub fn bodies(&self) -> usize {
+        self.bodies.len()
     }
 
     /// The [`CollisionModel::links`] index of step `step`'s link.
