@@ -152,22 +152,27 @@ fn edges_table(robot: &str) {
         let out: Vec<bool> = edges.iter().map(|(a, b)| f(a, b)).collect();
         (t.elapsed().as_secs_f64(), out)
     };
-    let (today, a) = time(&|a, b| checker.motion_free(a, b));
+    let (today, a) = time(&|a, b| checker.advanced(a, b));
     let (vector, b) = time(&|x, y| checker.motion_free_in_lanes(&lanes, x, y));
+    let (scalar, c) = time(&|x, y| checker.motion_free_in_lanes_scalar(&lanes, x, y));
+    assert_eq!(b, c, "the scalar path answers as the vector path");
     let agree = a.iter().zip(&b).filter(|(x, y)| x == y).count();
     let free_today = a.iter().filter(|&&x| x).count();
+    let per = |t: f64| t / edges.len() as f64 * 1e6;
     println!(
-        "| {robot} | {} | {free_today} | {:.1} µs | {:.1} µs | {:.2}× | {agree} |",
+        "| {robot} | {:?} | {} | {free_today} | {:.1} µs | {:.1} µs | {:.1} µs | {:.2}× | {agree} |",
+        checker.engine(),
         edges.len(),
-        today / edges.len() as f64 * 1e6,
-        vector / edges.len() as f64 * 1e6,
+        per(today),
+        per(vector),
+        per(scalar),
         today / vector,
     );
 }
 
 fn tables(_: &mut Criterion) {
-    println!("\n| robot | edges | free (advancement) | advancement, per edge | lanes, per edge | ratio | agree |");
-    println!("|---|---|---|---|---|---|---|");
+    println!("\n| robot | default engine | edges | free (advancement) | advancement, per edge | lanes, per edge | scalar lanes, per edge | advancement / lanes | agree |");
+    println!("|---|---|---|---|---|---|---|---|---|");
     for robot in ["locobot", "sawyer"] {
         edges_table(robot);
     }

@@ -12,9 +12,10 @@ MotionBenchMaker problems for the Panda, and ours on the same problems, in one r
         - problems/SET-NNN.json: each problem as a problems file (`bench plan --problems-file`):
           its objects (boxes, cylinders, spheres, in the Panda's base frame) and its start and
           first goal;
-        - vamp.json and ferrobot.json: per problem, success, time and path length.
-      Then prints a table by set: success, median and p95 time, median path length (rad,
-      joint-space Euclidean) for both, and the ratio of the medians.
+        - vamp.json and ferrobot-ENGINE.json: per problem, success, time and path length.
+      Then prints a table by set for each of --engines (auto: the checker's choice):
+      success, median and p95 time, median path length (rad, joint-space Euclidean) for both,
+      and the ratio of the medians.
 
 Times: VAMP's are its own clock (`results_to_dict`'s total_time: RRT-Connect and
 simplification, without the Python bindings' overhead, which the wall clock beside it
@@ -45,8 +46,10 @@ VELOCITY = [2.175, 2.175, 2.175, 2.175, 2.61, 2.61, 2.61]
 REASONS = {"Adjacent": "adjacent", "Never": "never", "Default": "always"}
 
 
-def write_robot(panda: Path, out: Path) -> None:
-    """The Panda's configuration and URDF in `out`."""
+def write_robot(panda: Path, out: Path, planning_range: float) -> None:
+    """The Panda's configuration and URDF in `out`, its arm's extension step
+    `planning_range` (rad; 0: none, `bench plan`'s default of a fifth of the joint box's
+    diagonal)."""
     shutil.copy(panda / "panda_spherized.urdf", out / "panda_spherized.urdf")
     srdf = (panda / "panda.srdf").read_text()
     pairs = re.findall(
@@ -69,6 +72,8 @@ def write_robot(panda: Path, out: Path) -> None:
         "joint_tolerance = 0.01",
         "timeout = 20.0",
     ]
+    if planning_range > 0:
+        lines.append(f"planning_range = {planning_range}")
     for i, (j, v) in enumerate(zip(JOINTS, VELOCITY)):
         lines += [
             "",
@@ -140,8 +145,9 @@ def run_vamp(problems: list) -> list:
     return rows
 
 
-def run_ours(ferrobot: str, out: Path, names: list) -> list:
-    """`ferrobot bench plan` on each problem file, one process per problem."""
+def run_ours(ferrobot: str, out: Path, names: list, engine: str, extra: list) -> list:
+    """`ferrobot bench plan` on each problem file, one process per problem, its edges proven
+    by `engine` (`bench plan --engine`), with `extra` arguments."""
     rows = []
     for name in names:
         res = subprocess.run(
@@ -154,6 +160,9 @@ def run_ours(ferrobot: str, out: Path, names: list) -> list:
                 "--problems-file",
                 str(out / "problems" / f"{name}.json"),
                 "--json",
+                "--engine",
+                engine,
+                *extra,
             ],
             capture_output=True,
             text=True,
@@ -188,13 +197,26 @@ def main() -> int:
     ap.add_argument("out_dir", type=Path)
     ap.add_argument("--ferrobot", default="target/release/ferrobot")
     ap.add_argument("--sets", default="", help="comma-separated MotionBenchMaker sets (all)")
+    ap.add_argument(
+        "--planning-range",
+        type=float,
+        default=1.0,
+        help="the Panda's extension step for ours, rad (1.0: VAMP's own default; 0: none)",
+    )
+    ap.add_argument("--shortcuts", type=int, help="ours: `bench plan --shortcuts` (its default)")
+    ap.add_argument("--smoothing", type=int, help="ours: `bench plan --smoothing` (its default)")
+    ap.add_argument(
+        "--engines",
+        default="auto",
+        help="comma-separated `bench plan --engine`s to run ours with, one table each (auto)",
+    )
     args = ap.parse_args()
     with open(args.panda_dir / "problems.pkl", "rb") as f:
         data = pickle.load(f)["problems"]
     sets = [s for s in args.sets.split(",") if s] or list(data)
     out = args.out_dir
     (out / "problems").mkdir(parents=True, exist_ok=True)
-    write_robot(args.panda_dir, out)
+    write_robot(args.panda_dir, out, args.planning_range)
     problems = []
     for s in sets:
         for i, d in enumerate(data[s]):
@@ -210,21 +232,25 @@ def main() -> int:
             (out / "problems" / f"{name}.json").write_text(json.dumps(file))
             problems.append((name, dict(d, goals=[goal])))
     vamp_rows = run_vamp(problems)
-    ours_rows = run_ours(args.ferrobot, out, [n for n, _ in problems])
     (out / "vamp.json").write_text(json.dumps(vamp_rows))
-    (out / "ferrobot.json").write_text(json.dumps(ours_rows))
-    print("| set | VAMP success | VAMP median ms | VAMP p95 ms | VAMP path rad | ours success "
-          "| ours median ms | ours p95 ms | ours path rad | ours / VAMP |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
-    for s in sets + ["all"]:
-        pick = (lambda r: True) if s == "all" else (lambda r, s=s: r["name"].rsplit("-", 1)[0] == s)
-        v = summary([r for r in vamp_rows if pick(r)])
-        o = summary([r for r in ours_rows if pick(r)])
-        print(
-            f"| {s} | {v['success']:.0%} | {v['median_ms']:.3f} | {v['p95_ms']:.2f} | "
-            f"{v['path_rad']:.2f} | {o['success']:.0%} | {o['median_ms']:.3f} | {o['p95_ms']:.2f} | "
-            f"{o['path_rad']:.2f} | {o['median_ms'] / v['median_ms']:.1f}× |"
-        )
+    for engine in [e for e in args.engines.split(",") if e]:
+        extra = [] if args.smoothing is None else ["--smoothing", str(args.smoothing)]
+        extra += [] if args.shortcuts is None else ["--shortcuts", str(args.shortcuts)]
+        ours_rows = run_ours(args.ferrobot, out, [n for n, _ in problems], engine, extra)
+        (out / f"ferrobot-{engine}.json").write_text(json.dumps(ours_rows))
+        print(f"\nours with --engine {engine}:\n")
+        print("| set | VAMP success | VAMP median ms | VAMP p95 ms | VAMP path rad | ours success "
+              "| ours median ms | ours p95 ms | ours path rad | ours / VAMP |")
+        print("|---|---|---|---|---|---|---|---|---|---|")
+        for s in sets + ["all"]:
+            pick = (lambda r: True) if s == "all" else (lambda r, s=s: r["name"].rsplit("-", 1)[0] == s)
+            v = summary([r for r in vamp_rows if pick(r)])
+            o = summary([r for r in ours_rows if pick(r)])
+            print(
+                f"| {s} | {v['success']:.0%} | {v['median_ms']:.3f} | {v['p95_ms']:.2f} | "
+                f"{v['path_rad']:.2f} | {o['success']:.0%} | {o['median_ms']:.3f} | "
+                f"{o['p95_ms']:.2f} | {o['path_rad']:.2f} | {o['median_ms'] / v['median_ms']:.1f}× |"
+            )
     walls = [r["wall_ms"] for r in vamp_rows if r["success"]]
     if walls:
         print(f"VAMP's wall clock through its Python bindings: median {statistics.median(walls):.3f} ms")

@@ -1,5 +1,6 @@
 //! `ferrobot bench plan` and `ferrobot collision-matrix`: the JSON summary's shape, an export
-//! that FCL (the Python peer's `check`) finds free of collision at 1 mm, the export read back
+//! that FCL (the Python peer's `check`) finds free of collision at 1 mm (proven by either
+//! engine), the export read back
 //! as a problems file, and OMPL in the same run.
 //!
 //! The peer's tests need a Python with OMPL and FCL: `FERROBOT_PYTHON` (scripts/test.sh
@@ -77,6 +78,7 @@ fn the_summary_has_its_keys_and_every_tabletop_problem_is_solved() {
         keys(&v),
         [
             "collision_checks_per_s",
+            "engine",
             "path_length_rad",
             "planner",
             "problems",
@@ -88,6 +90,8 @@ fn the_summary_has_its_keys_and_every_tabletop_problem_is_solved() {
         ]
     );
     assert_eq!(keys(&v["time_ms"]), ["max", "median", "p95"]);
+    // The LoCoBot's spheres cover meshes: its edges are proven by advancement.
+    assert_eq!(v["engine"], "Advancement", "{v}");
     // No tabletop problem is cut off from the arm's home.
     assert_eq!(v["unreached"], 0, "{v}");
     assert_eq!(keys(&v["path_length_rad"]), ["median"]);
@@ -152,7 +156,8 @@ fn an_export_is_free_under_fcl_and_plans_again_as_a_problems_file() {
         .any(|o| o["id"] == "floor"));
     assert_eq!(successes(&export), vec![true; 5]);
 
-    // The export as a problems file: the same problems, solved again.
+    // The export as a problems file: the same problems, solved again, their edges proven by
+    // the vectorised engine (the walk's exact stage often runs on the LoCoBot's covers).
     let again = dir.join("again.json");
     let (ok, w, text) = ferrobot(&[
         "bench",
@@ -164,11 +169,14 @@ fn an_export_is_free_under_fcl_and_plans_again_as_a_problems_file() {
         "locobot",
         "--problems-file",
         ex,
+        "--engine",
+        "lanes",
         "--export",
         again.to_str().expect("utf-8"),
         "--json",
     ]);
     assert!(ok, "{text}");
+    assert_eq!(w["engine"], "Lanes", "{w}");
     assert_eq!(w["success_rate"], v["success_rate"]);
     assert_eq!(w["problems"], 5);
     assert_eq!(successes(&again), successes(&export));

@@ -872,6 +872,18 @@ fn cases() -> Vec<Case> {
         Input,
     ));
     c.push(case(&plan(&["--robot", "locobot", "--json"]), Input));
+    fn tabletop<'a>(flag: &'a str, v: &'a str) -> Vec<&'a str> {
+        plan(&[
+            "--robot", "locobot", "--scene", "tabletop", flag, v, "--json",
+        ])
+    }
+    c.push(case(&tabletop("--engine", "warp"), Input));
+    for v in HOSTILE.iter().copied().chain(["101"]) {
+        c.push(case(&tabletop("--smoothing", v), Input));
+    }
+    for v in HOSTILE.iter().copied().chain(["100001"]) {
+        c.push(case(&tabletop("--shortcuts", v), Input));
+    }
     c.push(case(
         &plan(&[
             "--robot",

@@ -10,7 +10,9 @@ use nalgebra::Isometry3;
 
 use super::edge::RAKE_SPACING_PER_REACH;
 use super::obstacle::{Grid, Obstacle};
-use super::{check_not_a_link, check_padding, Body, CheckOptions, Checker, Counters, Scratch};
+use super::{
+    check_not_a_link, check_padding, Body, CheckOptions, Checker, Counters, Engine, Scratch,
+};
 use crate::coarse::{BoxSet, LANES};
 use crate::model::{bounding_sphere, CollisionModel};
 use crate::scene::PlanningScene;
@@ -82,6 +84,9 @@ impl Checker {
             opts,
             scratch: RefCell::new(scratch),
             counters: Counters::default(),
+            lanes: None,
+            engine: Engine::Advancement,
+            walk_scratch: RefCell::default(),
         };
         // Through `Checker::obstacle`, which numbers them as `all_of` does.
         checker.all_boxes = checker
@@ -94,6 +99,8 @@ impl Checker {
                 }))
             })
             .collect();
+        checker.lanes = checker.lane_checks()?;
+        checker.engine = checker.default_engine();
         Ok(checker)
     }
 }
@@ -131,6 +138,7 @@ fn link_bodies(model: &CollisionModel) -> Vec<Body> {
             link: i,
             moving: model.is_moving(i),
             spheres: l.spheres.clone(),
+            spheres_exact: l.shapes.iter().all(|(_, s)| matches!(s, Shape::Sphere(_))),
             bound: l.bound,
             exact: l
                 .shapes
@@ -170,6 +178,7 @@ fn add_attached(
             moving: model.is_moving(link),
             bound: bounding_sphere(&spheres),
             spheres,
+            spheres_exact: matches!(a.shape, Shape::Sphere(_)),
             exact: vec![(a.pose * e.correction, e)],
         });
         touch.push(allowed);

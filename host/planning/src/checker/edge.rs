@@ -5,7 +5,7 @@
 
 use std::sync::atomic::Ordering;
 
-use super::{Checker, Contact, Speeds};
+use super::{Checker, Contact, Engine, Speeds};
 use crate::spheres::Sphere;
 
 /// Ends an edge's [`Near`] limits when dropped.
@@ -36,11 +36,21 @@ impl Checker {
         self.measure_with(q, Some(speed), cap, exact_below)
     }
 
-    /// Whether the straight joint-space edge from `a` to `b` is free, proven by conservative
-    /// advancement (see the module's documentation) with steps of `resolution` of robot-point
-    /// motion where the clearance is smaller: the planners' edge check. Every edge a planner
-    /// returns passed it, so no contact hides anywhere on a returned path.
+    /// Whether the straight joint-space edge from `a` to `b` is free, proven by the checker's
+    /// [`Checker::engine`]: the planners' edge check. Every edge a planner returns passed it,
+    /// so no contact hides anywhere on a returned path.
     pub fn motion_free(&self, a: &[f64], b: &[f64]) -> bool {
+        match (&self.lanes, self.engine) {
+            (Some(checks), Engine::Lanes) => self.motion_free_in_lanes(checks, a, b),
+            (Some(checks), Engine::Scalar) => self.motion_free_in_lanes_scalar(checks, a, b),
+            _ => self.advanced(a, b),
+        }
+    }
+
+    /// Whether the edge from `a` to `b` is free, proven by conservative advancement (see the
+    /// module's documentation) with steps of `resolution` of robot-point motion where the
+    /// clearance is smaller.
+    pub fn advanced(&self, a: &[f64], b: &[f64]) -> bool {
         self.prove(a, b, self.opts.resolution, self.opts.resolution * 0.5)
     }
 

@@ -1,34 +1,35 @@
 //! This checker's checks for the vectorised engine ([`crate::lanes`]): its moving bodies'
-//! spheres, each body's obstacles (the world's, padded, and the robot's parts that do not
-//! move), and its moving pairs, at sphere level.
-
-use std::sync::atomic::Ordering;
+//! spheres (each body's bounding sphere first, then its own), each body's obstacles (the
+//! world's, padded, and the robot's parts that do not move), and its moving pairs, at sphere
+//! level. The edge proof built on them is in `lanes_edge.rs`.
 
 use super::Checker;
-use crate::lanes::{Environment, Frame, Lane, SphereProgram, Wide, WIDTH};
+use crate::lanes::{Environment, Frame, Lane, SphereProgram};
+use crate::spheres::Sphere;
 use crate::Result;
 
 /// A state's checks at sphere level for many configurations at once.
 #[derive(Debug, Clone)]
 pub struct LaneChecks {
+    /// Each body's spheres: its bounding sphere (covering the rest), then its own.
     program: SphereProgram,
     /// For each body of `program`, what it is checked against.
     world: Vec<Environment>,
     /// Moving pairs, as bodies of `program`.
     pairs: Vec<(usize, usize)>,
     /// The checker's body behind each of `program`'s.
-    bodies: Vec<usize>,
+    pub(super) bodies: Vec<usize>,
     /// The checker's pair behind each of `pairs`.
-    pair_of: Vec<usize>,
-}
-
-/// How far each body's points and each pair's points relative to each other move between
-/// two neighbouring states of an edge, halved, m: what each clearance must exceed at every
-/// state for the spheres to prove every step free.
-#[derive(Debug, Clone, Default)]
-struct Slack {
-    body: Vec<f32>,
-    pair: Vec<f32>,
+    pub(super) pair_of: Vec<usize>,
+    /// Every obstacle of each body and every pair.
+    all: Candidates,
+    /// Where each body's obstacles, then the pairs, start in [`LaneChecks::measure`]'s
+    /// `nearest`.
+    slots: Vec<usize>,
+    /// For each body, then each pair: whether its spheres and what it is checked against are
+    /// the shapes themselves (spheres and primitives), so that spheres in contact are shapes
+    /// in contact.
+    pub(super) exact: Vec<bool>,
 }
 
 /// Buffers of [`LaneChecks::clearance`].
@@ -47,6 +48,43 @@ impl<L> Default for LaneScratch<L> {
     }
 }
 
+/// For one edge, what each body and each pair is measured against: the rest stays farther
+/// than its cap on the whole edge ([`LaneChecks::measure`]).
+#[derive(Debug, Clone, Default)]
+pub(super) struct Candidates {
+    /// For each body, indices into its [`Environment`].
+    pub obstacles: Vec<Vec<u32>>,
+    /// Indices into the moving pairs.
+    pub pairs: Vec<u32>,
+}
+
+impl Candidates {
+    /// Everything: each body's every obstacle and every pair.
+    fn all(checks: &LaneChecks) -> Self {
+        Candidates {
+            obstacles: checks
+                .world
+                .iter()
+                .map(|env| (0..env.len() as u32).collect())
+                .collect(),
+            pairs: (0..checks.pairs.len() as u32).collect(),
+        }
+    }
+}
+
+/// The smallest sphere about `bound`'s centre that holds every sphere of `spheres` (and
+/// `bound`), in `f32`, a micrometre over.
+fn cover(bound: &Sphere, spheres: &[Sphere]) -> Sphere {
+    let radius = spheres
+        .iter()
+        .map(|s| (s.centre - bound.centre).norm() + s.radius)
+        .fold(bound.radius, f64::max);
+    Sphere {
+        centre: bound.centre,
+        radius: radius + 1e-6,
+    }
+}
+
 impl Checker {
     /// This checker's state checks for the vectorised engine; `None` when the scene holds
     /// voxels, which the engine does not.
@@ -57,28 +95,22 @@ impl Checker {
         let moving: Vec<usize> = (0..self.bodies.len())
             .filter(|&b| self.bodies[b].moving && !self.bodies[b].spheres.is_empty())
             .collect();
-        let bodies: Vec<(usize, &[crate::spheres::Sphere])> = moving
-            .iter()
-            .map(|&b| (self.bodies[b].link, self.bodies[b].spheres.as_slice()))
-            .collect();
-        let program = SphereProgram::with_bodies(&self.model, &bodies)?;
-        let world = moving
+        let spheres: Vec<Vec<Sphere>> = moving
             .iter()
             .map(|&b| {
-                let mut env = Environment::default();
-                for &k in &self.all_of[b] {
-                    let o = self.obstacle(k);
-                    // The padding keeps room from the world, not from the robot's own parts.
-                    let padding = if k < self.obstacles.len() {
-                        self.opts.padding
-                    } else {
-                        0.0
-                    };
-                    env.push_sdf(&o.id, o.inv, o.sdf, false, padding);
-                }
-                env
+                let body = &self.bodies[b];
+                let mut list = vec![cover(&body.bound, &body.spheres)];
+                list.extend_from_slice(&body.spheres);
+                list
             })
             .collect();
+        let bodies: Vec<(usize, &[Sphere])> = moving
+            .iter()
+            .zip(&spheres)
+            .map(|(&b, s)| (self.bodies[b].link, s.as_slice()))
+            .collect();
+        let program = SphereProgram::with_bodies(&self.model, &bodies)?;
+        let world = moving.iter().map(|&b| self.environment_of(b)).collect();
         let index = |b: usize| moving.iter().position(|&m| m == b);
         let (mut pairs, mut pair_of) = (Vec::new(), Vec::new());
         for (p, &(a, b)) in self.pairs.iter().enumerate() {
@@ -87,20 +119,63 @@ impl Checker {
                 pair_of.push(p);
             }
         }
-        Ok(Some(LaneChecks {
+        let own_exact = |b: usize| self.bodies[b].spheres_exact;
+        let exact = moving
+            .iter()
+            .zip(&world)
+            .map(|(&b, env): (&usize, &Environment)| own_exact(b) && env.exact())
+            .chain(pair_of.iter().map(|&p| {
+                let (a, b) = self.pairs[p];
+                own_exact(a) && own_exact(b)
+            }))
+            .collect();
+        let mut checks = LaneChecks {
             program,
             world,
             pairs,
             bodies: moving,
             pair_of,
-        }))
+            all: Candidates::default(),
+            exact,
+            slots: Vec::new(),
+        };
+        checks.all = Candidates::all(&checks);
+        let mut slot = 0;
+        for env in &checks.world {
+            checks.slots.push(slot);
+            slot += env.len();
+        }
+        checks.slots.push(slot);
+        Ok(Some(checks))
+    }
+
+    /// Body `b`'s obstacles as the engine holds them.
+    fn environment_of(&self, b: usize) -> Environment {
+        let mut env = Environment::default();
+        for &k in &self.all_of[b] {
+            let o = self.obstacle(k);
+            env.push_sdf(&o.id, o.inv, o.sdf, o.exact, self.padding_of(k));
+        }
+        env
     }
 }
 
 impl LaneChecks {
-    /// The program placing the spheres.
+    /// The program placing the spheres: each body's bounding sphere, then its own.
     pub fn program(&self) -> &SphereProgram {
         &self.program
+    }
+
+    /// Bodies (the program's) and moving pairs: the number of values
+    /// [`LaneChecks::measure`] gives.
+    pub(super) fn count(&self) -> usize {
+        self.world.len() + self.pairs.len()
+    }
+
+    /// Body `b`'s own spheres, without its bounding sphere.
+    fn own(&self, b: usize) -> std::ops::Range<usize> {
+        let r = self.program.body(b);
+        r.start + 1..r.end
     }
 
     /// The smallest clearance (m) at the configurations `q` (one value per planned joint,
@@ -109,149 +184,197 @@ impl LaneChecks {
     /// spheres, which hold the robot, prove the configuration free; otherwise the spheres are
     /// not conclusive (the exact check decides).
     pub fn clearance<L: Lane>(&self, q: &[L], scratch: &mut LaneScratch<L>) -> L {
-        self.least(q, None, scratch)
-    }
-
-    /// [`LaneChecks::clearance`], each body's clearances less its `slack.body` and each
-    /// pair's less its `slack.pair` (none without `slack`).
-    fn least<L: Lane>(&self, q: &[L], slack: Option<&Slack>, scratch: &mut LaneScratch<L>) -> L {
         self.program
             .place(q, &mut scratch.frames, &mut scratch.centres);
         let c = &scratch.centres;
         let spheres = self.program.spheres();
         let mut least = L::splat(f32::MAX);
         for (b, env) in self.world.iter().enumerate() {
-            let less = slack.map_or(0.0, |s| s.body[b]);
-            for i in self.program.body(b) {
-                least = least.min(env.distance(&c[i]) - L::splat(spheres[i].radius + less));
+            for i in self.own(b) {
+                least = least.min(env.distance(&c[i]) - L::splat(spheres[i].radius));
             }
         }
-        for (p, &(a, b)) in self.pairs.iter().enumerate() {
-            let less = slack.map_or(0.0, |s| s.pair[p]);
-            for i in self.program.body(a) {
-                for k in self.program.body(b) {
-                    let d = [0, 1, 2].map(|x| c[i][x] - c[k][x]);
-                    let gap = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
-                        - L::splat(spheres[i].radius + spheres[k].radius + less);
-                    least = least.min(gap);
+        for &(a, b) in &self.pairs {
+            for i in self.own(a) {
+                for k in self.own(b) {
+                    least = least.min(gap(&c[i], &c[k], spheres[i].radius + spheres[k].radius));
                 }
             }
         }
         least
     }
-}
 
-/// Most states of one edge the spheres are asked to prove before the edge goes to the
-/// checker's conservative advancement instead.
-const MAX_STATES: usize = 4096;
-
-impl Checker {
-    /// Whether the straight joint-space edge from `a` to `b` is free, as
-    /// [`Checker::motion_free`] answers it, with `checks` (this checker's
-    /// [`Checker::lane_checks`]) first: the edge is cut into equal steps of at most
-    /// `resolution` of the fastest point's motion, and its states are measured
-    /// [`crate::lanes::WIDTH`] at a time. When every state's sphere clearances exceed half
-    /// what their points can move in a step, each step's two ends together exceed the whole
-    /// step: the spheres, which hold the robot, prove the edge free. The first state where they
-    /// do not is checked exactly; in contact, the edge is refused; free, the checker's own
-    /// advancement decides.
-    pub fn motion_free_in_lanes(&self, checks: &LaneChecks, a: &[f64], b: &[f64]) -> bool {
-        if !self.within_limits(a) || !self.within_limits(b) {
-            return false;
-        }
-        let speeds = self.speeds(a, b);
-        let fastest = checks
-            .bodies
-            .iter()
-            .map(|&b| speeds.body[b])
-            .chain(checks.pair_of.iter().map(|&p| speeds.pair[p]))
-            .fold(0.0f64, f64::max);
-        let steps = (fastest / self.opts.resolution).ceil().max(1.0);
-        if !steps.is_finite() || steps as usize > MAX_STATES {
-            return self.motion_free(a, b);
-        }
-        let n = steps as usize;
-        let half = |s: f64| (s / steps * 0.5) as f32;
-        let slack = Slack {
-            body: checks
-                .bodies
-                .iter()
-                .map(|&b| half(speeds.body[b]))
-                .collect(),
-            pair: checks
-                .pair_of
-                .iter()
-                .map(|&p| half(speeds.pair[p]))
-                .collect(),
-        };
-        match first_unproven(checks, &slack, a, b, n) {
-            None => {
-                self.counters.edges.fetch_add(1, Ordering::Relaxed);
-                true
-            }
-            Some(t) => {
-                let q: Vec<f64> = a.iter().zip(b).map(|(x, y)| x + (y - x) * t).collect();
-                self.is_free(&q) && self.motion_free(a, b)
+    /// Lower bounds of the clearances at `q`, per lane, into `out`: for each body (the
+    /// program's), of its spheres from its `candidates` obstacles, then for each moving pair,
+    /// of its two bodies' spheres, each at most its `ceilings` value (m): one bound per body
+    /// and per pair. Where a bounding sphere is at least `gate` from an obstacle (or from the
+    /// other body's bounding sphere, or one sphere from the other body's bounding sphere), that
+    /// gap is the bound and the spheres inside are not measured.
+    ///
+    /// With `nearest`, each body's bounding sphere's least distance to each of its
+    /// obstacles, then each pair's bounding spheres' gap, over the lanes, is lowered into it
+    /// (in [`Candidates::all`]'s order; `candidates` must be all of them).
+    ///
+    /// Stops, and returns true, at the first body or pair that is [`LaneChecks::exact`] whose
+    /// bound is at most `contact` in some lane: a contact (`out` is then incomplete).
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn measure<L: Lane>(
+        &self,
+        q: &[L],
+        candidates: &Candidates,
+        (gate, ceilings): (f32, &[f32]),
+        scratch: &mut LaneScratch<L>,
+        out: &mut [L],
+        mut nearest: Option<&mut [f32]>,
+        contact: f32,
+    ) -> bool {
+        self.program
+            .place(q, &mut scratch.frames, &mut scratch.centres);
+        let c = &scratch.centres;
+        // The bodies farthest along the chain first: they move most, and meet things first.
+        for b in (0..self.world.len()).rev() {
+            let record = nearest.as_deref_mut().map(|n| {
+                let slot = self.slots[b];
+                &mut n[slot..slot + candidates.obstacles[b].len()]
+            });
+            let obstacles = &candidates.obstacles[b];
+            out[b] = self.body_bound(b, c, obstacles, (gate, ceilings[b]), record);
+            if self.exact[b] && !out[b].all_at_least(contact.next_up()) {
+                return true;
             }
         }
+        let bodies = self.world.len();
+        // A pair that is not a candidate stays at least its ceiling away.
+        for (o, &ceiling) in out[bodies..].iter_mut().zip(&ceilings[bodies..]) {
+            *o = L::splat(ceiling);
+        }
+        for &p in &candidates.pairs {
+            let p = p as usize;
+            let (value, far) = self.pair_bound(p, c, (gate, ceilings[bodies + p]));
+            if let Some(n) = nearest.as_deref_mut() {
+                let slot = self.slots[bodies] + p;
+                n[slot] = n[slot].min(far);
+            }
+            out[bodies + p] = value;
+            if self.exact[bodies + p] && !value.all_at_least(contact.next_up()) {
+                return true;
+            }
+        }
+        false
+    }
+
+    /// Body `b`'s clearance bound (at most `ceiling`) from its `obstacles`, its spheres
+    /// placed at `c`; each obstacle's bounding gap, over the lanes, lowered into `record`.
+    #[inline]
+    fn body_bound<L: Lane>(
+        &self,
+        b: usize,
+        c: &[[L; 3]],
+        obstacles: &[u32],
+        (gate, ceiling): (f32, f32),
+        mut record: Option<&mut [f32]>,
+    ) -> L {
+        let env = &self.world[b];
+        let spheres = self.program.spheres();
+        let bound = self.program.body(b).start;
+        let own = self.own(b);
+        let mut least = L::splat(ceiling);
+        for (k, &o) in obstacles.iter().enumerate() {
+            let o = o as usize;
+            let far = env.spheres_gap(o, &c[bound..=bound], &spheres[bound..=bound]);
+            if let Some(n) = record.as_deref_mut() {
+                n[k] = n[k].min(far.least());
+            }
+            if far.all_at_least(gate) {
+                least = least.min(far);
+                continue;
+            }
+            let near = env.spheres_gap(o, &c[own.clone()], &spheres[own.clone()]);
+            least = least.min(far.at_least_select(gate, far, near.max(far)));
+        }
+        least
+    }
+
+    /// Pair `p`'s clearance bound (at most `ceiling`), its spheres placed at `c`, and its
+    /// bounding spheres' least gap over the lanes.
+    #[inline]
+    fn pair_bound<L: Lane>(&self, p: usize, c: &[[L; 3]], (gate, ceiling): (f32, f32)) -> (L, f32) {
+        let (a, b) = self.pairs[p];
+        let spheres = self.program.spheres();
+        let (ba, bb) = (self.program.body(a).start, self.program.body(b).start);
+        let far = gap(&c[ba], &c[bb], spheres[ba].radius + spheres[bb].radius);
+        let ceiling = L::splat(ceiling);
+        if far.all_at_least(gate) {
+            return (far.min(ceiling), far.least());
+        }
+        // Each of `a`'s spheres against `b`'s bounding sphere first, then its own.
+        let mut own = L::splat(f32::MAX);
+        for i in self.own(a) {
+            let near = gap(&c[i], &c[bb], spheres[i].radius + spheres[bb].radius);
+            if near.all_at_least(gate) {
+                own = own.min(near);
+                continue;
+            }
+            let mut least = L::splat(f32::MAX);
+            for k in self.own(b) {
+                least = least.min(gap(&c[i], &c[k], spheres[i].radius + spheres[k].radius));
+            }
+            own = own.min(near.at_least_select(gate, near, least.max(near)));
+        }
+        let value = far.at_least_select(gate, far, own.max(far));
+        (value.min(ceiling), far.least())
+    }
+
+    /// The candidates that may come within `gate` of their body or pair on an edge, from the
+    /// least bounding gaps `nearest` ([`LaneChecks::measure`] with every candidate) less
+    /// `slack` (per body, then per pair, m: how far they can close between the states
+    /// measured); and for each body and pair, the least such bound of the others (m; `MAX`
+    /// when none is dropped), which its clearance never goes below on the edge.
+    pub(super) fn near(&self, nearest: &[f32], slack: &[f32], gate: f32) -> (Candidates, Vec<f32>) {
+        let mut floors = vec![f32::MAX; self.count()];
+        let obstacles = (0..self.world.len())
+            .map(|b| {
+                let slot = self.slots[b];
+                let mut kept = Vec::new();
+                for (&o, &n) in self.all.obstacles[b].iter().zip(&nearest[slot..]) {
+                    let bound = n - slack[b];
+                    if bound < gate {
+                        kept.push(o);
+                    } else {
+                        floors[b] = floors[b].min(bound);
+                    }
+                }
+                kept
+            })
+            .collect();
+        let bodies = self.world.len();
+        let mut pairs = Vec::new();
+        for &p in &self.all.pairs {
+            let k = bodies + p as usize;
+            let bound = nearest[self.slots[bodies] + p as usize] - slack[k];
+            if bound < gate {
+                pairs.push(p);
+            } else {
+                floors[k] = floors[k].min(bound);
+            }
+        }
+        (Candidates { obstacles, pairs }, floors)
+    }
+
+    /// Slots of [`LaneChecks::measure`]'s `nearest`.
+    pub(super) fn nearest_len(&self) -> usize {
+        self.world.iter().map(Environment::len).sum::<usize>() + self.pairs.len()
+    }
+
+    /// Every candidate ([`Candidates::all`]).
+    pub(super) fn all_candidates(&self) -> &Candidates {
+        &self.all
     }
 }
 
-/// The edge parameter of the first state (in the rake's order: the ends, the middle, the
-/// quarters…) of the `n + 1` equally spaced on the edge from `a` to `b` whose clearance less
-/// `slack` is not positive; `None` when every state's is.
-fn first_unproven(
-    checks: &LaneChecks,
-    slack: &Slack,
-    a: &[f64],
-    b: &[f64],
-    n: usize,
-) -> Option<f64> {
-    let order = rake_order(n);
-    let mut scratch = LaneScratch::<Wide>::default();
-    let dof = a.len();
-    let mut lanes = vec![Wide::splat(0.0); dof];
-    let mut values = [0f32; WIDTH];
-    for batch in order.chunks(WIDTH) {
-        let t = |k: usize| batch[k.min(batch.len() - 1)] as f64 / n as f64;
-        for (j, lane) in lanes.iter_mut().enumerate() {
-            for (k, v) in values.iter_mut().enumerate() {
-                *v = (a[j] + (b[j] - a[j]) * t(k)) as f32;
-            }
-            *lane = Wide::load(&values);
-        }
-        let least = checks.least(&lanes, Some(slack), &mut scratch).to_array();
-        if let Some(k) = (0..batch.len()).find(|&k| least[k] <= 0.0) {
-            return Some(t(k));
-        }
-    }
-    None
-}
-
-/// `0..=n` in the rake's order: 0 and `n`, then the middle, then the quarters, and so on,
-/// each index once.
-fn rake_order(n: usize) -> Vec<usize> {
-    let mut seen = vec![false; n + 1];
-    let mut out = Vec::with_capacity(n + 1);
-    let mut push = |k: usize, out: &mut Vec<usize>| {
-        if !seen[k] {
-            seen[k] = true;
-            out.push(k);
-        }
-    };
-    push(0, &mut out);
-    push(n, &mut out);
-    let mut parts = 2;
-    while out.len() < n + 1 {
-        for i in (1..parts).step_by(2) {
-            push(i * n / parts, &mut out);
-        }
-        parts *= 2;
-        if parts > 2 * (n + 1) {
-            for k in 0..=n {
-                push(k, &mut out);
-            }
-        }
-    }
-    out
+/// The gap (m) between spheres about `a` and `b` whose radii sum to `radii`, per lane.
+#[inline(always)]
+fn gap<L: Lane>(a: &[L; 3], b: &[L; 3], radii: f32) -> L {
+    let d = [0, 1, 2].map(|x| a[x] - b[x]);
+    (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt() - L::splat(radii)
 }

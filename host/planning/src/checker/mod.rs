@@ -22,10 +22,12 @@ mod build;
 mod edge;
 mod exact;
 mod lanes;
+mod lanes_edge;
 mod measure;
 mod obstacle;
 
 pub use lanes::{LaneChecks, LaneScratch};
+pub use lanes_edge::Engine;
 
 use broad::Placed;
 use obstacle::{Grid, Obstacle};
@@ -101,6 +103,8 @@ struct Body {
     link: usize,
     moving: bool,
     spheres: Vec<Sphere>,
+    /// Whether `spheres` are its shapes themselves (every shape a sphere), not a cover.
+    spheres_exact: bool,
     bound: Sphere,
     exact: Vec<(Isometry3<f64>, Exact)>,
 }
@@ -206,6 +210,11 @@ pub struct Checker {
     opts: CheckOptions,
     scratch: RefCell<Scratch>,
     counters: Counters,
+    /// The vectorised engine's checks (none with voxels).
+    lanes: Option<LaneChecks>,
+    /// How [`Checker::motion_free`] proves edges.
+    engine: Engine,
+    walk_scratch: RefCell<lanes_edge::WalkScratch>,
 }
 
 impl Checker {
@@ -267,6 +276,8 @@ impl Checker {
     pub fn set_padding(&mut self, padding: f64) -> Result<()> {
         check_padding(padding)?;
         self.opts.padding = padding;
+        // The engine's distances hold the padding.
+        self.lanes = self.lane_checks()?;
         Ok(())
     }
 

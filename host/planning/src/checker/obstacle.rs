@@ -14,6 +14,8 @@ use crate::Result;
 pub(super) struct Obstacle {
     pub(super) id: String,
     pub(super) sdf: Sdf,
+    /// Whether `sdf` is the shape's own signed distance (not a convex hull's bounding box).
+    pub(super) exact: bool,
     /// World to object frame: rotation rows and translation, `f32`.
     pub(super) inv: [f32; 12],
     /// The exact shape and the pose of its frame.
@@ -40,6 +42,7 @@ impl Obstacle {
         Ok(Obstacle {
             id: id.to_string(),
             sdf: shape.sdf(),
+            exact: !matches!(shape, Shape::Hull(_)),
             inv: [
                 m[(0, 0)] as f32,
                 m[(0, 1)] as f32,

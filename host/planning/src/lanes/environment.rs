@@ -6,8 +6,9 @@
 use nalgebra::Isometry3;
 
 use super::lane::Lane;
+use super::program::ProgramSphere;
 use crate::scene::PlanningScene;
-use crate::shape::{to_local, Sdf, Shape};
+use crate::shape::{box_distance, capsule_distance, cylinder_distance, to_local, Sdf, Shape};
 
 /// One object: world to object frame (rotation rows, translation) and its signed distance.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -121,6 +122,47 @@ impl Environment {
     pub fn distance_to<L: Lane>(&self, i: usize, p: &[L; 3]) -> L {
         object_distance(&self.objects[i], p)
     }
+
+    /// The least gap (m) between object `i` and the spheres about `centres` (root frame) whose
+    /// radii `spheres` give, per lane: each sphere's [`Environment::distance_to`] less its
+    /// radius, the shape's kind chosen once for all of them.
+    #[inline]
+    pub fn spheres_gap<L: Lane>(
+        &self,
+        i: usize,
+        centres: &[[L; 3]],
+        spheres: &[ProgramSphere],
+    ) -> L {
+        let o = &self.objects[i];
+        match o.sdf {
+            Sdf::Box { centre, half } => gaps(o, centres, spheres, |x, y, z| {
+                box_distance(centre, half, x, y, z)
+            }),
+            Sdf::Cylinder { radius, half } => gaps(o, centres, spheres, |x, y, z| {
+                cylinder_distance(radius, half, x, y, z)
+            }),
+            Sdf::Capsule { radius, half } => gaps(o, centres, spheres, |x, y, z| {
+                capsule_distance(radius, half, x, y, z)
+            }),
+        }
+    }
+}
+
+/// [`Environment::spheres_gap`] with the object's signed distance `sdf`: per sphere as
+/// [`object_distance`] less the radius.
+#[inline(always)]
+fn gaps<L: Lane>(
+    o: &Object,
+    centres: &[[L; 3]],
+    spheres: &[ProgramSphere],
+    sdf: impl Fn(L, L, L) -> L,
+) -> L {
+    let mut least = L::splat(f32::MAX);
+    for (c, s) in centres.iter().zip(spheres) {
+        let (x, y, z) = to_local(&o.inv, c[0], c[1], c[2]);
+        least = least.min(sdf(x, y, z) - L::splat(o.padding) - L::splat(s.radius));
+    }
+    least
 }
 
 #[inline(always)]

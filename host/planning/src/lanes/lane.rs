@@ -24,7 +24,7 @@ pub trait Lane:
     fn load(v: &[f32]) -> Self;
     /// The lanes into `out` (`out.len()` is [`Lane::LANES`]).
     fn store(self, out: &mut [f32]);
-    /// Largest integer not above, per lane.
+    /// Largest integer not above, per lane (|x| < 2²³).
     fn floor(self) -> Self;
     /// Square root, per lane.
     fn sqrt(self) -> Self;
@@ -36,6 +36,10 @@ pub trait Lane:
     fn min(self, o: Self) -> Self;
     /// The smallest lane.
     fn least(self) -> f32;
+    /// Whether every lane is at least `v` (finite values).
+    fn all_at_least(self, v: f32) -> bool;
+    /// `then` in the lanes where `self` is at least `v`, `otherwise` in the others.
+    fn at_least_select(self, v: f32, then: Self, otherwise: Self) -> Self;
 }
 
 impl Lane for f32 {
@@ -86,6 +90,18 @@ impl Lane for f32 {
     fn least(self) -> f32 {
         self
     }
+    #[inline(always)]
+    fn all_at_least(self, v: f32) -> bool {
+        self >= v
+    }
+    #[inline(always)]
+    fn at_least_select(self, v: f32, then: Self, otherwise: Self) -> Self {
+        if self >= v {
+            then
+        } else {
+            otherwise
+        }
+    }
 }
 
 impl Lane for f32x8 {
@@ -104,9 +120,13 @@ impl Lane for f32x8 {
     fn store(self, out: &mut [f32]) {
         out.copy_from_slice(&self.to_array());
     }
+    // The x86-64 baseline (SSE2) has no instruction for `floor`, and `wide` calls `floorf`
+    // per lane there: truncation instead (exact for |x| < 2³¹, the range `Lane::floor`
+    // promises), less one where it rounded up.
     #[inline(always)]
     fn floor(self) -> Self {
-        f32x8::floor(self)
+        let t = self.fast_trunc_int().round_float();
+        t - (t.simd_gt(self) & f32x8::ONE)
     }
     #[inline(always)]
     fn sqrt(self) -> Self {
@@ -128,6 +148,16 @@ impl Lane for f32x8 {
     fn least(self) -> f32 {
         let a = self.to_array();
         a.iter().fold(a[0], |m, &x| Lane::min(x, m))
+    }
+    // `x − v` is exact in sign (never −0 for `x ≥ v`, never +0 for `x < v`): no lane's sign
+    // bit is set exactly when every lane is at least `v`.
+    #[inline(always)]
+    fn all_at_least(self, v: f32) -> bool {
+        (self - f32x8::splat(v)).to_bitmask() == 0
+    }
+    #[inline(always)]
+    fn at_least_select(self, v: f32, then: Self, otherwise: Self) -> Self {
+        self.simd_ge(f32x8::splat(v)).select(then, otherwise)
     }
 }
 

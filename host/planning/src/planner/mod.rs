@@ -12,6 +12,7 @@ use crate::joint_space::{dist, sample};
 use crate::{Error, Result};
 
 mod informed;
+mod smooth;
 mod tree;
 
 pub use informed::InformedRrtStar;
@@ -19,6 +20,12 @@ use tree::{extend, Domain, Grow, Tree};
 
 /// Longest time limit of one plan, s.
 pub const MAX_TIME_LIMIT: f64 = 600.0;
+
+/// Most [`PlanOptions::shortcuts`] attempts.
+pub const MAX_SHORTCUTS: usize = 100_000;
+
+/// Most [`PlanOptions::smoothing`] rounds.
+pub const MAX_SMOOTHING: usize = 100;
 
 /// Largest [`PlanOptions::shortcut_min_gain`], rad.
 pub const MAX_MIN_GAIN: f64 = 100.0;
@@ -38,8 +45,11 @@ pub struct PlanOptions {
     /// the joint limits' box (OMPL's default). In (0.001, 10] rad. The API and `ferrobot bench plan` give the
     /// arm's `planning_range` (`[arm]` of its configuration) where it has one.
     pub range: Option<f64>,
-    /// Shortcut attempts after a path is found (0: none), at most 100,000.
+    /// Shortcut attempts after a path is found (0: none), at most [`MAX_SHORTCUTS`].
     pub shortcuts: usize,
+    /// Rounds of smoothing after shortcutting (0: none), at most [`MAX_SMOOTHING`]: corner
+    /// cutting and the greedy pass, as VAMP simplifies (`smooth.rs`).
+    pub smoothing: usize,
     /// A shortcut is checked only when it would shorten the path by at least this much, rad:
     /// once the path is nearly straight, most attempts would save little and each costs an
     /// edge check. At 0.01 rad the benchmark's sets took 14 % (LoCoBot) to 25 % (Sawyer's
@@ -62,6 +72,7 @@ impl Default for PlanOptions {
             seed: 1,
             range: None,
             shortcuts: 60,
+            smoothing: 0,
             shortcut_min_gain: 0.01,
             improve_for: Duration::from_millis(100),
             dynamic_domain: true,
@@ -116,7 +127,16 @@ impl PlanOptions {
                 ),
             });
         }
-        if self.shortcuts > 100_000 {
+        if self.smoothing > MAX_SMOOTHING {
+            return Err(Error::Invalid {
+                what: "plan options".into(),
+                why: format!(
+                    "{} smoothing rounds, more than {MAX_SMOOTHING}",
+                    self.smoothing
+                ),
+            });
+        }
+        if self.shortcuts > MAX_SHORTCUTS {
             return Err(Error::Invalid {
                 what: "plan options".into(),
                 why: format!("{} shortcut attempts, more than 100000", self.shortcuts),
@@ -392,22 +412,8 @@ pub fn shortcut(
             path = next;
         }
     }
-    // From each waypoint kept, the farthest later one it sees (within [`LOOK_AHEAD`]).
-    let Some(first) = path.first() else {
-        return path;
-    };
-    let mut out = Vec::with_capacity(path.len());
-    out.push(first.clone());
-    let mut i = 0;
-    while i + 1 < path.len() {
-        let mut j = (path.len() - 1).min(i + LOOK_AHEAD);
-        while j > i + 1 && !(t0.elapsed() <= limit && checker.motion_free(&path[i], &path[j])) {
-            j -= 1;
-        }
-        out.push(path[j].clone());
-        i = j;
-    }
-    out
+    let path = smooth::greedy(checker, path, t0, limit);
+    smooth::smooth(checker, path, opts.smoothing, t0, limit)
 }
 
 /// How many waypoints ahead shortcutting's last pass looks from each waypoint it keeps. The

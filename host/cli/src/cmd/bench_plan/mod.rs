@@ -14,8 +14,8 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use ferrobot::planning::{
-    self as planning, bench, planner, CheckOptions, Checker, CollisionModel, PlanOptions,
-    PlanningScene, Shape,
+    self as planning, bench, checker::Engine, planner, CheckOptions, Checker, CollisionModel,
+    PlanOptions, PlanningScene, Shape,
 };
 use ferrobot::scene::{Scene, SceneSource};
 use ferrobot::{validate, Error, RobotConfig};
@@ -81,6 +81,34 @@ pub struct Args {
     /// about 0.25 ms each).
     #[arg(long, requires = "ompl")]
     pub ompl_time_limit: Option<f64>,
+    /// How edges are proven: auto (the checker's choice: the vectorised engine where its
+    /// spheres are conclusive), lanes (vectorised), scalar (its one-state path, the same
+    /// answers) or advancement (conservative advancement alone). Generated problems are drawn
+    /// with the advancement whatever the engine, so every engine plans the same set.
+    #[arg(long, default_value = "auto")]
+    pub engine: String,
+    /// Random shortcut attempts after a path is found (the planner's default: 60).
+    #[arg(long)]
+    pub shortcuts: Option<usize>,
+    /// Rounds of smoothing after shortcutting, as VAMP simplifies (corner cutting and the
+    /// greedy pass; the planner's default: 0).
+    #[arg(long)]
+    pub smoothing: Option<usize>,
+}
+
+/// The engine `--engine` names, `None` for auto.
+fn engine(name: &str) -> ferrobot::Result<Option<Engine>> {
+    Ok(Some(match name {
+        "auto" => return Ok(None),
+        "lanes" => Engine::Lanes,
+        "scalar" => Engine::Scalar,
+        "advancement" => Engine::Advancement,
+        _ => {
+            return Err(Error::Usage(format!(
+                "unknown engine {name:?}; engines are: auto, lanes, scalar, advancement"
+            )))
+        }
+    }))
 }
 
 /// Where an object's mesh comes from.
@@ -176,18 +204,17 @@ pub fn run(a: &Args) -> ferrobot::Result<()> {
         Path::to_path_buf,
     );
     let scene = planning_scene(&source, &work.objects)?;
-    let checker = Checker::new(Arc::new(model), &scene, CheckOptions::default())
+    let mut checker = Checker::new(Arc::new(model), &scene, CheckOptions::default())
         .map_err(|e| planning_error(&source, e))?;
-    let (problems, unreached) = if a.problems_file.is_some() {
-        (work.problems, None)
-    } else {
-        generate(a, &cfg, &checker, &work)?
-    };
+    let (problems, unreached) = problems(a, &cfg, &mut checker, &work, &source)?;
+    let defaults = PlanOptions::default();
     let opts = PlanOptions {
         time_limit: Duration::from_secs_f64(a.time_limit),
         seed: a.seed,
         range: cfg.arm.as_ref().and_then(|arm| arm.planning_range),
-        ..PlanOptions::default()
+        shortcuts: a.shortcuts.unwrap_or(defaults.shortcuts),
+        smoothing: a.smoothing.unwrap_or(defaults.smoothing),
+        ..defaults
     };
     let (outcomes, summary) = bench::run(&checker, planner.as_ref(), &problems, &opts);
     let (export_path, _temp) = export_path(a)?;
@@ -207,6 +234,7 @@ pub fn run(a: &Args) -> ferrobot::Result<()> {
     let report = table::Report {
         robot: &cfg.name,
         planner: planner.name(),
+        engine: checker.engine(),
         label: work.label,
         summary: &summary,
         unreached,
@@ -217,8 +245,46 @@ pub fn run(a: &Args) -> ferrobot::Result<()> {
     Ok(())
 }
 
+/// The problems (the file's, or generated with the advancement so that every engine plans
+/// the same set) and the candidates dropped as unsolvable; `checker` then proves edges with
+/// `--engine`'s engine.
+fn problems(
+    a: &Args,
+    cfg: &RobotConfig,
+    checker: &mut Checker,
+    work: &Workload,
+    source: &Path,
+) -> ferrobot::Result<(Vec<bench::Problem>, Option<usize>)> {
+    let set_engine = |c: &mut Checker, e| c.set_engine(e).map_err(|e| planning_error(source, e));
+    let chosen = checker.engine();
+    let out = if a.problems_file.is_some() {
+        (work.problems.clone(), None)
+    } else {
+        set_engine(checker, Engine::Advancement)?;
+        let generated = generate(a, cfg, checker, work)?;
+        set_engine(checker, chosen)?;
+        generated
+    };
+    if let Some(e) = engine(&a.engine)? {
+        set_engine(checker, e)?;
+    }
+    Ok(out)
+}
+
 /// The planner, and the arguments checked before anything is read.
 fn check(a: &Args, ompl_time_limit: f64) -> ferrobot::Result<Box<dyn planner::Planner>> {
+    engine(&a.engine)?;
+    if a.smoothing.is_some_and(|n| n > planner::MAX_SMOOTHING)
+        || a.shortcuts.is_some_and(|n| n > planner::MAX_SHORTCUTS)
+    {
+        return Err(Error::Usage(format!(
+            "--smoothing {:?} must be at most {} and --shortcuts {:?} at most {}",
+            a.smoothing,
+            planner::MAX_SMOOTHING,
+            a.shortcuts,
+            planner::MAX_SHORTCUTS
+        )));
+    }
     let planner = planner::by_name(&a.planner).ok_or_else(|| {
         Error::Usage(format!(
             "unknown planner {:?}; planners are: {}",

@@ -21,6 +21,8 @@ struct SummaryJson {
     peer: Option<serde_json::Value>,
     /// The planner.
     planner: String,
+    /// How edges were proven (`Lanes`, `Scalar` or `Advancement`).
+    engine: String,
     /// Problems planned.
     problems: usize,
     /// The robot.
@@ -67,6 +69,8 @@ pub(super) struct Report<'a> {
     pub(super) robot: &'a str,
     /// The planner's name.
     pub(super) planner: &'a str,
+    /// How edges were proven.
+    pub(super) engine: ferrobot::planning::checker::Engine,
     /// The scene's name or the problems file.
     pub(super) label: String,
     /// Our planner's summary.
@@ -90,6 +94,7 @@ pub(super) fn print(a: &Args, ompl_time_limit: f64, r: Report) {
             },
             peer: r.peer,
             planner: r.planner.to_string(),
+            engine: format!("{:?}", r.engine),
             problems: summary.problems,
             robot: r.robot.to_string(),
             scene: r.label,
@@ -121,6 +126,7 @@ pub(super) fn print(a: &Args, ompl_time_limit: f64, r: Report) {
             REACH_FACTOR * a.time_limit
         );
     }
+    say!("(edges proven by {:?})", r.engine);
     say!("");
     print_table(r.planner, summary, r.peer.as_ref());
     print_failures(r.outcomes);
