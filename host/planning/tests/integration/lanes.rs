@@ -278,8 +278,9 @@ fn edges_proven_in_lanes_are_free_and_agree_with_the_checker() {
 
 /// A Sawyer whose every collision shape is a sphere (each cylinder and box of the bundled
 /// model replaced by a sphere at its centre, of the cylinder's radius or 5 cm): a spherized
-/// model, as VAMP's robots are, written into a scratch directory; its configuration.
-fn spherized_sawyer() -> RobotConfig {
+/// model, as VAMP's robots are; its configuration, and the scratch directory holding its files
+/// (removed when dropped).
+fn spherized_sawyer() -> (RobotConfig, tempfile::TempDir) {
     let robots = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../description/robots");
     let urdf = std::fs::read_to_string(robots.join("sawyer.urdf")).expect("the Sawyer's URDF");
     let mut out = String::new();
@@ -305,11 +306,12 @@ fn spherized_sawyer() -> RobotConfig {
     for other in ["<cylinder", "<mesh", "<box", "<capsule"] {
         assert!(!out.contains(other), "every shape a sphere: {other}");
     }
-    let dir = std::env::temp_dir().join(format!("ferrobot-spherized-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("scratch");
-    std::fs::write(dir.join("sawyer.urdf"), out).expect("URDF");
-    std::fs::copy(robots.join("sawyer.toml"), dir.join("sawyer.toml")).expect("description");
-    RobotConfig::from_file(dir.join("sawyer.toml")).expect("the spherized Sawyer")
+    let dir = tempfile::TempDir::new().expect("scratch");
+    std::fs::write(dir.path().join("sawyer.urdf"), out).expect("URDF");
+    let toml = dir.path().join("sawyer.toml");
+    std::fs::copy(robots.join("sawyer.toml"), &toml).expect("description");
+    let cfg = RobotConfig::from_file(&toml).expect("the spherized Sawyer");
+    (cfg, dir)
 }
 
 /// The planner on each engine. Checkers prove edges by advancement on the bundled robots
@@ -333,13 +335,14 @@ fn plans_are_the_same_on_the_vector_and_the_scalar_path() {
     scene
         .add_object("box", Shape::Box([0.1, 0.1, 0.25]), at(0.35, 0.0, 0.25))
         .unwrap();
+    let (spherized, _files) = spherized_sawyer();
     let robots = [
         (
             RobotConfig::bundled("locobot").unwrap(),
             Engine::Advancement,
         ),
         (RobotConfig::bundled("sawyer").unwrap(), Engine::Advancement),
-        (spherized_sawyer(), Engine::Lanes),
+        (spherized, Engine::Lanes),
     ];
     for (cfg, engine) in robots {
         let model = Arc::new(CollisionModel::from_config(&cfg).expect("model"));
