@@ -99,8 +99,7 @@ impl Checker {
                 }))
             })
             .collect();
-        checker.lanes = checker.lane_checks()?;
-        checker.engine = checker.default_engine();
+        checker.set_engine(checker.default_engine())?;
         Ok(checker)
     }
 }

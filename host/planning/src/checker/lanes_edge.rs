@@ -41,10 +41,14 @@ impl Checker {
     /// vectorised engine in a scene with voxels, which it does not hold.
     pub fn set_engine(&mut self, engine: Engine) -> Result<()> {
         if engine != Engine::Advancement && self.lanes.is_none() {
-            return Err(Error::Invalid {
-                what: format!("engine {engine:?}"),
-                why: "the scene holds voxels, which the vectorised engine does not".into(),
-            });
+            // Built when first needed: a checker on the advancement never holds them.
+            self.lanes = self.lane_checks()?;
+            if self.lanes.is_none() {
+                return Err(Error::Invalid {
+                    what: format!("engine {engine:?}"),
+                    why: "the scene holds voxels, which the vectorised engine does not".into(),
+                });
+            }
         }
         self.engine = engine;
         Ok(())
@@ -63,7 +67,8 @@ impl Checker {
             .iter()
             .filter(|b| b.moving)
             .all(|b| b.spheres_exact);
-        if self.lanes.is_some() && spherized {
+        // The engine holds no voxels ([`Checker::lane_checks`]).
+        if self.grid.is_none() && spherized {
             Engine::Lanes
         } else {
             Engine::Advancement

@@ -210,7 +210,8 @@ pub struct Checker {
     opts: CheckOptions,
     scratch: RefCell<Scratch>,
     counters: Counters,
-    /// The vectorised engine's checks (none with voxels).
+    /// The vectorised engine's checks, built when an engine first needs them (never with
+    /// voxels).
     lanes: Option<LaneChecks>,
     /// How [`Checker::motion_free`] proves edges.
     engine: Engine,
@@ -277,7 +278,9 @@ impl Checker {
         check_padding(padding)?;
         self.opts.padding = padding;
         // The engine's distances hold the padding.
-        self.lanes = self.lane_checks()?;
+        if self.lanes.is_some() {
+            self.lanes = self.lane_checks()?;
+        }
         Ok(())
     }
 

@@ -139,7 +139,10 @@ impl PlanOptions {
         if self.shortcuts > MAX_SHORTCUTS {
             return Err(Error::Invalid {
                 what: "plan options".into(),
-                why: format!("{} shortcut attempts, more than 100000", self.shortcuts),
+                why: format!(
+                    "{} shortcut attempts, more than {MAX_SHORTCUTS}",
+                    self.shortcuts
+                ),
             });
         }
         Ok(())
