@@ -233,7 +233,7 @@ pub(crate) fn capsule_distance<L: Lane>(radius: f32, half: f32, x: L, y: L, z: L
 /// (rotation rows, then translation).
 #[inline(always)]
 pub(crate) fn to_local<L: Lane>(inv: &[f32; 12], x: L, y: L, z: L) -> (L, L, L) {
-    let m = inv.map(L::splat);
+    let m: [L; 12] = crate::lanes::splat_all(inv);
     (
         m[0] * x + m[1] * y + m[2] * z + m[9],
         m[3] * x + m[4] * y + m[5] * z + m[10],

@@ -180,6 +180,36 @@ fn an_export_is_free_under_fcl_and_plans_again_as_a_problems_file() {
     assert_eq!(w["success_rate"], v["success_rate"]);
     assert_eq!(w["problems"], 5);
     assert_eq!(successes(&again), successes(&export));
+    // The same engine on the baseline's instructions (SSE2 halves, where the run above took
+    // AVX2 on a CPU that has it): the same paths, value for value.
+    let baseline = dir.join("baseline.json");
+    let (ok, b, text) = ferrobot(&[
+        "bench",
+        "plan",
+        "--time-limit",
+        "30",
+        "--config",
+        "locobot",
+        "--problems-file",
+        ex,
+        "--engine",
+        "baseline",
+        "--export",
+        baseline.to_str().expect("utf-8"),
+        "--json",
+    ]);
+    assert!(ok, "{text}");
+    assert_eq!(b["engine"], "Baseline", "{b}");
+    // Every problem's start, goal, success and path; not its time.
+    let paths = |f: &Path| {
+        let v: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(f).expect("export")).expect("JSON");
+        let problems = v["problems"].as_array().expect("problems").iter();
+        problems
+            .map(|p| [&p["start"], &p["goal"], &p["success"], &p["path"]].map(|x| x.clone()))
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(paths(&baseline), paths(&again));
 
     if let Some(py) = peer_python() {
         for file in [&export, &again] {

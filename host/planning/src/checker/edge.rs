@@ -42,6 +42,7 @@ impl Checker {
     pub fn motion_free(&self, a: &[f64], b: &[f64]) -> bool {
         match (&self.lanes, self.engine) {
             (Some(checks), Engine::Lanes) => self.motion_free_in_lanes(checks, a, b),
+            (Some(checks), Engine::Baseline) => self.motion_free_in_baseline_lanes(checks, a, b),
             (Some(checks), Engine::Scalar) => self.motion_free_in_lanes_scalar(checks, a, b),
             _ => self.advanced(a, b),
         }

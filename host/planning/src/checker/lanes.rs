@@ -218,6 +218,7 @@ impl LaneChecks {
     /// Stops, and returns true, at the first body or pair that is [`LaneChecks::exact`] whose
     /// bound is at most `contact` in some lane: a contact (`out` is then incomplete).
     #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
     pub(super) fn measure<L: Lane>(
         &self,
         q: &[L],
@@ -265,7 +266,7 @@ impl LaneChecks {
 
     /// Body `b`'s clearance bound (at most `ceiling`) from its `obstacles`, its spheres
     /// placed at `c`; each obstacle's bounding gap, over the lanes, lowered into `record`.
-    #[inline]
+    #[inline(always)]
     fn body_bound<L: Lane>(
         &self,
         b: usize,
@@ -297,7 +298,7 @@ impl LaneChecks {
 
     /// Pair `p`'s clearance bound (at most `ceiling`), its spheres placed at `c`, and its
     /// bounding spheres' least gap over the lanes.
-    #[inline]
+    #[inline(always)]
     fn pair_bound<L: Lane>(&self, p: usize, c: &[[L; 3]], (gate, ceiling): (f32, f32)) -> (L, f32) {
         let (a, b) = self.pairs[p];
         let spheres = self.program.spheres();
@@ -375,6 +376,6 @@ impl LaneChecks {
 /// The gap (m) between spheres about `a` and `b` whose radii sum to `radii`, per lane.
 #[inline(always)]
 fn gap<L: Lane>(a: &[L; 3], b: &[L; 3], radii: f32) -> L {
-    let d = [0, 1, 2].map(|x| a[x] - b[x]);
-    (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt() - L::splat(radii)
+    let (x, y, z) = (a[0] - b[0], a[1] - b[1], a[2] - b[2]);
+    (x * x + y * y + z * z).sqrt() - L::splat(radii)
 }

@@ -24,8 +24,12 @@ pub enum Engine {
     /// Conservative advancement on the checker's own stages (`edge.rs`).
     Advancement,
     /// The vectorised engine: states measured [`WIDTH`] at a time at sphere level, the
-    /// advancement where the spheres are not conclusive.
+    /// advancement where the spheres are not conclusive; on AVX2 where the CPU has it
+    /// (detected at run time), else as [`Engine::Baseline`].
     Lanes,
+    /// [`Engine::Lanes`] on the target's baseline instructions whatever the CPU (`wide`'s
+    /// `f32x8`: two SSE2 halves on x86-64): the same answers.
+    Baseline,
     /// The vectorised engine's walk one state at a time, in `f32`: the same answers as
     /// [`Engine::Lanes`] for the same edge, without SIMD.
     Scalar,
@@ -127,16 +131,34 @@ pub(super) struct WalkScratch {
     candidates: Candidates,
 }
 
-/// The buffers of both paths: placement, clearances out, joint values in.
+/// The buffers of each path: placement, clearances out, joint values in.
 #[derive(Debug, Default)]
-struct Buffers {
+pub(super) struct Buffers {
     wide: (LaneScratch<Wide>, Vec<Wide>, Vec<Wide>),
     one: (LaneScratch<f32>, Vec<f32>, Vec<f32>),
+    #[cfg(target_arch = "x86_64")]
+    pub(super) avx: super::lanes_avx::AvxBuffers,
 }
 
-/// A [`Lane`] type with its [`Buffers`].
-trait Lanes: Lane {
+/// A [`Lane`] type with its [`Buffers`] and its measure of a state.
+pub(super) trait Lanes: Lane {
     fn buffers(b: &mut Buffers) -> &mut (LaneScratch<Self>, Vec<Self>, Vec<Self>);
+
+    /// [`LaneChecks::measure`] (a type may compile it for its instructions).
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn measure(
+        checks: &LaneChecks,
+        q: &[Self],
+        candidates: &Candidates,
+        limits: (f32, &[f32]),
+        scratch: &mut LaneScratch<Self>,
+        out: &mut [Self],
+        nearest: Option<&mut [f32]>,
+        contact: f32,
+    ) -> bool {
+        checks.measure(q, candidates, limits, scratch, out, nearest, contact)
+    }
 }
 
 impl Lanes for Wide {
@@ -156,7 +178,20 @@ impl Checker {
     /// checker's [`Checker::lane_checks`]): proven at sphere level in lanes (the module's
     /// rule); where the spheres are not conclusive, the exact check at that state refuses the
     /// edge in contact, and otherwise the checker's conservative advancement decides.
+    ///
+    /// On AVX2 (detected at run time) the lanes are one 256-bit register, otherwise two
+    /// SSE2 halves: the same answers.
     pub fn motion_free_in_lanes(&self, checks: &LaneChecks, a: &[f64], b: &[f64]) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        if let Some(free) = super::lanes_avx::edge(self, checks, a, b) {
+            return free;
+        }
+        self.motion_free_in_baseline_lanes(checks, a, b)
+    }
+
+    /// [`Checker::motion_free_in_lanes`] on the target's baseline lanes (`wide`'s `f32x8`: two
+    /// SSE2 halves on x86-64) whatever the CPU: the same answer.
+    pub fn motion_free_in_baseline_lanes(&self, checks: &LaneChecks, a: &[f64], b: &[f64]) -> bool {
         self.edge_in_lanes::<Wide>(checks, a, b)
     }
 
@@ -165,7 +200,12 @@ impl Checker {
         self.edge_in_lanes::<f32>(checks, a, b)
     }
 
-    fn edge_in_lanes<L: Lanes>(&self, checks: &LaneChecks, a: &[f64], b: &[f64]) -> bool {
+    pub(super) fn edge_in_lanes<L: Lanes>(
+        &self,
+        checks: &LaneChecks,
+        a: &[f64],
+        b: &[f64],
+    ) -> bool {
         if !self.within_limits(a) || !self.within_limits(b) {
             return false;
         }
@@ -334,7 +374,9 @@ impl Walker<'_> {
             let nearest = record.then_some(s.nearest.as_mut_slice());
             let contact = 2.0 * EPSILON;
             let limits = (GATE, s.caps.as_slice());
-            if checks.measure(q, candidates, limits, scratch, out, nearest, contact) {
+            if L::measure(
+                checks, q, candidates, limits, scratch, out, nearest, contact,
+            ) {
                 return true;
             }
             let at = n * L::LANES;

@@ -22,6 +22,11 @@ mod build;
 mod edge;
 mod exact;
 mod lanes;
+// The crate's one `unsafe`: a call of code compiled for AVX2 after the CPU was found to have
+// it (the call's note).
+#[cfg(target_arch = "x86_64")]
+#[allow(unsafe_code)]
+mod lanes_avx;
 mod lanes_edge;
 mod measure;
 mod obstacle;

@@ -126,7 +126,7 @@ impl Environment {
     /// The least gap (m) between object `i` and the spheres about `centres` (root frame) whose
     /// radii `spheres` give, per lane: each sphere's [`Environment::distance_to`] less its
     /// radius, the shape's kind chosen once for all of them.
-    #[inline]
+    #[inline(always)]
     pub fn spheres_gap<L: Lane>(
         &self,
         i: usize,
@@ -135,16 +135,44 @@ impl Environment {
     ) -> L {
         let o = &self.objects[i];
         match o.sdf {
-            Sdf::Box { centre, half } => gaps(o, centres, spheres, |x, y, z| {
-                box_distance(centre, half, x, y, z)
-            }),
-            Sdf::Cylinder { radius, half } => gaps(o, centres, spheres, |x, y, z| {
-                cylinder_distance(radius, half, x, y, z)
-            }),
-            Sdf::Capsule { radius, half } => gaps(o, centres, spheres, |x, y, z| {
-                capsule_distance(radius, half, x, y, z)
-            }),
+            Sdf::Box { centre, half } => gaps(o, centres, spheres, BoxSdf(centre, half)),
+            Sdf::Cylinder { radius, half } => gaps(o, centres, spheres, Cylinder(radius, half)),
+            Sdf::Capsule { radius, half } => gaps(o, centres, spheres, Capsule(radius, half)),
         }
+    }
+}
+
+/// One kind of shape's signed distance, its parameters held (a trait rather than a closure:
+/// its method is inlined wherever the AVX path needs it, `checker/lanes_avx.rs`).
+trait Distance {
+    fn at<L: Lane>(&self, x: L, y: L, z: L) -> L;
+}
+
+/// A box's centre and half sizes, m.
+struct BoxSdf([f32; 3], [f32; 3]);
+/// A cylinder's radius and half length, m.
+struct Cylinder(f32, f32);
+/// A capsule's radius and half length, m.
+struct Capsule(f32, f32);
+
+impl Distance for BoxSdf {
+    #[inline(always)]
+    fn at<L: Lane>(&self, x: L, y: L, z: L) -> L {
+        box_distance(self.0, self.1, x, y, z)
+    }
+}
+
+impl Distance for Cylinder {
+    #[inline(always)]
+    fn at<L: Lane>(&self, x: L, y: L, z: L) -> L {
+        cylinder_distance(self.0, self.1, x, y, z)
+    }
+}
+
+impl Distance for Capsule {
+    #[inline(always)]
+    fn at<L: Lane>(&self, x: L, y: L, z: L) -> L {
+        capsule_distance(self.0, self.1, x, y, z)
     }
 }
 
@@ -155,12 +183,12 @@ fn gaps<L: Lane>(
     o: &Object,
     centres: &[[L; 3]],
     spheres: &[ProgramSphere],
-    sdf: impl Fn(L, L, L) -> L,
+    sdf: impl Distance,
 ) -> L {
     let mut least = L::splat(f32::MAX);
     for (c, s) in centres.iter().zip(spheres) {
         let (x, y, z) = to_local(&o.inv, c[0], c[1], c[2]);
-        least = least.min(sdf(x, y, z) - L::splat(o.padding) - L::splat(s.radius));
+        least = least.min(sdf.at(x, y, z) - L::splat(o.padding) - L::splat(s.radius));
     }
     least
 }

@@ -161,6 +161,17 @@ impl Lane for f32x8 {
     }
 }
 
+/// Each of `v` in every lane. A loop rather than `map`, which would stay a call where the
+/// AVX path needs every operation inlined (`checker/lanes_avx.rs`).
+#[inline(always)]
+pub fn splat_all<L: Lane, const N: usize>(v: &[f32; N]) -> [L; N] {
+    let mut out = [L::splat(0.0); N];
+    for (o, &x) in out.iter_mut().zip(v) {
+        *o = L::splat(x);
+    }
+    out
+}
+
 /// π/2 in three parts (Cody and Waite): the first two with few enough bits that `n` times
 /// them is exact for `|n| < 2¹²`.
 const PIO2: [f32; 3] = [1.570_312_5, 4.837_513e-4, 7.549_79e-8];

@@ -10,7 +10,7 @@ mod lane;
 mod program;
 
 pub use environment::Environment;
-pub use lane::{sin_cos, Lane, WIDTH};
+pub use lane::{sin_cos, splat_all, Lane, WIDTH};
 pub use program::{Frame, ProgramSphere, SphereProgram};
 
 /// [`WIDTH`] configurations in lanes: the vector path's number.

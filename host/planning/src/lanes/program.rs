@@ -13,7 +13,7 @@ use nalgebra::{Isometry3, Matrix3, Vector3};
 
 use ferrobot_kinematics::JointType;
 
-use super::lane::{sin_cos, Lane};
+use super::lane::{sin_cos, splat_all, Lane};
 use crate::model::CollisionModel;
 use crate::spheres::Sphere;
 use crate::{Error, Result};
@@ -47,10 +47,11 @@ impl Constant {
         }
     }
 
+    #[inline(always)]
     fn splat<L: Lane>(&self) -> Frame<L> {
         Frame {
-            r: self.r.map(L::splat),
-            t: self.t.map(L::splat),
+            r: splat_all(&self.r),
+            t: splat_all(&self.t),
         }
     }
 }
@@ -228,6 +229,7 @@ impl SphereProgram {
 
     /// Every moving link's frame for the configurations `q` (one value per planned joint,
     /// rad or m, each holding [`Lane::LANES`] configurations), into `frames` (one per step).
+    #[inline(always)]
     pub fn frames<L: Lane>(&self, q: &[L], frames: &mut Vec<Frame<L>>) {
         frames.clear();
         for step in &self.steps {
@@ -235,7 +237,7 @@ impl SphereProgram {
             let f = match (&step.motion, &parent) {
                 (Motion::Revolute { input, a }, None) => Frame {
                     r: rodrigues(a, value(q, input)),
-                    t: step.base.t.map(L::splat),
+                    t: splat_all(&step.base.t),
                 },
                 (Motion::Revolute { input, a }, Some(p)) => Frame {
                     r: mat_mul(&p.r, &rodrigues(a, value(q, input))),
@@ -249,7 +251,7 @@ impl SphereProgram {
                         None => step.base.splat(),
                     };
                     let v = value(q, input);
-                    let a = axis.map(L::splat);
+                    let a: [L; 3] = splat_all(axis);
                     for i in 0..3 {
                         let along =
                             f.r[3 * i] * a[0] + f.r[3 * i + 1] * a[1] + f.r[3 * i + 2] * a[2];
@@ -264,16 +266,13 @@ impl SphereProgram {
 
     /// The centre of every sphere ([`SphereProgram::spheres`]' order), root frame, m, for the
     /// configurations `q`; `frames` is scratch.
+    #[inline(always)]
     pub fn place<L: Lane>(&self, q: &[L], frames: &mut Vec<Frame<L>>, centres: &mut Vec<[L; 3]>) {
         self.frames(q, frames);
         centres.clear();
-        centres.extend(self.spheres.iter().map(|s| {
-            let f = &frames[s.step];
-            let c = s.centre.map(L::splat);
-            std::array::from_fn(|i| {
-                f.r[3 * i] * c[0] + f.r[3 * i + 1] * c[1] + f.r[3 * i + 2] * c[2] + f.t[i]
-            })
-        }));
+        for s in &self.spheres {
+            centres.push(transform(&frames[s.step], &s.centre));
+        }
     }
 }
 
@@ -294,32 +293,40 @@ fn value<L: Lane>(q: &[L], input: &Input) -> L {
 fn rodrigues<L: Lane>(a: &[[f32; 9]; 3], v: L) -> [L; 9] {
     let (s, c) = sin_cos(v);
     let omc = L::splat(1.0) - c;
-    std::array::from_fn(|k| c * L::splat(a[0][k]) + s * L::splat(a[1][k]) + omc * L::splat(a[2][k]))
+    let mut r = [L::splat(0.0); 9];
+    for (k, r) in r.iter_mut().enumerate() {
+        *r = c * L::splat(a[0][k]) + s * L::splat(a[1][k]) + omc * L::splat(a[2][k]);
+    }
+    r
 }
 
 /// `a · b`, row-major 3 × 3.
 #[inline(always)]
 fn mat_mul<L: Lane>(a: &[L; 9], b: &[L; 9]) -> [L; 9] {
-    std::array::from_fn(|k| {
+    let mut r = [L::splat(0.0); 9];
+    for (k, r) in r.iter_mut().enumerate() {
         let (i, j) = (k / 3, k % 3);
-        a[3 * i] * b[j] + a[3 * i + 1] * b[3 + j] + a[3 * i + 2] * b[6 + j]
-    })
+        *r = a[3 * i] * b[j] + a[3 * i + 1] * b[3 + j] + a[3 * i + 2] * b[6 + j];
+    }
+    r
 }
 
 /// `f` applied to the point `p`.
 #[inline(always)]
 fn transform<L: Lane>(f: &Frame<L>, p: &[f32; 3]) -> [L; 3] {
-    let p = p.map(L::splat);
-    std::array::from_fn(|i| {
-        f.r[3 * i] * p[0] + f.r[3 * i + 1] * p[1] + f.r[3 * i + 2] * p[2] + f.t[i]
-    })
+    let p: [L; 3] = splat_all(p);
+    let mut r = [L::splat(0.0); 3];
+    for (i, r) in r.iter_mut().enumerate() {
+        *r = f.r[3 * i] * p[0] + f.r[3 * i + 1] * p[1] + f.r[3 * i + 2] * p[2] + f.t[i];
+    }
+    r
 }
 
 /// `f · c`.
 #[inline(always)]
 fn compose<L: Lane>(f: &Frame<L>, c: &Constant) -> Frame<L> {
     Frame {
-        r: mat_mul(&f.r, &c.r.map(L::splat)),
+        r: mat_mul(&f.r, &splat_all(&c.r)),
         t: transform(f, &c.t),
     }
 }

@@ -217,8 +217,8 @@ fn lane_checks_are_sound_against_the_checker() {
 
 /// Edges proven in lanes, on the LoCoBot and the Sawyer among the same objects: every edge
 /// they call free has no contact at states 1 mm of robot-point motion apart (the checker's
-/// sampled re-check, independent of the proof), the scalar path answers as the vector path,
-/// and they agree with the checker's own advancement on at least 95 % of the edges.
+/// sampled re-check, independent of the proof), the scalar path and the baseline's lanes
+/// answer as the vector path (AVX2 where the CPU has it), and they agree with the checker's own advancement on at least 95 % of the edges.
 #[test]
 fn edges_proven_in_lanes_are_free_and_agree_with_the_checker() {
     use ferrobot_planning::{CheckOptions, Checker, PlanningScene, Shape};
@@ -259,6 +259,9 @@ fn edges_proven_in_lanes_are_free_and_agree_with_the_checker() {
             let in_lanes = checker.motion_free_in_lanes(&lanes, &a, &b);
             let scalar = checker.motion_free_in_lanes_scalar(&lanes, &a, &b);
             assert_eq!(in_lanes, scalar, "{robot}: {a:?} -> {b:?}");
+            // AVX2 where the CPU has it, the baseline's SSE2 halves otherwise: the same.
+            let baseline = checker.motion_free_in_baseline_lanes(&lanes, &a, &b);
+            assert_eq!(in_lanes, baseline, "{robot}: {a:?} -> {b:?}");
             if in_lanes {
                 proven += 1;
                 assert!(

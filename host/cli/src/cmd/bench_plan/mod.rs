@@ -82,8 +82,9 @@ pub struct Args {
     #[arg(long, requires = "ompl")]
     pub ompl_time_limit: Option<f64>,
     /// How edges are proven: auto (the checker's choice: the vectorised engine where its
-    /// spheres are conclusive), lanes (vectorised), scalar (its one-state path, the same
-    /// answers) or advancement (conservative advancement alone). Generated problems are drawn
+    /// spheres are conclusive), lanes (vectorised: AVX2 where the CPU has it), baseline (the
+    /// same on the target's baseline instructions), scalar (its one-state path; all three give
+    /// the same answers) or advancement (conservative advancement alone). Generated problems are drawn
     /// with the advancement whatever the engine, so every engine plans the same set.
     #[arg(long, default_value = "auto")]
     pub engine: String,
@@ -101,11 +102,12 @@ fn engine(name: &str) -> ferrobot::Result<Option<Engine>> {
     Ok(Some(match name {
         "auto" => return Ok(None),
         "lanes" => Engine::Lanes,
+        "baseline" => Engine::Baseline,
         "scalar" => Engine::Scalar,
         "advancement" => Engine::Advancement,
         _ => {
             return Err(Error::Usage(format!(
-                "unknown engine {name:?}; engines are: auto, lanes, scalar, advancement"
+                "unknown engine {name:?}; engines are: auto, lanes, baseline, scalar, advancement"
             )))
         }
     }))
