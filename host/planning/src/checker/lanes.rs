@@ -37,6 +37,9 @@ pub struct LaneChecks {
 pub struct LaneScratch<L> {
     frames: Vec<Frame<L>>,
     centres: Vec<[L; 3]>,
+    /// Per body, whether its own spheres are placed in `centres` ([`LaneChecks::measure`]
+    /// places them only where its bounding sphere is not conclusive).
+    placed: Vec<bool>,
 }
 
 impl<L> Default for LaneScratch<L> {
@@ -44,6 +47,7 @@ impl<L> Default for LaneScratch<L> {
         LaneScratch {
             frames: Vec::new(),
             centres: Vec::new(),
+            placed: Vec::new(),
         }
     }
 }
@@ -229,29 +233,38 @@ impl LaneChecks {
         mut nearest: Option<&mut [f32]>,
         contact: f32,
     ) -> bool {
-        self.program
-            .place(q, &mut scratch.frames, &mut scratch.centres);
-        let c = &scratch.centres;
+        // The frames, and each body's bounding sphere; its own spheres when they are needed.
+        self.program.frames(q, &mut scratch.frames);
+        let bodies = self.world.len();
+        scratch
+            .centres
+            .resize(self.program.spheres().len(), [L::splat(0.0); 3]);
+        scratch.placed.clear();
+        scratch.placed.resize(bodies, false);
+        for b in 0..bodies {
+            let bound = self.program.body(b).start;
+            self.program
+                .place_range(&scratch.frames, bound..bound + 1, &mut scratch.centres);
+        }
         // The bodies farthest along the chain first: they move most, and meet things first.
-        for b in (0..self.world.len()).rev() {
+        for b in (0..bodies).rev() {
             let record = nearest.as_deref_mut().map(|n| {
                 let slot = self.slots[b];
                 &mut n[slot..slot + candidates.obstacles[b].len()]
             });
             let obstacles = &candidates.obstacles[b];
-            out[b] = self.body_bound(b, c, obstacles, (gate, ceilings[b]), record);
+            out[b] = self.body_bound(b, scratch, obstacles, (gate, ceilings[b]), record);
             if self.exact[b] && !out[b].all_at_least(contact.next_up()) {
                 return true;
             }
         }
-        let bodies = self.world.len();
         // A pair that is not a candidate stays at least its ceiling away.
         for (o, &ceiling) in out[bodies..].iter_mut().zip(&ceilings[bodies..]) {
             *o = L::splat(ceiling);
         }
         for &p in &candidates.pairs {
             let p = p as usize;
-            let (value, far) = self.pair_bound(p, c, (gate, ceilings[bodies + p]));
+            let (value, far) = self.pair_bound(p, scratch, (gate, ceilings[bodies + p]));
             if let Some(n) = nearest.as_deref_mut() {
                 let slot = self.slots[bodies] + p;
                 n[slot] = n[slot].min(far);
@@ -270,7 +283,7 @@ impl LaneChecks {
     fn body_bound<L: Lane>(
         &self,
         b: usize,
-        c: &[[L; 3]],
+        scratch: &mut LaneScratch<L>,
         obstacles: &[u32],
         (gate, ceiling): (f32, f32),
         mut record: Option<&mut [f32]>,
@@ -282,6 +295,7 @@ impl LaneChecks {
         let mut least = L::splat(ceiling);
         for (k, &o) in obstacles.iter().enumerate() {
             let o = o as usize;
+            let c = &scratch.centres;
             let far = env.spheres_gap(o, &c[bound..=bound], &spheres[bound..=bound]);
             if let Some(n) = record.as_deref_mut() {
                 n[k] = n[k].min(far.least());
@@ -290,6 +304,8 @@ impl LaneChecks {
                 least = least.min(far);
                 continue;
             }
+            self.place_own(b, scratch);
+            let c = &scratch.centres;
             let near = env.spheres_gap(o, &c[own.clone()], &spheres[own.clone()]);
             least = least.min(far.at_least_select(gate, far, near.max(far)));
         }
@@ -299,15 +315,24 @@ impl LaneChecks {
     /// Pair `p`'s clearance bound (at most `ceiling`), its spheres placed at `c`, and its
     /// bounding spheres' least gap over the lanes.
     #[inline(always)]
-    fn pair_bound<L: Lane>(&self, p: usize, c: &[[L; 3]], (gate, ceiling): (f32, f32)) -> (L, f32) {
+    fn pair_bound<L: Lane>(
+        &self,
+        p: usize,
+        scratch: &mut LaneScratch<L>,
+        (gate, ceiling): (f32, f32),
+    ) -> (L, f32) {
         let (a, b) = self.pairs[p];
         let spheres = self.program.spheres();
         let (ba, bb) = (self.program.body(a).start, self.program.body(b).start);
+        let c = &scratch.centres;
         let far = gap(&c[ba], &c[bb], spheres[ba].radius + spheres[bb].radius);
         let ceiling = L::splat(ceiling);
         if far.all_at_least(gate) {
             return (far.min(ceiling), far.least());
         }
+        self.place_own(a, scratch);
+        self.place_own(b, scratch);
+        let c = &scratch.centres;
         // Each of `a`'s spheres against `b`'s bounding sphere first, then its own.
         let mut own = L::splat(f32::MAX);
         for i in self.own(a) {
@@ -324,6 +349,16 @@ impl LaneChecks {
         }
         let value = far.at_least_select(gate, far, own.max(far));
         (value.min(ceiling), far.least())
+    }
+
+    /// Places body `b`'s own spheres into `scratch.centres` unless they are.
+    #[inline(always)]
+    fn place_own<L: Lane>(&self, b: usize, scratch: &mut LaneScratch<L>) {
+        if !scratch.placed[b] {
+            self.program
+                .place_range(&scratch.frames, self.own(b), &mut scratch.centres);
+            scratch.placed[b] = true;
+        }
     }
 
     /// The candidates that may come within `gate` of their body or pair on an edge, from the

@@ -276,6 +276,23 @@ impl SphereProgram {
     }
 }
 
+impl SphereProgram {
+    /// The centres of the spheres `range` ([`SphereProgram::spheres`]' order), root frame, m,
+    /// from `frames` ([`SphereProgram::frames`]), into the same places of `centres`.
+    #[inline(always)]
+    pub fn place_range<L: Lane>(
+        &self,
+        frames: &[Frame<L>],
+        range: std::ops::Range<usize>,
+        centres: &mut [[L; 3]],
+    ) {
+        for i in range {
+            let s = &self.spheres[i];
+            centres[i] = transform(&frames[s.step], &s.centre);
+        }
+    }
+}
+
 fn unknown(name: &str) -> Error {
     Error::Invalid {
         what: "sphere program".into(),
