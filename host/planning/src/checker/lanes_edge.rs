@@ -119,10 +119,15 @@ pub(super) struct WalkScratch {
     /// The states measured: their `t` and, [`LaneChecks::count`] per state, clearances.
     ts: Vec<f64>,
     clear: Vec<f32>,
-    order: Vec<usize>,
+    /// The neighbouring states (indices into `ts`) the next split judges.
+    pairs: Vec<(usize, usize)>,
+    /// The neighbours the last split did not prove, `(i, j, first, count)`: the states
+    /// `first..first + count` of `ts` lie between states `i` and `j`, in order of `t`. The
+    /// neighbours it proved stay proven: only these are judged again.
+    open: Vec<(usize, usize, usize, usize)>,
     next: Vec<f64>,
-    /// The neighbours the rule does not prove: first `t`, `dt`, need, parts.
-    failing: Vec<(f64, f64, f64, usize)>,
+    /// The neighbours the rule does not prove: indices into `ts`, need, parts.
+    failing: Vec<(usize, usize, f64, usize)>,
     nearest: Vec<f32>,
     limit: Vec<f32>,
     /// Per body, then per pair: the clearance beyond which nothing is measured, m.
@@ -274,6 +279,7 @@ impl Walker<'_> {
         s.caps.extend(ceilings);
         s.ts.clear();
         s.clear.clear();
+        s.open.clear();
         s.nearest.clear();
         s.nearest.resize(checks.nearest_len(), f32::MAX);
         s.next.clear();
@@ -419,14 +425,23 @@ impl Walker<'_> {
     /// [`MAX_SPLIT`]).
     fn split(&mut self) {
         let (s, k) = (&mut *self.s, self.k);
-        s.order.clear();
-        s.order.extend(0..s.ts.len());
-        let ts = &s.ts;
-        s.order.sort_unstable_by(|&i, &j| ts[i].total_cmp(&ts[j]));
+        // Every neighbour in order of `t`: the first states' (measured in that order), then
+        // within each neighbour the last split did not prove, the states measured in it.
+        s.pairs.clear();
+        if s.open.is_empty() {
+            s.pairs.extend((1..s.ts.len()).map(|j| (j - 1, j)));
+        }
+        for &(i, j, first, count) in &s.open {
+            let mut prev = i;
+            for n in first..first + count {
+                s.pairs.push((prev, n));
+                prev = n;
+            }
+            s.pairs.push((prev, j));
+        }
         s.next.clear();
         s.failing.clear();
-        for w in s.order.windows(2) {
-            let (i, j) = (w[0], w[1]);
+        for &(i, j) in &s.pairs {
             let dt = s.ts[j] - s.ts[i];
             let (ci, cj) = (&s.clear[i * k..(i + 1) * k], &s.clear[j * k..(j + 1) * k]);
             let need = ci
@@ -440,7 +455,7 @@ impl Walker<'_> {
                 .fold(0.0f64, f64::max);
             if need >= 1.0 {
                 let parts = (need.ceil() as usize).clamp(2, MAX_SPLIT);
-                s.failing.push((s.ts[i], dt, need, parts));
+                s.failing.push((i, j, need, parts));
             }
         }
         // States that would leave the last group's lanes empty go to the neediest parts.
@@ -457,9 +472,15 @@ impl Walker<'_> {
             f.3 += 1;
             total += 1;
         }
-        for &(t0, dt, _, parts) in &s.failing {
+        // The new states go to `ts` in this order ([`Walker::decide`]).
+        s.open.clear();
+        let mut at = s.ts.len();
+        for &(i, j, _, parts) in &s.failing {
+            let (t0, dt) = (s.ts[i], s.ts[j] - s.ts[i]);
             s.next
                 .extend((1..parts).map(|p| t0 + dt * p as f64 / parts as f64));
+            s.open.push((i, j, at, parts - 1));
+            at += parts - 1;
         }
     }
 }
