@@ -179,6 +179,10 @@ pub struct Summary {
     /// Sphere-level checks ([`crate::checker::Counters::sphere_checks`]) per second of
     /// planning time.
     pub sphere_checks_per_s: f64,
+    /// States measured in all ([`crate::checker::Counters::states`]).
+    pub states: u64,
+    /// Edge proofs started in all ([`crate::checker::Counters::edges`]).
+    pub edges: u64,
 }
 
 fn quantile(sorted: &[f64], q: f64) -> f64 {
@@ -212,7 +216,9 @@ pub fn run(
     opts: &PlanOptions,
 ) -> (Vec<Outcome>, Summary) {
     use std::sync::atomic::Ordering;
-    let checks0 = checker.counters().sphere_checks.load(Ordering::Relaxed);
+    let c = checker.counters();
+    let load = |a: &std::sync::atomic::AtomicU64| a.load(Ordering::Relaxed);
+    let before = [&c.sphere_checks, &c.states, &c.edges].map(load);
     let t0 = Instant::now();
     let outcomes: Vec<Outcome> = problems
         .iter()
@@ -242,7 +248,8 @@ pub fn run(
         })
         .collect();
     let elapsed = t0.elapsed().as_secs_f64();
-    let checks = checker.counters().sphere_checks.load(Ordering::Relaxed) - checks0;
+    let after = [&c.sphere_checks, &c.states, &c.edges].map(load);
+    let [checks, states, edges] = [0, 1, 2].map(|i| after[i] - before[i]);
     let mut times: Vec<f64> = outcomes.iter().map(|o| o.time_ms).collect();
     times.sort_by(f64::total_cmp);
     let lengths: Vec<f64> = outcomes
@@ -264,6 +271,8 @@ pub fn run(
         ],
         path_length_median: median(&lengths),
         sphere_checks_per_s: checks as f64 / elapsed.max(1e-9),
+        states,
+        edges,
     };
     (outcomes, summary)
 }

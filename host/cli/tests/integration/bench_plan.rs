@@ -78,12 +78,14 @@ fn the_summary_has_its_keys_and_every_tabletop_problem_is_solved() {
         keys(&v),
         [
             "collision_checks_per_s",
+            "edges_checked",
             "engine",
             "path_length_rad",
             "planner",
             "problems",
             "robot",
             "scene",
+            "states_checked",
             "success_rate",
             "time_ms",
             "unreached"
@@ -92,6 +94,10 @@ fn the_summary_has_its_keys_and_every_tabletop_problem_is_solved() {
     assert_eq!(keys(&v["time_ms"]), ["max", "median", "p95"]);
     // The LoCoBot's spheres cover meshes: its edges are proven by advancement.
     assert_eq!(v["engine"], "Advancement", "{v}");
+    // Five plans prove tens of edges or more, each measuring a state or more.
+    let (edges, states) = (v["edges_checked"].as_u64(), v["states_checked"].as_u64());
+    assert!(edges.is_some_and(|e| e >= 5), "{v}");
+    assert!(states >= edges, "{v}");
     // No tabletop problem is cut off from the arm's home.
     assert_eq!(v["unreached"], 0, "{v}");
     assert_eq!(keys(&v["path_length_rad"]), ["median"]);

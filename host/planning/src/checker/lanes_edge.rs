@@ -248,11 +248,9 @@ impl Checker {
                 .fetch_add(s.ts.len() as u64, Ordering::Relaxed);
             walk
         };
+        self.counters.edges.fetch_add(1, Ordering::Relaxed);
         match walk {
-            Walk::Free => {
-                self.counters.edges.fetch_add(1, Ordering::Relaxed);
-                true
-            }
+            Walk::Free => true,
             Walk::Contact => false,
             Walk::Stuck | Walk::Long => self.advanced(a, b),
         }

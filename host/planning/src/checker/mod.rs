@@ -91,13 +91,13 @@ pub struct Contact {
 /// Counters of the work done.
 #[derive(Debug, Default)]
 pub struct Counters {
-    /// States checked.
+    /// States measured (a walk's, its exact stage's and the advancement's).
     pub states: AtomicU64,
     /// Sphere-level tests (a sphere against an obstacle or another sphere).
     pub sphere_checks: AtomicU64,
     /// Exact (parry3d) shape-pair queries.
     pub exact_checks: AtomicU64,
-    /// Edges checked.
+    /// Edge proofs started (by either engine: a walk handed to the advancement counts twice).
     pub edges: AtomicU64,
 }
 

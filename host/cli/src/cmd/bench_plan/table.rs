@@ -21,7 +21,10 @@ struct SummaryJson {
     peer: Option<serde_json::Value>,
     /// The planner.
     planner: String,
-    /// How edges were proven (`Lanes`, `Scalar` or `Advancement`).
+    /// Edge proofs started over all problems (a walk in lanes handed to the advancement
+    /// counts twice).
+    edges_checked: u64,
+    /// How edges were proven (`Lanes`, `Baseline`, `Scalar` or `Advancement`).
     engine: String,
     /// Problems planned.
     problems: usize,
@@ -29,6 +32,9 @@ struct SummaryJson {
     robot: String,
     /// The scene (or the problems file).
     scene: String,
+    /// States measured over all problems (the walks', their exact stages' and the
+    /// advancement's).
+    states_checked: u64,
     /// Fraction solved.
     success_rate: f64,
     /// Time per problem (failures at their full time), ms.
@@ -94,10 +100,12 @@ pub(super) fn print(a: &Args, ompl_time_limit: f64, r: Report) {
             },
             peer: r.peer,
             planner: r.planner.to_string(),
+            edges_checked: summary.edges,
             engine: format!("{:?}", r.engine),
             problems: summary.problems,
             robot: r.robot.to_string(),
             scene: r.label,
+            states_checked: summary.states,
             success_rate: summary.success_rate,
             time_ms: TimeJson {
                 max: summary.time_ms[2],
