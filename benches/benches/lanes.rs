@@ -2,7 +2,7 @@
 //! `cargo bench -p ferrobot-benches --bench lanes`.
 //!
 //! For the LoCoBot's and the Sawyer's arms: every moving sphere's centre placed for 8 random
-//! configurations within the limits, in one call of the vector path (`f32x8`) and in 8 calls
+//! configurations within the limits, in one call of the vector path (`Wide`) and in 8 calls
 //! of the scalar path (`f32`); and, with it, each sphere's distance to a tabletop scene's
 //! objects. Time per configuration is the figure to read: the vector path over the scalar's
 //! is what the lanes buy.

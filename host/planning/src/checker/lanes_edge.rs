@@ -27,8 +27,8 @@ pub enum Engine {
     /// advancement where the spheres are not conclusive; on AVX2 where the CPU has it
     /// (detected at run time), else as [`Engine::Baseline`].
     Lanes,
-    /// [`Engine::Lanes`] on the target's baseline instructions whatever the CPU (`wide`'s
-    /// `f32x8`: two SSE2 halves on x86-64): the same answers.
+    /// [`Engine::Lanes`] on the target's baseline instructions whatever the CPU (two SSE2
+    /// halves per operation on x86-64): the same answers.
     Baseline,
     /// The vectorised engine's walk one state at a time, in `f32`: the same answers as
     /// [`Engine::Lanes`] for the same edge, without SIMD.
@@ -194,8 +194,8 @@ impl Checker {
         self.motion_free_in_baseline_lanes(checks, a, b)
     }
 
-    /// [`Checker::motion_free_in_lanes`] on the target's baseline lanes (`wide`'s `f32x8`: two
-    /// SSE2 halves on x86-64) whatever the CPU: the same answer.
+    /// [`Checker::motion_free_in_lanes`] on the target's baseline instructions ([`Wide`]: two
+    /// SSE2 halves per operation on x86-64) whatever the CPU: the same answer.
     pub fn motion_free_in_baseline_lanes(&self, checks: &LaneChecks, a: &[f64], b: &[f64]) -> bool {
         self.edge_in_lanes::<Wide>(checks, a, b)
     }

@@ -1,5 +1,5 @@
 //! One arithmetic for one configuration (`f32`) and for [`WIDTH`] configurations at once
-//! (`wide::f32x8`), so that the scalar path and the vector path give the same bits.
+//! ([`Wide`]), so that the scalar path and the vector path give the same values.
 //!
 //! Every operation is one IEEE-754 operation per lane (no fused multiply-add, no
 //! approximation the two types would do differently), and [`sin_cos`] is written once over
@@ -7,12 +7,10 @@
 
 use std::ops::{Add, Mul, Sub};
 
-use wide::f32x8;
-
 /// Configurations evaluated at once by the vector path.
 pub const WIDTH: usize = 8;
 
-/// A number of one configuration (`f32`) or of [`WIDTH`] configurations (`f32x8`).
+/// A number of one configuration (`f32`) or of [`WIDTH`] configurations ([`Wide`]).
 pub trait Lane:
     Copy + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self> + Send + Sync
 {
@@ -104,60 +102,124 @@ impl Lane for f32 {
     }
 }
 
-impl Lane for f32x8 {
+/// [`WIDTH`] configurations: eight `f32`s operated on lane by lane in plain Rust, which the
+/// compiler turns into vector instructions: two SSE2 halves per operation on the x86-64
+/// baseline, one AVX register where compiled for AVX2 (`checker/lanes_avx.rs`), NEON on
+/// aarch64. One type for every instruction set rather than a SIMD crate's, whose choice of
+/// instructions is fixed when it is compiled.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Wide(pub [f32; WIDTH]);
+
+/// `f` lane by lane.
+#[inline(always)]
+fn each(a: Wide, f: impl Fn(f32) -> f32) -> Wide {
+    let mut r = a.0;
+    for v in &mut r {
+        *v = f(*v);
+    }
+    Wide(r)
+}
+
+/// `f` lane by lane over two.
+#[inline(always)]
+fn pair(a: Wide, b: Wide, f: impl Fn(f32, f32) -> f32) -> Wide {
+    let mut r = a.0;
+    for (v, &o) in r.iter_mut().zip(&b.0) {
+        *v = f(*v, o);
+    }
+    Wide(r)
+}
+
+impl Add for Wide {
+    type Output = Self;
+    #[inline(always)]
+    fn add(self, o: Self) -> Self {
+        pair(self, o, |a, b| a + b)
+    }
+}
+
+impl Sub for Wide {
+    type Output = Self;
+    #[inline(always)]
+    fn sub(self, o: Self) -> Self {
+        pair(self, o, |a, b| a - b)
+    }
+}
+
+impl Mul for Wide {
+    type Output = Self;
+    #[inline(always)]
+    fn mul(self, o: Self) -> Self {
+        pair(self, o, |a, b| a * b)
+    }
+}
+
+// Each operation is `f32`'s own lane by lane (its `Lane` impl's), except `floor`.
+impl Lane for Wide {
     const LANES: usize = WIDTH;
     #[inline(always)]
     fn splat(v: f32) -> Self {
-        f32x8::splat(v)
+        Wide([v; WIDTH])
     }
     #[inline(always)]
     fn load(v: &[f32]) -> Self {
-        let mut a = [0.0; WIDTH];
-        a.copy_from_slice(v);
-        f32x8::new(a)
+        Wide(v.try_into().expect("WIDTH values"))
     }
     #[inline(always)]
     fn store(self, out: &mut [f32]) {
-        out.copy_from_slice(&self.to_array());
+        out.copy_from_slice(&self.0);
     }
-    // The x86-64 baseline (SSE2) has no instruction for `floor`, and `wide` calls `floorf`
-    // per lane there: truncation instead (exact for |x| < 2³¹, the range `Lane::floor`
-    // promises), less one where it rounded up.
+    // The x86-64 baseline (SSE2) has no instruction for `floor` (`f32::floor` is a call per
+    // lane there): truncation instead, which vectorises (exact for |x| < 2³¹, the range
+    // `Lane::floor` promises), less one where it rounded up. The same value as `f32::floor`;
+    // +0 where that gives −0.
     #[inline(always)]
     fn floor(self) -> Self {
-        let t = self.fast_trunc_int().round_float();
-        t - (t.simd_gt(self) & f32x8::ONE)
+        each(self, |x| {
+            let t = (x as i32) as f32;
+            if t > x {
+                t - 1.0
+            } else {
+                t
+            }
+        })
     }
     #[inline(always)]
     fn sqrt(self) -> Self {
-        f32x8::sqrt(self)
+        each(self, f32::sqrt)
     }
     #[inline(always)]
     fn abs(self) -> Self {
-        f32x8::abs(self)
+        each(self, f32::abs)
     }
     #[inline(always)]
     fn max(self, o: Self) -> Self {
-        f32x8::max(self, o)
+        pair(self, o, Lane::max)
     }
     #[inline(always)]
     fn min(self, o: Self) -> Self {
-        f32x8::min(self, o)
+        pair(self, o, Lane::min)
     }
     #[inline(always)]
     fn least(self) -> f32 {
-        let a = self.to_array();
-        a.iter().fold(a[0], |m, &x| Lane::min(x, m))
+        self.0.iter().fold(self.0[0], |m, &x| Lane::min(x, m))
     }
-    // `x − v` is exact in sign (never −0 for `x ≥ v`, never +0 for `x < v`): no lane's sign
-    // bit is set exactly when every lane is at least `v`.
     #[inline(always)]
     fn all_at_least(self, v: f32) -> bool {
-        (self - f32x8::splat(v)).to_bitmask() == 0
+        // Without a branch per lane: one comparison of eight.
+        let mut all = true;
+        for x in self.0 {
+            all &= x >= v;
+        }
+        all
     }
     #[inline(always)]
     fn at_least_select(self, v: f32, then: Self, otherwise: Self) -> Self {
-        self.simd_ge(f32x8::splat(v)).select(then, otherwise)
+        let mut r = otherwise.0;
+        for ((o, &x), &t) in r.iter_mut().zip(&self.0).zip(&then.0) {
+            *o = if x >= v { t } else { *o };
+        }
+        Wide(r)
     }
 }
 
@@ -225,8 +287,8 @@ mod tests {
             .map(|i| (-4.0 + 8.0 * i as f64 / n as f64) as f32 * std::f32::consts::PI)
             .collect();
         for chunk in xs.chunks_exact(WIDTH) {
-            let (sv, cv) = sin_cos(f32x8::load(chunk));
-            let (sv, cv) = (sv.to_array(), cv.to_array());
+            let (sv, cv) = sin_cos(Wide::load(chunk));
+            let (sv, cv) = (sv.0, cv.0);
             for (k, &x) in chunk.iter().enumerate() {
                 let (s, c) = sin_cos(x);
                 assert_eq!(
@@ -240,5 +302,53 @@ mod tests {
             }
         }
         assert!(worst < 2e-7, "{worst}");
+    }
+
+    /// Every operation of [`Wide`] gives `f32`'s value in each lane, and its bits but for
+    /// `floor`'s +0 where `f32::floor` gives −0, on values around the cases that differ
+    /// between instructions (zeros of both signs, halves, exact integers, large and tiny
+    /// values).
+    #[test]
+    fn wide_lanes_give_the_values_of_f32() {
+        let values: Vec<f32> = [
+            0.0, -0.0, 0.5, -0.5, 1.0, -1.0, 1.5, -2.5, 3.0, 7.25, -1e-7, 1e-30, 123.456, -987.6,
+            0.785, 1e6,
+        ]
+        .into_iter()
+        .chain((0..48).map(|i| (i as f32 * 0.37).sin() * 40.0))
+        .collect();
+        type Op<L> = fn(L, L) -> L;
+        fn ops<L: Lane>() -> Vec<(Op<L>, bool)> {
+            vec![
+                (|a, b| a + b, true),
+                (|a, b| a - b, true),
+                (|a, b| a * b, true),
+                (|a, b| a.max(b), true),
+                (|a, b| a.min(b), true),
+                (|a, _| a.abs().sqrt(), true),
+                (|a, _| (a * L::splat(1e-3)).floor(), false),
+                (|a, b| a.at_least_select(0.5, a, b), true),
+                (|a, _| sin_cos(a * L::splat(0.01)).0, true),
+                (|a, _| sin_cos(a * L::splat(0.01)).1, true),
+            ]
+        }
+        for x in values.chunks(WIDTH) {
+            for y in values.chunks(WIDTH).rev() {
+                let (a, b) = (Wide::load(x), Wide::load(y));
+                for ((wide, bits), (one, _)) in ops::<Wide>().into_iter().zip(ops::<f32>()) {
+                    let w = wide(a, b).0;
+                    for k in 0..WIDTH {
+                        let o = one(x[k], y[k]);
+                        assert_eq!(w[k], o, "{x:?} {y:?}");
+                        assert!(!bits || w[k].to_bits() == o.to_bits(), "{x:?} {y:?}");
+                    }
+                }
+                let least = x.iter().fold(x[0], |m, &v| Lane::min(v, m));
+                assert_eq!(a.least().to_bits(), least.to_bits());
+                for v in [0.0, 0.5, -1.0] {
+                    assert_eq!(a.all_at_least(v), x.iter().all(|&e| e >= v));
+                }
+            }
+        }
     }
 }

@@ -10,8 +10,5 @@ mod lane;
 mod program;
 
 pub use environment::Environment;
-pub use lane::{sin_cos, splat_all, Lane, WIDTH};
+pub use lane::{sin_cos, splat_all, Lane, Wide, WIDTH};
 pub use program::{Frame, ProgramSphere, SphereProgram};
-
-/// [`WIDTH`] configurations in lanes: the vector path's number.
-pub type Wide = wide::f32x8;

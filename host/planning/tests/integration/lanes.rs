@@ -42,7 +42,7 @@ fn spheres_in_lanes_agree_with_the_kinematics_and_the_scalar_path() {
                 for (i, s) in program.spheres().iter().enumerate() {
                     for a in 0..3 {
                         assert_eq!(
-                            centres[i][a].to_array()[k].to_bits(),
+                            centres[i][a].0[k].to_bits(),
                             one[i][a].to_bits(),
                             "{robot}: sphere {i}, axis {a}, lane {k}"
                         );
@@ -124,7 +124,7 @@ fn world_distances_in_lanes_agree_with_closed_forms_and_the_scalar_path() {
                 .collect();
             let lanes: [Wide; 3] =
                 std::array::from_fn(|a| Wide::load(&ps.iter().map(|p| p[a]).collect::<Vec<_>>()));
-            let d = env.distance(&lanes).to_array();
+            let d = env.distance(&lanes).0;
             for (k, p) in ps.iter().enumerate() {
                 let one = env.distance(p);
                 assert_eq!(one.to_bits(), d[k].to_bits(), "{shape:?}");
@@ -190,7 +190,7 @@ fn lane_checks_are_sound_against_the_checker() {
             let q: Vec<Wide> = (0..model.dof())
                 .map(|j| Wide::load(&qs.iter().map(|q| q[j]).collect::<Vec<_>>()))
                 .collect();
-            let clear = lanes.clearance(&q, &mut wide).to_array();
+            let clear = lanes.clearance(&q, &mut wide).0;
             for (k, q) in qs.iter().enumerate() {
                 let alone = lanes.clearance(q, &mut one);
                 assert_eq!(alone.to_bits(), clear[k].to_bits(), "{robot}");
