@@ -164,23 +164,27 @@ fn an_export_is_free_under_fcl_and_plans_again_as_a_problems_file() {
 
     // The export as a problems file: the same problems, solved again, their edges proven by
     // the vectorised engine (the walk's exact stage often runs on the LoCoBot's covers).
+    // The export planned again with `engine`, exported to `out`.
+    let replan = |engine: &str, out: &Path| {
+        ferrobot(&[
+            "bench",
+            "plan",
+            // Generous: the test checks outcomes, not speed, on a busy machine too.
+            "--time-limit",
+            "30",
+            "--config",
+            "locobot",
+            "--problems-file",
+            ex,
+            "--engine",
+            engine,
+            "--export",
+            out.to_str().expect("utf-8"),
+            "--json",
+        ])
+    };
     let again = dir.join("again.json");
-    let (ok, w, text) = ferrobot(&[
-        "bench",
-        "plan",
-        // Generous: the test checks outcomes, not speed, on a busy machine too.
-        "--time-limit",
-        "30",
-        "--config",
-        "locobot",
-        "--problems-file",
-        ex,
-        "--engine",
-        "lanes",
-        "--export",
-        again.to_str().expect("utf-8"),
-        "--json",
-    ]);
+    let (ok, w, text) = replan("lanes", &again);
     assert!(ok, "{text}");
     assert_eq!(w["engine"], "Lanes", "{w}");
     assert_eq!(w["success_rate"], v["success_rate"]);
@@ -189,21 +193,7 @@ fn an_export_is_free_under_fcl_and_plans_again_as_a_problems_file() {
     // The same engine on the baseline's instructions (SSE2 halves, where the run above took
     // AVX2 on a CPU that has it): the same paths, value for value.
     let baseline = dir.join("baseline.json");
-    let (ok, b, text) = ferrobot(&[
-        "bench",
-        "plan",
-        "--time-limit",
-        "30",
-        "--config",
-        "locobot",
-        "--problems-file",
-        ex,
-        "--engine",
-        "baseline",
-        "--export",
-        baseline.to_str().expect("utf-8"),
-        "--json",
-    ]);
+    let (ok, b, text) = replan("baseline", &baseline);
     assert!(ok, "{text}");
     assert_eq!(b["engine"], "Baseline", "{b}");
     // Every problem's start, goal, success and path; not its time.

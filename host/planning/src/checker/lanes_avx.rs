@@ -21,7 +21,7 @@ struct Avx(Wide);
 
 /// The AVX path's buffers ([`Buffers`]): placement, clearances out, joint values in.
 #[derive(Debug, Default)]
-pub(super) struct AvxBuffers(Option<(LaneScratch<Avx>, Vec<Avx>, Vec<Avx>)>);
+pub(super) struct AvxBuffers((LaneScratch<Avx>, Vec<Avx>, Vec<Avx>));
 
 /// Whether the edge from `a` to `b` is free ([`Checker::motion_free_in_lanes`]) on the AVX2
 /// path; `None` on a CPU without AVX2.
@@ -34,7 +34,7 @@ pub(super) fn edge(checker: &Checker, checks: &LaneChecks, a: &[f64], b: &[f64])
 
 impl Lanes for Avx {
     fn buffers(b: &mut Buffers) -> &mut (LaneScratch<Self>, Vec<Self>, Vec<Self>) {
-        b.avx.0.get_or_insert_with(Default::default)
+        &mut b.avx.0
     }
 
     #[allow(clippy::too_many_arguments)]

@@ -270,13 +270,10 @@ impl SphereProgram {
     pub fn place<L: Lane>(&self, q: &[L], frames: &mut Vec<Frame<L>>, centres: &mut Vec<[L; 3]>) {
         self.frames(q, frames);
         centres.clear();
-        for s in &self.spheres {
-            centres.push(transform(&frames[s.step], &s.centre));
-        }
+        centres.resize(self.spheres.len(), [L::splat(0.0); 3]);
+        self.place_range(frames, 0..self.spheres.len(), centres);
     }
-}
 
-impl SphereProgram {
     /// The centres of the spheres `range` ([`SphereProgram::spheres`]' order), root frame, m,
     /// from `frames` ([`SphereProgram::frames`]), into the same places of `centres`.
     #[inline(always)]
