@@ -40,6 +40,8 @@ pub struct LaneScratch<L> {
     /// Per body, whether its own spheres are placed in `centres` ([`LaneChecks::measure`]
     /// places them only where its bounding sphere is not conclusive).
     placed: Vec<bool>,
+    /// The body that met something last: [`LaneChecks::measure`] measures it first.
+    first: usize,
 }
 
 impl<L> Default for LaneScratch<L> {
@@ -48,6 +50,7 @@ impl<L> Default for LaneScratch<L> {
             frames: Vec::new(),
             centres: Vec::new(),
             placed: Vec::new(),
+            first: 0,
         }
     }
 }
@@ -246,15 +249,22 @@ impl LaneChecks {
             self.program
                 .place_range(&scratch.frames, bound..bound + 1, &mut scratch.centres);
         }
-        // The bodies farthest along the chain first: they move most, and meet things first.
-        for b in (0..bodies).rev() {
+        // The body that met something last first (a group in contact mostly meets it there
+        // again, and ends before the others are measured), then the bodies farthest along the
+        // chain: they move most, and meet things first. The order changes no answer.
+        let first = scratch.first.min(bodies.saturating_sub(1));
+        let rest = (0..bodies).rev().filter(|&b| b != first);
+        for b in (0..bodies.min(1)).map(|_| first).chain(rest) {
             let record = nearest.as_deref_mut().map(|n| {
                 let slot = self.slots[b];
                 &mut n[slot..slot + candidates.obstacles[b].len()]
             });
             let obstacles = &candidates.obstacles[b];
-            out[b] = self.body_bound(b, scratch, obstacles, (gate, ceilings[b]), record);
-            if self.exact[b] && !out[b].all_at_least(contact.next_up()) {
+            let stop = self.exact[b].then(|| contact.next_up());
+            let limits = (gate, ceilings[b]);
+            out[b] = self.body_bound(b, scratch, obstacles, limits, record, stop);
+            if stop.is_some_and(|c| !out[b].all_at_least(c)) {
+                scratch.first = b;
                 return true;
             }
         }
@@ -279,6 +289,7 @@ impl LaneChecks {
 
     /// Body `b`'s clearance bound (at most `ceiling`) from its `obstacles`, its spheres
     /// placed at `c`; each obstacle's bounding gap, over the lanes, lowered into `record`.
+    /// With `stop`, returns as soon as the bound is below it in some lane (a contact).
     #[inline(always)]
     fn body_bound<L: Lane>(
         &self,
@@ -287,6 +298,7 @@ impl LaneChecks {
         obstacles: &[u32],
         (gate, ceiling): (f32, f32),
         mut record: Option<&mut [f32]>,
+        stop: Option<f32>,
     ) -> L {
         let env = &self.world[b];
         let spheres = self.program.spheres();
@@ -308,6 +320,9 @@ impl LaneChecks {
             let c = &scratch.centres;
             let near = env.spheres_gap(o, &c[own.clone()], &spheres[own.clone()]);
             least = least.min(far.at_least_select(gate, far, near.max(far)));
+            if stop.is_some_and(|c| !least.all_at_least(c)) {
+                return least;
+            }
         }
         least
     }

@@ -214,27 +214,30 @@ impl Checker {
         if !self.within_limits(a) || !self.within_limits(b) {
             return false;
         }
-        let speeds = self.speeds(a, b);
         let exact_below = self.opts.resolution * 0.5;
-        let cap = (self.opts.max_step / self.motion_bound(a, b)).min(1.0);
-        let mut q = a.to_vec();
+        let mut q = Vec::new();
         // Where the spheres are not conclusive: the checker's own stages, first for contact
         // alone, then for a clearance in units of the edge parameter (exact shapes where the
-        // spheres limit it below `cap`).
+        // spheres limit it below `cap`). What they need is computed there, the first time.
+        let mut needs = None;
         let mut exact = |t: f64| {
-            for ((v, x), y) in q.iter_mut().zip(a).zip(b) {
-                *v = x + (y - x) * t;
-            }
+            let (speeds, cap) = needs.get_or_insert_with(|| {
+                let cap = (self.opts.max_step / self.motion_bound(a, b)).min(1.0);
+                (self.speeds(a, b), cap)
+            });
+            q.clear();
+            q.extend(a.iter().zip(b).map(|(x, y)| x + (y - x) * t));
             self.measure(&q, 0.0).ok()?;
-            self.measure_with(&q, Some(&speeds), cap, exact_below).ok()
+            self.measure_with(&q, Some(speeds), *cap, exact_below).ok()
         };
         let walk = {
             let mut s = self.walk_scratch.borrow_mut();
             s.motion.clear();
-            // Rounded up into `f32`.
-            let up = |m: f64| (m * (1.0 + 1e-6)) as f32;
-            let bodies = checks.bodies.iter().map(|&b| up(speeds.body[b]));
-            let pairs = checks.pair_of.iter().map(|&p| up(speeds.pair[p]));
+            // The walk's bodies' and pairs' motion bounds ([`Checker::speeds`]' for them),
+            // rounded up into `f32`.
+            let up = |r: &[f64]| (super::edge::along(r, a, b) * (1.0 + 1e-6)) as f32;
+            let bodies = checks.bodies.iter().map(|&b| up(&self.body_reach[b]));
+            let pairs = checks.pair_of.iter().map(|&p| up(&self.pair_reach[p]));
             s.motion.extend(bodies.chain(pairs));
             let k = checks.count();
             let mut walker = Walker {

@@ -2,14 +2,19 @@
 //! from the collision model into a short list of steps with the fixed parts folded into
 //! constants (`f32`), then evaluated over [`Lane`]s.
 //!
-//! A step computes one moving link's frame in the robot's root frame: its parent's frame
-//! (computed before it, or a constant when the parent does not move) times the joint's origin
-//! times the joint's motion. A revolute joint's rotation is `c·A₀ + s·A₁ + (1 − c)·A₂` with
-//! `c, s` the cosine and sine of its angle and `A₀ = O`, `A₁ = O[a]ₓ`, `A₂ = O·a·aᵀ` constants
-//! (`O` the origin's rotation, or the whole fixed chain above a joint whose parent does not
-//! move; `a` the unit axis): Rodrigues' formula with the origin folded in.
+//! A step computes one moving link's frame in the robot's root frame, turned by a constant
+//! rotation `Q` that takes the z axis to its joint's axis (the identity for a joint about z and
+//! for a link that does not turn): its parent's frame (computed before it, or a constant when
+//! the parent does not move) times a constant frame (`Qₚᵀ` times the joint's origin times `Q`)
+//! times the joint's motion, which for a revolute joint is then a turn about z: four products
+//! and two sums per row. The constants' zero entries are skipped and their ±1 entries not
+//! multiplied (the URDF's axes and right angles make most of them so), and each sphere's centre
+//! is held in its turned frame (`Qᵀ c`): the same places, in far fewer operations than a
+//! general rotation product per joint.
 
-use nalgebra::{Isometry3, Matrix3, Vector3};
+use std::f64::consts::PI;
+
+use nalgebra::{Isometry3, Matrix3, Rotation3, Vector3};
 
 use ferrobot_kinematics::JointType;
 
@@ -18,7 +23,8 @@ use crate::model::CollisionModel;
 use crate::spheres::Sphere;
 use crate::{Error, Result};
 
-/// A frame in lanes: rotation (row-major 3 × 3) and translation, m.
+/// A frame in lanes: rotation (row-major 3 × 3) and translation, m. A step's frame is its
+/// link's, turned by the step's constant rotation (see the module).
 #[derive(Debug, Clone, Copy)]
 pub struct Frame<L> {
     /// Rotation, row-major.
@@ -27,37 +33,73 @@ pub struct Frame<L> {
     pub t: [L; 3],
 }
 
-/// Rotation (row-major) and translation of a constant frame, `f32`.
+/// Rotation and translation of a constant frame, `f32`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Constant {
-    r: [f32; 9],
+    r: Rotation,
     t: [f32; 3],
 }
 
+/// A constant rotation: a signed permutation of the axes (the URDF's right angles), or any.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Rotation {
+    /// Column `j` is column `from[j]` of the identity, negated where `negate[j]`.
+    Axes { from: [usize; 3], negate: [bool; 3] },
+    /// Row-major.
+    Any([f32; 9]),
+}
+
 impl Constant {
-    fn of(pose: &Isometry3<f64>) -> Self {
-        let m = pose.rotation.to_rotation_matrix().into_inner();
+    fn of(r: &Matrix3<f64>, t: &Vector3<f64>) -> Self {
+        let dense: [f32; 9] = std::array::from_fn(|k| snap(r[(k / 3, k % 3)]));
+        // Each column one ±1 (a rotation's other entries are then 0).
+        let axis = |j: usize| (0..3).find(|&k| dense[3 * k + j].abs() == 1.0);
+        let r = match (axis(0), axis(1), axis(2)) {
+            (Some(a), Some(b), Some(c)) => Rotation::Axes {
+                from: [a, b, c],
+                negate: [0, 1, 2].map(|j| dense[3 * [a, b, c][j] + j] < 0.0),
+            },
+            _ => Rotation::Any(dense),
+        };
         Constant {
-            r: rows(&m),
-            t: [
-                pose.translation.x as f32,
-                pose.translation.y as f32,
-                pose.translation.z as f32,
-            ],
+            r,
+            t: [t.x as f32, t.y as f32, t.z as f32],
+        }
+    }
+
+    /// The rotation, row-major.
+    fn dense(&self) -> [f32; 9] {
+        match self.r {
+            Rotation::Any(m) => m,
+            Rotation::Axes { from, negate } => std::array::from_fn(|k| {
+                let (i, j) = (k / 3, k % 3);
+                match (from[j] == i, negate[j]) {
+                    (false, _) => 0.0,
+                    (true, false) => 1.0,
+                    (true, true) => -1.0,
+                }
+            }),
         }
     }
 
     #[inline(always)]
     fn splat<L: Lane>(&self) -> Frame<L> {
         Frame {
-            r: splat_all(&self.r),
+            r: splat_all(&self.dense()),
             t: splat_all(&self.t),
         }
     }
 }
 
-fn rows(m: &Matrix3<f64>) -> [f32; 9] {
-    std::array::from_fn(|k| m[(k / 3, k % 3)] as f32)
+/// `v` in `f32`, exactly 0 or ±1 within 10⁻¹² of them (the sines and cosines of right angles
+/// in `f64`: dropping a 6·10⁻¹⁷ moves nothing by more than `f32` rounding does).
+fn snap(v: f64) -> f32 {
+    for exact in [0.0, 1.0, -1.0] {
+        if (v - exact).abs() < 1e-12 {
+            return exact as f32;
+        }
+    }
+    v as f32
 }
 
 /// How a step's joint value follows the configuration: `mul · q[input] + add`.
@@ -73,19 +115,19 @@ struct Input {
 enum Motion {
     /// The link's frame is its base: a fixed joint, or one the planned joints do not drive.
     None,
-    /// Rotation about the axis: the three constant matrices of Rodrigues' formula, row-major.
-    Revolute { input: Input, a: [[f32; 9]; 3] },
-    /// Translation along the unit axis (joint frame).
+    /// Rotation about the step frame's z axis.
+    Revolute { input: Input },
+    /// Translation along the unit axis (step frame).
     Prismatic { input: Input, axis: [f32; 3] },
 }
 
-/// One moving link's frame.
+/// One moving link's frame (turned).
 #[derive(Debug, Clone, PartialEq)]
 struct Step {
-    /// The parent's step, or `None` when the parent does not move (then `base` is the
-    /// parent's constant frame times the origin).
+    /// The parent's step, or `None` when the parent does not move.
     parent: Option<usize>,
-    /// The joint's origin, or (without a moving parent) the whole constant chain above it.
+    /// The step's frame before its motion: in the parent step's frame, or (without a moving
+    /// parent) in the root frame, the whole constant chain above it.
     base: Constant,
     motion: Motion,
 }
@@ -99,6 +141,8 @@ pub struct ProgramSphere {
     pub centre: [f32; 3],
     /// Radius, m.
     pub radius: f32,
+    /// Centre in the step's turned frame, m ([`Constant`]'s rounding).
+    turned: [f32; 3],
 }
 
 /// The robot's moving spheres as a function of the planned joints, compiled for lanes.
@@ -141,6 +185,8 @@ impl SphereProgram {
         let mut step_of = vec![None; model.links().len()];
         let mut steps = Vec::new();
         let mut links = Vec::new();
+        // Each step's turn (`Q`, f64).
+        let mut turns: Vec<Matrix3<f64>> = Vec::new();
         for l in 0..model.links().len() {
             if !model.is_moving(l) {
                 continue;
@@ -152,21 +198,26 @@ impl SphereProgram {
                 _ => origin,
             };
             let joint = tree.link_joint(l);
-            let motion = match joint.map(|j| (j, driven(model, &planned, j))) {
-                Some((j, Some(input))) => motion(model, j, input, &base),
+            let (motion, turn) = match joint.map(|j| (j, driven(model, &planned, j))) {
+                Some((j, Some(input))) => motion(model, j, input),
                 // A joint the plan does not drive keeps its value: folded into the base.
                 Some((j, None)) => {
                     base *= joint_motion(model, j, values[j]);
-                    Motion::None
+                    (Motion::None, Matrix3::identity())
                 }
-                None => Motion::None,
+                None => (Motion::None, Matrix3::identity()),
             };
+            // In the parent step's turned frame (`Qₚᵀ`), turned by this step's `Q`.
+            let above = parent_step.map_or_else(Matrix3::identity, |p: usize| turns[p].transpose());
+            let r = above * base.rotation.to_rotation_matrix().into_inner() * turn;
+            let t = above * base.translation.vector;
             step_of[l] = Some(steps.len());
             steps.push(Step {
                 parent: parent_step,
-                base: Constant::of(&base),
+                base: Constant::of(&r, &t),
                 motion,
             });
+            turns.push(turn);
             links.push(l);
         }
         let mut spheres = Vec::new();
@@ -181,10 +232,14 @@ impl SphereProgram {
                     why: format!("link {l} does not move with the planned joints"),
                 })?;
             let start = spheres.len();
-            spheres.extend(list.iter().map(|sp| ProgramSphere {
-                step,
-                centre: [sp.centre.x as f32, sp.centre.y as f32, sp.centre.z as f32],
-                radius: sp.radius as f32,
+            spheres.extend(list.iter().map(|sp| {
+                let turned = turns[step].transpose() * sp.centre.coords;
+                ProgramSphere {
+                    step,
+                    centre: [sp.centre.x as f32, sp.centre.y as f32, sp.centre.z as f32],
+                    radius: sp.radius as f32,
+                    turned: [turned.x as f32, turned.y as f32, turned.z as f32],
+                }
             }));
             ranges.push(start..spheres.len());
         }
@@ -227,29 +282,21 @@ impl SphereProgram {
         self.steps.len()
     }
 
-    /// Every moving link's frame for the configurations `q` (one value per planned joint,
-    /// rad or m, each holding [`Lane::LANES`] configurations), into `frames` (one per step).
+    /// Every moving link's frame (turned: see the module) for the configurations `q` (one
+    /// value per planned joint, rad or m, each holding [`Lane::LANES`] configurations), into
+    /// `frames` (one per step).
     #[inline(always)]
     pub fn frames<L: Lane>(&self, q: &[L], frames: &mut Vec<Frame<L>>) {
         frames.clear();
         for step in &self.steps {
-            let parent = step.parent.map(|p| frames[p]);
-            let f = match (&step.motion, &parent) {
-                (Motion::Revolute { input, a }, None) => Frame {
-                    r: rodrigues(a, value(q, input)),
-                    t: splat_all(&step.base.t),
-                },
-                (Motion::Revolute { input, a }, Some(p)) => Frame {
-                    r: mat_mul(&p.r, &rodrigues(a, value(q, input))),
-                    t: transform(p, &step.base.t),
-                },
-                (Motion::None, None) => step.base.splat(),
-                (Motion::None, Some(p)) => compose(p, &step.base),
-                (Motion::Prismatic { input, axis }, _) => {
-                    let mut f = match &parent {
-                        Some(p) => compose(p, &step.base),
-                        None => step.base.splat(),
-                    };
+            let mut f = match step.parent {
+                Some(p) => after(&frames[p], &step.base),
+                None => step.base.splat(),
+            };
+            match &step.motion {
+                Motion::None => {}
+                Motion::Revolute { input } => turn_z(&mut f, value(q, input)),
+                Motion::Prismatic { input, axis } => {
                     let v = value(q, input);
                     let a: [L; 3] = splat_all(axis);
                     for i in 0..3 {
@@ -257,9 +304,8 @@ impl SphereProgram {
                             f.r[3 * i] * a[0] + f.r[3 * i + 1] * a[1] + f.r[3 * i + 2] * a[2];
                         f.t[i] = f.t[i] + along * v;
                     }
-                    f
                 }
-            };
+            }
             frames.push(f);
         }
     }
@@ -285,7 +331,7 @@ impl SphereProgram {
     ) {
         for i in range {
             let s = &self.spheres[i];
-            centres[i] = transform(&frames[s.step], &s.centre);
+            centres[i] = transform(&frames[s.step], &s.turned);
         }
     }
 }
@@ -302,30 +348,18 @@ fn value<L: Lane>(q: &[L], input: &Input) -> L {
     q[input.input] * L::splat(input.mul) + L::splat(input.add)
 }
 
-/// The rotation `c·A₀ + s·A₁ + (1 − c)·A₂` of angle `v` (rad).
+/// `f` turned by the angle `v` (rad) about its z axis: `f · Rz(v)`.
 #[inline(always)]
-fn rodrigues<L: Lane>(a: &[[f32; 9]; 3], v: L) -> [L; 9] {
+fn turn_z<L: Lane>(f: &mut Frame<L>, v: L) {
     let (s, c) = sin_cos(v);
-    let omc = L::splat(1.0) - c;
-    let mut r = [L::splat(0.0); 9];
-    for (k, r) in r.iter_mut().enumerate() {
-        *r = c * L::splat(a[0][k]) + s * L::splat(a[1][k]) + omc * L::splat(a[2][k]);
+    for i in 0..3 {
+        let (x, y) = (f.r[3 * i], f.r[3 * i + 1]);
+        f.r[3 * i] = x * c + y * s;
+        f.r[3 * i + 1] = y * c - x * s;
     }
-    r
 }
 
-/// `a · b`, row-major 3 × 3.
-#[inline(always)]
-fn mat_mul<L: Lane>(a: &[L; 9], b: &[L; 9]) -> [L; 9] {
-    let mut r = [L::splat(0.0); 9];
-    for (k, r) in r.iter_mut().enumerate() {
-        let (i, j) = (k / 3, k % 3);
-        *r = a[3 * i] * b[j] + a[3 * i + 1] * b[3 + j] + a[3 * i + 2] * b[6 + j];
-    }
-    r
-}
-
-/// `f` applied to the point `p`.
+/// `f` applied to the constant point `p`.
 #[inline(always)]
 fn transform<L: Lane>(f: &Frame<L>, p: &[f32; 3]) -> [L; 3] {
     let p: [L; 3] = splat_all(p);
@@ -336,11 +370,32 @@ fn transform<L: Lane>(f: &Frame<L>, p: &[f32; 3]) -> [L; 3] {
     r
 }
 
-/// `f · c`.
+/// `f · c` for the constant frame `c`: where `c` turns axis to axis, each column of `f`'s
+/// rotation is one of its own, or its negation.
 #[inline(always)]
-fn compose<L: Lane>(f: &Frame<L>, c: &Constant) -> Frame<L> {
+fn after<L: Lane>(f: &Frame<L>, c: &Constant) -> Frame<L> {
+    let mut r = [L::splat(0.0); 9];
+    match &c.r {
+        Rotation::Axes { from, negate } => {
+            for j in 0..3 {
+                for i in 0..3 {
+                    let x = f.r[3 * i + from[j]];
+                    r[3 * i + j] = if negate[j] { L::splat(0.0) - x } else { x };
+                }
+            }
+        }
+        Rotation::Any(m) => {
+            let m: [L; 9] = splat_all(m);
+            for i in 0..3 {
+                for j in 0..3 {
+                    r[3 * i + j] =
+                        f.r[3 * i] * m[j] + f.r[3 * i + 1] * m[3 + j] + f.r[3 * i + 2] * m[6 + j];
+                }
+            }
+        }
+    }
     Frame {
-        r: mat_mul(&f.r, &splat_all(&c.r)),
+        r,
         t: transform(f, &c.t),
     }
 }
@@ -374,23 +429,24 @@ fn driven(model: &CollisionModel, planned: &[usize], j: usize) -> Option<Input> 
     })
 }
 
-/// The motion of driven joint `j` for the step whose base is `base` (f64).
-fn motion(model: &CollisionModel, j: usize, input: Input, base: &Isometry3<f64>) -> Motion {
+/// The motion of driven joint `j`, and the step's turn `Q` (a revolute joint's axis to z; the
+/// identity for a prismatic one).
+fn motion(model: &CollisionModel, j: usize, input: Input) -> (Motion, Matrix3<f64>) {
     let joint = &model.tree().joints()[j];
-    let o = base.rotation.to_rotation_matrix().into_inner();
     let a: Vector3<f64> = joint.axis;
     match joint.kind {
-        JointType::Revolute => Motion::Revolute {
-            input,
-            a: [
-                rows(&o),
-                rows(&(o * a.cross_matrix())),
-                rows(&(o * a * a.transpose())),
-            ],
-        },
-        JointType::Prismatic => Motion::Prismatic {
-            input,
-            axis: [a.x as f32, a.y as f32, a.z as f32],
-        },
+        JointType::Revolute => {
+            let z = Vector3::z();
+            let turn = Rotation3::rotation_between(&z, &a)
+                .unwrap_or_else(|| Rotation3::from_axis_angle(&Vector3::x_axis(), PI));
+            (Motion::Revolute { input }, turn.into_inner())
+        }
+        JointType::Prismatic => (
+            Motion::Prismatic {
+                input,
+                axis: [a.x as f32, a.y as f32, a.z as f32],
+            },
+            Matrix3::identity(),
+        ),
     }
 }
