@@ -16,8 +16,13 @@ pub fn dist(a: &[f64], b: &[f64]) -> f64 {
 
 /// A configuration drawn uniformly within `limits` (rad).
 pub(crate) fn sample(rng: &mut ChaCha8Rng, limits: &[(f64, f64)]) -> Vec<f64> {
-    limits
-        .iter()
-        .map(|&(lo, hi)| rng.random_range(lo..=hi))
-        .collect()
+    let mut q = Vec::with_capacity(limits.len());
+    sample_into(rng, limits, &mut q);
+    q
+}
+
+/// [`sample`] into `q` (its values replaced): the same draws, without an allocation.
+pub(crate) fn sample_into(rng: &mut ChaCha8Rng, limits: &[(f64, f64)], q: &mut Vec<f64>) {
+    q.clear();
+    q.extend(limits.iter().map(|&(lo, hi)| rng.random_range(lo..=hi)));
 }

@@ -112,34 +112,34 @@ fn improve(
         };
         let tree = &star.tree;
         let near = tree.nearest(&target);
-        let d = dist(&tree.q[near], &target);
+        let d = dist(tree.node(near), &target);
         let q: Vec<f64> = if d <= range {
             target
         } else {
             let s = range / d;
-            tree.q[near]
+            tree.node(near)
                 .iter()
                 .zip(&target)
                 .map(|(a, b)| a + (b - a) * s)
                 .collect()
         };
         // Neighbours within the RRT* radius.
-        let n = tree.q.len() as f64;
+        let n = tree.len() as f64;
         let radius = (range * 2.0 * ((n.ln() / n).powf(1.0 / dof))).max(range * 0.5);
-        let neighbours: Vec<usize> = (0..tree.q.len())
-            .filter(|&i| dist(&tree.q[i], &q) <= radius)
+        let neighbours: Vec<usize> = (0..tree.len())
+            .filter(|&i| dist(tree.node(i), &q) <= radius)
             .collect();
         let Some((parent, c_new)) = star.cheapest_parent(checker, &q, &neighbours, goal, best_cost)
         else {
             continue;
         };
-        let new = star.tree.add(q.clone(), parent);
+        let new = star.tree.add(&q, parent);
         star.cost.push(c_new);
         star.rewire(checker, &q, new, c_new, &neighbours);
         // Reach the goal from the new node.
         let to_goal = c_new + dist(&q, goal);
         if to_goal + 1e-9 < best_cost && checker.motion_free(&q, goal) {
-            let g = star.tree.add(goal.to_vec(), new);
+            let g = star.tree.add(goal, new);
             star.cost.push(to_goal);
             star.goal_node = Some(g);
         }
@@ -188,9 +188,9 @@ impl Star {
         let mut cost = vec![0.0];
         let mut goal_node = None;
         for q in first.iter().skip(1) {
-            let p = tree.q.len() - 1;
-            let c = cost[p] + dist(&tree.q[p], q);
-            let i = tree.add(q.clone(), p);
+            let p = tree.len() - 1;
+            let c = cost[p] + dist(tree.node(p), q);
+            let i = tree.add(q, p);
             cost.push(c);
             goal_node = Some(i);
         }
@@ -213,14 +213,14 @@ impl Star {
     ) -> Option<(usize, f64)> {
         let mut order: Vec<(f64, usize)> = neighbours
             .iter()
-            .map(|&i| (self.cost[i] + dist(&self.tree.q[i], q), i))
+            .map(|&i| (self.cost[i] + dist(self.tree.node(i), q), i))
             .collect();
         order.sort_by(|x, y| x.0.total_cmp(&y.0));
         for (c, i) in order {
             if c + dist(q, goal) >= best_cost {
                 break;
             }
-            if checker.motion_free(&self.tree.q[i], q) {
+            if checker.motion_free(self.tree.node(i), q) {
                 return Some((i, c));
             }
         }
@@ -239,15 +239,15 @@ impl Star {
     ) {
         let (tree, cost) = (&mut self.tree, &mut self.cost);
         for &i in neighbours {
-            let c = c_new + dist(q, &tree.q[i]);
-            if c + 1e-12 < cost[i] && checker.motion_free(q, &tree.q[i]) {
+            let c = c_new + dist(q, tree.node(i));
+            if c + 1e-12 < cost[i] && checker.motion_free(q, tree.node(i)) {
                 let delta = cost[i] - c;
                 tree.parent[i] = new;
                 // Lower the cost of the subtree.
                 let mut stack = vec![i];
                 while let Some(k) = stack.pop() {
                     cost[k] -= delta;
-                    stack.extend((0..tree.q.len()).filter(|&m| tree.parent[m] == k));
+                    stack.extend((0..tree.len()).filter(|&m| tree.parent[m] == k));
                 }
             }
         }

@@ -8,7 +8,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use crate::checker::Checker;
-use crate::joint_space::{dist, sample};
+use crate::joint_space::{dist, sample_into};
 use crate::{Error, Result};
 
 mod informed;
@@ -249,13 +249,14 @@ impl RrtConnect {
         let mut b = Tree::new(goal);
         let mut a_is_start = true;
         let domain = opts.dynamic_domain.then(|| Domain::for_checker(checker));
+        let mut target = Vec::with_capacity(limits.len());
         loop {
             if t0.elapsed() > opts.time_limit {
                 return Err(Error::Timeout {
                     seconds: opts.time_limit.as_secs_f64(),
                 });
             }
-            let target = sample(rng, &limits);
+            sample_into(rng, &limits, &mut target);
             let new = match extend(checker, &mut a, &target, range, domain.as_ref()) {
                 // Drawn again, for the same tree.
                 Grow::Outside => continue,
@@ -265,7 +266,7 @@ impl RrtConnect {
                 }
                 Grow::Reached(i) | Grow::Advanced(i) => i,
             };
-            let q = a.q[new].clone();
+            let q = a.node(new).to_vec();
             // Connect the other tree to the new node, step after step.
             loop {
                 match extend(checker, &mut b, &q, range, None) {
@@ -303,7 +304,7 @@ impl RrtConnect {
 /// four sets of the LoCoBot's took 17–25 % fewer instructions, Sawyer's shelf 22 % and its
 /// clutter 74 % (its hardest problem's 1.5 s became 62 ms), for paths as long (BENCHMARKS).
 fn smaller_first(a: &mut Tree, b: &mut Tree, a_is_start: &mut bool) {
-    if b.q.len() <= a.q.len() {
+    if b.len() <= a.len() {
         std::mem::swap(a, b);
         *a_is_start = !*a_is_start;
     }
@@ -436,18 +437,18 @@ mod tests {
         let tree = |n: usize| {
             let mut t = Tree::new(&[0.0]);
             for i in 1..n {
-                t.add(vec![i as f64], i - 1);
+                t.add(&[i as f64], i - 1);
             }
             t
         };
         // The tree that just grew is still the smaller: it grows again, ends unchanged.
         let (mut a, mut b, mut a_is_start) = (tree(2), tree(5), true);
         smaller_first(&mut a, &mut b, &mut a_is_start);
-        assert_eq!((a.q.len(), b.q.len(), a_is_start), (2, 5, true));
+        assert_eq!((a.len(), b.len(), a_is_start), (2, 5, true));
         // It is now the larger: the other grows next.
         let (mut a, mut b, mut a_is_start) = (tree(6), tree(5), true);
         smaller_first(&mut a, &mut b, &mut a_is_start);
-        assert_eq!((a.q.len(), b.q.len(), a_is_start), (5, 6, false));
+        assert_eq!((a.len(), b.len(), a_is_start), (5, 6, false));
         // A tie: the other one.
         let (mut a, mut b, mut a_is_start) = (tree(5), tree(5), false);
         smaller_first(&mut a, &mut b, &mut a_is_start);

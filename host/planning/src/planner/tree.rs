@@ -5,9 +5,12 @@ use super::diagonal;
 use crate::checker::Checker;
 use crate::joint_space::dist;
 
-/// A tree of configurations.
+/// A tree of configurations, stored one after another (a nearest-node search reads them in
+/// order, from one allocation).
 pub(super) struct Tree {
-    pub(super) q: Vec<Vec<f64>>,
+    /// The configurations, [`Tree::dof`] values each, rad.
+    flat: Vec<f64>,
+    dof: usize,
     pub(super) parent: Vec<usize>,
     /// Each node's dynamic domain, rad: infinite until an extension from it is trapped.
     pub(super) domain: Vec<f64>,
@@ -16,15 +19,26 @@ pub(super) struct Tree {
 impl Tree {
     pub(super) fn new(root: &[f64]) -> Self {
         Tree {
-            q: vec![root.to_vec()],
+            flat: root.to_vec(),
+            dof: root.len(),
             parent: vec![usize::MAX],
             domain: vec![f64::INFINITY],
         }
     }
 
+    /// Nodes.
+    pub(super) fn len(&self) -> usize {
+        self.parent.len()
+    }
+
+    /// Node `i`'s configuration.
+    pub(super) fn node(&self, i: usize) -> &[f64] {
+        &self.flat[i * self.dof..(i + 1) * self.dof]
+    }
+
     pub(super) fn nearest(&self, q: &[f64]) -> usize {
         let mut best = (f64::INFINITY, 0);
-        for (i, n) in self.q.iter().enumerate() {
+        for (i, n) in self.flat.chunks_exact(self.dof.max(1)).enumerate() {
             let d: f64 = n.iter().zip(q).map(|(a, b)| (a - b) * (a - b)).sum();
             if d < best.0 {
                 best = (d, i);
@@ -33,18 +47,18 @@ impl Tree {
         best.1
     }
 
-    pub(super) fn add(&mut self, q: Vec<f64>, parent: usize) -> usize {
-        self.q.push(q);
+    pub(super) fn add(&mut self, q: &[f64], parent: usize) -> usize {
+        self.flat.extend_from_slice(q);
         self.parent.push(parent);
         self.domain.push(f64::INFINITY);
-        self.q.len() - 1
+        self.len() - 1
     }
 
     /// Configurations from the root to node `i`.
     pub(super) fn branch(&self, mut i: usize) -> Vec<Vec<f64>> {
         let mut out = Vec::new();
         while i != usize::MAX {
-            out.push(self.q[i].clone());
+            out.push(self.node(i).to_vec());
             i = self.parent[i];
         }
         out.reverse();
@@ -118,7 +132,7 @@ pub(super) fn extend(
     domain: Option<&Domain>,
 ) -> Grow {
     let near = tree.nearest(target);
-    let from = &tree.q[near];
+    let from = tree.node(near);
     let d = dist(from, target);
     if domain.is_some() && d > tree.domain[near] {
         return Grow::Outside;
@@ -142,7 +156,7 @@ pub(super) fn extend(
     if !free {
         return Grow::Trapped;
     }
-    let i = tree.add(q, near);
+    let i = tree.add(&q, near);
     if reached {
         Grow::Reached(i)
     } else {
