@@ -116,8 +116,10 @@ def objects_of(d: dict) -> list:
     return out
 
 
-def run_vamp(problems: list) -> list:
-    """VAMP's RRT-Connect and simplification on each (name, problem dict), defaults."""
+def run_vamp(problems: list, repeats: int = 1) -> list:
+    """VAMP's RRT-Connect and simplification on each (name, problem dict), defaults; each
+    problem planned `repeats` times (the same path: its sampler is reset), its median time
+    kept."""
     import vamp
 
     (module, planner, plan_settings, simp_settings) = vamp.configure_robot_and_planner_with_kwargs(
@@ -127,17 +129,22 @@ def run_vamp(problems: list) -> list:
     rows = []
     for name, d in problems:
         env = vamp.problem_dict_to_vamp(d)
-        sampler.reset()
-        t0 = time.perf_counter()
-        result = planner(d["start"], d["goals"], env, plan_settings, sampler)
-        row = {"name": name, "success": bool(result.solved)}
-        if result.solved:
+        runs = []
+        for _ in range(repeats):
+            sampler.reset()
+            t0 = time.perf_counter()
+            result = planner(d["start"], d["goals"], env, plan_settings, sampler)
+            if not result.solved:
+                break
             simple = module.simplify(result.path, env, simp_settings, sampler)
             wall = time.perf_counter() - t0
-            r = vamp.results_to_dict(result, simple)
+            runs.append((vamp.results_to_dict(result, simple), wall))
+        row = {"name": name, "success": len(runs) == repeats}
+        if row["success"]:
+            r, _ = runs[0]
             row.update(
-                time_ms=r["total_time"].total_seconds() * 1e3,
-                wall_ms=wall * 1e3,
+                time_ms=statistics.median(r["total_time"].total_seconds() * 1e3 for r, _ in runs),
+                wall_ms=statistics.median(w for _, w in runs) * 1e3,
                 # Its cost: the joint-space Euclidean length, as ours.
                 path_rad=float(r["simplified_path_cost"]),
             )
@@ -145,38 +152,55 @@ def run_vamp(problems: list) -> list:
     return rows
 
 
-def run_ours(ferrobot: str, out: Path, names: list, engine: str, extra: list) -> list:
+def run_ours(
+    ferrobot: str, out: Path, names: list, engine: str, extra: list, repeats: int = 1
+) -> list:
     """`ferrobot bench plan` on each problem file, one process per problem, its edges proven
-    by `engine` (`bench plan --engine`), with `extra` arguments."""
+    by `engine` (`bench plan --engine`), with `extra` arguments; each problem planned
+    `repeats` times (the same seed, the same path), its median time kept."""
     rows = []
     for name in names:
-        res = subprocess.run(
-            [
-                ferrobot,
-                "bench",
-                "plan",
-                "--config",
-                str(out / "panda.toml"),
-                "--problems-file",
-                str(out / "problems" / f"{name}.json"),
-                "--json",
-                "--engine",
-                engine,
-                *extra,
-            ],
-            capture_output=True,
-            text=True,
-            check=False,
-        )
-        d = json.loads(res.stdout)
-        ok = d.get("success_rate") == 1.0
-        row = {"name": name, "success": ok}
-        if ok:
-            row.update(time_ms=d["time_ms"]["median"], path_rad=d["path_length_rad"]["median"])
-        else:
-            row["error"] = d.get("error", res.stderr.strip()[-300:])
+        row = None
+        times = []
+        for _ in range(repeats):
+            row = plan_ours(ferrobot, out, name, engine, extra)
+            if not row["success"]:
+                break
+            times.append(row["time_ms"])
+        if row["success"]:
+            row["time_ms"] = statistics.median(times)
         rows.append(row)
     return rows
+
+
+def plan_ours(ferrobot: str, out: Path, name: str, engine: str, extra: list) -> dict:
+    """One run of `ferrobot bench plan` on problem `name`."""
+    res = subprocess.run(
+        [
+            ferrobot,
+            "bench",
+            "plan",
+            "--config",
+            str(out / "panda.toml"),
+            "--problems-file",
+            str(out / "problems" / f"{name}.json"),
+            "--json",
+            "--engine",
+            engine,
+            *extra,
+        ],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    d = json.loads(res.stdout)
+    ok = d.get("success_rate") == 1.0
+    row = {"name": name, "success": ok}
+    if ok:
+        row.update(time_ms=d["time_ms"]["median"], path_rad=d["path_length_rad"]["median"])
+    else:
+        row["error"] = d.get("error", res.stderr.strip()[-300:])
+    return row
 
 
 def summary(rows: list) -> dict:
@@ -202,6 +226,13 @@ def main() -> int:
         type=float,
         default=1.0,
         help="the Panda's extension step for ours, rad (1.0: VAMP's own default; 0: none)",
+    )
+    ap.add_argument(
+        "--repeats",
+        type=int,
+        default=1,
+        help="plan each problem this many times, both planners, and keep its median time "
+        "(the same path each time: both are seeded; repeats steady a busy machine's times)",
     )
     ap.add_argument("--shortcuts", type=int, help="ours: `bench plan --shortcuts` (its default)")
     ap.add_argument("--smoothing", type=int, help="ours: `bench plan --smoothing` (its default)")
@@ -231,12 +262,13 @@ def main() -> int:
             }
             (out / "problems" / f"{name}.json").write_text(json.dumps(file))
             problems.append((name, dict(d, goals=[goal])))
-    vamp_rows = run_vamp(problems)
+    vamp_rows = run_vamp(problems, args.repeats)
     (out / "vamp.json").write_text(json.dumps(vamp_rows))
     for engine in [e for e in args.engines.split(",") if e]:
         extra = [] if args.smoothing is None else ["--smoothing", str(args.smoothing)]
         extra += [] if args.shortcuts is None else ["--shortcuts", str(args.shortcuts)]
-        ours_rows = run_ours(args.ferrobot, out, [n for n, _ in problems], engine, extra)
+        names = [n for n, _ in problems]
+        ours_rows = run_ours(args.ferrobot, out, names, engine, extra, args.repeats)
         (out / f"ferrobot-{engine}.json").write_text(json.dumps(ours_rows))
         print(f"\nours with --engine {engine}:\n")
         print("| set | VAMP success | VAMP median ms | VAMP p95 ms | VAMP path rad | ours success "

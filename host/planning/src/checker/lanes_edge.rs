@@ -132,6 +132,8 @@ pub(super) struct WalkScratch {
     limit: Vec<f32>,
     /// Per body, then per pair: the clearance beyond which nothing is measured, m.
     caps: Vec<f32>,
+    /// Each joint's motion over the edge, `|b − a|` (rad or m).
+    moves: Vec<f64>,
     motion: Vec<f32>,
     candidates: Candidates,
 }
@@ -232,16 +234,20 @@ impl Checker {
         };
         let walk = {
             let mut s = self.walk_scratch.borrow_mut();
-            s.motion.clear();
+            let s = &mut *s;
             // The walk's bodies' and pairs' motion bounds ([`Checker::speeds`]' for them),
             // rounded up into `f32`.
-            let up = |r: &[f64]| (super::edge::along(r, a, b) * (1.0 + 1e-6)) as f32;
+            s.moves.clear();
+            s.moves.extend(a.iter().zip(b).map(|(x, y)| (x - y).abs()));
+            let moves = &s.moves;
+            let up = |r: &[f64]| (super::edge::along_moves(r, moves) * (1.0 + 1e-6)) as f32;
             let bodies = checks.bodies.iter().map(|&b| up(&self.body_reach[b]));
             let pairs = checks.pair_of.iter().map(|&p| up(&self.pair_reach[p]));
+            s.motion.clear();
             s.motion.extend(bodies.chain(pairs));
             let k = checks.count();
             let mut walker = Walker {
-                s: &mut s,
+                s,
                 k,
                 exact: &mut exact,
             };
