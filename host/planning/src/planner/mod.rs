@@ -250,17 +250,22 @@ impl RrtConnect {
         let mut a_is_start = true;
         let domain = opts.dynamic_domain.then(|| Domain::for_checker(checker));
         let mut target = Vec::with_capacity(limits.len());
-        let mut round = 0usize;
+        // Draws refused outside a domain since the clock was read: most rounds are only a
+        // draw and a nearest node, and the clock is read after an edge or 16 such rounds.
+        let mut refused = 0usize;
         loop {
-            // The clock read every 16 rounds: most rounds are a draw and a nearest node.
-            round = round.wrapping_add(1);
-            if round % 16 == 0 && t0.elapsed() > opts.time_limit {
+            if refused.is_multiple_of(16) && t0.elapsed() > opts.time_limit {
                 return Err(Error::Timeout {
                     seconds: opts.time_limit.as_secs_f64(),
                 });
             }
             sample_into(rng, &limits, &mut target);
-            let new = match extend(checker, &mut a, &target, range, domain.as_ref()) {
+            let grow = extend(checker, &mut a, &target, range, domain.as_ref());
+            refused = match grow {
+                Grow::Outside => refused + 1,
+                _ => 0,
+            };
+            let new = match grow {
                 // Drawn again, for the same tree.
                 Grow::Outside => continue,
                 Grow::Trapped => {
