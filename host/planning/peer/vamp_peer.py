@@ -3,6 +3,7 @@
 MotionBenchMaker problems for the Panda, and ours on the same problems, in one run.
 
   vamp_peer.py PANDA_DIR OUT_DIR [--ferrobot target/release/ferrobot] [--sets table_pick,box]
+               [--engines auto,baseline] [--repeats 3]
       PANDA_DIR is VAMP's `resources/panda` (from the `vamp-planner` source distribution) after
       VAMP's `resources/problem_tar_to_pkl_json.py --robot panda` made its `problems.pkl`.
       Writes into OUT_DIR:
@@ -20,9 +21,11 @@ MotionBenchMaker problems for the Panda, and ours on the same problems, in one r
 Times: VAMP's are its own clock (`results_to_dict`'s total_time: RRT-Connect and
 simplification, without the Python bindings' overhead, which the wall clock beside it
 shows); ours are `bench plan`'s (search and shortcutting, per problem, without loading the
-robot). Both planners run with their defaults, one problem at a time, on one core. VAMP
-checks edges at a fixed joint-space resolution; ours are proven free by conservative
-advancement (a different guarantee, paid for in time).
+robot). Both planners run with their defaults, one problem at a time, on one core: VAMP then
+each engine of ours on each problem before the next, so that a machine's changing load falls
+on both; with --repeats N each plans each problem N times (the same path) and its median time
+is kept. VAMP checks edges at a fixed joint-space resolution; ours are proven free between
+the states checked (a different guarantee, paid for in time).
 
 Run with a Python that has VAMP (`pip install vamp-planner`, which builds it from source:
 cmake, a C++17 compiler and Eigen 3) and numpy; see BENCHMARKS.md for the command used.
@@ -116,18 +119,18 @@ def objects_of(d: dict) -> list:
     return out
 
 
-def run_vamp(problems: list, repeats: int = 1) -> list:
-    """VAMP's RRT-Connect and simplification on each (name, problem dict), defaults; each
-    problem planned `repeats` times (the same path: its sampler is reset), its median time
-    kept."""
+def vamp_planner(repeats: int = 1):
+    """A function planning one (name, problem dict) with VAMP's RRT-Connect and
+    simplification, defaults, `repeats` times (the same path: its sampler is reset): the row
+    with its median time."""
     import vamp
 
     (module, planner, plan_settings, simp_settings) = vamp.configure_robot_and_planner_with_kwargs(
         "panda", "rrtc"
     )
     sampler = module.halton()
-    rows = []
-    for name, d in problems:
+
+    def plan(name: str, d: dict) -> dict:
         env = vamp.problem_dict_to_vamp(d)
         runs = []
         for _ in range(repeats):
@@ -148,29 +151,26 @@ def run_vamp(problems: list, repeats: int = 1) -> list:
                 # Its cost: the joint-space Euclidean length, as ours.
                 path_rad=float(r["simplified_path_cost"]),
             )
-        rows.append(row)
-    return rows
+        return row
+
+    return plan
 
 
-def run_ours(
-    ferrobot: str, out: Path, names: list, engine: str, extra: list, repeats: int = 1
-) -> list:
-    """`ferrobot bench plan` on each problem file, one process per problem, its edges proven
-    by `engine` (`bench plan --engine`), with `extra` arguments; each problem planned
-    `repeats` times (the same seed, the same path), its median time kept."""
-    rows = []
-    for name in names:
-        row = None
-        times = []
-        for _ in range(repeats):
-            row = plan_ours(ferrobot, out, name, engine, extra)
-            if not row["success"]:
-                break
-            times.append(row["time_ms"])
-        if row["success"]:
-            row["time_ms"] = statistics.median(times)
-        rows.append(row)
-    return rows
+def ours_planned(
+    ferrobot: str, out: Path, name: str, engine: str, extra: list, repeats: int = 1
+) -> dict:
+    """`ferrobot bench plan` on problem `name`'s file, one process per run, its edges proven
+    by `engine` (`bench plan --engine`), with `extra` arguments, `repeats` times (the same
+    seed, the same path): the row with its median time."""
+    row, times = None, []
+    for _ in range(repeats):
+        row = plan_ours(ferrobot, out, name, engine, extra)
+        if not row["success"]:
+            break
+        times.append(row["time_ms"])
+    if row["success"]:
+        row["time_ms"] = statistics.median(times)
+    return row
 
 
 def plan_ours(ferrobot: str, out: Path, name: str, engine: str, extra: list) -> dict:
@@ -262,13 +262,20 @@ def main() -> int:
             }
             (out / "problems" / f"{name}.json").write_text(json.dumps(file))
             problems.append((name, dict(d, goals=[goal])))
-    vamp_rows = run_vamp(problems, args.repeats)
+    engines = [e for e in args.engines.split(",") if e]
+    extra = [] if args.smoothing is None else ["--smoothing", str(args.smoothing)]
+    extra += [] if args.shortcuts is None else ["--shortcuts", str(args.shortcuts)]
+    # One problem at a time, VAMP then each engine of ours: every planner meets the machine
+    # as it is at that moment (another process's load shifts both, not one).
+    vamp_one = vamp_planner(args.repeats)
+    vamp_rows, ours = [], {e: [] for e in engines}
+    for name, d in problems:
+        vamp_rows.append(vamp_one(name, d))
+        for e in engines:
+            ours[e].append(ours_planned(args.ferrobot, out, name, e, extra, args.repeats))
     (out / "vamp.json").write_text(json.dumps(vamp_rows))
-    for engine in [e for e in args.engines.split(",") if e]:
-        extra = [] if args.smoothing is None else ["--smoothing", str(args.smoothing)]
-        extra += [] if args.shortcuts is None else ["--shortcuts", str(args.shortcuts)]
-        names = [n for n, _ in problems]
-        ours_rows = run_ours(args.ferrobot, out, names, engine, extra, args.repeats)
+    for engine in engines:
+        ours_rows = ours[engine]
         (out / f"ferrobot-{engine}.json").write_text(json.dumps(ours_rows))
         print(f"\nours with --engine {engine}:\n")
         print("| set | VAMP success | VAMP median ms | VAMP p95 ms | VAMP path rad | ours success "
@@ -281,7 +288,7 @@ def main() -> int:
             print(
                 f"| {s} | {v['success']:.0%} | {v['median_ms']:.3f} | {v['p95_ms']:.2f} | "
                 f"{v['path_rad']:.2f} | {o['success']:.0%} | {o['median_ms']:.3f} | "
-                f"{o['p95_ms']:.2f} | {o['path_rad']:.2f} | {o['median_ms'] / v['median_ms']:.1f}× |"
+                f"{o['p95_ms']:.2f} | {o['path_rad']:.2f} | {o['median_ms'] / v['median_ms']:.2f}× |"
             )
     walls = [r["wall_ms"] for r in vamp_rows if r["success"]]
     if walls:
