@@ -314,11 +314,6 @@ pub(super) fn along(reach: &[f64], a: &[f64], b: &[f64]) -> f64 {
         .sum()
 }
 
-/// [`along`] with the joints' motions `|b − a|` given (`moves`, rad or m): the same sum.
-pub(super) fn along_moves(reach: &[f64], moves: &[f64]) -> f64 {
-    reach.iter().zip(moves).map(|(r, d)| r * d).sum()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

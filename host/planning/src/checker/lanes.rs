@@ -17,10 +17,6 @@ pub struct LaneChecks {
     world: Vec<Environment>,
     /// Moving pairs, as bodies of `program`.
     pairs: Vec<(usize, usize)>,
-    /// The checker's body behind each of `program`'s.
-    pub(super) bodies: Vec<usize>,
-    /// The checker's pair behind each of `pairs`.
-    pub(super) pair_of: Vec<usize>,
     /// Every obstacle of each body and every pair.
     all: Candidates,
     /// Where each body's obstacles, then the pairs, start in [`LaneChecks::measure`]'s
@@ -30,6 +26,9 @@ pub struct LaneChecks {
     /// the shapes themselves (spheres and primitives), so that spheres in contact are shapes
     /// in contact.
     pub(super) exact: Vec<bool>,
+    /// The checker's reach (m per rad or m) of each body, then each pair, joint by joint:
+    /// [`LaneChecks::count`] values per planned joint, for [`LaneChecks::motion_bounds`].
+    reach: Vec<f64>,
 }
 
 /// Buffers of [`LaneChecks::clearance`].
@@ -136,15 +135,22 @@ impl Checker {
                 own_exact(a) && own_exact(b)
             }))
             .collect();
+        let rows: Vec<&Vec<f64>> = moving
+            .iter()
+            .map(|&b| &self.body_reach[b])
+            .chain(pair_of.iter().map(|&p| &self.pair_reach[p]))
+            .collect();
+        let reach = (0..self.model.dof())
+            .flat_map(|j| rows.iter().map(move |r| r[j]))
+            .collect();
         let mut checks = LaneChecks {
             program,
             world,
             pairs,
-            bodies: moving,
-            pair_of,
             all: Candidates::default(),
             exact,
             slots: Vec::new(),
+            reach,
         };
         checks.all = Candidates::all(&checks);
         let mut slot = 0;
@@ -410,6 +416,20 @@ impl LaneChecks {
             }
         }
         (Candidates { obstacles, pairs }, floors)
+    }
+
+    /// Each body's, then each pair's, largest point motion (m) over an edge on which the
+    /// planned joints move by `moves` (`|b − a|`, rad or m), into `sums`: the checker's speeds
+    /// of them, the same sums in the same order, all bodies and pairs a joint at a time.
+    pub(super) fn motion_bounds(&self, moves: &[f64], sums: &mut Vec<f64>) {
+        let k = self.count();
+        sums.clear();
+        sums.resize(k, 0.0);
+        for (row, &d) in self.reach.chunks_exact(k.max(1)).zip(moves) {
+            for (sum, &r) in sums.iter_mut().zip(row) {
+                *sum += r * d;
+            }
+        }
     }
 
     /// Slots of [`LaneChecks::measure`]'s `nearest`.

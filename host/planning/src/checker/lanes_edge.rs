@@ -134,6 +134,8 @@ pub(super) struct WalkScratch {
     caps: Vec<f32>,
     /// Each joint's motion over the edge, `|b − a|` (rad or m).
     moves: Vec<f64>,
+    /// Each body's and pair's motion bound over the edge, m ([`LaneChecks::motion_bounds`]).
+    sums: Vec<f64>,
     motion: Vec<f32>,
     candidates: Candidates,
 }
@@ -239,12 +241,10 @@ impl Checker {
             // rounded up into `f32`.
             s.moves.clear();
             s.moves.extend(a.iter().zip(b).map(|(x, y)| (x - y).abs()));
-            let moves = &s.moves;
-            let up = |r: &[f64]| (super::edge::along_moves(r, moves) * (1.0 + 1e-6)) as f32;
-            let bodies = checks.bodies.iter().map(|&b| up(&self.body_reach[b]));
-            let pairs = checks.pair_of.iter().map(|&p| up(&self.pair_reach[p]));
+            checks.motion_bounds(&s.moves, &mut s.sums);
             s.motion.clear();
-            s.motion.extend(bodies.chain(pairs));
+            s.motion
+                .extend(s.sums.iter().map(|&m| (m * (1.0 + 1e-6)) as f32));
             let k = checks.count();
             let mut walker = Walker {
                 s,
