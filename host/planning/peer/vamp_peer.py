@@ -242,6 +242,8 @@ def main() -> int:
         help="comma-separated `bench plan --engine`s to run ours with, one table each (auto)",
     )
     args = ap.parse_args()
+    if args.repeats < 1:
+        ap.error(f"--repeats {args.repeats}: at least 1")
     with open(args.panda_dir / "problems.pkl", "rb") as f:
         data = pickle.load(f)["problems"]
     sets = [s for s in args.sets.split(",") if s] or list(data)

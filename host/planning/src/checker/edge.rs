@@ -156,9 +156,15 @@ impl Checker {
     /// Each body's largest point motion (m) over the edge from `a` to `b`, and each moving
     /// pair's largest relative motion.
     pub(super) fn speeds(&self, a: &[f64], b: &[f64]) -> Speeds {
+        let along = |r: &Vec<f64>| -> f64 {
+            r.iter()
+                .zip(a.iter().zip(b))
+                .map(|(r, (x, y))| r * (x - y).abs())
+                .sum()
+        };
         Speeds {
-            body: self.body_reach.iter().map(|r| along(r, a, b)).collect(),
-            pair: self.pair_reach.iter().map(|r| along(r, a, b)).collect(),
+            body: self.body_reach.iter().map(along).collect(),
+            pair: self.pair_reach.iter().map(along).collect(),
         }
     }
 
@@ -302,16 +308,6 @@ fn rake(total: f64, spacing: f64) -> impl Iterator<Item = f64> {
         let n = 2u32 << l;
         (1..n).step_by(2).map(move |k| f64::from(k) / f64::from(n))
     }))
-}
-
-/// The largest point motion (m) over the edge from `a` to `b` of what moves at most `reach`
-/// per unit of each joint (m/rad or m/m): [`Checker::speeds`]' sum.
-pub(super) fn along(reach: &[f64], a: &[f64], b: &[f64]) -> f64 {
-    reach
-        .iter()
-        .zip(a.iter().zip(b))
-        .map(|(r, (x, y))| r * (x - y).abs())
-        .sum()
 }
 
 #[cfg(test)]

@@ -36,56 +36,37 @@ pub struct Frame<L> {
 /// Rotation and translation of a constant frame, `f32`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Constant {
-    r: Rotation,
+    /// Rotation, row-major.
+    r: [f32; 9],
+    /// Where the rotation is a signed permutation of the axes (the URDF's right angles): for
+    /// each column `j`, the column of the identity it is, and whether it is negated.
+    axes: Option<([usize; 3], [bool; 3])>,
     t: [f32; 3],
-}
-
-/// A constant rotation: a signed permutation of the axes (the URDF's right angles), or any.
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum Rotation {
-    /// Column `j` is column `from[j]` of the identity, negated where `negate[j]`.
-    Axes { from: [usize; 3], negate: [bool; 3] },
-    /// Row-major.
-    Any([f32; 9]),
 }
 
 impl Constant {
     fn of(r: &Matrix3<f64>, t: &Vector3<f64>) -> Self {
-        let dense: [f32; 9] = std::array::from_fn(|k| snap(r[(k / 3, k % 3)]));
+        let r: [f32; 9] = std::array::from_fn(|k| snap(r[(k / 3, k % 3)]));
         // Each column one ±1 (a rotation's other entries are then 0).
-        let axis = |j: usize| (0..3).find(|&k| dense[3 * k + j].abs() == 1.0);
-        let r = match (axis(0), axis(1), axis(2)) {
-            (Some(a), Some(b), Some(c)) => Rotation::Axes {
-                from: [a, b, c],
-                negate: [0, 1, 2].map(|j| dense[3 * [a, b, c][j] + j] < 0.0),
-            },
-            _ => Rotation::Any(dense),
+        let axis = |j: usize| (0..3).find(|&k| r[3 * k + j].abs() == 1.0);
+        let axes = match (axis(0), axis(1), axis(2)) {
+            (Some(a), Some(b), Some(c)) => {
+                let from = [a, b, c];
+                Some((from, [0, 1, 2].map(|j| r[3 * from[j] + j] < 0.0)))
+            }
+            _ => None,
         };
         Constant {
             r,
+            axes,
             t: [t.x as f32, t.y as f32, t.z as f32],
-        }
-    }
-
-    /// The rotation, row-major.
-    fn dense(&self) -> [f32; 9] {
-        match self.r {
-            Rotation::Any(m) => m,
-            Rotation::Axes { from, negate } => std::array::from_fn(|k| {
-                let (i, j) = (k / 3, k % 3);
-                match (from[j] == i, negate[j]) {
-                    (false, _) => 0.0,
-                    (true, false) => 1.0,
-                    (true, true) => -1.0,
-                }
-            }),
         }
     }
 
     #[inline(always)]
     fn splat<L: Lane>(&self) -> Frame<L> {
         Frame {
-            r: splat_all(&self.dense()),
+            r: splat_all(&self.r),
             t: splat_all(&self.t),
         }
     }
@@ -375,8 +356,8 @@ fn transform<L: Lane>(f: &Frame<L>, p: &[f32; 3]) -> [L; 3] {
 #[inline(always)]
 fn after<L: Lane>(f: &Frame<L>, c: &Constant) -> Frame<L> {
     let mut r = [L::splat(0.0); 9];
-    match &c.r {
-        Rotation::Axes { from, negate } => {
+    match &c.axes {
+        Some((from, negate)) => {
             for j in 0..3 {
                 for i in 0..3 {
                     let x = f.r[3 * i + from[j]];
@@ -384,8 +365,8 @@ fn after<L: Lane>(f: &Frame<L>, c: &Constant) -> Frame<L> {
                 }
             }
         }
-        Rotation::Any(m) => {
-            let m: [L; 9] = splat_all(m);
+        None => {
+            let m: [L; 9] = splat_all(&c.r);
             for i in 0..3 {
                 for j in 0..3 {
                     r[3 * i + j] =
